@@ -1,0 +1,42 @@
+# fogsf: every target creates .venv itself on first use.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+FOGSF  := $(VENV)/bin/fogsf
+STAMP  := $(VENV)/.installed
+OUT    ?= out
+
+.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose paper clean
+
+help:
+	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
+	@echo "make test      create .venv and run the whole test suite"
+	@echo "make firmware  build the C kernel (host library; Cortex-M4F image + size if arm-none-eabi-gcc exists)"
+	@echo "make export    export the demo model to ONNX and C headers"
+	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm (root only)"
+	@echo "make bench     speed / size benchmarks -> out/bench.json"
+	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
+	@echo "make lint      ruff"
+
+$(STAMP): pyproject.toml constraints.txt
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q -c constraints.txt -e '.[dev]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check trainer export bindings tests benchmarks
+
+test: $(STAMP)
+	$(VENV)/bin/ruff check trainer export bindings tests benchmarks
+	$(PY) -m pytest -q tests
+
+demo: $(STAMP)
+	bash scripts/demo.sh $(OUT)/demo
+
+toolchain:
+	bash scripts/toolchain.sh
+
+clean:
+	rm -rf build out models

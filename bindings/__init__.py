@@ -1,0 +1,1 @@
+"""cffi loading of the compiled C kernel and the per-sample replay."""

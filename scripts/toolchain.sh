@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Install the Cortex-M4F cross toolchain and QEMU when missing (Debian, root only).
+set -u
+need=()
+command -v arm-none-eabi-gcc >/dev/null 2>&1 || need+=(gcc-arm-none-eabi)
+[ -e /usr/lib/arm-none-eabi/newlib ] || [ -e /usr/lib/arm-none-eabi/lib ] || need+=(libnewlib-arm-none-eabi)
+command -v qemu-system-arm >/dev/null 2>&1 || need+=(qemu-system-arm)
+if [ ${#need[@]} -eq 0 ]; then
+    echo "toolchain: arm-none-eabi-gcc and qemu-system-arm present"
+    exit 0
+fi
+if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then
+    echo "toolchain: skipped (need root and apt-get to install: ${need[*]}); Cortex-M4F checks will be skipped"
+    exit 0
+fi
+echo "toolchain: installing ${need[*]}"
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -qq && apt-get install -y -qq "${need[@]}" >/dev/null
+command -v arm-none-eabi-gcc >/dev/null && command -v qemu-system-arm >/dev/null \
+    && echo "toolchain: installed" || { echo "toolchain: install failed"; exit 1; }

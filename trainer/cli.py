@@ -1,0 +1,58 @@
+"""The `fogsf` entry point: one sub-command per module in trainer.commands."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from trainer import __version__
+from trainer.errors import UserError
+
+# name -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("trainer.commands.simulate",
+                 "simulate a FOG on a rate table in a temperature chamber (writes a log)"),
+    "inspect": ("trainer.commands.inspect",
+                "a chamber log's summary and SF-error metrics: run this first on a new log"),
+    "train": ("trainer.commands.train",
+              "train a compensation model (poly, polyrate, mlp, lstm, gsa-lstm)"),
+    "export": ("trainer.commands.export", "export a trained model to ONNX and C headers"),
+    "replay": ("trainer.commands.replay",
+               "run the compiled C kernel over a log, sample by sample"),
+    "diagnose": ("trainer.commands.diagnose",
+                 "fit the simulator to measured logs, name what it misses, extend it"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fogsf",
+        description="Fiber-optic gyro thermal scale-factor error: from chamber logs to "
+                    "firmware. Run `fogsf COMMAND --help` for each command.",
+    )
+    parser.add_argument("--version", action="version", version=f"fogsf {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (module, help_text) in COMMANDS.items():
+        mod = importlib.import_module(module)
+        p = sub.add_parser(name, help=help_text, description=(mod.__doc__ or help_text).strip(),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        mod.configure(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except UserError as e:
+        print(f"fogsf {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fogsf: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,231 @@
+"""Chamber logs: the CSV format of DESIGN.md, read with every refusal it lists, and written.
+
+A log is one gyro run in the chamber at 10 Hz. Reading never fixes or drops anything: a bad
+file is refused with one `LogError` that names the file, the line and the rule.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from trainer.errors import UserError
+
+REQUIRED = ("time_s", "temp_c", "table_rate_dps", "gyro_dps")
+OPTIONAL = ("earth_rate_dps", "chamber_c")
+NOMINAL_DT_S = 0.1
+# A step between samples must lie within NOMINAL_DT_S +/- DT_TOLERANCE_S (so 0.08..0.12 s):
+# a missed sample (0.2 s) is a gap and is refused.
+DT_TOLERANCE_S = 0.02
+TEMP_RANGE_C = (-60.0, 100.0)
+
+
+class LogError(UserError):
+    """A chamber log that breaks a rule; the message names file, line and rule."""
+
+    def __init__(self, path: str, line: int | None, rule: str, detail: str) -> None:
+        self.path = path
+        self.line = line
+        self.rule = rule
+        self.detail = detail
+        where = f"{path}: line {line}" if line is not None else path
+        super().__init__(f"{where}: {rule}: {detail}")
+
+
+@dataclass
+class ChamberLog:
+    """One chamber run. Arrays are float64 and all of one length."""
+
+    time_s: np.ndarray
+    temp_c: np.ndarray
+    table_rate_dps: np.ndarray
+    gyro_dps: np.ndarray
+    earth_rate_dps: np.ndarray | None = None
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    path: str = "<memory>"
+
+    def __len__(self) -> int:
+        return int(self.time_s.shape[0])
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.time_s[-1] - self.time_s[0]) if len(self) else 0.0
+
+    def earth(self, latitude_deg: float | None = None) -> np.ndarray:
+        """Earth rate on the sensitive axis: the log's column, else from a latitude.
+
+        With neither, nothing is assumed: the refusal asks for --latitude-deg.
+        """
+        if self.earth_rate_dps is not None:
+            return self.earth_rate_dps
+        if latitude_deg is None:
+            raise LogError(self.path, None, "no earth rate",
+                           "the log has no earth_rate_dps column; pass --latitude-deg")
+        return np.full(len(self), earth_rate_vertical_dps(latitude_deg))
+
+    def columns(self) -> dict[str, np.ndarray]:
+        cols = {
+            "time_s": self.time_s,
+            "temp_c": self.temp_c,
+            "table_rate_dps": self.table_rate_dps,
+            "gyro_dps": self.gyro_dps,
+        }
+        if self.earth_rate_dps is not None:
+            cols["earth_rate_dps"] = self.earth_rate_dps
+        cols.update(self.extra)
+        return cols
+
+    def slice(self, start: int, stop: int) -> ChamberLog:
+        """Samples [start, stop) as a new log (arrays are views)."""
+        return ChamberLog(
+            time_s=self.time_s[start:stop],
+            temp_c=self.temp_c[start:stop],
+            table_rate_dps=self.table_rate_dps[start:stop],
+            gyro_dps=self.gyro_dps[start:stop],
+            earth_rate_dps=None if self.earth_rate_dps is None
+            else self.earth_rate_dps[start:stop],
+            extra={k: v[start:stop] for k, v in self.extra.items()},
+            path=self.path,
+        )
+
+
+EARTH_RATE_DPS = 360.0 / 86164.0905  # sidereal day
+
+
+def earth_rate_vertical_dps(latitude_deg: float) -> float:
+    """Earth rate projected on a vertical (up) sensitive axis at a latitude, in deg/s."""
+    return EARTH_RATE_DPS * math.sin(math.radians(latitude_deg))
+
+
+def _is_temperature(name: str) -> bool:
+    return name in ("temp_c", "chamber_c") or (name.startswith("temp_") and name.endswith("_c"))
+
+
+def read_log(path: str | Path) -> ChamberLog:
+    """Read and validate a chamber log; raise LogError on the first broken rule."""
+    p = str(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except FileNotFoundError:
+        raise LogError(p, None, "cannot read", "no such file") from None
+    except UnicodeDecodeError as e:
+        raise LogError(p, None, "cannot read", f"not UTF-8 text ({e.reason})") from None
+    except OSError as e:
+        raise LogError(p, None, "cannot read", e.strerror or str(e)) from None
+    return parse_log(text, p)
+
+
+def parse_log(text: str, path: str = "<memory>") -> ChamberLog:
+    lines = text.splitlines()
+    while lines and not lines[-1].strip():
+        lines.pop()
+    if not lines or not lines[0].strip():
+        raise LogError(path, 1 if lines else None, "empty file", "no header row")
+    header = [h.strip() for h in lines[0].split(",")]
+    seen: set[str] = set()
+    for h in header:
+        if not h:
+            raise LogError(path, 1, "bad header", "an empty column name")
+        if h in seen:
+            raise LogError(path, 1, "bad header", f"column {h!r} appears twice")
+        seen.add(h)
+    missing = [c for c in REQUIRED if c not in seen]
+    if missing:
+        raise LogError(path, 1, "missing required column",
+                       f"{', '.join(missing)} (header has: {', '.join(header)})")
+    if len(lines) < 2:
+        raise LogError(path, 1, "empty file", "a header but no data rows")
+    data = _parse_numbers(lines, header, path)
+    cols = {name: data[:, i] for i, name in enumerate(header)}
+    _validate(cols, path)
+    extra = {k: v for k, v in cols.items() if k not in REQUIRED and k != "earth_rate_dps"}
+    return ChamberLog(
+        time_s=cols["time_s"],
+        temp_c=cols["temp_c"],
+        table_rate_dps=cols["table_rate_dps"],
+        gyro_dps=cols["gyro_dps"],
+        earth_rate_dps=cols.get("earth_rate_dps"),
+        extra=extra,
+        path=path,
+    )
+
+
+def _parse_numbers(lines: list[str], header: list[str], path: str) -> np.ndarray:
+    ncol = len(header)
+    try:
+        data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", dtype=np.float64,
+                          ndmin=2, comments=None)
+    except ValueError:
+        data = None
+    if data is None or data.shape[1] != ncol or data.shape[0] != len(lines) - 1:
+        _find_bad_cell(lines, header, path)
+        raise LogError(path, None, "unreadable", "numbers could not be parsed")  # unreachable
+    bad = ~np.isfinite(data)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise LogError(path, int(r) + 2, "non-finite cell",
+                       f"column {header[c]!r} is {lines[r + 1].split(',')[c].strip()!r}")
+    return data
+
+
+def _find_bad_cell(lines: list[str], header: list[str], path: str) -> None:
+    """The slow path: walk rows to name the first one that does not parse."""
+    for i, line in enumerate(lines[1:], start=2):
+        cells = line.split(",")
+        if len(cells) != len(header):
+            raise LogError(path, i, "wrong number of cells",
+                           f"{len(cells)} cells, header has {len(header)}")
+        for name, cell in zip(header, cells, strict=True):
+            try:
+                float(cell)
+            except ValueError:
+                shown = cell.strip() or "(empty)"
+                raise LogError(path, i, "non-numeric cell",
+                               f"column {name!r} is {shown!r}") from None
+
+
+def _validate(cols: dict[str, np.ndarray], path: str) -> None:
+    t = cols["time_s"]
+    if t.shape[0] >= 2:
+        dt = np.diff(t)
+        nonincr = np.flatnonzero(dt <= 0)
+        if nonincr.size:
+            i = int(nonincr[0])
+            raise LogError(path, i + 3, "time not increasing",
+                           f"time_s {t[i + 1]:g} after {t[i]:g}")
+        off = np.flatnonzero(np.abs(dt - NOMINAL_DT_S) > DT_TOLERANCE_S)
+        if off.size:
+            i = int(off[0])
+            kind = "gap" if dt[i] > NOMINAL_DT_S else "sample rate away from 10 Hz"
+            raise LogError(path, i + 3, kind,
+                           f"step {dt[i]:.4g} s from time_s {t[i]:g}; allowed "
+                           f"{NOMINAL_DT_S:g} +/- {DT_TOLERANCE_S:g} s")
+    zero = np.flatnonzero(cols["table_rate_dps"] == 0.0)
+    if zero.size:
+        raise LogError(path, int(zero[0]) + 2, "zero table rate",
+                       "table_rate_dps must be non-zero (the SF is undefined at rest)")
+    lo, hi = TEMP_RANGE_C
+    for name, v in cols.items():
+        if not _is_temperature(name):
+            continue
+        out = np.flatnonzero((v < lo) | (v > hi))
+        if out.size:
+            i = int(out[0])
+            raise LogError(path, i + 2, "temperature out of range",
+                           f"{name} = {v[i]:g} C, allowed {lo:g}..{hi:g} C")
+
+
+def write_log(path: str | Path, log: ChamberLog) -> None:
+    """Write a log as CSV; the same log gives the same bytes."""
+    cols = log.columns()
+    names = list(cols)
+    data = np.column_stack([np.asarray(cols[n], dtype=np.float64) for n in names])
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write(",".join(names) + "\n")
+        np.savetxt(f, data, delimiter=",", fmt="%.10g")
