@@ -38,5 +38,23 @@ demo: $(STAMP)
 toolchain:
 	bash scripts/toolchain.sh
 
+# --- firmware / export / bench: owned by the export-and-firmware work (issue 4) ---
+firmware: $(STAMP)
+	bash scripts/firmware.sh
+
+export: $(STAMP)
+	bash scripts/export.sh $(OUT)/demo
+
+bench: $(STAMP)
+	bash scripts/bench.sh $(OUT)
+
+# --- paper protocol: owned by the trainer work (issue 3) ---
+paper: $(STAMP)
+	$(PY) -m benchmarks.paper --out $(OUT)/paper
+
+# --- diagnose success rate: owned by the diagnose work (issue 5) ---
+bench-diagnose: $(STAMP)
+	$(PY) -m benchmarks.diagnose_rate --out $(OUT)/bench-diagnose.json
+
 clean:
 	rm -rf build out models
