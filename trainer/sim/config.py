@@ -82,12 +82,12 @@ def _default_sf_terms() -> list[SFTermConfig]:
     # partly stabilised, the Y-waveguide's Km and the D/A gain are tracked by the second
     # (2*pi) loop, so only residuals remain). Calibrated to the paper: see scenarios.py.
     return [
-        SFTermConfig("source wavelength", "lambda", {"source": 1.0}, -1.976, 0.05105),
+        SFTermConfig("source wavelength", "lambda", {"source": 1.0}, 9.858, 0.0),
         SFTermConfig("coil length", "L", {"coil_inner": 0.5, "coil_outer": 0.5}, 0.55, 0.0),
-        SFTermConfig("coil diameter", "D", {"coil_inner": 0.5, "coil_outer": 0.5}, 3.161,
-                     0.08168),
-        SFTermConfig("Y-waveguide Km", "Km", {"coil_inner": 1.0}, -1.186, 0.0),
-        SFTermConfig("D/A gain", "K_DA", {"board": 1.0}, -0.395, 0.0),
+        SFTermConfig("coil diameter", "D", {"coil_inner": 0.5, "coil_outer": 0.5}, 13.14,
+                     -0.3425),
+        SFTermConfig("Y-waveguide Km", "Km", {"coil_inner": 1.0}, 1.643, 0.0),
+        SFTermConfig("D/A gain", "K_DA", {"board": 1.0}, 5.696, 0.0),
     ]
 
 
