@@ -58,15 +58,17 @@ TAU_GRID_S = tuple(float(t) for t in np.geomspace(60.0, 7200.0, 11).round(0))
 
 
 def _lag_design(s: np.ndarray, i: int, j: int) -> np.ndarray:
+    """A cubic in T plus the two lag temperatures, linearly (quadratic lag terms are nearly
+    collinear with T's on a single ramp and extrapolate badly to other ramp rates)."""
     t, a, b = (s[:, k].astype(np.float64) / 50.0 for k in (0, i, j))
-    return np.column_stack([np.ones_like(t), t, t * t, a, a * a, b, b * b])
+    return np.column_stack([np.ones_like(t), t, t * t, t * t * t, a, b])
 
 
 def profile_lag_taus(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
                      latitude_deg: float | None = None,
                      grid: tuple[float, ...] = TAU_GRID_S) -> tuple[tuple[float, float], float]:
-    """(tau_1, tau_2) minimising the held-out windowed RMS of a quadratic least-squares model
-    on T and two lag-filtered temperatures; returns the pair and its score (ppm)."""
+    """(tau_1, tau_2) minimising the held-out windowed RMS of a least-squares model
+    on T and two lag-filtered temperatures (linear in the lags); returns the pair and its score (ppm)."""
     full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
                     filter_alpha(list(grid), fe.decimation))
     data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]

@@ -126,7 +126,7 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
                               else None)
     if kind == "lag-lstm":
         taus = opts.lag_taus_s or _identify_taus(opts, train_logs)
-        spec = make_features(rate_tau_s=opts.rate_tau_s, lag_taus_s=tuple(taus))
+        spec = make_features(lag_taus_s=tuple(taus))
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts))
     return _fit_gsa(opts, train_logs)
 
@@ -287,12 +287,12 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     metrics: dict = {"model": fitted.kind, "window_s": opts.window_s}
     if test_log is not None:
         test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)
-        metrics["noise_floor_ppm"] = test["after"]["noise_floor_ppm"]
+        metrics["noise_floor_ppm"] = test["before"]["noise_floor_ppm"]
         metrics["test"] = test
     metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
     if "noise_floor_ppm" not in metrics:
         first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
-        metrics["noise_floor_ppm"] = first["after"]["noise_floor_ppm"]
+        metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]
     metrics.update({
         "params": fitted.params,
         "weights_bytes": fitted.weights_bytes,
