@@ -56,6 +56,17 @@ def test_config_refuses_unknown_keys_and_bad_values() -> None:
         SimConfig.from_dict(d)
     with pytest.raises(UserError, match="JSON"):
         SimConfig.from_json("{not json")
+    d = SimConfig().to_dict()
+    d["profile"]["rate_c_per_min"] = "fast"
+    with pytest.raises(UserError, match="profile.rate_c_per_min"):
+        SimConfig.from_dict(d)
+    d = SimConfig().to_dict()
+    d["profile"]["cycles"] = 1.5
+    with pytest.raises(UserError, match="whole number"):
+        SimConfig.from_dict(d)
+    d = SimConfig().to_dict()
+    d["thermal"]["nodes"][0]["tau_s"] = 90  # JSON integers are fine where floats are asked
+    assert SimConfig.from_dict(d) == SimConfig()
 
 
 def test_same_seed_same_bytes_other_seed_other_bytes(tmp_path) -> None:

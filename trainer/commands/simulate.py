@@ -59,7 +59,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="switch on an effect (repeatable); see --list-effects")
 
     p = parser.add_argument_group("chamber program")
-    p.add_argument("--profile", choices=["soak", "ramp", "cycle", "steps", "program"])
+    p.add_argument("--profile", choices=["soak", "ramp", "cycle", "steps", "program"],
+                   help="kind of chamber program (the scenario's otherwise; paper: ramp)")
     p.add_argument("--start-c", type=float, help="first (or soak) temperature, C")
     p.add_argument("--stop-c", type=float, help="ramp / cycle end temperature, C")
     p.add_argument("--soak-before-min", type=float, help="soak before a ramp / cycle, min")
@@ -74,7 +75,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="warm: at equilibrium at t=0 (paper); power-on: switched on at t=0")
 
     t = parser.add_argument_group("rate table")
-    t.add_argument("--table", choices=["constant", "alternating", "levels"])
+    t.add_argument("--table", choices=["constant", "alternating", "levels"],
+                   help="schedule kind: constant rate, alternating +/-, or rate levels")
     t.add_argument("--rate-dps", type=float, help="table rate, deg/s (constant / alternating)")
     t.add_argument("--rates-dps", type=_floats, metavar="R1,R2,...", help="rate levels, deg/s")
     t.add_argument("--dwell-s", type=float, help="time on each rate (alternating / levels), s")
@@ -160,22 +162,14 @@ def build_config(args: argparse.Namespace) -> SimConfig:
 
 
 def summary(result: SimResult, window_s: float) -> dict[str, Any]:
-    import numpy as np
+    """`fogsf inspect --json`'s summary of the log, plus the truth behind it."""
+    from trainer.commands.inspect import summary as log_summary
 
-    from trainer.metrics import log_metrics
-
-    log = result.log
-    out = {
-        "samples": len(log),
-        "duration_s": round(log.duration_s, 3),
-        "temp_range_c": [float(log.temp_c.min()), float(log.temp_c.max())],
-        "table_rates_dps": sorted({float(r) for r in np.unique(log.table_rate_dps)}),
-    }
     try:
-        out["metrics"] = log_metrics(log, window_s)
-    except UserError as e:
-        out["metrics"] = None
-        out["metrics_note"] = str(e)
+        out = log_summary(result.log, window_s, None, None)
+    except UserError as e:  # e.g. the board never passes 20 C: no reference SF
+        out = {"samples": len(result.log), "duration_s": result.log.duration_s,
+               "metrics": None, "metrics_note": str(e)}
     out["true_sf_ppm_range"] = [float(result.sf_ppm.min()), float(result.sf_ppm.max())]
     return out
 

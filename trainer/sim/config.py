@@ -252,6 +252,32 @@ def _build(cls: type, d: Any, where: str) -> Any:
             if not isinstance(v, list):
                 raise UserError(f"{where}.{k}: expected a list")
             kwargs[k] = [_build(nested[1], x, f"{where}.{k}[{i}]") for i, x in enumerate(v)]
+    types = {f.name: f.type for f in fields(cls)}
+    for k, v in kwargs.items():
+        kind = types[k]
+        if kind in ("float", "int") and not _finite(v):
+            raise UserError(f"{where}.{k}: expected a finite number, got {v!r}")
+        if kind == "int" and v != int(v):
+            raise UserError(f"{where}.{k}: expected a whole number, got {v!r}")
+        if kind == "float":
+            kwargs[k] = float(v)
+        elif kind == "int":
+            kwargs[k] = int(v)
+        elif kind == "str" and not isinstance(v, str):
+            raise UserError(f"{where}.{k}: expected a string, got {v!r}")
+        elif kind == "list[float]":
+            if not isinstance(v, list) or not all(_finite(x) for x in v):
+                raise UserError(f"{where}.{k}: expected a list of numbers, got {v!r}")
+            kwargs[k] = [float(x) for x in v]
+        elif kind == "list[list[float]]":
+            if not isinstance(v, list) or not all(
+                    isinstance(r, list) and all(_finite(x) for x in r) for r in v):
+                raise UserError(f"{where}.{k}: expected a list of [time_s, temp_c] rows")
+            kwargs[k] = [[float(x) for x in r] for r in v]
+        elif kind == "dict[str, float]":
+            if not isinstance(v, dict) or not all(_finite(x) for x in v.values()):
+                raise UserError(f"{where}.{k}: expected an object of numbers, got {v!r}")
+            kwargs[k] = {str(a): float(x) for a, x in v.items()}
     try:
         return cls(**kwargs)
     except TypeError as e:
