@@ -30,6 +30,16 @@ def test_ramp_up_or_down_at_any_rate_with_soaks(a: float, b: float, rate: float)
     np.testing.assert_allclose(slope, np.sign(b - a) * rate, rtol=1e-6)
 
 
+def test_total_length_cuts_or_holds_a_program() -> None:
+    p = ProfileConfig(kind="ramp", start_c=0.0, stop_c=10.0, rate_c_per_min=1.0,
+                      total_s=300.0)
+    t, c = chamber_series(p, 0.1)
+    assert t[-1] == pytest.approx(300.0) and c[-1] == pytest.approx(5.0)
+    p.total_s = 1200.0
+    t, c = chamber_series(p, 0.1)
+    assert t[-1] == pytest.approx(1200.0) and np.all(c[t >= 600.0] == 10.0)
+
+
 def test_up_down_cycle() -> None:
     p = ProfileConfig(kind="cycle", start_c=-10.0, stop_c=30.0, rate_c_per_min=2.0,
                       soak_s=600.0, cycles=2)

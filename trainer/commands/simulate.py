@@ -66,7 +66,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--soak-before-min", type=float, help="soak before a ramp / cycle, min")
     p.add_argument("--soak-after-min", type=float, help="soak after a ramp, min")
     p.add_argument("--soak-min", type=float, help="soak at each cycle end / step, min")
-    p.add_argument("--duration-min", type=float, help="length of a soak profile, min")
+    p.add_argument("--duration-min", type=float,
+                   help="run length, min: a soak's length; any other program is cut there "
+                        "or held at its last temperature until then")
     p.add_argument("--cycles", type=int, help="number of up-down cycles")
     p.add_argument("--levels-c", type=_floats, metavar="T1,T2,...", help="step temperatures")
     p.add_argument("--program", metavar="CHAMBER.CSV",
@@ -125,11 +127,18 @@ def build_config(args: argparse.Namespace) -> SimConfig:
     for opt, attr, scale in (("ramp_rate", "rate_c_per_min", 1.0), ("start_c", "start_c", 1.0),
                              ("stop_c", "stop_c", 1.0), ("soak_before_min", "soak_before_s", 60),
                              ("soak_after_min", "soak_after_s", 60), ("soak_min", "soak_s", 60),
-                             ("duration_min", "duration_s", 60), ("cycles", "cycles", 1),
+                             ("cycles", "cycles", 1),
                              ("levels_c", "levels_c", 1)):
         v = getattr(args, opt)
         if v is not None:
             setattr(pr, attr, v * scale if scale != 1 else v)
+    if args.duration_min is not None:
+        if args.duration_min <= 0:
+            raise UserError("--duration-min must be > 0")
+        if pr.kind == "soak":
+            pr.duration_s = args.duration_min * 60.0
+        else:
+            pr.total_s = args.duration_min * 60.0
     if args.start:
         cfg.thermal.start = args.start
     tb = cfg.table

@@ -133,6 +133,8 @@ class ProfileConfig:
     and soak_after_s. cycle: start_c -> stop_c -> start_c, `cycles` times, soak_s at each
     end. steps: levels_c one after another at rate_c_per_min, soak_s on each.
     program: points [[time_s, temp_c], ...] (linear between points).
+    total_s: if > 0, the run's length whatever the kind: a longer program is cut there, a
+    shorter one holds its last temperature until then.
     """
 
     kind: str = "ramp"
@@ -146,6 +148,7 @@ class ProfileConfig:
     cycles: int = 1
     levels_c: list[float] = field(default_factory=list)
     points: list[list[float]] = field(default_factory=list)
+    total_s: float = 0.0
 
 
 @dataclass
