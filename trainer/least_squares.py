@@ -68,7 +68,8 @@ def profile_lag_taus(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
                      latitude_deg: float | None = None,
                      grid: tuple[float, ...] = TAU_GRID_S) -> tuple[tuple[float, float], float]:
     """(tau_1, tau_2) minimising the held-out windowed RMS of a least-squares model
-    on T and two lag-filtered temperatures (linear in the lags); returns the pair and its score (ppm)."""
+    on T and two lag-filtered temperatures (linear in the lags); returns the pair and its
+    score (ppm)."""
     full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
                     filter_alpha(list(grid), fe.decimation))
     data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
