@@ -61,9 +61,10 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import Executor
+from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -110,7 +111,8 @@ def accelerations(x: np.ndarray, m: np.ndarray, g: float, k: int, rng: np.random
     heavy = np.argsort(-m, kind="stable")[:k]
     diff = x[heavy][None, :, :] - x[:, None, :]              # (N, K, dim): x_j - x_i
     r = np.sqrt(np.einsum("ikd,ikd->ik", diff, diff))        # Euclidean distance R_ij
-    w = m[heavy][None, :] / (r + eps)                        # (N, K); j == i has diff 0
+    # (N, K) weights; j == i (and any agent on the same spot) has diff 0 and pulls nothing
+    w = np.divide(m[heavy][None, :], r + eps, out=np.zeros_like(r), where=r > 0)
     if rand_per_dim:
         return g * np.einsum("ik,ikd,ikd->id", w, rng.random((n_agents, k, dim)), diff)
     return g * np.einsum("ik,ikd->id", w * rng.random((n_agents, k)), diff)
@@ -244,12 +246,26 @@ def minimize(fitness_fn: Callable, space: Space | Iterable[Param | Mapping | Seq
     return _run(fitness_fn, space, executor, **opts)
 
 
+def _check_picklable(fitness_fn: Callable, executor: Executor | None) -> None:
+    """Worker processes receive the fitness function pickled: say so before they fail."""
+    if not isinstance(executor, ProcessPoolExecutor):
+        return
+    try:
+        pickle.dumps(fitness_fn)
+    except (pickle.PicklingError, AttributeError, TypeError) as e:
+        raise TypeError(f"the fitness function {fitness_fn!r} cannot be sent to worker "
+                        "processes (it is not picklable: use a module-level function or a "
+                        "functools.partial of one), or run inline with executor=None: "
+                        f"{e}") from e
+
+
 def _run(fitness_fn: Callable, space: Space, executor: Executor | None, *, n_agents: int,
          n_iters: int, seed: int | Sequence[int] | None, progress: bool, vectorized: bool,
          cache: bool, g0: float, alpha: float, final_kbest: int, eps: float, bounds: str,
          rand_per_dim: bool, callback: Callable | None) -> GSAResult:
     from tqdm import tqdm
 
+    _check_picklable(fitness_fn, executor)
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     lo, hi = space.lo, space.hi
