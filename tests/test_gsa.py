@@ -11,6 +11,7 @@ import pytest
 
 from trainer.errors import UserError
 from trainer.gsa import (
+    SHORT_BUDGET,
     Param,
     Space,
     SpaceError,
@@ -147,7 +148,8 @@ def test_step_f6_reaches_its_exact_minimum(seed: int) -> None:
 
 # --- mixed spaces, the dict-in fitness path -----------------------------------------------
 
-def test_integer_parameters_are_ints_inside_the_box() -> None:
+@pytest.mark.parametrize("settings", [{}, SHORT_BUDGET, {"bounds": "clip"}])
+def test_integer_parameters_are_ints_inside_the_box(settings: dict) -> None:
     seen: list[dict] = []
 
     def fitness(p: dict) -> float:
@@ -156,7 +158,7 @@ def test_integer_parameters_are_ints_inside_the_box() -> None:
             + (p["hidden"] - 100) ** 2 / 1e4 + math.log10(p["lr"] / 0.01) ** 2
 
     res = minimize(fitness, LSTM_SPACE, n_agents=12, n_iters=25, seed=SEEDS[0],
-                   executor=None, progress=False)
+                   executor=None, progress=False, **settings)
     assert len(seen) == res.n_evals > 0
     for p in [*seen, res.best_params]:
         assert list(p) == ["batch_size", "layers", "hidden", "lr"]
@@ -266,3 +268,17 @@ def test_bad_spaces_and_options_are_refused() -> None:
     with pytest.raises(SpaceError, match="executor must be"):
         minimize(shifted_sphere, [("x", 0, 1)], executor="threads", progress=False)
     assert issubclass(SpaceError, UserError) and issubclass(SpaceError, ValueError)
+
+
+def test_normalize_is_the_same_search_with_g0_scaled_by_the_box() -> None:
+    """In the unit cube, G0 / width gives the raw-coordinate run (forces scale with G)."""
+    space = [Param(f"x{i}", -100, 100) for i in range(5)]
+    raw = minimize(f1_sphere, space, n_agents=12, n_iters=40, seed=SEEDS[0], vectorized=True,
+                   progress=False)
+    unit = minimize(f1_sphere, space, n_agents=12, n_iters=40, seed=SEEDS[0], vectorized=True,
+                    progress=False, normalize=True, g0=100.0 / 200.0, eps=1e-30)
+    assert np.allclose(unit.best_curve, raw.best_curve, rtol=1e-6, atol=0), f"seed {SEEDS[0]}"
+    assert np.allclose(unit.best_position, raw.best_position, rtol=1e-6)
+    other = minimize(f1_sphere, space, n_agents=12, n_iters=40, seed=SEEDS[0], vectorized=True,
+                     progress=False, normalize=True)
+    assert other.best_curve != raw.best_curve
