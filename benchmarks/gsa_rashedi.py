@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.gsa_functions import FUNCTIONS
 from trainer.executors import default_workers, open_executor
 from trainer.gsa import BOUNDS, Param, minimize
+from trainer.gsa_testfunctions import FUNCTIONS
 
 
 def one_run(key: str, run: int, seed: int, n_agents: int, dim: int, n_iters: int,
