@@ -70,7 +70,7 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     flags = (*STRICT, opt, "-fPIC", *(SANITIZE if sanitize else ()))
     key = f"{model.model_id}-{cc}-{_source_hash(flags)}" + ("-san" if sanitize else "")
     out = Path(root) if root is not None else default_build_root()
-    out = out / key
+    out = (out / key).resolve()
     shared, static = out / "libfogsf.so", out / "libfogsf.a"
     if shared.is_file() and static.is_file():
         return KernelBuild(out, shared, static, model.model_id)
