@@ -38,7 +38,7 @@ def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path)
     train, test = logs
     over = FAST if model in ("lstm", "lag-lstm") else {}
     opts = TrainOptions(model=model, progress=False, decimation=50, **over)
-    m = run_training(opts, [train], test, tmp_path / model)
+    m, _ = run_training(opts, [train], test, tmp_path / model)
     before, after = m["test"]["before"], m["test"]["after"]
     # on its own training run every model is far below the uncompensated error
     assert m["train"]["after"]["rms_ppm"] < 0.25 * m["train"]["before"]["rms_ppm"], m
@@ -67,9 +67,9 @@ def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:
 
 def test_same_seed_same_model(logs, tmp_path: Path) -> None:
     train, test = logs
-    a = run_training(TrainOptions(model="lstm", progress=False, seed=3, **FAST), [train], test,
+    a, _ = run_training(TrainOptions(model="lstm", progress=False, seed=3, **FAST), [train], test,
                      tmp_path / "a")
-    b = run_training(TrainOptions(model="lstm", progress=False, seed=3, **FAST), [train], test,
+    b, _ = run_training(TrainOptions(model="lstm", progress=False, seed=3, **FAST), [train], test,
                      tmp_path / "b")
     assert a["test"] == b["test"] and a["model_id"] == b["model_id"]
     wa = (tmp_path / "a" / "stream_weights.npz").read_bytes()
@@ -81,7 +81,7 @@ def test_gsa_lstm_small_budget(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_agents=3, gsa_iters=2,
                         gsa_fitness_iters=8, iters=20, workers=1, lag_taus_s=(300.0, 1200.0))
-    m = run_training(opts, [train], test, tmp_path / "g")
+    m, _ = run_training(opts, [train], test, tmp_path / "g")
     info = json.loads((tmp_path / "g" / "train_info.json").read_text())
     best = info["gsa"]["best_params"]
     assert 1 <= best["layers"] <= 3 and 4 <= best["hidden"] <= 256

@@ -278,8 +278,9 @@ def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,
 
 
 def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
-                 test_log: ChamberLog | None, out_dir: Path) -> dict:
-    """Train, score, and write the model directory; returns metrics.json's content."""
+                 test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, Fitted]:
+    """Train, score, and write the model directory; returns metrics.json's content and the
+    fitted model."""
     t0 = time.perf_counter()
     fitted = fit_model(opts, train_logs)
     train_s = time.perf_counter() - t0
@@ -308,7 +309,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     if fitted.stream_model is not None:
         metrics["model_id"] = fitted.stream_model.model_id
     save(fitted, metrics, out_dir)
-    return metrics
+    return metrics, fitted
 
 
 def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:

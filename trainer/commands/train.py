@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
-    m = run_training(opts, train_logs, test_log, out)
+    m, _ = run_training(opts, train_logs, test_log, out)
     print(format_metrics(m))
     print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
                                          f"{out} --out build/...)" if m["exportable"] else ""))
