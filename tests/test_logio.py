@@ -1,0 +1,123 @@
+"""Chamber-log reader: round trip, speed-independent checks, and every refusal of DESIGN.md."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from trainer.logio import ChamberLog, LogError, parse_log, read_log, write_log
+
+HEADER = "time_s,temp_c,table_rate_dps,gyro_dps"
+
+
+def good_rows(n: int = 5) -> list[str]:
+    return [f"{0.1 * i:.1f},{20.0 + 0.01 * i:.4f},10,10.00{i}" for i in range(n)]
+
+
+def csv(rows: list[str], header: str = HEADER) -> str:
+    return "\n".join([header, *rows]) + "\n"
+
+
+def refused(text: str) -> LogError:
+    with pytest.raises(LogError) as ei:
+        parse_log(text, "x.csv")
+    return ei.value
+
+
+def test_round_trip_keeps_every_column(tmp_path: Path) -> None:
+    n = 1000
+    rng = np.random.default_rng(1)
+    log = ChamberLog(
+        time_s=np.arange(n) * 0.1,
+        temp_c=rng.uniform(-40, 50, n),
+        table_rate_dps=np.where(np.arange(n) % 200 < 100, 10.0, -10.0),
+        gyro_dps=rng.normal(10, 1, n),
+        earth_rate_dps=np.full(n, 0.0023),
+        extra={"chamber_c": rng.uniform(-40, 50, n), "my_note": rng.normal(size=n)},
+    )
+    p = tmp_path / "a.csv"
+    write_log(p, log)
+    back = read_log(p)
+    for name, col in log.columns().items():
+        np.testing.assert_allclose(back.columns()[name], col, rtol=1e-9, atol=1e-12)
+    assert list(back.extra) == ["chamber_c", "my_note"]
+    p2 = tmp_path / "b.csv"
+    write_log(p2, back)
+    assert p.read_bytes() == p2.read_bytes()
+
+
+def test_good_file_reads() -> None:
+    log = parse_log(csv(good_rows()), "x.csv")
+    assert len(log) == 5 and log.earth_rate_dps is None
+    assert log.duration_s == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize(
+    ("text", "rule", "line"),
+    [
+        ("", "empty file", None),
+        ("\n\n", "empty file", None),
+        (HEADER + "\n", "empty file", 1),
+        ("time_s,temp_c,gyro_dps\n0,20,10\n", "missing required column", 1),
+        (HEADER + ",temp_c\n0,20,10,10,20\n", "bad header", 1),
+        (csv(good_rows()[:2] + ["0.2,20,10"]), "wrong number of cells", 4),
+        (csv(good_rows()[:3] + ["0.3,abc,10,10"]), "non-numeric cell", 5),
+        (csv(good_rows()[:3] + ["0.3,,10,10"]), "non-numeric cell", 5),
+        (csv(good_rows()[:1] + ["0.1,nan,10,10"]), "non-finite cell", 3),
+        (csv(good_rows()[:1] + ["0.1,20,inf,10"]), "non-finite cell", 3),
+        (csv(good_rows()[:3] + ["0.2,20,10,10"]), "time not increasing", 5),
+        (csv(good_rows()[:3] + ["0.1,20,10,10"]), "time not increasing", 5),
+        (csv(good_rows()[:3] + ["0.4,20,10,10"]), "gap", 5),
+        (csv(good_rows()[:3] + ["0.25,20,10,10"]), "sample rate away from 10 Hz", 5),
+        (csv(good_rows()[:3] + ["0.3,20,0,10"]), "zero table rate", 5),
+        (csv(good_rows()[:3] + ["0.3,101,10,10"]), "temperature out of range", 5),
+        (csv(good_rows()[:3] + ["0.3,-60.5,10,10"]), "temperature out of range", 5),
+        (csv([r + ",120" for r in good_rows()], HEADER + ",chamber_c"),
+         "temperature out of range", 2),
+        (csv([r + ",-70" for r in good_rows()], HEADER + ",temp_coil_c"),
+         "temperature out of range", 2),
+    ],
+)
+def test_refusals_name_file_line_and_rule(text: str, rule: str, line: int | None) -> None:
+    err = refused(text)
+    assert err.rule == rule
+    assert err.line == line
+    assert str(err).startswith("x.csv")
+    assert rule in str(err)
+
+
+def test_missing_file_and_binary(tmp_path: Path) -> None:
+    with pytest.raises(LogError, match="no such file"):
+        read_log(tmp_path / "nope.csv")
+    p = tmp_path / "bin.csv"
+    p.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(LogError, match="not UTF-8"):
+        read_log(p)
+
+
+def test_unknown_columns_kept_and_temperature_like_names_checked() -> None:
+    text = csv([r + ",500" for r in good_rows()], HEADER + ",pressure_hpa")
+    log = parse_log(text, "x.csv")
+    assert log.extra["pressure_hpa"][0] == 500
+
+
+def test_no_earth_rate_needs_latitude() -> None:
+    log = parse_log(csv(good_rows()), "x.csv")
+    with pytest.raises(LogError, match="latitude"):
+        log.earth()
+    assert log.earth(90.0)[0] == pytest.approx(360 / 86164.0905)
+
+
+def test_cli_refusal_is_one_line_no_traceback(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    p = tmp_path / "bad.csv"
+    p.write_text(csv(good_rows()[:3] + ["0.3,20,0,10"]))
+    r = subprocess.run([sys.executable, "-m", "trainer.cli", "inspect", str(p)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr
+    assert f"{p}: line 5: zero table rate" in r.stderr
