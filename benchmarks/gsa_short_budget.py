@@ -14,7 +14,7 @@ Problems: a bowl sum (u - c)^2 and a rotated ellipsoid (condition 100), random c
 each drawn from a seeded generator. Figure: the best fitness found, mean and median over
 problems (the optimum is 0 up to integer rounding).
 
-    python -m benchmarks.gsa_short_budget [--problems 40] [--budgets 10x20 20x30]
+    python -m benchmarks.gsa_short_budget [--problems 40] [--budgets 8x8 10x20 20x30]
 """
 
 from __future__ import annotations
@@ -72,8 +72,8 @@ def main(argv: list[str] | None = None) -> int:
                                  description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--problems", type=int, default=40, help="problems per kind (40)")
-    ap.add_argument("--budgets", nargs="+", default=["10x20", "20x30"],
-                    help="AGENTSxITERATIONS budgets (10x20 20x30)")
+    ap.add_argument("--budgets", nargs="+", default=["8x8", "10x20", "20x30"],
+                    help="AGENTSxITERATIONS budgets (8x8 10x20 20x30)")
     ap.add_argument("--seed", type=int, default=7, help="seed of the problem draw (7)")
     ap.add_argument("--out", default="out/gsa_short_budget.json", help="JSON output path")
     args = ap.parse_args(argv)

@@ -54,6 +54,26 @@ def test_kbest_falls_linearly_from_n_to_1() -> None:
     assert kbest(10, 10, 20, final_kbest=4) == 4
 
 
+def test_a_run_uses_both_schedules_at_every_iteration(monkeypatch) -> None:
+    import trainer.gsa as gsa
+
+    g_calls, k_calls, k_used = [], [], []
+    real_gravity, real_kbest, real_acc = gsa.gravity, gsa.kbest, gsa.accelerations
+    monkeypatch.setattr(gsa, "gravity", lambda t, T, g0, a: g_calls.append((t, T, g0, a))
+                        or real_gravity(t, T, g0, a))
+    monkeypatch.setattr(gsa, "kbest", lambda t, T, n, f: k_calls.append((t, T, n, f))
+                        or real_kbest(t, T, n, f))
+    monkeypatch.setattr(gsa, "accelerations", lambda x, m, g, k, *r: k_used.append((g, k))
+                        or real_acc(x, m, g, k, *r))
+    gsa.minimize(f1_sphere, [Param("x", -1, 1), Param("y", -1, 1)], n_agents=9, n_iters=12,
+                 seed=1, vectorized=True, progress=False)
+    assert g_calls == [(t, 12, 100.0, 20.0) for t in range(1, 13)]
+    assert k_calls == [(t, 12, 9, 1) for t in range(1, 13)]
+    assert k_used == [(pytest.approx(100 * math.exp(-20 * t / 12)), real_kbest(t, 12, 9))
+                      for t in range(1, 13)]
+    assert k_used[0][1] == 8 and k_used[-1][1] == 1     # t = 1: round(1 + 8 * 11/12) = 8
+
+
 def test_masses_for_minimisation() -> None:
     f = np.array([3.0, 1.0, 5.0, 2.0])
     m = masses(f)

@@ -5,12 +5,13 @@ The same seed must give the same run whichever executor evaluated the agents.
 
 from __future__ import annotations
 
+import os
 from functools import partial
 
 import pytest
 
 from trainer.errors import UserError
-from trainer.executors import dask_executor, open_executor
+from trainer.executors import dask_executor, default_workers, open_executor
 from trainer.gsa import Param, minimize
 from trainer.gsa_testfunctions import shifted_sphere
 
@@ -93,3 +94,13 @@ def test_workers_below_one_refused() -> None:
     with pytest.raises(UserError, match="at least 1"):
         with open_executor(workers=0):
             pass
+
+
+def _threads(_: object) -> str:
+    return os.environ.get("OMP_NUM_THREADS", "")
+
+
+def test_local_workers_share_the_cores() -> None:
+    with open_executor(workers=2) as ex:
+        got = set(ex.map(_threads, range(4)))
+    assert got == {str(max(1, default_workers() // 2))}

@@ -6,12 +6,12 @@ with the details of the authors' reference implementation where the paper is sil
 
 Use::
 
-    from trainer.gsa import Param, minimize
+    from trainer.gsa import SHORT_BUDGET, Param, minimize
 
     space = [Param("batch_size", 8, 256, "int"), Param("layers", 1, 4, "int"),
              Param("hidden", 8, 256, "int"), Param("lr", 1e-4, 1e-1, "log-real")]
     res = minimize(fitness, space, n_agents=20, n_iters=30, seed=1,
-                   executor=None, progress=True)
+                   executor=None, progress=True, **SHORT_BUDGET)
     res.best_params   # {"batch_size": 32, "layers": 2, "hidden": 200, "lr": 0.02}
     res.best_fitness, res.best_curve, res.mean_curve
     res.save_json("gsa.json"); res.plot("gsa_fitness.png")
@@ -50,11 +50,16 @@ The algorithm, iteration t = 1..T (T = ``n_iters``), N agents, positions X, velo
    bound and zeroes the velocity component; ``"random"`` re-draws it uniformly in the box
    and keeps the velocity (Rashedi's reference code).
 
-G is in search-coordinate units: an attracting force has magnitude at most G(t), whatever
-the box, so G0 = 100 makes early steps span any box and the exponential decay sets the
-step size to the box's scale later. Box sizes that differ widely between parameters (in
-search coordinates) make GSA move mostly along the wide ones; see `Space` for how ints and
-log-reals map to search coordinates.
+G is in search-coordinate units: an attracting pull has magnitude at most G(t), whatever
+the box, so G0 = 100 makes early steps span any box and the exponential decay brings the
+step size down to the box's scale later; Rashedi's constants suit T ~ 1000 iterations on
+boxes 2.56..200 wide. Boxes that differ widely between parameters (batch size 8..256 next
+to log10 lr -4..-1) make GSA move mostly along the wide ones. ``normalize=True`` moves the
+agents in the unit cube instead (each parameter's search range mapped to [0, 1]); with the
+same seed it is the raw search with G0 divided by the box width. For hyper-parameter
+searches of tens of iterations use ``minimize(..., **SHORT_BUDGET)`` (normalize, G0 = 3,
+alpha = 2): ``python -m benchmarks.gsa_short_budget`` measures it against random search
+and the defaults at equal evaluation counts.
 """
 
 from __future__ import annotations
@@ -179,6 +184,7 @@ class GSAResult:
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from matplotlib.ticker import MaxNLocator
 
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -190,6 +196,7 @@ class GSAResult:
         finite = finite[np.isfinite(finite)]
         if finite.size and finite.min() > 0 and finite.max() / finite.min() > 100:
             ax.set_yscale("log")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_xlabel("iteration")
         ax.set_ylabel("fitness")
         ax.set_title(f"{title}\nbest {self.best_fitness:.4g} "
