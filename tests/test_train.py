@@ -80,7 +80,7 @@ def test_same_seed_same_model(logs, tmp_path: Path) -> None:
 def test_gsa_lstm_small_budget(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_agents=3, gsa_iters=2,
-                        gsa_fitness_iters=8, iters=20, workers=1, lag_taus_s=(300.0, 1200.0))
+                        gsa_fitness_iters=8, iters=20, workers=1, node=(1200.0, 0.1))
     m, _ = run_training(opts, [train], test, tmp_path / "g")
     info = json.loads((tmp_path / "g" / "train_info.json").read_text())
     best = info["gsa"]["best_params"]
