@@ -148,12 +148,12 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)
         return 2
-    print(f"\n{'model':18s} {'params':>8s} {'flash B':>8s} {'RAM B':>7s} {'host ns':>9s} "
+    print(f"\n{'model':24s} {'params':>8s} {'flash B':>8s} {'RAM B':>7s} {'host ns':>9s} "
           f"{'ORT ns':>9s} {'M4F instr/step':>15s} {'(mean/sample)':>13s}")
     for r in rows:
         def f(v, fmt: str) -> str:  # noqa: ANN001
             return format(v, fmt) if v is not None else "-"
-        print(f"{r['name']:18s} {r['params']:8d} {f(r['flash_bytes'], '8d')} "
+        print(f"{r['name']:24s} {r['params']:8d} {f(r['flash_bytes'], '8d')} "
               f"{f(r['ram_bytes'], '7d')} {r['host_ns_per_step']:9.0f} "
               f"{r['ort_ns_per_step']:9.0f} {f(r['instructions_per_step'], '15d')} "
               f"{f(r.get('instructions_per_sample_mean'), '13.0f')}")
