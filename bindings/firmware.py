@@ -126,17 +126,18 @@ def arm_tools_missing() -> str | None:
 @dataclass
 class ArmBuild:
     directory: Path
-    golden_elf: Path
+    golden_elf: Path | None
     size_elf: Path
     bench_elf: Path
     kernel_objs: list[Path]
 
 
-def build_arm(model_header_dir: Path, golden_dir: Path, out: Path) -> ArmBuild:
-    """Kernel objects with the strict flags, then the golden, size and bench images."""
+def build_arm(model_header_dir: Path, golden_dir: Path | None, out: Path) -> ArmBuild:
+    """Kernel objects with the strict flags, then the golden (unless golden_dir is None),
+    size and bench images."""
     out.mkdir(parents=True, exist_ok=True)
     inc = ["-I", str(model_header_dir), "-I", str(C_DIR), "-I", str(C_DIR / "test"),
-           "-I", str(C_DIR / "arm"), "-I", str(golden_dir)]
+           "-I", str(C_DIR / "arm"), *(["-I", str(golden_dir)] if golden_dir else [])]
     common = [*ARM_FLAGS, "-O2", "-ffunction-sections", "-fdata-sections"]
 
     def obj(src: Path, strict: bool) -> Path:
@@ -147,10 +148,9 @@ def build_arm(model_header_dir: Path, golden_dir: Path, out: Path) -> ArmBuild:
         return o
 
     kernel = [obj(C_DIR / "fogsf.c", True), obj(C_DIR / "fogsf_cell.c", True)]
-    check = obj(C_DIR / "test" / "golden_check.c", True)
     startup = obj(C_DIR / "arm" / "startup.c", False)
-    mains = {name: obj(C_DIR / "arm" / f"{name}_main.c", False)
-             for name in ("golden", "size", "bench")}
+    names = ("golden", "size", "bench") if golden_dir else ("size", "bench")
+    mains = {name: obj(C_DIR / "arm" / f"{name}_main.c", False) for name in names}
 
     def link(name: str, objs: list[Path]) -> Path:
         elf = out / f"{name}.elf"
@@ -159,8 +159,11 @@ def build_arm(model_header_dir: Path, golden_dir: Path, out: Path) -> ArmBuild:
                  "-o", str(elf)], f"linking {elf.name}")
         return elf
 
-    return ArmBuild(out, link("golden", [startup, check, mains["golden"], *kernel]),
-                    link("size", [startup, mains["size"], *kernel]),
+    golden = None
+    if golden_dir:
+        check = obj(C_DIR / "test" / "golden_check.c", True)
+        golden = link("golden", [startup, check, mains["golden"], *kernel])
+    return ArmBuild(out, golden, link("size", [startup, mains["size"], *kernel]),
                     link("bench", [startup, mains["bench"], *kernel]), kernel)
 
 

@@ -208,3 +208,26 @@ class Kernel:
         """fogsf_expf / fogsf_sigmoidf / fogsf_tanhf elementwise."""
         fn = getattr(self.lib, f"fogsf_{name}f")
         return np.array([fn(v) for v in np.asarray(x, np.float32).tolist()], np.float32)
+
+
+def trace_steps(kernel: Kernel, temp_c: np.ndarray, gyro_dps: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step the kernel sample by sample and read its state after every model step (samples
+    0, D, 2D, ...): (z [n_steps, F], last layer's h [n_steps, H], sf_ppm [n_steps])."""
+    t, g = kernel._inputs(temp_c, gyro_dps)
+    model, ffi, lib = kernel.model, kernel.ffi, kernel.lib
+    st = kernel.new_state()
+    out = ffi.new("fogsf_output *")
+    steps = range(0, t.shape[0], model.decimation)
+    z = np.empty((len(steps), model.n_features), np.float32)
+    h = np.empty((len(steps), model.hidden), np.float32)
+    sf = np.empty(len(steps), np.float32)
+    zbuf = np.frombuffer(ffi.buffer(st.z), np.float32)
+    hbuf = np.frombuffer(ffi.buffer(st.h[model.layers - 1]), np.float32)
+    m = 0
+    for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
+        lib.fogsf_step(st, ti, gi, out)
+        if i % model.decimation == 0:
+            z[m], h[m], sf[m] = zbuf, hbuf, out.sf_ppm
+            m += 1
+    return z, h, sf

@@ -53,6 +53,7 @@ def flag_counts(flags: np.ndarray) -> dict[str, int]:
 
 def run(args: argparse.Namespace) -> int:
     from bindings.kernel import Kernel, build_kernel
+    from trainer.errors import UserError
     from trainer.logio import read_log
     from trainer.metrics import log_metrics
     from trainer.stream import StreamModel
@@ -70,21 +71,26 @@ def run(args: argparse.Namespace) -> int:
     flagged = {k: v for k, v in counts.items() if v}
     print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
                        else "none"))
-    before = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg)
-    after = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg,
-                        correction_ppm=sf.astype(np.float64))
-    print(f"SF error, {args.window_s:g} s windows (before: about the log's SF at 20 C; after: "
-          f"measured / predicted - 1):")
-    for name, m in (("before", before), ("after", after)):
-        print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
-              f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
-    print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
+    try:
+        before = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg)
+        after = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg,
+                            correction_ppm=sf.astype(np.float64))
+    except UserError as e:  # e.g. a log that never passes 20 C has no reference SF
+        print(f"no before/after metrics: {e}")
+        before = after = None
+    if before is not None and after is not None:
+        print(f"SF error, {args.window_s:g} s windows (before: about the log's SF at 20 C; "
+              f"after: measured / predicted - 1):")
+        for name, m in (("before", before), ("after", after)):
+            print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
+                  f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
+        print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
     if args.json:
         Path(args.json).write_text(json.dumps({"model_id": model.model_id, "samples": len(log),
                                                "before": before, "after": after,
                                                "flags": counts}, indent=2) + "\n")
         print(f"wrote {args.json}")
-    if args.plot:
+    if args.plot and before is not None:
         plot(log, sf, args.window_s, args.latitude_deg, args.plot, model.model_id)
         print(f"plot: {args.plot}")
     return 0
