@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -55,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     preds: dict[str, np.ndarray] = {}
     for name in args.models.split(","):
         opts = TrainOptions(model=name, seed=args.seed, gsa_agents=args.gsa_agents,
-                            gsa_iters=args.gsa_iters, gsa_fitness_iters=args.gsa_fitness_iters)
+                            gsa_iters=args.gsa_iters, gsa_fitness_iters=args.gsa_fitness_iters,
+                            progress=sys.stderr.isatty())
         print(f"-- {name}", flush=True)
         m, fitted = run_training(opts, [train], test, out / "models" / name)
         if not rows:

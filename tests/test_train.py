@@ -80,14 +80,39 @@ def test_same_seed_same_model(logs, tmp_path: Path) -> None:
 def test_gsa_lstm_small_budget(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_agents=3, gsa_iters=2,
-                        gsa_fitness_iters=8, iters=20, workers=1, node=(1200.0, 0.1))
+                        gsa_fitness_iters=6, iters=20, workers=1)
     m, _ = run_training(opts, [train], test, tmp_path / "g")
     info = json.loads((tmp_path / "g" / "train_info.json").read_text())
     best = info["gsa"]["best_params"]
     assert 1 <= best["layers"] <= 3 and 4 <= best["hidden"] <= 256
+    assert 120.0 <= best["tau_s"] <= 7200.0 and 0.0 <= best["w"] <= 0.5
     assert len(info["gsa"]["best_curve"]) == 2
     assert (tmp_path / "g" / "gsa_fitness.png").exists()
     assert m["test"]["after"]["rms_ppm"] < m["test"]["before"]["rms_ppm"]
+
+
+def test_gsa_fitness_is_the_same_in_worker_processes(logs) -> None:
+    """The fitness pickles to worker processes and gives the same value there as inline."""
+    import functools
+
+    from trainer.executors import open_executor
+    from trainer.features import step_targets
+    from trainer.train import gsa_fitness
+
+    train, _ = logs
+    opts = TrainOptions(model="gsa-lstm", progress=False, gsa_fitness_iters=4)
+    payload = {"opts": opts, "logs": [train], "targets": [step_targets(train, 50)],
+               "node": None}
+    fn = functools.partial(gsa_fitness, payload=payload)
+    points = [{"batch_size": 8, "layers": 1, "hidden": 6, "lr": 0.01, "tau_s": 900.0, "w": 0.1},
+              {"batch_size": 12, "layers": 2, "hidden": 4, "lr": 0.003, "tau_s": 2000.0,
+               "w": 0.3}]
+    inline = [fn(p) for p in points]
+    with open_executor(workers=2) as ex:
+        assert ex is not None
+        remote = [f.result() for f in [ex.submit(fn, p) for p in points]]
+    assert inline == remote
+    assert all(np.isfinite(inline))
 
 
 def test_bad_options_refused(logs) -> None:
