@@ -157,9 +157,10 @@ def main(argv: list[str] | None = None) -> int:
               f"{f(r['ram_bytes'], '7d')} {r['host_ns_per_step']:9.0f} "
               f"{r['ort_ns_per_step']:9.0f} {f(r['instructions_per_step'], '15d')} "
               f"{f(r.get('instructions_per_sample_mean'), '13.0f')}")
+    verdicts = ", ".join(f"{r['name']}: {'meets' if r.get('meets_target') else 'misses'}"
+                         for r in rows)
     print("target (deployable): flash < 32768 B, RAM < 2048 B, < 50000 instructions per "
-          "10 Hz step; " + ", ".join(f"{r['name']}: {'meets' if r.get('meets_target') else 'misses'}"
-                                     for r in rows))
+          f"10 Hz step; {verdicts}")
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "bench.json"
     path.write_text(json.dumps({"models": rows, "target": TARGET,

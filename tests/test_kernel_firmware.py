@@ -74,8 +74,9 @@ def test_strict_flags_compile_every_shape(cc, size, tmp_path) -> None:
     model = st.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck)
     (tmp_path / "fogsf_model.h").write_text(render_header(model))
     for src in ("fogsf.c", "fogsf_cell.c"):
-        proc = subprocess.run([cc, *STRICT, "-Wvla", "-O2", "-I", str(tmp_path), "-I", str(C_DIR), "-c",
-                               str(C_DIR / src), "-o", str(tmp_path / f"{src}.o")],
+        proc = subprocess.run([cc, *STRICT, "-Wvla", "-O2", "-I", str(tmp_path), "-I",
+                               str(C_DIR), "-c", str(C_DIR / src), "-o",
+                               str(tmp_path / f"{src}.o")],
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
 
