@@ -107,3 +107,15 @@ def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
     size = arm_size(arm, model)
     assert 0 < size.kernel_flash_bytes <= size.flash_bytes
     assert size.ram_bytes >= size.state_bytes == 4 * (2 * 16 + 16 + 4 + 3 + 8)
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None,
+                    reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
+def test_cortex_m4f_two_layers_no_filters_no_stuck_check(tmp_path) -> None:
+    """The other shapes on target: 2 layers, K=0, stuck detection off, a step per sample."""
+    model = st.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0)
+    build = build_kernel(model, root=tmp_path / "host")
+    write_golden(model, Kernel(model, build), tmp_path / "golden")
+    arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f")
+    ok, out = run_qemu(arm.golden_elf)
+    assert ok and "PASS: 12000 outputs bit-exact" in out, out
