@@ -531,11 +531,6 @@ def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray) -> Repl
     return ReplayOut(corrected, sf, flags.astype(np.uint32))
 
 
-def describe_flags(flags: int) -> str:
-    """'TEMP_CLAMPED|TEMP_STUCK' for a flag word ('' for none)."""
-    return "|".join(name for bit, name in FLAG_NAMES.items() if flags & bit)
-
-
 # --- gate order ----------------------------------------------------------------------------
 # torch.nn.LSTM stacks gates as (i, f, g, o); ONNX as (i, o, f, c) with c == g.
 _TORCH_TO_ONNX = (0, 3, 1, 2)
