@@ -45,8 +45,9 @@ class KernelBuild:
     model_id: str
 
 
-def _source_hash(extra: tuple[str, ...]) -> str:
-    h = hashlib.sha256()
+def _source_hash(header: str, extra: tuple[str, ...]) -> str:
+    """Kernel sources, the generated header (so a template change rebuilds) and the flags."""
+    h = hashlib.sha256(header.encode())
     for name in SOURCES + HEADERS:
         h.update((C_DIR / name).read_bytes())
     h.update(" ".join(extra).encode())
@@ -68,14 +69,15 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     if shutil.which(cc) is None:
         raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
     flags = (*STRICT, opt, "-fPIC", *(SANITIZE if sanitize else ()))
-    key = f"{model.model_id}-{cc}-{_source_hash(flags)}" + ("-san" if sanitize else "")
+    header = render_header(model)
+    key = f"{model.model_id}-{cc}-{_source_hash(header, flags)}" + ("-san" if sanitize else "")
     out = Path(root) if root is not None else default_build_root()
     out = (out / key).resolve()
     shared, static = out / "libfogsf.so", out / "libfogsf.a"
     if shared.is_file() and static.is_file():
         return KernelBuild(out, shared, static, model.model_id)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "fogsf_model.h").write_text(render_header(model))
+    (out / "fogsf_model.h").write_text(header)
     objs = []
     for src in SOURCES:
         obj = out / (Path(src).stem + ".o")

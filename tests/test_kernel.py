@@ -120,6 +120,11 @@ def test_streaming_equals_whole_log_and_runs_repeat_bit_for_bit(kroot) -> None:
     for x, y in ((a, b), (b, c), (b, kernel.run(temp, gyro))):
         for u, v in zip(x, y, strict=True):
             assert u.tobytes() == v.tobytes()
+    # the Python per-sample helper is the same step
+    state = kernel.new_state()
+    for i in range(200):
+        got = kernel.step(state, temp[i], gyro[i])
+        assert got == (b[0][i], b[1][i], b[2][i]), f"sample {i}"
     # split into two calls on one state = one call
     state = kernel.new_state()
     first = kernel.run(temp[:1234], gyro[:1234], st=state)

@@ -74,10 +74,21 @@ def test_strict_flags_compile_every_shape(cc, size, tmp_path) -> None:
     model = st.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck)
     (tmp_path / "fogsf_model.h").write_text(render_header(model))
     for src in ("fogsf.c", "fogsf_cell.c"):
-        proc = subprocess.run([cc, *STRICT, "-O2", "-I", str(tmp_path), "-I", str(C_DIR), "-c",
-                               str(C_DIR / src), "-o", str(tmp_path / f"{src}.o")],
+        proc = subprocess.run([cc, *STRICT, "-Wvla", "-O2", "-I", str(tmp_path), "-I",
+                               str(C_DIR), "-c", str(C_DIR / src), "-o",
+                               str(tmp_path / f"{src}.o")],
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
+
+
+def test_kernel_objects_need_no_library(golden) -> None:
+    """No malloc, no libm, no stdio: the host objects reference only each other (and at most
+    memset/memcpy, which a compiler may emit for loops)."""
+    _, build, _, _ = golden
+    objs = [str(build.directory / "fogsf.o"), str(build.directory / "fogsf_cell.o")]
+    out = subprocess.run(["nm", "-u", *objs], capture_output=True, text=True, check=True).stdout
+    undefined = {line.split()[-1] for line in out.splitlines() if line.strip().startswith("U")}
+    assert undefined <= {"fogsf_lstm_cell", "memset", "memcpy"}, undefined
 
 
 @pytest.mark.skipif(arm_tools_missing() is not None,
@@ -88,6 +99,23 @@ def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
     ok, out = run_qemu(arm.golden_elf)
     assert ok, out
     assert f"model {model.model_id}" in out and "PASS: 12000 outputs bit-exact" in out, out
+    out = subprocess.run(["arm-none-eabi-nm", "-u", *map(str, arm.kernel_objs)],
+                         capture_output=True, text=True, check=True).stdout
+    undefined = {line.split()[-1] for line in out.splitlines() if line.strip().startswith("U")}
+    assert all(u.startswith("__aeabi_") or u in {"fogsf_lstm_cell", "memset", "memcpy"}
+               for u in undefined), undefined  # soft double from libgcc, nothing else
     size = arm_size(arm, model)
     assert 0 < size.kernel_flash_bytes <= size.flash_bytes
     assert size.ram_bytes >= size.state_bytes == 4 * (2 * 16 + 16 + 4 + 3 + 8)
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None,
+                    reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
+def test_cortex_m4f_two_layers_no_filters_no_stuck_check(tmp_path) -> None:
+    """The other shapes on target: 2 layers, K=0, stuck detection off, a step per sample."""
+    model = st.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0)
+    build = build_kernel(model, root=tmp_path / "host")
+    write_golden(model, Kernel(model, build), tmp_path / "golden")
+    arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f")
+    ok, out = run_qemu(arm.golden_elf)
+    assert ok and "PASS: 12000 outputs bit-exact" in out, out

@@ -71,14 +71,25 @@ float fogsf_tanhf(float x)
     return (p * z) * x + x;
 }
 
-/* acc + a . v, accumulated in index order (the contract's order; no reassociation) */
-static float dot_from(float acc, const float *a, const float *v, size_t n)
+/* pre[g] += rows[g] . v for the four gate rows at once, each accumulated in index order (the
+ * contract's order: four independent chains interleaved, so the bits are those of four
+ * separate loops while an out-of-order CPU overlaps their latencies) */
+static void dot4_from(float pre[4], const float *rows[4], const float *v, size_t n)
 {
+    float a0 = pre[0], a1 = pre[1], a2 = pre[2], a3 = pre[3];
+    const float *r0 = rows[0], *r1 = rows[1], *r2 = rows[2], *r3 = rows[3];
     size_t k;
     for (k = 0; k < n; ++k) {
-        acc = acc + a[k] * v[k];
+        const float vk = v[k];
+        a0 = a0 + r0[k] * vk;
+        a1 = a1 + r1[k] * vk;
+        a2 = a2 + r2[k] * vk;
+        a3 = a3 + r3[k] * vk;
     }
-    return acc;
+    pre[0] = a0;
+    pre[1] = a1;
+    pre[2] = a2;
+    pre[3] = a3;
 }
 
 void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
@@ -87,6 +98,7 @@ void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
 {
     size_t j, gate;
     float pre[4];
+    const float *rows[4];
 
     for (j = 0; j < hidden; ++j) {
         h_prev[j] = h[j];
@@ -95,11 +107,15 @@ void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
     for (j = 0; j < hidden; ++j) {
         float gi, go, gf, gc, ci, cf, cn;
         for (gate = 0; gate < 4; ++gate) {
-            size_t row = gate * hidden + j;
-            float acc = b != NULL ? b[row] + b[4 * hidden + row] : 0.0f;
-            acc = dot_from(acc, w + row * n_in, x, n_in);
-            pre[gate] = dot_from(acc, r + row * hidden, h_prev, hidden);
+            const size_t row = gate * hidden + j;
+            pre[gate] = b != NULL ? b[row] + b[4 * hidden + row] : 0.0f;
+            rows[gate] = w + row * n_in;
         }
+        dot4_from(pre, rows, x, n_in);
+        for (gate = 0; gate < 4; ++gate) {
+            rows[gate] = r + (gate * hidden + j) * hidden;
+        }
+        dot4_from(pre, rows, h_prev, hidden);
         gi = pre[0];
         go = pre[1];
         gf = pre[2];
