@@ -105,20 +105,28 @@ def _plot(path: Path, train, test, preds: dict[str, np.ndarray]) -> None:
     import matplotlib.pyplot as plt
 
     ref = reference_sf_of_logs([train])
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(17, 4.5))
     for lg, label in ((train, "0.5 C/min (train)"), (test, "1 C/min (test)")):
         w = sf_windows(lg)
         a1.plot(w.temp_c, sf_error_ppm(w, ref), ".-", ms=3, lw=0.8, label=label)
     a1.set_title("SF error before compensation (paper Fig. 7)")
     a1.set_xlabel("board temperature (C)")
     a1.set_ylabel("SF error (ppm)")
+    rms: dict[str, float] = {}
     for name, p in preds.items():
         w = sf_windows(test, correction_ppm=p)
-        a2.plot(w.temp_c, sf_error_ppm(w, 1.0), ".-", ms=3, lw=0.8, label=name)
+        e = sf_error_ppm(w, 1.0)
+        rms[name] = float(np.sqrt(np.mean(e**2)))
+        for a in (a2, a3):
+            a.plot(w.temp_c, e, ".-", ms=3, lw=0.8, label=name)
     a2.set_title("1 C/min after compensation (paper Fig. 9)")
-    a2.set_xlabel("board temperature (C)")
-    a2.set_ylabel("residual SF error (ppm)")
-    for a in (a1, a2):
+    zoom = 4.0 * min(rms.values(), default=10.0)
+    a3.set_ylim(-zoom, zoom)
+    a3.set_title(f"the same, zoomed to +/-{zoom:.0f} ppm")
+    for a in (a2, a3):
+        a.set_xlabel("board temperature (C)")
+        a.set_ylabel("residual SF error (ppm)")
+    for a in (a1, a2, a3):
         a.grid(alpha=0.3)
         a.legend(fontsize=8)
     fig.tight_layout()
