@@ -20,7 +20,9 @@ help:
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q -c constraints.txt -e '.[dev]'
+	@echo "installing fogsf and its pinned packages into $(VENV) (about a minute the first time)"
+	@bash -o pipefail -c "$(PY) -m pip install -q -c constraints.txt -e '.[dev]' 2>&1 \
+	    | { grep -v 'is ignored: it is neither a file nor a directory' || true; }"
 	touch $(STAMP)
 
 venv: $(STAMP)
