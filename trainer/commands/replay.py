@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from trainer.commands import add_metric_options
+
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL_DIR", help="model directory from `fogsf train`")
@@ -26,10 +28,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm")
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="before/after plot of the SF error (windows vs temperature, time)")
-    parser.add_argument("--window-s", type=float, default=100.0,
-                        help="SF window length in seconds for the metrics (default 100)")
-    parser.add_argument("--latitude-deg", type=float, default=None,
-                        help="latitude for the earth rate when the log has no earth_rate_dps")
+    add_metric_options(parser)
     parser.add_argument("--json", metavar="PATH", default=None,
                         help="also write the before/after metrics and flag counts as JSON")
     parser.add_argument("--cc", default="gcc", help="C compiler for the host kernel (gcc)")

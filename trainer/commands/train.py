@@ -23,6 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from trainer.commands import add_metric_options
 from trainer.errors import UserError
 from trainer.logio import read_log
 
@@ -51,10 +52,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--val-chunk", type=_chunk, default=(0.4, 0.6), metavar="LO:HI",
                         help="part of each training log held out for validation "
                              "(fractions of its length; default 0.4:0.6)")
-    parser.add_argument("--window-s", type=float, default=100.0,
-                        help="SF window for the metrics (default 100 s)")
-    parser.add_argument("--latitude-deg", type=float, default=None,
-                        help="latitude for the earth rate when logs lack earth_rate_dps")
+    add_metric_options(parser)
     parser.add_argument("--rate-tau-s", type=float, default=120.0,
                         help="time constant of the dT/dt filter (default 120 s)")
     parser.add_argument("--poly-degree", type=int, default=3, help="poly/polyrate degree")
