@@ -82,10 +82,6 @@ def validation_rms(pred_ppm: list[np.ndarray], data: list[SeqData]) -> float:
     return math.sqrt(sq / n) if n else math.nan
 
 
-def _seed_all(seed: int) -> None:
-    torch.manual_seed(seed)
-
-
 def predict_stream(net: StreamNet, z: np.ndarray) -> np.ndarray:
     """Normalised output over a whole sequence from reset."""
     with torch.no_grad():
@@ -110,7 +106,7 @@ def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
                  out_offset: float, out_scale: float, progress: bool = True
                  ) -> tuple[StreamNet, History]:
     """Train a StreamNet on the training steps of `data` (features `z`, one per log)."""
-    _seed_all(cfg.seed)
+    torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden)
     _init_skip_by_least_squares(net, data, z, out_offset, out_scale)
@@ -183,7 +179,7 @@ class MLPConfig:
 def train_mlp(data: list[SeqData], z: list[np.ndarray], cfg: MLPConfig, out_offset: float,
               out_scale: float, progress: bool = True) -> tuple[MLP, History]:
     """Full-batch Adam on every training step; keeps the best validation weights."""
-    _seed_all(cfg.seed)
+    torch.manual_seed(cfg.seed)
     net = MLP(z[0].shape[1], cfg.hidden)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     x = torch.from_numpy(np.concatenate([a[d.train_mask] for a, d in zip(z, data,

@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -41,7 +42,10 @@ from trainer.features import (
 )
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
-from trainer.stream import FrontEnd, expand
+from trainer.stream import FrontEnd, StreamModel, expand
+
+if TYPE_CHECKING:  # trainer.fit imports torch; commands import this module at start-up
+    from trainer.fit import LSTMConfig
 
 MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
 EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
@@ -87,11 +91,11 @@ class Fitted:
     kind: str
     spec: FeatureSpec
     fe: FrontEnd
-    predict_steps: object  # callable(SeqData) -> np.ndarray
+    predict_steps: Callable[[SeqData], np.ndarray]
     params: int
     weights_bytes: int
     info: dict
-    stream_model: object | None = None  # trainer.stream.StreamModel for exportable models
+    stream_model: StreamModel | None = None  # the firmware artifact (exportable models)
     torch_state: dict | None = None
 
 
@@ -107,7 +111,7 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError("--val-chunk LO:HI must satisfy 0 <= LO < HI <= 1, at most half")
 
 
-def _lstm_config(opts: TrainOptions, **over: object):
+def _lstm_config(opts: TrainOptions, **over: object) -> LSTMConfig:
     from trainer.fit import LSTMConfig
 
     d = lstm_defaults(opts.model)
@@ -142,7 +146,7 @@ def _identify_node(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, f
 
 
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
-                   lstm_cfg: object | None) -> Fitted:
+                   lstm_cfg: LSTMConfig | None) -> Fitted:
     fe = front_end_for(logs, opts.decimation, spec.taus_s)
     data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg) for lg in logs]
     norm = fit_normaliser(spec, data)
@@ -336,6 +340,4 @@ def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
 def _json(o: object) -> object:
     if isinstance(o, np.generic):
         return o.item()
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
     raise TypeError(type(o).__name__)
