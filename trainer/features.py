@@ -59,10 +59,17 @@ def make_features(rate_tau_s: float | None = None) -> FeatureSpec:
     return FeatureSpec((float(rate_tau_s),), ((1.0, 0.0), (k, -k)), ("T", "dT/dt"))
 
 
-def effective_node_features(tau_s: float, weight: float) -> FeatureSpec:
-    """One feature, the effective sensing temperature T_eff = w T + (1 - w) lag(T, tau)."""
-    return FeatureSpec((float(tau_s),), ((float(weight), 1.0 - float(weight)),),
-                       (f"T_eff(tau={tau_s:.0f}s,w={weight:.2f})",))
+def effective_node_features(*nodes: tuple[float, float]) -> FeatureSpec:
+    """One feature per node (tau_s, w): the effective sensing temperature
+    T_eff = w T + (1 - w) lag(T, tau)."""
+    k = len(nodes)
+    rows = []
+    for j, (_, w) in enumerate(nodes):
+        r = [float(w)] + [0.0] * k
+        r[1 + j] = 1.0 - float(w)
+        rows.append(tuple(r))
+    names = tuple(f"T_eff(tau={t:.0f}s,w={w:.2f})" for t, w in nodes)
+    return FeatureSpec(tuple(float(t) for t, _ in nodes), tuple(rows), names)
 
 
 @dataclass

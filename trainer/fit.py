@@ -35,6 +35,8 @@ class LSTMConfig:
     eval_every: int = 20
     seed: int = 0
     time_limit_s: float | None = None
+    poly_head: bool = False  # carry the least-squares polynomial of the features exactly
+    cubes: bool = True  # with poly_head: cubic terms too
 
 
 @dataclass
@@ -89,17 +91,43 @@ def predict_stream(net: StreamNet, z: np.ndarray) -> np.ndarray:
     return y[0].numpy().astype(np.float64)
 
 
-def _init_skip_by_least_squares(net: StreamNet, data: list[SeqData], z: list[np.ndarray],
-                                out_offset: float, out_scale: float) -> None:
-    """Start from the best linear model of the features (skip weights and output bias by
-    least squares), so the LSTM learns only what a linear map of them cannot."""
+def _poly_terms(x: np.ndarray, cubes: bool) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Columns z_i z_j (i <= j) and, with `cubes`, z_i^3, and the (i, j) of each product."""
+    f = x.shape[1]
+    pairs = [(i, j) for i in range(f) for j in range(i, f)]
+    cols = [x[:, i] * x[:, j] for i, j in pairs]
+    if cubes:
+        cols += [x[:, i] ** 3 for i in range(f)]
+    return np.column_stack(cols), pairs
+
+
+def _init_by_least_squares(net: StreamNet, data: list[SeqData], z: list[np.ndarray],
+                           out_offset: float, out_scale: float) -> None:
+    """Start from the best least-squares model of the features: the skip weights and output
+    bias, and with a polynomial head its quadratic (and cubic) terms too; the LSTM then
+    learns only what that model leaves."""
     x = np.concatenate([a[d.train_mask] for a, d in zip(z, data, strict=True)]).astype(float)
     y = np.concatenate([(d.target_ppm[d.train_mask] - out_offset) / out_scale for d in data])
-    coef, *_ = np.linalg.lstsq(np.column_stack([x, np.ones(len(x))]), y, rcond=None)
+    cols = [x]
+    pairs: list[tuple[int, int]] = []
+    cubes = bool(net.poly and net.cube.requires_grad)
+    if net.poly:
+        extra, pairs = _poly_terms(x, cubes)
+        cols.append(extra)
+    coef, *_ = np.linalg.lstsq(np.column_stack([*cols, np.ones(len(x))]), y, rcond=None)
+    f = x.shape[1]
     with torch.no_grad():
-        net.skip.weight.copy_(torch.from_numpy(coef[None, :-1].astype(np.float32)))
+        net.skip.weight.copy_(torch.from_numpy(coef[None, :f].astype(np.float32)))
         net.head.bias.fill_(float(coef[-1]))
         net.head.weight.mul_(0.1)
+        if net.poly:
+            quad = np.zeros((f, f), np.float32)
+            for k, (i, j) in enumerate(pairs):
+                quad[i, j] = coef[f + k]
+            net.quad.copy_(torch.from_numpy(quad))
+            if cubes:
+                net.cube.copy_(torch.from_numpy(
+                    coef[f + len(pairs): f + len(pairs) + f].astype(np.float32)))
 
 
 def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
@@ -108,8 +136,9 @@ def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
     """Train a StreamNet on the training steps of `data` (features `z`, one per log)."""
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
-    net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden)
-    _init_skip_by_least_squares(net, data, z, out_offset, out_scale)
+    net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden, poly=cfg.poly_head,
+                    cubes=cfg.cubes)
+    _init_by_least_squares(net, data, z, out_offset, out_scale)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(cfg.iters, 1),
                                                        eta_min=cfg.lr * 0.05)
@@ -123,6 +152,9 @@ def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
     hist = History()
     best_state = {k: v.clone() for k, v in net.state_dict().items()}
     has_val = any(d.val_mask.any() for d in data)
+    if has_val:  # the least-squares start is a candidate too: keep it if training does worse
+        hist.best_val_rms_ppm = validation_rms(
+            [predict_stream(net, a) * out_scale + out_offset for a in z], data)
     t0 = time.perf_counter()
     bar = tqdm(range(1, cfg.iters + 1), desc=f"lstm {cfg.layers}x{cfg.hidden}",
                disable=not progress, leave=False, unit="it")

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -65,9 +66,20 @@ def node_weight(lead_s: float, tau_s: float) -> float:
     return min(lead_s / tau_s, 1.0)
 
 
+def _t_eff(s: np.ndarray, k: int, w: float) -> np.ndarray:
+    return (w * s[:, 0].astype(np.float64) + (1.0 - w) * s[:, k].astype(np.float64)) / 50.0
+
+
 def _node_design(s: np.ndarray, k: int, w: float, degree: int = NODE_DEGREE) -> np.ndarray:
-    t_eff = (w * s[:, 0].astype(np.float64) + (1.0 - w) * s[:, k].astype(np.float64)) / 50.0
+    t_eff = _t_eff(s, k, w)
     return np.column_stack([t_eff**p for p in range(degree + 1)])
+
+
+def _two_node_design(s: np.ndarray, k1: int, w1: float, k2: int, w2: float) -> np.ndarray:
+    """The SF as a quadratic form of two nodes (the simulator's physics: each factor is a
+    quadratic in a weighted mean of node temperatures)."""
+    a, b = _t_eff(s, k1, w1), _t_eff(s, k2, w2)
+    return np.column_stack([np.ones_like(a), a, b, a * a, a * b, b * b])
 
 
 def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
@@ -95,4 +107,32 @@ def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, flo
             score = validation_rms([_node_design(d.s, k, w) @ coef for d in data], data)
             if score < best_score:
                 best, best_score = (tau, w), score
+    return best, best_score
+
+
+def profile_two_nodes(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
+                      latitude_deg: float | None = None,
+                      grid: tuple[float, ...] = TAU_GRID_S,
+                      leads: tuple[float, ...] = LEAD_GRID_S
+                      ) -> tuple[list[tuple[float, float]], float]:
+    """Two effective nodes [(tau_1, w_1), (tau_2, w_2)] (tau_1 < tau_2) with a quadratic form
+    of them, profiled like `profile_effective_node`. Identifiable only from logs at two or
+    more ramp rates: on one constant ramp the two nodes are collinear."""
+    full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
+                    filter_alpha(list(grid), fe.decimation))
+    data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
+    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    best: list[tuple[float, float]] = [(grid[0], 0.0), (grid[-1], 0.0)]
+    best_score = math.inf
+    for k1, k2 in itertools.combinations(range(1, len(grid) + 1), 2):
+        for w1 in sorted({node_weight(lead, grid[k1 - 1]) for lead in leads}):
+            for w2 in sorted({node_weight(lead, grid[k2 - 1]) for lead in leads}):
+                x = np.concatenate([_two_node_design(d.s[d.train_mask], k1, w1, k2, w2)
+                                    for d in data])
+                coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+                score = validation_rms(
+                    [_two_node_design(d.s, k1, w1, k2, w2) @ coef for d in data], data)
+                if score < best_score:
+                    best = [(grid[k1 - 1], w1), (grid[k2 - 1], w2)]
+                    best_score = score
     return best, best_score

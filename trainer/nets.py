@@ -17,19 +17,30 @@ from trainer.stream import FrontEnd, StreamModel, torch_to_onnx_lstm
 
 
 class StreamNet(nn.Module):
-    def __init__(self, n_features: int, layers: int, hidden: int) -> None:
+    """LSTM layers, a linear head on the last h and a linear skip from z; with `poly` also
+    the contract's polynomial head: sum_ij quad_ij z_i z_j + sum_i cube_i z_i^3 (the physics
+    least-squares model carried exactly, so the LSTM learns only what it leaves)."""
+
+    def __init__(self, n_features: int, layers: int, hidden: int, poly: bool = False,
+                 cubes: bool = True) -> None:
         super().__init__()
-        self.layers, self.hidden = layers, hidden
+        self.layers, self.hidden, self.poly = layers, hidden, poly
         self.lstm = nn.LSTM(n_features, hidden, layers, batch_first=True)
         self.head = nn.Linear(hidden, 1)
         self.skip = nn.Linear(n_features, 1, bias=False)
+        if poly:
+            self.quad = nn.Parameter(torch.zeros(n_features, n_features))
+            self.cube = nn.Parameter(torch.zeros(n_features), requires_grad=cubes)
 
     def forward(self, z: torch.Tensor,
                 state: tuple[torch.Tensor, torch.Tensor] | None = None
                 ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         """z [B, T, F] -> (normalised output [B, T], (h, c))."""
         out, state = self.lstm(z, state)
-        return self.head(out).squeeze(-1) + self.skip(z).squeeze(-1), state
+        y = self.head(out).squeeze(-1) + self.skip(z).squeeze(-1)
+        if self.poly:
+            y = y + torch.einsum("bti,ij,btj->bt", z, self.quad, z) + (z**3) @ self.cube
+        return y, state
 
 
 class MLP(nn.Module):
@@ -72,13 +83,17 @@ def to_stream_model(net: StreamNet, kind: str, spec: FeatureSpec, norm: Normalis
     weights["head_w"] = sd["head.weight"][0].astype(np.float32)
     weights["head_b"] = sd["head.bias"].astype(np.float32)
     weights["skip_w"] = sd["skip.weight"][0].astype(np.float32)
+    if net.poly:
+        weights["quad_w"] = sd["quad"].astype(np.float32)
+        weights["cube_w"] = sd["cube"].astype(np.float32)
     weights["out_scale"] = np.array([out_scale], np.float32)
     weights["out_offset"] = np.array([out_offset], np.float32)
     model = StreamModel(model=kind, decimation=fe.decimation, t_ref_c=fe.t_ref_c,
                         t_min_c=fe.t_min_c, t_max_c=fe.t_max_c,
                         stuck_samples=fe.stuck_samples, filter_tau_s=list(spec.taus_s),
                         n_features=spec.n_features, layers=net.layers, hidden=net.hidden,
-                        weights=weights, extra={"feature_names": list(spec.names),
+                        weights=weights, poly_head=net.poly,
+                        extra={"feature_names": list(spec.names),
                                                 **(extra or {})})
     model.validate()
     return model

@@ -62,6 +62,7 @@ class TrainOptions:
     rate_tau_s: float = 120.0
     poly_degree: int = 3
     node: tuple[float, float] | None = None  # (tau_s, w) of T_eff; None: identified
+    nodes: int = 1  # effective nodes of lag-lstm (2 needs logs at two or more ramp rates)
     layers: int | None = None
     hidden: int | None = None
     batch_size: int | None = None
@@ -81,7 +82,10 @@ class TrainOptions:
 def lstm_defaults(model: str) -> dict:
     if model == "lstm":  # the paper's Table 1
         return {"layers": 2, "hidden": 200, "batch_size": 32, "lr": 0.02, "iters": 300}
-    return {"layers": 1, "hidden": 16, "batch_size": 32, "lr": 0.01, "iters": 400}
+    # lag-lstm, gsa-lstm: the physics least-squares polynomial of T_eff carried exactly in
+    # the head, the LSTM learns the residual
+    return {"layers": 1, "hidden": 16, "batch_size": 32, "lr": 0.01, "iters": 400,
+            "poly_head": True}
 
 
 @dataclass
@@ -104,6 +108,10 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError(f"unknown model {opts.model!r}; choose one of {', '.join(MODELS)}")
     if not train_logs:
         raise UserError("give at least one training log (--train)")
+    if opts.nodes not in (1, 2):
+        raise UserError("--nodes must be 1 or 2")
+    if opts.node is not None and opts.nodes != 1:
+        raise UserError("--node gives one effective node; drop it or use --nodes 1")
     if opts.decimation < 1:
         raise UserError("--decimation must be >= 1")
     lo, hi = opts.val_chunk
@@ -131,8 +139,11 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
                               else None)
     if kind == "lag-lstm":
+        if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
+            spec = effective_node_features(*_identify_two_nodes(opts, train_logs))
+            return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts, cubes=False))
         tau, w = opts.node or _identify_node(opts, train_logs)
-        spec = effective_node_features(tau, w)
+        spec = effective_node_features((tau, w))
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts))
     return _fit_gsa(opts, train_logs)
 
@@ -143,6 +154,15 @@ def _identify_node(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, f
     fe = front_end_for(logs, opts.decimation, ())
     node, _ = profile_effective_node(logs, fe, opts.val_chunk, opts.latitude_deg)
     return node
+
+
+def _identify_two_nodes(opts: TrainOptions, logs: list[ChamberLog]
+                        ) -> list[tuple[float, float]]:
+    from trainer.least_squares import profile_two_nodes
+
+    fe = front_end_for(logs, opts.decimation, ())
+    nodes, _ = profile_two_nodes(logs, fe, opts.val_chunk, opts.latitude_deg)
+    return nodes
 
 
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
@@ -211,10 +231,11 @@ def gsa_fitness(params: dict, payload: dict) -> float:
     opts: TrainOptions = payload["opts"]
     logs: list[ChamberLog] = payload["logs"]
     node = (params["tau_s"], params["w"]) if "tau_s" in params else payload["node"]
-    spec = effective_node_features(*node)
+    spec = effective_node_features(tuple(node))
     cfg = _lstm_config(opts, layers=int(params["layers"]), hidden=int(params["hidden"]),
                        batch_size=int(params["batch_size"]), lr=float(params["lr"]),
-                       iters=opts.gsa_fitness_iters, eval_every=opts.gsa_fitness_iters // 4)
+                       iters=opts.gsa_fitness_iters,
+                       eval_every=max(1, opts.gsa_fitness_iters // 4))
     fe = front_end_for(logs, opts.decimation, spec.taus_s)
     data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
             for lg, t in zip(logs, payload["targets"], strict=True)]
@@ -250,7 +271,7 @@ def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
                             "batch_size": int(best["batch_size"]), "lr": float(best["lr"]),
                             "node": (float(node[0]), float(node[1]))})
     final.iters = opts.iters or lstm_defaults("gsa-lstm")["iters"]
-    spec = effective_node_features(*final.node)
+    spec = effective_node_features(final.node)
     fitted = _fit_with_spec(final, logs, spec, _lstm_config(final))
     fitted.info["gsa"] = {"best_params": best, "best_fitness_ppm": res.best_fitness,
                           "best_curve": list(res.best_curve),
