@@ -200,6 +200,14 @@ class StreamModel:
         return int(sum(a.size for a in self.weights.values()))
 
     @property
+    def summary(self) -> str:
+        """One line for people: sizes, head, decimation, parameters."""
+        poly = " + polynomial head" if self.poly_head else ""
+        return (f"K={self.n_filters} filters, F={self.n_features} features, "
+                f"{self.layers}x{self.hidden} LSTM{poly}, D={self.decimation}, "
+                f"{self.params} parameters")
+
+    @property
     def front_end(self) -> FrontEnd:
         return FrontEnd(t_ref_c=self.t_ref_c, t_min_c=self.t_min_c, t_max_c=self.t_max_c,
                         decimation=self.decimation, stuck_samples=self.stuck_samples,
