@@ -234,8 +234,7 @@ def state_bytes(model: StreamModel) -> int:
 
 def firmware(model_dir: Path, out: Path, cc: str = "gcc", sanitize: bool = True) -> int:
     model = StreamModel.load(model_dir)
-    print(f"model {model_dir}: id {model.model_id}, K={model.n_filters} F={model.n_features} "
-          f"{model.layers}x{model.hidden} LSTM D={model.decimation}, {model.params} params")
+    print(f"model {model_dir}: id {model.model_id}, {model.summary}")
     build = build_kernel(model, root=out / "host", cc=cc)
     print(f"host: {build.shared}\nhost: {build.static}")
     kernel = Kernel(model, build)

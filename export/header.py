@@ -58,6 +58,8 @@ def render_header(model: StreamModel) -> str:
         "lstm_b_names": ", ".join(f"fogsf_lstm{layer}_b" for layer in names),
         "head_w": c_array(w["head_w"]), "skip_w": c_array(w["skip_w"]),
         "head_b": c_float(w["head_b"][0]), "out_scale": c_float(w["out_scale"][0]),
-        "out_offset": c_float(w["out_offset"][0]),
+        "out_offset": c_float(w["out_offset"][0]), "poly_head": model.poly_head,
+        "quad_w": c_array(w["quad_w"]) if model.poly_head else "",
+        "cube_w": c_array(w["cube_w"]) if model.poly_head else "",
     }
     return _environment().get_template("fogsf_model.h.j2").render(**context)

@@ -3,6 +3,8 @@
 Inputs `z` [1, F] (the features of contract step 4) and, per layer l, `h{l}` and `c{l}`
 [1, H]; outputs `sf_ppm` [1, 1] and the new `h{l}_out`, `c{l}_out` [1, H]. Each layer is an
 ONNX LSTM node over a sequence of length 1, so onnxruntime steps exactly like firmware.
+A model with the polynomial head gets a few more nodes (z quad_w z^T + (z*z*z) cube_w);
+without it the graph is what it was before the head existed.
 """
 
 from __future__ import annotations
@@ -59,11 +61,17 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
         nodes.append(helper.make_node("Squeeze", [f"Yc{layer}", "axis0"], [f"c{layer}_out"]))
         x = f"Yh{layer}"  # [1, 1, H]: the next layer's sequence of length 1
     last = f"h{layers - 1}_out"
+    y_lin = "y_lin" if model.poly_head else "y"
     nodes += [
         helper.make_node("MatMul", [last, "head_w"], ["head_dot"]),
         helper.make_node("Add", ["head_dot", "head_b"], ["head_y"]),
         helper.make_node("MatMul", ["z", "skip_w"], ["skip_dot"]),
-        helper.make_node("Add", ["head_y", "skip_dot"], ["y"]),
+        helper.make_node("Add", ["head_y", "skip_dot"], [y_lin]),
+    ]
+    if model.poly_head:
+        inits += poly_initializers(model)
+        nodes += poly_nodes(y_lin, "y")
+    nodes += [
         helper.make_node("Mul", ["y", "out_scale"], ["y_scaled"]),
         helper.make_node("Add", ["y_scaled", "out_offset"], ["sf_ppm"]),
     ]
@@ -76,6 +84,28 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
                                    "decimation": str(model.decimation)})
     onnx.checker.check_model(proto, full_check=True)
     return proto
+
+
+def poly_initializers(model: StreamModel) -> list[onnx.TensorProto]:
+    """quad_w [F, F], cube_w [F, 1] and the axis of the row sum."""
+    f, w = model.n_features, model.weights
+    return [numpy_helper.from_array(w["quad_w"].reshape(f, f), "quad_w"),
+            numpy_helper.from_array(w["cube_w"].reshape(f, 1), "cube_w"),
+            numpy_helper.from_array(np.array([1], np.int64), "axis1")]
+
+
+def poly_nodes(y_in: str, y_out: str) -> list[onnx.NodeProto]:
+    """y_out = y_in + z quad_w z^T + (z*z*z) cube_w, each [1, 1] (z is [1, F])."""
+    return [
+        helper.make_node("MatMul", ["z", "quad_w"], ["quad_zq"]),  # [1, F]: sum_i z_i Q_ij
+        helper.make_node("Mul", ["quad_zq", "z"], ["quad_terms"]),
+        helper.make_node("ReduceSum", ["quad_terms", "axis1"], ["quad_sum"], keepdims=1),
+        helper.make_node("Mul", ["z", "z"], ["z_sq"]),
+        helper.make_node("Mul", ["z_sq", "z"], ["z_cube"]),
+        helper.make_node("MatMul", ["z_cube", "cube_w"], ["cube_sum"]),
+        helper.make_node("Add", [y_in, "quad_sum"], ["y_quad"]),
+        helper.make_node("Add", ["y_quad", "cube_sum"], [y_out]),
+    ]
 
 
 class OrtStepper:

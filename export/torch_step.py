@@ -21,11 +21,15 @@ class TorchStep(torch.nn.Module):
                 for name, arr in zip(("weight_ih", "weight_hh", "bias_ih", "bias_hh"), parts,
                                      strict=True):
                     getattr(self.lstm, f"{name}_l{layer}").copy_(torch.from_numpy(arr))
-        for name in ("head_w", "head_b", "skip_w", "out_scale", "out_offset"):
+        self.poly_head = model.poly_head
+        names = ("head_w", "head_b", "skip_w", "out_scale", "out_offset")
+        for name in names + (("quad_w", "cube_w") if model.poly_head else ()):
             self.register_buffer(name, torch.from_numpy(w[name].copy()))
 
     def forward(self, z: torch.Tensor, h: torch.Tensor, c: torch.Tensor
                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         y_seq, (h_new, c_new) = self.lstm(z.unsqueeze(0), (h, c))
         y = y_seq[0] @ self.head_w + self.head_b + z @ self.skip_w
+        if self.poly_head:
+            y = y + ((z @ self.quad_w) * z).sum(-1) + (z * z * z) @ self.cube_w
         return (y * self.out_scale + self.out_offset).reshape(1, 1), h_new, c_new

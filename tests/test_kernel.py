@@ -18,6 +18,9 @@ from trainer import stream as st
 # (K filters, F features, L layers, H hidden, D decimation, stuck_samples, seed)
 SIZES = [(3, 4, 1, 16, 10, 600, 0), (0, 3, 2, 5, 1, 0, 1), (2, 5, 2, 12, 7, 30, 2),
          (1, 1, 1, 1, 50, 5, 3)]
+# the same with the polynomial head (a 7-tuple is without it)
+POLY_SIZES = [(3, 4, 1, 16, 10, 600, 4, True), (0, 3, 2, 5, 2, 0, 5, True),
+              (1, 1, 1, 1, 50, 5, 6, True)]
 
 
 @pytest.fixture(scope="session")
@@ -25,19 +28,20 @@ def kroot(tmp_path_factory):
     return tmp_path_factory.mktemp("kernels")
 
 
-def model_of(size: tuple[int, ...]) -> st.StreamModel:
-    k, f, layers, hidden, d, stuck, seed = size
-    return st.random_model(k, f, layers, hidden, d, seed=seed, stuck_samples=stuck)
+def model_of(size: tuple) -> st.StreamModel:
+    k, f, layers, hidden, d, stuck, seed, *poly = size
+    return st.random_model(k, f, layers, hidden, d, seed=seed, stuck_samples=stuck,
+                           poly_head=bool(poly and poly[0]))
 
 
-@pytest.mark.parametrize("size", SIZES)
+@pytest.mark.parametrize("size", SIZES + POLY_SIZES)
 def test_kernel_equals_numpy_reference_bit_for_bit(size, kroot) -> None:
     model = model_of(size)
     kernel = kernel_for(model, kroot)
-    temp, gyro = golden_inputs(model, n=2500, seed=size[-1])
+    seed = size[6]
+    temp, gyro = golden_inputs(model, n=2500, seed=seed)
     corrected, sf, flags = kernel.run(temp, gyro)
     ref = st.replay(model, temp, gyro)
-    seed = size[-1]
     bad = np.flatnonzero(sf.view(np.uint32) != ref.sf_ppm.view(np.uint32))
     assert bad.size == 0, f"seed {seed}: sf differs at samples {bad[:20].tolist()}"
     np.testing.assert_array_equal(corrected.view(np.uint64), ref.corrected_dps.view(np.uint64),
@@ -79,12 +83,12 @@ def test_kernel_vs_onnxruntime_over_a_simulated_ramp(kroot) -> None:
     compare_with_ort(model, kernel_for(model, kroot), temp, gyro, "simulated 1 C/min ramp")
 
 
-@pytest.mark.parametrize("seed", [21, 22])
-def test_kernel_vs_onnxruntime_on_random_inputs(seed, kroot) -> None:
+@pytest.mark.parametrize("seed, poly", [(21, False), (22, False), (23, True)])
+def test_kernel_vs_onnxruntime_on_random_inputs(seed, poly, kroot) -> None:
     rng = np.random.default_rng(seed)
     layers, hidden = int(rng.integers(1, 3)), int(rng.integers(4, 40))
     model = st.random_model(int(rng.integers(0, 4)), int(rng.integers(1, 7)), layers, hidden,
-                            decimation=int(rng.integers(1, 4)), seed=seed)
+                            decimation=int(rng.integers(1, 4)), seed=seed, poly_head=poly)
     n = 12_000
     # a random walk across the range with jumps, so the filters and the LSTM see everything
     temp = np.clip(np.cumsum(rng.normal(0, 0.8, n)) % 140 - 55, -60, 70)
@@ -93,8 +97,9 @@ def test_kernel_vs_onnxruntime_on_random_inputs(seed, kroot) -> None:
     compare_with_ort(model, kernel_for(model, kroot), temp, gyro, f"random inputs, seed {seed}")
 
 
-def test_kernel_vs_onnx_reference(kroot) -> None:
-    model = st.random_model(2, 4, 2, 6, decimation=3, seed=31)
+@pytest.mark.parametrize("poly", [False, True])
+def test_kernel_vs_onnx_reference(poly, kroot) -> None:
+    model = st.random_model(2, 4, 2, 6, decimation=3, seed=31, poly_head=poly)
     temp, gyro = golden_inputs(model, n=900, seed=31)
     z, h_c, sf_c = trace_steps(kernel_for(model, kroot), temp, gyro)
     ref = ReferenceEvaluator(build_step_onnx(model))

@@ -66,12 +66,14 @@ def test_golden_check_detects_a_wrong_bit(golden, tmp_path) -> None:
 
 
 @pytest.mark.parametrize("cc", ["gcc", "clang"])
-@pytest.mark.parametrize("size", [(0, 1, 1, 1, 1, 0), (3, 4, 2, 9, 50, 600)])
+@pytest.mark.parametrize("size", [(0, 1, 1, 1, 1, 0, False), (3, 4, 2, 9, 50, 600, False),
+                                  (0, 1, 1, 1, 1, 0, True), (2, 5, 1, 3, 10, 600, True)])
 def test_strict_flags_compile_every_shape(cc, size, tmp_path) -> None:
     if shutil.which(cc) is None:
         pytest.skip(f"{cc} not installed")
-    k, f, layers, hidden, d, stuck = size
-    model = st.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck)
+    k, f, layers, hidden, d, stuck, poly = size
+    model = st.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck,
+                            poly_head=poly)
     (tmp_path / "fogsf_model.h").write_text(render_header(model))
     for src in ("fogsf.c", "fogsf_cell.c"):
         proc = subprocess.run([cc, *STRICT, "-Wvla", "-O2", "-I", str(tmp_path), "-I",
@@ -111,10 +113,14 @@ def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
 
 @pytest.mark.skipif(arm_tools_missing() is not None,
                     reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
-def test_cortex_m4f_two_layers_no_filters_no_stuck_check(tmp_path) -> None:
-    """The other shapes on target: 2 layers, K=0, stuck detection off, a step per sample."""
-    model = st.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0)
+@pytest.mark.parametrize("poly", [False, True], ids=["plain", "poly-head"])
+def test_cortex_m4f_two_layers_no_filters_no_stuck_check(poly, tmp_path) -> None:
+    """The other shapes on target: 2 layers, K=0, stuck detection off, a step per sample;
+    and the same with the polynomial head (quadratic and cubic terms in z)."""
+    model = st.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0,
+                            poly_head=poly)
     build = build_kernel(model, root=tmp_path / "host")
+    assert ("#define FOGSF_POLY_HEAD 1" in (build.directory / "fogsf_model.h").read_text()) == poly
     write_golden(model, Kernel(model, build), tmp_path / "golden")
     arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f")
     ok, out = run_qemu(arm.golden_elf)

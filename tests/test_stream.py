@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -215,3 +216,117 @@ def test_random_model_is_seeded_and_not_saturated() -> None:
     frac_saturated = np.mean(np.abs(steps.h_last) > 0.95)
     assert frac_saturated < 0.05
     assert np.ptp(steps.h_last) > 0.2  # the LSTM does move
+
+
+# --- the optional polynomial head ----------------------------------------------------------
+
+FIXTURE = "tests/fixtures/small_model"
+
+
+def _legacy_model_id(model: st.StreamModel) -> str:
+    """model_id as defined before poly_head existed (the 12 contract keys, then the arrays)."""
+    import hashlib
+
+    keys = ("format", "model", "decimation", "sample_dt_s", "t_ref_c", "t_min_c", "t_max_c",
+            "stuck_samples", "filter_tau_s", "n_features", "layers", "hidden")
+    cfg = {k: model.config()[k] for k in keys}
+    digest = hashlib.sha256(json.dumps(cfg, sort_keys=True, separators=(",", ":")).encode())
+    for name in sorted(model.weights):
+        arr = np.ascontiguousarray(model.weights[name], dtype="<f4")
+        digest.update(f"{name}:{arr.shape}".encode())
+        digest.update(arr.tobytes())
+    return digest.hexdigest()[:16]
+
+
+def test_old_artifact_without_poly_key_loads_with_its_old_model_id(tmp_path) -> None:
+    cfg = json.loads((Path(FIXTURE) / "stream.json").read_text())
+    assert "poly_head" not in cfg, "the fixture must stay an artifact from before the key"
+    old = st.StreamModel.load(FIXTURE)
+    assert old.poly_head is False and "poly_head" not in old.extra
+    assert old.model_id == _legacy_model_id(old)
+    # a saved model now says "poly_head": false; with or without the key, one id
+    model = st.random_model(filters=2, n_features=3, layers=1, hidden=4, seed=8)
+    model.save(tmp_path / "m")
+    assert json.loads((tmp_path / "m" / "stream.json").read_text())["poly_head"] is False
+    _edit_cfg_drop(tmp_path / "m", "poly_head")
+    again = st.StreamModel.load(tmp_path / "m")
+    assert again.model_id == model.model_id == _legacy_model_id(model)
+
+
+def _edit_cfg_drop(d, key: str) -> None:
+    cfg = json.loads((d / "stream.json").read_text())
+    del cfg[key]
+    (d / "stream.json").write_text(json.dumps(cfg))
+
+
+def test_poly_model_roundtrips_and_keeps_the_other_draws(tmp_path) -> None:
+    plain = st.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9)
+    poly = st.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9,
+                           poly_head=True)
+    assert set(poly.weights) - set(plain.weights) == {"quad_w", "cube_w"}
+    for name, arr in plain.weights.items():
+        np.testing.assert_array_equal(poly.weights[name], arr, err_msg=name)
+    assert poly.weights["quad_w"].shape == (3, 3) and poly.weights["cube_w"].shape == (3,)
+    assert poly.model_id != plain.model_id
+    poly.save(tmp_path / "p")
+    assert json.loads((tmp_path / "p" / "stream.json").read_text())["poly_head"] is True
+    again = st.StreamModel.load(tmp_path / "p")
+    assert again.poly_head and again.model_id == poly.model_id
+    np.testing.assert_array_equal(again.weights["quad_w"], poly.weights["quad_w"])
+    # the id covers the new arrays
+    again.weights["cube_w"][1] = np.nextafter(again.weights["cube_w"][1], F32(9))
+    assert again.model_id != poly.model_id
+
+
+@pytest.mark.parametrize("breakage, message", [
+    (lambda d: _drop_weight(d, "quad_w"), r"lacks array\(s\) quad_w \(poly_head is true"),
+    (lambda d: _drop_weight(d, "cube_w"), r"lacks array\(s\) cube_w"),
+    (lambda d: _edit_weights(d, "quad_w", lambda a: a[:, :2].copy()), "quad_w.*shape"),
+    (lambda d: _edit_cfg(d, poly_head="yes"), "poly_head.*true or false"),
+    (lambda d: _edit_cfg(d, poly_head=False), "holds cube_w, quad_w but poly_head is false"),
+])
+def test_load_refuses_broken_poly_artifacts(tmp_path, breakage, message) -> None:
+    st.random_model(seed=1, poly_head=True).save(tmp_path / "m")
+    breakage(tmp_path / "m")
+    with pytest.raises(UserError, match=message):
+        st.StreamModel.load(tmp_path / "m")
+
+
+def _drop_weight(d, name: str) -> None:
+    with np.load(d / "stream_weights.npz") as npz:
+        w = {k: npz[k] for k in npz.files if k != name}
+    np.savez(d / "stream_weights.npz", **w)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_poly_head_carries_the_polynomial_in_kernel_order(seed) -> None:
+    """With the LSTM's head and the skip silenced, y is exactly the float32 sum of the
+    contract's order (a scalar loop written here) and within float32 rounding of the exact
+    quadratic + cubic in z; with everything on, y = linear head + polynomial."""
+    rng = np.random.default_rng(seed)
+    model = st.random_model(filters=int(rng.integers(0, 3)), n_features=int(rng.integers(1, 6)),
+                            decimation=int(rng.integers(1, 5)), seed=seed, poly_head=True)
+    temp = np.linspace(-45.0, 55.0, 400 * model.decimation) + rng.normal(0, 0.05)
+    s = st.frontend(temp, model.front_end).s
+    z = st.features(model, s)
+    q, c = model.weights["quad_w"], model.weights["cube_w"]
+    exact = (np.einsum("ni,ij,nj->n", z.astype(np.float64), q.astype(np.float64),
+                       z.astype(np.float64)) + (z.astype(np.float64) ** 3) @ c)
+    assert np.ptp(exact) > 0.05, f"seed {seed}: the polynomial barely moves"
+    full = st.run_steps(model, s)
+    linear = st.random_model(filters=model.n_filters, n_features=model.n_features,
+                             decimation=model.decimation, seed=seed)
+    y_lin = st.run_steps(linear, s).y
+    np.testing.assert_allclose(full.y, y_lin + exact, atol=2e-6, err_msg=f"seed {seed}")
+    for name in ("head_w", "head_b", "skip_w"):
+        model.weights[name] = np.zeros_like(model.weights[name])
+    y = st.run_steps(model, s).y
+    for m in range(0, z.shape[0], 7):
+        acc = F32(0)
+        for i in range(z.shape[1]):
+            for j in range(z.shape[1]):
+                acc = F32(acc + F32(q[i, j] * F32(z[m, i] * z[m, j])))
+        for i in range(z.shape[1]):
+            acc = F32(acc + F32(c[i] * F32(F32(z[m, i] * z[m, i]) * z[m, i])))
+        assert y[m].tobytes() == acc.tobytes(), f"seed {seed} step {m}"
+    np.testing.assert_allclose(y, exact, atol=1e-6, err_msg=f"seed {seed}")

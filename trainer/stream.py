@@ -17,7 +17,8 @@ the C kernel (firmware/c). This module is the reference all three are checked ag
 - `torch_to_onnx_lstm`, `onnx_to_torch_lstm`: gate-order converters (torch i,f,g,o with
   weight_ih, weight_hh, bias_ih, bias_hh <-> ONNX i,o,f,c with W, R, B).
 - `random_model`: a seeded random model of any size, weights scaled so the LSTM is not
-  saturated (for tests and benchmarks before trained models exist).
+  saturated (for tests and benchmarks before trained models exist), optionally with the
+  polynomial head (quad_w, cube_w: a quadratic/cubic fit in z added to the output).
 """
 
 from __future__ import annotations
@@ -141,6 +142,8 @@ _CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {
     "stuck_samples": int, "filter_tau_s": list, "n_features": int, "layers": int,
     "hidden": int,
 }
+POLY_KEY = "poly_head"  # optional stream.json key (absent = false): quad_w and cube_w present
+POLY_ARRAYS = ("quad_w", "cube_w")
 
 
 @dataclass
@@ -160,6 +163,14 @@ class StreamModel:
     weights: dict[str, np.ndarray]
     sample_dt_s: float = 0.1
     extra: dict = field(default_factory=dict)  # unknown stream.json keys, kept on save
+    poly_head: bool = False  # y also carries sum quad_w[i,j] z_i z_j + sum cube_w[i] z_i^3
+
+    def __post_init__(self) -> None:
+        if POLY_KEY in self.extra:  # given as a stream.json key: it is the field
+            extra = dict(self.extra)
+            value = extra.pop(POLY_KEY)
+            self.extra = extra
+            self.poly_head = self.poly_head or value
 
     # -- shape bookkeeping
     @property
@@ -173,6 +184,9 @@ class StreamModel:
             "head_w": (h,), "head_b": (1,), "skip_w": (f,),
             "out_scale": (1,), "out_offset": (1,),
         }
+        if self.poly_head:
+            shapes["quad_w"] = (f, f)
+            shapes["cube_w"] = (f,)
         for layer in range(self.layers):
             n_in = f if layer == 0 else h
             shapes[f"lstm{layer}_w"] = (4 * h, n_in)
@@ -184,6 +198,14 @@ class StreamModel:
     def params(self) -> int:
         """Trainable parameters (filter alphas included, they are part of the model)."""
         return int(sum(a.size for a in self.weights.values()))
+
+    @property
+    def summary(self) -> str:
+        """One line for people: sizes, head, decimation, parameters."""
+        poly = " + polynomial head" if self.poly_head else ""
+        return (f"K={self.n_filters} filters, F={self.n_features} features, "
+                f"{self.layers}x{self.hidden} LSTM{poly}, D={self.decimation}, "
+                f"{self.params} parameters")
 
     @property
     def front_end(self) -> FrontEnd:
@@ -198,14 +220,18 @@ class StreamModel:
             "sample_dt_s": self.sample_dt_s, "t_ref_c": self.t_ref_c, "t_min_c": self.t_min_c,
             "t_max_c": self.t_max_c, "stuck_samples": self.stuck_samples,
             "filter_tau_s": list(self.filter_tau_s), "n_features": self.n_features,
-            "layers": self.layers, "hidden": self.hidden,
+            "layers": self.layers, "hidden": self.hidden, POLY_KEY: self.poly_head,
         })
         return cfg
 
     @property
     def model_id(self) -> str:
-        """16 hex digits of SHA-256 over the contract config and the float32 weight bytes."""
-        cfg = {k: v for k, v in self.config().items() if k in _CONFIG_KEYS}
+        """16 hex digits of SHA-256 over the contract config and the float32 weight bytes.
+
+        `poly_head` enters only when true, so models without the head keep the ids they had
+        before the key existed."""
+        cfg = {k: v for k, v in self.config().items()
+               if k in _CONFIG_KEYS or (k == POLY_KEY and self.poly_head)}
         digest = hashlib.sha256(json.dumps(cfg, sort_keys=True, separators=(",", ":")).encode())
         for name in sorted(self.weights):
             arr = np.ascontiguousarray(self.weights[name], dtype="<f4")
@@ -235,6 +261,8 @@ class StreamModel:
             if not (isinstance(value, (int, float)) and math.isfinite(value)
                     and -273.15 < value < 1000.0):
                 raise bad(f"'{name}' must be a finite temperature in C, got {value!r}")
+        if not isinstance(self.poly_head, bool):
+            raise bad(f"'{POLY_KEY}' must be true or false, got {self.poly_head!r}")
         if not self.t_min_c < self.t_max_c:
             raise bad(f"t_min_c ({self.t_min_c}) must be below t_max_c ({self.t_max_c})")
         if not self.t_min_c <= self.t_ref_c <= self.t_max_c:
@@ -246,7 +274,13 @@ class StreamModel:
         expected = self.expected_shapes()
         missing = sorted(set(expected) - set(self.weights))
         if missing:
-            raise bad(f"{WEIGHTS_FILE} lacks array(s) {', '.join(missing)}")
+            why = (f" ({POLY_KEY} is true: the polynomial head needs quad_w [F, F] and cube_w "
+                   f"[F])" if self.poly_head and set(missing) & set(POLY_ARRAYS) else "")
+            raise bad(f"{WEIGHTS_FILE} lacks array(s) {', '.join(missing)}{why}")
+        stray = sorted(set(POLY_ARRAYS) & set(self.weights) - set(expected))
+        if stray:
+            raise bad(f"{WEIGHTS_FILE} holds {', '.join(stray)} but {POLY_KEY} is false: set "
+                      f"\"{POLY_KEY}\": true in {CONFIG_FILE} or drop the array(s)")
         for name, shape in expected.items():
             arr = self.weights[name]
             if arr.dtype != np.float32:
@@ -308,6 +342,9 @@ class StreamModel:
                 weights = {k: npz[k] for k in npz.files}
         except (OSError, ValueError) as e:
             raise UserError(f"{w_path}: cannot read the weights: {e}") from None
+        if not isinstance(cfg.get(POLY_KEY, False), bool):
+            raise UserError(f"{cfg_path}: key '{POLY_KEY}' must be true or false, got "
+                            f"{cfg[POLY_KEY]!r}")
         model = cls(
             model=cfg["model"], decimation=cfg["decimation"], t_ref_c=float(cfg["t_ref_c"]),
             t_min_c=float(cfg["t_min_c"]), t_max_c=float(cfg["t_max_c"]),
@@ -316,7 +353,8 @@ class StreamModel:
                           for t in cfg["filter_tau_s"]],
             n_features=cfg["n_features"], layers=cfg["layers"], hidden=cfg["hidden"],
             weights=weights, sample_dt_s=float(cfg["sample_dt_s"]),
-            extra={k: v for k, v in cfg.items() if k not in _CONFIG_KEYS},
+            extra={k: v for k, v in cfg.items() if k not in _CONFIG_KEYS and k != POLY_KEY},
+            poly_head=cfg.get(POLY_KEY, False),
         )
         model.validate(where=str(d))
         return model
@@ -438,13 +476,22 @@ def lstm_cell(w: np.ndarray, r: np.ndarray, b: np.ndarray, x: np.ndarray, h: np.
 
 
 def head(model: StreamModel, h_last: np.ndarray, z: np.ndarray) -> tuple[F32, F32, int]:
-    """(y, sf_ppm, flags) from the last layer's h and z, sequential from head_b."""
+    """(y, sf_ppm, flags) from the last layer's h and z, sequential from head_b; with the
+    polynomial head, then + quad_w[i, j] * (z_i * z_j) (i, then j ascending) and
+    + cube_w[i] * ((z_i * z_i) * z_i), one float32 op at a time as the kernel."""
     wts = model.weights
     y = wts["head_b"][0]
     for j in range(h_last.shape[0]):
         y = y + wts["head_w"][j] * h_last[j]
     for j in range(z.shape[0]):
         y = y + wts["skip_w"][j] * z[j]
+    if model.poly_head:
+        quad, cube = wts["quad_w"], wts["cube_w"]
+        for i in range(z.shape[0]):
+            for j in range(z.shape[0]):
+                y = y + quad[i, j] * (z[i] * z[j])
+        for i in range(z.shape[0]):
+            y = y + cube[i] * ((z[i] * z[i]) * z[i])
     sf = y * wts["out_scale"][0] + wts["out_offset"][0]
     sf, flags = clamp_sf(sf)
     return F32(y), sf, flags
@@ -569,12 +616,15 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                  decimation: int = 10, seed: int = 0, *, taus_s: list[float] | None = None,
                  t_ref_c: float = 20.0, t_min_c: float = -45.0, t_max_c: float = 55.0,
                  stuck_samples: int = 600, gain: float = 0.8, out_scale: float = 300.0,
-                 out_offset: float = 40.0) -> StreamModel:
+                 out_offset: float = 40.0, poly_head: bool = False) -> StreamModel:
     """A seeded random model in the artifact format.
 
     Scaled so nothing saturates on chamber temperatures: z is O(1) over -45..55 C, every gate's
     pre-activation has a standard deviation of about `gain`, so h moves through the linear part
     of tanh and sf_ppm spans a few hundred ppm (out_scale) around out_offset.
+    With `poly_head`, quad_w and cube_w come from a second generator seeded from `seed` (the
+    other arrays are those of the same call without the head), scaled so that the quadratic
+    and cubic terms are O(0.3) each, like the skip term.
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
@@ -584,8 +634,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     k, f, h = filters, n_features, hidden
     half_span = max(t_max_c - t_ref_c, t_ref_c - t_min_c)
 
-    def u(shape: tuple[int, ...], scale: float) -> np.ndarray:
-        return (rng.uniform(-1.0, 1.0, size=shape) * scale).astype(np.float32)
+    def u(shape: tuple[int, ...], scale: float, gen: np.random.Generator = rng) -> np.ndarray:
+        return (gen.uniform(-1.0, 1.0, size=shape) * scale).astype(np.float32)
 
     weights: dict[str, np.ndarray] = {
         "filter_alpha": filter_alpha(taus_s, decimation),
@@ -603,10 +653,14 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     weights["skip_w"] = u((f,), 0.3 * math.sqrt(3.0 / f))
     weights["out_scale"] = np.array([out_scale], np.float32)
     weights["out_offset"] = np.array([out_offset], np.float32)
+    if poly_head:
+        poly_rng = np.random.default_rng([seed, 1])  # its own stream: the draws above stay put
+        weights["quad_w"] = u((f, f), 0.3 * math.sqrt(3.0) / f, poly_rng)
+        weights["cube_w"] = u((f,), 0.3 * math.sqrt(3.0 / f), poly_rng)
     model = StreamModel(model="random-lstm", decimation=decimation, t_ref_c=t_ref_c,
                         t_min_c=t_min_c, t_max_c=t_max_c, stuck_samples=stuck_samples,
                         filter_tau_s=list(taus_s), n_features=f, layers=layers, hidden=h,
-                        weights=weights, extra={"random_seed": seed})
+                        weights=weights, extra={"random_seed": seed}, poly_head=poly_head)
     model.validate()
     return model
 

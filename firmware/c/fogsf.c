@@ -1,7 +1,8 @@
 /*
  * The fixed-size model path of the kernel: front end (sanitise, clamp, stuck detection,
- * block means, lag filters), model step (features, LSTM layers, head) and the per-sample
- * correction, exactly in the float32 order of docs/stream-contract.md.
+ * block means, lag filters), model step (features, LSTM layers, head with the optional
+ * polynomial terms) and the per-sample correction, exactly in the float32 order of
+ * docs/stream-contract.md.
  */
 #define FOGSF_MODEL_WEIGHTS /* this translation unit holds the weights */
 #include "fogsf.h"
@@ -97,6 +98,19 @@ static void model_step(fogsf_state *st, float tm)
     for (j = 0; j < FOGSF_N_FEATURES; ++j) {
         y = y + fogsf_skip_w[j] * st->z[j];
     }
+#if FOGSF_POLY_HEAD
+    { /* polynomial head: the quadratic, then the cubic terms in z, in index order */
+        int i;
+        for (i = 0; i < FOGSF_N_FEATURES; ++i) {
+            for (j = 0; j < FOGSF_N_FEATURES; ++j) {
+                y = y + fogsf_quad_w[i * FOGSF_N_FEATURES + j] * (st->z[i] * st->z[j]);
+            }
+        }
+        for (i = 0; i < FOGSF_N_FEATURES; ++i) {
+            y = y + fogsf_cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
+        }
+    }
+#endif
     sf = y * fogsf_out_scale + fogsf_out_offset;
     mag = sf < 0.0f ? -sf : sf;
     st->sf_flags = 0u;

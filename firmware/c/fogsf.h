@@ -24,6 +24,12 @@
 
 #include "fogsf_model.h"
 
+/* The optional polynomial head: a model header that has it defines FOGSF_POLY_HEAD 1 (and
+   fogsf_quad_w, fogsf_cube_w); headers without it (all older ones) leave it undefined. */
+#ifndef FOGSF_POLY_HEAD
+#define FOGSF_POLY_HEAD 0
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif

@@ -24,9 +24,7 @@ def run(args: argparse.Namespace) -> int:
 
     model = StreamModel.load(args.model)
     paths = export_model(model, args.out)
-    print(f"model {model.model_id} ({model.model}): K={model.n_filters} filters, "
-          f"F={model.n_features} features, {model.layers}x{model.hidden} LSTM, "
-          f"D={model.decimation}, {model.params} parameters")
+    print(f"model {model.model_id} ({model.model}): {model.summary}")
     for kind, path in paths.items():
         print(f"wrote {path} ({path.stat().st_size} bytes, {kind})")
     return 0
