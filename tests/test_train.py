@@ -65,6 +65,24 @@ def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:
     assert np.max(np.abs(ref.sf_ppm.astype(np.float64) - torch_pred)) < 0.01
 
 
+def test_two_nodes_from_two_ramp_rates(logs, tmp_path: Path) -> None:
+    """With runs at two ramp rates, two effective nodes and their quadratic form (the
+    polynomial head) are identified and carried into the firmware artifact."""
+    train, test = logs
+    third = short_ramp(2.0, 13)
+    opts = TrainOptions(model="lag-lstm", nodes=2, progress=False, **FAST)
+    m, fitted = run_training(opts, [train, third], test, tmp_path / "n2")
+    assert len(m["features"]) == 2 and len(m["filter_tau_s"]) == 2
+    assert set(m["train"]) == {"log0", "log1"}
+    sm = StreamModel.load(tmp_path / "n2")
+    assert sm.poly_head and sm.weights["quad_w"].shape == (2, 2)
+    assert not sm.weights["cube_w"].any()  # a quadratic form: no cubic terms
+    assert m["test"]["after"]["rms_ppm"] < 0.5 * m["test"]["before"]["rms_ppm"]
+    with pytest.raises(UserError, match="one effective node"):
+        run_training(TrainOptions(model="lag-lstm", nodes=2, node=(600.0, 0.1)), [train],
+                     test, tmp_path / "bad")
+
+
 def test_same_seed_same_model(logs, tmp_path: Path) -> None:
     train, test = logs
     a, _ = run_training(TrainOptions(model="lstm", progress=False, seed=3, **FAST), [train], test,

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -130,10 +132,33 @@ def _init_by_least_squares(net: StreamNet, data: list[SeqData], z: list[np.ndarr
                     coef[f + len(pairs): f + len(pairs) + f].astype(np.float32)))
 
 
+SMALL_NET_UNITS = 128  # layers x hidden at or below which one thread is fastest
+
+
+@contextmanager
+def torch_threads(n: int) -> Iterator[None]:
+    """Run with `n` intra-op threads, then restore. Small networks are many tiny ops: on a
+    busy 2-core machine, two threads make them several times slower than one."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
 def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
                  out_offset: float, out_scale: float, progress: bool = True
                  ) -> tuple[StreamNet, History]:
     """Train a StreamNet on the training steps of `data` (features `z`, one per log)."""
+    small = cfg.layers * cfg.hidden <= SMALL_NET_UNITS
+    with torch_threads(1 if small else torch.get_num_threads()):
+        return _train_stream(data, z, cfg, out_offset, out_scale, progress)
+
+
+def _train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
+                  out_offset: float, out_scale: float, progress: bool
+                  ) -> tuple[StreamNet, History]:
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden, poly=cfg.poly_head,

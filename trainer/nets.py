@@ -39,7 +39,7 @@ class StreamNet(nn.Module):
         out, state = self.lstm(z, state)
         y = self.head(out).squeeze(-1) + self.skip(z).squeeze(-1)
         if self.poly:
-            y = y + torch.einsum("bti,ij,btj->bt", z, self.quad, z) + (z**3) @ self.cube
+            y = y + ((z @ self.quad) * z).sum(-1) + (z * z * z) @ self.cube
         return y, state
 
 

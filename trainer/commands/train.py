@@ -113,14 +113,20 @@ def run(args: argparse.Namespace) -> int:
 def format_metrics(m: dict) -> str:
     lines = [f"model {m['model']}: {m['params']} parameters ({m['weights_bytes']} bytes), "
              f"features {', '.join(m['features'])}, trained in {m['train_seconds']:.1f} s"]
-    row = "  {:<14} {:>9} {:>9} {:>9} {:>9}"
+    row = "  {:<16} {:>9} {:>9} {:>9} {:>9}"
     lines.append(row.format("SF error, ppm", "max|e|", "p-p", "RMS", "STD"))
+    blocks: list[tuple[str, dict]] = []
     for part in ("train", "test"):
-        if part not in m or "before" not in m[part]:
+        if part not in m:
             continue
+        if "before" in m[part]:
+            blocks.append((part, m[part]))
+        else:  # several training logs: one block each
+            blocks += [(f"{part} {k[3:]}", v) for k, v in m[part].items()]
+    for name, block in blocks:
         for when in ("before", "after"):
-            b = m[part][when]
-            lines.append(row.format(f"{part} {when}", f"{b['max_abs_ppm']:.2f}",
+            b = block[when]
+            lines.append(row.format(f"{name} {when}", f"{b['max_abs_ppm']:.2f}",
                                     f"{b['pp_ppm']:.2f}", f"{b['rms_ppm']:.2f}",
                                     f"{b['std_ppm']:.2f}"))
     lines.append(f"  noise floor {m['noise_floor_ppm']:.2f} ppm ({m['window_s']:g} s windows)")
