@@ -119,12 +119,14 @@ def test_c_float_roundtrips_every_kind_of_float() -> None:
         assert np.float32(float(text[:-1])).tobytes() == v.tobytes()
 
 
-def test_export_command_writes_both_files(tmp_path, capsys) -> None:
-    model = st.random_model(seed=3)
+@pytest.mark.parametrize("poly", [False, True])
+def test_export_command_writes_both_files(poly, tmp_path, capsys) -> None:
+    model = st.random_model(seed=3, poly_head=poly)
     model.save(tmp_path / "m")
     assert main(["export", str(tmp_path / "m"), "--out", str(tmp_path / "b")]) == 0
     printed = capsys.readouterr().out
     assert "model.onnx" in printed and "fogsf_model.h" in printed
+    assert ("LSTM + polynomial head, D=10" in printed) == poly, printed
     first = (tmp_path / "b" / "fogsf_model.h").read_bytes()
     onnx.checker.check_model(onnx.load(str(tmp_path / "b" / "model.onnx")))
     export_model(st.StreamModel.load(tmp_path / "m"), tmp_path / "c")
