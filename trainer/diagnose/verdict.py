@@ -1,0 +1,354 @@
+"""Fit the base model, score every catalogue effect on held-out data, name the cause.
+
+Decision rules (all on held-out residuals, per block of windows, never per window):
+
+- A candidate is *significant* when it predicts held-out windows better than the base on
+  enough blocks that a paired sign-flip test gives p < ALPHA, and its held-out RMS gain is
+  at least MIN_GAIN_PCT.
+- It is *not identifiable* on these logs when the part of its column that the base model
+  cannot absorb is below MIN_VISIBLE of the column (e.g. asymmetry at one |rate|, aging or
+  a dT/dt term on steady ramps alone): it is then not scored, and says so.
+- The best significant candidate is *ambiguous* with another significant one when, pairwise,
+  it is not better than it on held-out blocks (p >= AMBIGUOUS_P): no cause is named.
+- *Structure remains* when the chosen model's held-out residual (the best candidate's, else
+  the base's) is not white (Ljung-Box p < STRUCTURE_P) or its variance exceeds the noise
+  floor's by more than STRUCTURE_EXCESS: `unexplained` is then true, and no cause is named
+  with confidence (a partial fit is reported in the candidate's evidence).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from trainer.diagnose import catalogue, crossval, design, driver, profile_ls, runs, stats
+from trainer.diagnose.catalogue import Candidate
+from trainer.diagnose.design import RunContext
+from trainer.diagnose.profile_ls import Stack
+from trainer.errors import UserError
+from trainer.logio import ChamberLog
+
+ALPHA = 0.01
+MIN_GAIN_PCT = 5.0
+MIN_VISIBLE = 0.03
+AMBIGUOUS_P = 0.05
+STRUCTURE_P = 1e-3
+STRUCTURE_EXCESS = 1.45  # held-out mean (e/sigma)^2 above which structure remains
+Z95 = 1.959964
+
+
+@dataclass
+class ModelFit:
+    """One model (base, or base + a candidate) fitted on all windows."""
+
+    stack: Stack
+    fit: profile_ls.Fit
+    pred: np.ndarray  # in-sample prediction per window
+    heldout: np.ndarray  # held-out residual per window
+    chi2_red: float  # in-sample weighted SSE / dof
+
+    @property
+    def combo(self) -> profile_ls.Combo:
+        return self.stack.combos[self.fit.index]
+
+    def coef(self, name: str) -> float:
+        return float(self.fit.beta[self.stack.names.index(name)])
+
+    def coef_se(self, name: str) -> float:
+        i = self.stack.names.index(name)
+        return float(math.sqrt(max(self.fit.cov[i, i], 0.0) * max(1.0, self.chi2_red)))
+
+
+@dataclass
+class CandidateResult:
+    name: str
+    identifiable: bool
+    visible: float  # fraction of the candidate's column the base cannot absorb
+    params: dict[str, object] = field(default_factory=dict)
+    heldout_before: float = float("nan")
+    heldout_after: float = float("nan")
+    gain_pct: float = 0.0
+    p_value: float = 1.0
+    blocks_better: int = 0
+    blocks: int = 0
+    significant: bool = False
+    evidence: str = ""
+    model: ModelFit | None = None
+    effect: dict | None = None  # simulator effect entry
+
+
+@dataclass
+class Diagnosis:
+    runs: list[runs.Run]
+    ctxs: list[RunContext]
+    y: np.ndarray
+    sigma: np.ndarray
+    run_ids: np.ndarray
+    blocks: np.ndarray
+    folds: np.ndarray
+    base: ModelFit
+    base_rms: float
+    base_whiteness_p: float
+    correlations: dict[str, dict[str, float]]
+    candidates: list[CandidateResult]
+    cause: str | None
+    ambiguous: list[str]
+    unexplained: bool
+    structure: dict[str, float]
+    extended: ModelFit  # base + cause (the base when there is no cause)
+    cv_mode: str
+    window_s: float
+
+    @property
+    def noise_floor_ppm(self) -> float:
+        return float(np.sqrt(np.mean(self.sigma**2)))
+
+    def segments(self, e: np.ndarray) -> list[np.ndarray]:
+        return [e[self.run_ids == i] for i in range(len(self.runs))]
+
+
+def _weighted_rms(e: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(e * e)))
+
+
+def fit_model(ctxs: list[RunContext], cand: Candidate | None, y: np.ndarray, w: np.ndarray,
+              folds: np.ndarray, combos: list[profile_ls.Combo] | None = None) -> ModelFit:
+    stack = profile_ls.build(ctxs, cand, combos)
+    rows = np.arange(y.shape[0])
+    fit = profile_ls.solve(stack, y, w, rows)
+    pred = profile_ls.predict(stack, fit)
+    dof = max(1, y.shape[0] - stack.x.shape[2])
+    chi2 = float(np.sum((y - pred) ** 2 * w)) / dof
+    held = crossval.heldout_residuals(stack, y, w, folds)
+    return ModelFit(stack, fit, pred, held, chi2)
+
+
+def visible_fraction(model: ModelFit, w: np.ndarray) -> float:
+    """Share (RMS) of the candidate column not reproducible by the base columns."""
+    x = model.stack.x[model.fit.index]
+    col = x[:, -1]
+    base = x[:, :-1]
+    sw = np.sqrt(w)
+    c = col * sw
+    if not np.any(col != col[0]):
+        return 0.0
+    coef, *_ = np.linalg.lstsq(base * sw[:, None], c, rcond=None)
+    r = c - (base * sw[:, None]) @ coef
+    cm = c - sw * np.sum(col * w) / np.sum(w)
+    return float(np.linalg.norm(r) / max(np.linalg.norm(cm), 1e-300))
+
+
+def _profile_interval(model: ModelFit, y: np.ndarray, w: np.ndarray) -> tuple[float, float]:
+    """Interval of the candidate's grid parameter where the profiled weighted SSE stays
+    within chi2(1, 95%) = 3.84 (scaled by the reduced chi-square) of its minimum."""
+    st = model.stack
+    sse = model.fit.sse
+    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
+    vals = np.unique(gs)
+    prof = np.array([sse[gs == v].min() for v in vals])
+    ok = prof <= prof.min() + 3.84 * max(1.0, model.chi2_red)
+    lo_i, hi_i = int(np.flatnonzero(ok)[0]), int(np.flatnonzero(ok)[-1])
+    # one grid step beyond the last accepted value bounds the interval (grid resolution)
+    lo = vals[lo_i - 1] if lo_i > 0 else vals[0]
+    hi = vals[hi_i + 1] if hi_i + 1 < vals.shape[0] else vals[-1]
+    return float(lo), float(hi)
+
+
+def _refine(ctxs: list[RunContext], cand: Candidate, model: ModelFit, y: np.ndarray,
+            w: np.ndarray, folds: np.ndarray) -> ModelFit:
+    """Refit on a finer grid of the candidate's parameter around the best grid value, with
+    the base time constants held at their best."""
+    bt, g = model.combo
+    assert g is not None
+    grid = np.asarray(cand.grid)
+    i = int(np.argmin(np.abs(grid - g)))
+    lo = grid[max(i - 1, 0)]
+    hi = grid[min(i + 1, grid.shape[0] - 1)]
+    fine = np.unique(np.round(np.geomspace(lo, hi, 9), 1))
+    combos = [(bt, float(v)) for v in fine if cand.admissible(bt, float(v))]
+    if not combos:
+        return model
+    return fit_model(ctxs, cand, y, w, folds, combos)
+
+
+def _block_sums(v: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    return np.bincount(blocks, weights=v)
+
+
+def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
+            interval: tuple[float, float] | None) -> dict[str, object]:
+    m = fine or model
+    coef = m.coef(cand.coef_name)
+    se = m.coef_se(cand.coef_name)
+    out: dict[str, object] = {cand.coef_name: coef,
+                              f"{cand.coef_name}_ci95": [coef - Z95 * se, coef + Z95 * se]}
+    g = m.combo[1]
+    if cand.grid_name is not None and g is not None and interval is not None:
+        out[cand.grid_name] = float(g)
+        out[f"{cand.grid_name}_ci95"] = [min(interval[0], g), max(interval[1], g)]
+    if cand.name == "temp_rate":
+        out["coil_tau_s"] = float(m.combo[0][0])
+    return out
+
+
+def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str, float]]:
+    """Correlation of a residual with the quantities an effect would follow."""
+    feats: dict[str, list[np.ndarray]] = {k: [] for k in (
+        "temperature_c", "dtemp_dt_c_per_min", "time_since_power_on_s", "elapsed_s",
+        "table_rate_dps", "abs_rate_dps", "sign_rate")}
+    for ctx in d_ctxs:
+        r = ctx.run
+        feats["temperature_c"].append(design.board(ctx) + design.T_REF_C)
+        feats["dtemp_dt_c_per_min"].append(design.board_rate_c_per_min(ctx))
+        feats["time_since_power_on_s"].append(r.t_s)
+        feats["elapsed_s"].append(r.t_s - float(r.log.time_s[0]))
+        feats["table_rate_dps"].append(r.rate)
+        feats["abs_rate_dps"].append(np.abs(r.rate))
+        feats["sign_rate"].append(np.sign(r.rate))
+    out = {}
+    for k, v in feats.items():
+        rr, p = stats.correlation(e, np.concatenate(v))
+        out[k] = {"r": rr, "p": p}
+    return out
+
+
+def _structure(d_e: np.ndarray, sigma: np.ndarray, segs: list[np.ndarray]) -> dict[str, float]:
+    z = d_e / sigma
+    return {"whiteness_p": stats.ljung_box_p(segs),
+            "excess_variance": float(np.mean(z * z))}
+
+
+def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float | None = None,
+             cv: str = "blocks", start: str = "auto", effects: list[str] | None = None,
+             progress: bool = False) -> Diagnosis:
+    if not logs:
+        raise UserError("give at least one chamber log")
+    rs = [runs.load_run(log, window_s, latitude_deg) for log in logs]
+    rates = np.unique(np.round(np.concatenate([r.rate for r in rs]), 6))
+    bias_on = rates.shape[0] > 1
+    ctxs = []
+    for r in rs:
+        drv = driver.identify(r.log.time_s, r.log.temp_c, r.log.extra.get("chamber_c"), start)
+        ctxs.append(RunContext(r, drv, drv.power_on, bias_on))
+    y = np.concatenate([r.y_ppm for r in rs])
+    sigma = np.concatenate([r.sigma_ppm for r in rs])
+    w = 1.0 / sigma**2
+    run_ids = np.concatenate([np.full(len(r), i) for i, r in enumerate(rs)])
+    blocks = crossval.block_ids([len(r) for r in rs])
+    folds = crossval.fold_ids(blocks, run_ids, cv)
+
+    base = fit_model(ctxs, None, y, w, folds)
+    e_in = y - base.pred
+    segs_in = [e_in[run_ids == i] for i in range(len(rs))]
+    base_rms = _weighted_rms(e_in)
+    before = _weighted_rms(base.heldout)
+    names = effects or list(catalogue.CATALOGUE)
+    unknown = [n for n in names if n not in catalogue.CATALOGUE]
+    if unknown:
+        raise UserError(f"unknown effect(s) {', '.join(unknown)}; known: "
+                        f"{', '.join(catalogue.CATALOGUE)}")
+    results: list[CandidateResult] = []
+    it = names
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(names, desc="candidates", unit="effect", leave=False)
+    for name in it:
+        results.append(_score(catalogue.CATALOGUE[name], ctxs, y, w, folds, blocks, base,
+                              before))
+
+    sig = sorted([c for c in results if c.significant], key=lambda c: c.heldout_after)
+    cause: str | None = None
+    ambiguous: list[str] = []
+    chosen = base
+    if sig:
+        best = sig[0]
+        assert best.model is not None
+        chosen = best.model
+        for other in sig[1:]:
+            assert other.model is not None
+            d = _block_sums((other.model.heldout**2 - best.model.heldout**2) * w, blocks)
+            p = stats.sign_flip_p(d)
+            if p >= AMBIGUOUS_P:
+                ambiguous.append(other.name)
+                other.evidence += (f"; not separable from {best.name} on held-out blocks "
+                                   f"(p={p:.2g})")
+        if ambiguous:
+            ambiguous.insert(0, best.name)
+            best.evidence += ("; ambiguous with " + ", ".join(ambiguous[1:]) +
+                              ": these logs cannot tell them apart (add a soak or step after "
+                              "a ramp, or several table rates)")
+        else:
+            cause = best.name
+    structure = _structure(chosen.heldout, sigma,
+                           [chosen.heldout[run_ids == i] / sigma[run_ids == i]
+                            for i in range(len(rs))])
+    unexplained = (structure["whiteness_p"] < STRUCTURE_P
+                   or structure["excess_variance"] > STRUCTURE_EXCESS)
+    if unexplained and cause is not None:
+        best = sig[0]
+        best.evidence += ("; but structure remains after it (held-out residual "
+                          f"whiteness p={structure['whiteness_p']:.2g}, variance "
+                          f"{structure['excess_variance']:.2f}x the noise): not named with "
+                          "confidence")
+        cause = None
+    extended = chosen if cause is not None else base
+    return Diagnosis(
+        runs=rs, ctxs=ctxs, y=y, sigma=sigma, run_ids=run_ids, blocks=blocks, folds=folds,
+        base=base, base_rms=base_rms, base_whiteness_p=stats.ljung_box_p(segs_in),
+        correlations=correlations(ctxs, e_in), candidates=results, cause=cause,
+        ambiguous=ambiguous, unexplained=unexplained, structure=structure, extended=extended,
+        cv_mode=cv, window_s=window_s)
+
+
+def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray,
+           folds: np.ndarray, blocks: np.ndarray, base: ModelFit, before: float
+           ) -> CandidateResult:
+    model = fit_model(ctxs, cand, y, w, folds)
+    vis = visible_fraction(model, w)
+    res = CandidateResult(cand.name, vis >= MIN_VISIBLE, vis, heldout_before=before)
+    if not res.identifiable:
+        res.heldout_after = before
+        res.evidence = (f"not identifiable from these logs: {100 * (1 - vis):.1f}% of its "
+                        "signature is absorbed by the base model (" + _why_hidden(cand.name)
+                        + ")")
+        return res
+    fine = None
+    interval = None
+    if cand.grid_name is not None:
+        interval = _profile_interval(model, y, w)
+        fine = _refine(ctxs, cand, model, y, w, folds)
+    after = _weighted_rms(model.heldout)
+    d = _block_sums((base.heldout**2 - model.heldout**2) * w, blocks)
+    res.heldout_after = after
+    res.gain_pct = 100.0 * (1.0 - after / before) if before > 0 else 0.0
+    res.p_value = stats.sign_flip_p(d)
+    res.blocks = int(d.shape[0])
+    res.blocks_better = int(np.sum(d > 0))
+    res.significant = res.p_value < ALPHA and res.gain_pct >= MIN_GAIN_PCT
+    res.model = fine or model
+    res.params = _params(cand, model, fine, interval)
+    g = res.model.combo[1]
+    res.effect = cand.to_effect(res.model.coef(cand.coef_name), g)
+    verdict = "significant" if res.significant else "not significant"
+    res.evidence = (f"{verdict}: held-out RMS {before:.2f} -> {after:.2f} ppm "
+                    f"(gain {res.gain_pct:.1f}%), better on {res.blocks_better} of {res.blocks} "
+                    f"blocks (sign-flip p={res.p_value:.2g}); {100 * vis:.0f}% of its "
+                    "signature is beyond the base model")
+    return res
+
+
+def _why_hidden(name: str) -> str:
+    return {
+        "rate_nonlinearity": "one |table rate| only: an SF that depends on |rate| is then a "
+                             "constant",
+        "asymmetry": "one |table rate|: +/- asymmetry cannot be told from a constant bias, "
+                     "which also flips with the rate's sign",
+        "bias_drift": "one table rate: a bias following temperature is then an SF term in "
+                      "temperature",
+        "aging": "time and temperature move together (e.g. a single ramp)",
+        "temp_rate": "steady ramps only: a dT/dt term is then a constant offset per ramp rate",
+        "extra_lag": "steady ramps only: a lag is then a constant offset per ramp rate",
+        "warmup": "no power-on transient in the logs",
+    }.get(name, "collinear with the base on these logs")
