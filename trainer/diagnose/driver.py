@@ -10,8 +10,8 @@ the housing's is a convention: the faster one, as in a gyro whose housing follow
 within a few minutes). Without `chamber_c`, the board thermometer itself is the driver.
 
 A power-on start shows as a self-heating rise of the board at constant chamber air; its
-amplitude decides whether the internal nodes' own (unseen) self-heating transients belong
-in the base model.
+amplitude (above POWER_ON_MIN_C) decides whether the internal nodes' own (unseen)
+self-heating transients belong in the base model.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from trainer.sim.thermal import first_order_lag
 
 TAU_GRID_S = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.0, 240.0, 300.0, 360.0, 480.0,
               600.0, 800.0, 1000.0, 1300.0, 1800.0)
-DECIMATE = 10  # fit on 1 Hz samples
+DECIMATE = 20  # fit on 2 s samples
 POWER_ON_MIN_C = 0.5  # a self-heating rise above this (C) marks a power-on start
 
 
@@ -36,37 +36,48 @@ class Driver:
     source: str  # "chamber" or "board"
     tau_housing_s: float
     tau_board_s: float
-    self_heat_c: float  # board's rise after power-on (0 for a warm start)
-    board_offset_c: float  # board minus lagged chamber at equilibrium
+    self_heat_housing_c: float  # rises after power-on (0 for a warm start)
+    self_heat_board_c: float
+    board_offset_c: float  # board minus lagged chamber (g * lag2 + c: the c)
     power_on: bool
     rms_c: float  # RMS of the board-thermometer fit
 
 
-def _two_lag(u: np.ndarray, a: float, b: float, dt: float) -> np.ndarray:
-    y = first_order_lag(u, a, dt, float(u[0]))
-    return first_order_lag(y, b, dt, float(y[0]))
+def _lag(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
+    return first_order_lag(u, tau, dt, float(u[0]))
 
 
 def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | None,
              start: str = "auto") -> Driver:
-    """Find the driver of one run. start: "auto", "warm" or "power-on"."""
+    """Find the driver of one run. start: "auto", "warm" or "power-on".
+
+    Model of the board thermometer: board = g * lag(lag(chamber, tau_h), tau_b) + c
+    [+ q_h * (lag(lag(step, tau_h), tau_b) - 1) + q_b * (lag(step, tau_b) - 1)], the
+    bracket being the self-heating of housing and board after power-on (a unit step at t=0).
+    The chamber path is symmetric in (tau_h, tau_b), the self-heating path is not, so after
+    a power-on both are identified; after a warm start the faster is taken as the housing's.
+    """
     if chamber_c is None:
         return Driver(np.asarray(board_c, dtype=np.float64), "board", 0.0, 0.0, 0.0, 0.0,
-                      start == "power-on", 0.0)
-    dt = float(np.median(np.diff(time_s))) * DECIMATE
+                      0.0, start == "power-on", 0.0)
+    dt10 = float(np.median(np.diff(time_s)))
+    dt = dt10 * DECIMATE
     c = np.asarray(chamber_c, dtype=np.float64)[::DECIMATE]
     b = np.asarray(board_c, dtype=np.float64)[::DECIMATE]
-    t = np.asarray(time_s, dtype=np.float64)[::DECIMATE] - float(time_s[0])
     step = np.ones_like(c)
     step[0] = 0.0
+    with_steps = start != "warm"
+    lag_c = {t: _lag(c, t, dt) for t in TAU_GRID_S}
+    lag_s = {t: _lag(step, t, dt) for t in TAU_GRID_S}
     best: tuple[float, float, float, np.ndarray] | None = None
-    for i, ta in enumerate(TAU_GRID_S):
-        for tb in TAU_GRID_S[i:]:
-            x = _two_lag(c, ta, tb, dt)
-            s = _two_lag(step, ta, tb, dt) - 1.0  # -1 at power-on, 0 once settled
+    for ta in TAU_GRID_S:
+        for tb in TAU_GRID_S:
+            if not with_steps and tb < ta:
+                continue
+            x = _lag(lag_c[ta], tb, dt)
             cols = [x, np.ones_like(x)]
-            if start != "warm":
-                cols.append(s)
+            if with_steps:
+                cols += [_lag(lag_s[ta], tb, dt) - 1.0, lag_s[tb] - 1.0]
             xm = np.column_stack(cols)
             coef, *_ = np.linalg.lstsq(xm, b, rcond=None)
             sse = float(np.sum((b - xm @ coef) ** 2))
@@ -74,9 +85,14 @@ def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | No
                 best = (sse, ta, tb, coef)
     assert best is not None
     sse, ta, tb, coef = best
-    rise = float(coef[2]) if start != "warm" else 0.0  # coefficient of (step response - 1)
-    power_on = start == "power-on" or (start == "auto" and rise > POWER_ON_MIN_C)
-    housing = first_order_lag(np.asarray(chamber_c, dtype=np.float64), ta,
-                              float(np.median(np.diff(time_s))), float(chamber_c[0]))
-    return Driver(housing, "chamber", ta, tb, rise if power_on else 0.0, float(coef[1]),
-                  power_on, float(np.sqrt(sse / b.shape[0])))
+    q_h, q_b = (float(coef[2]), float(coef[3])) if with_steps else (0.0, 0.0)
+    power_on = start == "power-on" or (start == "auto" and q_h + q_b > POWER_ON_MIN_C)
+    if not power_on:
+        q_h = q_b = 0.0
+        ta, tb = min(ta, tb), max(ta, tb)
+    cham = np.asarray(chamber_c, dtype=np.float64)
+    power = np.ones_like(cham)
+    power[0] = 0.0
+    housing = first_order_lag(cham + q_h * power, ta, dt10, float(cham[0]))
+    return Driver(housing, "chamber", ta, tb, q_h, q_b, float(coef[1]), power_on,
+                  float(np.sqrt(sse / b.shape[0])))
