@@ -14,9 +14,10 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
 
 The coil node of `temp_rate` is the base model's first internal node (tau1): in a FOG the
 coil is the first internal node the SF is sensitive to after the board (the simulator's
-ordering). An extra lag is an extra *slow* node: its time constant is profiled above the
-base's slower node, so the two candidates differ by how long they keep settling after a ramp
-stops, and on steady ramps alone neither is separable from the base.
+ordering). An extra lag is an extra *slow* node: its time constant is profiled from 4000 s
+up (the base's nodes stay within 600-4000 s, the range of a small FOG's coil and source),
+and above 1.4x the base's slower node, so the two candidates differ by how long they keep
+settling after a ramp stops; on steady ramps alone neither is separable from the base.
 """
 
 from __future__ import annotations
@@ -88,7 +89,7 @@ def _aging(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
 
 
 WARMUP_GRID_S = tuple(float(x) for x in np.round(np.geomspace(60.0, 3600.0, 13), -1))
-EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(1500.0, 30000.0, 12), -2))
+EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(4000.0, 32000.0, 10), -2))
 
 CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("warmup", "strength_ppm", "tau_s", WARMUP_GRID_S, _warmup,

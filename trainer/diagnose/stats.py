@@ -54,6 +54,16 @@ def chi2_sf(x: float, dof: int) -> float:
     return _gammainc_upper(dof / 2.0, x / 2.0)
 
 
+def trimmed_chi2_1_mean(q: float) -> float:
+    """E[X | X below its q-quantile] for X ~ chi-square(1): E[X 1(X<c)] = P(chi2_3 < c)."""
+    lo, hi = 0.0, 50.0
+    for _ in range(200):  # the q-quantile c of chi2(1), by bisection
+        c = 0.5 * (lo + hi)
+        lo, hi = (c, hi) if 1.0 - chi2_sf(c, 1) < q else (lo, c)
+    c = 0.5 * (lo + hi)
+    return (1.0 - chi2_sf(c, 3)) / q
+
+
 def ljung_box_p(segments: list[np.ndarray], lags: int | None = None) -> float:
     """Whiteness p-value of residual series (one per run, in time order), pooled: the
     Q statistics and their degrees of freedom add over runs."""

@@ -8,11 +8,14 @@ Decision rules (all on held-out residuals, per block of windows, never per windo
 - It is *not identifiable* on these logs when the part of its column that the base model
   cannot absorb is below MIN_VISIBLE of the column (e.g. asymmetry at one |rate|, aging or
   a dT/dt term on steady ramps alone): it is then not scored, and says so.
+- Nested candidates (an extra slow lag contains a dT/dt term's signature once the slow
+  node is slow enough): the simpler is preferred unless the larger beats it on held-out
+  blocks (p < AMBIGUOUS_P).
 - The best significant candidate is *ambiguous* with another significant one when, pairwise,
   it is not better than it on held-out blocks (p >= AMBIGUOUS_P): no cause is named.
 - *Structure remains* when the chosen model's held-out residual (the best candidate's, else
-  the base's) is not white (Ljung-Box p < STRUCTURE_P) or its variance exceeds the noise
-  floor's by more than STRUCTURE_EXCESS: `unexplained` is then true, and no cause is named
+  the base's) is not white (Ljung-Box p < STRUCTURE_P) or its (trimmed) variance exceeds
+  the noise floor's by more than STRUCTURE_EXCESS: `unexplained` is then true, and no cause is named
   with confidence (a partial fit is reported in the candidate's evidence).
 """
 
@@ -36,7 +39,11 @@ MIN_VISIBLE = 0.03
 AMBIGUOUS_P = 0.05
 STRUCTURE_P = 1e-3
 STRUCTURE_EXCESS = 1.45  # held-out mean (e/sigma)^2 above which structure remains
+# extra_lag with a very slow node tends to "housing term + slow drift", which contains
+# temp_rate's signature ("housing term", the coil node being in the base already)
+NESTED = {"extra_lag": "temp_rate"}
 Z95 = 1.959964
+TRIM = 0.95
 
 
 @dataclass
@@ -215,9 +222,13 @@ def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str,
 
 
 def _structure(d_e: np.ndarray, sigma: np.ndarray, segs: list[np.ndarray]) -> dict[str, float]:
-    z = d_e / sigma
+    """Whiteness and excess variance of a held-out residual; the variance is a 95 %-trimmed
+    mean of (e/sigma)^2 over its expectation for pure noise, so one badly extrapolated
+    block is not taken for structure."""
+    z2 = np.sort((d_e / sigma) ** 2)
+    keep = z2[: max(1, int(np.ceil(TRIM * z2.shape[0])))]
     return {"whiteness_p": stats.ljung_box_p(segs),
-            "excess_variance": float(np.mean(z * z))}
+            "excess_variance": float(np.mean(keep)) / stats.trimmed_chi2_1_mean(TRIM)}
 
 
 def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float | None = None,
@@ -244,7 +255,7 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
     segs_in = [e_in[run_ids == i] for i in range(len(rs))]
     base_rms = _weighted_rms(e_in)
     before = _weighted_rms(base.heldout)
-    names = effects or list(catalogue.CATALOGUE)
+    names = list(catalogue.CATALOGUE) if effects is None else effects
     unknown = [n for n in names if n not in catalogue.CATALOGUE]
     if unknown:
         raise UserError(f"unknown effect(s) {', '.join(unknown)}; known: "
@@ -259,6 +270,7 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
                               before))
 
     sig = sorted([c for c in results if c.significant], key=lambda c: c.heldout_after)
+    sig = _prefer_nested(sig, w, blocks)
     cause: str | None = None
     ambiguous: list[str] = []
     chosen = base
@@ -300,6 +312,30 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         correlations=correlations(ctxs, e_in), candidates=results, cause=cause,
         ambiguous=ambiguous, unexplained=unexplained, structure=structure, extended=extended,
         cv_mode=cv, window_s=window_s)
+
+
+def _prefer_nested(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
+                   ) -> list[CandidateResult]:
+    """Parsimony between nested candidates: when the best contains a simpler significant
+    candidate (NESTED) and is not better than it on held-out blocks (p >= AMBIGUOUS_P),
+    the simpler one goes first."""
+    if len(sig) < 2:
+        return sig
+    best = sig[0]
+    for other in sig[1:]:
+        if NESTED.get(best.name) != other.name:
+            continue
+        assert best.model is not None and other.model is not None
+        d = _block_sums((other.model.heldout**2 - best.model.heldout**2) * w, blocks)
+        p = stats.sign_flip_p(d)
+        if p >= AMBIGUOUS_P:
+            best.evidence += (f"; no better than the simpler {other.name} on held-out blocks "
+                              f"(p={p:.2g}): the extra slow node is not needed")
+            rest = [c for c in sig if c is not other]
+            return [other] + rest
+        best.evidence += (f"; better than the simpler {other.name} on held-out blocks "
+                          f"(p={p:.2g}): the logs need the extra slow node")
+    return sig
 
 
 def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray,
