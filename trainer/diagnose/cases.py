@@ -134,7 +134,7 @@ def draw(kind: str, name: str, seed: int) -> Case:
             params["tau_s"] = float(rng.uniform(60.0, 200.0))
             profile = _steps(rng, back=False, minutes=100)
         elif eff == "extra_lag":
-            params["tau_s"] = float(rng.uniform(4000.0, 9000.0))
+            params["tau_s"] = float(rng.uniform(10000.0, 20000.0))
             profile = _steps(rng, back=True, minutes=110)
         elif eff == "temp_rate":
             profile = _steps(rng, back=True, minutes=110)
@@ -168,7 +168,7 @@ def draw(kind: str, name: str, seed: int) -> Case:
             params = {"period_s": float(rng.uniform(480.0, 1500.0)),
                       "phase": float(rng.uniform(0, 2 * np.pi))}
     elif kind == "ramp_only":
-        rate = float(rng.uniform(0.5, 1.5))
+        rate = float(rng.uniform(0.4, 0.5))  # -40..60 C: 200-250 min, 1-1.8 h kept
         profile = ProfileConfig(kind="ramp", start_c=-40.0, stop_c=60.0, rate_c_per_min=rate)
         if name == "extra_lag":
             tau = float(rng.uniform(4000.0, 9000.0))
@@ -177,7 +177,7 @@ def draw(kind: str, name: str, seed: int) -> Case:
         else:
             cfg.effects = [EffectConfig("temp_rate", 30.0)]
             params = {"strength": 30.0}
-        crop = 3.0 * 2700.0  # past the network's settling onto the steady ramp
+        crop = 3.0 * 2800.0  # past the network's settling onto the steady ramp
         return Case(kind, name, seed, _finish(cfg, profile, TableConfig()), 0.0, params, crop)
     cfg = _finish(cfg, profile, _table(rng, table_kind))
     return Case(kind, name, seed, cfg, multiple if kind != "null" else 0.0, params)
@@ -309,12 +309,17 @@ class Outcome:
 
 
 def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: bool,
-          candidates: list[dict[str, Any]]) -> Outcome:
+          candidates: list[dict[str, Any]], ambiguous: list[str] | None = None) -> Outcome:
     """Did the diagnosis get this case right? (the rules the tests and benchmark apply)"""
+    ambiguous = ambiguous or []
+
     def out(ok: bool, why: str) -> Outcome:
         return Outcome(ok, why, cause, unexplained)
 
     if case.kind == "effect":
+        if cause is None and case.name in ambiguous:
+            return out(False, f"ambiguous between {', '.join(ambiguous)} (planted {case.name}):"
+                              " not wrong, not named")
         if cause != case.name:
             return out(False, f"cause {cause!r}, planted {case.name}")
         c = next(x for x in candidates if x["effect"] == cause)

@@ -90,8 +90,9 @@ def to_json(d: Diagnosis, extended_model: dict[str, Any],
 
 def summary_text(j: dict[str, Any]) -> str:
     b = j["base"]
-    lines = [f"base model: in-sample RMS {b['rms_ppm']:.2f} ppm, held-out {b['heldout_rms_ppm']:.2f}"
-             f" ppm, noise floor {b['noise_floor_ppm']:.2f} ppm ({b['windows']} windows of "
+    lines = [f"base model: in-sample RMS {b['rms_ppm']:.2f} ppm, held-out "
+             f"{b['heldout_rms_ppm']:.2f} ppm, noise floor {b['noise_floor_ppm']:.2f} ppm "
+             f"({b['windows']} windows of "
              f"{b['window_s']:g} s), whiteness p={b['whiteness_p']:.3g}"]
     lines.append(f"{'effect':18s} {'before':>7s} {'after':>7s} {'gain%':>6s}  evidence")
     for c in sorted(j["candidates"], key=lambda c: c["heldout_rms_after_ppm"] or 0.0):
