@@ -131,7 +131,7 @@ def draw(kind: str, name: str, seed: int) -> Case:
         eff = name if kind == "effect" else str(rng.choice(EFFECTS))  # null: that case's setup
         if eff == "warmup":
             cfg.thermal.start = "power-on"
-            params["tau_s"] = float(rng.uniform(60.0, 200.0))
+            params["tau_s"] = float(rng.uniform(120.0, 300.0))  # >= 2 windows of 60 s
             profile = _steps(rng, back=False, minutes=100)
         elif eff == "extra_lag":
             params["tau_s"] = float(rng.uniform(10000.0, 20000.0))

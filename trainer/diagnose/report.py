@@ -101,9 +101,11 @@ def summary_text(j: dict[str, Any]) -> str:
     cause = j["cause"]
     if cause:
         c = next(x for x in j["candidates"] if x["effect"] == cause)
-        ps = ", ".join(_fmt_param(k, v) for k, v in c["params"].items()
-                       if not k.endswith("_ci95"))
-        lines.append(f"cause: {cause} ({ps})")
+        ps = ", ".join(_fmt_param(k, v, c["params"].get(k + "_ci95"))
+                       for k, v in c["params"].items() if not k.endswith("_ci95"))
+        lines.append(f"cause: {cause} ({ps}; 95% intervals) held-out RMS "
+                     f"{c['heldout_rms_before_ppm']:.2f} -> {c['heldout_rms_after_ppm']:.2f} "
+                     f"ppm, gain {c['gain_pct']:.1f}%")
     elif j["ambiguous"]:
         lines.append("cause: none named; ambiguous between " + ", ".join(j["ambiguous"]))
     else:
