@@ -114,7 +114,7 @@ def summary_text(j: dict[str, Any]) -> str:
                  f"whiteness p={j['structure']['whiteness_p']:.3g}, variance "
                  f"{j['structure']['excess_variance']:.2f}x noise)")
     s = j.get("simulation")
-    if s:
+    if s and "rms_base_sim_ppm" in s:
         lines.append(f"simulation vs logs: base {s['rms_base_sim_ppm']:.2f} ppm -> extended "
                      f"{s['rms_extended_sim_ppm']:.2f} ppm RMS ({s['closer_pct']:.1f}% closer; "
                      f"noise floor {s['noise_floor_ppm']:.2f} ppm)")
