@@ -112,6 +112,16 @@ def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
     return float(coef[-1])
 
 
+def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
+                         latitude_deg: float | None = None, t_ref_c: float = T_REF_C) -> float:
+    """The SF at `t_ref_c` over several logs (e.g. all training runs) together."""
+    ws = [sf_windows(lg, window_s, latitude_deg) for lg in logs]
+    merged = SFWindows(*(np.concatenate([getattr(w, f) for w in ws]) for f in
+                         ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm", "start",
+                          "stop")), window_s=float(window_s))
+    return reference_sf(merged, t_ref_c)
+
+
 def sf_error_ppm(w: SFWindows, ref: float) -> np.ndarray:
     """Window SF error in ppm relative to the reference ratio `ref`."""
     return (w.sf_ratio / ref - 1.0) * 1e6

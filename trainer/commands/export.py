@@ -1,15 +1,32 @@
-"""fogsf export: not built yet (see the open issues)."""
+"""Export a trained streaming model to ONNX and to the generated C header.
+
+Reads MODEL_DIR (stream.json + stream_weights.npz, written by `fogsf train`) and writes
+  OUT/model.onnx      the streaming step: z, (h, c) per layer -> sf_ppm, new (h, c)
+  OUT/fogsf_model.h   fixed-size float32 arrays and macros for the C kernel (firmware/c)
+The same model always gives the same bytes. Example:
+  fogsf export models/m --out build/m
+"""
 
 from __future__ import annotations
 
 import argparse
 
-from trainer.errors import UserError
-
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("args", nargs="*", help=argparse.SUPPRESS)
+    parser.add_argument("model", metavar="MODEL_DIR", help="model directory from `fogsf train`")
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="output folder (created): model.onnx and fogsf_model.h")
 
 
 def run(args: argparse.Namespace) -> int:
-    raise UserError("'fogsf export' is not built yet")
+    from export import export_model
+    from trainer.stream import StreamModel
+
+    model = StreamModel.load(args.model)
+    paths = export_model(model, args.out)
+    print(f"model {model.model_id} ({model.model}): K={model.n_filters} filters, "
+          f"F={model.n_features} features, {model.layers}x{model.hidden} LSTM, "
+          f"D={model.decimation}, {model.params} parameters")
+    for kind, path in paths.items():
+        print(f"wrote {path} ({path.stat().st_size} bytes, {kind})")
+    return 0

@@ -59,13 +59,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="switch on an effect (repeatable); see --list-effects")
 
     p = parser.add_argument_group("chamber program")
-    p.add_argument("--profile", choices=["soak", "ramp", "cycle", "steps", "program"])
+    p.add_argument("--profile", choices=["soak", "ramp", "cycle", "steps", "program"],
+                   help="kind of chamber program (the scenario's otherwise; paper: ramp)")
     p.add_argument("--start-c", type=float, help="first (or soak) temperature, C")
     p.add_argument("--stop-c", type=float, help="ramp / cycle end temperature, C")
     p.add_argument("--soak-before-min", type=float, help="soak before a ramp / cycle, min")
     p.add_argument("--soak-after-min", type=float, help="soak after a ramp, min")
     p.add_argument("--soak-min", type=float, help="soak at each cycle end / step, min")
-    p.add_argument("--duration-min", type=float, help="length of a soak profile, min")
+    p.add_argument("--duration-min", type=float,
+                   help="run length, min: a soak's length; any other program is cut there "
+                        "or held at its last temperature until then")
     p.add_argument("--cycles", type=int, help="number of up-down cycles")
     p.add_argument("--levels-c", type=_floats, metavar="T1,T2,...", help="step temperatures")
     p.add_argument("--program", metavar="CHAMBER.CSV",
@@ -74,7 +77,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="warm: at equilibrium at t=0 (paper); power-on: switched on at t=0")
 
     t = parser.add_argument_group("rate table")
-    t.add_argument("--table", choices=["constant", "alternating", "levels"])
+    t.add_argument("--table", choices=["constant", "alternating", "levels"],
+                   help="schedule kind: constant rate, alternating +/-, or rate levels")
     t.add_argument("--rate-dps", type=float, help="table rate, deg/s (constant / alternating)")
     t.add_argument("--rates-dps", type=_floats, metavar="R1,R2,...", help="rate levels, deg/s")
     t.add_argument("--dwell-s", type=float, help="time on each rate (alternating / levels), s")
@@ -123,11 +127,18 @@ def build_config(args: argparse.Namespace) -> SimConfig:
     for opt, attr, scale in (("ramp_rate", "rate_c_per_min", 1.0), ("start_c", "start_c", 1.0),
                              ("stop_c", "stop_c", 1.0), ("soak_before_min", "soak_before_s", 60),
                              ("soak_after_min", "soak_after_s", 60), ("soak_min", "soak_s", 60),
-                             ("duration_min", "duration_s", 60), ("cycles", "cycles", 1),
+                             ("cycles", "cycles", 1),
                              ("levels_c", "levels_c", 1)):
         v = getattr(args, opt)
         if v is not None:
             setattr(pr, attr, v * scale if scale != 1 else v)
+    if args.duration_min is not None:
+        if args.duration_min <= 0:
+            raise UserError("--duration-min must be > 0")
+        if pr.kind == "soak":
+            pr.duration_s = args.duration_min * 60.0
+        else:
+            pr.total_s = args.duration_min * 60.0
     if args.start:
         cfg.thermal.start = args.start
     tb = cfg.table
@@ -160,22 +171,14 @@ def build_config(args: argparse.Namespace) -> SimConfig:
 
 
 def summary(result: SimResult, window_s: float) -> dict[str, Any]:
-    import numpy as np
+    """`fogsf inspect --json`'s summary of the log, plus the truth behind it."""
+    from trainer.commands.inspect import summary as log_summary
 
-    from trainer.metrics import log_metrics
-
-    log = result.log
-    out = {
-        "samples": len(log),
-        "duration_s": round(log.duration_s, 3),
-        "temp_range_c": [float(log.temp_c.min()), float(log.temp_c.max())],
-        "table_rates_dps": sorted({float(r) for r in np.unique(log.table_rate_dps)}),
-    }
     try:
-        out["metrics"] = log_metrics(log, window_s)
-    except UserError as e:
-        out["metrics"] = None
-        out["metrics_note"] = str(e)
+        out = log_summary(result.log, window_s, None, None)
+    except UserError as e:  # e.g. the board never passes 20 C: no reference SF
+        out = {"samples": len(result.log), "duration_s": result.log.duration_s,
+               "metrics": None, "metrics_note": str(e)}
     out["true_sf_ppm_range"] = [float(result.sf_ppm.min()), float(result.sf_ppm.max())]
     return out
 

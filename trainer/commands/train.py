@@ -1,15 +1,121 @@
-"""fogsf train: not built yet (see the open issues)."""
+"""fogsf train: fit a scale-factor compensation model on chamber logs.
+
+Models: poly (polynomial in T), polyrate (T and a filtered dT/dt), mlp (the paper's MLP),
+lstm (the paper's LSTM, Table 1: 2 x 200, batch 32, lr 0.02), lag-lstm (a small LSTM on
+T, dT/dt and two lag-filtered board temperatures whose time constants are identified from
+the data), gsa-lstm (GSA tunes batch size, layers, hidden units, learning rate and the lag
+time constants on the validation part of the training logs).
+
+Every model uses only what firmware has (board thermometer and time) and predicts the SF
+error in ppm vs nominal, causally. The part --val-chunk of each training log is held out
+for model selection; the test log is never used for fitting or selection. Writes
+OUT/metrics.json (before/after metrics on test and train logs, parameter count, weight
+bytes) and, for the LSTM models, the firmware artifact (stream.json, stream_weights.npz)
+that `fogsf export` reads.
+
+Example:
+  fogsf train --train run05.csv --test run10.csv --model lag-lstm --out models/m
+"""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 from trainer.errors import UserError
+from trainer.logio import read_log
+
+
+def _chunk(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected LO:HI fractions, e.g. 0.4:0.6") from None
+    return lo, hi
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("args", nargs="*", help=argparse.SUPPRESS)
+    from trainer.executors import add_executor_options
+    from trainer.train import MODELS
+
+    parser.add_argument("--train", action="append", required=True, metavar="LOG.csv",
+                        help="training log (repeat for several)")
+    parser.add_argument("--test", metavar="LOG.csv", help="test log, never used for fitting")
+    parser.add_argument("--model", choices=MODELS, default="lag-lstm",
+                        help="model family (default lag-lstm)")
+    parser.add_argument("--out", required=True, help="model directory to write")
+    parser.add_argument("--seed", type=int, default=0, help="seed (same seed, same model)")
+    parser.add_argument("--decimation", type=int, default=50,
+                        help="10 Hz samples per model step (default 50: a 5 s model step)")
+    parser.add_argument("--val-chunk", type=_chunk, default=(0.4, 0.6), metavar="LO:HI",
+                        help="part of each training log held out for validation "
+                             "(fractions of its length; default 0.4:0.6)")
+    parser.add_argument("--window-s", type=float, default=100.0,
+                        help="SF window for the metrics (default 100 s)")
+    parser.add_argument("--latitude-deg", type=float, default=None,
+                        help="latitude for the earth rate when logs lack earth_rate_dps")
+    parser.add_argument("--rate-tau-s", type=float, default=120.0,
+                        help="time constant of the dT/dt filter (default 120 s)")
+    parser.add_argument("--poly-degree", type=int, default=3, help="poly/polyrate degree")
+    parser.add_argument("--lag-taus-s", type=float, nargs=2, default=None,
+                        metavar=("TAU1", "TAU2"),
+                        help="lag time constants for lag-lstm (default: identified)")
+    g = parser.add_argument_group("LSTM (defaults: lstm = paper Table 1, others 1 x 16)")
+    g.add_argument("--layers", type=int)
+    g.add_argument("--hidden", type=int)
+    g.add_argument("--batch-size", type=int)
+    g.add_argument("--lr", type=float)
+    g.add_argument("--iters", type=int, help="training iterations (batches)")
+    g = parser.add_argument_group("GSA (gsa-lstm)")
+    g.add_argument("--gsa-agents", type=int, default=8)
+    g.add_argument("--gsa-iters", type=int, default=8)
+    g.add_argument("--gsa-fitness-iters", type=int, default=80,
+                   help="training iterations of each fitness evaluation")
+    g.add_argument("--gsa-space", choices=("paper", "extended"), default="extended",
+                   help="paper: Table 1's four; extended: also the lag time constants")
+    add_executor_options(parser)
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def run(args: argparse.Namespace) -> int:
-    raise UserError("'fogsf train' is not built yet")
+    from trainer.train import TrainOptions, run_training
+
+    train_logs = [read_log(p) for p in args.train]
+    test_log = read_log(args.test) if args.test else None
+    opts = TrainOptions(
+        model=args.model, decimation=args.decimation, seed=args.seed,
+        val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
+        rate_tau_s=args.rate_tau_s, poly_degree=args.poly_degree,
+        lag_taus_s=tuple(args.lag_taus_s) if args.lag_taus_s else None,
+        layers=args.layers, hidden=args.hidden, batch_size=args.batch_size, lr=args.lr,
+        iters=args.iters, gsa_agents=args.gsa_agents, gsa_iters=args.gsa_iters,
+        gsa_fitness_iters=args.gsa_fitness_iters, gsa_space=args.gsa_space,
+        workers=args.workers, dask=args.dask,
+        progress=not args.no_progress and sys.stderr.isatty(),
+    )
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a directory")
+    m = run_training(opts, train_logs, test_log, out)
+    print(format_metrics(m))
+    print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
+                                         f"{out} --out build/...)" if m["exportable"] else ""))
+    return 0
+
+
+def format_metrics(m: dict) -> str:
+    lines = [f"model {m['model']}: {m['params']} parameters ({m['weights_bytes']} bytes), "
+             f"features {', '.join(m['features'])}, trained in {m['train_seconds']:.1f} s"]
+    row = "  {:<14} {:>9} {:>9} {:>9} {:>9}"
+    lines.append(row.format("SF error, ppm", "max|e|", "p-p", "RMS", "STD"))
+    for part in ("train", "test"):
+        if part not in m or "before" not in m[part]:
+            continue
+        for when in ("before", "after"):
+            b = m[part][when]
+            lines.append(row.format(f"{part} {when}", f"{b['max_abs_ppm']:.2f}",
+                                    f"{b['pp_ppm']:.2f}", f"{b['rms_ppm']:.2f}",
+                                    f"{b['std_ppm']:.2f}"))
+    lines.append(f"  noise floor {m['noise_floor_ppm']:.2f} ppm ({m['window_s']:g} s windows)")
+    return "\n".join(lines)

@@ -133,6 +133,8 @@ class ProfileConfig:
     and soak_after_s. cycle: start_c -> stop_c -> start_c, `cycles` times, soak_s at each
     end. steps: levels_c one after another at rate_c_per_min, soak_s on each.
     program: points [[time_s, temp_c], ...] (linear between points).
+    total_s: if > 0, the run's length whatever the kind: a longer program is cut there, a
+    shorter one holds its last temperature until then.
     """
 
     kind: str = "ramp"
@@ -146,6 +148,7 @@ class ProfileConfig:
     cycles: int = 1
     levels_c: list[float] = field(default_factory=list)
     points: list[list[float]] = field(default_factory=list)
+    total_s: float = 0.0
 
 
 @dataclass
@@ -252,6 +255,32 @@ def _build(cls: type, d: Any, where: str) -> Any:
             if not isinstance(v, list):
                 raise UserError(f"{where}.{k}: expected a list")
             kwargs[k] = [_build(nested[1], x, f"{where}.{k}[{i}]") for i, x in enumerate(v)]
+    types = {f.name: f.type for f in fields(cls)}
+    for k, v in kwargs.items():
+        kind = types[k]
+        if kind in ("float", "int") and not _finite(v):
+            raise UserError(f"{where}.{k}: expected a finite number, got {v!r}")
+        if kind == "int" and v != int(v):
+            raise UserError(f"{where}.{k}: expected a whole number, got {v!r}")
+        if kind == "float":
+            kwargs[k] = float(v)
+        elif kind == "int":
+            kwargs[k] = int(v)
+        elif kind == "str" and not isinstance(v, str):
+            raise UserError(f"{where}.{k}: expected a string, got {v!r}")
+        elif kind == "list[float]":
+            if not isinstance(v, list) or not all(_finite(x) for x in v):
+                raise UserError(f"{where}.{k}: expected a list of numbers, got {v!r}")
+            kwargs[k] = [float(x) for x in v]
+        elif kind == "list[list[float]]":
+            if not isinstance(v, list) or not all(
+                    isinstance(r, list) and all(_finite(x) for x in r) for r in v):
+                raise UserError(f"{where}.{k}: expected a list of [time_s, temp_c] rows")
+            kwargs[k] = [[float(x) for x in r] for r in v]
+        elif kind == "dict[str, float]":
+            if not isinstance(v, dict) or not all(_finite(x) for x in v.values()):
+                raise UserError(f"{where}.{k}: expected an object of numbers, got {v!r}")
+            kwargs[k] = {str(a): float(x) for a, x in v.items()}
     try:
         return cls(**kwargs)
     except TypeError as e:

@@ -64,7 +64,7 @@ def plot_runs(runs: list[SimResult], path: str | Path, window_s: float = 100.0) 
     ax1.set_xlabel("time since start (min)")
     ax1.set_ylabel("temperature (C)")
     ax1.grid(alpha=0.3)
-    ax1.legend(fontsize=7.5, loc="lower right")
+    ax1.legend(fontsize=7.5, loc="best")
 
     colors = ["tab:blue", "tab:red", "tab:green", "tab:purple"]
     for i, run in enumerate(sorted(runs, key=lambda r: r.config.profile.rate_c_per_min)):

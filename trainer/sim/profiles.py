@@ -80,7 +80,7 @@ def breakpoints(p: ProfileConfig) -> np.ndarray:
 def chamber_series(p: ProfileConfig, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """(time_s, chamber_c) sampled every dt_s over the whole program."""
     bp = breakpoints(p)
-    duration = float(bp[-1, 0])
+    duration = float(p.total_s) if p.total_s > 0 else float(bp[-1, 0])
     n = int(np.floor(duration / dt_s + 1e-9)) + 1
     if n < 2:
         raise UserError(f"profile: the program lasts {duration:g} s, too short to sample")

@@ -11,13 +11,15 @@ paper
     quadratic share in each), and two scale factors, one for the linear and one for the
     quadratic coefficients, are solved so that the noiseless 1 C/min run hits both targets.
 cycle
-    Power-on at 20 C, 30 min soak, then two -40..+60 C cycles at 1 C/min with 30 min soaks,
-    table alternating +/-10 deg/s every 100 s (the +/- pairs separate SF from bias).
+    Warm start at -40 C, two -40..+60 C cycles at --ramp-rate (default 1 C/min) with 30 min
+    soaks at each end, table alternating +/-10 deg/s every 100 s (the +/- pairs separate SF
+    from bias): the hysteresis loop.
 steps
     Warm start at -40 C, steps of 20 C up to +60 C at 2 C/min with 40 min soaks, table at
     10, 50, 100 and 200 deg/s in turn, 100 s each (SF vs temperature and vs rate).
 soak
-    Power-on at 20 C and one hour at constant temperature, 10 deg/s: warm-up and noise.
+    Power-on at 20 C and one hour at constant temperature, 10 deg/s: the warm-up (board
+    +6 C in ~20 min, source still warming after an hour) and the noise floor.
 """
 
 from __future__ import annotations

@@ -1,0 +1,108 @@
+"""Where fitness evaluations run: inline, local worker processes, or a Dask cluster.
+
+All three look like a `concurrent.futures.Executor` (``None`` means inline). Use
+
+    with open_executor(workers=2) as ex:                       # local processes
+    with open_executor(workers=1) as ex:                       # inline (ex is None)
+    with open_executor(dask="tcp://10.0.0.5:8786") as ex:      # a running Dask scheduler
+
+and pass ``ex`` to `trainer.gsa.minimize`. Commands add the matching options with
+`add_executor_options(parser)` (``--workers N``, ``--dask SCHEDULER_ADDRESS``) and open the
+executor with `executor_from_args(args)`.
+
+Local processes start with the ``forkserver`` method (``spawn`` where that does not exist):
+forking a parent that already runs torch's thread pools can deadlock. Functions sent to
+workers must therefore be picklable: a module-level function, or a `functools.partial` of
+one with picklable arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import os
+from collections.abc import Iterator
+from concurrent.futures import Executor, ProcessPoolExecutor
+from contextlib import contextmanager
+
+from trainer.errors import UserError
+
+
+def default_workers() -> int:
+    """Worker processes used when the user does not say: one per available core."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _mp_context() -> multiprocessing.context.BaseContext:
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+@contextmanager
+def open_executor(workers: int | None = None, dask: str | None = None
+                  ) -> Iterator[Executor | None]:
+    """Yield an executor and shut it down afterwards.
+
+    ``dask`` (a scheduler address such as ``tcp://host:8786``) wins over ``workers``;
+    otherwise ``workers`` local processes (default: one per core), and ``workers=1`` gives
+    ``None``: run inline, in this process, with no pickling.
+    """
+    if dask:
+        with dask_executor(dask) as ex:
+            yield ex
+        return
+    n = default_workers() if workers is None else int(workers)
+    if n < 1:
+        raise UserError(f"--workers must be at least 1, got {n}")
+    if n == 1:
+        yield None
+        return
+    ex = ProcessPoolExecutor(max_workers=n, mp_context=_mp_context())
+    try:
+        yield ex
+    finally:
+        ex.shutdown(wait=True, cancel_futures=True)
+
+
+@contextmanager
+def dask_executor(address: str, timeout_s: float = 30.0) -> Iterator[Executor]:
+    """A `concurrent.futures` executor on the Dask cluster whose scheduler is at ``address``.
+
+    Tasks are submitted with ``pure=False``: each evaluation runs, none is merged with
+    another by Dask's hashing (the optimizer removes true duplicates itself).
+    """
+    try:
+        from distributed import Client
+    except ImportError as e:  # pragma: no cover - dev extra missing
+        raise UserError("--dask needs the 'distributed' package: pip install distributed") \
+            from e
+    try:
+        client = Client(address, timeout=timeout_s)
+    except (OSError, TimeoutError) as e:
+        raise UserError(f"cannot reach the Dask scheduler at {address!r} within "
+                        f"{timeout_s:g} s: {e}") from e
+    try:
+        yield client.get_executor(pure=False)
+    finally:
+        client.close()
+
+
+def add_executor_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--workers`` and ``--dask`` to a command's parser."""
+    g = parser.add_argument_group("parallel fitness evaluation")
+    g.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="local worker processes for fitness evaluations "
+                        f"(default: one per core, here {default_workers()}; 1 = inline)")
+    g.add_argument("--dask", default=None, metavar="SCHEDULER_ADDRESS",
+                   help="run fitness evaluations on a Dask distributed cluster instead, "
+                        "e.g. tcp://10.0.0.5:8786 (start one with `dask scheduler` and "
+                        "`dask worker ADDRESS`); workers need fogsf installed")
+
+
+def executor_from_args(args: argparse.Namespace):
+    """`open_executor` from the options `add_executor_options` added."""
+    return open_executor(workers=getattr(args, "workers", None),
+                         dask=getattr(args, "dask", None))

@@ -1,0 +1,202 @@
+"""Training loops: the streaming LSTM on windows of the model-rate sequence, and the MLP.
+
+The LSTM learns from random windows of `window` model steps (batch `batch_size`), each
+started from a zero state as the firmware starts from reset; the first `burn_in` steps of a
+window are not scored. The run keeps the weights with the best validation score (RMS of the
+SF residual over 100 s windows of the held-out part), evaluated on whole sequences from
+reset, exactly as the firmware streams them.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from trainer.features import SeqData
+from trainer.nets import MLP, StreamNet
+
+METRIC_WINDOW_S = 100.0
+
+
+@dataclass
+class LSTMConfig:
+    layers: int = 2
+    hidden: int = 200
+    batch_size: int = 32
+    lr: float = 0.02
+    iters: int = 300
+    window: int = 256  # model steps per training window
+    burn_in: int = 16
+    eval_every: int = 20
+    seed: int = 0
+    time_limit_s: float | None = None
+
+
+@dataclass
+class History:
+    """Loss and validation curves of one training run."""
+
+    iters: list[int] = field(default_factory=list)
+    train_loss: list[float] = field(default_factory=list)
+    val_rms_ppm: list[float] = field(default_factory=list)
+    best_iter: int = 0
+    best_val_rms_ppm: float = math.inf
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict:
+        return {"iters": self.iters, "train_loss": self.train_loss,
+                "val_rms_ppm": self.val_rms_ppm, "best_iter": self.best_iter,
+                "best_val_rms_ppm": self.best_val_rms_ppm, "seconds": self.seconds}
+
+
+def windowed_rms_ppm(err_ppm: np.ndarray, mask: np.ndarray, decimation: int,
+                     window_s: float = METRIC_WINDOW_S) -> float:
+    """RMS of the error averaged over consecutive `window_s` windows of the masked steps."""
+    win = max(1, int(round(window_s / (decimation * 0.1))))
+    idx = np.flatnonzero(mask)
+    if idx.size == 0:
+        return math.nan
+    breaks = np.flatnonzero(np.diff(idx) != 1) + 1
+    means: list[float] = []
+    for run in np.split(idx, breaks):
+        for a in range(0, run.size - win + 1, win):
+            means.append(float(np.mean(err_ppm[run[a:a + win]])))
+        if run.size < win:
+            means.append(float(np.mean(err_ppm[run])))
+    return float(np.sqrt(np.mean(np.square(means))))
+
+
+def validation_rms(pred_ppm: list[np.ndarray], data: list[SeqData]) -> float:
+    """The validation score: windowed RMS of prediction - target over the held-out steps."""
+    sq, n = 0.0, 0
+    for p, d in zip(pred_ppm, data, strict=True):
+        if d.val_mask.any():
+            r = windowed_rms_ppm(p - d.target_ppm, d.val_mask, d.decimation)
+            sq += r * r
+            n += 1
+    return math.sqrt(sq / n) if n else math.nan
+
+
+def _seed_all(seed: int) -> None:
+    torch.manual_seed(seed)
+
+
+def predict_stream(net: StreamNet, z: np.ndarray) -> np.ndarray:
+    """Normalised output over a whole sequence from reset."""
+    with torch.no_grad():
+        y, _ = net(torch.from_numpy(z)[None])
+    return y[0].numpy().astype(np.float64)
+
+
+def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
+                 out_offset: float, out_scale: float, progress: bool = True
+                 ) -> tuple[StreamNet, History]:
+    """Train a StreamNet on the training steps of `data` (features `z`, one per log)."""
+    _seed_all(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(cfg.iters, 1),
+                                                       eta_min=cfg.lr * 0.05)
+    zs = [torch.from_numpy(a) for a in z]
+    ys = [torch.from_numpy(((d.target_ppm - out_offset) / out_scale).astype(np.float32))
+          for d in data]
+    ms = [torch.from_numpy(d.train_mask.astype(np.float32)) for d in data]
+    lengths = np.array([d.n_steps for d in data])
+    window = int(min(cfg.window, lengths.min()))
+    weights = lengths / lengths.sum()
+    hist = History()
+    best_state = {k: v.clone() for k, v in net.state_dict().items()}
+    has_val = any(d.val_mask.any() for d in data)
+    t0 = time.perf_counter()
+    bar = tqdm(range(1, cfg.iters + 1), desc=f"lstm {cfg.layers}x{cfg.hidden}",
+               disable=not progress, leave=False, unit="it")
+    for it in bar:
+        which = rng.choice(len(data), size=cfg.batch_size, p=weights)
+        zb, yb, mb = [], [], []
+        for k in which:
+            start = int(rng.integers(0, lengths[k] - window + 1))
+            if rng.random() < 0.125:
+                start = 0  # let it see the start from reset too
+            zb.append(zs[k][start:start + window])
+            yb.append(ys[k][start:start + window])
+            m = ms[k][start:start + window].clone()
+            if start > 0:
+                m[: cfg.burn_in] = 0.0
+            mb.append(m)
+        out, _ = net(torch.stack(zb))
+        m = torch.stack(mb)
+        loss = ((out - torch.stack(yb)) ** 2 * m).sum() / m.sum().clamp(min=1.0)
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        opt.step()
+        sched.step()
+        if it % cfg.eval_every == 0 or it == cfg.iters:
+            hist.iters.append(it)
+            hist.train_loss.append(float(loss))
+            if has_val:
+                preds = [predict_stream(net, a) * out_scale + out_offset for a in z]
+                v = validation_rms(preds, data)
+            else:
+                v = float(loss)
+            hist.val_rms_ppm.append(v)
+            if v < hist.best_val_rms_ppm:
+                hist.best_val_rms_ppm, hist.best_iter = v, it
+                best_state = {k: t.clone() for k, t in net.state_dict().items()}
+            bar.set_postfix(loss=f"{float(loss):.3g}", val=f"{v:.3g}")
+        if cfg.time_limit_s is not None and time.perf_counter() - t0 > cfg.time_limit_s:
+            break
+    net.load_state_dict(best_state)
+    hist.seconds = time.perf_counter() - t0
+    return net, hist
+
+
+@dataclass
+class MLPConfig:
+    hidden: tuple[int, ...] = (32, 32)
+    lr: float = 0.01
+    epochs: int = 1500
+    eval_every: int = 25
+    seed: int = 0
+
+
+def train_mlp(data: list[SeqData], z: list[np.ndarray], cfg: MLPConfig, out_offset: float,
+              out_scale: float, progress: bool = True) -> tuple[MLP, History]:
+    """Full-batch Adam on every training step; keeps the best validation weights."""
+    _seed_all(cfg.seed)
+    net = MLP(z[0].shape[1], cfg.hidden)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    x = torch.from_numpy(np.concatenate([a[d.train_mask] for a, d in zip(z, data,
+                                                                          strict=True)]))
+    y = torch.from_numpy(np.concatenate(
+        [(d.target_ppm[d.train_mask] - out_offset) / out_scale for d in data]
+    ).astype(np.float32))
+    hist = History()
+    best_state = {k: v.clone() for k, v in net.state_dict().items()}
+    has_val = any(d.val_mask.any() for d in data)
+    t0 = time.perf_counter()
+    for ep in tqdm(range(1, cfg.epochs + 1), desc="mlp", disable=not progress, leave=False):
+        loss = ((net(x) - y) ** 2).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if ep % cfg.eval_every == 0 or ep == cfg.epochs:
+            with torch.no_grad():
+                preds = [net(torch.from_numpy(a)).numpy().astype(np.float64) * out_scale
+                         + out_offset for a in z]
+            v = validation_rms(preds, data) if has_val else float(loss)
+            hist.iters.append(ep)
+            hist.train_loss.append(float(loss))
+            hist.val_rms_ppm.append(v)
+            if v < hist.best_val_rms_ppm:
+                hist.best_val_rms_ppm, hist.best_iter = v, ep
+                best_state = {k: t.clone() for k, t in net.state_dict().items()}
+    net.load_state_dict(best_state)
+    hist.seconds = time.perf_counter() - t0
+    return net, hist

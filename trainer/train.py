@@ -1,0 +1,338 @@
+"""`fogsf train`: fit a compensation model on training logs, score it on a test log.
+
+Models (all causal, all from the board thermometer and time only):
+- `poly`: polynomial in T (the industry's first try);
+- `polyrate`: polynomial in T with a filtered dT/dt (the industry standard);
+- `mlp`: the paper's MLP baseline on (T, filtered dT/dt);
+- `lstm`: the paper's LSTM on (T, filtered dT/dt), Table 1 defaults (2 x 200, batch 32,
+  lr 0.02, Adam);
+- `lag-lstm`: a small LSTM with a linear skip on T, dT/dt and two lag-filtered board
+  temperatures whose time constants are identified from the training data (profiling a
+  log-spaced grid with least squares inside): the physics-structured model;
+- `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
+  four) and the two lag time constants; fitness is the error on the validation part of the
+  training logs, never the test log.
+
+The LSTM models run at the model rate (one step per D samples, state carried) and are
+written in the firmware artifact format (stream.json + stream_weights.npz) for `fogsf export`.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from trainer.errors import UserError
+from trainer.features import (
+    FeatureSpec,
+    SeqData,
+    fit_normaliser,
+    front_end_for,
+    make_features,
+    prepare,
+    step_targets,
+)
+from trainer.logio import ChamberLog
+from trainer.metrics import log_metrics, reference_sf_of_logs
+from trainer.stream import FrontEnd, expand
+
+MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
+EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
+
+
+@dataclass
+class TrainOptions:
+    model: str
+    decimation: int = 50
+    seed: int = 0
+    val_chunk: tuple[float, float] = (0.4, 0.6)
+    window_s: float = 100.0
+    latitude_deg: float | None = None
+    rate_tau_s: float = 120.0
+    poly_degree: int = 3
+    lag_taus_s: tuple[float, float] | None = None  # None: identified from the data
+    layers: int | None = None
+    hidden: int | None = None
+    batch_size: int | None = None
+    lr: float | None = None
+    iters: int | None = None
+    gsa_agents: int = 8
+    gsa_iters: int = 8
+    gsa_fitness_iters: int = 80
+    gsa_space: str = "extended"  # "paper": Table 1's four only
+    workers: int | None = None
+    dask: str | None = None
+    progress: bool = True
+    extra: dict = field(default_factory=dict)
+
+
+def lstm_defaults(model: str) -> dict:
+    if model == "lstm":  # the paper's Table 1
+        return {"layers": 2, "hidden": 200, "batch_size": 32, "lr": 0.02, "iters": 300}
+    return {"layers": 1, "hidden": 16, "batch_size": 32, "lr": 0.01, "iters": 400}
+
+
+@dataclass
+class Fitted:
+    """A trained model: per-step predictions (ppm vs nominal) and what to save."""
+
+    kind: str
+    spec: FeatureSpec
+    fe: FrontEnd
+    predict_steps: object  # callable(SeqData) -> np.ndarray
+    params: int
+    weights_bytes: int
+    info: dict
+    stream_model: object | None = None  # trainer.stream.StreamModel for exportable models
+    torch_state: dict | None = None
+
+
+def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
+    if opts.model not in MODELS:
+        raise UserError(f"unknown model {opts.model!r}; choose one of {', '.join(MODELS)}")
+    if not train_logs:
+        raise UserError("give at least one training log (--train)")
+    if opts.decimation < 1:
+        raise UserError("--decimation must be >= 1")
+    lo, hi = opts.val_chunk
+    if not 0.0 <= lo < hi <= 1.0 or hi - lo > 0.5:
+        raise UserError("--val-chunk LO:HI must satisfy 0 <= LO < HI <= 1, at most half")
+
+
+def _lstm_config(opts: TrainOptions, **over: object):
+    from trainer.fit import LSTMConfig
+
+    d = lstm_defaults(opts.model)
+    for k in ("layers", "hidden", "batch_size", "lr", "iters"):
+        if getattr(opts, k) is not None:
+            d[k] = getattr(opts, k)
+    d.update(over)
+    return LSTMConfig(seed=opts.seed, **d)
+
+
+def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
+    """Train `opts.model` on `train_logs` (validation part held out inside them)."""
+    _check(opts, train_logs)
+    kind = opts.model
+    if kind in ("poly", "polyrate", "mlp", "lstm"):
+        spec = make_features(rate_tau_s=None if kind == "poly" else opts.rate_tau_s)
+        return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
+                              else None)
+    if kind == "lag-lstm":
+        taus = opts.lag_taus_s or _identify_taus(opts, train_logs)
+        spec = make_features(rate_tau_s=opts.rate_tau_s, lag_taus_s=tuple(taus))
+        return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts))
+    return _fit_gsa(opts, train_logs)
+
+
+def _identify_taus(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, float]:
+    from trainer.least_squares import profile_lag_taus
+
+    fe = front_end_for(logs, opts.decimation, ())
+    taus, _ = profile_lag_taus(logs, fe, opts.val_chunk, opts.latitude_deg)
+    return taus
+
+
+def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
+                   lstm_cfg: object | None) -> Fitted:
+    fe = front_end_for(logs, opts.decimation, spec.taus_s)
+    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg) for lg in logs]
+    norm = fit_normaliser(spec, data)
+    z = [norm.apply(d.s) for d in data]
+    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    offset, scale = float(y.mean()), float(y.std() or 1.0)
+    kind = opts.model
+    if kind in ("poly", "polyrate"):
+        from trainer.least_squares import fit_linear
+
+        lf = fit_linear(data, z, opts.poly_degree, with_rate=kind == "polyrate")
+        return Fitted(kind, spec, fe, lambda d: lf.predict(norm.apply(d.s)), lf.params,
+                      4 * lf.params, {"degree": opts.poly_degree,
+                                      "coef": lf.coef.tolist(),
+                                      "feat_w": norm.feat_w.tolist(),
+                                      "feat_b": norm.feat_b.tolist()})
+    import torch
+
+    from trainer.fit import MLPConfig, predict_stream, train_mlp, train_stream
+    from trainer.nets import count_params, to_stream_model
+
+    if kind == "mlp":
+        net, hist = train_mlp(data, z, MLPConfig(seed=opts.seed), offset, scale,
+                              opts.progress)
+
+        def predict(d: SeqData) -> np.ndarray:
+            with torch.no_grad():
+                out = net(torch.from_numpy(norm.apply(d.s))).numpy().astype(np.float64)
+            return out * scale + offset
+
+        n = count_params(net)
+        return Fitted(kind, spec, fe, predict, n, 4 * n, {"history": hist.as_dict()},
+                      torch_state=net.state_dict())
+    net, hist = train_stream(data, z, lstm_cfg, offset, scale, opts.progress)
+    sm = to_stream_model(net, kind, spec, norm, fe, offset, scale,
+                         extra={"hyper": asdict(lstm_cfg)})
+    n = count_params(net)
+    return Fitted(kind, spec, fe, lambda d: predict_stream(net, norm.apply(d.s)) * scale
+                  + offset, n, 4 * n,
+                  {"history": hist.as_dict(), "hyper": asdict(lstm_cfg)},
+                  stream_model=sm, torch_state=net.state_dict())
+
+
+# --- GSA --------------------------------------------------------------------------------
+
+def gsa_space(kind: str):
+    from trainer.gsa import Param
+
+    space = [Param("batch_size", 8, 64, "int"), Param("layers", 1, 3, "int"),
+             Param("hidden", 4, 256, "int"), Param("lr", 1e-3, 5e-2, "log-real")]
+    if kind == "extended":
+        space += [Param("tau1_s", 60.0, 1800.0, "log-real"),
+                  Param("tau2_s", 600.0, 7200.0, "log-real")]
+    return space
+
+
+def gsa_fitness(params: dict, payload: dict) -> float:
+    """Validation RMS (ppm) of an LSTM trained with `params` on the payload's logs."""
+    import torch
+
+    torch.set_num_threads(1)
+    opts: TrainOptions = payload["opts"]
+    logs: list[ChamberLog] = payload["logs"]
+    taus = (params["tau1_s"], params["tau2_s"]) if "tau1_s" in params else payload["taus"]
+    spec = make_features(rate_tau_s=opts.rate_tau_s, lag_taus_s=tuple(taus))
+    cfg = _lstm_config(opts, layers=int(params["layers"]), hidden=int(params["hidden"]),
+                       batch_size=int(params["batch_size"]), lr=float(params["lr"]),
+                       iters=opts.gsa_fitness_iters, eval_every=opts.gsa_fitness_iters // 4)
+    fe = front_end_for(logs, opts.decimation, spec.taus_s)
+    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
+            for lg, t in zip(logs, payload["targets"], strict=True)]
+    norm = fit_normaliser(spec, data)
+    z = [norm.apply(d.s) for d in data]
+    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    from trainer.fit import train_stream
+
+    _, hist = train_stream(data, z, cfg, float(y.mean()), float(y.std() or 1.0), False)
+    return float(hist.best_val_rms_ppm)
+
+
+def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
+    from trainer.executors import open_executor
+    from trainer.gsa import minimize
+
+    targets = [step_targets(lg, opts.decimation, opts.latitude_deg) for lg in logs]
+    payload = {"opts": opts, "logs": logs, "targets": targets,
+               "taus": opts.lag_taus_s or (None if opts.gsa_space == "extended"
+                                           else _identify_taus(opts, logs))}
+    if opts.gsa_space == "paper":
+        payload["taus"] = payload["taus"] or (300.0, 1200.0)
+    fn = functools.partial(gsa_fitness, payload=payload)
+    space = gsa_space(opts.gsa_space)
+    t0 = time.perf_counter()
+    with open_executor(workers=opts.workers, dask=opts.dask) as ex:
+        res = minimize(fn, space, n_agents=opts.gsa_agents, n_iters=opts.gsa_iters,
+                       seed=opts.seed, executor=ex, progress=opts.progress)
+    search_s = time.perf_counter() - t0
+    best = res.best_params
+    taus = (best["tau1_s"], best["tau2_s"]) if "tau1_s" in best else payload["taus"]
+    final = TrainOptions(**{**asdict(opts), "model": "gsa-lstm",
+                            "layers": int(best["layers"]), "hidden": int(best["hidden"]),
+                            "batch_size": int(best["batch_size"]), "lr": float(best["lr"]),
+                            "lag_taus_s": tuple(float(t) for t in taus)})
+    final.iters = opts.iters or lstm_defaults("gsa-lstm")["iters"]
+    spec = make_features(rate_tau_s=opts.rate_tau_s, lag_taus_s=final.lag_taus_s)
+    fitted = _fit_with_spec(final, logs, spec, _lstm_config(final))
+    fitted.info["gsa"] = {"best_params": best, "best_fitness_ppm": res.best_fitness,
+                          "best_curve": list(res.best_curve),
+                          "mean_curve": list(res.mean_curve), "agents": opts.gsa_agents,
+                          "iters": opts.gsa_iters, "fitness_iters": opts.gsa_fitness_iters,
+                          "search_seconds": search_s}
+    fitted.info["gsa_result"] = res
+    return fitted
+
+
+# --- scoring and saving -----------------------------------------------------------------
+
+def per_sample_prediction(fitted: Fitted, log: ChamberLog, latitude_deg: float | None
+                          ) -> np.ndarray:
+    d = prepare(log, fitted.fe, None, latitude_deg)
+    return expand(fitted.predict_steps(d), len(log), fitted.fe.decimation)
+
+
+def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,
+          latitude_deg: float | None) -> dict:
+    """Before/after metrics over `logs` (their windows pooled)."""
+    if len(logs) != 1:
+        return {f"log{i}": score(fitted, [lg], ref, window_s, latitude_deg)
+                for i, lg in enumerate(logs)}
+    lg = logs[0]
+    pred = per_sample_prediction(fitted, lg, latitude_deg)
+    return {"before": log_metrics(lg, window_s, ref=ref, latitude_deg=latitude_deg),
+            "after": log_metrics(lg, window_s, latitude_deg=latitude_deg,
+                                 correction_ppm=pred)}
+
+
+def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
+                 test_log: ChamberLog | None, out_dir: Path) -> dict:
+    """Train, score, and write the model directory; returns metrics.json's content."""
+    t0 = time.perf_counter()
+    fitted = fit_model(opts, train_logs)
+    train_s = time.perf_counter() - t0
+    ref = reference_sf_of_logs(train_logs, opts.window_s, opts.latitude_deg)
+    metrics: dict = {"model": fitted.kind, "window_s": opts.window_s}
+    if test_log is not None:
+        test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)
+        metrics["noise_floor_ppm"] = test["after"]["noise_floor_ppm"]
+        metrics["test"] = test
+    metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
+    if "noise_floor_ppm" not in metrics:
+        first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
+        metrics["noise_floor_ppm"] = first["after"]["noise_floor_ppm"]
+    metrics.update({
+        "params": fitted.params,
+        "weights_bytes": fitted.weights_bytes,
+        "features": list(fitted.spec.names),
+        "filter_tau_s": list(fitted.spec.taus_s),
+        "decimation": fitted.fe.decimation,
+        "ref_sf_ratio": ref,
+        "exportable": fitted.stream_model is not None,
+        "train_seconds": train_s,
+        "seed": opts.seed,
+        "val_chunk": list(opts.val_chunk),
+    })
+    if fitted.stream_model is not None:
+        metrics["model_id"] = fitted.stream_model.model_id
+    save(fitted, metrics, out_dir)
+    return metrics
+
+
+def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    info = {k: v for k, v in fitted.info.items() if k != "gsa_result"}
+    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (out_dir / "train_info.json").write_text(json.dumps(
+        {"model": fitted.kind, "features": list(fitted.spec.names),
+         "filter_tau_s": list(fitted.spec.taus_s), **info}, indent=2, default=_json) + "\n")
+    if fitted.stream_model is not None:
+        fitted.stream_model.save(out_dir)
+    if fitted.torch_state is not None:
+        import torch
+
+        torch.save(fitted.torch_state, out_dir / "model.pt")
+    res = fitted.info.get("gsa_result")
+    if res is not None:
+        res.save_json(out_dir / "gsa_fitness.json")
+        res.plot(out_dir / "gsa_fitness.png")
+
+
+def _json(o: object) -> object:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    raise TypeError(type(o).__name__)
