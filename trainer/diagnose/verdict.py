@@ -320,7 +320,8 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
 
 def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
                    ) -> tuple[list[CandidateResult], list[str]]:
-    """Between a candidate and the simpler one it contains (NESTED), both significant:
+    """Between a candidate and the simpler one it contains (NESTED), both significant and
+    one of them the best:
 
     - the larger wins when it beats the simpler on held-out blocks (p < ALPHA) by at least
       NESTED_MIN_GAIN_PCT of held-out RMS;
@@ -330,8 +331,8 @@ def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
     Returns the significant candidates without the loser, and the ambiguous names, if any."""
     names = {c.name: c for c in sig}
     for big, small in NESTED.items():
-        if big not in names or small not in names:
-            continue
+        if big not in names or small not in names or sig[0].name not in (big, small):
+            continue  # the pair matters only when it holds the best candidate
         b, s = names[big], names[small]
         assert b.model is not None and s.model is not None
         d = _block_sums((s.model.heldout**2 - b.model.heldout**2) * w, blocks)
