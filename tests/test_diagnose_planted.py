@@ -57,7 +57,7 @@ def test_planted_effect_is_named(effect: str) -> None:
         assert len(results) == PER_EFFECT
 
 
-@pytest.mark.parametrize("seed", _seeds("null", 4))
+@pytest.mark.parametrize("seed", _seeds("null", 6))
 def test_null_names_nothing(seed: int) -> None:
     case, out, j = _run("null", "", seed)
     assert out.ok, f"[{case.describe()}] -> {out.reason}"
@@ -66,7 +66,7 @@ def test_null_names_nothing(seed: int) -> None:
 
 @pytest.mark.parametrize("kind", cases.OOC_KINDS)
 def test_out_of_catalogue_is_unexplained(kind: str) -> None:
-    for seed in _seeds(kind, 2):
+    for seed in _seeds(kind, 3):
         case, out, _ = _run("ooc", kind, seed)
         assert out.ok, f"[{case.describe()}] -> {out.reason}"
 
