@@ -181,9 +181,10 @@ def markdown(j: dict[str, Any], d: Diagnosis, md_path: Path, config_path: str | 
                    f"{'power-on' if dr['power_on'] else 'warm'} start")
     out += ["", "Correlation of the base residual with what an effect would follow "
             "(p on the effective sample size):", "",
-            "| quantity | r | p |", "|---|---|---|"]
+            "| quantity | r | p | eta^2 (binned) | p |", "|---|---|---|---|---|"]
     for k, v in b["correlations"].items():
-        out.append(f"| {k} | {v['r']:+.3f} | {v['p']:.3g} |")
+        out.append(f"| {k} | {v['r']:+.3f} | {v['p']:.3g} | {v['eta2']:.3f} | "
+                   f"{v['eta_p']:.3g} |")
     out += ["", "## Candidates (held-out RMS, ppm)", "",
             "| effect | before | after | gain % | parameters | evidence |",
             "|---|---|---|---|---|---|"]

@@ -108,6 +108,25 @@ def lag1(x: np.ndarray) -> float:
     return float(np.sum(x[1:] * x[:-1]) / d) if d > 0 and x.shape[0] > 2 else 0.0
 
 
+def correlation_ratio(e: np.ndarray, x: np.ndarray, bins: int = 8) -> tuple[float, float]:
+    """(eta^2, p): share of the residual's variance explained by its mean in quantile bins
+    of x (catches structure a straight line misses, e.g. residuals of a model that has x
+    as a regressor), p from n_eff * eta^2 ~ chi-square(bins - 1)."""
+    e = np.asarray(e, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, bins + 1)))
+    if edges.shape[0] < 3 or np.ptp(e) == 0:
+        return 0.0, 1.0
+    idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.shape[0] - 2)
+    k = int(np.unique(idx).shape[0])
+    means = np.bincount(idx, weights=e) / np.maximum(np.bincount(idx), 1)
+    dev = e - e.mean()
+    eta2 = float(np.sum((means[idx] - e.mean()) ** 2) / np.sum(dev * dev))
+    rho = max(-0.9, min(0.95, lag1(e)))
+    n_eff = max(float(k + 1), e.shape[0] * (1 - rho) / (1 + rho))
+    return eta2, chi2_sf(n_eff * eta2, k - 1) if k > 1 else 1.0
+
+
 def correlation(e: np.ndarray, x: np.ndarray) -> tuple[float, float]:
     """(Pearson r, two-sided p) with n_eff = n (1 - r1 s1) / (1 + r1 s1)."""
     e = np.asarray(e, dtype=np.float64)

@@ -204,7 +204,9 @@ def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
 
 
 def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str, float]]:
-    """Correlation of a residual with the quantities an effect would follow."""
+    """Correlation of a residual with the quantities an effect would follow: Pearson r (zero
+    by construction for the base's own regressors) and the correlation ratio eta^2 over
+    quantile bins (any smooth dependence), each with a p-value on the effective size."""
     feats: dict[str, list[np.ndarray]] = {k: [] for k in (
         "temperature_c", "dtemp_dt_c_per_min", "time_since_power_on_s", "elapsed_s",
         "table_rate_dps", "abs_rate_dps", "sign_rate")}
@@ -217,10 +219,14 @@ def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str,
         feats["table_rate_dps"].append(r.rate)
         feats["abs_rate_dps"].append(np.abs(r.rate))
         feats["sign_rate"].append(np.sign(r.rate))
+    arrays = {k: np.concatenate(v) for k, v in feats.items()}
+    if np.unique(arrays["sign_rate"]).shape[0] > 1:  # what a bias following T looks like
+        arrays["temperature_x_sign_rate"] = arrays["temperature_c"] * arrays["sign_rate"]
     out = {}
-    for k, v in feats.items():
-        rr, p = stats.correlation(e, np.concatenate(v))
-        out[k] = {"r": rr, "p": p}
+    for k, x in arrays.items():
+        rr, p = stats.correlation(e, x)
+        eta2, p_eta = stats.correlation_ratio(e, x)
+        out[k] = {"r": rr, "p": p, "eta2": eta2, "eta_p": p_eta}
     return out
 
 
