@@ -6,14 +6,17 @@ wrong, name the cause, extend the model and measure the gain.
    log-spaced grid (linear least squares inside), SF laws in the board and node
    temperatures, the unseen self-heating after a power-on, a constant bias where the rate
    varies. Its residual per window: size, whiteness (Ljung-Box), correlation with
-   temperature, dT/dt, time since power-on, elapsed time, table rate, |rate|, sign(rate).
+   temperature, dT/dt, time since power-on, elapsed time, table rate, |rate|, sign(rate)
+   and temperature x sign(rate).
 2. Each catalogue effect (warmup, extra_lag, temp_rate, rate_nonlinearity, asymmetry,
    bias_drift, aging; the simulator's, in its units) is added to the base in turn.
 3. Every model is scored on held-out data: contiguous blocks of windows left out in turn
    (or whole logs with --cv runs), significance by a paired sign-flip test over blocks.
-4. Names the cause, or none; `ambiguous` when the logs cannot tell two apart (e.g. a lag and
-   a dT/dt term on ramps alone); `unexplained` when structure remains that no candidate
-   explains.
+4. Names the cause, or none, with its parameters and 95 % intervals; `ambiguous` when the
+   logs cannot tell two apart (e.g. an extra thermal lag and a dT/dt term, which both show
+   as the housing running ahead of the board thermometer); `unexplained` when structure
+   remains that no candidate explains. A candidate the logs cannot show at all (asymmetry
+   at one |rate|, a lag on steady ramps) is called not identifiable, with the reason.
 5. Writes the extended model as a simulator configuration (--config-out, and in the JSON as
    extended_model) and simulates it to report how much closer it comes to the logs.
 
