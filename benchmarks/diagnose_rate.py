@@ -2,8 +2,8 @@
 
 Cases (trainer.diagnose.cases, ranges stated there): each of the seven catalogue effects
 planted at 3-20x the noise floor (visible part), null runs, out-of-catalogue effects
-(humidity, supply step, periodic) and ramp-only lag / dT/dt runs. For each: right or wrong
-by `cases.judge`, and the figures behind it. Prints a table and writes JSON.
+(humidity, supply step, periodic), ramp-only and short-soak lag / dT/dt runs. For each:
+right or wrong by `cases.judge`, and the figures behind it. Prints a table and writes JSON.
 
     python -m benchmarks.diagnose_rate --out out/bench-diagnose.json [--seeds 20] [--jobs 2]
 """
@@ -53,6 +53,7 @@ def jobs(seeds: int, first_seed: int) -> list[tuple[str, str, int]]:
         out += [("null", "", 1000 + s), ("null", "", 2000 + s)]
         out += [("ooc", k, s) for k in cases.OOC_KINDS]
         out += [("ramp_only", k, s) for k in ("temp_rate", "extra_lag")]
+        out += [("short_soak", k, s) for k in ("temp_rate", "extra_lag")]
     return out
 
 
@@ -67,6 +68,7 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     null = [r for r in results if r["kind"] == "null"]
     ooc = [r for r in results if r["kind"] == "ooc"]
     ramp = [r for r in results if r["kind"] == "ramp_only"]
+    short = [r for r in results if r["kind"] == "short_soak"]
 
     def rate(rs: list[dict[str, Any]]) -> float:
         return sum(r["ok"] for r in rs) / len(rs) if rs else float("nan")
@@ -83,6 +85,8 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
         "ooc_right_rate": rate(ooc),
         "ooc_named_catalogue_cause": sum(r["cause"] is not None for r in ooc),
         "ramp_only_no_guess_rate": rate(ramp),
+        "short_soak_right_or_ambiguous_rate": rate(short),
+        "short_soak_wrong_cause": sum(r["cause"] not in (None, r["name"]) for r in short),
         "all_right_rate": rate(results),
         "cases": len(results),
     }
@@ -117,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"out-of-catalogue: {100 * s['ooc_right_rate']:.1f}% unexplained with no cause "
           f"({s['ooc_named_catalogue_cause']} named a catalogue cause)")
     print(f"ramp-only lag / dT/dt: {100 * s['ramp_only_no_guess_rate']:.1f}% no guess")
+    print(f"short-soak lag / dT/dt: {100 * s['short_soak_right_or_ambiguous_rate']:.1f}% right "
+          f"or ambiguous ({s['short_soak_wrong_cause']} named the other one)")
     for r in results:
         if not r["ok"]:
             print(f"  wrong: {r['case']}: {r['reason']}")

@@ -6,18 +6,18 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
 
     warmup             exp(-t/tau_s)                      coef: ppm at power-on; tau_s
     extra_lag          lag(housing, tau) - housing (C)    coef: sens_ppm_per_c; strength tau
-    temp_rate          d/dt of the base's coil node (C/min) coef: ppm/(C/min)
+    temp_rate          d/dt of a coil node (C/min)        coef: ppm/(C/min); coil_tau_s
     rate_nonlinearity  |rate| / 100 deg/s                 coef: ppm at 100 deg/s
     asymmetry          sign(rate) / 2                     coef: ppm, SF(+) - SF(-)
     bias_drift         (T_board - 20) * 1e6/(3600 rate)   coef: deg/h per C
     aging              t / 3600 s                         coef: ppm/h
 
-The coil node of `temp_rate` is the base model's first internal node (tau1): in a FOG the
-coil is the first internal node the SF is sensitive to after the board (the simulator's
-ordering). An extra lag is an extra *slow* node: its time constant is profiled from 4000 s
-up (the base's nodes stay within 600-4000 s, the range of a small FOG's coil and source),
-and above 1.4x the base's slower node, so the two candidates differ by how long they keep
-settling after a ramp stops; on steady ramps alone neither is separable from the base.
+The coil node of `temp_rate` lags the housing with a time constant profiled over the
+base's node range (600-4000 s, a small FOG's coil and source); an extra lag is an extra
+*slow* node, profiled from 4000 s up and above 1.4x the base's slower node. Both terms are
+(node - housing) / tau in form, so what tells them apart is how long they keep settling
+after a ramp stops (see verdict._nested_choice); on steady ramps alone neither is
+separable from the base.
 """
 
 from __future__ import annotations
@@ -68,8 +68,8 @@ def _extra_lag(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
 
 
 def _temp_rate(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
-    tau1 = b[0]
-    return (design.drive(ctx) - design.node(ctx, tau1)) / tau1 * 60.0
+    assert tau is not None
+    return (design.drive(ctx) - design.node(ctx, tau)) / tau * 60.0
 
 
 def _rate_nonlinearity(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
@@ -97,8 +97,8 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("extra_lag", "sens_ppm_per_c", "tau_s", EXTRA_LAG_GRID_S, _extra_lag,
               "an extra slow thermal node lagging the housing",
               admissible=lambda b, g: g is not None and g >= design.MIN_TAU_RATIO * b[1]),
-    Candidate("temp_rate", "strength_ppm_per_c_per_min", None, (None,), _temp_rate,
-              "SF term in the coil's rate of temperature change"),
+    Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", design.BASE_TAU_GRID_S,
+              _temp_rate, "SF term in the coil's rate of temperature change"),
     Candidate("rate_nonlinearity", "strength_ppm_at_100dps", None, (None,),
               _rate_nonlinearity, "SF that grows with |rate|"),
     Candidate("asymmetry", "strength_ppm", None, (None,), _asymmetry,

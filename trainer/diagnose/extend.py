@@ -5,11 +5,11 @@ The base model's pieces map onto the simulator's (trainer.sim.config):
 - driver identified from the chamber air -> nodes `housing` (tau_h) and `board` (tau_b, its
   self-heating); without a chamber column the chamber program is the board thermometer
   itself and both lags are zero;
-- internal nodes `coil` (tau1) and `source` (tau2), children of the housing; their unseen
+- internal nodes `node1` (tau1) and `node2` (tau2), children of the housing; their unseen
   self-heating transients after a power-on (the base's exp(-t/tau) columns) become two
   `warmup` entries with tau1 and tau2, listed before the cause (a node's own self-heating
   and an SF start-up transient with its time constant are one and the same signature);
-- each of board/coil/source: one SF term (factor L, exponent +1) with the fitted linear
+- each of board/node1/node2: one SF term (factor L, exponent +1) with the fitted linear
   and quadratic coefficients about 20 C; the intercept -> sf.offset_ppm;
 - constant bias (when the rate varies) -> bias.bias_dph;
 - the named cause -> one entry of `effects`, in the simulator's own units;
@@ -106,14 +106,19 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
          "self_heat_c": drv.self_heat_housing_c if power_on else 0.0},
         {"name": "board", "parent": "housing",
          "tau_s": drv.tau_board_s if from_chamber else 0.0, "self_heat_c": board_heat},
-        {"name": "coil", "parent": "housing", "tau_s": tau1, "self_heat_c": 0.0},
-        {"name": "source", "parent": "housing", "tau_s": tau2, "self_heat_c": 0.0},
+        {"name": "node1", "parent": "housing", "tau_s": tau1, "self_heat_c": 0.0},
+        {"name": "node2", "parent": "housing", "tau_s": tau2, "self_heat_c": 0.0},
     ]
+    cand = model.stack.candidate
+    if cand is not None and cand.name == "temp_rate":
+        # the simulator's temp_rate differentiates the nodes named coil*: one, as fitted
+        nodes.append({"name": "coil", "parent": "housing", "tau_s": g, "self_heat_c": 0.0})
     terms = [
         _sf_term("fitted board term", "board", coef["board_ppm_per_c"],
                  coef["board_ppm_per_c2"]),
-        _sf_term("fitted coil term", "coil", coef["node1_ppm_per_c"], coef["node1_ppm_per_c2"]),
-        _sf_term("fitted source term", "source", coef["node2_ppm_per_c"],
+        _sf_term("fitted node1 term", "node1", coef["node1_ppm_per_c"],
+                 coef["node1_ppm_per_c2"]),
+        _sf_term("fitted node2 term", "node2", coef["node2_ppm_per_c"],
                  coef["node2_ppm_per_c2"]),
     ]
     table, _ = _table(ctx.run.log.table_rate_dps, dt)
@@ -125,7 +130,6 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
         # the unseen self-heating transients of the internal nodes, exactly as fitted
         effects += [{"name": "warmup", "strength": coef[f"selfheat{i}_ppm"],
                      "params": {"tau_s": tau}} for i, tau in ((1, tau1), (2, tau2))]
-    cand = model.stack.candidate
     if cand is not None:
         effects.append(cand.to_effect(coef[cand.coef_name], g))
     return {

@@ -45,6 +45,9 @@ STRUCTURE_EXCESS = 2.5  # held-out trimmed mean (e/sigma)^2 above which structur
 # temp_rate's signature ("housing term", the coil node being in the base already)
 NESTED = {"extra_lag": "temp_rate"}
 NESTED_MIN_GAIN_PCT = 3.0
+MIN_SOAK_FOR_LAG_S = 2700.0  # 45 min of soak, as found (the 5 min after a ramp stops excluded)
+SOAK_RATE_C_PER_MIN = 0.02  # slower than this (driver, 5-min average) is a soak
+RAMP_MIN_C = 5.0  # a soak counts when the driver moved at least this much before it
 Z95 = 1.959964
 TRIM = 0.95
 
@@ -198,8 +201,6 @@ def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
     if cand.grid_name is not None and g is not None and interval is not None:
         out[cand.grid_name] = float(g)
         out[f"{cand.grid_name}_ci95"] = [min(interval[0], g), max(interval[1], g)]
-    if cand.name == "temp_rate":
-        out["coil_tau_s"] = float(m.combo[0][0])
     return out
 
 
@@ -279,7 +280,8 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
                               before))
 
     sig = sorted([c for c in results if c.significant], key=lambda c: c.heldout_after)
-    sig, ambiguous = _nested_choice(sig, w, blocks)
+    soak_s = max(_longest_soak_after_ramp(c) for c in ctxs)
+    sig, ambiguous = _nested_choice(sig, w, blocks, soak_s)
     cause: str | None = None
     chosen = base
     if ambiguous:
@@ -324,16 +326,46 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         cv_mode=cv, window_s=window_s)
 
 
-def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
-                   ) -> tuple[list[CandidateResult], list[str]]:
+def _longest_soak_after_ramp(ctx: RunContext) -> float:
+    """Longest stretch (s) over which the driving temperature holds still, after it has
+    moved by RAMP_MIN_C or more since the run's start or the previous soak."""
+    t = ctx.run.log.time_s
+    d = ctx.driver.temp_c
+    k = max(1, int(round(300.0 / float(np.median(np.diff(t))))))
+    dm = d[: d.shape[0] // k * k].reshape(-1, k).mean(axis=1)  # 5-min means
+    tm = t[: d.shape[0] // k * k].reshape(-1, k).mean(axis=1)
+    still = np.abs(np.gradient(dm, tm)) * 60.0 < SOAK_RATE_C_PER_MIN if dm.shape[0] > 1 \
+        else np.zeros(dm.shape, bool)
+    best = 0.0
+    ref = float(dm[0])
+    i = 0
+    while i < still.shape[0]:
+        if not still[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < still.shape[0] and still[j + 1]:
+            j += 1
+        if abs(float(dm[i]) - ref) >= RAMP_MIN_C:
+            best = max(best, float(tm[j] - tm[i]) + 300.0)
+        ref = float(dm[j])
+        i = j + 1
+    return best
+
+
+def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray,
+                   soak_s: float) -> tuple[list[CandidateResult], list[str]]:
     """Between a candidate and the simpler one it contains (NESTED), both significant and
     one of them the best:
 
     - the larger wins when it beats the simpler on held-out blocks (p < ALPHA) by at least
       NESTED_MIN_GAIN_PCT of held-out RMS;
+    - else, when the logs hold a soak after a ramp of at least MIN_SOAK_FOR_LAG_S (`soak_s`,
+      the longest), an extra slow node would have shown as it kept settling there: it did
+      not, so the simpler wins (the claim being: no extra node up to about that time
+      constant; a much slower one is, over these logs, a constant plus a drift);
     - else the two are ambiguous: what the logs show of either is the housing running ahead
-      of the board thermometer, and the extra slow node is not resolved (a parsimony rule
-      would name the simpler one for every weak extra lag, a false cause).
+      of the board thermometer, and nothing in them resolves an extra slow node.
     Returns the significant candidates without the loser, and the ambiguous names, if any."""
     names = {c.name: c for c in sig}
     for big, small in NESTED.items():
@@ -348,9 +380,18 @@ def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
             b.evidence += (f"; beats the simpler {small} on held-out blocks (p={p:.2g}, "
                            f"{gain:.1f}% lower RMS): the logs need the extra slow node")
             winner, loser = b, s
+        elif soak_s >= MIN_SOAK_FOR_LAG_S:
+            s.evidence += (f"; the logs hold a {soak_s / 60:.0f} min soak after a ramp and "
+                           f"{big} is no better on held-out blocks (p={p:.2g}): no extra slow "
+                           f"node settles there")
+            b.evidence += (f"; no better than the simpler {small} (p={p:.2g}) although a "
+                           f"{soak_s / 60:.0f} min soak after a ramp would show its settling")
+            winner, loser = s, b
         else:
             note = (f"{big} vs {small}: the extra slow node ({b.params.get('tau_s', 0):.0f} s) "
-                    f"is not separable on held-out blocks (p={p:.2g})")
+                    f"is not separable on held-out blocks (p={p:.2g}) and no soak after a ramp "
+                    f"lasts {MIN_SOAK_FOR_LAG_S / 60:.0f} min (longest {soak_s / 60:.0f} min) "
+                    "to watch it settle")
             b.evidence += "; " + note
             s.evidence += "; " + note
             return sig, [s.name, b.name]
