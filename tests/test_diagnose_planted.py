@@ -8,10 +8,10 @@ rates over many seeds are `make bench-diagnose`). A failure prints the case and 
 
 Rules (cases.judge): a planted effect must be named, its parameter within the stated
 tolerance (cases.PARAM_CHECK), with a held-out gain; a wrong cause is never acceptable.
-A thermal lag and a dT/dt term (extra_lag, temp_rate) may instead be reported ambiguous
-with each other (these short logs often cannot resolve the extra slow node); null cases
-name nothing; out-of-catalogue effects are `unexplained` with no cause; ramp-only logs
-never get a guess.
+A thermal lag and a dT/dt term (extra_lag, temp_rate) are planted in logs with long soaks
+after the steps (they differ by how long they keep settling); with short soaks they may be
+reported ambiguous with each other, never as the other one. Null cases name nothing;
+out-of-catalogue effects are `unexplained` with no cause; ramp-only logs get no guess.
 """
 
 from __future__ import annotations
@@ -43,18 +43,20 @@ def _run(kind: str, name: str, seed: int) -> tuple[cases.Case, cases.Outcome, di
 def test_planted_effect_is_named(effect: str) -> None:
     results = []
     for seed in _seeds(effect, PER_EFFECT):
-        case, out, j = _run("effect", effect, seed)
+        case, out, _ = _run("effect", effect, seed)
         where = f"[{case.describe()}] -> {out.reason}"
         assert out.cause in (None, effect), f"wrong cause {where}"
-        if effect in ("temp_rate", "extra_lag") and out.cause is None:
-            assert effect in j["ambiguous"], f"neither named nor ambiguous {where}"
-            continue
         results.append((out.ok, where))
     bad = [w for ok, w in results if not ok]
     # at most one miss in the sample (the benchmark states the rate over many seeds)
     assert len(bad) <= 1, "\n".join(bad)
-    if effect not in ("temp_rate", "extra_lag"):
-        assert len(results) == PER_EFFECT
+
+
+@pytest.mark.parametrize("kind", ["temp_rate", "extra_lag"])
+def test_short_soaks_leave_lag_and_rate_term_ambiguous_never_swapped(kind: str) -> None:
+    for seed in _seeds("short" + kind, 2):
+        case, out, j = _run("short_soak", kind, seed)
+        assert out.ok, f"[{case.describe()}] -> {out.reason}; ambiguous={j['ambiguous']}"
 
 
 @pytest.mark.parametrize("seed", _seeds("null", 6))

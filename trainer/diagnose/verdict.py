@@ -44,7 +44,7 @@ STRUCTURE_EXCESS = 2.5  # held-out trimmed mean (e/sigma)^2 above which structur
 # extra_lag with a very slow node tends to "housing term + slow drift", which contains
 # temp_rate's signature ("housing term", the coil node being in the base already)
 NESTED = {"extra_lag": "temp_rate"}
-NESTED_MIN_GAIN_PCT = 3.0
+NESTED_MIN_GAIN_PCT = 2.0
 MIN_SOAK_FOR_LAG_S = 2700.0  # 45 min of soak, as found (the 5 min after a ramp stops excluded)
 SOAK_RATE_C_PER_MIN = 0.02  # slower than this (driver, 5-min average) is a soak
 RAMP_MIN_C = 5.0  # a soak counts when the driver moved at least this much before it
@@ -358,14 +358,15 @@ def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
     """Between a candidate and the simpler one it contains (NESTED), both significant and
     one of them the best:
 
-    - the larger wins when it beats the simpler on held-out blocks (p < ALPHA) by at least
-      NESTED_MIN_GAIN_PCT of held-out RMS;
-    - else, when the logs hold a soak after a ramp of at least MIN_SOAK_FOR_LAG_S (`soak_s`,
-      the longest), an extra slow node would have shown as it kept settling there: it did
-      not, so the simpler wins (the claim being: no extra node up to about that time
-      constant; a much slower one is, over these logs, a constant plus a drift);
+    - the larger wins when it beats the simpler on held-out blocks (p < AMBIGUOUS_P) by at
+      least NESTED_MIN_GAIN_PCT of held-out RMS;
+    - else, when it is no better at all (held-out RMS not below the simpler's) and the logs
+      hold a soak after a ramp of at least MIN_SOAK_FOR_LAG_S (`soak_s`, the longest), the
+      simpler wins: an extra slow node would have shown as it kept settling there (the
+      claim: no extra node up to about that time constant; a much slower one is, over these
+      logs, a constant plus a drift);
     - else the two are ambiguous: what the logs show of either is the housing running ahead
-      of the board thermometer, and nothing in them resolves an extra slow node.
+      of the board thermometer, and they do not resolve an extra slow node.
     Returns the significant candidates without the loser, and the ambiguous names, if any."""
     names = {c.name: c for c in sig}
     for big, small in NESTED.items():
@@ -376,11 +377,11 @@ def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
         d = _block_sums((s.model.heldout**2 - b.model.heldout**2) * w, blocks)
         p = stats.sign_flip_p(d)
         gain = 100.0 * (1.0 - b.heldout_after / s.heldout_after)
-        if p < ALPHA and gain >= NESTED_MIN_GAIN_PCT:
+        if p < AMBIGUOUS_P and gain >= NESTED_MIN_GAIN_PCT:
             b.evidence += (f"; beats the simpler {small} on held-out blocks (p={p:.2g}, "
                            f"{gain:.1f}% lower RMS): the logs need the extra slow node")
             winner, loser = b, s
-        elif soak_s >= MIN_SOAK_FOR_LAG_S:
+        elif soak_s >= MIN_SOAK_FOR_LAG_S and gain <= 0.0:
             s.evidence += (f"; the logs hold a {soak_s / 60:.0f} min soak after a ramp and "
                            f"{big} is no better on held-out blocks (p={p:.2g}): no extra slow "
                            f"node settles there")
@@ -388,10 +389,11 @@ def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
                            f"{soak_s / 60:.0f} min soak after a ramp would show its settling")
             winner, loser = s, b
         else:
+            why = (f"the logs' longest soak after a ramp ({soak_s / 60:.0f} min) is too short "
+                   "to watch it settle" if soak_s < MIN_SOAK_FOR_LAG_S else
+                   f"it fits the held-out data {gain:.1f}% better, too little to tell")
             note = (f"{big} vs {small}: the extra slow node ({b.params.get('tau_s', 0):.0f} s) "
-                    f"is not separable on held-out blocks (p={p:.2g}) and no soak after a ramp "
-                    f"lasts {MIN_SOAK_FOR_LAG_S / 60:.0f} min (longest {soak_s / 60:.0f} min) "
-                    "to watch it settle")
+                    f"is not separable on held-out blocks (p={p:.2g}): {why}")
             b.evidence += "; " + note
             s.evidence += "; " + note
             return sig, [s.name, b.name]
