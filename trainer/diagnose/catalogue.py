@@ -12,9 +12,9 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
     bias_drift         (T_board - 20) * 1e6/(3600 rate)   coef: deg/h per C
     aging              t / 3600 s                         coef: ppm/h
 
-The coil node of `temp_rate` lags the housing with a time constant profiled over the
-base's node range (600-4000 s, a small FOG's coil and source); an extra lag is an extra
-*slow* node, profiled from 4000 s up and above 1.4x the base's slower node. Both terms are
+The coil node of `temp_rate` lags the housing with a time constant profiled over 600-3000 s
+(a small FOG's coil: 10-50 min); an extra lag is an extra *slow* node, profiled from 4000 s
+up (the base's nodes stay within 600-4000 s) and above 1.4x the base's slower node. Both terms are
 (node - housing) / tau in form, so what tells them apart is how long they keep settling
 after a ramp stops (see verdict._nested_choice); on steady ramps alone neither is
 separable from the base.
@@ -89,6 +89,7 @@ def _aging(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
 
 
 WARMUP_GRID_S = tuple(float(x) for x in np.round(np.geomspace(60.0, 3600.0, 13), -1))
+COIL_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 3000.0, 8), -1))
 EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(4000.0, 32000.0, 10), -2))
 
 CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
@@ -97,7 +98,7 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("extra_lag", "sens_ppm_per_c", "tau_s", EXTRA_LAG_GRID_S, _extra_lag,
               "an extra slow thermal node lagging the housing",
               admissible=lambda b, g: g is not None and g >= design.MIN_TAU_RATIO * b[1]),
-    Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", design.BASE_TAU_GRID_S,
+    Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", COIL_TAU_GRID_S,
               _temp_rate, "SF term in the coil's rate of temperature change"),
     Candidate("rate_nonlinearity", "strength_ppm_at_100dps", None, (None,),
               _rate_nonlinearity, "SF that grows with |rate|"),
