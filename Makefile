@@ -13,14 +13,16 @@ help:
 	@echo "make test      create .venv and run the whole test suite"
 	@echo "make firmware  build the C kernel (host library; Cortex-M4F image + size if arm-none-eabi-gcc exists)"
 	@echo "make export    export the demo model to ONNX and C headers"
-	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm (root only)"
+	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang (root only)"
 	@echo "make bench     speed / size benchmarks -> out/bench.json"
 	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q -c constraints.txt -e '.[dev]'
+	@echo "installing fogsf and its pinned packages into $(VENV) (about a minute the first time)"
+	@bash -o pipefail -c "$(PY) -m pip install -q -c constraints.txt -e '.[dev]' 2>&1 \
+	    | { grep -v 'is ignored: it is neither a file nor a directory' || true; }"
 	touch $(STAMP)
 
 venv: $(STAMP)

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.gsa_functions import FUNCTIONS
-from trainer.executors import default_workers, open_executor
+from trainer.executors import add_executor_options, default_workers, executor_from_args
 from trainer.gsa import BOUNDS, Param, minimize
+from trainer.gsa_testfunctions import FUNCTIONS
 
 
 def one_run(key: str, run: int, seed: int, n_agents: int, dim: int, n_iters: int,
@@ -49,8 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bounds", choices=BOUNDS, default="reflect",
                     help="how agents are kept in the box (reflect)")
     ap.add_argument("--seed", type=int, default=2009, help="base seed (2009)")
-    ap.add_argument("--workers", type=int, default=None,
-                    help=f"local processes (default one per core: {default_workers()})")
+    add_executor_options(ap)
     ap.add_argument("--out", default="out/gsa_rashedi.json", help="JSON output path")
     ap.add_argument("--no-plot", action="store_true", help="skip the curve plot")
     args = ap.parse_args(argv)
@@ -60,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, list[tuple[float, list[float]]]] = {k: [] for k in args.functions}
     from tqdm import tqdm
 
-    with open_executor(workers=args.workers) as ex:
+    with executor_from_args(args) as ex:
         call = partial(one_run, seed=args.seed, n_agents=args.agents, dim=args.dim,
                        n_iters=args.iters, bounds=args.bounds)
         if ex is None:
@@ -90,7 +89,9 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(f"{k:3} {tf.name:<20} {tf.paper_mean:>10.3g} {row['mean']:>11.3g} "
               f"{row['median']:>10.3g} {row['std']:>10.3g} {row['worst']:>10.3g}")
-    print(f"wall time {wall:.1f} s with {args.workers or default_workers()} worker(s)")
+    where = f"Dask at {args.dask}" if args.dask else \
+        f"{args.workers or default_workers()} local worker(s)"
+    print(f"wall time {wall:.1f} s with {where}")
 
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
-# Install the Cortex-M4F cross toolchain and QEMU when missing (Debian, root only).
+# Install the Cortex-M4F cross toolchain, QEMU and clang (the kernel is checked with gcc
+# and clang) when missing (Debian, root only).
 set -u
 need=()
 command -v arm-none-eabi-gcc >/dev/null 2>&1 || need+=(gcc-arm-none-eabi)
 [ -e /usr/lib/arm-none-eabi/newlib ] || [ -e /usr/lib/arm-none-eabi/lib ] || need+=(libnewlib-arm-none-eabi)
 command -v qemu-system-arm >/dev/null 2>&1 || need+=(qemu-system-arm)
+command -v clang >/dev/null 2>&1 || need+=(clang)
 if [ ${#need[@]} -eq 0 ]; then
-    echo "toolchain: arm-none-eabi-gcc and qemu-system-arm present"
+    echo "toolchain: arm-none-eabi-gcc, qemu-system-arm and clang present"
     exit 0
 fi
 if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then

@@ -10,10 +10,11 @@ and pass ``ex`` to `trainer.gsa.minimize`. Commands add the matching options wit
 `add_executor_options(parser)` (``--workers N``, ``--dask SCHEDULER_ADDRESS``) and open the
 executor with `executor_from_args(args)`.
 
-Local processes start with the ``forkserver`` method (``spawn`` where that does not exist):
-forking a parent that already runs torch's thread pools can deadlock. Functions sent to
-workers must therefore be picklable: a module-level function, or a `functools.partial` of
-one with picklable arguments.
+Local worker processes get cores // workers threads each for OpenMP/MKL/torch, so that
+N workers do not each start one thread per core. They start with the ``forkserver`` method
+(``spawn`` where that does not exist): forking a parent that already runs torch's thread
+pools can deadlock. Functions sent to workers must therefore be picklable: a module-level
+function, or a `functools.partial` of one with picklable arguments.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import multiprocessing
 import os
+import sys
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
@@ -39,6 +41,14 @@ def default_workers() -> int:
 def _mp_context() -> multiprocessing.context.BaseContext:
     methods = multiprocessing.get_all_start_methods()
     return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def _limit_threads(threads: int) -> None:
+    """Worker start-up: share the cores between workers instead of oversubscribing them."""
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[var] = str(threads)
+    if "torch" in sys.modules:              # already imported (preloaded): tell it directly
+        sys.modules["torch"].set_num_threads(threads)
 
 
 @contextmanager
@@ -60,7 +70,9 @@ def open_executor(workers: int | None = None, dask: str | None = None
     if n == 1:
         yield None
         return
-    ex = ProcessPoolExecutor(max_workers=n, mp_context=_mp_context())
+    threads = max(1, default_workers() // n)
+    ex = ProcessPoolExecutor(max_workers=n, mp_context=_mp_context(),
+                             initializer=_limit_threads, initargs=(threads,))
     try:
         yield ex
     finally:

@@ -49,31 +49,20 @@ class FeatureSpec:
             f"[{', '.join(self.names)}]"
 
 
-def make_features(rate_tau_s: float | None = None,
-                  lag_taus_s: tuple[float, ...] = ()) -> FeatureSpec:
-    """T (the block mean), optionally dT/dt in C/min from a lag filter of `rate_tau_s`
-    ((T - y) / tau is the ramp rate once the filter has settled on a ramp), and lag-filtered
-    temperatures (physics: each internal node is a first-order lag of the board)."""
-    taus: list[float] = []
-    if rate_tau_s is not None:
-        taus.append(float(rate_tau_s))
-    taus.extend(float(t) for t in lag_taus_s)
-    width = 1 + len(taus)
-    rows: list[list[float]] = [[1.0] + [0.0] * len(taus)]
-    names = ["T"]
-    if rate_tau_s is not None:
-        k = SEC_PER_MIN / rate_tau_s
-        r = [0.0] * width
-        r[0], r[1] = k, -k
-        rows.append(r)
-        names.append("dT/dt")
-    first_lag = 1 + (rate_tau_s is not None)
-    for j, tau in enumerate(lag_taus_s):
-        r = [0.0] * width
-        r[first_lag + j] = 1.0
-        rows.append(r)
-        names.append(f"lag{tau:g}s")
-    return FeatureSpec(tuple(taus), tuple(tuple(r) for r in rows), tuple(names))
+def make_features(rate_tau_s: float | None = None) -> FeatureSpec:
+    """T (the block mean) and, with `rate_tau_s`, dT/dt in C/min from a lag filter of that
+    time constant ((T - y) / tau is the ramp rate once the filter has settled on a ramp):
+    the paper's inputs."""
+    if rate_tau_s is None:
+        return FeatureSpec((), ((1.0,),), ("T",))
+    k = SEC_PER_MIN / rate_tau_s
+    return FeatureSpec((float(rate_tau_s),), ((1.0, 0.0), (k, -k)), ("T", "dT/dt"))
+
+
+def effective_node_features(tau_s: float, weight: float) -> FeatureSpec:
+    """One feature, the effective sensing temperature T_eff = w T + (1 - w) lag(T, tau)."""
+    return FeatureSpec((float(tau_s),), ((float(weight), 1.0 - float(weight)),),
+                       (f"T_eff(tau={tau_s:.0f}s,w={weight:.2f})",))
 
 
 @dataclass

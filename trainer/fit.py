@@ -82,10 +82,6 @@ def validation_rms(pred_ppm: list[np.ndarray], data: list[SeqData]) -> float:
     return math.sqrt(sq / n) if n else math.nan
 
 
-def _seed_all(seed: int) -> None:
-    torch.manual_seed(seed)
-
-
 def predict_stream(net: StreamNet, z: np.ndarray) -> np.ndarray:
     """Normalised output over a whole sequence from reset."""
     with torch.no_grad():
@@ -93,13 +89,27 @@ def predict_stream(net: StreamNet, z: np.ndarray) -> np.ndarray:
     return y[0].numpy().astype(np.float64)
 
 
+def _init_skip_by_least_squares(net: StreamNet, data: list[SeqData], z: list[np.ndarray],
+                                out_offset: float, out_scale: float) -> None:
+    """Start from the best linear model of the features (skip weights and output bias by
+    least squares), so the LSTM learns only what a linear map of them cannot."""
+    x = np.concatenate([a[d.train_mask] for a, d in zip(z, data, strict=True)]).astype(float)
+    y = np.concatenate([(d.target_ppm[d.train_mask] - out_offset) / out_scale for d in data])
+    coef, *_ = np.linalg.lstsq(np.column_stack([x, np.ones(len(x))]), y, rcond=None)
+    with torch.no_grad():
+        net.skip.weight.copy_(torch.from_numpy(coef[None, :-1].astype(np.float32)))
+        net.head.bias.fill_(float(coef[-1]))
+        net.head.weight.mul_(0.1)
+
+
 def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
                  out_offset: float, out_scale: float, progress: bool = True
                  ) -> tuple[StreamNet, History]:
     """Train a StreamNet on the training steps of `data` (features `z`, one per log)."""
-    _seed_all(cfg.seed)
+    torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden)
+    _init_skip_by_least_squares(net, data, z, out_offset, out_scale)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(cfg.iters, 1),
                                                        eta_min=cfg.lr * 0.05)
@@ -139,7 +149,7 @@ def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
         sched.step()
         if it % cfg.eval_every == 0 or it == cfg.iters:
             hist.iters.append(it)
-            hist.train_loss.append(float(loss))
+            hist.train_loss.append(loss.item())
             if has_val:
                 preds = [predict_stream(net, a) * out_scale + out_offset for a in z]
                 v = validation_rms(preds, data)
@@ -149,7 +159,7 @@ def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
             if v < hist.best_val_rms_ppm:
                 hist.best_val_rms_ppm, hist.best_iter = v, it
                 best_state = {k: t.clone() for k, t in net.state_dict().items()}
-            bar.set_postfix(loss=f"{float(loss):.3g}", val=f"{v:.3g}")
+            bar.set_postfix(loss=f"{loss.item():.3g}", val=f"{v:.3g}")
         if cfg.time_limit_s is not None and time.perf_counter() - t0 > cfg.time_limit_s:
             break
     net.load_state_dict(best_state)
@@ -169,7 +179,7 @@ class MLPConfig:
 def train_mlp(data: list[SeqData], z: list[np.ndarray], cfg: MLPConfig, out_offset: float,
               out_scale: float, progress: bool = True) -> tuple[MLP, History]:
     """Full-batch Adam on every training step; keeps the best validation weights."""
-    _seed_all(cfg.seed)
+    torch.manual_seed(cfg.seed)
     net = MLP(z[0].shape[1], cfg.hidden)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     x = torch.from_numpy(np.concatenate([a[d.train_mask] for a, d in zip(z, data,
@@ -192,7 +202,7 @@ def train_mlp(data: list[SeqData], z: list[np.ndarray], cfg: MLPConfig, out_offs
                          + out_offset for a in z]
             v = validation_rms(preds, data) if has_val else float(loss)
             hist.iters.append(ep)
-            hist.train_loss.append(float(loss))
+            hist.train_loss.append(loss.item())
             hist.val_rms_ppm.append(v)
             if v < hist.best_val_rms_ppm:
                 hist.best_val_rms_ppm, hist.best_iter = v, ep

@@ -3,14 +3,13 @@
 - `poly`: SF error as a polynomial in the board temperature.
 - `polyrate`: polynomial in T plus a filtered dT/dt and its products with T (the industry
   standard for hysteresis).
-- `profile_lag_taus`: picks the time constants of two first-order lags of the board
-  temperature (the physics: each internal node lags the board) by profiling a log-spaced
-  grid, with linear least squares inside, scored on the held-out part.
+- `profile_effective_node`: identifies the effective sensing temperature
+  T_eff = w T + (1 - w) lag(T, tau) (the physics: the sensing parts lag the board) by
+  profiling a grid of (tau, w), with least squares inside, scored on the held-out part.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -55,29 +54,45 @@ def fit_linear(data: list[SeqData], z: list[np.ndarray], degree: int,
 
 
 TAU_GRID_S = tuple(float(t) for t in np.geomspace(60.0, 7200.0, 11).round(0))
+LEAD_GRID_S = (0.0, 60.0, 120.0, 240.0, 400.0)
+NODE_DEGREE = 3
 
 
-def _lag_design(s: np.ndarray, i: int, j: int) -> np.ndarray:
-    t, a, b = (s[:, k].astype(np.float64) / 50.0 for k in (0, i, j))
-    return np.column_stack([np.ones_like(t), t, t * t, a, a * a, b, b * b])
+def node_weight(lead_s: float, tau_s: float) -> float:
+    """w in T_eff = w T + (1 - w) lag(T, tau) for a node with time constant tau behind a
+    common driver that the board follows with time constant lead_s: the node's transfer from
+    the board is (1 + lead s) / (1 + tau s) = w + (1 - w) / (1 + tau s), w = lead / tau."""
+    return min(lead_s / tau_s, 1.0)
 
 
-def profile_lag_taus(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
-                     latitude_deg: float | None = None,
-                     grid: tuple[float, ...] = TAU_GRID_S) -> tuple[tuple[float, float], float]:
-    """(tau_1, tau_2) minimising the held-out windowed RMS of a quadratic least-squares model
-    on T and two lag-filtered temperatures; returns the pair and its score (ppm)."""
+def _node_design(s: np.ndarray, k: int, w: float, degree: int = NODE_DEGREE) -> np.ndarray:
+    t_eff = (w * s[:, 0].astype(np.float64) + (1.0 - w) * s[:, k].astype(np.float64)) / 50.0
+    return np.column_stack([t_eff**p for p in range(degree + 1)])
+
+
+def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
+                           latitude_deg: float | None = None,
+                           grid: tuple[float, ...] = TAU_GRID_S,
+                           leads: tuple[float, ...] = LEAD_GRID_S
+                           ) -> tuple[tuple[float, float], float]:
+    """The effective sensing temperature T_eff = w T + (1 - w) lag(T, tau) that best explains
+    the SF error: (tau, w) profiled over a grid, with a cubic in T_eff fitted by least squares
+    inside, scored by the held-out windowed RMS. Returns ((tau_s, w), score_ppm).
+
+    One effective node is what a single ramp rate can identify: on a constant ramp every lag
+    temperature is T minus a constant, so freer models (several lags, their squares and
+    products) fit the training run as well and extrapolate wildly to another rate.
+    """
     full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
                     filter_alpha(list(grid), fe.decimation))
     data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
-    best, best_score = (grid[0], grid[-1]), math.inf
-    for i, j in itertools.combinations(range(1, len(grid) + 1), 2):
-        x = np.concatenate([_lag_design(d.s[d.train_mask], i, j) for d in data])
-        y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
-        coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-        preds = [_lag_design(d.s, i, j) @ coef for d in data]
-        score = validation_rms(preds, data)
-        if score < best_score:
-            best, best_score = (grid[i - 1], grid[j - 1]), score
+    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    best, best_score = (grid[0], 0.0), math.inf
+    for k, tau in enumerate(grid, start=1):
+        for w in sorted({node_weight(lead, tau) for lead in leads}):
+            x = np.concatenate([_node_design(d.s[d.train_mask], k, w) for d in data])
+            coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+            score = validation_rms([_node_design(d.s, k, w) @ coef for d in data], data)
+            if score < best_score:
+                best, best_score = (tau, w), score
     return best, best_score
-

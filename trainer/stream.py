@@ -223,8 +223,11 @@ class StreamModel:
                             ("hidden", self.hidden), ("n_features", self.n_features)):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise bad(f"'{name}' must be an integer >= 1, got {value!r}")
-        if not isinstance(self.stuck_samples, int) or self.stuck_samples < 0:
-            raise bad(f"'stuck_samples' must be an integer >= 0, got {self.stuck_samples!r}")
+        if not isinstance(self.stuck_samples, int) or not 0 <= self.stuck_samples < 2**31:
+            raise bad(f"'stuck_samples' must be an integer in [0, 2^31), got "
+                      f"{self.stuck_samples!r}")
+        if self.decimation >= 2**31:  # the kernel counts samples in uint32
+            raise bad(f"'decimation' must be below 2^31, got {self.decimation}")
         if not (isinstance(self.sample_dt_s, (int, float)) and self.sample_dt_s > 0):
             raise bad(f"'sample_dt_s' must be > 0, got {self.sample_dt_s!r}")
         temps = {"t_ref_c": self.t_ref_c, "t_min_c": self.t_min_c, "t_max_c": self.t_max_c}
@@ -526,11 +529,6 @@ def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray) -> Repl
     corrected, gflags = correct(gyro_dps, sf)
     flags = fe.flags | gflags | expand(steps.flags, n, model.decimation)
     return ReplayOut(corrected, sf, flags.astype(np.uint32))
-
-
-def describe_flags(flags: int) -> str:
-    """'TEMP_CLAMPED|TEMP_STUCK' for a flag word ('' for none)."""
-    return "|".join(name for bit, name in FLAG_NAMES.items() if flags & bit)
 
 
 # --- gate order ----------------------------------------------------------------------------

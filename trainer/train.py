@@ -6,12 +6,12 @@ Models (all causal, all from the board thermometer and time only):
 - `mlp`: the paper's MLP baseline on (T, filtered dT/dt);
 - `lstm`: the paper's LSTM on (T, filtered dT/dt), Table 1 defaults (2 x 200, batch 32,
   lr 0.02, Adam);
-- `lag-lstm`: a small LSTM with a linear skip on T, dT/dt and two lag-filtered board
-  temperatures whose time constants are identified from the training data (profiling a
-  log-spaced grid with least squares inside): the physics-structured model;
+- `lag-lstm`: a small LSTM with a linear skip on the effective sensing temperature
+  T_eff = w T + (1 - w) lag(T, tau), (tau, w) identified from the training data (profiling a
+  grid with least squares inside): the physics-structured model;
 - `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
-  four) and the two lag time constants; fitness is the error on the validation part of the
-  training logs, never the test log.
+  four) and (tau, w) of T_eff; fitness is the error on the validation part of the training
+  logs, never the test log.
 
 The LSTM models run at the model rate (one step per D samples, state carried) and are
 written in the firmware artifact format (stream.json + stream_weights.npz) for `fogsf export`.
@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,7 @@ from trainer.errors import UserError
 from trainer.features import (
     FeatureSpec,
     SeqData,
+    effective_node_features,
     fit_normaliser,
     front_end_for,
     make_features,
@@ -40,7 +42,10 @@ from trainer.features import (
 )
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
-from trainer.stream import FrontEnd, expand
+from trainer.stream import FrontEnd, StreamModel, expand
+
+if TYPE_CHECKING:  # trainer.fit imports torch; commands import this module at start-up
+    from trainer.fit import LSTMConfig
 
 MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
 EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
@@ -56,7 +61,7 @@ class TrainOptions:
     latitude_deg: float | None = None
     rate_tau_s: float = 120.0
     poly_degree: int = 3
-    lag_taus_s: tuple[float, float] | None = None  # None: identified from the data
+    node: tuple[float, float] | None = None  # (tau_s, w) of T_eff; None: identified
     layers: int | None = None
     hidden: int | None = None
     batch_size: int | None = None
@@ -66,6 +71,7 @@ class TrainOptions:
     gsa_iters: int = 8
     gsa_fitness_iters: int = 80
     gsa_space: str = "extended"  # "paper": Table 1's four only
+    gsa_paper_constants: bool = False  # G0=100, alpha=20 as in the paper; else SHORT_BUDGET
     workers: int | None = None
     dask: str | None = None
     progress: bool = True
@@ -85,11 +91,11 @@ class Fitted:
     kind: str
     spec: FeatureSpec
     fe: FrontEnd
-    predict_steps: object  # callable(SeqData) -> np.ndarray
+    predict_steps: Callable[[SeqData], np.ndarray]
     params: int
     weights_bytes: int
     info: dict
-    stream_model: object | None = None  # trainer.stream.StreamModel for exportable models
+    stream_model: StreamModel | None = None  # the firmware artifact (exportable models)
     torch_state: dict | None = None
 
 
@@ -105,7 +111,7 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError("--val-chunk LO:HI must satisfy 0 <= LO < HI <= 1, at most half")
 
 
-def _lstm_config(opts: TrainOptions, **over: object):
+def _lstm_config(opts: TrainOptions, **over: object) -> LSTMConfig:
     from trainer.fit import LSTMConfig
 
     d = lstm_defaults(opts.model)
@@ -125,22 +131,22 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
                               else None)
     if kind == "lag-lstm":
-        taus = opts.lag_taus_s or _identify_taus(opts, train_logs)
-        spec = make_features(rate_tau_s=opts.rate_tau_s, lag_taus_s=tuple(taus))
+        tau, w = opts.node or _identify_node(opts, train_logs)
+        spec = effective_node_features(tau, w)
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts))
     return _fit_gsa(opts, train_logs)
 
 
-def _identify_taus(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, float]:
-    from trainer.least_squares import profile_lag_taus
+def _identify_node(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, float]:
+    from trainer.least_squares import profile_effective_node
 
     fe = front_end_for(logs, opts.decimation, ())
-    taus, _ = profile_lag_taus(logs, fe, opts.val_chunk, opts.latitude_deg)
-    return taus
+    node, _ = profile_effective_node(logs, fe, opts.val_chunk, opts.latitude_deg)
+    return node
 
 
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
-                   lstm_cfg: object | None) -> Fitted:
+                   lstm_cfg: LSTMConfig | None) -> Fitted:
     fe = front_end_for(logs, opts.decimation, spec.taus_s)
     data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg) for lg in logs]
     norm = fit_normaliser(spec, data)
@@ -192,8 +198,8 @@ def gsa_space(kind: str):
     space = [Param("batch_size", 8, 64, "int"), Param("layers", 1, 3, "int"),
              Param("hidden", 4, 256, "int"), Param("lr", 1e-3, 5e-2, "log-real")]
     if kind == "extended":
-        space += [Param("tau1_s", 60.0, 1800.0, "log-real"),
-                  Param("tau2_s", 600.0, 7200.0, "log-real")]
+        space += [Param("tau_s", 120.0, 7200.0, "log-real"),
+                  Param("w", 0.0, 0.5, "real")]
     return space
 
 
@@ -204,8 +210,8 @@ def gsa_fitness(params: dict, payload: dict) -> float:
     torch.set_num_threads(1)
     opts: TrainOptions = payload["opts"]
     logs: list[ChamberLog] = payload["logs"]
-    taus = (params["tau1_s"], params["tau2_s"]) if "tau1_s" in params else payload["taus"]
-    spec = make_features(rate_tau_s=opts.rate_tau_s, lag_taus_s=tuple(taus))
+    node = (params["tau_s"], params["w"]) if "tau_s" in params else payload["node"]
+    spec = effective_node_features(*node)
     cfg = _lstm_config(opts, layers=int(params["layers"]), hidden=int(params["hidden"]),
                        batch_size=int(params["batch_size"]), lr=float(params["lr"]),
                        iters=opts.gsa_fitness_iters, eval_every=opts.gsa_fitness_iters // 4)
@@ -223,34 +229,34 @@ def gsa_fitness(params: dict, payload: dict) -> float:
 
 def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
     from trainer.executors import open_executor
-    from trainer.gsa import minimize
+    from trainer.gsa import SHORT_BUDGET, minimize
 
     targets = [step_targets(lg, opts.decimation, opts.latitude_deg) for lg in logs]
     payload = {"opts": opts, "logs": logs, "targets": targets,
-               "taus": opts.lag_taus_s or (None if opts.gsa_space == "extended"
-                                           else _identify_taus(opts, logs))}
-    if opts.gsa_space == "paper":
-        payload["taus"] = payload["taus"] or (300.0, 1200.0)
+               "node": opts.node or (None if opts.gsa_space == "extended"
+                                     else _identify_node(opts, logs))}
     fn = functools.partial(gsa_fitness, payload=payload)
     space = gsa_space(opts.gsa_space)
     t0 = time.perf_counter()
     with open_executor(workers=opts.workers, dask=opts.dask) as ex:
         res = minimize(fn, space, n_agents=opts.gsa_agents, n_iters=opts.gsa_iters,
-                       seed=opts.seed, executor=ex, progress=opts.progress)
+                       seed=opts.seed, executor=ex, progress=opts.progress,
+                       **({} if opts.gsa_paper_constants else SHORT_BUDGET))
     search_s = time.perf_counter() - t0
     best = res.best_params
-    taus = (best["tau1_s"], best["tau2_s"]) if "tau1_s" in best else payload["taus"]
+    node = (best["tau_s"], best["w"]) if "tau_s" in best else payload["node"]
     final = TrainOptions(**{**asdict(opts), "model": "gsa-lstm",
                             "layers": int(best["layers"]), "hidden": int(best["hidden"]),
                             "batch_size": int(best["batch_size"]), "lr": float(best["lr"]),
-                            "lag_taus_s": tuple(float(t) for t in taus)})
+                            "node": (float(node[0]), float(node[1]))})
     final.iters = opts.iters or lstm_defaults("gsa-lstm")["iters"]
-    spec = make_features(rate_tau_s=opts.rate_tau_s, lag_taus_s=final.lag_taus_s)
+    spec = effective_node_features(*final.node)
     fitted = _fit_with_spec(final, logs, spec, _lstm_config(final))
     fitted.info["gsa"] = {"best_params": best, "best_fitness_ppm": res.best_fitness,
                           "best_curve": list(res.best_curve),
                           "mean_curve": list(res.mean_curve), "agents": opts.gsa_agents,
                           "iters": opts.gsa_iters, "fitness_iters": opts.gsa_fitness_iters,
+                          "constants": "paper" if opts.gsa_paper_constants else SHORT_BUDGET,
                           "search_seconds": search_s}
     fitted.info["gsa_result"] = res
     return fitted
@@ -278,8 +284,9 @@ def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,
 
 
 def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
-                 test_log: ChamberLog | None, out_dir: Path) -> dict:
-    """Train, score, and write the model directory; returns metrics.json's content."""
+                 test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, Fitted]:
+    """Train, score, and write the model directory; returns metrics.json's content and the
+    fitted model."""
     t0 = time.perf_counter()
     fitted = fit_model(opts, train_logs)
     train_s = time.perf_counter() - t0
@@ -287,12 +294,12 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     metrics: dict = {"model": fitted.kind, "window_s": opts.window_s}
     if test_log is not None:
         test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)
-        metrics["noise_floor_ppm"] = test["after"]["noise_floor_ppm"]
+        metrics["noise_floor_ppm"] = test["before"]["noise_floor_ppm"]
         metrics["test"] = test
     metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
     if "noise_floor_ppm" not in metrics:
         first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
-        metrics["noise_floor_ppm"] = first["after"]["noise_floor_ppm"]
+        metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]
     metrics.update({
         "params": fitted.params,
         "weights_bytes": fitted.weights_bytes,
@@ -308,7 +315,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     if fitted.stream_model is not None:
         metrics["model_id"] = fitted.stream_model.model_id
     save(fitted, metrics, out_dir)
-    return metrics
+    return metrics, fitted
 
 
 def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
@@ -333,6 +340,4 @@ def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
 def _json(o: object) -> object:
     if isinstance(o, np.generic):
         return o.item()
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
     raise TypeError(type(o).__name__)

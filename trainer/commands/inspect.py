@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from trainer.commands import add_metric_options
 from trainer.logio import ChamberLog, read_log
 from trainer.metrics import (
     log_metrics,
@@ -29,10 +30,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true",
                         help="print the summary as JSON (samples, duration_s, temp_range_c, "
                              "table_rates_dps, metrics)")
-    parser.add_argument("--window-s", type=float, default=100.0,
-                        help="SF window length in seconds (default 100)")
-    parser.add_argument("--latitude-deg", type=float, default=None,
-                        help="latitude for the earth rate when the log has no earth_rate_dps")
+    add_metric_options(parser)
     parser.add_argument("--ref-sf", type=float, default=None,
                         help="reference SF ratio (vs nominal) instead of the log's own at 20 C")
     parser.add_argument("--plot", metavar="PNG", default=None,

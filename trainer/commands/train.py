@@ -2,9 +2,9 @@
 
 Models: poly (polynomial in T), polyrate (T and a filtered dT/dt), mlp (the paper's MLP),
 lstm (the paper's LSTM, Table 1: 2 x 200, batch 32, lr 0.02), lag-lstm (a small LSTM on
-T, dT/dt and two lag-filtered board temperatures whose time constants are identified from
-the data), gsa-lstm (GSA tunes batch size, layers, hidden units, learning rate and the lag
-time constants on the validation part of the training logs).
+the effective sensing temperature T_eff = w T + (1 - w) lag(T, tau), (tau, w) identified
+from the data), gsa-lstm (GSA tunes batch size, layers, hidden units, learning rate and
+(tau, w) on the validation part of the training logs).
 
 Every model uses only what firmware has (board thermometer and time) and predicts the SF
 error in ppm vs nominal, causally. The part --val-chunk of each training log is held out
@@ -23,6 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from trainer.commands import add_metric_options
 from trainer.errors import UserError
 from trainer.logio import read_log
 
@@ -51,16 +52,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--val-chunk", type=_chunk, default=(0.4, 0.6), metavar="LO:HI",
                         help="part of each training log held out for validation "
                              "(fractions of its length; default 0.4:0.6)")
-    parser.add_argument("--window-s", type=float, default=100.0,
-                        help="SF window for the metrics (default 100 s)")
-    parser.add_argument("--latitude-deg", type=float, default=None,
-                        help="latitude for the earth rate when logs lack earth_rate_dps")
+    add_metric_options(parser)
     parser.add_argument("--rate-tau-s", type=float, default=120.0,
                         help="time constant of the dT/dt filter (default 120 s)")
     parser.add_argument("--poly-degree", type=int, default=3, help="poly/polyrate degree")
-    parser.add_argument("--lag-taus-s", type=float, nargs=2, default=None,
-                        metavar=("TAU1", "TAU2"),
-                        help="lag time constants for lag-lstm (default: identified)")
+    parser.add_argument("--node", type=float, nargs=2, default=None,
+                        metavar=("TAU_S", "W"),
+                        help="effective sensing temperature T_eff = W*T + (1-W)*lag(T, TAU_S) "
+                             "for lag-lstm (default: identified from the training logs)")
     g = parser.add_argument_group("LSTM (defaults: lstm = paper Table 1, others 1 x 16)")
     g.add_argument("--layers", type=int)
     g.add_argument("--hidden", type=int)
@@ -73,7 +72,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--gsa-fitness-iters", type=int, default=80,
                    help="training iterations of each fitness evaluation")
     g.add_argument("--gsa-space", choices=("paper", "extended"), default="extended",
-                   help="paper: Table 1's four; extended: also the lag time constants")
+                   help="paper: Table 1's four; extended: also tau and w of T_eff")
+    g.add_argument("--gsa-paper-constants", action="store_true",
+                   help="G0=100, alpha=20 (the paper's); default: normalised box, G0=3, "
+                        "alpha=2, which beats random search at budgets of tens of iterations")
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -87,17 +89,18 @@ def run(args: argparse.Namespace) -> int:
         model=args.model, decimation=args.decimation, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
         rate_tau_s=args.rate_tau_s, poly_degree=args.poly_degree,
-        lag_taus_s=tuple(args.lag_taus_s) if args.lag_taus_s else None,
+        node=tuple(args.node) if args.node else None,
         layers=args.layers, hidden=args.hidden, batch_size=args.batch_size, lr=args.lr,
         iters=args.iters, gsa_agents=args.gsa_agents, gsa_iters=args.gsa_iters,
         gsa_fitness_iters=args.gsa_fitness_iters, gsa_space=args.gsa_space,
+        gsa_paper_constants=args.gsa_paper_constants,
         workers=args.workers, dask=args.dask,
         progress=not args.no_progress and sys.stderr.isatty(),
     )
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
-    m = run_training(opts, train_logs, test_log, out)
+    m, _ = run_training(opts, train_logs, test_log, out)
     print(format_metrics(m))
     print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
                                          f"{out} --out build/...)" if m["exportable"] else ""))

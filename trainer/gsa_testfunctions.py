@@ -1,7 +1,11 @@
-"""Rashedi et al. (2009) Table 1 unimodal test functions F1..F7, vectorised over agents.
+"""Test functions for the optimizers (in the package so that worker processes and Dask
+workers can import them).
 
-Each function takes an (N, n) array of positions and returns (N,) values; F7 adds uniform
-[0, 1) noise drawn from a caller-given generator, so runs stay reproducible.
+- Rashedi et al. (2009) Table 1 unimodal functions F1..F7, vectorised over agents: each takes
+  an (N, n) array of positions and returns (N,) values; F7 adds uniform [0, 1) noise drawn
+  from a caller-given generator, so runs stay reproducible.
+- `shifted_sphere`: a dict-in, float-out fitness over named parameters, the form
+  `trainer.gsa.minimize` calls by default; used to test executors and mixed spaces.
 """
 
 from __future__ import annotations
@@ -62,3 +66,9 @@ FUNCTIONS: dict[str, TestFunction] = {f.key: f for f in (
     TestFunction("F6", "step", f6_step, -100.0, 100.0, 8.3e-11),
     TestFunction("F7", "quartic with noise", f7_quartic_noise, -1.28, 1.28, 0.018, noisy=True),
 )}
+
+
+def shifted_sphere(params: dict[str, float], target: dict[str, float] | None = None) -> float:
+    """sum over names of (value - target)^2 (target 0 where not given); minimum 0."""
+    target = target or {}
+    return float(sum((float(v) - target.get(k, 0.0)) ** 2 for k, v in params.items()))

@@ -1,0 +1,178 @@
+"""Firmware benchmark: size, speed and instruction count of the C kernel per model.
+
+For each model: parameters; Cortex-M4F flash and RAM (arm-none-eabi-size of a probe that
+links kernel + model + start-up + libgcc; RAM = static data + state + the step's stack bound
+from -fstack-usage); host ns per model step of the C kernel and of onnxruntime stepping the
+same model; and the exact Cortex-M4F instruction count of the worst 10 Hz sample (the one that
+runs a model step) from QEMU's one-instruction-per-block execution trace (deterministic),
+plus the mean per sample over a decimation period.
+
+Until trained models exist the models are seeded random weights of the trainer's sizes (the
+paper's 2x200 LSTM on T and dT/dt, and the 1x16 lag-lstm on one lag-filtered temperature,
+D=50); `--model NAME=DIR`
+adds trained artifacts. Writes out/bench.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from bindings.firmware import arm_size, arm_tools_missing, build_arm, qemu_cmd
+from bindings.kernel import Kernel, build_kernel
+from export.onnx_step import OrtStepper, build_step_onnx
+from trainer import stream as st
+from trainer.errors import UserError
+
+TARGET = {"flash_bytes": 32 * 1024, "ram_bytes": 2 * 1024, "instructions_per_step": 50_000}
+
+
+def random_models() -> list[tuple[str, st.StreamModel, str]]:
+    return [
+        ("paper-lstm-2x200", st.random_model(1, 2, 2, 200, decimation=50, seed=200),
+         "random weights (seeded), the paper's 2x200 LSTM on T and dT/dt"),
+        ("small-lstm-1x16", st.random_model(1, 1, 1, 16, decimation=50, seed=16),
+         "random weights (seeded), the trainer's lag-lstm size (1x16 on T_eff)"),
+    ]
+
+
+def host_ns_per_step(model: st.StreamModel, root: Path, steps: int) -> float:
+    """C kernel: ns per model step, the same weights at D=1 so that every sample is a step
+    (front end included); fogsf_run over the samples, best of 5."""
+    every = replace(model, decimation=1, weights=dict(model.weights))
+    every.weights["filter_alpha"] = st.filter_alpha(model.filter_tau_s, 1, model.sample_dt_s)
+    kernel = Kernel(every, build_kernel(every, root=root))
+    temp, gyro = st.chamber_ramp(hours=steps / 36000 + 0.01, seed=1)
+    temp, gyro = temp[:steps], gyro[:steps]
+    best = np.inf
+    for _ in range(5):
+        t0 = time.perf_counter_ns()
+        kernel.run(temp, gyro)
+        best = min(best, (time.perf_counter_ns() - t0) / steps)
+    return float(best)
+
+
+def ort_ns_per_step(model: st.StreamModel, steps: int) -> float:
+    """onnxruntime (1 thread): ns per session.run of the exported step, best of 3."""
+    ort = OrtStepper(build_step_onnx(model), model.layers, model.hidden)
+    z = np.random.default_rng(0).normal(0, 1, (steps, model.n_features)).astype(np.float32)
+    best = np.inf
+    for _ in range(3):
+        ort.reset()
+        t0 = time.perf_counter_ns()
+        for m in range(steps):
+            ort.step(z[m])
+        best = min(best, (time.perf_counter_ns() - t0) / steps)
+    return float(best)
+
+
+def instructions(bench_elf: Path, decimation: int) -> tuple[int, float]:
+    """(instructions of the worst sample, mean per sample over one decimation period) of
+    fogsf_step on Cortex-M4F, counted between the bench image's marker calls."""
+    cmd = qemu_cmd(bench_elf, "-singlestep", "-d", "exec,nochain")
+    counts: list[int] = []
+    inside, n = False, 0
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          bufsize=1 << 20) as proc:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            if not line.startswith("Trace"):
+                continue
+            sym = line.rsplit(" ", 1)[-1].strip()
+            if sym == "fogsf_bench_begin":
+                inside, n = True, 0
+            elif sym == "fogsf_bench_end":
+                if inside:
+                    counts.append(n)
+                inside = False
+            elif inside:
+                n += 1
+    if proc.returncode != 0 or len(counts) != 2 * decimation + 1:
+        raise UserError(f"instruction count: QEMU exited {proc.returncode} with "
+                        f"{len(counts)} marked calls (expected {2 * decimation + 1})")
+    # calls 0, D, 2D run a model step; samples D+1 .. 2D are one steady period
+    period = counts[decimation + 1:2 * decimation + 1]
+    return max(counts[decimation], counts[2 * decimation]), float(np.mean(period))
+
+
+def bench_model(name: str, model: st.StreamModel, note: str, root: Path, steps: int
+                ) -> dict:
+    print(f"{name}: {note}; K={model.n_filters} F={model.n_features} "
+          f"{model.layers}x{model.hidden} D={model.decimation}, {model.params} params",
+          flush=True)
+    row: dict = {"name": name, "params": model.params, "weights": note,
+                 "model_id": model.model_id, "decimation": model.decimation}
+    row["host_ns_per_step"] = host_ns_per_step(model, root / "host", steps)
+    row["ort_ns_per_step"] = ort_ns_per_step(model, min(steps, 3000))
+    missing = arm_tools_missing()
+    if missing:
+        print(f"  Cortex-M4F figures skipped: {missing}")
+        row.update(flash_bytes=None, ram_bytes=None, instructions_per_step=None)
+        return row
+    build = build_kernel(model, root=root / "host")
+    arm = build_arm(build.directory, None, root / "m4f" / model.model_id)
+    size = arm_size(arm, model)
+    worst, mean = instructions(arm.bench_elf, model.decimation)
+    row.update(flash_bytes=size.flash_bytes, ram_bytes=size.ram_bytes,
+               kernel_flash_bytes=size.kernel_flash_bytes, state_bytes=size.state_bytes,
+               stack_bytes=size.stack_bytes, instructions_per_step=worst,
+               instructions_per_sample_mean=mean)
+    row["meets_target"] = all(row[k] < v for k, v in TARGET.items())
+    return row
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.firmware_bench", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", type=Path, default=Path("out"), help="folder for bench.json")
+    p.add_argument("--model", action="append", default=[], metavar="NAME=DIR",
+                   help="also bench a trained model artifact (repeatable)")
+    p.add_argument("--steps", type=int, default=20000, help="host timing steps (20000)")
+    p.add_argument("--build", type=Path, default=Path("build/bench"))
+    args = p.parse_args(argv)
+    try:
+        models = random_models()
+        for spec in args.model:
+            name, _, path = spec.partition("=")
+            if not path:
+                raise UserError(f"--model wants NAME=DIR, got {spec!r}")
+            models.append((name, st.StreamModel.load(path), f"trained artifact {path}"))
+        rows = [bench_model(n, m, note, args.build.resolve(), args.steps)
+                for n, m, note in models]
+    except UserError as e:
+        print(f"bench: error: {e}", file=sys.stderr)
+        return 2
+    print(f"\n{'model':24s} {'params':>8s} {'flash B':>8s} {'RAM B':>7s} {'host ns':>9s} "
+          f"{'ORT ns':>9s} {'M4F instr/step':>15s} {'(mean/sample)':>13s}")
+    for r in rows:
+        def f(v, fmt: str) -> str:  # noqa: ANN001
+            return format(v, fmt) if v is not None else "-"
+        print(f"{r['name']:24s} {r['params']:8d} {f(r['flash_bytes'], '8d')} "
+              f"{f(r['ram_bytes'], '7d')} {r['host_ns_per_step']:9.0f} "
+              f"{r['ort_ns_per_step']:9.0f} {f(r['instructions_per_step'], '15d')} "
+              f"{f(r.get('instructions_per_sample_mean'), '13.0f')}")
+    verdicts = ", ".join(f"{r['name']}: {'meets' if r.get('meets_target') else 'misses'}"
+                         for r in rows)
+    print("target (deployable): flash < 32768 B, RAM < 2048 B, < 50000 instructions per "
+          f"10 Hz step; {verdicts}")
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / "bench.json"
+    path.write_text(json.dumps({"models": rows, "target": TARGET,
+                                "notes": "host_ns/ort_ns per model step (1 thread); "
+                                         "instructions_per_step = Cortex-M4F instructions of "
+                                         "the worst 10 Hz sample (the one running the model "
+                                         "step), counted exactly under QEMU"},
+                               indent=2) + "\n")
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,235 @@
+"""Compile the C kernel for one model and drive it from Python through cffi (ABI mode).
+
+`build_kernel(model)` exports the model's header and compiles firmware/c into a folder keyed
+by the model id and a hash of the kernel sources and flags (so an edit rebuilds, a rerun does
+not): `libfogsf.so` for cffi and `libfogsf.a` for firmware builds. `Kernel` loads the shared
+library and offers the per-sample step, the whole-log function and the building blocks.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from trainer.errors import UserError
+from trainer.stream import StreamModel
+
+ROOT = Path(__file__).resolve().parent.parent
+C_DIR = ROOT / "firmware" / "c"
+SOURCES = ("fogsf.c", "fogsf_cell.c")
+HEADERS = ("fogsf.h",)
+# The flags of the issue: strict C99, warnings are errors, no contraction into FMA (bit-exact
+# float32 order on every target).
+STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-ffp-contract=off")
+SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all",
+            "-fno-omit-frame-pointer")
+
+
+def default_build_root() -> Path:
+    """$FOGSF_BUILD_DIR, else build/kernels in the source tree."""
+    env = os.environ.get("FOGSF_BUILD_DIR")
+    return Path(env) if env else ROOT / "build" / "kernels"
+
+
+@dataclass(frozen=True)
+class KernelBuild:
+    directory: Path
+    shared: Path
+    static: Path
+    model_id: str
+
+
+def _source_hash(header: str, extra: tuple[str, ...]) -> str:
+    """Kernel sources, the generated header (so a template change rebuilds) and the flags."""
+    h = hashlib.sha256(header.encode())
+    for name in SOURCES + HEADERS:
+        h.update((C_DIR / name).read_bytes())
+    h.update(" ".join(extra).encode())
+    return h.hexdigest()[:8]
+
+
+def _run(cmd: list[str], where: Path) -> None:
+    proc = subprocess.run(cmd, cwd=where, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise UserError(f"compiling the C kernel failed: {' '.join(cmd)}\n"
+                        f"{proc.stdout}{proc.stderr}")
+
+
+def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "gcc",
+                 opt: str = "-O2", sanitize: bool = False) -> KernelBuild:
+    """Export the header and compile the kernel (cached by model id + sources + flags)."""
+    from export.header import render_header
+
+    if shutil.which(cc) is None:
+        raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
+    flags = (*STRICT, opt, "-fPIC", *(SANITIZE if sanitize else ()))
+    header = render_header(model)
+    key = f"{model.model_id}-{cc}-{_source_hash(header, flags)}" + ("-san" if sanitize else "")
+    out = Path(root) if root is not None else default_build_root()
+    out = (out / key).resolve()
+    shared, static = out / "libfogsf.so", out / "libfogsf.a"
+    if shared.is_file() and static.is_file():
+        return KernelBuild(out, shared, static, model.model_id)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "fogsf_model.h").write_text(header)
+    objs = []
+    for src in SOURCES:
+        obj = out / (Path(src).stem + ".o")
+        _run([cc, *flags, "-I", str(out), "-I", str(C_DIR), "-c", str(C_DIR / src), "-o",
+              str(obj)], out)
+        objs.append(str(obj))
+    tmp = out / f"libfogsf.so.{os.getpid()}"
+    _run([cc, "-shared", *(SANITIZE if sanitize else ()), "-o", str(tmp), *objs], out)
+    _run(["ar", "rcs", str(static), *objs], out)
+    tmp.replace(shared)  # atomic: a concurrent reader never sees half a library
+    return KernelBuild(out, shared, static, model.model_id)
+
+
+def cdef(model: StreamModel) -> str:
+    """The cffi declarations of fogsf.h for this model's sizes."""
+    k_alloc = max(model.n_filters, 1)
+    lay, hid, f = model.layers, model.hidden, model.n_features
+    return f"""
+typedef struct fogsf_state {{
+    float h[{lay}][{hid}]; float c[{lay}][{hid}]; float h_prev[{hid}]; float z[{f}];
+    float y[{k_alloc}]; float acc; float t_last_good; float sf_ppm; uint32_t sf_flags;
+    uint32_t raw_prev_bits; uint32_t stuck_run; uint32_t n_acc; uint32_t started;
+}} fogsf_state;
+typedef struct fogsf_output {{ double corrected_dps; float sf_ppm; uint32_t flags; }} fogsf_output;
+void fogsf_init(fogsf_state *st);
+void fogsf_reset(fogsf_state *st);
+void fogsf_step(fogsf_state *st, float temp_c, double gyro_dps, fogsf_output *out);
+uint32_t fogsf_run(fogsf_state *st, const float *temp_c, const double *gyro_dps, size_t n,
+                   double *corrected_dps, float *sf_ppm, uint32_t *flags);
+size_t fogsf_state_size(void);
+const char *fogsf_model_id(void);
+void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
+                     const float *b, const float *p, const float *x, float *h, float *c,
+                     float *h_prev);
+float fogsf_expf(float x);
+float fogsf_sigmoidf(float x);
+float fogsf_tanhf(float x);
+"""
+
+
+class Kernel:
+    """The compiled kernel of one model, loaded with cffi."""
+
+    def __init__(self, model: StreamModel, build: KernelBuild | None = None) -> None:
+        import cffi
+
+        self.model = model
+        self.build = build or build_kernel(model)
+        self.ffi = cffi.FFI()
+        self.ffi.cdef(cdef(model))
+        self.lib = self.ffi.dlopen(str(self.build.shared))
+        got = self.ffi.string(self.lib.fogsf_model_id()).decode()
+        if got != model.model_id:
+            raise UserError(f"{self.build.shared}: kernel of model {got}, expected "
+                            f"{model.model_id}: delete {self.build.directory} and rerun")
+        if self.ffi.sizeof("fogsf_state") != self.lib.fogsf_state_size():
+            raise UserError(f"{self.build.shared}: state layout differs from the bindings")
+
+    def new_state(self):  # noqa: ANN201 - a cffi cdata pointer
+        st = self.ffi.new("fogsf_state *")
+        self.lib.fogsf_init(st)
+        return st
+
+    def step(self, st, temp_c: float, gyro_dps: float) -> tuple[float, float, int]:  # noqa: ANN001
+        """One sample: (corrected_dps, sf_ppm, flags); temp_c is cast to float32 first."""
+        out = self.ffi.new("fogsf_output *")
+        with np.errstate(over="ignore"):
+            t = float(np.float32(temp_c))
+        self.lib.fogsf_step(st, t, float(gyro_dps), out)
+        return out.corrected_dps, out.sf_ppm, out.flags
+
+    def _inputs(self, temp_c: np.ndarray, gyro_dps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        with np.errstate(over="ignore", invalid="ignore"):
+            t = np.ascontiguousarray(temp_c, dtype=np.float32)
+        g = np.ascontiguousarray(gyro_dps, dtype=np.float64)
+        if t.shape != g.shape or t.ndim != 1:
+            raise UserError(f"temperature {t.shape} and gyro {g.shape} must be 1-D, same length")
+        return t, g
+
+    def run(self, temp_c: np.ndarray, gyro_dps: np.ndarray, st=None  # noqa: ANN001
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The whole-log function fogsf_run from reset (or from `st`): corrected, sf, flags."""
+        t, g = self._inputs(temp_c, gyro_dps)
+        n = t.shape[0]
+        corrected = np.empty(n, np.float64)
+        sf = np.empty(n, np.float32)
+        flags = np.empty(n, np.uint32)
+        st = st if st is not None else self.new_state()
+        fb = self.ffi.from_buffer
+        self.lib.fogsf_run(st, fb("float[]", t), fb("double[]", g), n,
+                           fb("double[]", corrected), fb("float[]", sf), fb("uint32_t[]", flags))
+        return corrected, sf, flags
+
+    def stream(self, temp_c: np.ndarray, gyro_dps: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One fogsf_step call per sample from Python (what firmware does), from reset."""
+        t, g = self._inputs(temp_c, gyro_dps)
+        n = t.shape[0]
+        corrected = np.empty(n, np.float64)
+        sf = np.empty(n, np.float32)
+        flags = np.empty(n, np.uint32)
+        st = self.new_state()
+        out = self.ffi.new("fogsf_output *")
+        step = self.lib.fogsf_step
+        for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
+            step(st, ti, gi, out)
+            corrected[i], sf[i], flags[i] = out.corrected_dps, out.sf_ppm, out.flags
+        return corrected, sf, flags
+
+    def lstm_cell(self, w: np.ndarray, r: np.ndarray, b: np.ndarray | None,
+                  p: np.ndarray | None, x: np.ndarray, h: np.ndarray, c: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """The generic cell (runtime sizes) on copies of h and c: (h_new, c_new)."""
+        hid = r.shape[-1]
+        arrs = [np.ascontiguousarray(a, np.float32) for a in (w, r, x)]
+        h2 = np.array(h, np.float32).ravel()
+        c2 = np.array(c, np.float32).ravel()
+        scratch = np.empty(hid, np.float32)
+        fb = self.ffi.from_buffer
+
+        def opt(a: np.ndarray | None):  # noqa: ANN202
+            return self.ffi.NULL if a is None else fb("float[]",
+                                                       np.ascontiguousarray(a, np.float32))
+        self.lib.fogsf_lstm_cell(arrs[2].size, hid, fb("float[]", arrs[0]), fb("float[]", arrs[1]),
+                                 opt(b), opt(p), fb("float[]", arrs[2]), fb("float[]", h2),
+                                 fb("float[]", c2), fb("float[]", scratch))
+        return h2, c2
+
+    def activation(self, name: str, x: np.ndarray) -> np.ndarray:
+        """fogsf_expf / fogsf_sigmoidf / fogsf_tanhf elementwise."""
+        fn = getattr(self.lib, f"fogsf_{name}f")
+        return np.array([fn(v) for v in np.asarray(x, np.float32).tolist()], np.float32)
+
+
+def trace_steps(kernel: Kernel, temp_c: np.ndarray, gyro_dps: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step the kernel sample by sample and read its state after every model step (samples
+    0, D, 2D, ...): (z [n_steps, F], last layer's h [n_steps, H], sf_ppm [n_steps])."""
+    t, g = kernel._inputs(temp_c, gyro_dps)
+    model, ffi, lib = kernel.model, kernel.ffi, kernel.lib
+    st = kernel.new_state()
+    out = ffi.new("fogsf_output *")
+    steps = range(0, t.shape[0], model.decimation)
+    z = np.empty((len(steps), model.n_features), np.float32)
+    h = np.empty((len(steps), model.hidden), np.float32)
+    sf = np.empty(len(steps), np.float32)
+    zbuf = np.frombuffer(ffi.buffer(st.z), np.float32)
+    hbuf = np.frombuffer(ffi.buffer(st.h[model.layers - 1]), np.float32)
+    m = 0
+    for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
+        lib.fogsf_step(st, ti, gi, out)
+        if i % model.decimation == 0:
+            z[m], h[m], sf[m] = zbuf, hbuf, out.sf_ppm
+            m += 1
+    return z, h, sf

@@ -1,0 +1,136 @@
+/*
+ * Model-independent parts of the kernel: float32 activations and the generic LSTM cell.
+ *
+ * The activations are Cephes-style (range reduction + polynomial) in float32 only, written
+ * so that every operation is a single IEEE float32 op: with -ffp-contract=off any IEEE
+ * machine (x86-64 SSE, Cortex-M4F FPv4-SP) gives the same bits, and trainer/stream.py's
+ * exp_f32/sigmoid_f32/tanh_f32 reproduce them op for op in numpy.
+ */
+#include "fogsf.h"
+
+typedef union {
+    float f;
+    uint32_t u;
+} f32_bits;
+
+float fogsf_expf(float x)
+{
+    float t, nf, r, z, p, e;
+    int32_t n;
+    f32_bits scale;
+
+    if (!(x > -87.0f)) { /* also NaN: exp stays finite and the cast below defined */
+        x = -87.0f;
+    }
+    if (x > 88.0f) {
+        x = 88.0f;
+    }
+    /* x = n ln2 + r, |r| <= ln2/2, ln2 split in two so that n*ln2_hi is exact */
+    t = x * 1.44269502f;
+    n = (int32_t)(t + (t >= 0.0f ? 0.5f : -0.5f));
+    nf = (float)n;
+    r = (x - nf * 0.693359375f) - nf * -0.000212194442f;
+    z = r * r;
+    p = 0.000198756912f;
+    p = p * r + 0.00139819994f;
+    p = p * r + 0.00833345205f;
+    p = p * r + 0.0416657962f;
+    p = p * r + 0.166666657f;
+    p = p * r + 0.5f;
+    e = (p * z + r) + 1.0f;
+    scale.u = (uint32_t)(n + 127) << 23; /* 2^n, n in [-126, 127] */
+    return e * scale.f;
+}
+
+float fogsf_sigmoidf(float x)
+{
+    return 1.0f / (1.0f + fogsf_expf(-x));
+}
+
+float fogsf_tanhf(float x)
+{
+    float a, z, p;
+
+    if (!(x >= -10.0f)) { /* tanh(10) rounds to 1.0f; NaN counts as -10 */
+        x = -10.0f;
+    }
+    if (x > 10.0f) {
+        x = 10.0f;
+    }
+    a = x < 0.0f ? -x : x;
+    if (a > 0.625f) {
+        float big = 1.0f - 2.0f / (fogsf_expf(a + a) + 1.0f);
+        return x < 0.0f ? -big : big;
+    }
+    z = x * x;
+    p = -0.00570498873f;
+    p = p * z + 0.020639088f;
+    p = p * z + -0.0537397154f;
+    p = p * z + 0.133314416f;
+    p = p * z + -0.333332807f;
+    return (p * z) * x + x;
+}
+
+/* pre[g] += rows[g] . v for the four gate rows at once, each accumulated in index order (the
+ * contract's order: four independent chains interleaved, so the bits are those of four
+ * separate loops while an out-of-order CPU overlaps their latencies) */
+static void dot4_from(float pre[4], const float *rows[4], const float *v, size_t n)
+{
+    float a0 = pre[0], a1 = pre[1], a2 = pre[2], a3 = pre[3];
+    const float *r0 = rows[0], *r1 = rows[1], *r2 = rows[2], *r3 = rows[3];
+    size_t k;
+    for (k = 0; k < n; ++k) {
+        const float vk = v[k];
+        a0 = a0 + r0[k] * vk;
+        a1 = a1 + r1[k] * vk;
+        a2 = a2 + r2[k] * vk;
+        a3 = a3 + r3[k] * vk;
+    }
+    pre[0] = a0;
+    pre[1] = a1;
+    pre[2] = a2;
+    pre[3] = a3;
+}
+
+void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
+                     const float *b, const float *p, const float *x, float *h, float *c,
+                     float *h_prev)
+{
+    size_t j, gate;
+    float pre[4];
+    const float *rows[4];
+
+    for (j = 0; j < hidden; ++j) {
+        h_prev[j] = h[j];
+    }
+    /* unit by unit: its four gate rows (i, o, f, c) read only the previous h */
+    for (j = 0; j < hidden; ++j) {
+        float gi, go, gf, gc, ci, cf, cn;
+        for (gate = 0; gate < 4; ++gate) {
+            const size_t row = gate * hidden + j;
+            pre[gate] = b != NULL ? b[row] + b[4 * hidden + row] : 0.0f;
+            rows[gate] = w + row * n_in;
+        }
+        dot4_from(pre, rows, x, n_in);
+        for (gate = 0; gate < 4; ++gate) {
+            rows[gate] = r + (gate * hidden + j) * hidden;
+        }
+        dot4_from(pre, rows, h_prev, hidden);
+        gi = pre[0];
+        go = pre[1];
+        gf = pre[2];
+        gc = pre[3];
+        if (p != NULL) { /* peepholes see the previous cell state (i, f), the new one (o) */
+            gi = gi + p[j] * c[j];
+            gf = gf + p[2 * hidden + j] * c[j];
+        }
+        ci = fogsf_sigmoidf(gi) * fogsf_tanhf(gc);
+        cf = fogsf_sigmoidf(gf) * c[j];
+        cn = cf + ci;
+        if (p != NULL) {
+            go = go + p[hidden + j] * cn;
+        }
+        c[j] = cn;
+        h[j] = fogsf_sigmoidf(go) * fogsf_tanhf(cn);
+    }
+}

@@ -1,0 +1,138 @@
+/*
+ * Golden-vector check: the expected outputs (golden_vectors.h, written by bindings/firmware.py
+ * from the host build) are compared bit for bit: sf_ppm as float32 bits, the corrected rate
+ * as float64 bits, the flags exactly. Mismatches are printed with their index (first 10).
+ */
+#include "fogsf.h"
+#include "golden_check.h"
+#include "golden_vectors.h"
+
+typedef union {
+    float f;
+    uint32_t u;
+} f32_bits;
+
+typedef union {
+    double d;
+    uint64_t u;
+} f64_bits;
+
+/* test-driver buffers (the kernel itself keeps no globals) */
+static fogsf_state state;
+static float temps[FOGSF_GOLDEN_N];
+static double gyros[FOGSF_GOLDEN_N];
+static double run_corrected[FOGSF_GOLDEN_N];
+static float run_sf[FOGSF_GOLDEN_N];
+static uint32_t run_flags[FOGSF_GOLDEN_N];
+
+static void put_uint(fogsf_puts_fn out, unsigned long v)
+{
+    char buf[24];
+    int i = 23;
+    buf[i] = '\0';
+    do {
+        buf[--i] = (char)('0' + (int)(v % 10u));
+        v /= 10u;
+    } while (v != 0u && i > 0);
+    out(buf + i);
+}
+
+static void put_hex(fogsf_puts_fn out, uint64_t v, int digits)
+{
+    static const char hex[] = "0123456789abcdef";
+    char buf[20];
+    int i;
+    for (i = 0; i < digits; ++i) {
+        buf[i] = hex[(v >> (4 * (digits - 1 - i))) & 0xfu];
+    }
+    buf[digits] = '\0';
+    out(buf);
+}
+
+static int same_text(const char *a, const char *b)
+{
+    while (*a != '\0' && *a == *b) {
+        ++a;
+        ++b;
+    }
+    return *a == *b;
+}
+
+static unsigned long compare(fogsf_puts_fn out, const char *pass, unsigned long i, float sf,
+                             double corrected, uint32_t flags, unsigned long bad)
+{
+    f32_bits s;
+    f64_bits c;
+    s.f = sf;
+    c.d = corrected;
+    if (s.u == golden_sf_bits[i] && c.u == golden_corrected_bits[i] &&
+        flags == golden_flags[i]) {
+        return bad;
+    }
+    if (bad < 10u) {
+        out("mismatch ");
+        out(pass);
+        out(" sample ");
+        put_uint(out, i);
+        out(": sf 0x");
+        put_hex(out, s.u, 8);
+        out(" want 0x");
+        put_hex(out, golden_sf_bits[i], 8);
+        out(", corrected 0x");
+        put_hex(out, c.u, 16);
+        out(" want 0x");
+        put_hex(out, golden_corrected_bits[i], 16);
+        out(", flags ");
+        put_uint(out, flags);
+        out(" want ");
+        put_uint(out, golden_flags[i]);
+        out("\n");
+    }
+    return bad + 1u;
+}
+
+unsigned long fogsf_golden_check(fogsf_puts_fn out)
+{
+    unsigned long i, bad = 0u;
+    fogsf_output o;
+
+    out("fogsf golden vectors: model ");
+    out(fogsf_model_id());
+    out(", ");
+    put_uint(out, (unsigned long)FOGSF_GOLDEN_N);
+    out(" samples, state ");
+    put_uint(out, (unsigned long)fogsf_state_size());
+    out(" bytes\n");
+    if (!same_text(fogsf_model_id(), FOGSF_GOLDEN_MODEL_ID)) {
+        out("FAIL: vectors are for model " FOGSF_GOLDEN_MODEL_ID "\n");
+        return 1u;
+    }
+    for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
+        f32_bits t;
+        f64_bits g;
+        t.u = golden_temp_bits[i];
+        g.u = golden_gyro_bits[i];
+        temps[i] = t.f;
+        gyros[i] = g.d;
+    }
+    fogsf_init(&state);
+    for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
+        fogsf_step(&state, temps[i], gyros[i], &o);
+        bad = compare(out, "step", i, o.sf_ppm, o.corrected_dps, o.flags, bad);
+    }
+    fogsf_reset(&state);
+    (void)fogsf_run(&state, temps, gyros, FOGSF_GOLDEN_N, run_corrected, run_sf, run_flags);
+    for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
+        bad = compare(out, "run", i, run_sf[i], run_corrected[i], run_flags[i], bad);
+    }
+    if (bad == 0u) {
+        out("PASS: ");
+        put_uint(out, 2u * (unsigned long)FOGSF_GOLDEN_N);
+        out(" outputs bit-exact\n");
+    } else {
+        out("FAIL: ");
+        put_uint(out, bad);
+        out(" mismatching outputs\n");
+    }
+    return bad;
+}

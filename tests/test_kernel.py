@@ -1,0 +1,195 @@
+"""The C kernel (firmware/c) through cffi: against the numpy reference (bit for bit), against
+onnxruntime and onnx.reference (tolerances of the issue), totality, determinism."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+from kernel_helpers import kernel_for
+from onnx.reference import ReferenceEvaluator
+
+from bindings.firmware import golden_inputs
+from bindings.kernel import trace_steps
+from export.onnx_step import OrtStepper, build_step_onnx, state_names
+from trainer import stream as st
+
+# (K filters, F features, L layers, H hidden, D decimation, stuck_samples, seed)
+SIZES = [(3, 4, 1, 16, 10, 600, 0), (0, 3, 2, 5, 1, 0, 1), (2, 5, 2, 12, 7, 30, 2),
+         (1, 1, 1, 1, 50, 5, 3)]
+
+
+@pytest.fixture(scope="session")
+def kroot(tmp_path_factory):
+    return tmp_path_factory.mktemp("kernels")
+
+
+def model_of(size: tuple[int, ...]) -> st.StreamModel:
+    k, f, layers, hidden, d, stuck, seed = size
+    return st.random_model(k, f, layers, hidden, d, seed=seed, stuck_samples=stuck)
+
+
+@pytest.mark.parametrize("size", SIZES)
+def test_kernel_equals_numpy_reference_bit_for_bit(size, kroot) -> None:
+    model = model_of(size)
+    kernel = kernel_for(model, kroot)
+    temp, gyro = golden_inputs(model, n=2500, seed=size[-1])
+    corrected, sf, flags = kernel.run(temp, gyro)
+    ref = st.replay(model, temp, gyro)
+    seed = size[-1]
+    bad = np.flatnonzero(sf.view(np.uint32) != ref.sf_ppm.view(np.uint32))
+    assert bad.size == 0, f"seed {seed}: sf differs at samples {bad[:20].tolist()}"
+    np.testing.assert_array_equal(corrected.view(np.uint64), ref.corrected_dps.view(np.uint64),
+                                  err_msg=f"seed {seed}")
+    np.testing.assert_array_equal(flags, ref.flags, err_msg=f"seed {seed}")
+
+
+def simulated_ramp(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The simulator's paper run at 1 C/min (54,001 samples), else a numpy ramp."""
+    try:
+        from trainer.sim.gyro import simulate
+        from trainer.sim.scenarios import paper
+    except ImportError:  # the simulator is another branch's work
+        return st.chamber_ramp(hours=1.6, seed=seed)
+    log = simulate(paper(1.0, seed=seed)).log
+    return log.temp_c, log.gyro_dps
+
+
+def compare_with_ort(model: st.StreamModel, kernel, temp: np.ndarray, gyro: np.ndarray,  # noqa: ANN001
+                     what: str) -> None:
+    z, h_c, sf_c = trace_steps(kernel, temp, gyro)
+    sf_o, h_o = OrtStepper(build_step_onnx(model), model.layers, model.hidden).run(z)
+    h_range = float(np.ptp(h_o))
+    dh = np.abs(h_c - h_o)
+    worst = np.unravel_index(np.argmax(dh), dh.shape)
+    assert h_range > 0.1, f"{what}: the LSTM barely moves, the comparison would be empty"
+    assert dh.max() <= 1e-6 * h_range, (
+        f"{what}: LSTM output differs by {dh.max():.3g} (> 1e-6 of its range {h_range:.3g}) "
+        f"at step {worst[0]}, unit {worst[1]}")
+    dsf = np.abs(sf_c.astype(np.float64) - sf_o)
+    assert dsf.max() <= 0.01, f"{what}: SF error differs by {dsf.max():.3g} ppm at step " \
+                              f"{int(np.argmax(dsf))}"
+
+
+def test_kernel_vs_onnxruntime_over_a_simulated_ramp(kroot) -> None:
+    model = st.random_model(3, 4, 1, 16, decimation=1, seed=11)
+    temp, gyro = simulated_ramp(seed=11)
+    assert len(temp) >= 50_000
+    compare_with_ort(model, kernel_for(model, kroot), temp, gyro, "simulated 1 C/min ramp")
+
+
+@pytest.mark.parametrize("seed", [21, 22])
+def test_kernel_vs_onnxruntime_on_random_inputs(seed, kroot) -> None:
+    rng = np.random.default_rng(seed)
+    layers, hidden = int(rng.integers(1, 3)), int(rng.integers(4, 40))
+    model = st.random_model(int(rng.integers(0, 4)), int(rng.integers(1, 7)), layers, hidden,
+                            decimation=int(rng.integers(1, 4)), seed=seed)
+    n = 12_000
+    # a random walk across the range with jumps, so the filters and the LSTM see everything
+    temp = np.clip(np.cumsum(rng.normal(0, 0.8, n)) % 140 - 55, -60, 70)
+    temp[rng.integers(0, n, 50)] = rng.uniform(-60, 70, 50)
+    gyro = rng.normal(10, 5, n)
+    compare_with_ort(model, kernel_for(model, kroot), temp, gyro, f"random inputs, seed {seed}")
+
+
+def test_kernel_vs_onnx_reference(kroot) -> None:
+    model = st.random_model(2, 4, 2, 6, decimation=3, seed=31)
+    temp, gyro = golden_inputs(model, n=900, seed=31)
+    z, h_c, sf_c = trace_steps(kernel_for(model, kroot), temp, gyro)
+    ref = ReferenceEvaluator(build_step_onnx(model))
+    in_names, _ = state_names(model.layers)
+    state = [np.zeros((1, model.hidden), np.float32) for _ in in_names]
+    for m in range(z.shape[0]):
+        outs = ref.run(None, {"z": z[m:m + 1], **dict(zip(in_names, state, strict=True))})
+        state = outs[1:]
+        np.testing.assert_allclose(state[-2][0], h_c[m], atol=2e-6, err_msg=f"step {m}")
+        assert abs(float(outs[0][0, 0]) - float(sf_c[m])) <= 0.01, f"step {m}"
+
+
+def test_streaming_equals_whole_log_and_runs_repeat_bit_for_bit(kroot) -> None:
+    model = model_of(SIZES[2])
+    kernel = kernel_for(model, kroot)
+    temp, gyro = golden_inputs(model, n=3000, seed=5)
+    a = kernel.stream(temp, gyro)
+    b = kernel.run(temp, gyro)
+    state = kernel.new_state()
+    kernel.run(temp[:777], gyro[:777], st=state)
+    kernel.lib.fogsf_reset(state)
+    c = kernel.run(temp, gyro, st=state)  # reset really starts over
+    for x, y in ((a, b), (b, c), (b, kernel.run(temp, gyro))):
+        for u, v in zip(x, y, strict=True):
+            assert u.tobytes() == v.tobytes()
+    # the Python per-sample helper is the same step
+    state = kernel.new_state()
+    for i in range(200):
+        got = kernel.step(state, temp[i], gyro[i])
+        assert got == (b[0][i], b[1][i], b[2][i]), f"sample {i}"
+    # split into two calls on one state = one call
+    state = kernel.new_state()
+    first = kernel.run(temp[:1234], gyro[:1234], st=state)
+    second = kernel.run(temp[1234:], gyro[1234:], st=state)
+    for u, v, w in zip(first, second, b, strict=True):
+        assert np.concatenate([u, v]).tobytes() == w.tobytes()
+
+
+@pytest.mark.parametrize("seed", [41, 42, 43])
+def test_bad_inputs_give_finite_outputs_and_the_right_flags(seed, kroot) -> None:
+    rng = np.random.default_rng(seed)
+    stuck = int(rng.integers(3, 40))
+    model = st.random_model(2, 4, 1, 8, decimation=int(rng.integers(1, 6)), seed=seed,
+                            stuck_samples=stuck)
+    kernel = kernel_for(model, kroot)
+    n = 2000
+    temp = np.linspace(-30.0, 40.0, n) + rng.normal(0, 0.05, n)
+    gyro = 10.0 + rng.normal(0, 0.01, n)
+    idx = rng.permutation(np.arange(1, n - 200))
+    nan_t, inf_t, hot, cold = idx[:5], idx[5:10], idx[10:15], idx[15:20]
+    temp[nan_t] = np.nan
+    temp[inf_t] = rng.choice([np.inf, -np.inf, 1e300, -1e300], 5)  # 1e300 -> float32 inf
+    temp[hot] = rng.uniform(model.t_max_c + 0.5, 1e30, 5)
+    temp[cold] = rng.uniform(-1e30, model.t_min_c - 0.5, 5)
+    s0 = n - 150
+    temp[s0:s0 + stuck + 10] = 12.25
+    bad_g = idx[20:30]
+    gyro[bad_g] = rng.choice([np.nan, np.inf, -np.inf, 1.7e308], 10)
+    corrected, sf, flags = kernel.stream(temp, gyro)
+    assert np.all(np.isfinite(corrected)) and np.all(np.isfinite(sf)), f"seed {seed}"
+    assert np.all(flags[nan_t] & st.FLAG_TEMP_INVALID), f"seed {seed}"
+    assert np.all(flags[inf_t] & st.FLAG_TEMP_INVALID), f"seed {seed}"
+    assert np.all(flags[np.concatenate([hot, cold])] & st.FLAG_TEMP_CLAMPED), f"seed {seed}"
+    stuck_flagged = np.flatnonzero(flags & st.FLAG_TEMP_STUCK)
+    assert stuck_flagged.tolist() == list(range(s0 + stuck, s0 + stuck + 10)), f"seed {seed}"
+    huge_ok = gyro[bad_g] == 1.7e308  # finite but the correction may overflow
+    assert np.all(flags[bad_g[~huge_ok]] & st.FLAG_GYRO_INVALID), f"seed {seed}"
+    assert np.all(corrected[bad_g[~huge_ok]] == 0.0), f"seed {seed}"
+    good = np.setdiff1d(np.arange(n), np.concatenate([idx[:30], np.arange(s0, n)]))
+    assert not np.any(flags[good]), f"seed {seed}: flags on good samples"
+    assert np.all(np.abs(sf) < 1e4)
+
+
+def test_activations_equal_reference_bits_and_are_accurate(kroot) -> None:
+    kernel = kernel_for(model_of(SIZES[0]), kroot)
+    rng = np.random.default_rng(7)
+    x = np.concatenate([np.linspace(-100, 100, 20001), rng.normal(0, 4, 20000),
+                        [0.0, -0.0, 0.625, -0.625, 10.0, -10.0, 87.9, -87.1, 1e30, -1e30,
+                         np.inf, -np.inf, np.nan, 1e-40]]).astype(np.float32)
+    for name, ref in (("exp", st.exp_f32), ("sigmoid", st.sigmoid_f32), ("tanh", st.tanh_f32)):
+        got = kernel.activation(name, x)
+        bad = np.flatnonzero(got.view(np.uint32) != ref(x).view(np.uint32))
+        assert bad.size == 0, f"{name}: C and numpy differ at x = {x[bad[:10]].tolist()}"
+        assert np.all(np.isfinite(got)), name
+    xs = np.linspace(-20, 20, 40001).astype(np.float32)
+    xd = xs.astype(np.float64)
+    assert np.max(np.abs(kernel.activation("tanh", xs) - np.tanh(xd))) < 1.2e-7
+    assert np.max(np.abs(kernel.activation("sigmoid", xs) - 1 / (1 + np.exp(-xd)))) < 1.2e-7
+
+
+@pytest.mark.skipif(shutil.which("clang") is None, reason="clang not installed")
+def test_gcc_and_clang_builds_give_the_same_bits(kroot) -> None:
+    model = model_of(SIZES[1])
+    temp, gyro = golden_inputs(model, n=1500, seed=9)
+    a = kernel_for(model, kroot, "gcc").run(temp, gyro)
+    b = kernel_for(model, kroot, "clang").run(temp, gyro)
+    for u, v in zip(a, b, strict=True):
+        assert u.tobytes() == v.tobytes()

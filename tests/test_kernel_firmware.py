@@ -1,0 +1,121 @@
+"""Golden vectors: host driver (plain, ASan+UBSan) and the Cortex-M4F image under QEMU give
+the host kernel's bits; the strict build flags hold for gcc and clang."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import pytest
+
+from bindings.firmware import (
+    arm_size,
+    arm_tools_missing,
+    build_arm,
+    build_host_driver,
+    run_host_driver,
+    run_qemu,
+    write_golden,
+)
+from bindings.kernel import C_DIR, STRICT, Kernel, build_kernel
+from export.header import render_header
+from trainer import stream as st
+
+FIXTURE = "tests/fixtures/small_model"
+
+
+@pytest.fixture(scope="module")
+def golden(tmp_path_factory):
+    """(model, host build, golden folder) for the committed fixture model."""
+    root = tmp_path_factory.mktemp("fw")
+    model = st.StreamModel.load(FIXTURE)
+    build = build_kernel(model, root=root / "host")
+    golden_dir = root / "golden"
+    write_golden(model, Kernel(model, build), golden_dir)
+    return model, build, golden_dir, root
+
+
+def test_fixture_is_the_documented_random_model() -> None:
+    want = st.random_model(filters=3, n_features=4, layers=1, hidden=16, decimation=10,
+                           seed=2026)
+    assert st.StreamModel.load(FIXTURE).model_id == want.model_id
+
+
+@pytest.mark.parametrize("sanitize", [False, True], ids=["plain", "asan+ubsan"])
+def test_host_driver_passes_golden_vectors(golden, sanitize) -> None:
+    model, build, golden_dir, root = golden
+    exe = build_host_driver(build, golden_dir, root / f"drv{int(sanitize)}", sanitize=sanitize)
+    ok, out = run_host_driver(exe)
+    assert ok and "PASS" in out, out
+    assert "runtime error" not in out and "AddressSanitizer" not in out, out
+
+
+def test_golden_check_detects_a_wrong_bit(golden, tmp_path) -> None:
+    """The check can fail: flip one expected bit and it must say FAIL with the index."""
+    model, build, golden_dir, _ = golden
+    text = (golden_dir / "golden_vectors.h").read_text()
+    start = text.index("golden_sf_bits")
+    pos = text.index("0x", text.index("{", start)) + 9  # last hex digit of sample 0's sf
+    digit = text[pos]
+    flipped = text[:pos] + ("1" if digit != "1" else "0") + text[pos + 1:]
+    bad_dir = tmp_path / "bad"
+    bad_dir.mkdir()
+    (bad_dir / "golden_vectors.h").write_text(flipped)
+    ok, out = run_host_driver(build_host_driver(build, bad_dir, tmp_path / "drv"))
+    assert not ok and "mismatch step sample 0:" in out and "FAIL: 2 mismatching" in out, out
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+@pytest.mark.parametrize("size", [(0, 1, 1, 1, 1, 0), (3, 4, 2, 9, 50, 600)])
+def test_strict_flags_compile_every_shape(cc, size, tmp_path) -> None:
+    if shutil.which(cc) is None:
+        pytest.skip(f"{cc} not installed")
+    k, f, layers, hidden, d, stuck = size
+    model = st.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck)
+    (tmp_path / "fogsf_model.h").write_text(render_header(model))
+    for src in ("fogsf.c", "fogsf_cell.c"):
+        proc = subprocess.run([cc, *STRICT, "-Wvla", "-O2", "-I", str(tmp_path), "-I",
+                               str(C_DIR), "-c", str(C_DIR / src), "-o",
+                               str(tmp_path / f"{src}.o")],
+                              capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+
+
+def test_kernel_objects_need_no_library(golden) -> None:
+    """No malloc, no libm, no stdio: the host objects reference only each other (and at most
+    memset/memcpy, which a compiler may emit for loops)."""
+    _, build, _, _ = golden
+    objs = [str(build.directory / "fogsf.o"), str(build.directory / "fogsf_cell.o")]
+    out = subprocess.run(["nm", "-u", *objs], capture_output=True, text=True, check=True).stdout
+    undefined = {line.split()[-1] for line in out.splitlines() if line.strip().startswith("U")}
+    assert undefined <= {"fogsf_lstm_cell", "memset", "memcpy"}, undefined
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None,
+                    reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
+def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
+    model, build, golden_dir, root = golden
+    arm = build_arm(build.directory, golden_dir, root / "m4f")
+    ok, out = run_qemu(arm.golden_elf)
+    assert ok, out
+    assert f"model {model.model_id}" in out and "PASS: 12000 outputs bit-exact" in out, out
+    out = subprocess.run(["arm-none-eabi-nm", "-u", *map(str, arm.kernel_objs)],
+                         capture_output=True, text=True, check=True).stdout
+    undefined = {line.split()[-1] for line in out.splitlines() if line.strip().startswith("U")}
+    assert all(u.startswith("__aeabi_") or u in {"fogsf_lstm_cell", "memset", "memcpy"}
+               for u in undefined), undefined  # soft double from libgcc, nothing else
+    size = arm_size(arm, model)
+    assert 0 < size.kernel_flash_bytes <= size.flash_bytes
+    assert size.ram_bytes >= size.state_bytes == 4 * (2 * 16 + 16 + 4 + 3 + 8)
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None,
+                    reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
+def test_cortex_m4f_two_layers_no_filters_no_stuck_check(tmp_path) -> None:
+    """The other shapes on target: 2 layers, K=0, stuck detection off, a step per sample."""
+    model = st.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0)
+    build = build_kernel(model, root=tmp_path / "host")
+    write_golden(model, Kernel(model, build), tmp_path / "golden")
+    arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f")
+    ok, out = run_qemu(arm.golden_elf)
+    assert ok and "PASS: 12000 outputs bit-exact" in out, out
