@@ -190,14 +190,38 @@ def _block_sums(v: np.ndarray, blocks: np.ndarray) -> np.ndarray:
     return np.bincount(blocks, weights=v)
 
 
+def _coef_range_over_profile(model: ModelFit, name: str, y: np.ndarray, w: np.ndarray,
+                             interval: tuple[float, float]) -> tuple[float, float]:
+    """The linear coefficient's 95 % range over every grid value of the nonlinear parameter
+    inside its profile interval (each at its best base time constants): the coefficient's
+    interval then carries the time constant's uncertainty too."""
+    st = model.stack
+    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
+    lo, hi = np.inf, -np.inf
+    rows = np.arange(y.shape[0])
+    for v in np.unique(gs[(gs >= interval[0]) & (gs <= interval[1])]):
+        sub = profile_ls.Stack([c for c, k in zip(st.combos, gs == v, strict=True) if k],
+                               st.x[gs == v], st.names, st.candidate)
+        fit = profile_ls.solve(sub, y, w, rows)
+        i = st.names.index(name)
+        se = math.sqrt(max(fit.cov[i, i], 0.0) * max(1.0, model.chi2_red))
+        lo = min(lo, float(fit.beta[i]) - Z95 * se)
+        hi = max(hi, float(fit.beta[i]) + Z95 * se)
+    return lo, hi
+
+
 def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
-            interval: tuple[float, float] | None) -> dict[str, object]:
+            interval: tuple[float, float] | None, y: np.ndarray, w: np.ndarray
+            ) -> dict[str, object]:
     m = fine or model
     coef = m.coef(cand.coef_name)
     se = m.coef_se(cand.coef_name)
-    out: dict[str, object] = {cand.coef_name: coef,
-                              f"{cand.coef_name}_ci95": [coef - Z95 * se, coef + Z95 * se]}
+    ci = [coef - Z95 * se, coef + Z95 * se]
     g = m.combo[1]
+    if cand.grid_name is not None and g is not None and interval is not None:
+        lo, hi = _coef_range_over_profile(model, cand.coef_name, y, w, interval)
+        ci = [min(ci[0], lo), max(ci[1], hi)]
+    out: dict[str, object] = {cand.coef_name: coef, f"{cand.coef_name}_ci95": ci}
     if cand.grid_name is not None and g is not None and interval is not None:
         out[cand.grid_name] = float(g)
         out[f"{cand.grid_name}_ci95"] = [min(interval[0], g), max(interval[1], g)]
@@ -428,7 +452,7 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
     res.blocks_better = int(np.sum(d > 0))
     res.significant = res.p_value < ALPHA and res.gain_pct >= MIN_GAIN_PCT
     res.model = fine or model
-    res.params = _params(cand, model, fine, interval)
+    res.params = _params(cand, model, fine, interval, y, w)
     g = res.model.combo[1]
     res.effect = cand.to_effect(res.model.coef(cand.coef_name), g)
     verdict = "significant" if res.significant else "not significant"
