@@ -14,4 +14,5 @@ Stages (one small module each):
 - `extend`: the fitted, extended model as a simulator configuration, and its distance
   to the measured logs.
 - `report`: the JSON of DESIGN.md and a Markdown report with plots.
+- `cases`: planted-effect cases (simulated) for the tests and `benchmarks.diagnose_rate`.
 """

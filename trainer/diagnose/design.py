@@ -26,8 +26,7 @@ from trainer.sim.thermal import first_order_lag
 T_REF_C = 20.0
 BASE_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 4000.0, 7), -1))
 MIN_TAU_RATIO = 1.4  # tau2 >= MIN_TAU_RATIO * tau1
-PPM_PER_DPH = 1e6 / 3600.0
-BOARD_TERM = True  # bias of 1 deg/h at 1 deg/s, in ppm of the rate
+PPM_PER_DPH = 1e6 / 3600.0  # bias of 1 deg/h at 1 deg/s, in ppm of the rate
 
 
 @dataclass
@@ -86,8 +85,8 @@ def base_grid() -> list[tuple[float, float]]:
 
 
 def base_names(power_on: bool, bias_on: bool) -> list[str]:
-    names = ["offset_ppm"] + (["board_ppm_per_c", "board_ppm_per_c2"] if BOARD_TERM else []) + [
-        "node1_ppm_per_c", "node1_ppm_per_c2", "node2_ppm_per_c", "node2_ppm_per_c2"]
+    names = ["offset_ppm", "board_ppm_per_c", "board_ppm_per_c2", "node1_ppm_per_c",
+             "node1_ppm_per_c2", "node2_ppm_per_c", "node2_ppm_per_c2"]
     if power_on:
         names += ["selfheat1_ppm", "selfheat2_ppm"]
     if bias_on:
@@ -103,7 +102,7 @@ def base_columns(ctx: RunContext, theta: tuple[float, float], any_power_on: bool
     b = board(ctx)
     n1 = node(ctx, tau1)
     n2 = node(ctx, tau2)
-    cols = [np.ones_like(b)] + ([b, b * b] if BOARD_TERM else []) + [n1, n1 * n1, n2, n2 * n2]
+    cols = [np.ones_like(b), b, b * b, n1, n1 * n1, n2, n2 * n2]
     if any_power_on:
         on = 1.0 if ctx.power_on else 0.0
         cols += [on * decay(ctx, tau1), on * decay(ctx, tau2)]

@@ -118,9 +118,6 @@ class Diagnosis:
     def noise_floor_ppm(self) -> float:
         return float(np.sqrt(np.mean(self.sigma**2)))
 
-    def segments(self, e: np.ndarray) -> list[np.ndarray]:
-        return [e[self.run_ids == i] for i in range(len(self.runs))]
-
 
 def _weighted_rms(e: np.ndarray) -> float:
     return float(np.sqrt(np.mean(e * e)))
