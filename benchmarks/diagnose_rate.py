@@ -1,0 +1,137 @@
+"""Success rate of `fogsf diagnose` over many seeded cases (make bench-diagnose).
+
+Cases (trainer.diagnose.cases, ranges stated there): each of the seven catalogue effects
+planted at 3-20x the noise floor (visible part), null runs, out-of-catalogue effects
+(humidity, supply step, periodic), ramp-only and short-soak lag / dT/dt runs. For each:
+right or wrong by `cases.judge`, and the figures behind it. Prints a table and writes JSON.
+
+    python -m benchmarks.diagnose_rate --out out/bench-diagnose.json [--seeds 20] [--jobs 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from trainer.diagnose import cases
+
+
+def one(job: tuple[str, str, int]) -> dict[str, Any]:
+    from trainer.diagnose import report, verdict
+
+    kind, name, seed = job
+    t0 = time.time()
+    case = cases.draw(kind, name, seed)
+    try:
+        logs, truth = cases.build(case)
+        d = verdict.diagnose(logs)
+    except Exception as e:  # a crash is a wrong answer, with its reason
+        return {"kind": kind, "name": name, "seed": seed, "ok": False,
+                "reason": f"error: {e}", "cause": None, "unexplained": False,
+                "ambiguous": [], "case": case.describe(), "multiple": case.multiple,
+                "structure": {}, "seconds": time.time() - t0, "significant": []}
+    j = report.to_json(d, {}, None)
+    o = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
+                    j["ambiguous"])
+    return {"kind": kind, "name": name, "seed": seed, "ok": o.ok, "reason": o.reason,
+            "cause": j["cause"], "unexplained": j["unexplained"], "ambiguous": j["ambiguous"],
+            "case": case.describe(), "multiple": case.multiple_reached or case.multiple,
+            "structure": j["structure"], "seconds": time.time() - t0,
+            "significant": [c["effect"] for c in j["candidates"] if c["significant"]]}
+
+
+def jobs(seeds: int, first_seed: int) -> list[tuple[str, str, int]]:
+    out = []
+    for i in range(seeds):
+        s = first_seed + i
+        out += [("effect", e, s) for e in cases.EFFECTS]
+        out += [("null", "", 1000 + s), ("null", "", 2000 + s)]
+        out += [("ooc", k, s) for k in cases.OOC_KINDS]
+        out += [("ramp_only", k, s) for k in ("temp_rate", "extra_lag")]
+        out += [("short_soak", k, s) for k in ("temp_rate", "extra_lag")]
+    return out
+
+
+def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
+    by: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for r in results:
+        by[f"{r['kind']}:{r['name']}" if r["name"] else r["kind"]].append(r)
+    groups = {k: {"cases": len(v), "right": sum(r["ok"] for r in v),
+                  "rate": sum(r["ok"] for r in v) / len(v)} for k, v in sorted(by.items())}
+    eff = [r for r in results if r["kind"] == "effect"]
+    wrong_cause = [r for r in eff if r["cause"] not in (None, r["name"])]
+    null = [r for r in results if r["kind"] == "null"]
+    ooc = [r for r in results if r["kind"] == "ooc"]
+    ramp = [r for r in results if r["kind"] == "ramp_only"]
+    short = [r for r in results if r["kind"] == "short_soak"]
+
+    def rate(rs: list[dict[str, Any]]) -> float:
+        return sum(r["ok"] for r in rs) / len(rs) if rs else float("nan")
+
+    return {
+        "groups": groups,
+        "effects_right_rate": rate(eff),
+        "effects_wrong_cause": len(wrong_cause),
+        "effects_ambiguous": sum(r["cause"] is None and r["name"] in r["ambiguous"]
+                                 for r in eff),
+        "null_false_causes": sum(r["cause"] is not None for r in null),
+        "null_cases": len(null),
+        "null_flagged_unexplained": sum(r["unexplained"] for r in null),
+        "ooc_right_rate": rate(ooc),
+        "ooc_named_catalogue_cause": sum(r["cause"] is not None for r in ooc),
+        "ramp_only_no_guess_rate": rate(ramp),
+        "short_soak_right_or_ambiguous_rate": rate(short),
+        "short_soak_wrong_cause": sum(r["cause"] not in (None, r["name"]) for r in short),
+        "all_right_rate": rate(results),
+        "cases": len(results),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", default="out/bench-diagnose.json")
+    ap.add_argument("--seeds", type=int, default=20, help="seeds per case kind")
+    ap.add_argument("--first-seed", type=int, default=100)
+    ap.add_argument("--jobs", type=int, default=2)
+    args = ap.parse_args(argv)
+    todo = jobs(args.seeds, args.first_seed)
+    t0 = time.time()
+    results: list[dict[str, Any]] = []
+    from tqdm import tqdm
+
+    with ProcessPoolExecutor(args.jobs) as ex:
+        for r in tqdm(ex.map(one, todo, chunksize=2), total=len(todo), desc="cases"):
+            results.append(r)
+    s = summarise(results)
+    s["seconds"] = time.time() - t0
+    for k, g in s["groups"].items():
+        print(f"{k:28s} {g['right']:3d}/{g['cases']:3d} right ({100 * g['rate']:.0f}%)")
+    print(f"planted effects named right (name, parameter, gain): "
+          f"{100 * s['effects_right_rate']:.1f}%")
+    print(f"planted effects: {s['effects_wrong_cause']} wrong causes named, "
+          f"{s['effects_ambiguous']} left ambiguous (the planted one among them)")
+    print(f"null cases: {s['null_false_causes']} false causes in {s['null_cases']} "
+          f"({s['null_flagged_unexplained']} flagged unexplained)")
+    print(f"out-of-catalogue: {100 * s['ooc_right_rate']:.1f}% unexplained with no cause "
+          f"({s['ooc_named_catalogue_cause']} named a catalogue cause)")
+    print(f"ramp-only lag / dT/dt: {100 * s['ramp_only_no_guess_rate']:.1f}% no guess")
+    print(f"short-soak lag / dT/dt: {100 * s['short_soak_right_or_ambiguous_rate']:.1f}% right "
+          f"or ambiguous ({s['short_soak_wrong_cause']} named the other one)")
+    for r in results:
+        if not r["ok"]:
+            print(f"  wrong: {r['case']}: {r['reason']}")
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps({"summary": s, "results": results}, indent=1) + "\n",
+                              encoding="utf-8")
+    print(f"-> {args.out} ({s['seconds']:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,18 @@
+"""fogsf diagnose: confront a physics model of the gyro with measured chamber logs.
+
+Stages (one small module each):
+
+- `runs`: chamber logs -> per-window observations (apparent SF, noise, temperatures, rate).
+- `driver`: the housing temperature that drives the internal thermal nodes, identified from
+  the chamber air and the board thermometer (first-order lags, profiled on a grid).
+- `design`: the columns of the base model and of each catalogue effect, per window.
+- `catalogue`: the candidate effects (the simulator's seven), their columns, grids, units.
+- `profile_ls`: weighted linear least squares, profiled over grids of time constants.
+- `crossval`: held-out residuals by leaving out contiguous blocks (or whole runs).
+- `stats`: whiteness (Ljung-Box), paired sign-flip tests, correlations, intervals.
+- `verdict`: fit, score every candidate on held-out data, name the cause or none.
+- `extend`: the fitted, extended model as a simulator configuration, and its distance
+  to the measured logs.
+- `report`: the JSON of DESIGN.md and a Markdown report with plots.
+- `cases`: planted-effect cases (simulated) for the tests and `benchmarks.diagnose_rate`.
+"""

@@ -1,0 +1,373 @@
+"""Planted-effect cases for the diagnose tests and benchmark (`benchmarks.diagnose_rate`).
+
+A case is a simulated chamber run (1.5-2 h at 10 Hz; 4.5 h for the lag / dT/dt pair) with a
+profile, table schedule and start drawn by a seeded generator from the ranges stated in
+`draw`, and one of:
+
+- `effect`: one catalogue effect planted with the simulator (`--effect`);
+- `null`: nothing planted;
+- `ooc`: an effect outside the catalogue added to the gyro output after simulating:
+  `humidity` (SF following an unlogged humidity: smooth, 2-3 random periods of 15-70 min),
+  `supply_step` (SF step when an unlogged supply voltage changes, at 25-75 % of the run),
+  `periodic` (SF ripple with an unlogged 8-25 min period, e.g. the lab's air conditioning
+  acting on the electronics);
+- `ramp_only`: a lag (`extra_lag`) or dT/dt (`temp_rate`) term in a log cut to the steady
+  part of a single ramp, where the two cannot be told apart (nor from the base);
+- `short_soak`: the same two in 110 min logs whose soaks are too short to watch a slow node
+  settle: right if named, or reported ambiguous, never the other one.
+
+The lag / dT/dt cases of kind `effect` use 4.5 h logs with 70-80 min soaks (up and back),
+extra_lag time constants 5000-9000 s.
+
+Strength is set as a multiple (drawn in [3, 20]) of the noise floor of the part of the
+effect the base model cannot absorb: the RMS over windows of the base model's residual on
+the noiseless output with the effect (profiled fit, the run's own noise weights). An effect
+entirely absorbable by the base model is not an error of the base simulation, so this is
+the only strength a diagnosis can be held to. Only the linear strength is scaled (for
+`extra_lag`, its sensitivity in ppm/C; its time constant is drawn).
+
+The logs keep only what a chamber log has: time, board thermometer, table rate, gyro,
+earth rate and the chamber air (`chamber_c`); the simulator's truth columns are dropped.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from trainer.diagnose import design, driver, profile_ls, runs
+from trainer.logio import ChamberLog
+from trainer.sim.config import EffectConfig, ProfileConfig, SimConfig, TableConfig
+from trainer.sim.effects import EFFECTS as SIM_EFFECTS
+from trainer.sim.gyro import simulate
+
+WINDOW_S = 60.0
+MULTIPLE_RANGE = (3.0, 20.0)
+EFFECTS = ("warmup", "extra_lag", "temp_rate", "rate_nonlinearity", "asymmetry", "bias_drift",
+           "aging")
+OOC_KINDS = ("humidity", "supply_step", "periodic")
+# starting strengths (the simulator's examples; extra_lag: its sensitivity in ppm/C)
+EFFECT_INFO = {name: (4.0 if name == "extra_lag" else SIM_EFFECTS[name].example)
+               for name in EFFECTS}
+# the profiled parameter and the tolerance a diagnosis must meet on each effect
+PARAM_CHECK: dict[str, tuple[str, str, float]] = {
+    # effect: (param key in the diagnosis, truth key, relative tolerance)
+    "warmup": ("tau_s", "tau_s", 0.5),
+    "extra_lag": ("sens_ppm_per_c", "sens_ppm_per_c", 0.3),  # and tau_s inside its interval
+    "temp_rate": ("strength_ppm_per_c_per_min", "strength", 0.5),
+    "rate_nonlinearity": ("strength_ppm_at_100dps", "strength", 0.3),
+    "asymmetry": ("strength_ppm", "strength", 0.3),
+    "bias_drift": ("strength_dph_per_c", "strength", 0.3),
+    "aging": ("strength_ppm_per_h", "strength", 0.3),
+}
+
+
+@dataclass
+class Case:
+    kind: str  # effect / null / ooc / ramp_only
+    name: str  # effect or out-of-catalogue kind ("" for null)
+    seed: int
+    config: SimConfig
+    multiple: float = 0.0  # target visible strength / noise floor
+    params: dict[str, float] = field(default_factory=dict)  # truth (after scaling)
+    crop_s: float = 0.0  # ramp_only: samples before this are cut
+    multiple_reached: float = 0.0  # the visible strength / noise floor actually planted
+
+    def describe(self) -> str:
+        p = self.config.profile
+        t = self.config.table
+        prof = (f"{p.kind} {p.levels_c or [p.start_c, p.stop_c]} at {p.rate_c_per_min:.2g} "
+                f"C/min")
+        tab = t.kind + (f" {t.rates_dps}" if t.kind == "levels" else f" {t.rate_dps:g}")
+        return (f"{self.kind}:{self.name or '-'} seed={self.seed} x{self.multiple:.1f}"
+                f"({self.multiple_reached:.1f}) "
+                f"{prof}, table {tab}, {self.config.thermal.start}, truth {self.params}")
+
+
+def _steps(rng: np.random.Generator, back: bool, minutes: float) -> ProfileConfig:
+    t0 = float(rng.uniform(-10.0, 30.0))
+    delta = float(rng.uniform(25.0, 40.0)) * float(rng.choice([-1.0, 1.0]))
+    rate = float(rng.uniform(1.0, 2.0))
+    levels = [t0, t0 + delta] + ([t0] if back else [])
+    ramps = (len(levels) - 1) * abs(delta) / rate * 60.0
+    soak = max(900.0, (minutes * 60.0 - ramps) / len(levels))
+    return ProfileConfig(kind="steps", levels_c=[round(x, 1) for x in levels],
+                         rate_c_per_min=rate, soak_s=round(soak))
+
+
+def _long_soaks(rng: np.random.Generator) -> ProfileConfig:
+    """Up and back with 70-80 min soaks (4.5 h): a lag keeps settling in the soaks, a dT/dt
+    term dies with the coil's rate; shorter soaks leave the two ambiguous."""
+    t0 = float(rng.uniform(-10.0, 30.0))
+    delta = float(rng.uniform(25.0, 40.0)) * float(rng.choice([-1.0, 1.0]))
+    return ProfileConfig(kind="steps", levels_c=[round(t0, 1), round(t0 + delta, 1),
+                                                 round(t0, 1)],
+                         rate_c_per_min=float(rng.uniform(1.0, 2.0)),
+                         soak_s=float(rng.uniform(4200.0, 4800.0)))
+
+
+def _cycle(rng: np.random.Generator) -> ProfileConfig:
+    t0 = float(rng.uniform(-20.0, 10.0))
+    span = float(rng.uniform(30.0, 45.0))
+    return ProfileConfig(kind="cycle", start_c=round(t0, 1), stop_c=round(t0 + span, 1),
+                         rate_c_per_min=float(rng.uniform(1.0, 2.0)),
+                         soak_s=float(rng.uniform(900.0, 1500.0)), cycles=1)
+
+
+def _table(rng: np.random.Generator, kind: str) -> TableConfig:
+    dwell = float(rng.choice([120.0, 180.0, 240.0]))
+    if kind == "constant":
+        return TableConfig(kind="constant", rate_dps=float(rng.choice([10.0, 20.0])))
+    if kind == "alternating":
+        return TableConfig(kind="alternating", rate_dps=float(rng.uniform(5.0, 20.0)),
+                           dwell_s=dwell)
+    if kind == "multi":  # several |rate|, one sign
+        lo = float(rng.uniform(5.0, 15.0))
+        return TableConfig(kind="levels", rates_dps=[lo, float(rng.uniform(40.0, 100.0)),
+                                                     float(rng.uniform(20.0, 35.0))],
+                           dwell_s=dwell)
+    lo = float(rng.uniform(5.0, 15.0))  # +/- at two |rate|
+    hi = float(rng.uniform(40.0, 100.0))
+    return TableConfig(kind="levels", rates_dps=[lo, -lo, hi, -hi], dwell_s=dwell)
+
+
+def draw(kind: str, name: str, seed: int) -> Case:
+    """A case drawn from the stated ranges (see the module docstring and the code below)."""
+    rng = np.random.default_rng(seed)
+    cfg = SimConfig(seed=int(rng.integers(0, 2**31)))
+    cfg.thermal.start = "warm"
+    multiple = float(rng.uniform(*MULTIPLE_RANGE))
+    params: dict[str, float] = {}
+    table_kind = "constant"
+    profile = _steps(rng, back=False, minutes=100)
+    if kind in ("effect", "null"):
+        eff = name if kind == "effect" else str(rng.choice(EFFECTS))  # null: that case's setup
+        if eff == "warmup":
+            cfg.thermal.start = "power-on"
+            params["tau_s"] = float(rng.uniform(120.0, 300.0))  # >= 2 windows of 60 s
+            profile = _steps(rng, back=False, minutes=100)
+        elif eff == "extra_lag":
+            params["tau_s"] = float(rng.uniform(5000.0, 9000.0))
+            profile = _long_soaks(rng)
+        elif eff == "temp_rate":
+            profile = _long_soaks(rng)
+        elif eff == "rate_nonlinearity":
+            table_kind = "multi"
+            profile = _cycle(rng)
+        elif eff == "asymmetry":
+            table_kind = "plusminus"
+            profile = _cycle(rng)
+        elif eff == "bias_drift":
+            table_kind = "alternating"
+            profile = _cycle(rng)
+        elif eff == "aging":
+            profile = _steps(rng, back=True, minutes=120)
+        if kind == "effect":
+            cfg.effects = [EffectConfig(name, 1.0, {k: v for k, v in params.items()})]
+            if name == "extra_lag":
+                cfg.effects = [EffectConfig(name, params["tau_s"], {"sens_ppm_per_c": 1.0})]
+        else:
+            params = {}
+    elif kind == "ooc":
+        profile = _steps(rng, back=True, minutes=110) if rng.random() < 0.5 else _cycle(rng)
+        table_kind = str(rng.choice(["constant", "alternating"]))
+        if name == "humidity":
+            k = int(rng.integers(2, 4))
+            params = {f"period{i}_s": float(rng.uniform(900.0, 4200.0)) for i in range(k)}
+            params.update({f"phase{i}": float(rng.uniform(0, 2 * np.pi)) for i in range(k)})
+        elif name == "supply_step":
+            params = {"at_fraction": float(rng.uniform(0.25, 0.75))}
+        elif name == "periodic":
+            params = {"period_s": float(rng.uniform(480.0, 1500.0)),
+                      "phase": float(rng.uniform(0, 2 * np.pi))}
+    elif kind == "short_soak":  # a lag or dT/dt term with soaks too short to tell them apart
+        cfg.effects = [EffectConfig("extra_lag", float(rng.uniform(5000.0, 9000.0)),
+                                    {"sens_ppm_per_c": 1.0})] if name == "extra_lag" else [
+            EffectConfig("temp_rate", 1.0)]
+        cfg = _finish(cfg, _steps(rng, back=True, minutes=110), _table(rng, "constant"))
+        return Case(kind, name, seed, cfg, multiple, {})
+    elif kind == "ramp_only":
+        rate = float(rng.uniform(0.4, 0.5))  # -40..60 C: 200-250 min, 1-1.8 h kept
+        profile = ProfileConfig(kind="ramp", start_c=-40.0, stop_c=60.0, rate_c_per_min=rate)
+        if name == "extra_lag":
+            tau = float(rng.uniform(4000.0, 9000.0))
+            cfg.effects = [EffectConfig(name, tau, {"sens_ppm_per_c": 4.0})]
+            params = {"tau_s": tau, "sens_ppm_per_c": 4.0}
+        else:
+            cfg.effects = [EffectConfig("temp_rate", 30.0)]
+            params = {"strength": 30.0}
+        crop = 3.0 * 2800.0  # past the network's settling onto the steady ramp
+        return Case(kind, name, seed, _finish(cfg, profile, TableConfig()), 0.0, params, crop)
+    cfg = _finish(cfg, profile, _table(rng, table_kind))
+    return Case(kind, name, seed, cfg, multiple if kind != "null" else 0.0, params)
+
+
+def _finish(cfg: SimConfig, profile: ProfileConfig, table: TableConfig) -> SimConfig:
+    cfg.profile = profile
+    cfg.table = table
+    return cfg
+
+
+def _strip(log: ChamberLog) -> ChamberLog:
+    log.extra = {"chamber_c": log.extra["chamber_c"]}
+    return log
+
+
+def ooc_signal(case: Case, t_s: np.ndarray) -> np.ndarray:
+    """The out-of-catalogue SF term (ppm) per sample, unit amplitude."""
+    p = case.params
+    if case.name == "humidity":
+        k = sum(1 for key in p if key.startswith("period"))
+        x = sum(np.sin(2 * np.pi * t_s / p[f"period{i}_s"] + p[f"phase{i}"]) for i in range(k))
+        return np.asarray(x, dtype=np.float64) / k
+    if case.name == "supply_step":
+        return (t_s >= p["at_fraction"] * t_s[-1]).astype(np.float64)
+    if case.name == "periodic":
+        return np.sin(2 * np.pi * t_s / p["period_s"] + p["phase"])
+    raise ValueError(case.name)
+
+
+def _with_sf(log: ChamberLog, sf_ppm: np.ndarray) -> ChamberLog:
+    out = copy.copy(log)
+    truth = log.table_rate_dps + log.earth(None)
+    out.gyro_dps = log.gyro_dps + truth * sf_ppm * 1e-6
+    return out
+
+
+def base_residual(logs: list[ChamberLog], sigma: list[np.ndarray]) -> np.ndarray:
+    """Residual per window of the base model (profiled, no cross-validation) fitted to logs
+    with the given per-window noise weights."""
+    rs = [runs.load_run(log, WINDOW_S, None) for log in logs]
+    rates = np.unique(np.round(np.concatenate([r.rate for r in rs]), 6))
+    ctxs = []
+    for r, s in zip(rs, sigma, strict=True):
+        r.sigma_ppm = s
+        drv = driver.identify(r.log.time_s, r.log.temp_c, r.log.extra.get("chamber_c"))
+        ctxs.append(design.RunContext(r, drv, drv.power_on, rates.shape[0] > 1))
+    y = np.concatenate([r.y_ppm for r in rs])
+    w = 1.0 / np.concatenate(sigma) ** 2
+    st = profile_ls.build(ctxs, None)
+    fit = profile_ls.solve(st, y, w, np.arange(y.shape[0]))
+    return y - profile_ls.predict(st, fit)
+
+
+def _noiseless(log: ChamberLog, ideal: np.ndarray) -> ChamberLog:
+    q = copy.copy(log)
+    q.gyro_dps = ideal
+    return q
+
+
+def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
+    """Simulate a case: the logs and the truth (what was planted, with its final strength)."""
+    cfg = case.config
+    if case.kind == "ramp_only":
+        res = simulate(cfg)
+        log = _strip(res.log)
+        k = int(case.crop_s / cfg.dt_s)
+        return [log.slice(k, len(log))], {"effect": case.name, **case.params}
+    if case.kind == "null":
+        return [_strip(simulate(cfg).log)], {"effect": None}
+    if case.kind in ("effect", "short_soak"):
+        plain = copy.deepcopy(cfg)
+        plain.effects = []
+        base_res = simulate(plain)
+        log0 = _strip(base_res.log)
+        sigma = runs.load_run(log0, WINDOW_S, None).sigma_ppm
+        floor = float(np.sqrt(np.mean(sigma**2)))
+        r0 = base_residual([_noiseless(log0, base_res.ideal_dps)], [sigma])
+        target = case.multiple * floor
+        final = copy.deepcopy(cfg)
+        e = final.effects[0]
+        key = "sens_ppm_per_c" if case.name == "extra_lag" else None
+
+        def visible(scale: float) -> float:
+            if key:
+                e.params[key] = scale
+            else:
+                e.strength = scale
+            ideal = simulate(final).ideal_dps
+            return float(np.sqrt(np.mean(
+                (base_residual([_noiseless(log0, ideal)], [sigma]) - r0) ** 2)))
+
+        # the base's absorption is not linear in the strength (its time constants are
+        # profiled): a few secant steps from the simulator's example strength
+        scale = EFFECT_INFO[case.name]
+        for _ in range(4):
+            v = visible(scale)
+            if abs(v - target) < 0.05 * target:
+                break
+            scale *= target / max(v, 1e-12)
+        visible(scale)
+        case.multiple_reached = visible(scale) / floor
+        if key:
+            truth = {"tau_s": e.strength, "sens_ppm_per_c": scale, "strength": e.strength}
+        else:
+            truth = {"strength": scale, **e.params}
+        case.params = truth
+        return [_strip(simulate(final).log)], {"effect": case.name, **truth}
+    # out of catalogue
+    res = simulate(cfg)
+    log = _strip(res.log)
+    sigma = runs.load_run(log, WINDOW_S, None).sigma_ppm
+    floor = float(np.sqrt(np.mean(sigma**2)))
+    x = ooc_signal(case, log.time_s)
+    ideal = _noiseless(log, res.ideal_dps)
+    unit = np.sqrt(np.mean((base_residual([_with_sf(ideal, x)], [sigma])
+                            - base_residual([ideal], [sigma])) ** 2))
+    amp = case.multiple * floor / max(float(unit), 1e-12)
+    case.params = {**case.params, "amplitude_ppm": amp}
+    return [_with_sf(log, amp * x)], {"effect": None, "ooc": case.name, "amplitude_ppm": amp}
+
+
+@dataclass
+class Outcome:
+    ok: bool
+    reason: str
+    cause: str | None
+    unexplained: bool
+
+
+def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: bool,
+          candidates: list[dict[str, Any]], ambiguous: list[str] | None = None) -> Outcome:
+    """Did the diagnosis get this case right? (the rules the tests and benchmark apply)"""
+    ambiguous = ambiguous or []
+
+    def out(ok: bool, why: str) -> Outcome:
+        return Outcome(ok, why, cause, unexplained)
+
+    if case.kind == "effect":
+        if cause is None and case.name in ambiguous:
+            return out(False, f"ambiguous between {', '.join(ambiguous)} (planted {case.name}):"
+                              " not wrong, not named")
+        if cause != case.name:
+            return out(False, f"cause {cause!r}, planted {case.name}")
+        c = next(x for x in candidates if x["effect"] == cause)
+        key, tkey, tol = PARAM_CHECK[case.name]
+        est, true = float(c["params"][key]), float(truth[tkey])
+        if abs(est - true) > tol * abs(true):
+            return out(False, f"{key} {est:.4g} vs planted {true:.4g} (tolerance {tol:.0%})")
+        if case.name == "extra_lag":  # a slow node's time constant is often only bounded
+            lo, hi = c["params"]["tau_s_ci95"]
+            if not lo <= truth["tau_s"] <= hi:
+                return out(False, f"tau_s interval [{lo:.4g}, {hi:.4g}] misses the planted "
+                                  f"{truth['tau_s']:.4g}")
+        if c["gain_pct"] < 5.0:
+            return out(False, f"held-out gain only {c['gain_pct']:.1f}%")
+        return out(True, f"{key} {est:.4g} vs {true:.4g}, gain {c['gain_pct']:.1f}%")
+    if case.kind == "null":
+        return out(cause is None, "named nothing" if cause is None else f"false cause {cause}")
+    if case.kind == "ooc":
+        if cause is not None:
+            return out(False, f"named catalogue effect {cause} for out-of-catalogue "
+                              f"{case.name}")
+        return out(unexplained, "unexplained" if unexplained else "structure not flagged")
+    if case.kind == "ramp_only":
+        return out(cause is None, "did not guess" if cause is None else f"guessed {cause}")
+    if case.kind == "short_soak":
+        if cause is None and case.name in ambiguous:
+            return out(True, "ambiguous, as short soaks leave it")
+        return out(cause == case.name, f"cause {cause!r}, planted {case.name}")
+    raise ValueError(case.kind)

@@ -1,0 +1,111 @@
+"""The candidate effects: the simulator's seven (trainer.sim.effects), each as one extra
+column of the base model with, where it has one, a nonlinear parameter profiled on a grid.
+
+Every candidate's linear coefficient is the effect's strength in the simulator's unit, so a
+fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
+
+    warmup             exp(-t/tau_s)                      coef: ppm at power-on; tau_s
+    extra_lag          lag(housing, tau) - housing (C)    coef: sens_ppm_per_c; strength tau
+    temp_rate          d/dt of a coil node (C/min)        coef: ppm/(C/min); coil_tau_s
+    rate_nonlinearity  |rate| / 100 deg/s                 coef: ppm at 100 deg/s
+    asymmetry          sign(rate) / 2                     coef: ppm, SF(+) - SF(-)
+    bias_drift         (T_board - 20) * 1e6/(3600 rate)   coef: deg/h per C
+    aging              t / 3600 s                         coef: ppm/h
+
+The coil node of `temp_rate` lags the housing with a time constant profiled over 600-3000 s
+(a small FOG's coil: 10-50 min); an extra lag is an extra *slow* node, profiled from 4000 s
+up (the base's nodes stay within 600-4000 s) and above 1.4x the base's slower node. Both terms are
+(node - housing) / tau in form, so what tells them apart is how long they keep settling
+after a ramp stops (see verdict._nested_choice); on steady ramps alone neither is
+separable from the base.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from trainer.diagnose import design
+from trainer.diagnose.design import RunContext
+
+BaseTheta = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Candidate:
+    name: str
+    coef_name: str  # the linear coefficient, with its unit in the name
+    grid_name: str | None  # the profiled parameter, with its unit
+    grid: tuple[float | None, ...]
+    column: Callable[[RunContext, BaseTheta, float | None], np.ndarray]
+    meaning: str
+    admissible: Callable[[BaseTheta, float | None], bool] = lambda b, g: True
+
+    def to_effect(self, coef: float, theta: float | None) -> dict:
+        """The simulator's effect entry (trainer.sim.config.EffectConfig as a dict)."""
+        if self.name == "warmup":
+            return {"name": "warmup", "strength": coef, "params": {"tau_s": theta}}
+        if self.name == "extra_lag":
+            return {"name": "extra_lag", "strength": theta,
+                    "params": {"sens_ppm_per_c": coef}}
+        if self.name == "rate_nonlinearity":
+            return {"name": self.name, "strength": coef, "params": {"ref_rate_dps": 100.0}}
+        if self.name == "bias_drift":
+            return {"name": self.name, "strength": coef, "params": {"ref_c": design.T_REF_C}}
+        return {"name": self.name, "strength": coef, "params": {}}
+
+
+def _warmup(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
+    assert tau is not None
+    return design.decay(ctx, tau)
+
+
+def _extra_lag(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
+    assert tau is not None
+    return design.node(ctx, tau) - design.drive(ctx)
+
+
+def _temp_rate(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
+    assert tau is not None
+    return (design.drive(ctx) - design.node(ctx, tau)) / tau * 60.0
+
+
+def _rate_nonlinearity(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+    return np.abs(ctx.run.rate) / 100.0
+
+
+def _asymmetry(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+    return 0.5 * np.sign(ctx.run.rate)
+
+
+def _bias_drift(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+    return design.board(ctx) * design.PPM_PER_DPH / ctx.run.rate
+
+
+def _aging(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+    return ctx.run.t_s / 3600.0
+
+
+WARMUP_GRID_S = tuple(float(x) for x in np.round(np.geomspace(60.0, 3600.0, 13), -1))
+COIL_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 3000.0, 8), -1))
+EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(4000.0, 32000.0, 10), -2))
+
+CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
+    Candidate("warmup", "strength_ppm", "tau_s", WARMUP_GRID_S, _warmup,
+              "SF start-up transient after power-on, unseen by the thermometer"),
+    Candidate("extra_lag", "sens_ppm_per_c", "tau_s", EXTRA_LAG_GRID_S, _extra_lag,
+              "an extra slow thermal node lagging the housing",
+              admissible=lambda b, g: g is not None and g >= design.MIN_TAU_RATIO * b[1]),
+    Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", COIL_TAU_GRID_S,
+              _temp_rate, "SF term in the coil's rate of temperature change"),
+    Candidate("rate_nonlinearity", "strength_ppm_at_100dps", None, (None,),
+              _rate_nonlinearity, "SF that grows with |rate|"),
+    Candidate("asymmetry", "strength_ppm", None, (None,), _asymmetry,
+              "different SF for positive and negative rates"),
+    Candidate("bias_drift", "strength_dph_per_c", None, (None,), _bias_drift,
+              "temperature-dependent bias (leaks into the SF as bias/rate)"),
+    Candidate("aging", "strength_ppm_per_h", None, (None,), _aging,
+              "SF drift with elapsed time"),
+]}

@@ -1,0 +1,98 @@
+"""The housing temperature that drives the internal thermal nodes.
+
+The simulator's (and a real gyro's) internal nodes lag the housing, which lags the chamber
+air; the board thermometer is one more lag behind the housing. With the chamber air logged
+(`chamber_c`), the two lags chamber -> housing -> board are identified by profiling their
+time constants over a grid with linear least squares inside (board = gain * lag2(chamber) +
+offset + self-heating step); the housing is then the chamber air lagged by the faster of
+the two (a chain of two first-order lags is symmetric in its time constants, so which is
+the housing's is a convention: the faster one, as in a gyro whose housing follows the air
+within a few minutes). Without `chamber_c`, the board thermometer itself is the driver.
+
+A power-on start shows as a self-heating rise of the board at constant chamber air; its
+amplitude (above POWER_ON_MIN_C) decides whether the internal nodes' own (unseen)
+self-heating transients belong in the base model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from trainer.sim.thermal import first_order_lag
+
+TAU_GRID_S = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.0, 240.0, 300.0, 360.0, 480.0,
+              600.0, 800.0, 1000.0, 1300.0, 1800.0)
+DECIMATE = 20  # fit on 2 s samples
+POWER_ON_MIN_C = 0.5  # a self-heating rise above this (C) marks a power-on start
+
+
+@dataclass
+class Driver:
+    """The driving (housing) temperature at 10 Hz and how it was found."""
+
+    temp_c: np.ndarray
+    source: str  # "chamber" or "board"
+    tau_housing_s: float
+    tau_board_s: float
+    self_heat_housing_c: float  # rises after power-on (0 for a warm start)
+    self_heat_board_c: float
+    board_offset_c: float  # board minus lagged chamber (g * lag2 + c: the c)
+    power_on: bool
+    rms_c: float  # RMS of the board-thermometer fit
+
+
+def _lag(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
+    return first_order_lag(u, tau, dt, float(u[0]))
+
+
+def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | None,
+             start: str = "auto") -> Driver:
+    """Find the driver of one run. start: "auto", "warm" or "power-on".
+
+    Model of the board thermometer: board = g * lag(lag(chamber, tau_h), tau_b) + c
+    [+ q_h * (lag(lag(step, tau_h), tau_b) - 1) + q_b * (lag(step, tau_b) - 1)], the
+    bracket being the self-heating of housing and board after power-on (a unit step at t=0).
+    The chamber path is symmetric in (tau_h, tau_b), the self-heating path is not, so after
+    a power-on both are identified; after a warm start the faster is taken as the housing's.
+    """
+    if chamber_c is None:
+        return Driver(np.asarray(board_c, dtype=np.float64), "board", 0.0, 0.0, 0.0, 0.0,
+                      0.0, start == "power-on", 0.0)
+    dt10 = float(np.median(np.diff(time_s)))
+    dt = dt10 * DECIMATE
+    c = np.asarray(chamber_c, dtype=np.float64)[::DECIMATE]
+    b = np.asarray(board_c, dtype=np.float64)[::DECIMATE]
+    step = np.ones_like(c)
+    step[0] = 0.0
+    with_steps = start != "warm"
+    lag_c = {t: _lag(c, t, dt) for t in TAU_GRID_S}
+    lag_s = {t: _lag(step, t, dt) for t in TAU_GRID_S}
+    best: tuple[float, float, float, np.ndarray] | None = None
+    for ta in TAU_GRID_S:
+        for tb in TAU_GRID_S:
+            if not with_steps and tb < ta:
+                continue
+            x = _lag(lag_c[ta], tb, dt)
+            cols = [x, np.ones_like(x)]
+            if with_steps:
+                cols += [_lag(lag_s[ta], tb, dt) - 1.0, lag_s[tb] - 1.0]
+            xm = np.column_stack(cols)
+            coef, *_ = np.linalg.lstsq(xm, b, rcond=None)
+            sse = float(np.sum((b - xm @ coef) ** 2))
+            if best is None or sse < best[0]:
+                best = (sse, ta, tb, coef)
+    assert best is not None
+    sse, ta, tb, coef = best
+    q_h, q_b = (float(coef[2]), float(coef[3])) if with_steps else (0.0, 0.0)
+    power_on = start == "power-on" or (start == "auto" and q_h + q_b > POWER_ON_MIN_C)
+    if not power_on:
+        q_h = q_b = 0.0
+        ta, tb = min(ta, tb), max(ta, tb)
+    cham = np.asarray(chamber_c, dtype=np.float64)
+    power = np.ones_like(cham)
+    power[0] = 0.0
+    housing = first_order_lag(cham + q_h * power, ta, dt10, float(cham[0]))
+    return Driver(housing, "chamber", ta, tb, q_h, q_b, float(coef[1]), power_on,
+                  float(np.sqrt(sse / b.shape[0])))

@@ -1,0 +1,476 @@
+"""Fit the base model, score every catalogue effect on held-out data, name the cause.
+
+Decision rules (all on held-out residuals, per block of windows, never per window):
+
+- A candidate is *significant* when it predicts held-out windows better than the base on
+  enough blocks that a paired sign-flip test gives p < ALPHA, and its held-out RMS gain is
+  at least MIN_GAIN_PCT.
+- It is *not identifiable* on these logs when the part of its column that the base model
+  cannot absorb is below MIN_VISIBLE of the column (e.g. asymmetry at one |rate|, aging or
+  a dT/dt term on steady ramps alone): it is then not scored, and says so.
+- Nested candidates (an extra slow lag contains a dT/dt term's signature once the slow
+  node is slow enough): the simpler is preferred unless the larger beats it on held-out
+  blocks (p < AMBIGUOUS_P).
+- The best significant candidate is *ambiguous* with another significant one when, pairwise,
+  it is not better than it on held-out blocks (p >= AMBIGUOUS_P): no cause is named.
+- *Structure remains* when the chosen model's held-out residual (the best candidate's, else
+  the base's) has a (trimmed) variance above STRUCTURE_EXCESS times the noise floor's, or is
+  grossly non-white (Ljung-Box p < STRUCTURE_P; held-out residuals of one block share one
+  fold's fit, so they are mildly correlated by construction and a plain 1e-3 cut would
+  flag correct models of strong effects): `unexplained` is then true, and no cause is named
+  with confidence (a partial fit is reported in the candidate's evidence).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from trainer.diagnose import catalogue, crossval, design, driver, profile_ls, runs, stats
+from trainer.diagnose.catalogue import Candidate
+from trainer.diagnose.design import RunContext
+from trainer.diagnose.profile_ls import Stack
+from trainer.errors import UserError
+from trainer.logio import ChamberLog
+
+ALPHA = 0.01
+MIN_GAIN_PCT = 5.0
+MIN_VISIBLE = 1e-3  # below: the column is (numerically) inside the base model
+AMBIGUOUS_P = 0.05
+STRUCTURE_P = 1e-8
+STRUCTURE_EXCESS = 2.5  # held-out trimmed mean (e/sigma)^2 above which structure remains
+# extra_lag with a very slow node tends to "housing term + slow drift", which contains
+# temp_rate's signature ("housing term", the coil node being in the base already)
+NESTED = {"extra_lag": "temp_rate"}
+NESTED_MIN_GAIN_PCT = 2.0
+MIN_SOAK_FOR_LAG_S = 2700.0  # 45 min of soak, as found (the 5 min after a ramp stops excluded)
+SOAK_RATE_C_PER_MIN = 0.02  # slower than this (driver, 5-min average) is a soak
+RAMP_MIN_C = 5.0  # a soak counts when the driver moved at least this much before it
+Z95 = 1.959964
+TRIM = 0.95
+
+
+@dataclass
+class ModelFit:
+    """One model (base, or base + a candidate) fitted on all windows."""
+
+    stack: Stack
+    fit: profile_ls.Fit
+    pred: np.ndarray  # in-sample prediction per window
+    heldout: np.ndarray  # held-out residual per window
+    chi2_red: float  # in-sample weighted SSE / dof
+
+    @property
+    def combo(self) -> profile_ls.Combo:
+        return self.stack.combos[self.fit.index]
+
+    def coef(self, name: str) -> float:
+        return float(self.fit.beta[self.stack.names.index(name)])
+
+    def coef_se(self, name: str) -> float:
+        i = self.stack.names.index(name)
+        return float(math.sqrt(max(self.fit.cov[i, i], 0.0) * max(1.0, self.chi2_red)))
+
+
+@dataclass
+class CandidateResult:
+    name: str
+    identifiable: bool
+    visible: float  # fraction of the candidate's column the base cannot absorb
+    params: dict[str, object] = field(default_factory=dict)
+    heldout_before: float = float("nan")
+    heldout_after: float = float("nan")
+    gain_pct: float = 0.0
+    p_value: float = 1.0
+    blocks_better: int = 0
+    blocks: int = 0
+    significant: bool = False
+    evidence: str = ""
+    model: ModelFit | None = None
+    effect: dict | None = None  # simulator effect entry
+
+
+@dataclass
+class Diagnosis:
+    runs: list[runs.Run]
+    ctxs: list[RunContext]
+    y: np.ndarray
+    sigma: np.ndarray
+    run_ids: np.ndarray
+    blocks: np.ndarray
+    folds: np.ndarray
+    base: ModelFit
+    base_rms: float
+    base_whiteness_p: float
+    correlations: dict[str, dict[str, float]]
+    candidates: list[CandidateResult]
+    cause: str | None
+    ambiguous: list[str]
+    unexplained: bool
+    structure: dict[str, float]
+    extended: ModelFit  # base + cause (the base when there is no cause)
+    cv_mode: str
+    window_s: float
+
+    @property
+    def noise_floor_ppm(self) -> float:
+        return float(np.sqrt(np.mean(self.sigma**2)))
+
+
+def _weighted_rms(e: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(e * e)))
+
+
+def fit_model(ctxs: list[RunContext], cand: Candidate | None, y: np.ndarray, w: np.ndarray,
+              folds: np.ndarray, combos: list[profile_ls.Combo] | None = None) -> ModelFit:
+    stack = profile_ls.build(ctxs, cand, combos)
+    rows = np.arange(y.shape[0])
+    fit = profile_ls.solve(stack, y, w, rows)
+    pred = profile_ls.predict(stack, fit)
+    dof = max(1, y.shape[0] - stack.x.shape[2])
+    chi2 = float(np.sum((y - pred) ** 2 * w)) / dof
+    held = crossval.heldout_residuals(stack, y, w, folds)
+    return ModelFit(stack, fit, pred, held, chi2)
+
+
+def visible_fraction(model: ModelFit, w: np.ndarray) -> float:
+    """Share (RMS) of the candidate column not reproducible by the base columns."""
+    x = model.stack.x[model.fit.index]
+    col = x[:, -1]
+    base = x[:, :-1]
+    sw = np.sqrt(w)
+    c = col * sw
+    if not np.any(col != col[0]):
+        return 0.0
+    coef, *_ = np.linalg.lstsq(base * sw[:, None], c, rcond=None)
+    r = c - (base * sw[:, None]) @ coef
+    cm = c - sw * np.sum(col * w) / np.sum(w)
+    return float(np.linalg.norm(r) / max(np.linalg.norm(cm), 1e-300))
+
+
+def _profile_interval(model: ModelFit, y: np.ndarray, w: np.ndarray) -> tuple[float, float]:
+    """Interval of the candidate's grid parameter where the profiled weighted SSE stays
+    within chi2(1, 95%) = 3.84 (scaled by the reduced chi-square) of its minimum."""
+    st = model.stack
+    sse = model.fit.sse
+    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
+    vals = np.unique(gs)
+    prof = np.array([sse[gs == v].min() for v in vals])
+    ok = prof <= prof.min() + 3.84 * max(1.0, model.chi2_red)
+    lo_i, hi_i = int(np.flatnonzero(ok)[0]), int(np.flatnonzero(ok)[-1])
+    # one grid step beyond the last accepted value bounds the interval (grid resolution)
+    lo = vals[lo_i - 1] if lo_i > 0 else vals[0]
+    hi = vals[hi_i + 1] if hi_i + 1 < vals.shape[0] else vals[-1]
+    return float(lo), float(hi)
+
+
+def _refine(ctxs: list[RunContext], cand: Candidate, model: ModelFit, y: np.ndarray,
+            w: np.ndarray, folds: np.ndarray) -> ModelFit:
+    """Refit on a finer grid of the candidate's parameter around the best grid value, with
+    the base time constants held at their best."""
+    bt, g = model.combo
+    assert g is not None
+    grid = np.asarray(cand.grid)
+    i = int(np.argmin(np.abs(grid - g)))
+    lo = grid[max(i - 1, 0)]
+    hi = grid[min(i + 1, grid.shape[0] - 1)]
+    fine = np.unique(np.round(np.geomspace(lo, hi, 9), 1))
+    combos = [(bt, float(v)) for v in fine if cand.admissible(bt, float(v))]
+    if not combos:
+        return model
+    return fit_model(ctxs, cand, y, w, folds, combos)
+
+
+def _block_sums(v: np.ndarray, blocks: np.ndarray) -> np.ndarray:
+    return np.bincount(blocks, weights=v)
+
+
+def _coef_range_over_profile(model: ModelFit, name: str, y: np.ndarray, w: np.ndarray,
+                             interval: tuple[float, float]) -> tuple[float, float]:
+    """The linear coefficient's 95 % range over every grid value of the nonlinear parameter
+    inside its profile interval (each at its best base time constants): the coefficient's
+    interval then carries the time constant's uncertainty too."""
+    st = model.stack
+    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
+    lo, hi = np.inf, -np.inf
+    rows = np.arange(y.shape[0])
+    for v in np.unique(gs[(gs >= interval[0]) & (gs <= interval[1])]):
+        sub = profile_ls.Stack([c for c, k in zip(st.combos, gs == v, strict=True) if k],
+                               st.x[gs == v], st.names, st.candidate)
+        fit = profile_ls.solve(sub, y, w, rows)
+        i = st.names.index(name)
+        se = math.sqrt(max(fit.cov[i, i], 0.0) * max(1.0, model.chi2_red))
+        lo = min(lo, float(fit.beta[i]) - Z95 * se)
+        hi = max(hi, float(fit.beta[i]) + Z95 * se)
+    return lo, hi
+
+
+def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
+            interval: tuple[float, float] | None, y: np.ndarray, w: np.ndarray
+            ) -> dict[str, object]:
+    m = fine or model
+    coef = m.coef(cand.coef_name)
+    se = m.coef_se(cand.coef_name)
+    ci = [coef - Z95 * se, coef + Z95 * se]
+    g = m.combo[1]
+    if cand.grid_name is not None and g is not None and interval is not None:
+        lo, hi = _coef_range_over_profile(model, cand.coef_name, y, w, interval)
+        ci = [min(ci[0], lo), max(ci[1], hi)]
+    out: dict[str, object] = {cand.coef_name: coef, f"{cand.coef_name}_ci95": ci}
+    if cand.grid_name is not None and g is not None and interval is not None:
+        out[cand.grid_name] = float(g)
+        out[f"{cand.grid_name}_ci95"] = [min(interval[0], g), max(interval[1], g)]
+    return out
+
+
+def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str, float]]:
+    """Correlation of a residual with the quantities an effect would follow: Pearson r (zero
+    by construction for the base's own regressors) and the correlation ratio eta^2 over
+    quantile bins (any smooth dependence), each with a p-value on the effective size."""
+    feats: dict[str, list[np.ndarray]] = {k: [] for k in (
+        "temperature_c", "dtemp_dt_c_per_min", "time_since_power_on_s", "elapsed_s",
+        "table_rate_dps", "abs_rate_dps", "sign_rate")}
+    for ctx in d_ctxs:
+        r = ctx.run
+        feats["temperature_c"].append(design.board(ctx) + design.T_REF_C)
+        feats["dtemp_dt_c_per_min"].append(design.board_rate_c_per_min(ctx))
+        feats["time_since_power_on_s"].append(r.t_s)
+        feats["elapsed_s"].append(r.t_s - float(r.log.time_s[0]))
+        feats["table_rate_dps"].append(r.rate)
+        feats["abs_rate_dps"].append(np.abs(r.rate))
+        feats["sign_rate"].append(np.sign(r.rate))
+    arrays = {k: np.concatenate(v) for k, v in feats.items()}
+    if np.unique(arrays["sign_rate"]).shape[0] > 1:  # what a bias following T looks like
+        arrays["temperature_x_sign_rate"] = arrays["temperature_c"] * arrays["sign_rate"]
+    out = {}
+    for k, x in arrays.items():
+        rr, p = stats.correlation(e, x)
+        eta2, p_eta = stats.correlation_ratio(e, x)
+        out[k] = {"r": rr, "p": p, "eta2": eta2, "eta_p": p_eta}
+    return out
+
+
+def _structure(d_e: np.ndarray, sigma: np.ndarray, segs: list[np.ndarray]) -> dict[str, float]:
+    """Whiteness and excess variance of a held-out residual; the variance is a 95 %-trimmed
+    mean of (e/sigma)^2 over its expectation for pure noise, so one badly extrapolated
+    block is not taken for structure."""
+    z2 = np.sort((d_e / sigma) ** 2)
+    keep = z2[: max(1, int(np.ceil(TRIM * z2.shape[0])))]
+    return {"whiteness_p": stats.ljung_box_p(segs),
+            "excess_variance": float(np.mean(keep)) / stats.trimmed_chi2_1_mean(TRIM)}
+
+
+def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float | None = None,
+             cv: str = "blocks", start: str = "auto", effects: list[str] | None = None,
+             progress: bool = False) -> Diagnosis:
+    if not logs:
+        raise UserError("give at least one chamber log")
+    rs = [runs.load_run(log, window_s, latitude_deg) for log in logs]
+    rates = np.unique(np.round(np.concatenate([r.rate for r in rs]), 6))
+    bias_on = rates.shape[0] > 1
+    ctxs = []
+    for r in rs:
+        drv = driver.identify(r.log.time_s, r.log.temp_c, r.log.extra.get("chamber_c"), start)
+        ctxs.append(RunContext(r, drv, drv.power_on, bias_on))
+    y = np.concatenate([r.y_ppm for r in rs])
+    sigma = np.concatenate([r.sigma_ppm for r in rs])
+    w = 1.0 / sigma**2
+    run_ids = np.concatenate([np.full(len(r), i) for i, r in enumerate(rs)])
+    blocks = crossval.block_ids([len(r) for r in rs])
+    folds = crossval.fold_ids(blocks, run_ids, cv)
+
+    base = fit_model(ctxs, None, y, w, folds)
+    e_in = y - base.pred
+    segs_in = [e_in[run_ids == i] for i in range(len(rs))]
+    base_rms = _weighted_rms(e_in)
+    before = _weighted_rms(base.heldout)
+    names = list(catalogue.CATALOGUE) if effects is None else effects
+    unknown = [n for n in names if n not in catalogue.CATALOGUE]
+    if unknown:
+        raise UserError(f"unknown effect(s) {', '.join(unknown)}; known: "
+                        f"{', '.join(catalogue.CATALOGUE)}")
+    results: list[CandidateResult] = []
+    it = names
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(names, desc="candidates", unit="effect", leave=False)
+    for name in it:
+        results.append(_score(catalogue.CATALOGUE[name], ctxs, y, w, folds, blocks, base,
+                              before))
+
+    sig = sorted([c for c in results if c.significant], key=lambda c: c.heldout_after)
+    soak_s = max(_longest_soak_after_ramp(c) for c in ctxs)
+    sig, ambiguous = _nested_choice(sig, w, blocks, soak_s)
+    cause: str | None = None
+    chosen = base
+    if ambiguous:
+        chosen = sig[0].model or base
+    elif sig:
+        best = sig[0]
+        assert best.model is not None
+        chosen = best.model
+        for other in sig[1:]:
+            assert other.model is not None
+            d = _block_sums((other.model.heldout**2 - best.model.heldout**2) * w, blocks)
+            p = stats.sign_flip_p(d)
+            if p >= AMBIGUOUS_P:
+                ambiguous.append(other.name)
+                other.evidence += (f"; not separable from {best.name} on held-out blocks "
+                                   f"(p={p:.2g})")
+        if ambiguous:
+            ambiguous.insert(0, best.name)
+            best.evidence += ("; ambiguous with " + ", ".join(ambiguous[1:]) +
+                              ": these logs cannot tell them apart (add a soak or step after "
+                              "a ramp, or several table rates)")
+        else:
+            cause = best.name
+    structure = _structure(chosen.heldout, sigma,
+                           [chosen.heldout[run_ids == i] / sigma[run_ids == i]
+                            for i in range(len(rs))])
+    unexplained = (structure["whiteness_p"] < STRUCTURE_P
+                   or structure["excess_variance"] > STRUCTURE_EXCESS)
+    if unexplained and cause is not None:
+        best = sig[0]
+        best.evidence += ("; but structure remains after it (held-out residual "
+                          f"whiteness p={structure['whiteness_p']:.2g}, variance "
+                          f"{structure['excess_variance']:.2f}x the noise): not named with "
+                          "confidence")
+        cause = None
+    extended = chosen if cause is not None else base
+    return Diagnosis(
+        runs=rs, ctxs=ctxs, y=y, sigma=sigma, run_ids=run_ids, blocks=blocks, folds=folds,
+        base=base, base_rms=base_rms, base_whiteness_p=stats.ljung_box_p(segs_in),
+        correlations=correlations(ctxs, e_in), candidates=results, cause=cause,
+        ambiguous=ambiguous, unexplained=unexplained, structure=structure, extended=extended,
+        cv_mode=cv, window_s=window_s)
+
+
+def _longest_soak_after_ramp(ctx: RunContext) -> float:
+    """Longest stretch (s) over which the driving temperature holds still, after it has
+    moved by RAMP_MIN_C or more since the run's start or the previous soak."""
+    t = ctx.run.log.time_s
+    d = ctx.driver.temp_c
+    k = max(1, int(round(300.0 / float(np.median(np.diff(t))))))
+    dm = d[: d.shape[0] // k * k].reshape(-1, k).mean(axis=1)  # 5-min means
+    tm = t[: d.shape[0] // k * k].reshape(-1, k).mean(axis=1)
+    still = np.abs(np.gradient(dm, tm)) * 60.0 < SOAK_RATE_C_PER_MIN if dm.shape[0] > 1 \
+        else np.zeros(dm.shape, bool)
+    best = 0.0
+    ref = float(dm[0])
+    i = 0
+    while i < still.shape[0]:
+        if not still[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < still.shape[0] and still[j + 1]:
+            j += 1
+        if abs(float(dm[i]) - ref) >= RAMP_MIN_C:
+            best = max(best, float(tm[j] - tm[i]) + 300.0)
+        ref = float(dm[j])
+        i = j + 1
+    return best
+
+
+def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray,
+                   soak_s: float) -> tuple[list[CandidateResult], list[str]]:
+    """Between a candidate and the simpler one it contains (NESTED), both significant and
+    one of them the best:
+
+    - the larger wins when it beats the simpler on held-out blocks (p < AMBIGUOUS_P) by at
+      least NESTED_MIN_GAIN_PCT of held-out RMS;
+    - else, when it is no better at all (held-out RMS not below the simpler's) and the logs
+      hold a soak after a ramp of at least MIN_SOAK_FOR_LAG_S (`soak_s`, the longest), the
+      simpler wins: an extra slow node would have shown as it kept settling there (the
+      claim: no extra node up to about that time constant; a much slower one is, over these
+      logs, a constant plus a drift);
+    - else the two are ambiguous: what the logs show of either is the housing running ahead
+      of the board thermometer, and they do not resolve an extra slow node.
+    Returns the significant candidates without the loser, and the ambiguous names, if any."""
+    names = {c.name: c for c in sig}
+    for big, small in NESTED.items():
+        if big not in names or small not in names or sig[0].name not in (big, small):
+            continue  # the pair matters only when it holds the best candidate
+        b, s = names[big], names[small]
+        assert b.model is not None and s.model is not None
+        d = _block_sums((s.model.heldout**2 - b.model.heldout**2) * w, blocks)
+        p = stats.sign_flip_p(d)
+        gain = 100.0 * (1.0 - b.heldout_after / s.heldout_after)
+        if p < AMBIGUOUS_P and gain >= NESTED_MIN_GAIN_PCT:
+            b.evidence += (f"; beats the simpler {small} on held-out blocks (p={p:.2g}, "
+                           f"{gain:.1f}% lower RMS): the logs need the extra slow node")
+            winner, loser = b, s
+        elif soak_s >= MIN_SOAK_FOR_LAG_S and gain <= 0.0:
+            s.evidence += (f"; the logs hold a {soak_s / 60:.0f} min soak after a ramp and "
+                           f"{big} is no better on held-out blocks (p={p:.2g}): no extra slow "
+                           f"node settles there")
+            b.evidence += (f"; no better than the simpler {small} (p={p:.2g}) although a "
+                           f"{soak_s / 60:.0f} min soak after a ramp would show its settling")
+            winner, loser = s, b
+        else:
+            why = (f"the logs' longest soak after a ramp ({soak_s / 60:.0f} min) is too short "
+                   "to watch it settle" if soak_s < MIN_SOAK_FOR_LAG_S else
+                   f"it fits the held-out data {gain:.1f}% better, too little to tell")
+            note = (f"{big} vs {small}: the extra slow node ({b.params.get('tau_s', 0):.0f} s) "
+                    f"is not separable on held-out blocks (p={p:.2g}): {why}")
+            b.evidence += "; " + note
+            s.evidence += "; " + note
+            return sig, [s.name, b.name]
+        sig = sorted([c for c in sig if c is not loser], key=lambda c: c.heldout_after)
+        assert winner in sig
+    return sig, []
+
+
+def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray,
+           folds: np.ndarray, blocks: np.ndarray, base: ModelFit, before: float
+           ) -> CandidateResult:
+    model = fit_model(ctxs, cand, y, w, folds)
+    vis = visible_fraction(model, w)
+    res = CandidateResult(cand.name, vis >= MIN_VISIBLE, vis, heldout_before=before)
+    if not res.identifiable:
+        res.heldout_after = before
+        res.evidence = (f"not identifiable from these logs: {100 * (1 - vis):.1f}% of its "
+                        "signature is absorbed by the base model (" + _why_hidden(cand.name)
+                        + ")")
+        return res
+    fine = None
+    interval = None
+    if cand.grid_name is not None:
+        interval = _profile_interval(model, y, w)
+        fine = _refine(ctxs, cand, model, y, w, folds)
+    after = _weighted_rms(model.heldout)
+    d = _block_sums((base.heldout**2 - model.heldout**2) * w, blocks)
+    res.heldout_after = after
+    res.gain_pct = 100.0 * (1.0 - after / before) if before > 0 else 0.0
+    res.p_value = stats.sign_flip_p(d)
+    res.blocks = int(d.shape[0])
+    res.blocks_better = int(np.sum(d > 0))
+    res.significant = res.p_value < ALPHA and res.gain_pct >= MIN_GAIN_PCT
+    res.model = fine or model
+    res.params = _params(cand, model, fine, interval, y, w)
+    g = res.model.combo[1]
+    res.effect = cand.to_effect(res.model.coef(cand.coef_name), g)
+    verdict = "significant" if res.significant else "not significant"
+    res.evidence = (f"{verdict}: held-out RMS {before:.2f} -> {after:.2f} ppm "
+                    f"(gain {res.gain_pct:.1f}%), better on {res.blocks_better} of {res.blocks} "
+                    f"blocks (sign-flip p={res.p_value:.2g}); {100 * vis:.0f}% of its "
+                    "signature is beyond the base model")
+    return res
+
+
+def _why_hidden(name: str) -> str:
+    return {
+        "rate_nonlinearity": "one |table rate| only: an SF that depends on |rate| is then a "
+                             "constant",
+        "asymmetry": "one |table rate|: +/- asymmetry cannot be told from a constant bias, "
+                     "which also flips with the rate's sign",
+        "bias_drift": "one table rate: a bias following temperature is then an SF term in "
+                      "temperature",
+        "aging": "time and temperature move together, or a slow thermal node stands in for a "
+                 "drift over a run this short",
+        "temp_rate": "steady ramps only: a dT/dt term is then a constant offset per ramp rate",
+        "extra_lag": "steady ramps only: a lag is then a constant offset per ramp rate",
+        "warmup": "no power-on transient in the logs",
+    }.get(name, "collinear with the base on these logs")
