@@ -133,6 +133,13 @@ def test_gsa_fitness_is_the_same_in_worker_processes(logs) -> None:
     assert all(np.isfinite(inline))
 
 
+def test_static_models_are_refused_by_export_with_a_reason(logs, tmp_path: Path) -> None:
+    train, _ = logs
+    run_training(TrainOptions(model="poly", progress=False), [train], None, tmp_path / "p")
+    with pytest.raises(UserError, match="'poly' model has no firmware form"):
+        StreamModel.load(tmp_path / "p")
+
+
 def test_bad_options_refused(logs) -> None:
     train, _ = logs
     from trainer.train import fit_model

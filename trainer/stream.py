@@ -318,6 +318,10 @@ class StreamModel:
             raise UserError(f"{d}: no such model directory (train one with `fogsf train ... "
                             f"--out {d}`)")
         cfg_path, w_path = d / CONFIG_FILE, d / WEIGHTS_FILE
+        kind = _trained_kind(d)
+        if not cfg_path.is_file() and kind is not None:
+            raise UserError(f"{d}: a '{kind}' model has no firmware form; export and replay "
+                            "take the LSTM models (lstm, lag-lstm, gsa-lstm)")
         for p in (cfg_path, w_path):
             if not p.is_file():
                 raise UserError(f"{p}: missing; a model directory holds {CONFIG_FILE} and "
@@ -358,6 +362,15 @@ class StreamModel:
         )
         model.validate(where=str(d))
         return model
+
+
+def _trained_kind(directory: Path) -> str | None:
+    """The model kind `fogsf train` recorded in the directory's metrics.json, if any."""
+    try:
+        kind = json.loads((directory / "metrics.json").read_text()).get("model")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return kind if isinstance(kind, str) else None
 
 
 # --- the front end -------------------------------------------------------------------------
