@@ -14,7 +14,9 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
 
 The coil node of `temp_rate` lags the housing with a time constant profiled over 600-3000 s
 (a small FOG's coil: 10-50 min); an extra lag is an extra *slow* node, profiled from 4000 s
-up (the base's nodes stay within 600-4000 s) and above 1.4x the base's slower node. Both terms are
+up (the base's nodes stay within 600-3000 s, the range of a small FOG's own nodes, so an
+extra node of 4000-6000 s is not half absorbed by a base node at the grid's end) and above
+1.4x the base's slower node. Both terms are
 (node - housing) / tau in form, so what tells them apart is how long they keep settling
 after a ramp stops (see verdict._nested_choice); on steady ramps alone neither is
 separable from the base.
