@@ -24,8 +24,7 @@ from trainer.diagnose.runs import Run
 from trainer.sim.thermal import first_order_lag
 
 T_REF_C = 20.0
-# a small FOG's own nodes (coil, source: 10-50 min); slower ones are the extra_lag candidate's
-BASE_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 3000.0, 6), -1))
+BASE_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 4000.0, 7), -1))
 MIN_TAU_RATIO = 1.4  # tau2 >= MIN_TAU_RATIO * tau1
 PPM_PER_DPH = 1e6 / 3600.0  # bias of 1 deg/h at 1 deg/s, in ppm of the rate
 
