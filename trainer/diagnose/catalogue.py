@@ -13,8 +13,11 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
     aging              t / 3600 s                         coef: ppm/h
 
 The coil node of `temp_rate` lags the housing with a time constant profiled over 600-3000 s
-(a small FOG's coil: 10-50 min); an extra lag is an extra *slow* node, profiled from 4000 s
-up (the base's nodes stay within 600-4000 s) and above 1.4x the base's slower node. Both terms are
+(a small FOG's coil: 10-50 min); in that model the base's nodes are held to the same range
+(the FOG's own nodes). With the base's slower node free up to 4000 s, base + coil node
+would be three nodes up to 4000 s plus the housing term, i.e. an extra lag of 4000-6000 s
+by another name. An extra lag is an extra *slow* node, profiled from 4000 s up (the base's
+nodes stay within 600-4000 s) and above 1.4x the base's slower node. Both terms are
 (node - housing) / tau in form, so what tells them apart is how long they keep settling
 after a ramp stops (see verdict._nested_choice); on steady ramps alone neither is
 separable from the base.
@@ -99,7 +102,8 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
               "an extra slow thermal node lagging the housing",
               admissible=lambda b, g: g is not None and g >= design.MIN_TAU_RATIO * b[1]),
     Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", COIL_TAU_GRID_S,
-              _temp_rate, "SF term in the coil's rate of temperature change"),
+              _temp_rate, "SF term in the coil's rate of temperature change",
+              admissible=lambda b, g: b[1] <= COIL_TAU_GRID_S[-1]),
     Candidate("rate_nonlinearity", "strength_ppm_at_100dps", None, (None,),
               _rate_nonlinearity, "SF that grows with |rate|"),
     Candidate("asymmetry", "strength_ppm", None, (None,), _asymmetry,

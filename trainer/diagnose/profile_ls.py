@@ -75,7 +75,8 @@ def solve(stack: Stack, y: np.ndarray, w: np.ndarray, rows: np.ndarray) -> Fit:
     sw = np.sqrt(w[rows])
     xw = x * sw[None, :, None]
     yw = y[rows] * sw
-    scale = np.sqrt(np.mean(xw * xw, axis=1)) + 1e-300  # (G, p)
+    scale = np.sqrt(np.mean(xw * xw, axis=1))  # (G, p)
+    scale = np.where(scale > 0, scale, 1.0)  # an all-zero column (e.g. warmup, no power-on)
     xs = xw / scale[:, None, :]
     a = np.einsum("gnp,gnq->gpq", xs, xs)
     p = a.shape[-1]

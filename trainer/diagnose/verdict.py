@@ -150,34 +150,60 @@ def visible_fraction(model: ModelFit, w: np.ndarray) -> float:
     return float(np.linalg.norm(r) / max(np.linalg.norm(cm), 1e-300))
 
 
-def _profile_interval(model: ModelFit, y: np.ndarray, w: np.ndarray) -> tuple[float, float]:
+def _profile(model: ModelFit) -> dict[float, float]:
+    """Profiled weighted SSE per value of the candidate's grid parameter (each at its best
+    base time constants)."""
+    gs = np.array([c[1] for c in model.stack.combos], dtype=np.float64)
+    return {float(v): float(model.fit.sse[gs == v].min()) for v in np.unique(gs)}
+
+
+def _profile_interval(coarse: ModelFit, fine: ModelFit) -> tuple[float, float]:
     """Interval of the candidate's grid parameter where the profiled weighted SSE stays
-    within chi2(1, 95%) = 3.84 (scaled by the reduced chi-square) of its minimum."""
-    st = model.stack
-    sse = model.fit.sse
-    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
-    vals = np.unique(gs)
-    prof = np.array([sse[gs == v].min() for v in vals])
-    ok = prof <= prof.min() + 3.84 * max(1.0, model.chi2_red)
-    lo_i, hi_i = int(np.flatnonzero(ok)[0]), int(np.flatnonzero(ok)[-1])
-    # one grid step beyond the last accepted value bounds the interval (grid resolution)
-    lo = vals[lo_i - 1] if lo_i > 0 else vals[0]
-    hi = vals[hi_i + 1] if hi_i + 1 < vals.shape[0] else vals[-1]
-    return float(lo), float(hi)
+    within chi2(1, 95%) = 3.84 (scaled by the reduced chi-square) of its minimum. Values
+    of the coarse grid and of its refinements are accepted alike; the bounds are the coarse
+    grid values next beyond the accepted ones (grid resolution: the refinements hold the
+    base time constants fixed, so their SSE only bounds the profile from above and cannot
+    reject a value)."""
+    prof = _profile(coarse)
+    for v, e in _profile(fine).items():
+        prof[v] = min(e, prof.get(v, np.inf))
+    best = min(prof.values())
+    chi2_red = min(coarse.chi2_red, fine.chi2_red)
+    acc = [v for v, e in prof.items() if e <= best + 3.84 * max(1.0, chi2_red)]
+    grid = np.array(sorted(_profile(coarse)))
+    below = grid[grid < min(acc)]
+    above = grid[grid > max(acc)]
+    lo = float(below[-1]) if below.shape[0] else float(min(grid[0], min(acc)))
+    hi = float(above[0]) if above.shape[0] else float(max(grid[-1], max(acc)))
+    return lo, hi
 
 
 def _refine(ctxs: list[RunContext], cand: Candidate, model: ModelFit, y: np.ndarray,
             w: np.ndarray, folds: np.ndarray) -> ModelFit:
-    """Refit on a finer grid of the candidate's parameter around the best grid value, with
-    the base time constants held at their best."""
-    bt, g = model.combo
-    assert g is not None
-    grid = np.asarray(cand.grid)
-    i = int(np.argmin(np.abs(grid - g)))
-    lo = grid[max(i - 1, 0)]
-    hi = grid[min(i + 1, grid.shape[0] - 1)]
-    fine = np.unique(np.round(np.geomspace(lo, hi, 9), 1))
-    combos = [(bt, float(v)) for v in fine if cand.admissible(bt, float(v))]
+    """Refit on a finer grid of the candidate's parameter around every local minimum of
+    the coarse profile, each with the base time constants held at that minimum's best.
+    The profile can have more than one minimum (e.g. an extra slow node that settles in
+    the logs, and a much slower one that the base's nodes turn into a drift); refining only
+    the coarse best could miss a deeper minimum between two coarse grid values, and the
+    interval would then leave it out."""
+    st = model.stack
+    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
+    prof = _profile(model)
+    vals = np.array(sorted(prof))
+    sse = np.array([prof[v] for v in vals])
+    grid = np.asarray(cand.grid, dtype=np.float64)
+    combos: list[profile_ls.Combo] = []
+    for i, v in enumerate(vals):
+        if (i > 0 and sse[i - 1] < sse[i]) or (i + 1 < vals.shape[0] and sse[i + 1] < sse[i]):
+            continue  # not a local minimum
+        k = np.flatnonzero(gs == v)
+        bt = st.combos[int(k[np.argmin(model.fit.sse[k])])][0]
+        j = int(np.argmin(np.abs(grid - v)))
+        lo = grid[max(j - 1, 0)]
+        hi = grid[min(j + 1, grid.shape[0] - 1)]
+        fine = np.unique(np.round(np.geomspace(lo, hi, 9), 1))
+        combos += [(bt, float(f)) for f in fine if cand.admissible(bt, float(f))]
+    combos = list(dict.fromkeys(combos))
     if not combos:
         return model
     return fit_model(ctxs, cand, y, w, folds, combos)
@@ -438,8 +464,8 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
     fine = None
     interval = None
     if cand.grid_name is not None:
-        interval = _profile_interval(model, y, w)
         fine = _refine(ctxs, cand, model, y, w, folds)
+        interval = _profile_interval(model, fine)
     after = _weighted_rms(model.heldout)
     d = _block_sums((base.heldout**2 - model.heldout**2) * w, blocks)
     res.heldout_after = after
