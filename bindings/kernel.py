@@ -162,9 +162,7 @@ class Kernel:
         """The whole-log function fogsf_run from reset (or from `st`): corrected, sf, flags."""
         t, g = self._inputs(temp_c, gyro_dps)
         n = t.shape[0]
-        corrected = np.empty(n, np.float64)
-        sf = np.empty(n, np.float32)
-        flags = np.empty(n, np.uint32)
+        corrected, sf, flags = _outputs(n)
         st = st if st is not None else self.new_state()
         fb = self.ffi.from_buffer
         self.lib.fogsf_run(st, fb("float[]", t), fb("double[]", g), n,
@@ -176,9 +174,7 @@ class Kernel:
         """One fogsf_step call per sample from Python (what firmware does), from reset."""
         t, g = self._inputs(temp_c, gyro_dps)
         n = t.shape[0]
-        corrected = np.empty(n, np.float64)
-        sf = np.empty(n, np.float32)
-        flags = np.empty(n, np.uint32)
+        corrected, sf, flags = _outputs(n)
         st = self.new_state()
         out = self.ffi.new("fogsf_output *")
         step = self.lib.fogsf_step
@@ -233,3 +229,8 @@ def trace_steps(kernel: Kernel, temp_c: np.ndarray, gyro_dps: np.ndarray
             z[m], h[m], sf[m] = zbuf, hbuf, out.sf_ppm
             m += 1
     return z, h, sf
+
+
+def _outputs(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-sample output arrays: corrected rate (double), sf_ppm (float), flags (uint32)."""
+    return np.empty(n, np.float64), np.empty(n, np.float32), np.empty(n, np.uint32)

@@ -82,6 +82,17 @@ def _two_node_design(s: np.ndarray, k1: int, w1: float, k2: int, w2: float) -> n
     return np.column_stack([np.ones_like(a), a, b, a * a, a * b, b * b])
 
 
+def _grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...],
+               val_chunk: tuple[float, float], latitude_deg: float | None
+               ) -> tuple[list[SeqData], np.ndarray]:
+    """Every log through a front end with one lag filter per grid time constant, and the
+    training targets stacked."""
+    full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
+                    filter_alpha(list(grid), fe.decimation))
+    data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
+    return data, np.concatenate([d.target_ppm[d.train_mask] for d in data])
+
+
 def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
                            latitude_deg: float | None = None,
                            grid: tuple[float, ...] = TAU_GRID_S,
@@ -95,10 +106,7 @@ def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, flo
     temperature is T minus a constant, so freer models (several lags, their squares and
     products) fit the training run as well and extrapolate wildly to another rate.
     """
-    full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
-                    filter_alpha(list(grid), fe.decimation))
-    data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
-    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    data, y = _grid_data(logs, fe, grid, val_chunk, latitude_deg)
     best, best_score = (grid[0], 0.0), math.inf
     for k, tau in enumerate(grid, start=1):
         for w in sorted({node_weight(lead, tau) for lead in leads}):
@@ -118,10 +126,7 @@ def profile_two_nodes(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
     """Two effective nodes [(tau_1, w_1), (tau_2, w_2)] (tau_1 < tau_2) with a quadratic form
     of them, profiled like `profile_effective_node`. Identifiable only from logs at two or
     more ramp rates: on one constant ramp the two nodes are collinear."""
-    full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
-                    filter_alpha(list(grid), fe.decimation))
-    data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
-    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    data, y = _grid_data(logs, fe, grid, val_chunk, latitude_deg)
     best: list[tuple[float, float]] = [(grid[0], 0.0), (grid[-1], 0.0)]
     best_score = math.inf
     for k1, k2 in itertools.combinations(range(1, len(grid) + 1), 2):

@@ -32,6 +32,7 @@ import numpy as np
 from trainer.errors import UserError
 from trainer.features import (
     FeatureSpec,
+    Normaliser,
     SeqData,
     effective_node_features,
     fit_normaliser,
@@ -165,14 +166,34 @@ def _identify_two_nodes(opts: TrainOptions, logs: list[ChamberLog]
     return nodes
 
 
+@dataclass
+class TrainingInputs:
+    """The logs at the model rate, their normalised features and the output scaling."""
+
+    fe: FrontEnd
+    data: list[SeqData]
+    norm: Normaliser
+    z: list[np.ndarray]
+    offset: float
+    scale: float
+
+
+def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
+                    targets: list[np.ndarray] | None = None) -> TrainingInputs:
+    fe = front_end_for(logs, opts.decimation, spec.taus_s)
+    ts = targets if targets is not None else [None] * len(logs)
+    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
+            for lg, t in zip(logs, ts, strict=True)]
+    norm = fit_normaliser(spec, data)
+    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    return TrainingInputs(fe, data, norm, [norm.apply(d.s) for d in data],
+                          float(y.mean()), float(y.std() or 1.0))
+
+
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
                    lstm_cfg: LSTMConfig | None) -> Fitted:
-    fe = front_end_for(logs, opts.decimation, spec.taus_s)
-    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg) for lg in logs]
-    norm = fit_normaliser(spec, data)
-    z = [norm.apply(d.s) for d in data]
-    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
-    offset, scale = float(y.mean()), float(y.std() or 1.0)
+    ti = training_inputs(opts, logs, spec)
+    fe, data, norm, z, offset, scale = ti.fe, ti.data, ti.norm, ti.z, ti.offset, ti.scale
     kind = opts.model
     if kind in ("poly", "polyrate"):
         from trainer.least_squares import fit_linear
@@ -236,15 +257,10 @@ def gsa_fitness(params: dict, payload: dict) -> float:
                        batch_size=int(params["batch_size"]), lr=float(params["lr"]),
                        iters=opts.gsa_fitness_iters,
                        eval_every=max(1, opts.gsa_fitness_iters // 4))
-    fe = front_end_for(logs, opts.decimation, spec.taus_s)
-    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
-            for lg, t in zip(logs, payload["targets"], strict=True)]
-    norm = fit_normaliser(spec, data)
-    z = [norm.apply(d.s) for d in data]
-    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    ti = training_inputs(opts, logs, spec, payload["targets"])
     from trainer.fit import train_stream
 
-    _, hist = train_stream(data, z, cfg, float(y.mean()), float(y.std() or 1.0), False)
+    _, hist = train_stream(ti.data, ti.z, cfg, ti.offset, ti.scale, False)
     return float(hist.best_val_rms_ppm)
 
 
