@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose bench-transfer paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -16,6 +16,8 @@ help:
 	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang (root only)"
 	@echo "make bench     speed / size benchmarks -> out/bench.json"
 	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
+	@echo "make bench-transfer  one ramp rate vs two, over seeds -> out/bench-transfer.json"
+	@echo "make bench-diagnose  diagnose success rate over planted effects -> out/bench-diagnose.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
@@ -55,6 +57,9 @@ paper: $(STAMP)
 	$(PY) -m benchmarks.paper --out $(OUT)/paper
 
 # --- diagnose success rate: owned by the diagnose work (issue 5) ---
+bench-transfer: $(STAMP)
+	$(PY) -m benchmarks.rate_transfer --out $(OUT)/bench-transfer.json
+
 bench-diagnose: $(STAMP)
 	$(PY) -m benchmarks.diagnose_rate --out $(OUT)/bench-diagnose.json
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from trainer.metrics import reference_sf_of_logs, sf_error_ppm, sf_windows
 from trainer.sim.gyro import simulate
 from trainer.sim.scenarios import paper
 from trainer.train import MODELS, TrainOptions, per_sample_prediction, run_training
+from trainer.transfer import RateTransfer
 
 # The paper's Table 2 (1e-6); DESIGN.md reads 450.24 as the RMS about the 20 C reference.
 PAPER = {"before": 450.24, "mlp": 32.46, "lstm": 13.02, "gsa-lstm": 11.23}
@@ -61,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"-- {name}", flush=True)
         m, fitted = run_training(opts, [train], test, out / "models" / name)
         if not rows:
+            transfer = m["rate_transfer"]
             rows.append({"model": "before", **m["test"]["before"], "params": 0,
                          "weights_bytes": 0, "train_seconds": 0.0, "features": []})
         rows.append({"model": name, **m["test"]["after"], "params": m["params"],
@@ -72,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
                                            title="GSA-LSTM fitness (validation RMS, ppm)")
     floor = rows[0]["noise_floor_ppm"]
     table = {"noise_floor_ppm": floor, "window_s": 100.0, "rows": rows, "paper": PAPER,
-             "paper_peak": PAPER_PEAK, "seconds": time.perf_counter() - t0}
+             "paper_peak": PAPER_PEAK, "rate_transfer": transfer,
+             "seconds": time.perf_counter() - t0}
     (out / "table2.json").write_text(json.dumps(table, indent=2) + "\n")
     text = format_table(table)
     (out / "table2.md").write_text(text + "\n")
@@ -95,6 +99,8 @@ def format_table(t: dict) -> str:
             f"| {r['model']} | {r['max_abs_ppm']:.2f} | {r['pp_ppm']:.2f} | {r['rms_ppm']:.2f} "
             f"| {r['std_ppm']:.2f} | {r['rms_ppm'] / t['noise_floor_ppm']:.2f} | {r['params']} "
             f"| {r['weights_bytes']} | {'' if paper_v is None else f'{paper_v:.2f}'} |")
+    if "rate_transfer" in t:
+        lines += ["", textwrap.fill(RateTransfer(**t["rate_transfer"]).message(), 96)]
     return "\n".join(lines)
 
 

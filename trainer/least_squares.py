@@ -66,8 +66,12 @@ def node_weight(lead_s: float, tau_s: float) -> float:
     return min(lead_s / tau_s, 1.0)
 
 
+T_EFF_SCALE_C = 50.0  # node temperatures enter the designs as (T - t_ref) / 50
+
+
 def _t_eff(s: np.ndarray, k: int, w: float) -> np.ndarray:
-    return (w * s[:, 0].astype(np.float64) + (1.0 - w) * s[:, k].astype(np.float64)) / 50.0
+    return (w * s[:, 0].astype(np.float64) + (1.0 - w) * s[:, k].astype(np.float64)) \
+        / T_EFF_SCALE_C
 
 
 def _node_design(s: np.ndarray, k: int, w: float, degree: int = NODE_DEGREE) -> np.ndarray:
@@ -82,7 +86,7 @@ def _two_node_design(s: np.ndarray, k1: int, w1: float, k2: int, w2: float) -> n
     return np.column_stack([np.ones_like(a), a, b, a * a, a * b, b * b])
 
 
-def _grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...],
+def grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...],
                val_chunk: tuple[float, float], latitude_deg: float | None
                ) -> tuple[list[SeqData], np.ndarray]:
     """Every log through a front end with one lag filter per grid time constant, and the
@@ -91,6 +95,61 @@ def _grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...],
                     filter_alpha(list(grid), fe.decimation))
     data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
     return data, np.concatenate([d.target_ppm[d.train_mask] for d in data])
+
+
+@dataclass(frozen=True)
+class NodeCandidate:
+    """One structure of the lag-temperature family: one effective node with a cubic in it
+    (`nodes` of length 1) or two with a quadratic form of them (length 2). `ks` index the
+    grid front end's filters (1-based, as in s)."""
+
+    nodes: tuple[tuple[float, float], ...]
+    ks: tuple[int, ...]
+
+    def design(self, s: np.ndarray) -> np.ndarray:
+        if len(self.ks) == 1:
+            return _node_design(s, self.ks[0], self.nodes[0][1])
+        return _two_node_design(s, self.ks[0], self.nodes[0][1], self.ks[1], self.nodes[1][1])
+
+    def max_node_slope(self, coef: np.ndarray, s: np.ndarray) -> float:
+        """The largest |d SF / d node temperature| (ppm/C) of the fit `coef` over the rows of
+        s: the sensitivity of the SF to any one node's temperature that the fit implies."""
+        a = _t_eff(s, self.ks[0], self.nodes[0][1])
+        if len(self.ks) == 1:
+            slopes = [coef[1] + 2 * coef[2] * a + 3 * coef[3] * a * a]
+        else:
+            b = _t_eff(s, self.ks[1], self.nodes[1][1])
+            slopes = [coef[1] + 2 * coef[3] * a + coef[4] * b,
+                      coef[2] + coef[4] * a + 2 * coef[5] * b]
+        return max(float(np.max(np.abs(g))) for g in slopes) / T_EFF_SCALE_C
+
+
+def node_candidates(n_nodes: int, grid: tuple[float, ...] = TAU_GRID_S,
+                    leads: tuple[float, ...] = LEAD_GRID_S) -> list[NodeCandidate]:
+    """Every structure with `n_nodes` effective nodes over the (tau, lead) grid."""
+    def weights(k: int) -> list[float]:
+        return sorted({node_weight(lead, grid[k - 1]) for lead in leads})
+
+    out: list[NodeCandidate] = []
+    for ks in itertools.combinations(range(1, len(grid) + 1), n_nodes):
+        for ws in itertools.product(*(weights(k) for k in ks)):
+            out.append(NodeCandidate(tuple((grid[k - 1], w) for k, w in zip(ks, ws, strict=True)),
+                                     ks))
+    return out
+
+
+def _profile(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
+             latitude_deg: float | None, candidates: list[NodeCandidate],
+             grid: tuple[float, ...]) -> tuple[NodeCandidate, float]:
+    data, y = grid_data(logs, fe, grid, val_chunk, latitude_deg)
+    best, best_score = candidates[0], math.inf
+    for cand in candidates:
+        x = np.concatenate([cand.design(d.s[d.train_mask]) for d in data])
+        coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+        score = validation_rms([cand.design(d.s) @ coef for d in data], data)
+        if score < best_score:
+            best, best_score = cand, score
+    return best, best_score
 
 
 def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
@@ -104,18 +163,12 @@ def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, flo
 
     One effective node is what a single ramp rate can identify: on a constant ramp every lag
     temperature is T minus a constant, so freer models (several lags, their squares and
-    products) fit the training run as well and extrapolate wildly to another rate.
+    products) fit the training run as well and extrapolate wildly to another rate
+    (`trainer.transfer` measures how wildly).
     """
-    data, y = _grid_data(logs, fe, grid, val_chunk, latitude_deg)
-    best, best_score = (grid[0], 0.0), math.inf
-    for k, tau in enumerate(grid, start=1):
-        for w in sorted({node_weight(lead, tau) for lead in leads}):
-            x = np.concatenate([_node_design(d.s[d.train_mask], k, w) for d in data])
-            coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-            score = validation_rms([_node_design(d.s, k, w) @ coef for d in data], data)
-            if score < best_score:
-                best, best_score = (tau, w), score
-    return best, best_score
+    best, score = _profile(logs, fe, val_chunk, latitude_deg,
+                           node_candidates(1, grid, leads), grid)
+    return best.nodes[0], score
 
 
 def profile_two_nodes(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
@@ -126,18 +179,6 @@ def profile_two_nodes(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
     """Two effective nodes [(tau_1, w_1), (tau_2, w_2)] (tau_1 < tau_2) with a quadratic form
     of them, profiled like `profile_effective_node`. Identifiable only from logs at two or
     more ramp rates: on one constant ramp the two nodes are collinear."""
-    data, y = _grid_data(logs, fe, grid, val_chunk, latitude_deg)
-    best: list[tuple[float, float]] = [(grid[0], 0.0), (grid[-1], 0.0)]
-    best_score = math.inf
-    for k1, k2 in itertools.combinations(range(1, len(grid) + 1), 2):
-        for w1 in sorted({node_weight(lead, grid[k1 - 1]) for lead in leads}):
-            for w2 in sorted({node_weight(lead, grid[k2 - 1]) for lead in leads}):
-                x = np.concatenate([_two_node_design(d.s[d.train_mask], k1, w1, k2, w2)
-                                    for d in data])
-                coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-                score = validation_rms(
-                    [_two_node_design(d.s, k1, w1, k2, w2) @ coef for d in data], data)
-                if score < best_score:
-                    best = [(grid[k1 - 1], w1), (grid[k2 - 1], w2)]
-                    best_score = score
-    return best, best_score
+    best, score = _profile(logs, fe, val_chunk, latitude_deg,
+                           node_candidates(2, grid, leads), grid)
+    return list(best.nodes), score

@@ -1,0 +1,74 @@
+"""Rate transfer: the ramp rate of a log, and whether the training data pins the lag model
+down on a target log (it does at the training rate and between two training rates, it does
+not at another rate from one training rate)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from trainer.logio import ChamberLog, write_log
+from trainer.sim.gyro import simulate
+from trainer.sim.scenarios import paper, soak
+from trainer.transfer import ramp_rate_c_per_min, rate_transfer
+
+
+def ramp(rate: float, seed: int) -> ChamberLog:
+    """-20 -> 40 C at `rate` C/min after a 10 min soak, warm start, 10 deg/s."""
+    cfg = paper(rate, seed)
+    cfg.profile.start_c, cfg.profile.stop_c = -20.0, 40.0
+    cfg.profile.soak_before_s = 600.0
+    return simulate(cfg).log
+
+
+@pytest.fixture(scope="module")
+def runs() -> dict[str, ChamberLog]:
+    return {"a": ramp(0.6, 21), "b": ramp(0.6, 22), "fast": ramp(2.4, 23), "mid": ramp(1.2, 24)}
+
+
+@pytest.mark.parametrize("rate", [0.5, 1.0, 2.5])
+def test_ramp_rate_of_a_log(rate: float) -> None:
+    assert ramp_rate_c_per_min(ramp(rate, 5)) == pytest.approx(rate, rel=0.05)
+
+
+def test_a_soak_has_no_ramp_rate() -> None:
+    cfg = soak(seed=3)
+    cfg.thermal.start = "warm"  # a power-on start warms the board: that is a ramp
+    assert ramp_rate_c_per_min(simulate(cfg).log) == 0.0
+
+
+def test_one_rate_pins_its_own_rate_not_another(runs) -> None:
+    same = rate_transfer([runs["a"]], runs["b"])
+    other = rate_transfer([runs["a"]], runs["fast"])
+    assert same.covered and not other.covered
+    assert same.train_rates_c_per_min == [pytest.approx(0.6, rel=0.05)]
+    assert same.consistent > 10  # many lag structures fit one ramp equally well ...
+    assert same.spread_median_ppm < 3.0  # ... and agree on a run at the same rate
+    assert other.spread_median_ppm > 10 * max(same.spread_median_ppm, 1.0)  # not at 4x it
+    assert "OUTSIDE the training range" in other.message()
+
+
+def test_two_rates_pin_the_rate_between(runs) -> None:
+    one = rate_transfer([runs["a"]], runs["mid"])
+    two = rate_transfer([runs["a"], runs["fast"]], runs["mid"])
+    assert two.covered and not one.covered
+    assert two.spread_median_ppm < 0.6 * one.spread_median_ppm
+
+
+def test_train_command_reports_rate_transfer(runs, tmp_path: Path) -> None:
+    write_log(tmp_path / "a.csv", runs["a"])
+    write_log(tmp_path / "fast.csv", runs["fast"])
+    out = subprocess.run(
+        [sys.executable, "-m", "trainer.cli", "train", "--train", str(tmp_path / "a.csv"),
+         "--test", str(tmp_path / "fast.csv"), "--model", "poly", "--out", str(tmp_path / "m")],
+        check=True, capture_output=True, text=True).stdout
+    said = " ".join(out.split())
+    assert "rate transfer: trained at 0.6 C/min, target at 2." in said
+    assert "C/min: OUTSIDE the training range" in said
+    saved = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    rt = saved["rate_transfer"]
+    assert not rt["covered"] and rt["consistent"] >= 1 and rt["spread_max_ppm"] > 0

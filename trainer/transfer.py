@@ -1,0 +1,128 @@
+"""Rate transfer: does the training data determine the SF error at another ramp rate?
+
+On one constant ramp every lag temperature is the board temperature minus a constant, so
+lag structures that differ only in how they extrapolate to other ramp rates fit the
+training run equally well. This module measures that, from the training data alone plus
+the board temperatures of a target log (its gyro output is not used):
+
+1. the ramp rates each log holds (`ramp_rate_c_per_min`), and whether the target's lies
+   within the training logs' range;
+2. the family of lag-temperature models (one effective node with a cubic, two with a
+   quadratic form; `trainer.least_squares.node_candidates`) fitted to the training logs;
+   the physically plausible ones (no node's temperature moves the SF by more than
+   50 ppm/C anywhere on the training data; the default gyro's largest is 13 ppm/C: without
+   such a bound, quadratic forms of nearly collinear nodes fit with huge cancelling
+   coefficients and amplify even thermometer noise) whose training fit is as good as the
+   best plausible one (sum of squares within a chi-square allowance of it, the noise
+   variance estimated from that fit) are "consistent with the training data";
+3. how far their predictions on the target log spread: the windowed RMS difference of each
+   consistent model's prediction from the best one's, reported as the median and maximum.
+
+A small spread says the training data pins the compensation down on the target's
+temperature history; a spread far above the noise floor says it does not, and whatever a
+model does there rests on its structural assumption, not on the data.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from trainer.errors import UserError
+from trainer.logio import ChamberLog
+
+SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows
+MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
+RATE_TOLERANCE = 0.15  # a target rate within 15 % of the training range is covered
+CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
+DECIMATION = 50
+MAX_NODE_SLOPE_PPM_PER_C = 50.0
+
+
+def ramp_rate_c_per_min(log: ChamberLog) -> float:
+    """The log's typical ramp rate: the median |dT/dt| of the board temperature over 5-minute
+    windows on its ramps (the faster half of the windows moving faster than 0.05 C/min, so
+    that the bends at a ramp's ends do not count); 0 for a log with no ramp."""
+    t, temp = log.time_s, log.temp_c
+    n = int(np.searchsorted(t, t[0] + SLOPE_WINDOW_S))
+    if n < 1 or n >= t.size:
+        return 0.0
+    starts = np.arange(0, t.size - n, max(1, n // 5))
+    slope = np.abs(temp[starts + n] - temp[starts]) / (t[starts + n] - t[starts]) * 60.0
+    moving = slope[slope > MIN_RAMP_C_PER_MIN]
+    if moving.size == 0:
+        return 0.0
+    return float(np.median(moving[moving >= np.median(moving)]))
+
+
+def spans_ramp_rates(logs: list[ChamberLog], factor: float = 1.5) -> bool:
+    """Whether the logs hold ramp rates at least `factor` apart (what two effective nodes
+    need to be identifiable)."""
+    rates = [r for r in (ramp_rate_c_per_min(lg) for lg in logs) if r > 0]
+    return len(rates) >= 2 and max(rates) >= factor * min(rates)
+
+
+@dataclass
+class RateTransfer:
+    train_rates_c_per_min: list[float]
+    target_rate_c_per_min: float
+    covered: bool  # the target's ramp rate lies within the training logs' range
+    candidates: int  # plausible lag models (node sensitivities within the bound)
+    consistent: int  # models that fit the training data as well as the best
+    spread_median_ppm: float
+    spread_max_ppm: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    def message(self) -> str:
+        rates = ", ".join(f"{r:.2g}" for r in self.train_rates_c_per_min)
+        head = (f"rate transfer: trained at {rates} C/min, target at "
+                f"{self.target_rate_c_per_min:.2g} C/min")
+        spread = (f"{self.consistent} of {self.candidates} plausible lag models fit the "
+                  "training data as well as the best; on the target they differ by "
+                  f"{self.spread_median_ppm:.1f} ppm RMS (median), up to "
+                  f"{self.spread_max_ppm:.1f}")
+        if self.covered:
+            return f"{head} (within the training range): {spread}"
+        return (f"{head}: OUTSIDE the training range, the compensation there is an "
+                f"extrapolation; {spread}")
+
+
+def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
+                  latitude_deg: float | None = None) -> RateTransfer:
+    """How well the training logs determine the lag-temperature model on `target`."""
+    from trainer.features import front_end_for
+    from trainer.fit import windowed_rms_ppm
+    from trainer.least_squares import TAU_GRID_S, grid_data, node_candidates
+
+    fe = front_end_for([*train_logs, target], DECIMATION, ())
+    data, y = grid_data(train_logs, fe, TAU_GRID_S, (0.0, 0.0), latitude_deg)
+    (tdata,), _ = grid_data([target], fe, TAU_GRID_S, (0.0, 0.0), latitude_deg)
+    s = np.concatenate([d.s for d in data])
+    cands = node_candidates(1) + node_candidates(2)
+    sse = np.full(len(cands), np.inf)
+    preds: list[np.ndarray] = []
+    for i, cand in enumerate(cands):
+        x = cand.design(s)
+        coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+        if cand.max_node_slope(coef, s) <= MAX_NODE_SLOPE_PPM_PER_C:
+            sse[i] = float(np.sum((x @ coef - y) ** 2))
+        preds.append(cand.design(tdata.s) @ coef)
+    plausible = int(np.isfinite(sse).sum())
+    if plausible == 0:
+        raise UserError("rate transfer: no lag model fits the training logs with node "
+                        f"sensitivities under {MAX_NODE_SLOPE_PPM_PER_C:g} ppm/C")
+    best = int(np.argmin(sse))
+    noise_var = sse[best] / max(1, y.size - 6)
+    ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var)
+    every = np.ones(tdata.n_steps, dtype=bool)
+    spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, DECIMATION)
+                       for i in ok])
+    train_rates = [ramp_rate_c_per_min(lg) for lg in train_logs]
+    target_rate = ramp_rate_c_per_min(target)
+    lo, hi = min(train_rates), max(train_rates)
+    covered = lo * (1 - RATE_TOLERANCE) <= target_rate <= hi * (1 + RATE_TOLERANCE)
+    return RateTransfer(train_rates, target_rate, bool(covered), plausible, int(ok.size),
+                        float(np.median(spread)), float(np.max(spread)))
