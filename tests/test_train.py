@@ -83,17 +83,6 @@ def test_two_nodes_from_two_ramp_rates(logs, tmp_path: Path) -> None:
                      test, tmp_path / "bad")
 
 
-def test_nodes_follow_the_training_ramp_rates(logs, tmp_path: Path) -> None:
-    """By default lag-lstm takes two effective nodes only when the training logs hold ramp
-    rates at least 1.5x apart; one rate gives one node."""
-    train, test = logs
-    one, _ = run_training(TrainOptions(model="lag-lstm", progress=False, **FAST), [train],
-                          None, tmp_path / "one")
-    two, _ = run_training(TrainOptions(model="lag-lstm", progress=False, **FAST),
-                          [train, short_ramp(2.0, 14)], None, tmp_path / "two")
-    assert len(one["features"]) == 1 and len(two["features"]) == 2
-
-
 def test_same_seed_same_model(logs, tmp_path: Path) -> None:
     train, test = logs
     a, _ = run_training(TrainOptions(model="lstm", progress=False, seed=3, **FAST), [train], test,

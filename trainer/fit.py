@@ -236,6 +236,13 @@ class MLPConfig:
 def train_mlp(data: list[SeqData], z: list[np.ndarray], cfg: MLPConfig, out_offset: float,
               out_scale: float, progress: bool = True) -> tuple[MLP, History]:
     """Full-batch Adam on every training step; keeps the best validation weights."""
+    small = sum(cfg.hidden) <= SMALL_NET_UNITS
+    with torch_threads(1 if small else torch.get_num_threads()):
+        return _train_mlp(data, z, cfg, out_offset, out_scale, progress)
+
+
+def _train_mlp(data: list[SeqData], z: list[np.ndarray], cfg: MLPConfig, out_offset: float,
+               out_scale: float, progress: bool) -> tuple[MLP, History]:
     torch.manual_seed(cfg.seed)
     net = MLP(z[0].shape[1], cfg.hidden)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)

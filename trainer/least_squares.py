@@ -5,19 +5,17 @@
   standard for hysteresis).
 - `profile_effective_node`: identifies the effective sensing temperature
   T_eff = w T + (1 - w) lag(T, tau) (the physics: the sensing parts lag the board) by
-  profiling a grid of (tau, w), with least squares inside, scored on the held-out part.
+  profiling a grid of (tau, w), with least squares inside (profile likelihood).
 """
 
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from trainer.features import SeqData, prepare
-from trainer.fit import validation_rms
 from trainer.stream import FrontEnd, filter_alpha
 
 
@@ -57,6 +55,11 @@ def fit_linear(data: list[SeqData], z: list[np.ndarray], degree: int,
 TAU_GRID_S = tuple(float(t) for t in np.geomspace(60.0, 7200.0, 11).round(0))
 LEAD_GRID_S = (0.0, 60.0, 120.0, 240.0, 400.0)
 NODE_DEGREE = 3
+# The physics prior of every lag model: no node's temperature moves the SF by more than this
+# (the default gyro's largest is 13 ppm/C). Without it, quadratic forms of nearly collinear
+# nodes fit with huge cancelling coefficients that amplify thermometer noise and extrapolate
+# wildly.
+MAX_NODE_SLOPE_PPM_PER_C = 50.0
 
 
 def node_weight(lead_s: float, tau_s: float) -> float:
@@ -138,47 +141,58 @@ def node_candidates(n_nodes: int, grid: tuple[float, ...] = TAU_GRID_S,
     return out
 
 
-def _profile(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
-             latitude_deg: float | None, candidates: list[NodeCandidate],
-             grid: tuple[float, ...]) -> tuple[NodeCandidate, float]:
-    data, y = grid_data(logs, fe, grid, val_chunk, latitude_deg)
-    best, best_score = candidates[0], math.inf
+def _profile(logs: list, fe: FrontEnd, latitude_deg: float | None,
+             candidates: list[NodeCandidate], grid: tuple[float, ...]
+             ) -> tuple[NodeCandidate, float]:
+    """Profile likelihood over the grid: every candidate (all of one family have the same
+    number of coefficients) fitted by least squares to every step of the logs, the one with
+    the smallest residual (RMS per model step, ppm) kept, among the physically plausible
+    ones (no node sensitivity above MAX_NODE_SLOPE_PPM_PER_C on the data; if none is, among
+    all).
+
+    The whole logs, not a held-out chunk: the middle of a ramp is its steady part, where
+    the lag structures differ least, so a held-out middle chunk picks structures that fit
+    it by chance (with two ramp rates it picked one 6 x the noise floor on the rate between,
+    where the best in-sample fit was at 1.1 x)."""
+    data, y = grid_data(logs, fe, grid, (0.0, 0.0), latitude_deg)
+    rows = np.concatenate([d.s for d in data])
+    best: dict[bool, tuple[float, NodeCandidate]] = {}
     for cand in candidates:
-        x = np.concatenate([cand.design(d.s[d.train_mask]) for d in data])
+        x = cand.design(rows)
         coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-        score = validation_rms([cand.design(d.s) @ coef for d in data], data)
-        if score < best_score:
-            best, best_score = cand, score
-    return best, best_score
+        plausible = cand.max_node_slope(coef, rows) <= MAX_NODE_SLOPE_PPM_PER_C
+        score = float(np.sqrt(np.mean((x @ coef - y) ** 2)))
+        if plausible not in best or score < best[plausible][0]:
+            best[plausible] = (score, cand)
+    score, cand = best.get(True, best[False])
+    return cand, score
 
 
-def profile_effective_node(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
-                           latitude_deg: float | None = None,
+def profile_effective_node(logs: list, fe: FrontEnd, latitude_deg: float | None = None,
                            grid: tuple[float, ...] = TAU_GRID_S,
                            leads: tuple[float, ...] = LEAD_GRID_S
                            ) -> tuple[tuple[float, float], float]:
     """The effective sensing temperature T_eff = w T + (1 - w) lag(T, tau) that best explains
     the SF error: (tau, w) profiled over a grid, with a cubic in T_eff fitted by least squares
-    inside, scored by the held-out windowed RMS. Returns ((tau_s, w), score_ppm).
+    inside (see `_profile`). Returns ((tau_s, w), in-sample RMS per model step in ppm).
 
     One effective node is what a single ramp rate can identify: on a constant ramp every lag
     temperature is T minus a constant, so freer models (several lags, their squares and
     products) fit the training run as well and extrapolate wildly to another rate
     (`trainer.transfer` measures how wildly).
     """
-    best, score = _profile(logs, fe, val_chunk, latitude_deg,
+    best, score = _profile(logs, fe, latitude_deg,
                            node_candidates(1, grid, leads), grid)
     return best.nodes[0], score
 
 
-def profile_two_nodes(logs: list, fe: FrontEnd, val_chunk: tuple[float, float],
-                      latitude_deg: float | None = None,
+def profile_two_nodes(logs: list, fe: FrontEnd, latitude_deg: float | None = None,
                       grid: tuple[float, ...] = TAU_GRID_S,
                       leads: tuple[float, ...] = LEAD_GRID_S
                       ) -> tuple[list[tuple[float, float]], float]:
     """Two effective nodes [(tau_1, w_1), (tau_2, w_2)] (tau_1 < tau_2) with a quadratic form
     of them, profiled like `profile_effective_node`. Identifiable only from logs at two or
     more ramp rates: on one constant ramp the two nodes are collinear."""
-    best, score = _profile(logs, fe, val_chunk, latitude_deg,
+    best, score = _profile(logs, fe, latitude_deg,
                            node_candidates(2, grid, leads), grid)
     return list(best.nodes), score

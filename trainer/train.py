@@ -44,7 +44,7 @@ from trainer.features import (
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
 from trainer.stream import FrontEnd, StreamModel, expand
-from trainer.transfer import rate_transfer, spans_ramp_rates
+from trainer.transfer import rate_transfer
 
 if TYPE_CHECKING:  # trainer.fit imports torch; commands import this module at start-up
     from trainer.fit import LSTMConfig
@@ -64,9 +64,7 @@ class TrainOptions:
     rate_tau_s: float = 120.0
     poly_degree: int = 3
     node: tuple[float, float] | None = None  # (tau_s, w) of T_eff; None: identified
-    # effective nodes of lag-lstm; None: 2 when the training logs hold ramp rates at least
-    # 1.5x apart (two nodes are identifiable only then), else 1
-    nodes: int | None = None
+    nodes: int = 1  # effective nodes of lag-lstm (2 needs logs at two or more ramp rates)
     layers: int | None = None
     hidden: int | None = None
     batch_size: int | None = None
@@ -112,9 +110,9 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError(f"unknown model {opts.model!r}; choose one of {', '.join(MODELS)}")
     if not train_logs:
         raise UserError("give at least one training log (--train)")
-    if opts.nodes not in (None, 1, 2):
+    if opts.nodes not in (1, 2):
         raise UserError("--nodes must be 1 or 2")
-    if opts.node is not None and opts.nodes == 2:
+    if opts.node is not None and opts.nodes != 1:
         raise UserError("--node gives one effective node; drop it or use --nodes 1")
     if opts.decimation < 1:
         raise UserError("--decimation must be >= 1")
@@ -143,9 +141,7 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
                               else None)
     if kind == "lag-lstm":
-        nodes = opts.nodes or (1 if opts.node is not None or not spans_ramp_rates(train_logs)
-                               else 2)
-        if nodes == 2:  # a quadratic form of two nodes, as the physics has it
+        if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
             spec = effective_node_features(*_identify_two_nodes(opts, train_logs))
             return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts, cubes=False))
         tau, w = opts.node or _identify_node(opts, train_logs)
@@ -158,7 +154,7 @@ def _identify_node(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, f
     from trainer.least_squares import profile_effective_node
 
     fe = front_end_for(logs, opts.decimation, ())
-    node, _ = profile_effective_node(logs, fe, opts.val_chunk, opts.latitude_deg)
+    node, _ = profile_effective_node(logs, fe, opts.latitude_deg)
     return node
 
 
@@ -167,7 +163,7 @@ def _identify_two_nodes(opts: TrainOptions, logs: list[ChamberLog]
     from trainer.least_squares import profile_two_nodes
 
     fe = front_end_for(logs, opts.decimation, ())
-    nodes, _ = profile_two_nodes(logs, fe, opts.val_chunk, opts.latitude_deg)
+    nodes, _ = profile_two_nodes(logs, fe, opts.latitude_deg)
     return nodes
 
 

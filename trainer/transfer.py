@@ -37,7 +37,6 @@ MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
 RATE_TOLERANCE = 0.15  # a target rate within 15 % of the training range is covered
 CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
 DECIMATION = 50
-MAX_NODE_SLOPE_PPM_PER_C = 50.0
 
 
 def ramp_rate_c_per_min(log: ChamberLog) -> float:
@@ -54,13 +53,6 @@ def ramp_rate_c_per_min(log: ChamberLog) -> float:
     if moving.size == 0:
         return 0.0
     return float(np.median(moving[moving >= np.median(moving)]))
-
-
-def spans_ramp_rates(logs: list[ChamberLog], factor: float = 1.5) -> bool:
-    """Whether the logs hold ramp rates at least `factor` apart (what two effective nodes
-    need to be identifiable)."""
-    rates = [r for r in (ramp_rate_c_per_min(lg) for lg in logs) if r > 0]
-    return len(rates) >= 2 and max(rates) >= factor * min(rates)
 
 
 @dataclass
@@ -95,7 +87,12 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     """How well the training logs determine the lag-temperature model on `target`."""
     from trainer.features import front_end_for
     from trainer.fit import windowed_rms_ppm
-    from trainer.least_squares import TAU_GRID_S, grid_data, node_candidates
+    from trainer.least_squares import (
+        MAX_NODE_SLOPE_PPM_PER_C,
+        TAU_GRID_S,
+        grid_data,
+        node_candidates,
+    )
 
     fe = front_end_for([*train_logs, target], DECIMATION, ())
     data, y = grid_data(train_logs, fe, TAU_GRID_S, (0.0, 0.0), latitude_deg)
