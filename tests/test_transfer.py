@@ -72,3 +72,20 @@ def test_train_command_reports_rate_transfer(runs, tmp_path: Path) -> None:
     saved = json.loads((tmp_path / "m" / "metrics.json").read_text())
     rt = saved["rate_transfer"]
     assert not rt["covered"] and rt["consistent"] >= 1 and rt["spread_max_ppm"] > 0
+
+
+def test_train_without_test_log_says_one_rate_is_an_extrapolation(runs, tmp_path: Path) -> None:
+    write_log(tmp_path / "a.csv", runs["a"])
+    write_log(tmp_path / "fast.csv", runs["fast"])
+    cmd = [sys.executable, "-m", "trainer.cli", "train", "--model", "poly"]
+    one = subprocess.run([*cmd, "--train", str(tmp_path / "a.csv"), "--out",
+                          str(tmp_path / "one")], check=True, capture_output=True,
+                         text=True).stdout
+    two = subprocess.run([*cmd, "--train", str(tmp_path / "a.csv"), "--train",
+                          str(tmp_path / "fast.csv"), "--out", str(tmp_path / "two")],
+                         check=True, capture_output=True, text=True).stdout
+    assert "one ramp rate (0.6 C/min)" in " ".join(one.split())
+    assert "one ramp rate" not in " ".join(two.split())
+    saved = json.loads((tmp_path / "two" / "metrics.json").read_text())
+    assert saved["train_ramp_rates_c_per_min"] == [pytest.approx(0.6, rel=0.05),
+                                                  pytest.approx(2.4, rel=0.05)]

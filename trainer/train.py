@@ -44,7 +44,7 @@ from trainer.features import (
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
 from trainer.stream import FrontEnd, StreamModel, expand
-from trainer.transfer import rate_transfer
+from trainer.transfer import ramp_rate_c_per_min, rate_transfer
 
 if TYPE_CHECKING:  # trainer.fit imports torch; commands import this module at start-up
     from trainer.fit import LSTMConfig
@@ -337,6 +337,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         metrics["rate_transfer"] = rate_transfer(train_logs, test_log,
                                                  opts.latitude_deg).as_dict()
     metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
+    metrics["train_ramp_rates_c_per_min"] = [ramp_rate_c_per_min(lg) for lg in train_logs]
     if "noise_floor_ppm" not in metrics:
         first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
         metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]

@@ -55,6 +55,12 @@ def ramp_rate_c_per_min(log: ChamberLog) -> float:
     return float(np.median(moving[moving >= np.median(moving)]))
 
 
+def spans_ramp_rates(rates_c_per_min: list[float], factor: float = 1.5) -> bool:
+    """Whether ramp rates (of logs; 0 for a log without a ramp) differ by at least `factor`."""
+    moving = [r for r in rates_c_per_min if r > 0]
+    return len(moving) >= 2 and max(moving) >= factor * min(moving)
+
+
 @dataclass
 class RateTransfer:
     train_rates_c_per_min: list[float]

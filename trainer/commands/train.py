@@ -27,7 +27,7 @@ from pathlib import Path
 from trainer.commands import add_metric_options
 from trainer.errors import UserError
 from trainer.logio import read_log
-from trainer.transfer import RateTransfer
+from trainer.transfer import RateTransfer, spans_ramp_rates
 
 
 def _chunk(text: str) -> tuple[float, float]:
@@ -135,4 +135,10 @@ def format_metrics(m: dict) -> str:
     lines.append(f"  noise floor {m['noise_floor_ppm']:.2f} ppm ({m['window_s']:g} s windows)")
     if "rate_transfer" in m:
         lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))
+    elif not spans_ramp_rates(m.get("train_ramp_rates_c_per_min", [])):
+        rates = ", ".join(f"{r:.2g}" for r in m.get("train_ramp_rates_c_per_min", []))
+        lines.append(textwrap.fill(
+            f"note: the training logs hold one ramp rate ({rates} C/min): at other rates the "
+            "compensation is an extrapolation that the data cannot check (give --test LOG "
+            "to measure how far equally good models disagree there)", 96))
     return "\n".join(lines)
