@@ -8,21 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ramp_logs import short_ramp
 
 from trainer.errors import UserError
 from trainer.logio import ChamberLog
-from trainer.sim.gyro import simulate
-from trainer.sim.scenarios import paper
 from trainer.stream import StreamModel, replay
 from trainer.train import TrainOptions, per_sample_prediction, run_training
-
-
-def short_ramp(rate: float, seed: int) -> ChamberLog:
-    """-20 -> 40 C at `rate` C/min with a 10 min soak before: 1-2 h at 10 Hz."""
-    cfg = paper(rate, seed)
-    cfg.profile.start_c, cfg.profile.stop_c = -20.0, 40.0
-    cfg.profile.soak_before_s = 600.0
-    return simulate(cfg).log
 
 
 @pytest.fixture(scope="module")

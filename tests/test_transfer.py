@@ -10,29 +10,23 @@ import sys
 from pathlib import Path
 
 import pytest
+from ramp_logs import short_ramp
 
 from trainer.logio import ChamberLog, write_log
 from trainer.sim.gyro import simulate
-from trainer.sim.scenarios import paper, soak
+from trainer.sim.scenarios import soak
 from trainer.transfer import ramp_rate_c_per_min, rate_transfer
-
-
-def ramp(rate: float, seed: int) -> ChamberLog:
-    """-20 -> 40 C at `rate` C/min after a 10 min soak, warm start, 10 deg/s."""
-    cfg = paper(rate, seed)
-    cfg.profile.start_c, cfg.profile.stop_c = -20.0, 40.0
-    cfg.profile.soak_before_s = 600.0
-    return simulate(cfg).log
 
 
 @pytest.fixture(scope="module")
 def runs() -> dict[str, ChamberLog]:
-    return {"a": ramp(0.6, 21), "b": ramp(0.6, 22), "fast": ramp(2.4, 23), "mid": ramp(1.2, 24)}
+    return {"a": short_ramp(0.6, 21), "b": short_ramp(0.6, 22), "fast": short_ramp(2.4, 23),
+            "mid": short_ramp(1.2, 24)}
 
 
 @pytest.mark.parametrize("rate", [0.5, 1.0, 2.5])
 def test_ramp_rate_of_a_log(rate: float) -> None:
-    assert ramp_rate_c_per_min(ramp(rate, 5)) == pytest.approx(rate, rel=0.05)
+    assert ramp_rate_c_per_min(short_ramp(rate, 5)) == pytest.approx(rate, rel=0.05)
 
 
 def test_a_soak_has_no_ramp_rate() -> None:

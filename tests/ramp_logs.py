@@ -1,0 +1,15 @@
+"""Short simulated paper-scenario ramps shared by the trainer tests."""
+
+from __future__ import annotations
+
+from trainer.logio import ChamberLog
+from trainer.sim.gyro import simulate
+from trainer.sim.scenarios import paper
+
+
+def short_ramp(rate: float, seed: int) -> ChamberLog:
+    """-20 -> 40 C at `rate` C/min after a 10 min soak, warm start, 10 deg/s: 1-2 h at 10 Hz."""
+    cfg = paper(rate, seed)
+    cfg.profile.start_c, cfg.profile.stop_c = -20.0, 40.0
+    cfg.profile.soak_before_s = 600.0
+    return simulate(cfg).log
