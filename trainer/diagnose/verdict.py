@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from trainer.diagnose import catalogue, crossval, design, driver, profile_ls, runs, stats
-from trainer.diagnose.catalogue import Candidate
+from trainer.diagnose.catalogue import Candidate, GridValue, first
 from trainer.diagnose.design import RunContext
 from trainer.diagnose.profile_ls import Stack
 from trainer.errors import UserError
@@ -50,6 +50,7 @@ SOAK_RATE_C_PER_MIN = 0.02  # slower than this (driver, 5-min average) is a soak
 RAMP_MIN_C = 5.0  # a soak counts when the driver moved at least this much before it
 Z95 = 1.959964
 TRIM = 0.95
+BATCH_WINDOWS = 10  # batch means for the residual's long-run variance (sse_scale)
 
 
 @dataclass
@@ -150,59 +151,96 @@ def visible_fraction(model: ModelFit, w: np.ndarray) -> float:
     return float(np.linalg.norm(r) / max(np.linalg.norm(cm), 1e-300))
 
 
-def _profile(model: ModelFit) -> dict[float, float]:
+def _keys(model: ModelFit) -> list[GridValue]:
+    return [c[1] for c in model.stack.combos]
+
+
+def _profile(model: ModelFit) -> dict[GridValue, float]:
     """Profiled weighted SSE per value of the candidate's grid parameter (each at its best
     base time constants)."""
-    gs = np.array([c[1] for c in model.stack.combos], dtype=np.float64)
-    return {float(v): float(model.fit.sse[gs == v].min()) for v in np.unique(gs)}
+    out: dict[GridValue, float] = {}
+    for k, e in zip(_keys(model), model.fit.sse, strict=True):
+        out[k] = min(float(e), out.get(k, np.inf))
+    return out
 
 
-def _profile_interval(coarse: ModelFit, fine: ModelFit) -> tuple[float, float]:
-    """Interval of the candidate's grid parameter where the profiled weighted SSE stays
-    within chi2(1, 95%) = 3.84 (scaled by the reduced chi-square) of its minimum. Values
-    of the coarse grid and of its refinements are accepted alike; the bounds are the coarse
-    grid values next beyond the accepted ones (grid resolution: the refinements hold the
-    base time constants fixed, so their SSE only bounds the profile from above and cannot
-    reject a value)."""
+def _line(g: GridValue) -> tuple:
+    """The further profiled parameters of a grid value (a line of the grid along the first)."""
+    return tuple(g[1:]) if isinstance(g, tuple) else ()
+
+
+def _with_first(g: GridValue, v: float) -> GridValue:
+    return (v, *g[1:]) if isinstance(g, tuple) else v
+
+
+def sse_scale(model: ModelFit, y: np.ndarray, w: np.ndarray, run_ids: np.ndarray) -> float:
+    """What one unit of chi-square is worth in the weighted SSE: the reduced chi-square
+    times the residual's long-run variance ratio (batch means over BATCH_WINDOWS windows,
+    per run). 60 s windows of a fitted residual are correlated, so a change of the SSE of
+    3.84 is not yet 95 % evidence against a time constant: the interval would be too short."""
+    z = (y - model.pred) * np.sqrt(w)
+    num = den = 0.0
+    for i in np.unique(run_ids):
+        zi = z[run_ids == i]
+        k = zi.shape[0] // BATCH_WINDOWS
+        if k < 2:
+            continue
+        b = zi[: k * BATCH_WINDOWS].reshape(k, BATCH_WINDOWS).sum(axis=1)
+        num += float(np.sum(b * b)) / BATCH_WINDOWS
+        den += float(np.sum(zi[: k * BATCH_WINDOWS] ** 2))
+    ratio = num / den if den > 0 else 1.0
+    return max(1.0, model.chi2_red) * max(1.0, ratio)
+
+
+def _profile_interval(coarse: ModelFit, fine: ModelFit, scale: float
+                      ) -> tuple[tuple[float, float], list[GridValue]]:
+    """Interval of the candidate's (first) grid parameter where the profiled weighted SSE
+    stays within chi2(1, 95%) = 3.84 units (`scale`, see sse_scale) of its minimum, and the
+    accepted grid values. Values of the coarse grid and of its refinements are accepted
+    alike; the bounds are the coarse grid values next beyond the accepted ones (grid
+    resolution: the refinements hold the base time constants fixed, so their SSE only bounds
+    the profile from above and cannot reject a value)."""
     prof = _profile(coarse)
     for v, e in _profile(fine).items():
         prof[v] = min(e, prof.get(v, np.inf))
     best = min(prof.values())
-    chi2_red = min(coarse.chi2_red, fine.chi2_red)
-    acc = [v for v, e in prof.items() if e <= best + 3.84 * max(1.0, chi2_red)]
-    grid = np.array(sorted(_profile(coarse)))
-    below = grid[grid < min(acc)]
-    above = grid[grid > max(acc)]
-    lo = float(below[-1]) if below.shape[0] else float(min(grid[0], min(acc)))
-    hi = float(above[0]) if above.shape[0] else float(max(grid[-1], max(acc)))
-    return lo, hi
+    acc = [v for v, e in prof.items() if e <= best + 3.84 * scale]
+    fa = [first(v) for v in acc]
+    grid = np.array(sorted({first(v) for v in _profile(coarse)}))
+    below = grid[grid < min(fa)]
+    above = grid[grid > max(fa)]
+    lo = float(below[-1]) if below.shape[0] else float(min(grid[0], min(fa)))
+    hi = float(above[0]) if above.shape[0] else float(max(grid[-1], max(fa)))
+    return (lo, hi), acc
 
 
 def _refine(ctxs: list[RunContext], cand: Candidate, model: ModelFit, y: np.ndarray,
             w: np.ndarray, folds: np.ndarray) -> ModelFit:
-    """Refit on a finer grid of the candidate's parameter around every local minimum of
-    the coarse profile, each with the base time constants held at that minimum's best.
-    The profile can have more than one minimum (e.g. an extra slow node that settles in
-    the logs, and a much slower one that the base's nodes turn into a drift); refining only
-    the coarse best could miss a deeper minimum between two coarse grid values, and the
-    interval would then leave it out."""
+    """Refit on a finer grid of the candidate's (first) parameter around every local minimum
+    of the coarse profile along it, each with the base time constants (and any further
+    profiled parameter) held at that minimum's best. The profile can have more than one
+    minimum (e.g. an extra slow node that settles in the logs, and a much slower one that
+    the base's nodes turn into a drift); refining only the coarse best could miss a deeper
+    minimum between two coarse grid values, and the interval would then leave it out."""
     st = model.stack
-    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
+    keys = _keys(model)
     prof = _profile(model)
-    vals = np.array(sorted(prof))
-    sse = np.array([prof[v] for v in vals])
-    grid = np.asarray(cand.grid, dtype=np.float64)
+    grid = np.array(sorted({first(g) for g in cand.grid}))
     combos: list[profile_ls.Combo] = []
-    for i, v in enumerate(vals):
-        if (i > 0 and sse[i - 1] < sse[i]) or (i + 1 < vals.shape[0] and sse[i + 1] < sse[i]):
-            continue  # not a local minimum
-        k = np.flatnonzero(gs == v)
-        bt = st.combos[int(k[np.argmin(model.fit.sse[k])])][0]
-        j = int(np.argmin(np.abs(grid - v)))
-        lo = grid[max(j - 1, 0)]
-        hi = grid[min(j + 1, grid.shape[0] - 1)]
-        fine = np.unique(np.round(np.geomspace(lo, hi, 9), 1))
-        combos += [(bt, float(f)) for f in fine if cand.admissible(bt, float(f))]
+    for line in dict.fromkeys(_line(v) for v in prof):
+        vals = sorted((v for v in prof if _line(v) == line), key=first)
+        sse = np.array([prof[v] for v in vals])
+        for i, v in enumerate(vals):
+            if (i > 0 and sse[i - 1] < sse[i]) or (i + 1 < len(vals) and sse[i + 1] < sse[i]):
+                continue  # not a local minimum
+            k = [j for j, key in enumerate(keys) if key == v]
+            bt = st.combos[k[int(np.argmin(model.fit.sse[k]))]][0]
+            j = int(np.argmin(np.abs(grid - first(v))))
+            lo = grid[max(j - 1, 0)]
+            hi = grid[min(j + 1, grid.shape[0] - 1)]
+            fine = np.unique(np.round(np.geomspace(lo, hi, 9), 1))
+            combos += [(bt, _with_first(v, float(f))) for f in fine
+                       if cand.admissible(bt, _with_first(v, float(f)))]
     combos = list(dict.fromkeys(combos))
     if not combos:
         return model
@@ -213,42 +251,98 @@ def _block_sums(v: np.ndarray, blocks: np.ndarray) -> np.ndarray:
     return np.bincount(blocks, weights=v)
 
 
-def _coef_range_over_profile(model: ModelFit, name: str, y: np.ndarray, w: np.ndarray,
-                             interval: tuple[float, float]) -> tuple[float, float]:
-    """The linear coefficient's 95 % range over every grid value of the nonlinear parameter
-    inside its profile interval (each at its best base time constants): the coefficient's
-    interval then carries the time constant's uncertainty too."""
+def _fits_per_value(model: ModelFit, y: np.ndarray, w: np.ndarray
+                    ) -> dict[GridValue, profile_ls.Fit]:
+    """The best fit (over the base time constants) at each value of the grid parameter."""
     st = model.stack
-    gs = np.array([c[1] for c in st.combos], dtype=np.float64)
-    lo, hi = np.inf, -np.inf
+    keys = _keys(model)
     rows = np.arange(y.shape[0])
-    for v in np.unique(gs[(gs >= interval[0]) & (gs <= interval[1])]):
-        sub = profile_ls.Stack([c for c, k in zip(st.combos, gs == v, strict=True) if k],
-                               st.x[gs == v], st.names, st.candidate)
-        fit = profile_ls.solve(sub, y, w, rows)
-        i = st.names.index(name)
+    out = {}
+    for v in dict.fromkeys(keys):
+        sel = np.array([k == v for k in keys])
+        sub = profile_ls.Stack([c for c, k in zip(st.combos, sel, strict=True) if k],
+                               st.x[sel], st.names, st.candidate)
+        out[v] = profile_ls.solve(sub, y, w, rows)
+    return out
+
+
+def _coef_range_over_profile(model: ModelFit, name: str, y: np.ndarray, w: np.ndarray,
+                             interval: tuple[float, float], accepted: list[GridValue]
+                             ) -> tuple[float, float]:
+    """The linear coefficient's 95 % range over every grid value of the nonlinear parameter
+    inside its profile interval (each at its best base time constants; further profiled
+    parameters at accepted values): the coefficient's interval then carries the time
+    constant's uncertainty too."""
+    lines = {_line(v) for v in accepted}
+    lo, hi = np.inf, -np.inf
+    i = model.stack.names.index(name)
+    for v, fit in _fits_per_value(model, y, w).items():
+        if not (interval[0] <= first(v) <= interval[1] and _line(v) in lines):
+            continue
         se = math.sqrt(max(fit.cov[i, i], 0.0) * max(1.0, model.chi2_red))
         lo = min(lo, float(fit.beta[i]) - Z95 * se)
         hi = max(hi, float(fit.beta[i]) + Z95 * se)
     return lo, hi
 
 
+def _profile_average(cand: Candidate, coarse: ModelFit, fine: ModelFit, y: np.ndarray,
+                     w: np.ndarray, scale: float) -> tuple[float, float]:
+    """The coefficient and the (first) grid parameter averaged over the profile likelihood
+    exp(-(SSE - min) / (2 scale)), with a log-uniform prior on the parameter (trapezoid
+    weights in log along each line of the grid). Where the profile is flat (a weak dT/dt
+    term: only strength / coil time constant is pinned, by the housing running ahead of
+    the board), the best grid value lands anywhere on the flat part, often at an end of
+    the grid; the average does not. Where the profile is sharp, it is the best fit."""
+    fits = _fits_per_value(coarse, y, w)
+    for v, f in _fits_per_value(fine, y, w).items():
+        if v not in fits or f.sse[f.index] < fits[v].sse[fits[v].index]:
+            fits[v] = f
+    i = coarse.stack.names.index(cand.coef_name)
+    best = min(float(f.sse[f.index]) for f in fits.values())
+    num_c = num_t = den = 0.0
+    for line in dict.fromkeys(_line(v) for v in fits):
+        vals = sorted((v for v in fits if _line(v) == line), key=first)
+        lt = np.log([first(v) for v in vals])
+        if lt.shape[0] > 1:
+            dw = np.gradient(lt) * np.where((np.arange(lt.shape[0]) == 0)
+                                            | (np.arange(lt.shape[0]) == lt.shape[0] - 1),
+                                            0.5, 1.0)
+        else:
+            dw = np.ones(1)
+        for v, lv, d in zip(vals, lt, dw, strict=True):
+            f = fits[v]
+            pw = d * math.exp(-(float(f.sse[f.index]) - best) / (2.0 * scale))
+            num_c += pw * float(f.beta[i])
+            num_t += pw * float(lv)
+            den += pw
+    return num_c / den, math.exp(num_t / den)
+
+
 def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
-            interval: tuple[float, float] | None, y: np.ndarray, w: np.ndarray
-            ) -> dict[str, object]:
+            prof: tuple[tuple[float, float], list[GridValue]] | None, y: np.ndarray,
+            w: np.ndarray, scale: float) -> dict[str, object]:
     m = fine or model
     coef = m.coef(cand.coef_name)
     se = m.coef_se(cand.coef_name)
     ci = [coef - Z95 * se, coef + Z95 * se]
     g = m.combo[1]
-    if cand.grid_name is not None and g is not None and interval is not None:
-        lo, hi = _coef_range_over_profile(model, cand.coef_name, y, w, interval)
+    out: dict[str, object] = {}
+    if cand.grid_name is not None and g is not None and prof is not None and fine is not None:
+        interval, accepted = prof
+        lo, hi = _coef_range_over_profile(model, cand.coef_name, y, w, interval, accepted)
         ci = [min(ci[0], lo), max(ci[1], hi)]
-    out: dict[str, object] = {cand.coef_name: coef, f"{cand.coef_name}_ci95": ci}
-    if cand.grid_name is not None and g is not None and interval is not None:
-        out[cand.grid_name] = float(g)
-        out[f"{cand.grid_name}_ci95"] = [min(interval[0], g), max(interval[1], g)]
-    return out
+        gv = first(g)
+        if cand.average:
+            out[f"{cand.coef_name}_best_fit"] = coef
+            out[f"{cand.grid_name}_best_fit"] = gv
+            coef, gv = _profile_average(cand, model, fine, y, w, scale)
+            ci = [min(ci[0], coef), max(ci[1], coef)]
+        out.update({cand.coef_name: coef, f"{cand.coef_name}_ci95": ci, cand.grid_name: gv,
+                    f"{cand.grid_name}_ci95": [min(interval[0], gv), max(interval[1], gv)]})
+        if cand.name == "temp_rate":
+            out["coil_outer_tau_s_best_fit"] = catalogue.coil_taus(g)[1]
+        return out
+    return {cand.coef_name: coef, f"{cand.coef_name}_ci95": ci}
 
 
 def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str, float]]:
@@ -323,8 +417,8 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         from tqdm import tqdm
         it = tqdm(names, desc="candidates", unit="effect", leave=False)
     for name in it:
-        results.append(_score(catalogue.CATALOGUE[name], ctxs, y, w, folds, blocks, base,
-                              before))
+        results.append(_score(catalogue.CATALOGUE[name], ctxs, y, w, folds, blocks, run_ids,
+                              base, before))
 
     sig = sorted([c for c in results if c.significant], key=lambda c: c.heldout_after)
     soak_s = max(_longest_soak_after_ramp(c) for c in ctxs)
@@ -450,7 +544,8 @@ def _nested_choice(sig: list[CandidateResult], w: np.ndarray, blocks: np.ndarray
 
 
 def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray,
-           folds: np.ndarray, blocks: np.ndarray, base: ModelFit, before: float
+           folds: np.ndarray, blocks: np.ndarray, run_ids: np.ndarray, base: ModelFit,
+           before: float
            ) -> CandidateResult:
     model = fit_model(ctxs, cand, y, w, folds)
     vis = visible_fraction(model, w)
@@ -462,10 +557,12 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
                         + ")")
         return res
     fine = None
-    interval = None
+    prof = None
+    scale = 1.0
     if cand.grid_name is not None:
         fine = _refine(ctxs, cand, model, y, w, folds)
-        interval = _profile_interval(model, fine)
+        scale = sse_scale(fine, y, w, run_ids)
+        prof = _profile_interval(model, fine, scale)
     after = _weighted_rms(model.heldout)
     d = _block_sums((base.heldout**2 - model.heldout**2) * w, blocks)
     res.heldout_after = after
@@ -475,7 +572,7 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
     res.blocks_better = int(np.sum(d > 0))
     res.significant = res.p_value < ALPHA and res.gain_pct >= MIN_GAIN_PCT
     res.model = fine or model
-    res.params = _params(cand, model, fine, interval, y, w)
+    res.params = _params(cand, model, fine, prof, y, w, scale)
     g = res.model.combo[1]
     res.effect = cand.to_effect(res.model.coef(cand.coef_name), g)
     verdict = "significant" if res.significant else "not significant"
