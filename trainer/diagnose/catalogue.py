@@ -137,3 +137,21 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("aging", "strength_ppm_per_h", None, (None,), _aging,
               "SF drift with elapsed time"),
 ]}
+
+# Not a cause: the reference that the node-like candidates (NODE_LIKE) must beat. The base's
+# two nodes stand for the FOG's several (coil layers, source); on long logs a third node
+# of the base's kind (within its 600-4000 s, away from both of its nodes) can still lower
+# the residual a little, and any node-like candidate would take that gain for itself.
+NODE_LIKE = ("temp_rate", "extra_lag")
+
+
+def _node(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:
+    return design.node(ctx, first(tau))
+
+
+EXTRA_NODE = Candidate(
+    "extra_node", "node3_ppm_per_c", "node3_tau_s", design.BASE_TAU_GRID_S, _node,
+    "a third node of the base's kind (reference only)",
+    admissible=lambda b, g: g is not None and all(
+        max(first(g), t) >= design.MIN_TAU_RATIO * min(first(g), t) for t in b))
+

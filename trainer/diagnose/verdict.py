@@ -420,6 +420,7 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         results.append(_score(catalogue.CATALOGUE[name], ctxs, y, w, folds, blocks, run_ids,
                               base, before))
 
+    _against_extra_node(results, ctxs, y, w, folds, blocks)
     sig = sorted([c for c in results if c.significant], key=lambda c: c.heldout_after)
     soak_s = max(_longest_soak_after_ramp(c) for c in ctxs)
     sig, ambiguous = _nested_choice(sig, w, blocks, soak_s)
@@ -465,6 +466,30 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         correlations=correlations(ctxs, e_in), candidates=results, cause=cause,
         ambiguous=ambiguous, unexplained=unexplained, structure=structure, extended=extended,
         cv_mode=cv, window_s=window_s)
+
+
+def _against_extra_node(results: list[CandidateResult], ctxs: list[RunContext], y: np.ndarray,
+                        w: np.ndarray, folds: np.ndarray, blocks: np.ndarray) -> None:
+    """A significant node-like candidate (catalogue.NODE_LIKE: a dT/dt term, an extra lag)
+    must also beat the base with a third node of its own kind on held-out blocks (p <
+    ALPHA): otherwise what it explains is the base's node count, not the effect, and it is
+    no longer significant. Both add one column, so the comparison is fair; a real dT/dt
+    term or extra lag carries the housing running ahead of the board, which no node of the
+    base's kind reproduces."""
+    todo = [c for c in results if c.significant and c.name in catalogue.NODE_LIKE]
+    if not todo:
+        return
+    ref = fit_model(ctxs, catalogue.EXTRA_NODE, y, w, folds)
+    for c in todo:
+        assert c.model is not None
+        d = _block_sums((ref.heldout**2 - c.model.heldout**2) * w, blocks)
+        p = stats.sign_flip_p(d)
+        if p >= ALPHA:
+            c.significant = False
+            c.evidence = c.evidence.replace("significant:", "not significant:", 1) + (
+                f"; no better on held-out blocks (p={p:.2g}) than the base with a third node "
+                f"of its own kind ({ref.combo[1]:.0f} s): what it explains is the base's "
+                "node count")
 
 
 def _longest_soak_after_ramp(ctx: RunContext) -> float:
