@@ -155,3 +155,27 @@ EXTRA_NODE = Candidate(
     admissible=lambda b, g: g is not None and all(
         max(first(g), t) >= design.MIN_TAU_RATIO * min(first(g), t) for t in b))
 
+
+def with_extra_node(cand: Candidate) -> Candidate:
+    """`cand` on a base with a third node of its kind (EXTRA_NODE), both profiled: its grid
+    values get the node's time constant appended. Its design matrices carry one column more
+    than its names say; it is for profile SSEs only (see verdict._interval_with_extra_node)."""
+    nested = isinstance(cand.grid[0], tuple)
+
+    def own(gg: GridValue) -> GridValue:
+        assert isinstance(gg, tuple)
+        return tuple(gg[:-1]) if nested else gg[0]
+
+    def column(ctx: RunContext, b: BaseTheta, gg: GridValue) -> np.ndarray:
+        assert isinstance(gg, tuple)
+        return np.column_stack([cand.column(ctx, b, own(gg)), design.node(ctx, gg[-1])])
+
+    grid = tuple((*(g if isinstance(g, tuple) else (g,)), t3)
+                 for g in cand.grid for t3 in design.BASE_TAU_GRID_S)
+    def admissible(b: BaseTheta, gg: GridValue) -> bool:
+        assert isinstance(gg, tuple)
+        return cand.admissible(b, own(gg)) and EXTRA_NODE.admissible(b, gg[-1])
+
+    return Candidate(cand.name + "+node3", cand.coef_name, cand.grid_name, grid, column,
+                     cand.meaning, admissible)
+
