@@ -1,12 +1,16 @@
-"""The node-like candidates (dT/dt term, extra lag) on 4.5 h long-soak logs: a strong dT/dt
-term is named (its residual white with the coil as two layers), a weak one gets its
-strength within tolerance (profile-likelihood average over the unpinned coil time
-constant), and a null on long soaks names nothing (a node-like candidate must beat a third
-node of the base's own kind).
+"""Node-like candidates (dT/dt term, extra lag) on 4.5 h long-soak logs, and warm starts.
+
+- A strong dT/dt term is named (its residual white with the coil as two layers) and its
+  extended model runs in the simulator; a weak one gets its strength within tolerance
+  (profile-likelihood average over the unpinned coil time constant).
+- A null on long soaks names nothing (a node-like candidate must beat a third node of the
+  base's own kind).
+- A weak aging drift on a warm start is not left ambiguous with a warmup (no start-up
+  transient after a warm start).
 
 Strengths are drawn by a seeded generator from the stated sub-ranges of cases.MULTIPLE_RANGE
-(strong 15-20x, weak 3-8x of the noise floor); a failure prints the case and its seed
-(`cases.draw(kind, name, seed)` rebuilds it; set `.multiple` as printed).
+(strong 15-20x, weak 3-8x, aging 3-5x of the noise floor); a failure prints the case and
+its seed (`cases.draw(kind, name, seed)` rebuilds it; set `.multiple` as printed).
 """
 
 from __future__ import annotations
@@ -103,3 +107,17 @@ def test_one_layer_coil_is_the_single_node_dtdt() -> None:
     np.testing.assert_allclose(col, ref, rtol=1e-12)
     two = catalogue.CATALOGUE["temp_rate"].column(ctx, (600.0, 1200.0), (900.0, 2.0))
     assert not np.allclose(two, ref)
+
+
+@pytest.mark.parametrize(("seed", "multiple"), _draws("weak aging", 2, (3.0, 5.0)))
+def test_weak_aging_on_a_warm_start_is_not_taken_for_a_warmup(seed: int,
+                                                              multiple: float) -> None:
+    """A warm start has no start-up transient: warmup is not scored, so a weak drift is not
+    left ambiguous between aging and warmup."""
+    case = cases.draw("effect", "aging", seed)
+    case.multiple = multiple
+    out, j, d = _run(case)
+    assert not any(c.power_on for c in d.ctxs)
+    w = next(c for c in j["candidates"] if c["effect"] == "warmup")
+    assert not w["identifiable"] and "starts warm" in w["evidence"]
+    assert out.ok, f"[{case.describe()}] -> {out.reason}; ambiguous={j['ambiguous']}"

@@ -61,6 +61,9 @@ class Candidate:
     # report the coefficient and parameter as profile-likelihood averages over the grid
     # parameter (see verdict._profile_average) rather than at its best value
     average: bool = False
+    # an effect of the start-up after a power-on: scored only when a run starts at power-on
+    # (driver.identify, or --start); a warm start has no start-up transient
+    needs_power_on: bool = False
 
     def to_effect(self, coef: float, theta: GridValue) -> dict:
         """The simulator's effect entry (trainer.sim.config.EffectConfig as a dict)."""
@@ -121,7 +124,8 @@ EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(4000.0, 32000.0
 
 CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("warmup", "strength_ppm", "tau_s", WARMUP_GRID_S, _warmup,
-              "SF start-up transient after power-on, unseen by the thermometer"),
+              "SF start-up transient after power-on, unseen by the thermometer",
+              needs_power_on=True),
     Candidate("extra_lag", "sens_ppm_per_c", "tau_s", EXTRA_LAG_GRID_S, _extra_lag,
               "an extra slow thermal node lagging the housing",
               admissible=lambda b, g: g is not None and g >= design.MIN_TAU_RATIO * b[1]),

@@ -594,6 +594,13 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
            folds: np.ndarray, blocks: np.ndarray, run_ids: np.ndarray, base: ModelFit,
            before: float
            ) -> CandidateResult:
+    if cand.needs_power_on and not any(c.power_on for c in ctxs):
+        return CandidateResult(
+            cand.name, False, 0.0, heldout_before=before, heldout_after=before,
+            evidence="not identifiable from these logs: every run starts warm (no "
+                     "self-heating rise of the board after a power-on), so there is no start-up "
+                     "transient to see (pass --start power-on if the logs do begin at "
+                     "power-on)")
     model = fit_model(ctxs, cand, y, w, folds)
     vis = visible_fraction(model, w)
     res = CandidateResult(cand.name, vis >= MIN_VISIBLE, vis, heldout_before=before)
