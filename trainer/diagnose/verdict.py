@@ -8,6 +8,15 @@ Decision rules (all on held-out residuals, per block of windows, never per windo
 - It is *not identifiable* on these logs when the part of its column that the base model
   cannot absorb is below MIN_VISIBLE of the column (e.g. asymmetry at one |rate|, aging or
   a dT/dt term on steady ramps alone): it is then not scored, and says so.
+- A node-like candidate (a dT/dt term, an extra lag) must also beat the base with a third
+  node of the base's own kind on held-out blocks (p < ALPHA): the base's two nodes stand
+  for the FOG's several, and on long logs any added node lowers the residual a little.
+- A warmup (start-up transient) is scored only when a run starts at power-on.
+- Profiled parameters: the interval is where the profiled SSE stays within 3.84 units
+  (reduced chi-square times the residual's long-run variance ratio) of its minimum, on the
+  base and on a base with a third node (the union). A candidate marked `average` (temp_rate,
+  whose coil time constant is often unpinned) reports its coefficient and parameter as
+  profile-likelihood averages, with the best fit alongside.
 - Nested candidates (an extra slow lag contains a dT/dt term's signature once the slow
   node is slow enough): the simpler is preferred unless the larger beats it on held-out
   blocks (p < AMBIGUOUS_P).
