@@ -6,21 +6,25 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
 
     warmup             exp(-t/tau_s)                      coef: ppm at power-on; tau_s
     extra_lag          lag(housing, tau) - housing (C)    coef: sens_ppm_per_c; strength tau
-    temp_rate          d/dt of a coil node (C/min)        coef: ppm/(C/min); coil_tau_s
+    temp_rate          d/dt of the coil (C/min)           coef: ppm/(C/min); coil_tau_s
     rate_nonlinearity  |rate| / 100 deg/s                 coef: ppm at 100 deg/s
     asymmetry          sign(rate) / 2                     coef: ppm, SF(+) - SF(-)
     bias_drift         (T_board - 20) * 1e6/(3600 rate)   coef: deg/h per C
     aging              t / 3600 s                         coef: ppm/h
 
-The coil node of `temp_rate` lags the housing with a time constant profiled over 600-3000 s
-(a small FOG's coil: 10-50 min); in that model the base's nodes are held to the same range
-(the FOG's own nodes). With the base's slower node free up to 4000 s, base + coil node
-would be three nodes up to 4000 s plus the housing term, i.e. an extra lag of 4000-6000 s
-by another name. An extra lag is an extra *slow* node, profiled from 4000 s up (the base's
-nodes stay within 600-4000 s) and above 1.4x the base's slower node. Both terms are
-(node - housing) / tau in form, so what tells them apart is how long they keep settling
-after a ramp stops (see verdict._nested_choice); on steady ramps alone neither is
-separable from the base.
+The coil of `temp_rate` is wound in layers: its temperature is the mean of an inner and an
+outer layer node, each lagging the housing (the simulator's effect differentiates the mean
+of its coil nodes). The inner layer's time constant is profiled over 600-3000 s (a small
+FOG's coil: 10-50 min) and the outer layer's ratio to it over COIL_RATIOS (1: one node);
+the outer layer stays within 3000 s. A single node cannot follow a layered coil's rate once
+the term is strong (its held-out residual stays non-white). In that model the base's nodes
+are held to 600-3000 s too (the FOG's own nodes). With the base's slower node free up to
+4000 s, base + coil would be three nodes up to 4000 s plus the housing term, i.e. an extra
+lag of 4000-6000 s by another name. An extra lag is an extra *slow* node, profiled from
+4000 s up (the base's nodes stay within 600-4000 s) and above 1.4x the base's slower node.
+Both terms are (node - housing) / tau in form, so what tells them apart is how long they
+keep settling after a ramp stops (see verdict._nested_choice); on steady ramps alone
+neither is separable from the base.
 """
 
 from __future__ import annotations
@@ -34,6 +38,15 @@ from trainer.diagnose import design
 from trainer.diagnose.design import RunContext
 
 BaseTheta = tuple[float, float]
+# a profiled parameter: a value, or (first, further...) for a candidate profiled over several
+# (intervals and refinement act on the first; the rest are profiled out)
+GridValue = float | tuple[float, ...] | None
+
+
+def first(g: GridValue) -> float:
+    """The leading profiled parameter of a grid value (the one intervals are reported on)."""
+    assert g is not None
+    return float(g[0]) if isinstance(g, tuple) else float(g)
 
 
 @dataclass(frozen=True)
@@ -41,12 +54,18 @@ class Candidate:
     name: str
     coef_name: str  # the linear coefficient, with its unit in the name
     grid_name: str | None  # the profiled parameter, with its unit
-    grid: tuple[float | None, ...]
-    column: Callable[[RunContext, BaseTheta, float | None], np.ndarray]
+    grid: tuple[GridValue, ...]
+    column: Callable[[RunContext, BaseTheta, GridValue], np.ndarray]
     meaning: str
-    admissible: Callable[[BaseTheta, float | None], bool] = lambda b, g: True
+    admissible: Callable[[BaseTheta, GridValue], bool] = lambda b, g: True
+    # report the coefficient and parameter as profile-likelihood averages over the grid
+    # parameter (see verdict._profile_average) rather than at its best value
+    average: bool = False
+    # an effect of the start-up after a power-on: scored only when a run starts at power-on
+    # (driver.identify, or --start); a warm start has no start-up transient
+    needs_power_on: bool = False
 
-    def to_effect(self, coef: float, theta: float | None) -> dict:
+    def to_effect(self, coef: float, theta: GridValue) -> dict:
         """The simulator's effect entry (trainer.sim.config.EffectConfig as a dict)."""
         if self.name == "warmup":
             return {"name": "warmup", "strength": coef, "params": {"tau_s": theta}}
@@ -60,50 +79,59 @@ class Candidate:
         return {"name": self.name, "strength": coef, "params": {}}
 
 
-def _warmup(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
-    assert tau is not None
-    return design.decay(ctx, tau)
+def _warmup(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:
+    return design.decay(ctx, first(tau))
 
 
-def _extra_lag(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
-    assert tau is not None
-    return design.node(ctx, tau) - design.drive(ctx)
+def _extra_lag(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:
+    return design.node(ctx, first(tau)) - design.drive(ctx)
 
 
-def _temp_rate(ctx: RunContext, b: BaseTheta, tau: float | None) -> np.ndarray:
-    assert tau is not None
-    return (design.drive(ctx) - design.node(ctx, tau)) / tau * 60.0
+def coil_taus(g: GridValue) -> tuple[float, float]:
+    """(inner, outer) layer time constants of a temp_rate grid value (tau, ratio)."""
+    assert isinstance(g, tuple)
+    return float(g[0]), float(round(g[0] * g[1], 1))
 
 
-def _rate_nonlinearity(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+def _temp_rate(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
+    h = design.drive(ctx)
+    rates = [(h - design.node(ctx, tau)) / tau for tau in coil_taus(g)]
+    return 0.5 * (rates[0] + rates[1]) * 60.0
+
+
+def _rate_nonlinearity(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     return np.abs(ctx.run.rate) / 100.0
 
 
-def _asymmetry(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+def _asymmetry(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     return 0.5 * np.sign(ctx.run.rate)
 
 
-def _bias_drift(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+def _bias_drift(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     return design.board(ctx) * design.PPM_PER_DPH / ctx.run.rate
 
 
-def _aging(ctx: RunContext, b: BaseTheta, g: float | None) -> np.ndarray:
+def _aging(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     return ctx.run.t_s / 3600.0
 
 
 WARMUP_GRID_S = tuple(float(x) for x in np.round(np.geomspace(60.0, 3600.0, 13), -1))
 COIL_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 3000.0, 8), -1))
+COIL_RATIOS = (1.0, 1.41, 2.0)  # outer / inner layer
+COIL_GRID = tuple((t, r) for r in COIL_RATIOS for t in COIL_TAU_GRID_S
+                  if t * r <= COIL_TAU_GRID_S[-1] + 1.0)
 EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(4000.0, 32000.0, 10), -2))
 
 CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("warmup", "strength_ppm", "tau_s", WARMUP_GRID_S, _warmup,
-              "SF start-up transient after power-on, unseen by the thermometer"),
+              "SF start-up transient after power-on, unseen by the thermometer",
+              needs_power_on=True),
     Candidate("extra_lag", "sens_ppm_per_c", "tau_s", EXTRA_LAG_GRID_S, _extra_lag,
               "an extra slow thermal node lagging the housing",
               admissible=lambda b, g: g is not None and g >= design.MIN_TAU_RATIO * b[1]),
-    Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", COIL_TAU_GRID_S,
+    Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", COIL_GRID,
               _temp_rate, "SF term in the coil's rate of temperature change",
-              admissible=lambda b, g: b[1] <= COIL_TAU_GRID_S[-1]),
+              admissible=lambda b, g: b[1] <= COIL_TAU_GRID_S[-1], average=True),
     Candidate("rate_nonlinearity", "strength_ppm_at_100dps", None, (None,),
               _rate_nonlinearity, "SF that grows with |rate|"),
     Candidate("asymmetry", "strength_ppm", None, (None,), _asymmetry,
@@ -113,3 +141,45 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("aging", "strength_ppm_per_h", None, (None,), _aging,
               "SF drift with elapsed time"),
 ]}
+
+# Not a cause: the reference that the node-like candidates (NODE_LIKE) must beat. The base's
+# two nodes stand for the FOG's several (coil layers, source); on long logs a third node
+# of the base's kind (within its 600-4000 s, away from both of its nodes) can still lower
+# the residual a little, and any node-like candidate would take that gain for itself.
+NODE_LIKE = ("temp_rate", "extra_lag")
+
+
+def _node(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:
+    return design.node(ctx, first(tau))
+
+
+EXTRA_NODE = Candidate(
+    "extra_node", "node3_ppm_per_c", "node3_tau_s", design.BASE_TAU_GRID_S, _node,
+    "a third node of the base's kind (reference only)",
+    admissible=lambda b, g: g is not None and all(
+        max(first(g), t) >= design.MIN_TAU_RATIO * min(first(g), t) for t in b))
+
+
+def with_extra_node(cand: Candidate) -> Candidate:
+    """`cand` on a base with a third node of its kind (EXTRA_NODE), both profiled: its grid
+    values get the node's time constant appended. Its design matrices carry one column more
+    than its names say; it is for profile SSEs only (see verdict._interval_with_extra_node)."""
+    nested = isinstance(cand.grid[0], tuple)
+
+    def own(gg: GridValue) -> GridValue:
+        assert isinstance(gg, tuple)
+        return tuple(gg[:-1]) if nested else gg[0]
+
+    def column(ctx: RunContext, b: BaseTheta, gg: GridValue) -> np.ndarray:
+        assert isinstance(gg, tuple)
+        return np.column_stack([cand.column(ctx, b, own(gg)), design.node(ctx, gg[-1])])
+
+    grid = tuple((*(g if isinstance(g, tuple) else (g,)), t3)
+                 for g in cand.grid for t3 in design.BASE_TAU_GRID_S)
+    def admissible(b: BaseTheta, gg: GridValue) -> bool:
+        assert isinstance(gg, tuple)
+        return cand.admissible(b, own(gg)) and EXTRA_NODE.admissible(b, gg[-1])
+
+    return Candidate(cand.name + "+node3", cand.coef_name, cand.grid_name, grid, column,
+                     cand.meaning, admissible)
+

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from trainer.diagnose import design
+from trainer.diagnose import catalogue, design
 from trainer.diagnose.design import RunContext
 from trainer.diagnose.verdict import Diagnosis, ModelFit
 from trainer.logio import EARTH_RATE_DPS
@@ -111,8 +111,12 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
     ]
     cand = model.stack.candidate
     if cand is not None and cand.name == "temp_rate":
-        # the simulator's temp_rate differentiates the nodes named coil*: one, as fitted
-        nodes.append({"name": "coil", "parent": "housing", "tau_s": g, "self_heat_c": 0.0})
+        # the simulator's temp_rate differentiates the mean of the nodes named coil*: the
+        # two layers, as fitted
+        nodes += [{"name": f"coil_{layer}", "parent": "housing", "tau_s": tau,
+                   "self_heat_c": 0.0}
+                  for layer, tau in zip(("inner", "outer"), catalogue.coil_taus(g),
+                                        strict=True)]
     terms = [
         _sf_term("fitted board term", "board", coef["board_ppm_per_c"],
                  coef["board_ppm_per_c2"]),

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from trainer.diagnose import design
-from trainer.diagnose.catalogue import Candidate
+from trainer.diagnose.catalogue import Candidate, GridValue
 from trainer.diagnose.design import RunContext
 
 RIDGE = 1e-5  # on scaled columns: keeps nearly collinear node terms from cancelling wildly
@@ -25,13 +25,13 @@ RIDGE = 1e-5  # on scaled columns: keeps nearly collinear node terms from cancel
 class Stack:
     """Design matrices of one model for every admissible grid combination."""
 
-    combos: list[tuple[tuple[float, float], float | None]]
+    combos: list[tuple[tuple[float, float], GridValue]]
     x: np.ndarray  # (G, n, p)
     names: list[str]
     candidate: Candidate | None
 
 
-Combo = tuple[tuple[float, float], float | None]
+Combo = tuple[tuple[float, float], GridValue]
 
 
 def build(ctxs: list[RunContext], cand: Candidate | None,
