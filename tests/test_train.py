@@ -56,6 +56,23 @@ def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:
     assert np.max(np.abs(ref.sf_ppm.astype(np.float64) - torch_pred)) < 0.01
 
 
+def test_no_start_up_transient_after_reset(logs) -> None:
+    """Firmware starts from reset at power-on: the exported model's first 10 minutes on an
+    unseen run (the soak before its ramp) are no worse than the run as a whole, and within
+    twice the noise floor (the LSTM state starting from zero once left ~200 ppm there)."""
+    from trainer.metrics import noise_floor_ppm, sf_error_ppm, sf_windows
+    from trainer.train import fit_model
+
+    train, test = logs
+    fitted = fit_model(TrainOptions(model="lag-lstm", progress=False, **FAST), [train])
+    ref = replay(fitted.stream_model, test.temp_c, test.gyro_dps)
+    w = sf_windows(test, correction_ppm=ref.sf_ppm.astype(np.float64))
+    e = sf_error_ppm(w, 1.0)
+    first = w.t_s - w.t_s[0] < 600.0
+    start_rms = float(np.sqrt(np.mean(e[first] ** 2)))
+    assert start_rms <= max(float(np.sqrt(np.mean(e**2))), 2.0 * noise_floor_ppm(w)), e[first]
+
+
 def test_two_nodes_from_two_ramp_rates(logs, tmp_path: Path) -> None:
     """With runs at two ramp rates, two effective nodes and their quadratic form (the
     polynomial head) are identified and carried into the firmware artifact."""
