@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -92,30 +93,20 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
 
 
 def cdef(model: StreamModel) -> str:
-    """The cffi declarations of fogsf.h for this model's sizes."""
-    k_alloc = max(model.n_filters, 1)
-    lay, hid, f = model.layers, model.hidden, model.n_features
-    return f"""
-typedef struct fogsf_state {{
-    float h[{lay}][{hid}]; float c[{lay}][{hid}]; float h_prev[{hid}]; float z[{f}];
-    float y[{k_alloc}]; float acc; float t_last_good; float sf_ppm; uint32_t sf_flags;
-    uint32_t raw_prev_bits; uint32_t stuck_run; uint32_t n_acc; uint32_t started;
-}} fogsf_state;
-typedef struct fogsf_output {{ double corrected_dps; float sf_ppm; uint32_t flags; }} fogsf_output;
-void fogsf_init(fogsf_state *st);
-void fogsf_reset(fogsf_state *st);
-void fogsf_step(fogsf_state *st, float temp_c, double gyro_dps, fogsf_output *out);
-uint32_t fogsf_run(fogsf_state *st, const float *temp_c, const double *gyro_dps, size_t n,
-                   double *corrected_dps, float *sf_ppm, uint32_t *flags);
-size_t fogsf_state_size(void);
-const char *fogsf_model_id(void);
-void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
-                     const float *b, const float *p, const float *x, float *h, float *c,
-                     float *h_prev);
-float fogsf_expf(float x);
-float fogsf_sigmoidf(float x);
-float fogsf_tanhf(float x);
-"""
+    """The cffi declarations of fogsf.h for this model's sizes: the header's declarations
+    (between its extern "C" guards) without comments and preprocessor lines, with the
+    model's size macros replaced by their values, so there is one statement of the API."""
+    text = (C_DIR / "fogsf.h").read_text()
+    body = text.split('extern "C" {\n#endif\n', 1)[1].split("#ifdef __cplusplus\n}", 1)[0]
+    body = re.sub(r"/\*.*?\*/", "", body, flags=re.DOTALL)
+    body = "\n".join(line for line in body.splitlines() if not line.lstrip().startswith("#"))
+    sizes = {"FOGSF_LAYERS": model.layers, "FOGSF_HIDDEN": model.hidden,
+             "FOGSF_N_FEATURES": model.n_features,
+             "FOGSF_N_FILTERS_ALLOC": max(model.n_filters, 1)}
+    unknown = set(re.findall(r"\bFOGSF_[A-Z_0-9]+\b", body)) - set(sizes)
+    if unknown:
+        raise RuntimeError(f"fogsf.h declarations use macros cdef() does not know: {unknown}")
+    return re.sub(r"\bFOGSF_[A-Z_0-9]+\b", lambda m: str(sizes[m.group(0)]), body)
 
 
 class Kernel:
