@@ -164,7 +164,7 @@ def _profile(logs: list, fe: FrontEnd, latitude_deg: float | None,
         score = float(np.sqrt(np.mean((x @ coef - y) ** 2)))
         if plausible not in best or score < best[plausible][0]:
             best[plausible] = (score, cand)
-    score, cand = best.get(True, best[False])
+    score, cand = best[True] if True in best else best[False]
     return cand, score
 
 
