@@ -83,3 +83,16 @@ def test_train_without_test_log_says_one_rate_is_an_extrapolation(runs, tmp_path
     saved = json.loads((tmp_path / "two" / "metrics.json").read_text())
     assert saved["train_ramp_rates_c_per_min"] == [pytest.approx(0.6, rel=0.05),
                                                   pytest.approx(2.4, rel=0.05)]
+
+
+def test_long_run_ratio_of_white_and_structured_residuals() -> None:
+    import numpy as np
+
+    from trainer.transfer import long_run_ratio
+
+    rng = np.random.default_rng(9)
+    white = rng.normal(size=4000)
+    assert long_run_ratio(white, [2000, 2000]) == pytest.approx(1.0, abs=0.3)
+    drift = white + 0.5 * np.sin(np.arange(4000) / 150.0)  # structure slower than a window
+    assert long_run_ratio(drift, [2000, 2000]) > 2.0
+    assert long_run_ratio(white[:5], [5]) == 1.0  # shorter than a window: no evidence

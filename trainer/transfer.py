@@ -14,7 +14,9 @@ the board temperatures of a target log (its gyro output is not used):
    such a bound, quadratic forms of nearly collinear nodes fit with huge cancelling
    coefficients and amplify even thermometer noise) whose training fit is as good as the
    best plausible one (sum of squares within a chi-square allowance of it, the noise
-   variance estimated from that fit) are "consistent with the training data";
+   variance estimated from that fit and widened by its residual's long-run variance ratio,
+   so that structure no lag model explains loosens the allowance instead of pinning one
+   misspecified model) are "consistent with the training data";
 3. how far their predictions on the target log spread: the windowed RMS difference of each
    consistent model's prediction from the best one's, reported as the median and maximum.
 
@@ -37,6 +39,7 @@ MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
 RATE_TOLERANCE = 0.15  # a target rate within 15 % of the training range is covered
 CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
 DECIMATION = 50
+LONG_RUN_STEPS = 20  # 100 s windows of 5 s model steps
 
 
 def ramp_rate_c_per_min(log: ChamberLog) -> float:
@@ -70,6 +73,9 @@ class RateTransfer:
     consistent: int  # models that fit the training data as well as the best
     spread_median_ppm: float
     spread_max_ppm: float
+    # long-run variance of the best fit's residual / white noise's (1: the lag family explains
+    # the training data to its noise; more: structure is left, and the allowance widens)
+    residual_long_run_ratio: float = 1.0
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -82,6 +88,10 @@ class RateTransfer:
                   "training data as well as the best; on the target they differ by "
                   f"{self.spread_median_ppm:.1f} ppm RMS (median), up to "
                   f"{self.spread_max_ppm:.1f}")
+        if self.residual_long_run_ratio > 2.0:
+            spread += (f" (the best fit leaves structure, long-run variance "
+                       f"{self.residual_long_run_ratio:.0f} x white: no lag model of this family "
+                       "explains the training data to its noise)")
         if self.covered:
             return f"{head} (within the training range): {spread}"
         return (f"{head}: OUTSIDE the training range, the compensation there is an "
@@ -118,8 +128,11 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
         raise UserError("rate transfer: no lag model fits the training logs with node "
                         f"sensitivities under {MAX_NODE_SLOPE_PPM_PER_C:g} ppm/C")
     best = int(np.argmin(sse))
+    x = cands[best].design(s)
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    inflation = long_run_ratio(y - x @ coef, [d.n_steps for d in data])
     noise_var = sse[best] / max(1, y.size - 6)
-    ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var)
+    ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation)
     every = np.ones(tdata.n_steps, dtype=bool)
     spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, DECIMATION)
                        for i in ok])
@@ -128,4 +141,18 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     lo, hi = min(train_rates), max(train_rates)
     covered = lo * (1 - RATE_TOLERANCE) <= target_rate <= hi * (1 + RATE_TOLERANCE)
     return RateTransfer(train_rates, target_rate, bool(covered), plausible, int(ok.size),
-                        float(np.median(spread)), float(np.max(spread)))
+                        float(np.median(spread)), float(np.max(spread)), inflation)
+
+
+def long_run_ratio(resid: np.ndarray, lengths: list[int], window: int = LONG_RUN_STEPS
+                   ) -> float:
+    """How much more the residual varies over `window`-step means than white noise would:
+    window * mean(window mean^2) / mean(resid^2), windows within each log, at least 1."""
+    means: list[float] = []
+    for part in np.split(resid, np.cumsum(lengths)[:-1]):
+        n = part.size // window
+        if n:
+            means += list(part[:n * window].reshape(n, window).mean(axis=1))
+    if not means:
+        return 1.0
+    return max(1.0, window * float(np.mean(np.square(means))) / float(np.mean(resid**2)))
