@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -141,6 +142,26 @@ def node_candidates(n_nodes: int, grid: tuple[float, ...] = TAU_GRID_S,
     return out
 
 
+@dataclass
+class CandidateFit:
+    cand: NodeCandidate
+    coef: np.ndarray
+    sse: float  # sum of squared residuals over the fitted rows
+    plausible: bool  # no node sensitivity above MAX_NODE_SLOPE_PPM_PER_C on those rows
+
+
+def fit_candidates(candidates: list[NodeCandidate], rows: np.ndarray, y: np.ndarray
+                   ) -> list[CandidateFit]:
+    """Every candidate fitted by least squares to the grid front end's `rows` and targets."""
+    out: list[CandidateFit] = []
+    for cand in candidates:
+        x = cand.design(rows)
+        coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+        out.append(CandidateFit(cand, coef, float(np.sum((x @ coef - y) ** 2)),
+                                cand.max_node_slope(coef, rows) <= MAX_NODE_SLOPE_PPM_PER_C))
+    return out
+
+
 def _profile(logs: list, fe: FrontEnd, latitude_deg: float | None,
              candidates: list[NodeCandidate], grid: tuple[float, ...]
              ) -> tuple[NodeCandidate, float]:
@@ -155,17 +176,10 @@ def _profile(logs: list, fe: FrontEnd, latitude_deg: float | None,
     it by chance (with two ramp rates it picked one 6 x the noise floor on the rate between,
     where the best in-sample fit was at 1.1 x)."""
     data, y = grid_data(logs, fe, grid, (0.0, 0.0), latitude_deg)
-    rows = np.concatenate([d.s for d in data])
-    best: dict[bool, tuple[float, NodeCandidate]] = {}
-    for cand in candidates:
-        x = cand.design(rows)
-        coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-        plausible = cand.max_node_slope(coef, rows) <= MAX_NODE_SLOPE_PPM_PER_C
-        score = float(np.sqrt(np.mean((x @ coef - y) ** 2)))
-        if plausible not in best or score < best[plausible][0]:
-            best[plausible] = (score, cand)
-    score, cand = best[True] if True in best else best[False]
-    return cand, score
+    fits = fit_candidates(candidates, np.concatenate([d.s for d in data]), y)
+    pool = [f for f in fits if f.plausible] or fits
+    best = min(pool, key=lambda f: f.sse)  # the first of equals, in candidate order
+    return best.cand, math.sqrt(best.sse / y.size)
 
 
 def profile_effective_node(logs: list, fe: FrontEnd, latitude_deg: float | None = None,

@@ -106,6 +106,7 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     from trainer.least_squares import (
         MAX_NODE_SLOPE_PPM_PER_C,
         TAU_GRID_S,
+        fit_candidates,
         grid_data,
         node_candidates,
     )
@@ -114,25 +115,18 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     data, y = grid_data(train_logs, fe, TAU_GRID_S, (0.0, 0.0), latitude_deg)
     (tdata,), _ = grid_data([target], fe, TAU_GRID_S, (0.0, 0.0), latitude_deg)
     s = np.concatenate([d.s for d in data])
-    cands = node_candidates(1) + node_candidates(2)
-    sse = np.full(len(cands), np.inf)
-    preds: list[np.ndarray] = []
-    for i, cand in enumerate(cands):
-        x = cand.design(s)
-        coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-        if cand.max_node_slope(coef, s) <= MAX_NODE_SLOPE_PPM_PER_C:
-            sse[i] = float(np.sum((x @ coef - y) ** 2))
-        preds.append(cand.design(tdata.s) @ coef)
-    plausible = int(np.isfinite(sse).sum())
-    if plausible == 0:
+    fits = [f for f in fit_candidates(node_candidates(1) + node_candidates(2), s, y)
+            if f.plausible]
+    if not fits:
         raise UserError("rate transfer: no lag model fits the training logs with node "
                         f"sensitivities under {MAX_NODE_SLOPE_PPM_PER_C:g} ppm/C")
+    sse = np.array([f.sse for f in fits])
     best = int(np.argmin(sse))
-    x = cands[best].design(s)
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    inflation = long_run_ratio(y - x @ coef, [d.n_steps for d in data])
+    resid = y - fits[best].cand.design(s) @ fits[best].coef
+    inflation = long_run_ratio(resid, [d.n_steps for d in data])
     noise_var = sse[best] / max(1, y.size - 6)
     ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation)
+    preds = {i: fits[i].cand.design(tdata.s) @ fits[i].coef for i in ok}
     every = np.ones(tdata.n_steps, dtype=bool)
     spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, DECIMATION)
                        for i in ok])
@@ -140,7 +134,7 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     target_rate = ramp_rate_c_per_min(target)
     lo, hi = min(train_rates), max(train_rates)
     covered = lo * (1 - RATE_TOLERANCE) <= target_rate <= hi * (1 + RATE_TOLERANCE)
-    return RateTransfer(train_rates, target_rate, bool(covered), plausible, int(ok.size),
+    return RateTransfer(train_rates, target_rate, bool(covered), len(fits), int(ok.size),
                         float(np.median(spread)), float(np.max(spread)), inflation)
 
 
