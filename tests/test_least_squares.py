@@ -31,7 +31,7 @@ def test_profile_prefers_a_plausible_candidate() -> None:
     log = simulate(cfg).log
     fe = front_end_for([log], 50, ())
     node, _ = profile_effective_node([log], fe)
-    data, y = grid_data([log], fe, (node[0],), (0.0, 0.0), None)
+    data, y = grid_data([log], fe, (node[0],), None)
     cand = next(c for c in node_candidates(1, (node[0],)) if c.nodes[0] == node)
     coef, *_ = np.linalg.lstsq(cand.design(data[0].s), y, rcond=None)
     assert cand.max_node_slope(coef, data[0].s) <= MAX_NODE_SLOPE_PPM_PER_C

@@ -90,15 +90,14 @@ def _two_node_design(s: np.ndarray, k1: int, w1: float, k2: int, w2: float) -> n
     return np.column_stack([np.ones_like(a), a, b, a * a, a * b, b * b])
 
 
-def grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...],
-               val_chunk: tuple[float, float], latitude_deg: float | None
-               ) -> tuple[list[SeqData], np.ndarray]:
+def grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...], latitude_deg: float | None
+              ) -> tuple[list[SeqData], np.ndarray]:
     """Every log through a front end with one lag filter per grid time constant, and the
-    training targets stacked."""
+    targets of all their steps stacked."""
     full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
                     filter_alpha(list(grid), fe.decimation))
-    data = [prepare(lg, full, val_chunk, latitude_deg) for lg in logs]
-    return data, np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    data = [prepare(lg, full, None, latitude_deg) for lg in logs]
+    return data, np.concatenate([d.target_ppm for d in data])
 
 
 @dataclass(frozen=True)
@@ -175,7 +174,7 @@ def _profile(logs: list, fe: FrontEnd, latitude_deg: float | None,
     the lag structures differ least, so a held-out middle chunk picks structures that fit
     it by chance (with two ramp rates it picked one 6 x the noise floor on the rate between,
     where the best in-sample fit was at 1.1 x)."""
-    data, y = grid_data(logs, fe, grid, (0.0, 0.0), latitude_deg)
+    data, y = grid_data(logs, fe, grid, latitude_deg)
     fits = fit_candidates(candidates, np.concatenate([d.s for d in data]), y)
     pool = [f for f in fits if f.plausible] or fits
     best = min(pool, key=lambda f: f.sse)  # the first of equals, in candidate order

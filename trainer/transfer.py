@@ -112,8 +112,8 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     )
 
     fe = front_end_for([*train_logs, target], DECIMATION, ())
-    data, y = grid_data(train_logs, fe, TAU_GRID_S, (0.0, 0.0), latitude_deg)
-    (tdata,), _ = grid_data([target], fe, TAU_GRID_S, (0.0, 0.0), latitude_deg)
+    data, y = grid_data(train_logs, fe, TAU_GRID_S, latitude_deg)
+    (tdata,), _ = grid_data([target], fe, TAU_GRID_S, latitude_deg)
     s = np.concatenate([d.s for d in data])
     fits = [f for f in fit_candidates(node_candidates(1) + node_candidates(2), s, y)
             if f.plausible]

@@ -135,8 +135,8 @@ def format_metrics(m: dict) -> str:
     lines.append(f"  noise floor {m['noise_floor_ppm']:.2f} ppm ({m['window_s']:g} s windows)")
     if "rate_transfer" in m:
         lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))
-    elif not spans_ramp_rates(m.get("train_ramp_rates_c_per_min", [])):
-        rates = ", ".join(f"{r:.2g}" for r in m.get("train_ramp_rates_c_per_min", []))
+    elif not spans_ramp_rates(m["train_ramp_rates_c_per_min"]):
+        rates = ", ".join(f"{r:.2g}" for r in m["train_ramp_rates_c_per_min"])
         lines.append(textwrap.fill(
             f"note: the training logs hold one ramp rate ({rates} C/min): at other rates the "
             "compensation is an extrapolation that the data cannot check (give --test LOG "
