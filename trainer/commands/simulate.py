@@ -15,6 +15,7 @@ sim.json, e.g. from --write-config or from fogsf diagnose); the options below ov
 examples:
   fogsf simulate --scenario paper --ramp-rate 1.0 --seed 7 --out run10.csv --summary
   fogsf simulate --scenario paper --ramp-rate 0.5 --effect temp_rate=30 --out run05.csv
+  fogsf simulate --random-gyro 17 --ramp-rate 1.0 --summary
   fogsf simulate --profile cycle --start-c -20 --stop-c 60 --table alternating --out c.csv
   fogsf simulate --program chamber.csv --table levels --rates-dps 10,100,-10,-100 --out p.csv
   fogsf simulate --scenario paper --plot docs/sim_paper.png
@@ -55,6 +56,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--ramp-rate", type=float, metavar="C_PER_MIN",
                    help="chamber ramp rate in C/min (paper: 0.5 and 1.0)")
     g.add_argument("--seed", type=int, help="random seed (same seed, same bytes)")
+    g.add_argument("--random-gyro", type=int, metavar="GYRO_SEED",
+                   help="a gyro drawn from the population (trainer/sim/population.py; "
+                        "0 is the default gyro) instead of the default gyro; the run's noise "
+                        "seed is GYRO_SEED unless --seed is given. Development seeds "
+                        "0-9999, evaluation seeds 20000-29999 (docs/population.md)")
     g.add_argument("--effect", action="append", default=[], metavar="NAME=STRENGTH[,k=v]",
                    help="switch on an effect (repeatable); see --list-effects")
 
@@ -116,6 +122,13 @@ def build_config(args: argparse.Namespace) -> SimConfig:
     else:
         cfg = scenario(args.scenario or "paper")
     cfg = copy.deepcopy(cfg)
+    if args.random_gyro is not None:
+        from trainer.sim.population import gyro_for_seed, with_gyro
+
+        if args.random_gyro < 0:
+            raise UserError(f"--random-gyro must be >= 0, got {args.random_gyro}")
+        cfg = with_gyro(cfg, gyro_for_seed(args.random_gyro))
+        cfg.seed = args.random_gyro
     if args.seed is not None:
         cfg.seed = args.seed
     pr = cfg.profile

@@ -65,8 +65,9 @@ class SFTermConfig:
     """One factor of K = 2*pi*L*D / (Km*K_DA*lambda*c) and its temperature law.
 
     factor: one of L, D, Km, K_DA, lambda. The factor's relative change is
-    lin_ppm_per_c*(T-ref_c) + quad_ppm_per_c2*(T-ref_c)**2 (in ppm) where T is the weighted
-    mean of the node temperatures in `nodes` (weights sum to 1).
+    lin_ppm_per_c*(T-ref_c) + quad_ppm_per_c2*(T-ref_c)**2 + cube_ppm_per_c3*(T-ref_c)**3
+    (in ppm) where T is the weighted mean of the node temperatures in `nodes` (weights sum
+    to 1). The cubic term is zero unless given (the gyro population draws some).
     """
 
     name: str
@@ -75,6 +76,7 @@ class SFTermConfig:
     lin_ppm_per_c: float
     quad_ppm_per_c2: float = 0.0
     ref_c: float = 20.0
+    cube_ppm_per_c3: float = 0.0
 
 
 def _default_sf_terms() -> list[SFTermConfig]:

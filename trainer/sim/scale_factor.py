@@ -5,7 +5,7 @@ K = 2*pi*L*D / (Km * K_DA * lambda * c)   (paper eq. 2)
 L, D: coil length and diameter (grow with the coil temperature); lambda: the source's mean
 wavelength (moves with the source temperature); Km: the Y-waveguide's modulation
 coefficient; K_DA: the D/A converter and driver gain. Each factor's relative change is a
-quadratic in its own temperature (a weighted mean of node temperatures), and the SF error
+quadratic (or cubic) in its own temperature (a weighted mean of node temperatures), and the SF error
 is the exact product (1+eL)(1+eD) / ((1+eKm)(1+eDA)(1+elambda)) - 1, in ppm vs nominal.
 """
 
@@ -26,7 +26,10 @@ def term_temperature(nodes: Mapping[str, np.ndarray], term: SFTermConfig) -> np.
 def factor_change_ppm(temp_c: np.ndarray, term: SFTermConfig) -> np.ndarray:
     """Relative change of one factor (ppm) at temperature temp_c."""
     d = np.asarray(temp_c, dtype=np.float64) - term.ref_c
-    return term.lin_ppm_per_c * d + term.quad_ppm_per_c2 * d * d
+    out = term.lin_ppm_per_c * d + term.quad_ppm_per_c2 * d * d
+    if term.cube_ppm_per_c3:
+        out = out + term.cube_ppm_per_c3 * d * d * d
+    return out
 
 
 def sf_error_ppm(nodes: Mapping[str, np.ndarray], cfg: ScaleFactorConfig) -> np.ndarray:

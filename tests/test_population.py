@@ -1,0 +1,106 @@
+"""The gyro population: ranges, structural variety, determinism, magnitudes."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from trainer.cli import main
+from trainer.metrics import log_metrics
+from trainer.sim import SimConfig, simulate
+from trainer.sim import population as pop
+from trainer.sim.config import SF_FACTORS, validate
+from trainer.sim.scenarios import paper
+from trainer.sim.thermal import effective_tau_s
+
+DRAWS = [pop.gyro_for_seed(s) for s in range(1, 81)]
+
+
+def test_seed_zero_is_the_default_gyro() -> None:
+    g = pop.gyro_for_seed(0)
+    d = SimConfig()
+    assert (g.thermal, g.sf, g.bias, g.noise) == (d.thermal, d.sf, d.bias, d.noise)
+
+
+def test_same_seed_same_gyro_and_seeds_differ() -> None:
+    a = pop.gyro_for_seed(123).to_json()
+    assert a == pop.gyro_for_seed(123).to_json()
+    assert a != pop.gyro_for_seed(124).to_json()
+    rng1, rng2 = np.random.default_rng(5), np.random.default_rng(5)
+    assert pop.sample_gyro(rng1) == pop.sample_gyro(rng2)
+
+
+@pytest.mark.parametrize("g", DRAWS[:20], ids=lambda g: g.scenario)
+def test_every_draw_is_a_valid_configuration(g: SimConfig) -> None:
+    validate(g)
+    assert SimConfig.from_json(g.to_json()) == g
+
+
+def test_ranges_hold_over_draws() -> None:
+    for g in DRAWS:
+        nodes = {n.name: n for n in g.thermal.nodes}
+        internal = [n for n in g.thermal.nodes if n.name not in ("housing", "board")]
+        assert pop.N_INTERNAL[0] <= len(internal) <= pop.N_INTERNAL[1]
+        assert pop.HOUSING_TAU_S[0] <= nodes["housing"].tau_s <= pop.HOUSING_TAU_S[1]
+        assert pop.BOARD_TAU_S[0] <= nodes["board"].tau_s <= pop.BOARD_TAU_S[1]
+        for n in internal:
+            assert pop.INTERNAL_TAU_S[0] / 2 <= n.tau_s <= pop.INTERNAL_TAU_S[1] + 0.1
+            assert pop.INTERNAL_SELF_HEAT_C[0] <= n.self_heat_c <= pop.INTERNAL_SELF_HEAT_C[1]
+        assert {t.factor for t in g.sf.terms} == set(SF_FACTORS)
+        swing = sum(pop._swing(t.lin_ppm_per_c, t.quad_ppm_per_c2, t.cube_ppm_per_c3)
+                    for t in g.sf.terms)
+        assert pop.SWING_PPM[0] * 0.99 <= swing <= pop.SWING_PPM[1] * 1.01
+        lo, hi = pop.ARW_DEG_PER_SQRT_H
+        assert lo <= g.noise.arw_deg_per_sqrt_h <= hi
+
+
+def test_structural_variety() -> None:
+    topologies = {g.scenario.split(":")[1] for g in DRAWS}
+    assert topologies == set(pop.TOPOLOGIES)
+    cancel = sum(g.scenario.endswith(":cancel") for g in DRAWS) / len(DRAWS)
+    assert 0.15 <= cancel <= 0.45
+    terms = [t for g in DRAWS for t in g.sf.terms]
+    assert any(t.cube_ppm_per_c3 != 0 for t in terms)
+    assert any(t.quad_ppm_per_c2 != 0 and t.cube_ppm_per_c3 == 0 for t in terms)
+    assert any(t.quad_ppm_per_c2 == 0 for t in terms)
+    assert any(t.lin_ppm_per_c > 0 for t in terms) and any(t.lin_ppm_per_c < 0 for t in terms)
+    slowest = [max(effective_tau_s(g.thermal, n.name) for n in g.thermal.nodes) for g in DRAWS]
+    assert min(slowest) < 1500 < 3000 < max(slowest)
+
+
+def test_cancelling_gyros_oppose_the_source() -> None:
+    for g in DRAWS:
+        if not g.scenario.endswith(":cancel"):
+            continue
+        slope = {t.factor: SF_FACTORS[t.factor] * t.lin_ppm_per_c for t in g.sf.terms}
+        others = sum(v for f, v in slope.items() if f != "lambda")
+        assert slope["lambda"] * others < 0
+        assert abs(slope["lambda"]) <= abs(others) * pop.CANCEL_RATIO[1] * 1.001
+
+
+def test_magnitudes_are_the_papers_hundreds_of_ppm() -> None:
+    rms = [log_metrics(simulate(pop.with_gyro(paper(1.0, seed=s), g)).log)["rms_ppm"]
+           for s, g in enumerate(DRAWS[:24])]
+    assert 100.0 < float(np.median(rms)) < 800.0
+    assert min(rms) > 2.0
+
+
+def test_with_gyro_keeps_the_run() -> None:
+    run = paper(0.5, seed=9)
+    run.thermal.start = "power-on"
+    out = pop.with_gyro(run, DRAWS[0])
+    assert out.profile == run.profile and out.seed == 9
+    assert out.thermal.start == "power-on"
+    assert out.thermal.nodes == DRAWS[0].thermal.nodes
+
+
+def test_simulate_random_gyro_cli(tmp_path, capsys) -> None:  # noqa: ANN001
+    cfg_path = tmp_path / "g.json"
+    assert main(["simulate", "--random-gyro", "31", "--write-config", str(cfg_path)]) == 0
+    d = json.loads(cfg_path.read_text())
+    assert d["seed"] == 31
+    assert d["thermal"] == json.loads(pop.gyro_for_seed(31).to_json())["thermal"]
+    assert main(["simulate", "--random-gyro", "-1", "--summary"]) == 2
+    assert "--random-gyro" in capsys.readouterr().err
