@@ -68,7 +68,8 @@ def main(argv: list[str] | None = None) -> int:
                          "weights_bytes": 0, "train_seconds": 0.0, "features": []})
         rows.append({"model": name, **m["test"]["after"], "params": m["params"],
                      "weights_bytes": m["weights_bytes"], "train_seconds": m["train_seconds"],
-                     "features": m["features"]})
+                     "features": m["features"],
+                     "kept_least_squares_start": m.get("kept_least_squares_start", False)})
         preds[name] = per_sample_prediction(fitted, test, None)
         if "gsa" in fitted.info:
             fitted.info["gsa_result"].plot(out / "gsa_fitness.png",
@@ -95,10 +96,16 @@ def format_table(t: dict) -> str:
              "", head, "|" + "---|" * 9]
     for r in t["rows"]:
         paper_v = t["paper"].get(r["model"])
+        name = r["model"] + (" (least-squares start)" if r.get("kept_least_squares_start")
+                             else "")
         lines.append(
-            f"| {r['model']} | {r['max_abs_ppm']:.2f} | {r['pp_ppm']:.2f} | {r['rms_ppm']:.2f} "
+            f"| {name} | {r['max_abs_ppm']:.2f} | {r['pp_ppm']:.2f} | {r['rms_ppm']:.2f} "
             f"| {r['std_ppm']:.2f} | {r['rms_ppm'] / t['noise_floor_ppm']:.2f} | {r['params']} "
             f"| {r['weights_bytes']} | {'' if paper_v is None else f'{paper_v:.2f}'} |")
+    if any(r.get("kept_least_squares_start") for r in t["rows"]):
+        lines += ["", "(least-squares start): no LSTM training step beat the model's "
+                  "least-squares start on the validation part of the training log, so the row "
+                  "is that start; its LSTM learned nothing that was kept."]
     if "rate_transfer" in t:
         lines += ["", textwrap.fill(RateTransfer(**t["rate_transfer"]).message(), 96)]
     return "\n".join(lines)

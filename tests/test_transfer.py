@@ -96,3 +96,41 @@ def test_long_run_ratio_of_white_and_structured_residuals() -> None:
     drift = white + 0.5 * np.sin(np.arange(4000) / 150.0)  # structure slower than a window
     assert long_run_ratio(drift, [2000, 2000]) > 2.0
     assert long_run_ratio(white[:5], [5]) == 1.0  # shorter than a window: no evidence
+
+
+def _program_log(points: list[list[float]], seed: int) -> ChamberLog:
+    from trainer.sim.config import ProfileConfig
+
+    cfg = soak(seed=seed)
+    cfg.thermal.start = "warm"
+    cfg.profile = ProfileConfig(kind="program", points=points)
+    return simulate(cfg).log
+
+
+def test_ramp_segments_read_up_and_down_rates_of_one_log() -> None:
+    from trainer.transfer import ramp_rates, ramp_segments
+
+    # 20 min soak, up 60 C at 1 C/min, 20 min soak, down 60 C at 2 C/min, 20 min soak
+    log = _program_log([[0, -10], [1200, -10], [4800, 50], [6000, 50], [7800, -10],
+                        [9000, -10]], seed=41)
+    segs = ramp_segments(log)
+    assert [s.rate_c_per_min for s in segs] == [pytest.approx(1.0, rel=0.05),
+                                                pytest.approx(-2.0, rel=0.05)]
+    assert segs[0].stop_s <= segs[1].start_s
+    assert ramp_rates(log) == [pytest.approx(1.0, rel=0.05), pytest.approx(2.0, rel=0.05)]
+
+
+def test_a_ramp_whose_rate_changes_is_two_segments() -> None:
+    from trainer.transfer import ramp_rates
+
+    # 0.5 C/min for 50 min, then 2 C/min for 20 min, no soak between
+    log = _program_log([[0, -20], [600, -20], [3600, 5], [4800, 45]], seed=42)
+    assert ramp_rates(log) == [pytest.approx(0.5, rel=0.08), pytest.approx(2.0, rel=0.08)]
+
+
+def test_a_two_rate_target_outside_one_rate_training_is_not_covered(runs) -> None:
+    log = _program_log([[0, -20], [600, -20], [3000, 20], [3600, 20], [4800, -20]], seed=43)
+    rt = rate_transfer([runs["a"]], log)
+    assert not rt.covered and rt.target_rate_c_per_min == pytest.approx(1.0, rel=0.1)
+    lo, hi = rt.rms_interval_ppm
+    assert 0 < lo < rt.noise_floor_ppm < hi

@@ -44,12 +44,13 @@ from trainer.features import (
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
 from trainer.stream import FrontEnd, StreamModel, expand
-from trainer.transfer import ramp_rate_c_per_min, rate_transfer
+from trainer.transfer import ramp_segments, rate_transfer, training_ramp_rates
 
 if TYPE_CHECKING:  # trainer.fit imports torch; commands import this module at start-up
     from trainer.fit import LSTMConfig
 
 MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
+DEFAULT_MODEL = "lag-lstm"  # what `fogsf train` fits without --model
 EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
 
 
@@ -337,7 +338,10 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         metrics["rate_transfer"] = rate_transfer(train_logs, test_log,
                                                  opts.latitude_deg).as_dict()
     metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
-    metrics["train_ramp_rates_c_per_min"] = [ramp_rate_c_per_min(lg) for lg in train_logs]
+    # every ramp of every training log, read per segment (up and down, several rates a log)
+    metrics["train_ramp_rates_c_per_min"] = training_ramp_rates(train_logs)
+    metrics["train_ramp_segments"] = [[asdict(sg) for sg in ramp_segments(lg)]
+                                      for lg in train_logs]
     if "noise_floor_ppm" not in metrics:
         first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
         metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]
@@ -355,6 +359,10 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     })
     if fitted.stream_model is not None:
         metrics["model_id"] = fitted.stream_model.model_id
+        hist = fitted.info.get("history", {})
+        # best_iter 0: no training step beat the least-squares start on the validation part,
+        # so the model is that start (its LSTM contributes nothing learned)
+        metrics["kept_least_squares_start"] = bool(hist.get("best_iter", 1) == 0)
     save(fitted, metrics, out_dir)
     return metrics, fitted
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from trainer.errors import UserError
 from trainer.logio import ChamberLog
+from trainer.metrics import noise_floor_ppm, sf_windows
 
 SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows
 MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
@@ -40,6 +41,9 @@ RATE_TOLERANCE = 0.15  # a target rate within 15 % of the training range is cove
 CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
 DECIMATION = 50
 LONG_RUN_STEPS = 20  # 100 s windows of 5 s model steps
+INTERVAL_WINDOW_S = 100.0
+INTERVAL_LO = 0.8  # the RMS of noise alone over a run's windows falls this far below its floor
+INTERVAL_SPREAD_K = 1.0  # calibrated on development gyros (docs/population.md)
 
 
 def ramp_rate_c_per_min(log: ChamberLog) -> float:
@@ -56,6 +60,109 @@ def ramp_rate_c_per_min(log: ChamberLog) -> float:
     if moving.size == 0:
         return 0.0
     return float(np.median(moving[moving >= np.median(moving)]))
+
+
+@dataclass(frozen=True)
+class RampSegment:
+    """One ramp of a log: where it runs (s) and its signed rate (C/min, board thermometer)."""
+
+    start_s: float
+    stop_s: float
+    rate_c_per_min: float
+
+
+SEGMENT_MIN_S = 900.0  # a ramp shorter than 15 min is a bend, not a ramp
+
+
+def ramp_segments(log: ChamberLog) -> list[RampSegment]:
+    """The log's ramps, each with its own rate: runs of 5-minute windows whose board
+    temperature moves faster than 0.05 C/min in one direction, at least 15 min long; a
+    segment's rate is the median of its faster half of windows (the board lags the chamber
+    at a ramp's start, so its slope rises towards the chamber's).
+    Up- and down-ramps, and ramps at different rates in one log, come out separately."""
+    t, temp = log.time_s, log.temp_c
+    n = int(np.searchsorted(t, t[0] + SLOPE_WINDOW_S))
+    if n < 1 or n >= t.size:
+        return []
+    hop = max(1, n // 5)
+    starts = np.arange(0, t.size - n, hop)
+    slope = (temp[starts + n] - temp[starts]) / (t[starts + n] - t[starts]) * 60.0
+    sign = np.where(np.abs(slope) > MIN_RAMP_C_PER_MIN, np.sign(slope), 0.0)
+    out: list[RampSegment] = []
+    edges = np.flatnonzero(np.diff(sign) != 0) + 1
+    for a, b in zip(np.r_[0, edges], np.r_[edges, sign.size], strict=True):
+        if sign[a] == 0:
+            continue
+        t0, t1 = float(t[starts[a]]), float(t[starts[b - 1] + n])
+        if t1 - t0 < SEGMENT_MIN_S:
+            continue
+        out.append(RampSegment(t0, t1, _steady_rate(slope[a:b])))
+    # one ramp at a rate that changes (e.g. 1 then 2 C/min) splits where the rate jumps
+    return _split_rate_changes(out, t, temp)
+
+
+def _steady_rate(slopes: np.ndarray) -> float:
+    """The median of the faster half of signed window slopes (all of one sign)."""
+    mag = np.abs(slopes)
+    fast = slopes[mag >= np.median(mag)]
+    return float(np.median(fast))
+
+
+def _split_rate_changes(segs: list[RampSegment], t: np.ndarray, temp: np.ndarray
+                        ) -> list[RampSegment]:
+    """Split a segment in two where a two-level fit of its 5-minute slopes explains most of
+    their spread and the levels differ by more than 30 %."""
+    out: list[RampSegment] = []
+    step = max(1, int(np.searchsorted(t, t[0] + SLOPE_WINDOW_S)))
+    for sg in segs:
+        i0, i1 = np.searchsorted(t, [sg.start_s, sg.stop_s])
+        hop = max(1, step // 5)  # windows overlap: five per window length
+        idx = np.arange(i0, max(i0 + 1, i1 - step), hop)
+        if idx.size < 30:
+            out.append(sg)
+            continue
+        sl = (temp[idx + step] - temp[idx]) / (t[idx + step] - t[idx]) * 60.0
+        total = float(np.sum((sl - sl.mean()) ** 2))
+        best = None
+        for cut in range(10, sl.size - 10):
+            sse = float(np.sum((sl[:cut] - np.median(sl[:cut])) ** 2)
+                        + np.sum((sl[cut:] - np.median(sl[cut:])) ** 2))
+            if best is None or sse < best[0]:
+                best = (sse, cut)
+        assert best is not None
+        sse, cut = best
+        left, right = sl[:cut - 5], sl[cut + 5:]  # a window's length from the bend
+        lv, rv = _steady_rate(left), _steady_rate(right)
+        if sse < 0.2 * total and abs(rv - lv) > 0.3 * min(abs(lv), abs(rv)):
+            tc = float(t[idx[cut]])
+            out += [RampSegment(sg.start_s, tc, lv), RampSegment(tc, sg.stop_s, rv)]
+        else:
+            out.append(sg)
+    return out
+
+
+def ramp_rates(log: ChamberLog, tolerance: float = RATE_TOLERANCE) -> list[float]:
+    """The distinct |ramp rates| (C/min) of a log's segments, rates within `tolerance` of
+    each other merged; empty for a log with no ramp."""
+    rates = sorted(abs(sg.rate_c_per_min) for sg in ramp_segments(log))
+    merged: list[list[float]] = []
+    for r in rates:
+        if merged and r <= merged[-1][0] * (1 + tolerance):
+            merged[-1].append(r)
+        else:
+            merged.append([r])
+    return [float(np.median(m)) for m in merged]
+
+
+def training_ramp_rates(logs: list[ChamberLog]) -> list[float]:
+    """The distinct |ramp rates| over every segment of every log (merged within
+    RATE_TOLERANCE), ascending."""
+    rates = sorted(r for lg in logs for r in ramp_rates(lg))
+    merged: list[float] = []
+    for r in rates:
+        if not merged or r > merged[-1] * (1 + RATE_TOLERANCE):
+            merged.append(r)
+    return merged
 
 
 def spans_ramp_rates(rates_c_per_min: list[float], factor: float = 1.5) -> bool:
@@ -76,6 +183,10 @@ class RateTransfer:
     # long-run variance of the best fit's residual / white noise's (1: the lag family explains
     # the training data to its noise; more: structure is left, and the allowance widens)
     residual_long_run_ratio: float = 1.0
+    noise_floor_ppm: float = 0.0  # the target log's (100 s windows)
+    # where the RMS error (100 s windows) left on the target by a model of this family should
+    # fall: from the noise floor to the noise floor and the spread of the consistent models
+    rms_interval_ppm: tuple[float, float] = (0.0, 0.0)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -130,12 +241,27 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     every = np.ones(tdata.n_steps, dtype=bool)
     spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, DECIMATION)
                        for i in ok])
-    train_rates = [ramp_rate_c_per_min(lg) for lg in train_logs]
-    target_rate = ramp_rate_c_per_min(target)
-    lo, hi = min(train_rates), max(train_rates)
-    covered = lo * (1 - RATE_TOLERANCE) <= target_rate <= hi * (1 + RATE_TOLERANCE)
+    train_rates = training_ramp_rates(train_logs)
+    target_rates = ramp_rates(target) or [0.0]
+    lo, hi = (min(train_rates), max(train_rates)) if train_rates else (0.0, 0.0)
+    outside = [r for r in target_rates
+               if not lo * (1 - RATE_TOLERANCE) <= r <= hi * (1 + RATE_TOLERANCE)]
+    covered = not outside
+    target_rate = outside[0] if outside else max(target_rates)
+    floor = noise_floor_ppm(sf_windows(target, INTERVAL_WINDOW_S, latitude_deg))
+    interval = rms_interval(floor, spread, inflation)
     return RateTransfer(train_rates, target_rate, bool(covered), len(fits), int(ok.size),
-                        float(np.median(spread)), float(np.max(spread)), inflation)
+                        float(np.median(spread)), float(np.max(spread)), inflation, floor,
+                        interval)
+
+
+def rms_interval(floor_ppm: float, spread_ppm: np.ndarray, long_run_ratio: float
+                 ) -> tuple[float, float]:
+    """The interval for the RMS error a compensation leaves on the target: at least the
+    noise floor's share INTERVAL_LO, at most the floor and INTERVAL_SPREAD_K times the
+    largest spread between consistent models, added in quadrature."""
+    top = INTERVAL_SPREAD_K * float(np.max(spread_ppm)) if spread_ppm.size else 0.0
+    return (INTERVAL_LO * floor_ppm, float(np.hypot(floor_ppm, top)))
 
 
 def long_run_ratio(resid: np.ndarray, lengths: list[int], window: int = LONG_RUN_STEPS

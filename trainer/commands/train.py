@@ -40,13 +40,13 @@ def _chunk(text: str) -> tuple[float, float]:
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from trainer.executors import add_executor_options
-    from trainer.train import MODELS
+    from trainer.train import DEFAULT_MODEL, MODELS
 
     parser.add_argument("--train", action="append", required=True, metavar="LOG.csv",
                         help="training log (repeat for several)")
     parser.add_argument("--test", metavar="LOG.csv", help="test log, never used for fitting")
-    parser.add_argument("--model", choices=MODELS, default="lag-lstm",
-                        help="model family (default lag-lstm)")
+    parser.add_argument("--model", choices=MODELS, default=DEFAULT_MODEL,
+                        help=f"model family (default {DEFAULT_MODEL})")
     parser.add_argument("--out", required=True, help="model directory to write")
     parser.add_argument("--seed", type=int, default=0, help="seed (same seed, same model)")
     parser.add_argument("--decimation", type=int, default=50,

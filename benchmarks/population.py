@@ -1,0 +1,275 @@
+"""Compensation on gyros it was not tuned on (`make bench-population`).
+
+Gyros come from the population (`trainer.sim.population`): development seeds 0-9999 (tune
+there), evaluation seeds 20000-29999 (report there, never tune). For each gyro and each
+protocol, every model is trained on the protocol's training logs and scored on its test log
+(RMS and STD after compensation as multiples of the test log's noise floor):
+
+  a  train 0.5 C/min up-ramp                  test 1 C/min up-ramp (the paper)
+  b  train 0.5 and 2 C/min up-ramps           test 1 C/min up-ramp
+  c  train 0.5 and 2 C/min up-ramps           test 1 C/min down-ramp
+  d  train 0.5 and 2 C/min up-ramps           test a slow cycle with soaks (0.5 C/min,
+                                              45 min soaks, -40..50 C)
+  e  train one loop: 1 C/min up, 2 C/min down, 30 min soaks (3.75 h)
+                                              test 1 C/min up, 1.5 C/min down, 30 min soaks;
+                                              its training log is scored too (e-train)
+
+All runs are -40..50 C, warm start, table at a constant 10 deg/s. The default model is what
+`fogsf train` uses without --model. Its rate-transfer interval (metrics.json
+`rate_transfer.rms_interval_ppm`) is checked against the error it actually leaves: the
+coverage is the share of (gyro, protocol) cases inside it.
+
+Gyros are independent work: they run on the project's executor (local processes by
+default, `--dask SCHEDULER_ADDRESS` for a cluster).
+
+    python -m benchmarks.population --seeds eval --n 12 --out out/bench-population.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from concurrent.futures import as_completed
+from pathlib import Path
+
+import numpy as np
+
+from trainer.executors import add_executor_options, executor_from_args
+from trainer.sim.config import ProfileConfig, SimConfig, TableConfig
+
+PROTOCOLS = {
+    "a": (("up05",), "up10"),
+    "b": (("up05", "up20"), "up10"),
+    "c": (("up05", "up20"), "down10"),
+    "d": (("up05", "up20"), "slowcycle"),
+    "e": (("loop_train",), "loop_test"),
+}
+MODELS = ("poly", "polyrate", "default", "gsa-lstm")
+GSA_SMALL = {"gsa_agents": 4, "gsa_iters": 3, "gsa_fitness_iters": 40}
+LO_C, HI_C = -40.0, 50.0
+
+
+def _loop(up: float, down: float, soak_s: float = 1800.0) -> list[list[float]]:
+    t1 = soak_s
+    t2 = t1 + (HI_C - LO_C) / up * 60.0
+    t3 = t2 + soak_s
+    t4 = t3 + (HI_C - LO_C) / down * 60.0
+    return [[0.0, LO_C], [t1, LO_C], [t2, HI_C], [t3, HI_C], [t4, LO_C], [t4 + soak_s, LO_C]]
+
+
+def run_profile(name: str) -> ProfileConfig:
+    """The chamber program of one named run."""
+    ramps = {"up05": 0.5, "up10": 1.0, "up20": 2.0}
+    if name in ramps:
+        return ProfileConfig(kind="ramp", start_c=LO_C, stop_c=HI_C,
+                             rate_c_per_min=ramps[name])
+    if name == "down10":
+        return ProfileConfig(kind="ramp", start_c=HI_C, stop_c=LO_C, rate_c_per_min=1.0)
+    if name == "slowcycle":
+        return ProfileConfig(kind="cycle", start_c=LO_C, stop_c=HI_C, rate_c_per_min=0.5,
+                             soak_s=2700.0, cycles=1)
+    if name == "loop_train":
+        return ProfileConfig(kind="program", points=_loop(1.0, 2.0))
+    if name == "loop_test":
+        return ProfileConfig(kind="program", points=_loop(1.0, 1.5))
+    raise ValueError(f"unknown run {name!r}")
+
+
+RUN_SEED_OFFSET = {"up05": 1, "up10": 2, "up20": 3, "down10": 4, "slowcycle": 5,
+                   "loop_train": 6, "loop_test": 7}
+
+
+def run_config(gyro: SimConfig, name: str, gyro_seed: int) -> SimConfig:
+    from trainer.sim.population import with_gyro
+
+    run = SimConfig(scenario=f"population:{name}", seed=gyro_seed * 16 + RUN_SEED_OFFSET[name])
+    run.profile = run_profile(name)
+    run.table = TableConfig(kind="constant", rate_dps=10.0)
+    run.thermal.start = "warm"
+    return with_gyro(run, gyro)
+
+
+def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, imported late
+    from trainer.train import DEFAULT_MODEL, TrainOptions
+
+    kind = DEFAULT_MODEL if model == "default" else model
+    extra = GSA_SMALL if kind == "gsa-lstm" else {}
+    return TrainOptions(model=kind, seed=seed, progress=False, workers=1, **extra)
+
+
+def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ...]) -> dict:
+    """Every model on every protocol for one population gyro (one unit of work)."""
+    import torch
+
+    from trainer.sim import simulate
+    from trainer.sim.population import gyro_for_seed
+    from trainer.train import run_training
+
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    gyro = gyro_for_seed(gyro_seed)
+    needed = sorted({r for p in protocols for r in (*PROTOCOLS[p][0], PROTOCOLS[p][1])})
+    logs = {r: simulate(run_config(gyro, r, gyro_seed)).log for r in needed}
+    out: dict = {"gyro_seed": gyro_seed, "gyro": gyro.scenario, "cases": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        for p in protocols:
+            train_names, test_name = PROTOCOLS[p]
+            case: dict = {}
+            for model in models:
+                opts = _train_options(model, gyro_seed)
+                m, _ = run_training(opts, [logs[r] for r in train_names], logs[test_name],
+                                    Path(tmp) / f"{p}-{model}")
+                floor = m["noise_floor_ppm"]
+                after = m["test"]["after"]
+                row = {"model": m["model"], "rms_ppm": after["rms_ppm"],
+                       "std_ppm": after["std_ppm"], "noise_floor_ppm": floor,
+                       "ratio": after["rms_ppm"] / floor, "std_ratio": after["std_ppm"] / floor,
+                       "before_rms_ppm": m["test"]["before"]["rms_ppm"]}
+                if model == "default":
+                    lo, hi = m["rate_transfer"]["rms_interval_ppm"]
+                    row["interval_ppm"] = [lo, hi]
+                    row["inside"] = bool(lo <= after["rms_ppm"] <= hi)
+                if p == "e":
+                    tr = m["train"]["after"]
+                    row["train_ratio"] = tr["rms_ppm"] / m["train"]["before"]["noise_floor_ppm"]
+                case[model] = row
+            out["cases"][p] = case
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def _stats(v: list[float]) -> dict:
+    a = np.asarray(v, dtype=np.float64)
+    return {"median": float(np.median(a)), "p90": float(np.percentile(a, 90)),
+            "worst": float(a.max()), "n": int(a.size)}
+
+
+def summarise(rows: list[dict], models: tuple[str, ...], protocols: tuple[str, ...]) -> dict:
+    summary: dict = {}
+    for p in protocols:
+        for model in models:
+            r = [g["cases"][p][model] for g in rows]
+            summary[f"{p}/{model}"] = {"ratio": _stats([x["ratio"] for x in r]),
+                                       "std_ratio": _stats([x["std_ratio"] for x in r])}
+        if p == "e" and "default" in models:
+            summary["e-train/default"] = {"ratio": _stats(
+                [g["cases"]["e"]["default"]["train_ratio"] for g in rows])}
+    if "default" in models:
+        inside = [g["cases"][p]["default"]["inside"] for g in rows for p in protocols]
+        summary["interval_coverage"] = {"inside": int(sum(inside)), "cases": len(inside),
+                                        "share": float(np.mean(inside))}
+    return summary
+
+
+def plot(rows: list[dict], protocols: tuple[str, ...], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 4.5))
+    x = np.arange(len(rows))
+    width = 0.8 / len(protocols)
+    for i, p in enumerate(protocols):
+        ax.bar(x + i * width, [g["cases"][p]["default"]["ratio"] for g in rows], width,
+               label=f"({p}) test {PROTOCOLS[p][1]}, train {'+'.join(PROTOCOLS[p][0])}")
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_xticks(x + 0.4 - width / 2, [str(g["gyro_seed"]) for g in rows], rotation=60,
+                  fontsize=7)
+    ax.set_xlabel("population gyro (seed)")
+    ax.set_ylabel("test RMS / noise floor")
+    ax.set_yscale("log")
+    ax.set_title("default model, per gyro and protocol")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def print_table(summary: dict, models: tuple[str, ...], protocols: tuple[str, ...]) -> None:
+    print(f"{'protocol':>9} | " + " | ".join(f"{m:>20}" for m in models))
+    print(f"{'':>9} | " + " | ".join(f"{'median  p90  worst':>20}" for _ in models))
+    for p in protocols:
+        cells = []
+        for m in models:
+            s = summary[f"{p}/{m}"]["ratio"]
+            cells.append(f"{s['median']:>6.2f} {s['p90']:>5.2f} {s['worst']:>6.2f}")
+        print(f"{p:>9} | " + " | ".join(f"{c:>20}" for c in cells))
+    if "e-train/default" in summary:
+        s = summary["e-train/default"]["ratio"]
+        print(f"{'e-train':>9} | default on its own training log: median {s['median']:.2f}, "
+              f"worst {s['worst']:.2f}")
+    if "interval_coverage" in summary:
+        c = summary["interval_coverage"]
+        print(f"interval coverage (default model): {c['inside']}/{c['cases']} "
+              f"({100 * c['share']:.0f} %)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example: python -m benchmarks.population --seeds dev --n 4 --models "
+               "poly,default --protocols a,b --out out/bench-population-dev.json")
+    ap.add_argument("--out", default="out/bench-population.json")
+    ap.add_argument("--seeds", choices=["dev", "eval"], default="eval",
+                    help="seed range: dev (tune here) or eval (report here)")
+    ap.add_argument("--n", type=int, default=12, help="number of gyros")
+    ap.add_argument("--first", type=int, default=None,
+                    help="first gyro seed (default: the range's first, skipping the default "
+                         "gyro's 0)")
+    ap.add_argument("--models", default=",".join(MODELS))
+    ap.add_argument("--protocols", default=",".join(PROTOCOLS))
+    add_executor_options(ap)
+    args = ap.parse_args(argv)
+    from tqdm import tqdm
+
+    from trainer.sim.population import seed_range
+
+    models = tuple(m for m in args.models.split(",") if m)
+    protocols = tuple(p for p in args.protocols.split(",") if p)
+    bad = [m for m in models if m not in MODELS] + [p for p in protocols if p not in PROTOCOLS]
+    if bad:
+        ap.error(f"unknown model or protocol: {', '.join(bad)}")
+    rng = seed_range(args.seeds)
+    first = args.first if args.first is not None else max(rng.start, 1)
+    seeds = [s for s in range(first, first + args.n)]
+    if any(s not in rng for s in seeds):
+        ap.error(f"seeds {seeds[0]}..{seeds[-1]} leave the {args.seeds} range {rng}")
+    t0 = time.perf_counter()
+    rows: list[dict] = []
+    with executor_from_args(args) as ex:
+        if ex is None:
+            it = (bench_gyro(s, models, protocols) for s in seeds)
+            for row in tqdm(it, total=len(seeds), desc="gyros", unit="gyro"):
+                rows.append(row)
+        else:
+            futs = [ex.submit(bench_gyro, s, models, protocols) for s in seeds]
+            for f in tqdm(as_completed(futs), total=len(futs), desc="gyros", unit="gyro"):
+                rows.append(f.result())
+    rows.sort(key=lambda r: r["gyro_seed"])
+    for g in rows:
+        cells = " ".join(f"{p}:{g['cases'][p][m]['ratio']:.2f}" for p in protocols
+                         for m in models if m == "default")
+        print(f"gyro {g['gyro_seed']:>5} {g['gyro']:<28} default {cells}")
+    summary = summarise(rows, models, protocols)
+    print(f"test RMS / noise floor over {len(rows)} {args.seeds} gyros "
+          f"(seeds {seeds[0]}-{seeds[-1]})")
+    print_table(summary, models, protocols)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    seconds = time.perf_counter() - t0
+    out.write_text(json.dumps({"seeds": args.seeds, "gyro_seeds": seeds, "models": models,
+                               "protocols": {p: PROTOCOLS[p] for p in protocols},
+                               "rows": rows, "summary": summary, "seconds": seconds},
+                              indent=2) + "\n")
+    if "default" in models:
+        plot(rows, protocols, out.with_suffix(".png"))
+    print(f"-> {out} ({seconds:.0f} s)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
