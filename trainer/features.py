@@ -142,6 +142,16 @@ class Normaliser:
                 + self.feat_b).astype(np.float32)
 
 
+PHYSICAL_SCALE_C = 50.0
+
+
+def physical_normaliser(spec: FeatureSpec) -> Normaliser:
+    """z = A s / 50 C: every feature in the same physical unit (no per-feature scaling), so
+    that a ridge penalty treats every lag alike (the lag bank's normalisation)."""
+    a = spec.matrix() / PHYSICAL_SCALE_C
+    return Normaliser(a.astype(np.float32), np.zeros(a.shape[0], dtype=np.float32))
+
+
 def fit_normaliser(spec: FeatureSpec, data: list[SeqData]) -> Normaliser:
     """Mean/std of each raw feature over the training steps, folded into A."""
     a = spec.matrix()

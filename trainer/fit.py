@@ -20,6 +20,7 @@ import torch
 from tqdm import tqdm
 
 from trainer.features import SeqData
+from trainer.lag_bank import BankFit
 from trainer.nets import MLP, StreamNet
 
 METRIC_WINDOW_S = 100.0
@@ -147,23 +148,41 @@ def torch_threads(n: int) -> Iterator[None]:
         torch.set_num_threads(before)
 
 
+def _init_fixed_head(net: StreamNet, head: BankFit) -> None:
+    """Start from a fitted lag bank (linear terms in the skip, squares on quad's diagonal,
+    cubes in cube, intercept in the head's bias) and hold the bank fixed: the LSTM learns
+    only what it leaves."""
+    with torch.no_grad():
+        net.skip.weight.copy_(torch.from_numpy(head.lin[None, :].astype(np.float32)))
+        net.quad.copy_(torch.from_numpy(np.diag(head.quad).astype(np.float32)))
+        net.cube.copy_(torch.from_numpy(head.cube.astype(np.float32)))
+        net.head.bias.fill_(float(head.intercept))
+        net.head.weight.mul_(0.1)
+    for p in (net.skip.weight, net.quad, net.cube):
+        p.requires_grad_(False)
+
+
 def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
-                 out_offset: float, out_scale: float, progress: bool = True
-                 ) -> tuple[StreamNet, History]:
-    """Train a StreamNet on the training steps of `data` (features `z`, one per log)."""
+                 out_offset: float, out_scale: float, progress: bool = True,
+                 head: BankFit | None = None) -> tuple[StreamNet, History]:
+    """Train a StreamNet on the training steps of `data` (features `z`, one per log); with
+    `head`, on top of that fixed lag bank (else from the least-squares start)."""
     small = cfg.layers * cfg.hidden <= SMALL_NET_UNITS
     with torch_threads(1 if small else torch.get_num_threads()):
-        return _train_stream(data, z, cfg, out_offset, out_scale, progress)
+        return _train_stream(data, z, cfg, out_offset, out_scale, progress, head)
 
 
 def _train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
-                  out_offset: float, out_scale: float, progress: bool
-                  ) -> tuple[StreamNet, History]:
+                  out_offset: float, out_scale: float, progress: bool,
+                  head: BankFit | None = None) -> tuple[StreamNet, History]:
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
-    net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden, poly=cfg.poly_head,
+    net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden, poly=cfg.poly_head or head is not None,
                     cubes=cfg.cubes)
-    _init_by_least_squares(net, data, z, out_offset, out_scale)
+    if head is not None:
+        _init_fixed_head(net, head)
+    else:
+        _init_by_least_squares(net, data, z, out_offset, out_scale)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=max(cfg.iters, 1),
                                                        eta_min=cfg.lr * 0.05)

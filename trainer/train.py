@@ -38,9 +38,11 @@ from trainer.features import (
     fit_normaliser,
     front_end_for,
     make_features,
+    physical_normaliser,
     prepare,
     step_targets,
 )
+from trainer.lag_bank import BankFit, bank_spec, fit_bank
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
 from trainer.stream import FrontEnd, StreamModel, expand
@@ -66,6 +68,7 @@ class TrainOptions:
     poly_degree: int = 3
     node: tuple[float, float] | None = None  # (tau_s, w) of T_eff; None: identified
     nodes: int = 1  # effective nodes of lag-lstm (2 needs logs at two or more ramp rates)
+    structure: str = "bank"  # lag-lstm: "bank" (the lag bank) or "node" (1 or 2 effective nodes)
     layers: int | None = None
     hidden: int | None = None
     batch_size: int | None = None
@@ -142,6 +145,9 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
                               else None)
     if kind == "lag-lstm":
+        if opts.structure == "bank" and opts.node is None:
+            return _fit_with_spec(opts, train_logs, bank_spec(), _lstm_config(opts),
+                                  head_fn=_fit_bank_head)
         if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
             spec = effective_node_features(*_identify_two_nodes(opts, train_logs))
             return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts, cubes=False))
@@ -181,20 +187,32 @@ class TrainingInputs:
 
 
 def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
-                    targets: list[np.ndarray] | None = None) -> TrainingInputs:
+                    targets: list[np.ndarray] | None = None,
+                    physical: bool = False) -> TrainingInputs:
+    """physical: features in one physical unit (`physical_normaliser`), not standardised."""
     fe = front_end_for(logs, opts.decimation, spec.taus_s)
     ts = targets if targets is not None else [None] * len(logs)
     data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
             for lg, t in zip(logs, ts, strict=True)]
-    norm = fit_normaliser(spec, data)
+    norm = physical_normaliser(spec) if physical else fit_normaliser(spec, data)
     y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
     return TrainingInputs(fe, data, norm, [norm.apply(d.s) for d in data],
                           float(y.mean()), float(y.std() or 1.0))
 
 
+def _fit_bank_head(ti: TrainingInputs) -> BankFit:
+    """The lag bank fitted by ridge (GCV) to the normalised targets of every step of the
+    training logs (the validation part too: it only picks the LSTM's iteration, and the
+    bank needs every transient the logs hold)."""
+    z = np.concatenate(ti.z)
+    y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
+    return fit_bank(z, y)
+
+
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
-                   lstm_cfg: LSTMConfig | None) -> Fitted:
-    ti = training_inputs(opts, logs, spec)
+                   lstm_cfg: LSTMConfig | None,
+                   head_fn: Callable[[TrainingInputs], BankFit] | None = None) -> Fitted:
+    ti = training_inputs(opts, logs, spec, physical=head_fn is not None)
     fe, data, norm, z, offset, scale = ti.fe, ti.data, ti.norm, ti.z, ti.offset, ti.scale
     kind = opts.model
     if kind in ("poly", "polyrate"):
@@ -223,14 +241,17 @@ def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec
         n = count_params(net)
         return Fitted(kind, spec, fe, predict, n, 4 * n, {"history": hist.as_dict()},
                       torch_state=net.state_dict())
-    net, hist = train_stream(data, z, lstm_cfg, offset, scale, opts.progress)
+    head = head_fn(ti) if head_fn is not None else None
+    net, hist = train_stream(data, z, lstm_cfg, offset, scale, opts.progress, head)
+    info: dict = {"history": hist.as_dict(), "hyper": asdict(lstm_cfg)}
+    if head is not None:
+        info["lag_bank"] = {"ridge_lambda": head.lam, "dof": head.dof}
     sm = to_stream_model(net, kind, spec, norm, fe, offset, scale,
-                         extra={"hyper": asdict(lstm_cfg)})
+                         extra={"hyper": asdict(lstm_cfg), **({"structure": "lag-bank"}
+                                                               if head is not None else {})})
     n = count_params(net)
     return Fitted(kind, spec, fe, lambda d: predict_stream(net, norm.apply(d.s)) * scale
-                  + offset, n, 4 * n,
-                  {"history": hist.as_dict(), "hyper": asdict(lstm_cfg)},
-                  stream_model=sm, torch_state=net.state_dict())
+                  + offset, n, 4 * n, info, stream_model=sm, torch_state=net.state_dict())
 
 
 # --- GSA --------------------------------------------------------------------------------

@@ -1,0 +1,90 @@
+"""The lag bank: the default model's structure, chosen over the gyro population.
+
+A real gyro's SF error is a sum of polynomials of several internal temperatures, each
+lagging the board thermometer differently (and with either sign), so no one or two
+effective nodes hold it. The bank holds them all at once: the board temperature T and its
+first-order lag filters at every time constant of `TAU_GRID_S` (60 s .. 2 h), each entering
+as a cubic of its own (no cross terms), all fitted together by ridge regression with the
+penalty chosen by generalised cross-validation (GCV). No structure is selected, so there is
+no selection to get wrong; the ridge penalty shrinks what the data does not determine.
+
+Chosen over the alternatives on development gyros (docs/population.md has the figures):
+one effective node with a cubic (the previous default), the best of one and two nodes, the
+mean and the median of every lag model consistent with the training data, the lag model of
+least node sensitivity, a quadratic bank with cross terms, varying-coefficient forms in
+T - lag(T) with block cross-validation.
+
+In the firmware contract the bank is the polynomial head over 1 + K features (T and the K
+filters, normalised): the linear terms in skip_w, the squares on quad_w's diagonal, the
+cubes in cube_w; the LSTM then learns what the bank leaves, with the bank held fixed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from trainer.features import FeatureSpec
+from trainer.least_squares import TAU_GRID_S
+
+LAMBDA_GRID = tuple(float(x) for x in np.geomspace(1e-8, 1e2, 41))  # x mean diagonal
+
+
+def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:
+    """Features T and lag(T, tau) for every tau of `grid`: the rows of an identity."""
+    k = len(grid)
+    rows = tuple(tuple(1.0 if j == i else 0.0 for j in range(k + 1)) for i in range(k + 1))
+    names = ("T",) + tuple(f"lag(T,{t:.0f}s)" for t in grid)
+    return FeatureSpec(tuple(float(t) for t in grid), rows, names)
+
+
+def bank_design(z: np.ndarray) -> np.ndarray:
+    """Columns z, z^2, z^3 of every feature (float64)."""
+    x = np.asarray(z, dtype=np.float64)
+    return np.column_stack([x, x * x, x * x * x])
+
+
+@dataclass
+class BankFit:
+    """A ridge fit of the bank in normalised units: y = intercept + lin.z + quad.z^2 +
+    cube.z^3 (y the normalised target)."""
+
+    intercept: float
+    lin: np.ndarray
+    quad: np.ndarray
+    cube: np.ndarray
+    lam: float  # the chosen penalty, as a multiple of the design's mean diagonal
+    dof: float  # effective degrees of freedom of the fit
+
+    def predict(self, z: np.ndarray) -> np.ndarray:
+        x = np.asarray(z, dtype=np.float64)
+        return self.intercept + x @ self.lin + (x * x) @ self.quad + (x * x * x) @ self.cube
+
+
+def fit_bank(z: np.ndarray, y: np.ndarray, lambdas: tuple[float, ...] = LAMBDA_GRID
+             ) -> BankFit:
+    """Ridge regression of y on bank_design(z) (intercept unpenalised), the penalty chosen by
+    GCV over `lambdas` (multiples of the centred design's mean diagonal)."""
+    x = bank_design(z)
+    mu, ym = x.mean(axis=0), float(np.mean(y))
+    xc = x - mu
+    u, sv, vt = np.linalg.svd(xc, full_matrices=False)
+    uy = u.T @ (np.asarray(y, dtype=np.float64) - ym)
+    resid0 = float(np.sum((y - ym) ** 2) - np.sum(uy**2))  # outside the design's span
+    scale = float(np.mean(sv**2))
+    n = x.shape[0]
+    best: tuple[float, float, float] | None = None
+    for lam in lambdas:
+        f = sv**2 / (sv**2 + lam * scale)
+        dof = float(f.sum()) + 1.0
+        rss = resid0 + float(np.sum(((1.0 - f) * uy) ** 2))
+        gcv = rss / max(1e-12, (1.0 - dof / n)) ** 2
+        if best is None or gcv < best[0]:
+            best = (gcv, lam, dof)
+    assert best is not None
+    _, lam, dof = best
+    coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
+    f = z.shape[1]
+    return BankFit(intercept=ym - float(mu @ coef), lin=coef[:f], quad=coef[f:2 * f],
+                   cube=coef[2 * f:], lam=lam, dof=dof)
