@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose bench-transfer paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose bench-transfer bench-population paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -18,6 +18,7 @@ help:
 	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
 	@echo "make bench-transfer  one ramp rate vs two, over seeds -> out/bench-transfer.json"
 	@echo "make bench-diagnose  diagnose success rate over planted effects -> out/bench-diagnose.json"
+	@echo "make bench-population  compensation on evaluation gyros of the population -> out/bench-population.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
@@ -59,6 +60,11 @@ paper: $(STAMP)
 # --- diagnose success rate: owned by the diagnose work (issue 5) ---
 bench-transfer: $(STAMP)
 	$(PY) -m benchmarks.rate_transfer --out $(OUT)/bench-transfer.json
+
+# --- compensation over the gyro population (issue 9): evaluation seeds, ~15 min on 2 cores ---
+POP_N ?= 12
+bench-population: $(STAMP)
+	$(PY) -m benchmarks.population --seeds eval --n $(POP_N) --out $(OUT)/bench-population.json
 
 bench-diagnose: $(STAMP)
 	$(PY) -m benchmarks.diagnose_rate --out $(OUT)/bench-diagnose.json

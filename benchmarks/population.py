@@ -129,9 +129,15 @@ def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ..
                        "ratio": after["rms_ppm"] / floor, "std_ratio": after["std_ppm"] / floor,
                        "before_rms_ppm": m["test"]["before"]["rms_ppm"]}
                 if model == "default":
-                    lo, hi = m["rate_transfer"]["rms_interval_ppm"]
+                    rt = m["rate_transfer"]
+                    lo, hi = rt["rms_interval_ppm"]
                     row["interval_ppm"] = [lo, hi]
                     row["inside"] = bool(lo <= after["rms_ppm"] <= hi)
+                    row["model_spread_max_ppm"] = rt["model_spread_max_ppm"]
+                    row["lag_excursion_c"] = rt["lag_excursion_c"]
+                    # the spread multiple this case needs to fall inside (calibration)
+                    excess = max(0.0, after["rms_ppm"] ** 2 - floor**2) ** 0.5
+                    row["k_needed"] = excess / max(rt["model_spread_max_ppm"], 1e-9)
                 if p == "e":
                     tr = m["train"]["after"]
                     row["train_ratio"] = tr["rms_ppm"] / m["train"]["before"]["noise_floor_ppm"]
@@ -159,8 +165,10 @@ def summarise(rows: list[dict], models: tuple[str, ...], protocols: tuple[str, .
                 [g["cases"]["e"]["default"]["train_ratio"] for g in rows])}
     if "default" in models:
         inside = [g["cases"][p]["default"]["inside"] for g in rows for p in protocols]
+        k = [g["cases"][p]["default"]["k_needed"] for g in rows for p in protocols]
         summary["interval_coverage"] = {"inside": int(sum(inside)), "cases": len(inside),
-                                        "share": float(np.mean(inside))}
+                                        "share": float(np.mean(inside)),
+                                        "k_needed_p90": float(np.percentile(k, 90))}
     return summary
 
 
@@ -205,7 +213,8 @@ def print_table(summary: dict, models: tuple[str, ...], protocols: tuple[str, ..
     if "interval_coverage" in summary:
         c = summary["interval_coverage"]
         print(f"interval coverage (default model): {c['inside']}/{c['cases']} "
-              f"({100 * c['share']:.0f} %)")
+              f"({100 * c['share']:.0f} %); spread multiple for 90 % on these gyros: "
+              f"{c['k_needed_p90']:.2f} (calibrate on dev seeds only)")
 
 
 def main(argv: list[str] | None = None) -> int:

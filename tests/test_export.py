@@ -49,10 +49,13 @@ def test_onnx_step_matches_torch_and_reference(k, f, layers, hidden, d, seed, po
         ref_state = outs[1:]
         ort_h = np.stack(ort.state[0::2])[:, 0]
         ort_c = np.stack(ort.state[1::2])[:, 0]
-        # sf_ppm = y * out_scale + out_offset: compare at the scale of y (tanh units)
+        # sf_ppm = y * out_scale + out_offset: compare at the scale of y (tanh units), and
+        # never tighter than a few float32 ulps of the output itself (engines sum in their
+        # own order: seen here, 1 ulp at -3984 ppm on one CPU and 0 on another)
         scale = float(model.weights["out_scale"][0])
-        assert abs(sf_ort - float(sf_t)) <= 1e-6 * scale, f"seed {seed} step {m}"
-        assert abs(sf_ort - float(outs[0][0, 0])) <= 1e-6 * scale, f"seed {seed} step {m}"
+        tol = max(1e-6 * scale, 4 * float(np.spacing(np.float32(abs(sf_ort)))))
+        assert abs(sf_ort - float(sf_t)) <= tol, f"seed {seed} step {m}"
+        assert abs(sf_ort - float(outs[0][0, 0])) <= tol, f"seed {seed} step {m}"
         np.testing.assert_allclose(ort_h, h[:, 0].numpy(), atol=1e-6, err_msg=f"step {m}")
         np.testing.assert_allclose(ort_c, c[:, 0].numpy(), atol=1e-6, err_msg=f"step {m}")
         np.testing.assert_allclose(ort_h, np.stack(ref_state[0::2])[:, 0], atol=1e-6)

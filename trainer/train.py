@@ -53,6 +53,7 @@ if TYPE_CHECKING:  # trainer.fit imports torch; commands import this module at s
 
 MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
 DEFAULT_MODEL = "lag-lstm"  # what `fogsf train` fits without --model
+STRUCTURES = ("bank", "node")  # lag-lstm: the lag bank, or one / two effective nodes
 EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
 
 
@@ -116,6 +117,8 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError("give at least one training log (--train)")
     if opts.nodes not in (1, 2):
         raise UserError("--nodes must be 1 or 2")
+    if opts.structure not in STRUCTURES:
+        raise UserError(f"--structure must be one of {', '.join(STRUCTURES)}")
     if opts.node is not None and opts.nodes != 1:
         raise UserError("--node gives one effective node; drop it or use --nodes 1")
     if opts.decimation < 1:
@@ -145,7 +148,7 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
                               else None)
     if kind == "lag-lstm":
-        if opts.structure == "bank" and opts.node is None:
+        if opts.structure == "bank" and opts.node is None and opts.nodes == 1:
             return _fit_with_spec(opts, train_logs, bank_spec(), _lstm_config(opts),
                                   head_fn=_fit_bank_head)
         if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
@@ -356,8 +359,9 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)
         metrics["noise_floor_ppm"] = test["before"]["noise_floor_ppm"]
         metrics["test"] = test
-        metrics["rate_transfer"] = rate_transfer(train_logs, test_log,
-                                                 opts.latitude_deg).as_dict()
+        metrics["rate_transfer"] = rate_transfer(
+            train_logs, test_log, opts.latitude_deg,
+            per_sample_prediction(fitted, test_log, opts.latitude_deg)).as_dict()
     metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
     # every ramp of every training log, read per segment (up and down, several rates a log)
     metrics["train_ramp_rates_c_per_min"] = training_ramp_rates(train_logs)

@@ -44,6 +44,7 @@ LONG_RUN_STEPS = 20  # 100 s windows of 5 s model steps
 INTERVAL_WINDOW_S = 100.0
 INTERVAL_LO = 0.8  # the RMS of noise alone over a run's windows falls this far below its floor
 INTERVAL_SPREAD_K = 1.0  # calibrated on development gyros (docs/population.md)
+EXCURSION_NOTE_C = 5.0  # lag states this far beyond the training range are worth a note
 
 
 def ramp_rate_c_per_min(log: ChamberLog) -> float:
@@ -184,8 +185,13 @@ class RateTransfer:
     # the training data to its noise; more: structure is left, and the allowance widens)
     residual_long_run_ratio: float = 1.0
     noise_floor_ppm: float = 0.0  # the target log's (100 s windows)
-    # where the RMS error (100 s windows) left on the target by a model of this family should
-    # fall: from the noise floor to the noise floor and the spread of the consistent models
+    # the largest windowed RMS difference between a consistent lag model and the model being
+    # judged (the trained model's prediction on the target); spread_max_ppm without one
+    model_spread_max_ppm: float = 0.0
+    # how far (C) the target drives any lag-filter state (60 s .. 2 h) beyond the range the
+    # training logs gave it: the compensation there extrapolates in temperature
+    lag_excursion_c: float = 0.0
+    # where the RMS error (100 s windows) left on the target should fall (`rms_interval`)
     rms_interval_ppm: tuple[float, float] = (0.0, 0.0)
 
     def as_dict(self) -> dict:
@@ -203,6 +209,15 @@ class RateTransfer:
             spread += (f" (the best fit leaves structure, long-run variance "
                        f"{self.residual_long_run_ratio:.0f} x white: no lag model of this family "
                        "explains the training data to its noise)")
+        lo, hi = self.rms_interval_ppm
+        if hi > 0 and self.noise_floor_ppm > 0:
+            spread += (f". Expected RMS error on the target: {lo:.1f}-{hi:.1f} ppm "
+                       f"({lo / self.noise_floor_ppm:.1f}-{hi / self.noise_floor_ppm:.1f} x its "
+                       f"noise floor {self.noise_floor_ppm:.1f} ppm)")
+        if self.lag_excursion_c > EXCURSION_NOTE_C:
+            spread += (f"; the target takes slow internal temperatures up to "
+                       f"{self.lag_excursion_c:.0f} C beyond anything the training logs show "
+                       "(add a soak at the ends of the training ramps)")
         if self.covered:
             return f"{head} (within the training range): {spread}"
         return (f"{head}: OUTSIDE the training range, the compensation there is an "
@@ -210,8 +225,11 @@ class RateTransfer:
 
 
 def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
-                  latitude_deg: float | None = None) -> RateTransfer:
-    """How well the training logs determine the lag-temperature model on `target`."""
+                  latitude_deg: float | None = None,
+                  prediction_ppm: np.ndarray | None = None) -> RateTransfer:
+    """How well the training logs determine the lag-temperature model on `target`;
+    `prediction_ppm` (per sample of the target) is the trained model's prediction there, the
+    model the interval is for (without it, the best-fitting lag model's)."""
     from trainer.features import front_end_for
     from trainer.fit import windowed_rms_ppm
     from trainer.least_squares import (
@@ -241,6 +259,13 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     every = np.ones(tdata.n_steps, dtype=bool)
     spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, DECIMATION)
                        for i in ok])
+    model_spread = spread
+    if prediction_ppm is not None:
+        ref = _step_means(np.asarray(prediction_ppm, dtype=np.float64), DECIMATION)
+        ref = ref[:tdata.n_steps]
+        model_spread = np.array([windowed_rms_ppm(preds[i] - ref, every, DECIMATION)
+                                 for i in ok])
+    excursion = lag_excursion_c(s, tdata.s)
     train_rates = training_ramp_rates(train_logs)
     target_rates = ramp_rates(target) or [0.0]
     lo, hi = (min(train_rates), max(train_rates)) if train_rates else (0.0, 0.0)
@@ -249,19 +274,35 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     covered = not outside
     target_rate = outside[0] if outside else max(target_rates)
     floor = noise_floor_ppm(sf_windows(target, INTERVAL_WINDOW_S, latitude_deg))
-    interval = rms_interval(floor, spread, inflation)
+    m_max = float(np.max(model_spread))
+    interval = rms_interval(floor, m_max)
     return RateTransfer(train_rates, target_rate, bool(covered), len(fits), int(ok.size),
                         float(np.median(spread)), float(np.max(spread)), inflation, floor,
-                        interval)
+                        m_max, excursion, interval)
 
 
-def rms_interval(floor_ppm: float, spread_ppm: np.ndarray, long_run_ratio: float
-                 ) -> tuple[float, float]:
-    """The interval for the RMS error a compensation leaves on the target: at least the
-    noise floor's share INTERVAL_LO, at most the floor and INTERVAL_SPREAD_K times the
-    largest spread between consistent models, added in quadrature."""
-    top = INTERVAL_SPREAD_K * float(np.max(spread_ppm)) if spread_ppm.size else 0.0
+def rms_interval(floor_ppm: float, model_spread_max_ppm: float) -> tuple[float, float]:
+    """The interval for the RMS error the judged model leaves on the target (100 s windows):
+    from INTERVAL_LO times the noise floor (noise alone scatters that far below it) to the
+    floor and INTERVAL_SPREAD_K times the largest distance from the model to a lag model
+    consistent with the training data, added in quadrature. INTERVAL_SPREAD_K is calibrated
+    on development gyros for 90 % coverage (docs/population.md)."""
+    top = INTERVAL_SPREAD_K * model_spread_max_ppm
     return (INTERVAL_LO * floor_ppm, float(np.hypot(floor_ppm, top)))
+
+
+def _step_means(x: np.ndarray, decimation: int) -> np.ndarray:
+    n_steps = (x.size - 1) // decimation + 1
+    starts = np.arange(n_steps) * decimation
+    return np.add.reduceat(x, starts) / np.diff(np.append(starts, x.size))
+
+
+def lag_excursion_c(train_s: np.ndarray, target_s: np.ndarray) -> float:
+    """How far (C) any lag-filter state of the target (columns 1.. of the grid front end's s)
+    leaves the range the training rows gave it."""
+    lo, hi = train_s[:, 1:].min(axis=0), train_s[:, 1:].max(axis=0)
+    t_lo, t_hi = target_s[:, 1:].min(axis=0), target_s[:, 1:].max(axis=0)
+    return float(max(0.0, np.max(t_hi - hi), np.max(lo - t_lo)))
 
 
 def long_run_ratio(resid: np.ndarray, lengths: list[int], window: int = LONG_RUN_STEPS

@@ -57,10 +57,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_metric_options(parser)
     parser.add_argument("--rate-tau-s", type=float, default=120.0,
                         help="time constant of the dT/dt filter (default 120 s)")
-    parser.add_argument("--nodes", type=int, choices=(1, 2), default=1,
-                        help="effective sensing nodes of lag-lstm (default 1; 2 needs training "
-                             "logs at two or more ramp rates, and even then one node did "
-                             "better on average in make bench-transfer)")
+    parser.add_argument("--structure", choices=("bank", "node"), default=None,
+                        help="lag-lstm's physics part: bank (default: T and its lags at 11 "
+                             "time constants from 60 s to 2 h, each a cubic, ridge by GCV; "
+                             "chosen over the gyro population, docs/population.md) or node "
+                             "(one or two effective nodes, --nodes; the previous default)")
+    parser.add_argument("--nodes", type=int, choices=(1, 2), default=None,
+                        help="effective sensing nodes of lag-lstm with --structure node "
+                             "(default 1; 2 needs training logs at two or more ramp rates)")
     parser.add_argument("--poly-degree", type=int, default=3, help="poly/polyrate degree")
     parser.add_argument("--node", type=float, nargs=2, default=None,
                         metavar=("TAU_S", "W"),
@@ -95,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
         model=args.model, decimation=args.decimation, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
         rate_tau_s=args.rate_tau_s, poly_degree=args.poly_degree,
-        node=tuple(args.node) if args.node else None, nodes=args.nodes,
+        node=tuple(args.node) if args.node else None, nodes=args.nodes or 1,
+        structure=args.structure or ("node" if args.nodes or args.node else "bank"),
         layers=args.layers, hidden=args.hidden, batch_size=args.batch_size, lr=args.lr,
         iters=args.iters, gsa_agents=args.gsa_agents, gsa_iters=args.gsa_iters,
         gsa_fitness_iters=args.gsa_fitness_iters, gsa_space=args.gsa_space,
