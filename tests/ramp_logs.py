@@ -7,9 +7,14 @@ from trainer.sim.gyro import simulate
 from trainer.sim.scenarios import paper
 
 
-def short_ramp(rate: float, seed: int) -> ChamberLog:
-    """-20 -> 40 C at `rate` C/min after a 10 min soak, warm start, 10 deg/s: 1-2 h at 10 Hz."""
+def short_ramp(rate: float, seed: int, gyro_seed: int | None = None) -> ChamberLog:
+    """-20 -> 40 C at `rate` C/min after a 10 min soak, warm start, 10 deg/s: 1-2 h at 10 Hz;
+    the default gyro, or the population's gyro `gyro_seed`."""
     cfg = paper(rate, seed)
+    if gyro_seed is not None:
+        from trainer.sim.population import gyro_for_seed, with_gyro
+
+        cfg = with_gyro(cfg, gyro_for_seed(gyro_seed))
     cfg.profile.start_c, cfg.profile.stop_c = -20.0, 40.0
     cfg.profile.soak_before_s = 600.0
     return simulate(cfg).log

@@ -204,7 +204,7 @@ def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpe
 
 
 def _fit_bank_head(ti: TrainingInputs) -> BankFit:
-    """The lag bank fitted by ridge (GCV) to the normalised targets of every step of the
+    """The lag bank fitted by ridge to the normalised targets of every step of the
     training logs (the validation part too: it only picks the LSTM's iteration, and the
     bank needs every transient the logs hold)."""
     z = np.concatenate(ti.z)

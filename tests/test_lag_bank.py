@@ -1,0 +1,93 @@
+"""The lag bank (the default model's structure) and the population bench's bookkeeping."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ramp_logs import short_ramp
+
+from benchmarks.population import PROTOCOLS, run_profile, summarise
+from trainer.lag_bank import bank_spec, fit_bank
+from trainer.least_squares import TAU_GRID_S
+from trainer.sim.profiles import breakpoints
+from trainer.stream import StreamModel
+from trainer.train import TrainOptions, run_training
+
+FAST = {"iters": 30, "hidden": 8, "layers": 1, "batch_size": 8}
+
+
+def test_bank_spec_is_t_and_every_grid_lag() -> None:
+    spec = bank_spec()
+    assert spec.taus_s == TAU_GRID_S and spec.n_features == 1 + len(TAU_GRID_S)
+    assert np.array_equal(spec.matrix(), np.eye(1 + len(TAU_GRID_S)))
+
+
+def test_ridge_recovers_an_additive_cubic() -> None:
+    rng = np.random.default_rng(0)
+    z = rng.uniform(-1, 1, (4000, 3))
+    truth = 0.3 + z @ [1.0, -0.5, 0.0] + (z * z) @ [0.0, 0.4, 0.0] + z[:, 2] ** 3 * 0.7
+    fit = fit_bank(z, truth + rng.normal(0, 0.01, z.shape[0]), lam=1e-6)
+    assert np.allclose(fit.predict(z), truth, atol=0.01)
+    assert np.allclose(fit.lin, [1.0, -0.5, 0.0], atol=0.03)
+    assert fit.cube[2] == pytest.approx(0.7, abs=0.05)
+    strong = fit_bank(z, truth, lam=10.0)  # a heavy prior shrinks towards the mean
+    assert strong.dof < fit.dof and np.abs(strong.lin).sum() < np.abs(fit.lin).sum()
+
+
+@pytest.fixture(scope="module")
+def two_rates_gyro() -> dict:
+    # population gyro 2 (development range): a chain whose single effective node left 6 x
+    # the floor at 1 C/min after 0.5 + 2 C/min training on the full bench
+    return {"slow": short_ramp(0.6, 31, gyro_seed=2), "fast": short_ramp(2.4, 32, gyro_seed=2),
+            "mid": short_ramp(1.2, 33, gyro_seed=2)}
+
+
+def test_bank_transfers_between_two_rates_where_one_node_does_not(two_rates_gyro,
+                                                                  tmp_path: Path) -> None:
+    logs = two_rates_gyro
+    res = {}
+    for structure in ("bank", "node"):
+        opts = TrainOptions(model="lag-lstm", structure=structure, progress=False, **FAST)
+        m, _ = run_training(opts, [logs["slow"], logs["fast"]], logs["mid"],
+                            tmp_path / structure)
+        res[structure] = m["test"]["after"]["rms_ppm"] / m["noise_floor_ppm"]
+    assert res["bank"] < 1.5, res
+    assert res["bank"] < 0.7 * res["node"], res
+
+
+def test_bank_artifact_carries_the_fixed_bank(two_rates_gyro, tmp_path: Path) -> None:
+    logs = two_rates_gyro
+    opts = TrainOptions(model="lag-lstm", progress=False, **FAST)
+    m, fitted = run_training(opts, [logs["slow"], logs["fast"]], logs["mid"], tmp_path / "b")
+    sm = StreamModel.load(tmp_path / "b")
+    f = 1 + len(TAU_GRID_S)
+    assert sm.poly_head and sm.n_features == f and m["features"][0] == "T"
+    quad = sm.weights["quad_w"]
+    assert np.array_equal(quad, np.diag(np.diag(quad)))  # no cross terms: an additive bank
+    assert np.allclose(sm.weights["feat_w"], np.eye(f) / 50.0)
+    assert fitted.info["lag_bank"]["dof"] > 2
+    lo, hi = m["rate_transfer"]["rms_interval_ppm"]
+    assert lo < m["rate_transfer"]["noise_floor_ppm"] < hi
+
+
+def test_protocol_programs_hold_what_they_promise() -> None:
+    loop = breakpoints(run_profile("loop_train"))
+    assert loop[-1, 0] == pytest.approx(3.75 * 3600)
+    rates = np.diff(loop[:, 1]) / np.diff(loop[:, 0]) * 60.0
+    assert sorted(set(np.round(rates, 3))) == [-2.0, 0.0, 1.0]
+    assert set(PROTOCOLS) == {"a", "b", "c", "d", "e"}
+
+
+def test_summary_counts_interval_coverage() -> None:
+    def row(seed: int, ratio: float, inside: bool) -> dict:
+        case = {"default": {"ratio": ratio, "std_ratio": ratio, "inside": inside,
+                            "k_needed": ratio, "train_ratio": 1.0}}
+        return {"gyro_seed": seed, "cases": {"a": case, "e": case}}
+
+    s = summarise([row(1, 1.0, True), row(2, 2.0, False), row(3, 3.0, True)], ("default",),
+                  ("a", "e"))
+    assert s["interval_coverage"]["inside"] == 4 and s["interval_coverage"]["cases"] == 6
+    assert s["a/default"]["ratio"]["median"] == 2.0 and s["a/default"]["ratio"]["worst"] == 3.0
+    assert s["e-train/default"]["ratio"]["median"] == 1.0
