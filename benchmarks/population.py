@@ -217,6 +217,29 @@ def print_table(summary: dict, models: tuple[str, ...], protocols: tuple[str, ..
               f"{c['k_needed_p90']:.2f} (calibrate on dev seeds only)")
 
 
+def magnitudes(seeds: list[int]) -> dict:
+    """The population's SF error before compensation on the paper's 1 C/min run (RMS and
+    max|e| about the SF at 20 C) and its noise floor, and its structural mix."""
+    from trainer.metrics import log_metrics
+    from trainer.sim import simulate
+    from trainer.sim.population import gyro_for_seed
+
+    rms, peak, floor, kinds = [], [], [], []
+    for s in seeds:
+        gyro = gyro_for_seed(s)
+        m = log_metrics(simulate(run_config(gyro, "up10", s)).log)
+        rms.append(m["rms_ppm"])
+        peak.append(m["max_abs_ppm"])
+        floor.append(m["noise_floor_ppm"])
+        kinds.append(gyro.scenario.split(":", 1)[1])
+    pct = (10, 50, 90)
+    return {"gyros": len(seeds), "first": seeds[0],
+            "rms_ppm_p10_50_90": [float(x) for x in np.percentile(rms, pct)],
+            "max_abs_ppm_p10_50_90": [float(x) for x in np.percentile(peak, pct)],
+            "noise_floor_ppm_p10_50_90": [float(x) for x in np.percentile(floor, pct)],
+            "kinds": {k: kinds.count(k) for k in sorted(set(kinds))}}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -231,6 +254,9 @@ def main(argv: list[str] | None = None) -> int:
                          "gyro's 0)")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--protocols", default=",".join(PROTOCOLS))
+    ap.add_argument("--magnitudes", action="store_true",
+                    help="only print the population's SF error before compensation at 1 C/min "
+                         "(RMS, max|e|: 10/50/90th percentiles), noise floor and mix")
     add_executor_options(ap)
     args = ap.parse_args(argv)
     from tqdm import tqdm
@@ -247,6 +273,9 @@ def main(argv: list[str] | None = None) -> int:
     seeds = [s for s in range(first, first + args.n)]
     if any(s not in rng for s in seeds):
         ap.error(f"seeds {seeds[0]}..{seeds[-1]} leave the {args.seeds} range {rng}")
+    if args.magnitudes:
+        print(json.dumps(magnitudes(seeds), indent=2))
+        return 0
     t0 = time.perf_counter()
     rows: list[dict] = []
     with executor_from_args(args) as ex:
