@@ -10,8 +10,10 @@ for these rules (all fitted on the protocol's training logs, scored on its test 
                best (the rate-transfer check's set)
   oracle       the lag model (one or two nodes) best ON THE TEST LOG: what perfect
                selection within that family would reach (not a method)
-  bank:LAM     the lag bank (trainer.lag_bank) with a fixed ridge prior LAM
-  bank:gcv     the lag bank with the penalty chosen by GCV
+  bank:LAM     the lag bank (trainer.lag_bank: T and the lags up to 1000 s as cubics, the
+               slower lags linear) with a fixed ridge prior LAM (1e-3 is the default)
+  bank:allcubic  every lag as a cubic, prior 1e-3
+  bank:gcv     every lag as a cubic, the penalty chosen by GCV
 
 Run it on development seeds only (the choice it informs is tuned there):
 
@@ -30,7 +32,7 @@ import numpy as np
 
 from benchmarks.population import PROTOCOLS, run_config
 from trainer.features import front_end_for, prepare
-from trainer.lag_bank import bank_design, bank_spec, fit_bank
+from trainer.lag_bank import BANK_LAMBDA, bank_design, bank_spec, fit_bank, n_curved
 from trainer.least_squares import TAU_GRID_S, fit_candidates, grid_data, node_candidates
 from trainer.metrics import log_metrics
 from trainer.sim import simulate
@@ -89,9 +91,12 @@ def bank_rules(train: list, test) -> dict[str, np.ndarray]:  # noqa: ANN001
     z = np.concatenate(ti.z)
     y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
     zt = ti.norm.apply(prepare(test, ti.fe, None, None).s)
-    out = {f"bank:{lam:g}": fit_bank(z, y, lam).predict(zt) * ti.scale + ti.offset
-           for lam in BANK_LAMBDAS}
-    out["bank:gcv"] = fit_bank(z, y, _gcv_lambda(z, y)).predict(zt) * ti.scale + ti.offset
+    def pred(lam: float, curved: int | None) -> np.ndarray:
+        return fit_bank(z, y, lam, curved).predict(zt) * ti.scale + ti.offset
+
+    out = {f"bank:{lam:g}": pred(lam, n_curved()) for lam in BANK_LAMBDAS}
+    out["bank:allcubic"] = pred(BANK_LAMBDA, None)
+    out["bank:gcv"] = pred(_gcv_lambda(z, y), None)
     return out
 
 

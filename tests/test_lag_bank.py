@@ -9,7 +9,7 @@ import pytest
 from ramp_logs import short_ramp
 
 from benchmarks.population import PROTOCOLS, run_profile, summarise
-from trainer.lag_bank import bank_spec, fit_bank
+from trainer.lag_bank import CURVED_MAX_TAU_S, bank_spec, fit_bank
 from trainer.least_squares import TAU_GRID_S
 from trainer.sim.profiles import breakpoints
 from trainer.stream import StreamModel
@@ -66,6 +66,9 @@ def test_bank_artifact_carries_the_fixed_bank(two_rates_gyro, tmp_path: Path) ->
     assert sm.poly_head and sm.n_features == f and m["features"][0] == "T"
     quad = sm.weights["quad_w"]
     assert np.array_equal(quad, np.diag(np.diag(quad)))  # no cross terms: an additive bank
+    slow = 1 + np.flatnonzero(np.asarray(TAU_GRID_S) > CURVED_MAX_TAU_S)
+    assert slow.size and not sm.weights["cube_w"][slow].any() and not np.diag(quad)[slow].any()
+    assert sm.weights["cube_w"][0] != 0  # T itself is curved
     assert np.allclose(sm.weights["feat_w"], np.eye(f) / 50.0)
     assert fitted.info["lag_bank"]["dof"] > 2
     lo, hi = m["rate_transfer"]["rms_interval_ppm"]

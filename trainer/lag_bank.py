@@ -4,7 +4,8 @@ A real gyro's SF error is a sum of polynomials of several internal temperatures,
 lagging the board thermometer differently (and with either sign), so no one or two
 effective nodes hold it. The bank holds them all at once: the board temperature T and its
 first-order lag filters at every time constant of `TAU_GRID_S` (60 s .. 2 h), each entering
-as a cubic of its own (no cross terms), all fitted together by ridge regression with one fixed
+on its own (no cross terms): T and the lags up to CURVED_MAX_TAU_S as cubics, the slower
+lags linearly, all fitted together by ridge regression with one fixed
 penalty (a physics prior chosen on development gyros). No structure is selected, so there
 is no selection to get wrong; the penalty shrinks what the data does not determine.
 
@@ -35,6 +36,12 @@ from trainer.least_squares import TAU_GRID_S
 # the tail: collinear lags let in-sample criteria take small penalties whose cubic terms
 # extrapolate (one case: 24 x the noise floor with GCV, 1.1 x with this prior).
 BANK_LAMBDA = 1e-3
+# Lags slower than this enter linearly only: the SF's curvature is carried by T and the fast
+# lags, the slow lags carry the hysteresis as a first-order correction. Cubics of slow lags
+# extrapolate worst where a run takes them beyond the training range (development gyros
+# 1-24: protocol d's worst case 20 -> 11 x the floor, a's median 3.6 -> 2.2, the others
+# unchanged or better; docs/population.md).
+CURVED_MAX_TAU_S = 1000.0
 
 
 def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:
@@ -45,10 +52,17 @@ def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:
     return FeatureSpec(tuple(float(t) for t in grid), rows, names)
 
 
-def bank_design(z: np.ndarray) -> np.ndarray:
-    """Columns z, z^2, z^3 of every feature (float64)."""
+def n_curved(grid: tuple[float, ...] = TAU_GRID_S) -> int:
+    """How many bank features (T first, then the lags in grid order) carry squares and cubes:
+    T and every lag of at most CURVED_MAX_TAU_S."""
+    return 1 + sum(1 for t in grid if t <= CURVED_MAX_TAU_S)
+
+
+def bank_design(z: np.ndarray, curved: int | None = None) -> np.ndarray:
+    """Columns z of every feature, then z^2 and z^3 of the first `curved` (default: all)."""
     x = np.asarray(z, dtype=np.float64)
-    return np.column_stack([x, x * x, x * x * x])
+    c = x[:, :x.shape[1] if curved is None else curved]
+    return np.column_stack([x, c * c, c * c * c])
 
 
 @dataclass
@@ -68,10 +82,11 @@ class BankFit:
         return self.intercept + x @ self.lin + (x * x) @ self.quad + (x * x * x) @ self.cube
 
 
-def fit_bank(z: np.ndarray, y: np.ndarray, lam: float = BANK_LAMBDA) -> BankFit:
-    """Ridge regression of y on bank_design(z), the intercept unpenalised, with penalty
-    `lam` times the centred design's mean diagonal."""
-    x = bank_design(z)
+def fit_bank(z: np.ndarray, y: np.ndarray, lam: float = BANK_LAMBDA,
+             curved: int | None = None) -> BankFit:
+    """Ridge regression of y on bank_design(z, curved), the intercept unpenalised, with
+    penalty `lam` times the centred design's mean diagonal."""
+    x = bank_design(z, curved)
     y = np.asarray(y, dtype=np.float64)
     mu, ym = x.mean(axis=0), float(np.mean(y))
     xc = x - mu
@@ -81,5 +96,8 @@ def fit_bank(z: np.ndarray, y: np.ndarray, lam: float = BANK_LAMBDA) -> BankFit:
     f = sv**2 / (sv**2 + lam * scale)
     coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
     k = z.shape[1]
-    return BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=coef[k:2 * k],
-                   cube=coef[2 * k:], lam=lam, dof=float(f.sum()) + 1.0)
+    c = k if curved is None else curved
+    quad, cube = np.zeros(k), np.zeros(k)
+    quad[:c], cube[:c] = coef[k:k + c], coef[k + c:]
+    return BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
+                   lam=lam, dof=float(f.sum()) + 1.0)

@@ -42,7 +42,7 @@ from trainer.features import (
     prepare,
     step_targets,
 )
-from trainer.lag_bank import BankFit, bank_spec, fit_bank
+from trainer.lag_bank import BankFit, bank_spec, fit_bank, n_curved
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
 from trainer.stream import FrontEnd, StreamModel, expand
@@ -209,7 +209,7 @@ def _fit_bank_head(ti: TrainingInputs) -> BankFit:
     bank needs every transient the logs hold)."""
     z = np.concatenate(ti.z)
     y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
-    return fit_bank(z, y)
+    return fit_bank(z, y, curved=n_curved())
 
 
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
