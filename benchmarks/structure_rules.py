@@ -10,7 +10,7 @@ for these rules (all fitted on the protocol's training logs, scored on its test 
                best (the rate-transfer check's set)
   oracle       the lag model (one or two nodes) best ON THE TEST LOG: what perfect
                selection within that family would reach (not a method)
-  bank:LAM     the lag bank (trainer.lag_bank: T and the lags up to 1000 s as cubics, the
+  bank:LAM     the lag bank (trainer.lag_bank: T and the lags up to 2000 s as cubics, the
                slower lags linear) with a fixed ridge prior LAM (1e-3 is the default)
   bank:allcubic  every lag as a cubic, prior 1e-3
   bank:gcv     every lag as a cubic, the penalty chosen by GCV
