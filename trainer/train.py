@@ -83,6 +83,7 @@ class TrainOptions:
     workers: int | None = None
     dask: str | None = None
     progress: bool = True
+    transfer_check: bool = True  # with a test log: the rate-transfer check and its interval
     extra: dict = field(default_factory=dict)
 
 
@@ -359,6 +360,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)
         metrics["noise_floor_ppm"] = test["before"]["noise_floor_ppm"]
         metrics["test"] = test
+    if test_log is not None and opts.transfer_check:
         metrics["rate_transfer"] = rate_transfer(
             train_logs, test_log, opts.latitude_deg,
             per_sample_prediction(fitted, test_log, opts.latitude_deg)).as_dict()
