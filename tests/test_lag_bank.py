@@ -94,3 +94,29 @@ def test_summary_counts_interval_coverage() -> None:
     assert s["interval_coverage"]["inside"] == 4 and s["interval_coverage"]["cases"] == 6
     assert s["a/default"]["ratio"]["median"] == 2.0 and s["a/default"]["ratio"]["worst"] == 3.0
     assert s["e-train/default"]["ratio"]["median"] == 1.0
+
+
+def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    import json
+
+    from trainer.cli import main
+    from trainer.logio import write_log
+
+    paths = {}
+    for k, lg in two_rates_gyro.items():
+        paths[k] = tmp_path / f"{k}.csv"
+        write_log(paths[k], lg)
+    common = ["train", "--train", str(paths["slow"]), "--train", str(paths["fast"]),
+              "--test", str(paths["mid"]), "--iters", "5", "--hidden", "4", "--no-progress"]
+    assert main([*common, "--out", str(tmp_path / "bank")]) == 0
+    assert main([*common, "--structure", "node", "--out", str(tmp_path / "node")]) == 0
+    out = capsys.readouterr().out
+    assert "Expected RMS error on the target" in " ".join(out.split())
+    bank = json.loads((tmp_path / "bank" / "metrics.json").read_text())
+    node = json.loads((tmp_path / "node" / "metrics.json").read_text())
+    assert bank["features"][0] == "T" and len(bank["features"]) == 1 + len(TAU_GRID_S)
+    assert len(node["features"]) == 1 and node["features"][0].startswith("T_eff")
+    # the board's rate: this gyro's board lags ~10 min, so on a 25 min ramp at 2.4 C/min
+    # it never reaches the chamber's rate
+    assert bank["train_ramp_rates_c_per_min"] == [pytest.approx(0.6, rel=0.05),
+                                                  pytest.approx(2.2, rel=0.15)]

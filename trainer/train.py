@@ -6,9 +6,11 @@ Models (all causal, all from the board thermometer and time only):
 - `mlp`: the paper's MLP baseline on (T, filtered dT/dt);
 - `lstm`: the paper's LSTM on (T, filtered dT/dt), Table 1 defaults (2 x 200, batch 32,
   lr 0.02, Adam);
-- `lag-lstm`: a small LSTM with a linear skip on the effective sensing temperature
-  T_eff = w T + (1 - w) lag(T, tau), (tau, w) identified from the training data (profiling a
-  grid with least squares inside): the physics-structured model;
+- `lag-lstm` (the default): the physics part fitted by least squares and carried exactly in
+  the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is the lag bank
+  (`trainer.lag_bank`: T and its lags at 11 time constants, ridge with a fixed prior) or,
+  with `structure="node"`, one or two effective sensing temperatures
+  T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid;
 - `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
   four) and (tau, w) of T_eff; fitness is the error on the validation part of the training
   logs, never the test log.

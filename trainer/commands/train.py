@@ -1,10 +1,15 @@
 """fogsf train: fit a scale-factor compensation model on chamber logs.
 
 Models: poly (polynomial in T), polyrate (T and a filtered dT/dt), mlp (the paper's MLP),
-lstm (the paper's LSTM, Table 1: 2 x 200, batch 32, lr 0.02), lag-lstm (a small LSTM on
-the effective sensing temperature T_eff = w T + (1 - w) lag(T, tau), (tau, w) identified
-from the data), gsa-lstm (GSA tunes batch size, layers, hidden units, learning rate and
-(tau, w) on the validation part of the training logs).
+lstm (the paper's LSTM, Table 1: 2 x 200, batch 32, lr 0.02), lag-lstm (the default: the
+lag bank, T and its lags at 11 time constants from 60 s to 2 h fitted by ridge with a fixed
+prior, plus a 1 x 16 LSTM on what it leaves; `--structure node` for one or two effective
+nodes T_eff = w T + (1 - w) lag(T, tau)), gsa-lstm (GSA tunes batch size, layers, hidden
+units, learning rate and (tau, w) of T_eff on the validation part of the training logs).
+The default's structure was chosen on development gyros of the population
+(docs/population.md); train on two or more ramp rates (or one log with up- and down-ramps
+at different rates and soaks): one rate leaves the lags undetermined, and with --test the
+rate-transfer check says how far (an interval for the RMS error on the test log).
 
 Every model uses only what firmware has (board thermometer and time) and predicts the SF
 error in ppm vs nominal, causally. The part --val-chunk of each training log is held out
@@ -14,7 +19,7 @@ bytes) and, for the LSTM models, the firmware artifact (stream.json, stream_weig
 that `fogsf export` reads.
 
 Example:
-  fogsf train --train run05.csv --test run10.csv --model lag-lstm --out models/m
+  fogsf train --train run05.csv --train run20.csv --test run10.csv --out models/m
 """
 
 from __future__ import annotations
