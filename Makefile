@@ -62,7 +62,7 @@ bench-transfer: $(STAMP)
 	$(PY) -m benchmarks.rate_transfer --out $(OUT)/bench-transfer.json
 
 # --- compensation over the gyro population (issue 9): evaluation seeds, ~15 min on 2 cores ---
-POP_N ?= 8
+POP_N ?= 24
 bench-population: $(STAMP)
 	$(PY) -m benchmarks.population --seeds eval --n $(POP_N) --out $(OUT)/bench-population.json
 
