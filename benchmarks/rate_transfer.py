@@ -3,9 +3,10 @@
 The paper's protocol trains on a 0.5 C/min ramp and tests on 1 C/min. Over several seeds of
 the simulated paper scenario this prints, per seed, the test RMS as a multiple of the test
 log's noise floor for
-- lag-lstm trained on the 0.5 C/min run (the paper's protocol; `fogsf train`'s default),
-- the same with a 2 C/min run added to the training logs (two ramp rates), with one
-  effective node and with two (`--nodes 2`, "2 nodes"),
+- the default model (lag-lstm on the lag bank) trained on the 0.5 C/min run (the paper's
+  protocol),
+- the same with a 2 C/min run added to the training logs (two ramp rates), and lag-lstm
+  with two effective nodes on both (`--structure node --nodes 2`, "2 nodes"),
 - the oracle: least squares on the simulator's TRUE node temperatures with the simulator's
   own SF structure (source, coil mean and its square, inner coil, board), fitted on the
   0.5 C/min run: no model built on the board thermometer can know more,
