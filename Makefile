@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose bench-transfer bench-population paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose bench-transfer bench-population bench-plan paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -19,6 +19,7 @@ help:
 	@echo "make bench-transfer  one ramp rate vs two, over seeds -> out/bench-transfer.json"
 	@echo "make bench-diagnose  diagnose success rate over planted effects -> out/bench-diagnose.json"
 	@echo "make bench-population  compensation on evaluation gyros of the population -> out/bench-population.json"
+	@echo "make bench-plan  the planned chamber program vs the paper's on evaluation gyros -> out/bench-plan.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
@@ -65,6 +66,9 @@ bench-transfer: $(STAMP)
 POP_N ?= 24
 bench-population: $(STAMP)
 	$(PY) -m benchmarks.population --seeds eval --n $(POP_N) --out $(OUT)/bench-population.json
+
+bench-plan: $(STAMP)
+	$(PY) -m benchmarks.plan --out $(OUT)/bench-plan.json
 
 bench-diagnose: $(STAMP)
 	$(PY) -m benchmarks.diagnose_rate --out $(OUT)/bench-diagnose.json

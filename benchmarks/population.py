@@ -34,13 +34,12 @@ import json
 import sys
 import tempfile
 import time
-from concurrent.futures import as_completed
 from pathlib import Path
 
 import numpy as np
 
-from trainer.executors import add_executor_options, executor_from_args
-from trainer.sim.config import ProfileConfig, SimConfig, TableConfig
+from trainer.executors import add_executor_options, executor_from_args, run_all
+from trainer.sim.config import ProfileConfig, SimConfig
 
 PROTOCOLS = {
     "a": (("up05",), "up10"),
@@ -88,13 +87,9 @@ RUN_SEED_OFFSET = {"up05": 1, "up10": 2, "up20": 3, "down10": 4, "slowcycle": 5,
 
 
 def run_config(gyro: SimConfig, name: str, gyro_seed: int) -> SimConfig:
-    from trainer.sim.population import with_gyro
+    from trainer.sim.population import run_on_gyro
 
-    run = SimConfig(scenario=f"population:{name}", seed=gyro_seed * 16 + RUN_SEED_OFFSET[name])
-    run.profile = run_profile(name)
-    run.table = TableConfig(kind="constant", rate_dps=10.0)
-    run.thermal.start = "warm"
-    return with_gyro(run, gyro)
+    return run_on_gyro(gyro, run_profile(name), gyro_seed * 16 + RUN_SEED_OFFSET[name], name)
 
 
 def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, imported late
@@ -274,7 +269,6 @@ def main(argv: list[str] | None = None) -> int:
                          "(RMS, max|e|: 10/50/90th percentiles), noise floor and mix")
     add_executor_options(ap)
     args = ap.parse_args(argv)
-    from tqdm import tqdm
 
     from trainer.sim.population import seed_range
 
@@ -292,16 +286,9 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(magnitudes(seeds), indent=2))
         return 0
     t0 = time.perf_counter()
-    rows: list[dict] = []
     with executor_from_args(args) as ex:
-        if ex is None:
-            it = (bench_gyro(s, models, protocols) for s in seeds)
-            for row in tqdm(it, total=len(seeds), desc="gyros", unit="gyro"):
-                rows.append(row)
-        else:
-            futs = [ex.submit(bench_gyro, s, models, protocols) for s in seeds]
-            for f in tqdm(as_completed(futs), total=len(futs), desc="gyros", unit="gyro"):
-                rows.append(f.result())
+        rows = run_all(ex, bench_gyro, list(seeds), models, protocols, desc="gyros",
+                       unit="gyro")
     rows.sort(key=lambda r: r["gyro_seed"])
     for g in rows:
         cells = " ".join(f"{p}:{g['cases'][p][m]['ratio']:.2f}" for p in protocols

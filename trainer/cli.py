@@ -22,6 +22,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                "run the compiled C kernel over a log, sample by sample"),
     "diagnose": ("trainer.commands.diagnose",
                  "fit the simulator to measured logs, name what it misses, extend it"),
+    "plan": ("trainer.commands.plan",
+             "the chamber program that buys the most accuracy per chamber hour"),
 }
 
 

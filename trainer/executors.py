@@ -23,11 +23,14 @@ import argparse
 import multiprocessing
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
+from typing import Any, TypeVar
 
 from trainer.errors import UserError
+
+T = TypeVar("T")
 
 
 def default_workers() -> int:
@@ -118,3 +121,29 @@ def executor_from_args(args: argparse.Namespace):
     """`open_executor` from the options `add_executor_options` added."""
     return open_executor(workers=getattr(args, "workers", None),
                          dask=getattr(args, "dask", None))
+
+
+def run_all(ex: Executor | None, fn: Callable[..., T], items: Sequence[Any], *args: Any,
+            desc: str = "", unit: str = "it", progress: bool = True) -> list[T]:
+    """fn(item, *args) for every item, inline (ex None) or on `ex`, with a progress bar;
+    results in the order of `items`."""
+    from concurrent.futures import as_completed
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not progress)
+    try:
+        if ex is None:
+            out = []
+            for it in items:
+                out.append(fn(it, *args))
+                bar.update()
+            return out
+        futs = {ex.submit(fn, it, *args): i for i, it in enumerate(items)}
+        res: list[Any] = [None] * len(items)
+        for f in as_completed(futs):
+            res[futs[f]] = f.result()
+            bar.update()
+        return res
+    finally:
+        bar.close()

@@ -215,6 +215,22 @@ def _fit_bank_head(ti: TrainingInputs) -> BankFit:
     return fit_bank(z, y, curved=n_curved())
 
 
+def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
+                      ) -> Callable[[ChamberLog], np.ndarray]:
+    """The default model's fixed part (the lag bank by least squares) trained on `logs`:
+    a function giving a log's per-step SF error prediction (ppm vs nominal). Fast (no
+    LSTM), for benches and the planner."""
+    ti = training_inputs(opts or TrainOptions(model="lag-lstm"), logs, bank_spec(),
+                         physical=True)
+    bank = _fit_bank_head(ti)
+
+    def predict(log: ChamberLog) -> np.ndarray:
+        s = prepare(log, ti.fe, None, None).s
+        return bank.predict(ti.norm.apply(s)) * ti.scale + ti.offset
+
+    return predict
+
+
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
                    lstm_cfg: LSTMConfig | None,
                    head_fn: Callable[[TrainingInputs], BankFit] | None = None) -> Fitted:

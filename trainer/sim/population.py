@@ -31,9 +31,11 @@ from trainer.sim.config import (
     BiasConfig,
     NodeConfig,
     NoiseConfig,
+    ProfileConfig,
     ScaleFactorConfig,
     SFTermConfig,
     SimConfig,
+    TableConfig,
     ThermalConfig,
 )
 
@@ -198,6 +200,17 @@ def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:
     out.sf, out.bias, out.noise = (copy.deepcopy(gyro.sf), copy.deepcopy(gyro.bias),
                                    copy.deepcopy(gyro.noise))
     return out
+
+
+def run_on_gyro(gyro: SimConfig, profile: ProfileConfig, seed: int, name: str,
+                table_dps: float = 10.0) -> SimConfig:
+    """A warm-start run of `profile` on `gyro` at a constant table rate (the benches' and
+    the planner's runs)."""
+    run = SimConfig(scenario=f"population:{name}", seed=seed)
+    run.profile = profile
+    run.table = TableConfig(kind="constant", rate_dps=table_dps)
+    run.thermal.start = "warm"
+    return with_gyro(run, gyro)
 
 
 def seed_range(name: str) -> range:
