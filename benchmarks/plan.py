@@ -42,12 +42,12 @@ def main(argv: list[str] | None = None) -> int:
     ev = list(range(EVAL_SEEDS.start, EVAL_SEEDS.start + args.eval_gyros))
     t0 = time.perf_counter()
     with executor_from_args(args) as ex:
-        ranked, paper_dev = search(limits, rates, dev, ex)
+        ranked, paper_dev = search(limits, rates, [(g, g) for g in dev], ex)
         t_plan = time.perf_counter() - t0
         one_rate = next(s for s in ranked if s.program.name.startswith("up "))
         chosen = [ranked[0].program, one_rate.program]
-        res = run_all(ex, evaluate_gyro, ev, [paper_dev.program, *chosen], limits, rates,
-                      desc="eval gyros", unit="gyro")
+        res = run_all(ex, evaluate_gyro, [(g, g) for g in ev], [paper_dev.program, *chosen],
+                      limits, rates, desc="eval gyros", unit="gyro")
     scored = score(chosen, res)
     best_e = next(s for s in scored if s.program is chosen[0])
     one_e = next(s for s in scored if s.program is chosen[1])

@@ -56,7 +56,7 @@ def test_a_two_rate_program_ranks_above_a_one_rate_program_of_the_same_length() 
                                                 ("soak", 1800.0), ("ramp", 2.0),
                                                 ("soak", 1800.0)]),), (1.0, 2.0))
     assert abs(one.hours - two.hours) < 1e-9
-    res = [evaluate_gyro(s, [one, two], limits, (0.3, 0.7)) for s in (1, 2, 3)]
+    res = [evaluate_gyro((s, s), [one, two], limits, (0.3, 0.7)) for s in (1, 2, 3)]
     ranked = score([one, two], res)
     assert [s.program.name for s in ranked] == ["two rates", "one rate"], \
         [(s.program.name, s.median, s.p90) for s in ranked]
@@ -93,3 +93,31 @@ def test_plan_refuses_evaluation_seeds_and_bad_ranges(capsys) -> None:
     assert "20 C" in capsys.readouterr().err
     assert main(["plan", "--hours", "0.6", "--max-ramp", "0.1", "--out", "x"]) == 2
     assert "no program fits" in capsys.readouterr().err
+
+
+def test_axes_score_each_imu_by_its_worst_axis() -> None:
+    p = Program("p", (((0.0, -40.0), (3600.0, 50.0)),), (1.5,))
+    res = [{"ratios": {"p": {0.5: a, 2.0: b}}} for a, b in ((1.0, 4.0), (3.0, 2.0),
+                                                            (1.5, 1.0), (1.2, 1.1))]
+    (one,) = score([p], res)
+    (two,) = score([p], res, axes=2)
+    assert one.n == 8 and two.n == 4
+    # IMU 1: worst 3.0 at 0.5, 4.0 at 2; IMU 2: 1.5 and 1.1
+    assert two.per_rate[0.5] == (pytest.approx(2.25), pytest.approx(2.85))
+    assert two.median == pytest.approx(np.median([3.0, 4.0, 1.5, 1.1]))
+
+
+def test_plan_from_logs_fits_a_gyro_to_each_log(tmp_path: Path, capsys) -> None:
+    log = tmp_path / "earlier.csv"
+    assert main(["simulate", "--random-gyro", "5", "--profile", "cycle", "--start-c", "-40",
+                 "--stop-c", "50", "--ramp-rate", "2", "--soak-min", "20", "--cycles", "1",
+                 "--out", str(log)]) == 0
+    out = tmp_path / "plan"
+    assert main(["plan", "--from-logs", str(log), "--hours", "2", "--test-rates", "1",
+                 "--interval-gyros", "0", "--workers", "1", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "fitted a gyro to" in text and "1 gyros fitted to earlier.csv" in text
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["from_logs"] == [str(log)] and plan["gyro_seeds"] is None
+    assert main(["plan", "--from-logs", str(log), "--axes", "2", "--out", str(out)]) == 2
+    assert "multiple" in capsys.readouterr().err

@@ -77,6 +77,7 @@ class TrainOptions:
     batch_size: int | None = None
     lr: float | None = None
     iters: int | None = None
+    lstm_window: int | None = None  # model steps per LSTM training window (default 256)
     gsa_agents: int = 8
     gsa_iters: int = 8
     gsa_fitness_iters: int = 80
@@ -138,6 +139,8 @@ def _lstm_config(opts: TrainOptions, **over: object) -> LSTMConfig:
     for k in ("layers", "hidden", "batch_size", "lr", "iters"):
         if getattr(opts, k) is not None:
             d[k] = getattr(opts, k)
+    if opts.lstm_window is not None:
+        d["window"] = opts.lstm_window
     d.update(over)
     return LSTMConfig(seed=opts.seed, **d)
 

@@ -57,6 +57,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="population gyros (development seeds from --first; default 24)")
     p.add_argument("--first", type=int, default=1, metavar="SEED",
                    help="first population seed (default 1; 0 is the default gyro)")
+    p.add_argument("--axes", type=int, default=1, metavar="N",
+                   help="gyros per IMU sharing the chamber (default 1): each group of N "
+                        "consecutive gyros counts once, by its worst axis")
+    p.add_argument("--from-logs", nargs="+", type=Path, metavar="LOG",
+                   help="plan for gyros fitted to earlier chamber logs (one gyro per log, "
+                        "fitted as `fogsf diagnose` fits its base model) instead of the "
+                        "population")
     p.add_argument("--interval-gyros", type=int, default=4, metavar="N",
                    help="gyros on which the rate-transfer interval is computed for the best "
                         "programs and the paper's (default 4; 0 skips it)")
@@ -75,12 +82,24 @@ def run(args: argparse.Namespace) -> int:
 
     if args.gyros < 1:
         raise UserError(f"--gyros must be at least 1, got {args.gyros}")
+    if args.axes < 1:
+        raise UserError(f"--axes must be at least 1, got {args.axes}")
     if not 1 <= args.test_rates <= 12:
         raise UserError(f"--test-rates must be 1-12, got {args.test_rates}")
     seeds = list(range(args.first, args.first + args.gyros))
     if seeds[0] not in DEV_SEEDS or seeds[-1] not in DEV_SEEDS:
         raise UserError(f"--first/--gyros: plan on development seeds ({DEV_SEEDS.start}-"
                         f"{DEV_SEEDS.stop - 1}); evaluation seeds are for benchmarks")
+    gyros: list = [(s, s) for s in seeds]
+    what = f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})"
+    if args.from_logs:
+        gyros = [(i + 1, g) for i, g in enumerate(fitted_gyros(args.from_logs))]
+        what = f"{len(gyros)} gyros fitted to " + ", ".join(p.name for p in args.from_logs)
+    if len(gyros) % args.axes:
+        raise UserError(f"--axes {args.axes}: the number of gyros ({len(gyros)}) must be a "
+                        "multiple of it")
+    if args.axes > 1:
+        what += f", {len(gyros) // args.axes} IMUs of {args.axes} axes"
     elo, ehi = args.envelope_rate
     if elo <= 0:
         raise UserError("--envelope-rate: rates must be positive, e.g. 0.2:2")
@@ -91,14 +110,15 @@ def run(args: argparse.Namespace) -> int:
     rates = test_rates(elo, ehi, args.test_rates)
     print(f"{n_progs} candidate programs within {limits.lo_c:g}..{limits.hi_c:g} C, "
           f"<= {limits.max_ramp_c_per_min:g} C/min, <= {limits.hours:g} h; scored at "
-          + ", ".join(f"{r:.2g}" for r in rates) + f" C/min on {len(seeds)} development "
-          f"gyros ({seeds[0]}-{seeds[-1]})")
+          + ", ".join(f"{r:.2g}" for r in rates) + f" C/min on {what}")
     t0 = time.perf_counter()
     with executor_from_args(args) as ex:
-        ranked, paper_s = search(limits, rates, seeds, ex, args.interval_gyros)
+        ranked, paper_s = search(limits, rates, gyros, ex, args.interval_gyros, args.axes)
     print(table_md(ranked, paper_s, args.top), end="")
     best = ranked[0]
-    meta = {"limits": vars(limits), "envelope_rates": list(rates), "gyro_seeds": seeds,
+    meta = {"limits": vars(limits), "envelope_rates": list(rates),
+            "gyro_seeds": None if args.from_logs else seeds, "axes": args.axes,
+            "from_logs": [str(p) for p in args.from_logs or []],
             "seconds": time.perf_counter() - t0}
     write_outputs(args.out, ranked, paper_s, meta)
     print(f"best: {best.program.name} ({best.program.hours:.2f} h): median {best.median:.2f}, "
@@ -107,3 +127,19 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {args.out}/program.csv, table.md, plan.json, plan.png "
           f"({time.perf_counter() - t0:.0f} s)")
     return 0
+
+
+def fitted_gyros(paths: list[Path]) -> list:
+    """One simulator gyro per log: diagnose's base model fitted to it (thermal network,
+    SF terms, bias, noise), for the planner to simulate programs on."""
+    from trainer.diagnose import extend, verdict
+    from trainer.logio import read_log
+    from trainer.sim.config import SimConfig
+
+    out = []
+    for p in paths:
+        d = verdict.diagnose([read_log(p)], effects=[])
+        out.append(SimConfig.from_dict(extend.sim_config(d, d.base, 0)))
+        print(f"fitted a gyro to {p}: nodes at "
+              + ", ".join(f"{n.tau_s:.0f} s" for n in out[-1].thermal.nodes[2:]))
+    return out

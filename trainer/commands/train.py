@@ -81,6 +81,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--batch-size", type=int)
     g.add_argument("--lr", type=float)
     g.add_argument("--iters", type=int, help="training iterations (batches)")
+    g.add_argument("--lstm-window", type=int, metavar="STEPS",
+                   help="model steps per LSTM training window (default 256, 21 min at "
+                        "5 s steps; larger than a log: whole logs)")
     g = parser.add_argument_group("GSA (gsa-lstm)")
     g.add_argument("--gsa-agents", type=int, default=8)
     g.add_argument("--gsa-iters", type=int, default=8)
@@ -107,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
         node=tuple(args.node) if args.node else None, nodes=args.nodes or 1,
         structure=args.structure or ("node" if args.nodes or args.node else "bank"),
         layers=args.layers, hidden=args.hidden, batch_size=args.batch_size, lr=args.lr,
-        iters=args.iters, gsa_agents=args.gsa_agents, gsa_iters=args.gsa_iters,
+        iters=args.iters, lstm_window=args.lstm_window, gsa_agents=args.gsa_agents,
+        gsa_iters=args.gsa_iters,
         gsa_fitness_iters=args.gsa_fitness_iters, gsa_space=args.gsa_space,
         gsa_paper_constants=args.gsa_paper_constants,
         workers=args.workers, dask=args.dask,

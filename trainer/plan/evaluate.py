@@ -13,10 +13,14 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from trainer.plan.programs import START_SOAK_S, Limits, Program, _path
+
+if TYPE_CHECKING:
+    from trainer.sim.config import SimConfig
 
 TEST_SOAK_S = 1800.0
 RATE_NEAR = 0.10  # a test rate within 10 % of a program's ramp rate counts as trained on
@@ -49,18 +53,25 @@ def _simulate(gyro, points, seed: int, name: str):  # noqa: ANN001, ANN202 - sim
     return simulate(run_on_gyro(gyro, prof, seed, name)).log
 
 
-def evaluate_gyro(gyro_seed: int, programs: list[Program], limits: Limits,
-                  rates: tuple[float, ...]) -> dict:
-    """Every program on one population gyro: {"gyro_seed", "ratios": {program name:
-    {rate: test RMS / noise floor}}, "seconds"}, at every envelope rate (those in the
-    program too: the test loop is another run, up and down)."""
-    from trainer.metrics import log_metrics
+def gyro_of(ref: int | SimConfig) -> SimConfig:
     from trainer.sim.population import gyro_for_seed
+
+    return gyro_for_seed(ref) if isinstance(ref, int) else ref
+
+
+def evaluate_gyro(item: tuple[int, int | SimConfig], programs: list[Program], limits: Limits,
+                  rates: tuple[float, ...]) -> dict:
+    """Every program on one gyro, `item` = (seed of the runs' noise, population seed or
+    gyro): {"gyro_seed", "ratios": {program name: {rate: test RMS / noise floor}},
+    "seconds"}, at every envelope rate (those in the program too: the test loop is another
+    run, up and down)."""
+    from trainer.metrics import log_metrics
     from trainer.stream import expand
     from trainer.train import bank_compensation
 
     t0 = time.perf_counter()
-    gyro = gyro_for_seed(gyro_seed)
+    gyro_seed, ref = item
+    gyro = gyro_of(ref)
     tests = {r: _simulate(gyro, _test_loop(limits, r), gyro_seed * 1000 + 900 + i,
                           f"plan-test-{r:.3g}")
              for i, r in enumerate(rates)}
@@ -78,17 +89,17 @@ def evaluate_gyro(gyro_seed: int, programs: list[Program], limits: Limits,
     return {"gyro_seed": gyro_seed, "ratios": out, "seconds": time.perf_counter() - t0}
 
 
-def interval_gyro(gyro_seed: int, programs: list[Program], limits: Limits, rate: float
-                  ) -> dict[str, float]:
+def interval_gyro(item: tuple[int, int | SimConfig], programs: list[Program], limits: Limits,
+                  rate: float) -> dict[str, float]:
     """The rate-transfer interval's upper end, as a multiple of the noise floor, on the test
     loop at `rate`
     for each program trained on one gyro: how sure `fogsf train --test` would be."""
-    from trainer.sim.population import gyro_for_seed
     from trainer.stream import expand
     from trainer.train import bank_compensation
     from trainer.transfer import INTERVAL_LO, rate_transfer
 
-    gyro = gyro_for_seed(gyro_seed)
+    gyro_seed, ref = item
+    gyro = gyro_of(ref)
     test = _simulate(gyro, _test_loop(limits, rate), gyro_seed * 1000 + 990,
                      f"plan-interval-{rate:.3g}")
     out = {}

@@ -54,11 +54,15 @@ def _stats(x: list[float]) -> tuple[float | None, float | None]:
     return float(np.median(x)), float(np.percentile(x, 90))
 
 
-def score(programs: list[Program], results: list[dict]) -> list[Scored]:
-    """Median and p90 over gyros and envelope rates, best first (by p90, then median)."""
+def score(programs: list[Program], results: list[dict], axes: int = 1) -> list[Scored]:
+    """Median and p90 over gyros and envelope rates, best first (by p90, then median). With
+    `axes` > 1 each group of that many consecutive gyros is one IMU (one gyro an axis, all in
+    the same chamber program) and counts once, by its worst axis at each rate."""
     out = []
     for p in programs:
-        rows = [r["ratios"][p.name] for r in results]
+        each = [r["ratios"][p.name] for r in results]
+        rows = [{k: max(g[k] for g in each[i:i + axes]) for k in each[i]}
+                for i in range(0, len(each) - axes + 1, axes)]
         rates = sorted({k for row in rows for k in row})
         per_rate = {k: _stats([row[k] for row in rows]) for k in rates}
         med, p90 = _stats([v for row in rows for v in row.values()])
