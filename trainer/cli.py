@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 from trainer import __version__
@@ -16,7 +17,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "inspect": ("trainer.commands.inspect",
                 "a chamber log's summary and SF-error metrics: run this first on a new log"),
     "train": ("trainer.commands.train",
-              "train a compensation model (poly, polyrate, mlp, lstm, gsa-lstm)"),
+              "train a compensation model (default lag-lstm; poly, polyrate, mlp, lstm, "
+              "gsa-lstm)"),
     "export": ("trainer.commands.export", "export a trained model to ONNX and C headers"),
     "replay": ("trainer.commands.replay",
                "run the compiled C kernel over a log, sample by sample"),
@@ -27,17 +29,32 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+EXAMPLE_HEAD = re.compile(r"^(examples?):", re.IGNORECASE | re.MULTILINE)
+
+
+def split_doc(doc: str) -> tuple[str, str | None]:
+    """A command's docstring as (description, epilog): the examples go last in --help."""
+    starts = [m.start() for m in EXAMPLE_HEAD.finditer(doc)]
+    if not starts:
+        return doc.strip(), None
+    return doc[:starts[-1]].strip(), doc[starts[-1]:].strip()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="fogsf",
         description="Fiber-optic gyro thermal scale-factor error: from chamber logs to "
                     "firmware. Run `fogsf COMMAND --help` for each command.",
+        epilog="example:\n  fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv"
+               " && fogsf inspect run10.csv",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"fogsf {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (module, help_text) in COMMANDS.items():
         mod = importlib.import_module(module)
-        p = sub.add_parser(name, help=help_text, description=(mod.__doc__ or help_text).strip(),
+        desc, epilog = split_doc(mod.__doc__ or help_text)
+        p = sub.add_parser(name, help=help_text, description=desc, epilog=epilog,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.configure(p)
         p.set_defaults(_run=mod.run)

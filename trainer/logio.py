@@ -1,13 +1,20 @@
 """Chamber logs: the CSV format of DESIGN.md, read with every refusal it lists, and written.
 
 A log is one gyro run in the chamber at 10 Hz. Reading never fixes or drops anything: a bad
-file is refused with one `LogError` that names the file, the line and the rule.
+file is refused with one `LogError` that names the file, the line, the rule and, where one
+exists, the option that fixes it. Logs as rigs and spreadsheets write them are read through
+a `Dialect`: a UTF-8 byte-order mark (what Excel writes) is skipped, the delimiter (`,` `;`
+or tab) is sniffed from the header or given, columns named by the rig are mapped to ours
+(`--columns time_s=t,...` or a JSON file), and one axis of a multi-axis log is picked as the
+gyro (`--gyro-column gyro_x_dps`).
 """
 
 from __future__ import annotations
 
 import io
+import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,6 +29,44 @@ NOMINAL_DT_S = 0.1
 # a missed sample (0.2 s) is a gap and is refused.
 DT_TOLERANCE_S = 0.02
 TEMP_RANGE_C = (-60.0, 100.0)
+DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
+COLUMNS_HINT = "map the log's names with --columns time_s=NAME,temp_c=NAME,..."
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How a log file writes the format: delimiter, column names, which gyro column."""
+
+    delimiter: str | None = None  # None: sniffed from the header among , ; and tab
+    columns: tuple[tuple[str, str], ...] = ()  # (our name, the log's name)
+    gyro_column: str | None = None  # the log's column read as gyro_dps
+
+    @staticmethod
+    def parse_columns(text: str) -> tuple[tuple[str, str], ...]:
+        """`time_s=t,temp_c=temperature` or a JSON file {"time_s": "t", ...}."""
+        if text.endswith(".json"):
+            try:
+                m = json.loads(Path(text).read_text(encoding="utf-8"))
+            except (OSError, ValueError) as e:
+                raise UserError(f"--columns {text}: cannot read the mapping ({e})") from None
+            if not isinstance(m, dict) or not all(isinstance(v, str) for v in m.values()):
+                raise UserError(f"--columns {text}: expected a JSON object "
+                                '{"time_s": "t", "temp_c": "temperature", ...}')
+            pairs = list(m.items())
+        else:
+            pairs = []
+            for part in (p for p in text.split(",") if p.strip()):
+                ours, eq, theirs = part.partition("=")
+                if not eq or not ours.strip() or not theirs.strip():
+                    raise UserError(f"--columns: expected OURS=THEIRS pairs like "
+                                    f"time_s=t,temp_c=temperature, got {part!r}")
+                pairs.append((ours.strip(), theirs.strip()))
+        known = (*REQUIRED, *OPTIONAL)
+        for ours, _ in pairs:
+            if ours not in known and not _is_temperature(ours):
+                raise UserError(f"--columns: {ours!r} is not a column of the format "
+                                f"({', '.join(known)}, temp_<name>_c)")
+        return tuple(pairs)
 
 
 class LogError(UserError):
@@ -105,7 +150,7 @@ def _is_temperature(name: str) -> bool:
     return name in ("temp_c", "chamber_c") or (name.startswith("temp_") and name.endswith("_c"))
 
 
-def read_log(path: str | Path) -> ChamberLog:
+def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     """Read and validate a chamber log; raise LogError on the first broken rule."""
     p = str(path)
     try:
@@ -117,30 +162,72 @@ def read_log(path: str | Path) -> ChamberLog:
         raise LogError(p, None, "cannot read", f"not UTF-8 text ({e.reason})") from None
     except OSError as e:
         raise LogError(p, None, "cannot read", e.strerror or str(e)) from None
-    return parse_log(text, p)
+    return parse_log(text, p, dialect)
 
 
-def parse_log(text: str, path: str = "<memory>") -> ChamberLog:
+def _sniff(header_line: str) -> str:
+    """The delimiter the header uses: the most frequent of , ; and tab (',' if none)."""
+    counts = {d: header_line.count(d) for d in (",", ";", "\t")}
+    best = max(counts, key=lambda d: counts[d])
+    return best if counts[best] else ","
+
+
+def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
+    """The header in our names: --columns mapped, --gyro-column read as gyro_dps."""
+    out = list(header)
+    pairs = list(dialect.columns)
+    if dialect.gyro_column is not None:
+        pairs.append(("gyro_dps", dialect.gyro_column))
+    for ours, theirs in pairs:
+        opt = "--gyro-column" if (ours, theirs) == ("gyro_dps", dialect.gyro_column) \
+            else "--columns"
+        if theirs not in header:
+            raise LogError(path, 1, "no such column",
+                           f"{opt} names {theirs!r} for {ours}; header has: "
+                           f"{', '.join(header)}")
+        out[header.index(theirs)] = ours
+    return out
+
+
+def _missing_hint(missing: list[str], header: list[str]) -> str:
+    axes = [h for h in header if re.fullmatch(r"gyro_\w+_dps", h)]
+    if "gyro_dps" in missing and axes:
+        axis = axes[0][len("gyro_"):-len("_dps")]
+        return (f"; the log has {', '.join(axes)}: pick one with --gyro-column {axes[0]} "
+                f"(fogsf train: --axis {axis})")
+    return f"; {COLUMNS_HINT}"
+
+
+def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
+              ) -> ChamberLog:
+    dialect = dialect or Dialect()
+    if text.startswith("\ufeff"):  # a UTF-8 byte-order mark: encoding, not data
+        text = text[1:]
     lines = text.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()
     if not lines or not lines[0].strip():
         raise LogError(path, 1 if lines else None, "empty file", "no header row")
-    header = [h.strip() for h in lines[0].split(",")]
-    seen: set[str] = set()
-    for h in header:
+    delim = dialect.delimiter or _sniff(lines[0])
+    raw = [h.strip() for h in lines[0].split(delim)]
+    for h in raw:
         if not h:
             raise LogError(path, 1, "bad header", "an empty column name")
+    header = _rename(raw, dialect, path)
+    seen: set[str] = set()
+    for h in header:
         if h in seen:
-            raise LogError(path, 1, "bad header", f"column {h!r} appears twice")
+            raise LogError(path, 1, "bad header", f"column {h!r} appears twice"
+                           + (" (after --columns / --gyro-column)" if header != raw else ""))
         seen.add(h)
     missing = [c for c in REQUIRED if c not in seen]
     if missing:
         raise LogError(path, 1, "missing required column",
-                       f"{', '.join(missing)} (header has: {', '.join(header)})")
+                       f"{', '.join(missing)} (header has: {', '.join(raw)})"
+                       + _missing_hint(missing, raw))
     if len(lines) < 2:
         raise LogError(path, 1, "empty file", "a header but no data rows")
-    data = _parse_numbers(lines, header, path)
+    data = _parse_numbers(lines, header, path, delim)
     cols = {name: data[:, i] for i, name in enumerate(header)}
     _validate(cols, path)
     extra = {k: v for k, v in cols.items() if k not in REQUIRED and k != "earth_rate_dps"}
@@ -155,28 +242,30 @@ def parse_log(text: str, path: str = "<memory>") -> ChamberLog:
     )
 
 
-def _parse_numbers(lines: list[str], header: list[str], path: str) -> np.ndarray:
+def _parse_numbers(lines: list[str], header: list[str], path: str, delim: str = ","
+                   ) -> np.ndarray:
     ncol = len(header)
     try:
-        data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", dtype=np.float64,
+        data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=delim, dtype=np.float64,
                           ndmin=2, comments=None)
     except ValueError:
         data = None
     if data is None or data.shape[1] != ncol or data.shape[0] != len(lines) - 1:
-        _find_bad_cell(lines, header, path)
+        _find_bad_cell(lines, header, path, delim)
         raise LogError(path, None, "unreadable", "numbers could not be parsed")  # unreachable
     bad = ~np.isfinite(data)
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise LogError(path, int(r) + 2, "non-finite cell",
-                       f"column {header[c]!r} is {lines[r + 1].split(',')[c].strip()!r}")
+                       f"column {header[c]!r} is {lines[r + 1].split(delim)[c].strip()!r}")
     return data
 
 
-def _find_bad_cell(lines: list[str], header: list[str], path: str) -> None:
+def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = ","
+                   ) -> None:
     """The slow path: walk rows to name the first one that does not parse."""
     for i, line in enumerate(lines[1:], start=2):
-        cells = line.split(",")
+        cells = line.split(delim)
         if len(cells) != len(header):
             raise LogError(path, i, "wrong number of cells",
                            f"{len(cells)} cells, header has {len(header)}")
@@ -185,8 +274,10 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str) -> None:
                 float(cell)
             except ValueError:
                 shown = cell.strip() or "(empty)"
+                hint = (" (a decimal comma? numbers are read with a '.' decimal point)"
+                        if "," in cell and delim != "," else "")
                 raise LogError(path, i, "non-numeric cell",
-                               f"column {name!r} is {shown!r}") from None
+                               f"column {name!r} is {shown!r}{hint}") from None
 
 
 def _validate(cols: dict[str, np.ndarray], path: str) -> None:

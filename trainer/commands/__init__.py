@@ -14,3 +14,37 @@ def add_metric_options(parser: argparse.ArgumentParser) -> None:
                         help="SF window length in seconds for the metrics (default 100)")
     parser.add_argument("--latitude-deg", type=float, default=None,
                         help="latitude for the earth rate when a log has no earth_rate_dps")
+
+
+def add_log_options(parser: argparse.ArgumentParser, axis: bool = False) -> None:
+    """--delimiter, --columns and --gyro-column (and --axis), as every command that reads
+    chamber logs takes them (docs/logs.md)."""
+    g = parser.add_argument_group("log format (docs/logs.md)")
+    g.add_argument("--delimiter", choices=(",", ";", "tab"), default=None, metavar=",|;|tab",
+                   help="cell delimiter (default: sniffed from the header among , ; tab)")
+    g.add_argument("--columns", metavar="OURS=THEIRS,...|MAP.json", default=None,
+                   help="map the log's column names to the format's, e.g. "
+                        "time_s=t,temp_c=temperature,table_rate_dps=table,gyro_dps=omega, or "
+                        'a JSON file {"time_s": "t", ...}')
+    g.add_argument("--gyro-column", metavar="NAME", default=None,
+                   help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
+                        "gyro_x_dps)")
+    if axis:
+        g.add_argument("--axis", metavar="X", default=None,
+                       help="shorthand for --gyro-column gyro_X_dps")
+
+
+def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - trainer.logio.Dialect
+    """The `Dialect` the options of `add_log_options` give."""
+    from trainer.errors import UserError
+    from trainer.logio import DELIMITERS, Dialect
+
+    gyro = getattr(args, "gyro_column", None)
+    axis = getattr(args, "axis", None)
+    if axis is not None:
+        if gyro is not None:
+            raise UserError("give --axis or --gyro-column, not both")
+        gyro = f"gyro_{axis}_dps"
+    cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
+    delim = getattr(args, "delimiter", None)
+    return Dialect(DELIMITERS[delim] if delim else None, cols, gyro)

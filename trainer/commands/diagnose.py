@@ -33,11 +33,13 @@ import json
 import sys
 from pathlib import Path
 
+from trainer.commands import add_log_options, dialect_from_args
 from trainer.errors import UserError
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("logs", nargs="+", metavar="LOG.CSV", help="measured chamber logs")
+    add_log_options(parser)
     parser.add_argument("--json", metavar="DIAG.JSON", help="write the diagnosis (DESIGN.md)")
     parser.add_argument("--report", metavar="DIAG.MD",
                         help="write a Markdown report with residual plots beside it")
@@ -68,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.window_s <= 0:
         raise UserError("--window-s must be > 0")
-    logs = [read_log(p) for p in args.logs]
+    dialect = dialect_from_args(args)
+    logs = [read_log(p, dialect) for p in args.logs]
     effects = [e.strip() for e in args.effects.split(",")] if args.effects else None
     d = verdict.diagnose(logs, window_s=args.window_s, latitude_deg=args.latitude_deg,
                          cv=args.cv, start=args.start, effects=effects,

@@ -3,7 +3,9 @@
 Reads MODEL_DIR (stream.json + stream_weights.npz, written by `fogsf train`) and writes
   OUT/model.onnx      the streaming step: z, (h, c) per layer -> sf_ppm, new (h, c)
   OUT/fogsf_model.h   fixed-size float32 arrays and macros for the C kernel (firmware/c)
-The same model always gives the same bytes. Example:
+The same model always gives the same bytes.
+
+Example:
   fogsf export models/m --out build/m
 """
 

@@ -6,6 +6,9 @@ duration, board-temperature range, table rates, and the SF error about the SF at
 (board thermometer) in windows of --window-s: max|e|, peak-to-peak, RMS (about the 20 C
 reference) and STD (about the mean), beside the noise floor (what the gyro's own noise
 leaves in one window).
+
+Example:
+  fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv && fogsf inspect run10.csv
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from trainer.commands import add_metric_options
+from trainer.commands import add_log_options, add_metric_options, dialect_from_args
 from trainer.logio import ChamberLog, read_log
 from trainer.metrics import (
     log_metrics,
@@ -31,6 +34,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="print the summary as JSON (samples, duration_s, temp_range_c, "
                              "table_rates_dps, metrics)")
     add_metric_options(parser)
+    add_log_options(parser)
     parser.add_argument("--ref-sf", type=float, default=None,
                         help="reference SF ratio (vs nominal) instead of the log's own at 20 C")
     parser.add_argument("--plot", metavar="PNG", default=None,
@@ -51,7 +55,7 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
 
 
 def run(args: argparse.Namespace) -> int:
-    log = read_log(args.log)
+    log = read_log(args.log, dialect_from_args(args))
     s = summary(log, args.window_s, args.latitude_deg, args.ref_sf)
     if args.json:
         print(json.dumps(s, indent=2))

@@ -25,9 +25,14 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from trainer.commands import add_log_options, dialect_from_args
 from trainer.errors import UserError
 from trainer.executors import add_executor_options
+
+if TYPE_CHECKING:
+    from trainer.logio import Dialect
 
 
 def _pair(text: str) -> tuple[float, float]:
@@ -69,6 +74,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "programs and the paper's (default 4; 0 skips it)")
     p.add_argument("--top", type=int, default=10, help="programs printed (default 10)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
+    add_log_options(parser)
     add_executor_options(parser)
 
 
@@ -93,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
     gyros: list = [(s, s) for s in seeds]
     what = f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})"
     if args.from_logs:
-        gyros = [(i + 1, g) for i, g in enumerate(fitted_gyros(args.from_logs))]
+        gyros = [(i + 1, g) for i, g in enumerate(fitted_gyros(args.from_logs,
+                                                                  dialect_from_args(args)))]
         what = f"{len(gyros)} gyros fitted to " + ", ".join(p.name for p in args.from_logs)
     if len(gyros) % args.axes:
         raise UserError(f"--axes {args.axes}: the number of gyros ({len(gyros)}) must be a "
@@ -129,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def fitted_gyros(paths: list[Path]) -> list:
+def fitted_gyros(paths: list[Path], dialect: Dialect | None = None) -> list:
     """One simulator gyro per log: diagnose's base model fitted to it (thermal network,
     SF terms, bias, noise), for the planner to simulate programs on."""
     from trainer.diagnose import extend, verdict
@@ -138,7 +145,7 @@ def fitted_gyros(paths: list[Path]) -> list:
 
     out = []
     for p in paths:
-        d = verdict.diagnose([read_log(p)], effects=[])
+        d = verdict.diagnose([read_log(p, dialect)], effects=[])
         out.append(SimConfig.from_dict(extend.sim_config(d, d.base, 0)))
         print(f"fitted a gyro to {p}: nodes at "
               + ", ".join(f"{n.tau_s:.0f} s" for n in out[-1].thermal.nodes[2:]))

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trainer.commands import add_metric_options
+from trainer.commands import add_log_options, add_metric_options, dialect_from_args
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -29,6 +29,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="before/after plot of the SF error (windows vs temperature, time)")
     add_metric_options(parser)
+    add_log_options(parser)
     parser.add_argument("--json", metavar="PATH", default=None,
                         help="also write the before/after metrics and flag counts as JSON")
     parser.add_argument("--cc", default="gcc", help="C compiler for the host kernel (gcc)")
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from trainer.stream import StreamModel
 
     model = StreamModel.load(args.model)
-    log = read_log(args.log)
+    log = read_log(args.log, dialect_from_args(args))
     build = build_kernel(model, cc=args.cc)
     kernel = Kernel(model, build)
     corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)

@@ -29,7 +29,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from trainer.commands import add_metric_options
+from trainer.commands import add_log_options, add_metric_options, dialect_from_args
 from trainer.errors import UserError
 from trainer.logio import read_log
 from trainer.transfer import RateTransfer, spans_ramp_rates
@@ -60,6 +60,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="part of each training log held out for validation "
                              "(fractions of its length; default 0.4:0.6)")
     add_metric_options(parser)
+    add_log_options(parser, axis=True)
     parser.add_argument("--rate-tau-s", type=float, default=120.0,
                         help="time constant of the dT/dt filter (default 120 s)")
     parser.add_argument("--structure", choices=("bank", "node"), default=None,
@@ -101,8 +102,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from trainer.train import TrainOptions, run_training
 
-    train_logs = [read_log(p) for p in args.train]
-    test_log = read_log(args.test) if args.test else None
+    dialect = dialect_from_args(args)
+    train_logs = [read_log(p, dialect) for p in args.train]
+    test_log = read_log(args.test, dialect) if args.test else None
     opts = TrainOptions(
         model=args.model, decimation=args.decimation, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
