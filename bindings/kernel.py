@@ -22,7 +22,17 @@ from trainer.errors import UserError
 from trainer.stream import StreamModel
 
 ROOT = Path(__file__).resolve().parent.parent
-C_DIR = ROOT / "firmware" / "c"
+
+
+def _c_dir() -> Path:
+    """The kernel's C sources: firmware/c in a checkout, bindings/csrc in an installed
+    package (pyproject ships them there)."""
+    tree = ROOT / "firmware" / "c"
+    return tree if (tree / "fogsf.h").is_file() else Path(__file__).resolve().parent / "csrc"
+
+
+C_DIR = _c_dir()
+IN_CHECKOUT = C_DIR == ROOT / "firmware" / "c"
 SOURCES = ("fogsf.c", "fogsf_cell.c")
 HEADERS = ("fogsf.h",)
 # The flags of the issue: strict C99, warnings are errors, no contraction into FMA (bit-exact
@@ -33,9 +43,15 @@ SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all",
 
 
 def default_build_root() -> Path:
-    """$FOGSF_BUILD_DIR, else build/kernels in the source tree."""
+    """$FOGSF_BUILD_DIR, else build/kernels in a checkout, else the user's cache directory
+    ($XDG_CACHE_HOME or ~/.cache, then fogsf/kernels): never inside an installed package."""
     env = os.environ.get("FOGSF_BUILD_DIR")
-    return Path(env) if env else ROOT / "build" / "kernels"
+    if env:
+        return Path(env)
+    if IN_CHECKOUT:
+        return ROOT / "build" / "kernels"
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "fogsf" / "kernels"
 
 
 @dataclass(frozen=True)

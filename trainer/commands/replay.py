@@ -33,6 +33,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", metavar="PATH", default=None,
                         help="also write the before/after metrics and flag counts as JSON")
     parser.add_argument("--cc", default="gcc", help="C compiler for the host kernel (gcc)")
+    parser.add_argument("--build-dir", metavar="DIR", default=None,
+                        help="where compiled kernels are cached (default: $FOGSF_BUILD_DIR, "
+                             "build/kernels in a checkout, else ~/.cache/fogsf/kernels)")
 
 
 def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
@@ -60,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
 
     model = StreamModel.load(args.model)
     log = read_log(args.log, dialect_from_args(args))
-    build = build_kernel(model, cc=args.cc)
+    build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
     corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)
     write_corrected(args.out, log.time_s, log.gyro_dps, corrected, sf)
