@@ -38,6 +38,13 @@ def in_program(p: Program, rate: float) -> bool:
     return any(abs(rate - q) <= RATE_NEAR * q for q in p.rates_c_per_min)
 
 
+def envelope_program(limits: Limits, rates: tuple[float, ...]) -> Program:
+    """A reference, not a candidate: loops up and down at every test rate, one run each (the
+    whole envelope as training data; other noise than the test loops')."""
+    runs = tuple(_test_loop(limits, r) for r in rates)
+    return Program("reference: the whole envelope (a loop at every test rate)", runs, rates)
+
+
 def _test_loop(limits: Limits, rate: float) -> tuple[tuple[float, float], ...]:
     legs = [("soak", START_SOAK_S), ("ramp", rate), ("soak", TEST_SOAK_S), ("ramp", rate),
             ("soak", TEST_SOAK_S)]
