@@ -5,8 +5,10 @@ file is refused with one `LogError` that names the file, the line, the rule and,
 exists, the option that fixes it. Logs as rigs and spreadsheets write them are read through
 a `Dialect`: a UTF-8 byte-order mark (what Excel writes) is skipped, the delimiter (`,` `;`
 or tab) is sniffed from the header or given, columns named by the rig are mapped to ours
-(`--columns time_s=t,...` or a JSON file), and one axis of a multi-axis log is picked as the
-gyro (`--gyro-column gyro_x_dps`).
+(`--columns time_s=t,...`, a JSON/TOML file, or MAPPING_FILES beside the logs), decimal
+commas are read when asked (`--decimal-comma`), and one axis of a multi-axis log is picked
+as the gyro (`--gyro-column gyro_x_dps`). What was found rather than given (the delimiter, a
+mapping file beside the log) or skipped (a byte-order mark) is said in `ChamberLog.read_notes`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ import io
 import json
 import math
 import re
-from dataclasses import dataclass, field
+import tomllib
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +33,12 @@ NOMINAL_DT_S = 0.1
 DT_TOLERANCE_S = 0.02
 TEMP_RANGE_C = (-60.0, 100.0)
 DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
-COLUMNS_HINT = "map the log's names with --columns time_s=NAME,temp_c=NAME,..."
+DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
+# A column mapping in one of these files beside a log applies to it when --columns is not given
+MAPPING_FILES = ("fogsf-columns.json", "fogsf-columns.toml")
+COLUMNS_HINT = ("map the log's names with --columns time_s=NAME,temp_c=NAME,... or a "
+                "fogsf-columns.json beside the log (docs/logs.md)")
+DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d*,\d+([eE][-+]?\d+)?\s*$")
 
 
 @dataclass(frozen=True)
@@ -40,19 +48,33 @@ class Dialect:
     delimiter: str | None = None  # None: sniffed from the header among , ; and tab
     columns: tuple[tuple[str, str], ...] = ()  # (our name, the log's name)
     gyro_column: str | None = None  # the log's column read as gyro_dps
+    decimal_comma: bool = False  # cells written 20,5 (then separated by ; or tab)
+    columns_from: str = "--columns"  # where `columns` came from, for messages
+
+    def __post_init__(self) -> None:
+        if self.decimal_comma and self.delimiter == ",":
+            raise UserError("--decimal-comma needs cells separated by ';' or tab, not ',': "
+                            "give --delimiter ';' or --delimiter tab")
+
+    @staticmethod
+    def mapping_file(path: str | Path) -> tuple[tuple[str, str], ...]:
+        """A JSON object or TOML table {"time_s": "t", ...} (our name: the log's name)."""
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8-sig")
+            m = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
+        except (OSError, ValueError) as e:  # TOMLDecodeError is a ValueError
+            raise UserError(f"{p}: cannot read the column mapping ({e})") from None
+        if not isinstance(m, dict) or not m or not all(isinstance(v, str) for v in m.values()):
+            raise UserError(f"{p}: expected a mapping of our names to the log's, e.g. "
+                            '{"time_s": "t", "temp_c": "temperature"} (TOML: time_s = "t")')
+        return Dialect._checked(list(m.items()), str(p))
 
     @staticmethod
     def parse_columns(text: str) -> tuple[tuple[str, str], ...]:
-        """`time_s=t,temp_c=temperature` or a JSON file {"time_s": "t", ...}."""
-        if text.endswith(".json"):
-            try:
-                m = json.loads(Path(text).read_text(encoding="utf-8"))
-            except (OSError, ValueError) as e:
-                raise UserError(f"--columns {text}: cannot read the mapping ({e})") from None
-            if not isinstance(m, dict) or not all(isinstance(v, str) for v in m.values()):
-                raise UserError(f"--columns {text}: expected a JSON object "
-                                '{"time_s": "t", "temp_c": "temperature", ...}')
-            pairs = list(m.items())
+        """`time_s=t,temp_c=temperature` or a JSON/TOML file {"time_s": "t", ...}."""
+        if text.lower().endswith((".json", ".toml")) and "=" not in text:
+            return Dialect.mapping_file(text)
         else:
             pairs = []
             for part in (p for p in text.split(",") if p.strip()):
@@ -61,12 +83,33 @@ class Dialect:
                     raise UserError(f"--columns: expected OURS=THEIRS pairs like "
                                     f"time_s=t,temp_c=temperature, got {part!r}")
                 pairs.append((ours.strip(), theirs.strip()))
+        return Dialect._checked(pairs, "--columns")
+
+    @staticmethod
+    def _checked(pairs: list[tuple[str, str]], source: str) -> tuple[tuple[str, str], ...]:
         known = (*REQUIRED, *OPTIONAL)
+        ours_seen: set[str] = set()
         for ours, _ in pairs:
             if ours not in known and not _is_temperature(ours):
-                raise UserError(f"--columns: {ours!r} is not a column of the format "
+                raise UserError(f"{source}: {ours!r} is not a column of the format "
                                 f"({', '.join(known)}, temp_<name>_c)")
+            if ours in ours_seen:
+                raise UserError(f"{source}: {ours} is mapped twice")
+            ours_seen.add(ours)
+        theirs = [t for _, t in pairs]
+        twice = sorted({t for t in theirs if theirs.count(t) > 1})
+        if twice:
+            raise UserError(f"{source}: the log's column {twice[0]!r} is mapped to two names")
         return tuple(pairs)
+
+
+def mapping_beside(log_path: str | Path) -> Path | None:
+    """The column mapping file (MAPPING_FILES) in the log's folder, if any; two are refused."""
+    folder = Path(log_path).parent
+    found = [folder / n for n in MAPPING_FILES if (folder / n).is_file()]
+    if len(found) > 1:
+        raise UserError(f"{folder}: both {found[0].name} and {found[1].name}; keep one")
+    return found[0] if found else None
 
 
 class LogError(UserError):
@@ -92,6 +135,8 @@ class ChamberLog:
     earth_rate_dps: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     path: str = "<memory>"
+    # how the file was read when not in the plain format (BOM, delimiter, column mapping)
+    read_notes: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])
@@ -135,6 +180,7 @@ class ChamberLog:
             else self.earth_rate_dps[start:stop],
             extra={k: v[start:stop] for k, v in self.extra.items()},
             path=self.path,
+            read_notes=self.read_notes,
         )
 
 
@@ -151,8 +197,15 @@ def _is_temperature(name: str) -> bool:
 
 
 def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
-    """Read and validate a chamber log; raise LogError on the first broken rule."""
+    """Read and validate a chamber log; raise LogError on the first broken rule. Without
+    --columns in `dialect`, a mapping file beside the log (MAPPING_FILES) applies."""
     p = str(path)
+    dialect = dialect or Dialect()
+    if not dialect.columns:
+        beside = mapping_beside(path)
+        if beside is not None:
+            dialect = replace(dialect, columns=Dialect.mapping_file(beside),
+                              columns_from=str(beside))
     try:
         with open(path, encoding="utf-8") as f:
             text = f.read()
@@ -165,11 +218,18 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     return parse_log(text, p, dialect)
 
 
-def _sniff(header_line: str) -> str:
-    """The delimiter the header uses: the most frequent of , ; and tab (',' if none)."""
-    counts = {d: header_line.count(d) for d in (",", ";", "\t")}
-    best = max(counts, key=lambda d: counts[d])
-    return best if counts[best] else ","
+def _sniff(header_line: str, path: str) -> str:
+    """The one of , ; and tab that the header uses; none or several are refused."""
+    found = [d for d in DELIMITER_NAMES if d in header_line]
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        raise LogError(path, 1, "no delimiter",
+                       f"the header {header_line.strip()[:60]!r} has no ',' ';' or tab between "
+                       "column names; give --delimiter")
+    raise LogError(path, 1, "ambiguous delimiter",
+                   f"the header holds {' and '.join(DELIMITER_NAMES[d] for d in found)}; "
+                   "give --delimiter")
 
 
 def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
@@ -180,7 +240,7 @@ def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
         pairs.append(("gyro_dps", dialect.gyro_column))
     for ours, theirs in pairs:
         opt = "--gyro-column" if (ours, theirs) == ("gyro_dps", dialect.gyro_column) \
-            else "--columns"
+            else dialect.columns_from
         if theirs not in header:
             raise LogError(path, 1, "no such column",
                            f"{opt} names {theirs!r} for {ours}; header has: "
@@ -201,19 +261,29 @@ def _missing_hint(missing: list[str], header: list[str]) -> str:
 def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
               ) -> ChamberLog:
     dialect = dialect or Dialect()
+    notes: list[str] = []
     if text.startswith("\ufeff"):  # a UTF-8 byte-order mark: encoding, not data
         text = text[1:]
+        notes.append("UTF-8 byte-order mark skipped")
     lines = text.splitlines()
     while lines and not lines[-1].strip():
         lines.pop()
     if not lines or not lines[0].strip():
         raise LogError(path, 1 if lines else None, "empty file", "no header row")
-    delim = dialect.delimiter or _sniff(lines[0])
+    delim = dialect.delimiter or _sniff(lines[0], path)
+    if dialect.delimiter is None and delim != ",":
+        notes.append(f"cells separated by {DELIMITER_NAMES[delim]} (from the header)")
+    if dialect.decimal_comma:
+        notes.append("decimal comma (--decimal-comma)")
     raw = [h.strip() for h in lines[0].split(delim)]
     for h in raw:
         if not h:
             raise LogError(path, 1, "bad header", "an empty column name")
     header = _rename(raw, dialect, path)
+    moved = [f"{h} -> {n}" for h, n in zip(raw, header, strict=True) if h != n]
+    if moved:
+        src = dialect.columns_from if dialect.columns else "--gyro-column"
+        notes.append(f"columns {', '.join(moved)} ({src})")
     seen: set[str] = set()
     for h in header:
         if h in seen:
@@ -227,6 +297,8 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
                        + _missing_hint(missing, raw))
     if len(lines) < 2:
         raise LogError(path, 1, "empty file", "a header but no data rows")
+    if dialect.decimal_comma:
+        lines = [lines[0], *(line.replace(",", ".") for line in lines[1:])]
     data = _parse_numbers(lines, header, path, delim)
     cols = {name: data[:, i] for i, name in enumerate(header)}
     _validate(cols, path)
@@ -239,6 +311,7 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
         earth_rate_dps=cols.get("earth_rate_dps"),
         extra=extra,
         path=path,
+        read_notes=tuple(notes),
     )
 
 
@@ -267,15 +340,17 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
     for i, line in enumerate(lines[1:], start=2):
         cells = line.split(delim)
         if len(cells) != len(header):
+            hint = (" (decimal commas? then separate cells by ';' or tab and give "
+                    "--decimal-comma)" if delim == "," and len(cells) > len(header) else "")
             raise LogError(path, i, "wrong number of cells",
-                           f"{len(cells)} cells, header has {len(header)}")
+                           f"{len(cells)} cells, header has {len(header)}{hint}")
         for name, cell in zip(header, cells, strict=True):
             try:
                 float(cell)
             except ValueError:
                 shown = cell.strip() or "(empty)"
-                hint = (" (a decimal comma? numbers are read with a '.' decimal point)"
-                        if "," in cell and delim != "," else "")
+                hint = (" (a decimal comma: give --decimal-comma)"
+                        if DECIMAL_COMMA.match(cell) and delim != "," else "")
                 raise LogError(path, i, "non-numeric cell",
                                f"column {name!r} is {shown!r}{hint}") from None
 

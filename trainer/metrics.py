@@ -106,8 +106,9 @@ def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
         raise UserError(
             f"the board temperature never spans {t_ref_c:g} +/- {REF_BAND_C:g} C (range "
             f"{w.temp_c.min():.1f}..{w.temp_c.max():.1f} C): the SF at {t_ref_c:g} C, the "
-            "reference of the SF error, cannot be measured: give it with --ref-sf RATIO "
-            "(fogsf inspect), or use logs whose board temperature spans it")
+            "reference of the SF error, cannot be measured on this log: give it with --ref-sf "
+            "RATIO (ref_sf_ratio of `fogsf inspect --json` on a run of the same gyro that "
+            "spans 20 C), or use logs whose board temperature spans it")
     deg = 2 if near.sum() >= 6 else 1
     coef = np.polyfit(w.temp_c[near] - t_ref_c, w.sf_ratio[near], deg)
     return float(coef[-1])

@@ -87,6 +87,7 @@ class TrainOptions:
     dask: str | None = None
     progress: bool = True
     transfer_check: bool = True  # with a test log: the rate-transfer check and its interval
+    ref_sf: float | None = None  # reference SF of the before-metrics; None: measured at 20 C
     extra: dict = field(default_factory=dict)
 
 
@@ -375,7 +376,8 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     t0 = time.perf_counter()
     fitted = fit_model(opts, train_logs)
     train_s = time.perf_counter() - t0
-    ref = reference_sf_of_logs(train_logs, opts.window_s, opts.latitude_deg)
+    ref = opts.ref_sf if opts.ref_sf is not None else reference_sf_of_logs(
+        train_logs, opts.window_s, opts.latitude_deg)
     metrics: dict = {"model": fitted.kind, "window_s": opts.window_s}
     if test_log is not None:
         test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)

@@ -21,11 +21,15 @@ def add_log_options(parser: argparse.ArgumentParser, axis: bool = False) -> None
     chamber logs takes them (docs/logs.md)."""
     g = parser.add_argument_group("log format (docs/logs.md)")
     g.add_argument("--delimiter", choices=(",", ";", "tab"), default=None, metavar=",|;|tab",
-                   help="cell delimiter (default: sniffed from the header among , ; tab)")
+                   help="cell delimiter (default: the one of , ; tab the header uses; a "
+                        "header with several is refused)")
+    g.add_argument("--decimal-comma", action="store_true",
+                   help="numbers are written 20,5 (cells then separated by ; or tab)")
     g.add_argument("--columns", metavar="OURS=THEIRS,...|MAP.json", default=None,
                    help="map the log's column names to the format's, e.g. "
                         "time_s=t,temp_c=temperature,table_rate_dps=table,gyro_dps=omega, or "
-                        'a JSON file {"time_s": "t", ...}')
+                        'a JSON/TOML file {"time_s": "t", ...}; default: fogsf-columns.json '
+                        "(or .toml) beside each log, when there is one")
     g.add_argument("--gyro-column", metavar="NAME", default=None,
                    help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
                         "gyro_x_dps)")
@@ -47,4 +51,20 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - trainer.logio
         gyro = f"gyro_{axis}_dps"
     cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
     delim = getattr(args, "delimiter", None)
-    return Dialect(DELIMITERS[delim] if delim else None, cols, gyro)
+    return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
+                   decimal_comma=getattr(args, "decimal_comma", False))
+
+
+def read_logs(args: argparse.Namespace, paths: list[str]) -> list:
+    """Read logs with the options of `add_log_options`; how a log was read when it is not
+    in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr."""
+    import sys
+
+    from trainer.logio import read_log
+
+    dialect = dialect_from_args(args)
+    logs = [read_log(p, dialect) for p in paths]
+    for lg in logs:
+        if lg.read_notes:
+            print(f"fogsf: read {lg.path}: {'; '.join(lg.read_notes)}", file=sys.stderr)
+    return logs

@@ -33,7 +33,7 @@ import json
 import sys
 from pathlib import Path
 
-from trainer.commands import add_log_options, dialect_from_args
+from trainer.commands import add_log_options, read_logs
 from trainer.errors import UserError
 
 
@@ -66,12 +66,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from trainer.diagnose import extend, report, verdict
-    from trainer.logio import read_log
 
     if args.window_s <= 0:
         raise UserError("--window-s must be > 0")
-    dialect = dialect_from_args(args)
-    logs = [read_log(p, dialect) for p in args.logs]
+    logs = read_logs(args, args.logs)
     effects = [e.strip() for e in args.effects.split(",")] if args.effects else None
     d = verdict.diagnose(logs, window_s=args.window_s, latitude_deg=args.latitude_deg,
                          cv=args.cv, start=args.start, effects=effects,

@@ -16,8 +16,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from trainer.commands import add_log_options, add_metric_options, dialect_from_args
-from trainer.logio import ChamberLog, read_log
+from trainer.commands import add_log_options, add_metric_options, read_logs
+from trainer.logio import ChamberLog
 from trainer.metrics import (
     log_metrics,
     noise_floor_ppm,
@@ -36,7 +36,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_metric_options(parser)
     add_log_options(parser)
     parser.add_argument("--ref-sf", type=float, default=None,
-                        help="reference SF ratio (vs nominal) instead of the log's own at 20 C")
+                        help="reference SF ratio (vs nominal) instead of the log's own at 20 C "
+                             "(needed when the log never passes 20 C: take ref_sf_ratio from "
+                             "`fogsf inspect --json` of a run of the same gyro that does)")
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="write a plot of the SF error vs board temperature and time")
 
@@ -45,17 +47,20 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
             ref: float | None) -> dict:
     rates = sorted({round(float(log.table_rate_dps[a]), 9)
                     for a, _ in plateaus(log.table_rate_dps)})
+    if ref is None:
+        ref = reference_sf(sf_windows(log, window_s, latitude_deg))
     return {
         "samples": len(log),
         "duration_s": log.duration_s,
         "temp_range_c": [float(log.temp_c.min()), float(log.temp_c.max())],
         "table_rates_dps": rates,
         "metrics": log_metrics(log, window_s, ref=ref, latitude_deg=latitude_deg),
+        "ref_sf_ratio": ref,
     }
 
 
 def run(args: argparse.Namespace) -> int:
-    log = read_log(args.log, dialect_from_args(args))
+    log = read_logs(args, [args.log])[0]
     s = summary(log, args.window_s, args.latitude_deg, args.ref_sf)
     if args.json:
         print(json.dumps(s, indent=2))
@@ -75,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"    max|e| {m['max_abs_ppm']:.2f} ppm   p-p {m['pp_ppm']:.2f} ppm   "
               f"RMS {m['rms_ppm']:.2f} ppm   STD {m['std_ppm']:.2f} ppm")
         print(f"    noise floor {m['noise_floor_ppm']:.2f} ppm (1 sigma of one window)")
+        print(f"  reference SF ratio {s['ref_sf_ratio']:.9f} (vs nominal; --ref-sf)")
     if args.plot:
         plot(log, args.window_s, args.latitude_deg, args.ref_sf, args.plot)
         if not args.json:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trainer.commands import add_log_options, add_metric_options, dialect_from_args
+from trainer.commands import add_log_options, add_metric_options, read_logs
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -32,6 +32,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_log_options(parser)
     parser.add_argument("--json", metavar="PATH", default=None,
                         help="also write the before/after metrics and flag counts as JSON")
+    parser.add_argument("--ref-sf", type=float, default=None, metavar="RATIO",
+                        help="reference SF ratio (vs nominal) of the before-metrics instead "
+                             "of the log's SF at 20 C (needed when the log never passes 20 C)")
     parser.add_argument("--cc", default="gcc", help="C compiler for the host kernel (gcc)")
     parser.add_argument("--build-dir", metavar="DIR", default=None,
                         help="where compiled kernels are cached (default: $FOGSF_BUILD_DIR, "
@@ -57,12 +60,11 @@ def flag_counts(flags: np.ndarray) -> dict[str, int]:
 def run(args: argparse.Namespace) -> int:
     from bindings.kernel import Kernel, build_kernel
     from trainer.errors import UserError
-    from trainer.logio import read_log
     from trainer.metrics import log_metrics
     from trainer.stream import StreamModel
 
     model = StreamModel.load(args.model)
-    log = read_log(args.log, dialect_from_args(args))
+    log = read_logs(args, [args.log])[0]
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
     corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)
@@ -75,14 +77,16 @@ def run(args: argparse.Namespace) -> int:
     print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
                        else "none"))
     try:
-        before = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg)
+        before = log_metrics(log, args.window_s, ref=args.ref_sf,
+                             latitude_deg=args.latitude_deg)
         after = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg,
                             correction_ppm=sf.astype(np.float64))
     except UserError as e:  # e.g. a log that never passes 20 C has no reference SF
         print(f"no before/after metrics: {e}")
         before = after = None
     if before is not None and after is not None:
-        print(f"SF error, {args.window_s:g} s windows (before: about the log's SF at 20 C; "
+        about = "--ref-sf" if args.ref_sf is not None else "the log's SF at 20 C"
+        print(f"SF error, {args.window_s:g} s windows (before: about {about}; "
               f"after: measured / predicted - 1):")
         for name, m in (("before", before), ("after", after)):
             print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
@@ -94,13 +98,14 @@ def run(args: argparse.Namespace) -> int:
                                                "flags": counts}, indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.plot and before is not None:
-        plot(log, sf, args.window_s, args.latitude_deg, args.plot, model.model_id)
+        plot(log, sf, args.window_s, args.latitude_deg, args.plot, model.model_id,
+             args.ref_sf)
         print(f"plot: {args.plot}")
     return 0
 
 
 def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # noqa: ANN001
-         path: str, model_id: str) -> None:
+         path: str, model_id: str, ref: float | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -109,7 +114,7 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
     from trainer.metrics import reference_sf, sf_error_ppm, sf_windows
 
     w = sf_windows(log, window_s, latitude_deg)
-    ref = reference_sf(w)
+    ref = ref if ref is not None else reference_sf(w)
     before = sf_error_ppm(w, ref)
     after = sf_error_ppm(sf_windows(log, window_s, latitude_deg, sf.astype(np.float64)), 1.0)
     predicted = ((1.0 + sf.astype(np.float64) * 1e-6) / ref - 1.0) * 1e6

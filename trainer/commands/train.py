@@ -29,9 +29,8 @@ import sys
 import textwrap
 from pathlib import Path
 
-from trainer.commands import add_log_options, add_metric_options, dialect_from_args
+from trainer.commands import add_log_options, add_metric_options, read_logs
 from trainer.errors import UserError
-from trainer.logio import read_log
 from trainer.transfer import RateTransfer, spans_ramp_rates
 
 
@@ -60,6 +59,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="part of each training log held out for validation "
                              "(fractions of its length; default 0.4:0.6)")
     add_metric_options(parser)
+    parser.add_argument("--ref-sf", type=float, default=None, metavar="RATIO",
+                        help="reference SF ratio (vs nominal) of the before-metrics instead "
+                             "of the training logs' SF at 20 C (needed when they never pass "
+                             "20 C: take ref_sf_ratio from `fogsf inspect --json` of a run of "
+                             "the same gyro that does)")
     add_log_options(parser, axis=True)
     parser.add_argument("--rate-tau-s", type=float, default=120.0,
                         help="time constant of the dT/dt filter (default 120 s)")
@@ -102,9 +106,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from trainer.train import TrainOptions, run_training
 
-    dialect = dialect_from_args(args)
-    train_logs = [read_log(p, dialect) for p in args.train]
-    test_log = read_log(args.test, dialect) if args.test else None
+    if args.ref_sf is not None and not args.ref_sf > 0:
+        raise UserError(f"--ref-sf must be a positive SF ratio (about 1), got {args.ref_sf}")
+    train_logs = read_logs(args, args.train)
+    test_log = read_logs(args, [args.test])[0] if args.test else None
     opts = TrainOptions(
         model=args.model, decimation=args.decimation, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
@@ -116,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         gsa_iters=args.gsa_iters,
         gsa_fitness_iters=args.gsa_fitness_iters, gsa_space=args.gsa_space,
         gsa_paper_constants=args.gsa_paper_constants,
-        workers=args.workers, dask=args.dask,
+        workers=args.workers, dask=args.dask, ref_sf=args.ref_sf,
         progress=not args.no_progress and sys.stderr.isatty(),
     )
     out = Path(args.out)
