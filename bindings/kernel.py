@@ -13,6 +13,8 @@ import os
 import re
 import shutil
 import subprocess
+import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,16 +44,28 @@ SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all",
             "-fno-omit-frame-pointer")
 
 
+def user_cache_dir() -> Path:
+    """fogsf's folder in the user's cache: $XDG_CACHE_HOME/fogsf (~/.cache/fogsf) on Linux,
+    ~/Library/Caches/fogsf on macOS, %LOCALAPPDATA%\\fogsf\\Cache on Windows."""
+    home = Path.home()
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA")
+        return (Path(base) if base else home / "AppData" / "Local") / "fogsf" / "Cache"
+    if sys.platform == "darwin":
+        return home / "Library" / "Caches" / "fogsf"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg and Path(xdg).is_absolute() else home / ".cache") / "fogsf"
+
+
 def default_build_root() -> Path:
     """$FOGSF_BUILD_DIR, else build/kernels in a checkout, else the user's cache directory
-    ($XDG_CACHE_HOME or ~/.cache, then fogsf/kernels): never inside an installed package."""
+    (`user_cache_dir()`/kernels): never inside an installed package."""
     env = os.environ.get("FOGSF_BUILD_DIR")
     if env:
         return Path(env)
     if IN_CHECKOUT:
         return ROOT / "build" / "kernels"
-    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(cache) / "fogsf" / "kernels"
+    return user_cache_dir() / "kernels"
 
 
 @dataclass(frozen=True)
@@ -93,18 +107,36 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     shared, static = out / "libfogsf.so", out / "libfogsf.a"
     if shared.is_file() and static.is_file():
         return KernelBuild(out, shared, static, model.model_id)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "fogsf_model.h").write_text(header)
-    objs = []
-    for src in SOURCES:
-        obj = out / (Path(src).stem + ".o")
-        _run([cc, *flags, "-I", str(out), "-I", str(C_DIR), "-c", str(C_DIR / src), "-o",
-              str(obj)], out)
-        objs.append(str(obj))
-    tmp = out / f"libfogsf.so.{os.getpid()}"
-    _run([cc, "-shared", *(SANITIZE if sanitize else ()), "-o", str(tmp), *objs], out)
-    _run(["ar", "rcs", str(static), *objs], out)
-    tmp.replace(shared)  # atomic: a concurrent reader never sees half a library
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=out.parent))
+    except OSError as e:
+        raise UserError(f"cannot create a kernel build folder in {out.parent}: "
+                        f"{e.strerror or e}; give --build-dir DIR (or set FOGSF_BUILD_DIR)"
+                        ) from None
+    try:
+        # built in a private folder and renamed into place: concurrent runs of one model
+        # (the user cache is shared) never compile into the same files, and a reader finds
+        # the whole folder or none of it
+        (work / "fogsf_model.h").write_text(header)
+        objs = []
+        for src in SOURCES:
+            obj = work / (Path(src).stem + ".o")
+            _run([cc, *flags, "-I", str(work), "-I", str(C_DIR), "-c", str(C_DIR / src),
+                  "-o", str(obj)], work)
+            objs.append(str(obj))
+        _run([cc, "-shared", *(SANITIZE if sanitize else ()), "-o", str(work / shared.name),
+              *objs], work)
+        _run(["ar", "rcs", str(work / static.name), *objs], work)
+        if out.is_dir():  # an incomplete folder (a file deleted by hand): replaced
+            shutil.rmtree(out, ignore_errors=True)
+        try:
+            work.rename(out)
+        except OSError:  # another process renamed its complete folder first: keep that one
+            if not (shared.is_file() and static.is_file()):
+                raise
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
     return KernelBuild(out, shared, static, model.model_id)
 
 

@@ -96,3 +96,23 @@ def test_replay_refuses_a_missing_model(tmp_path, capsys) -> None:
     assert main(["replay", str(tmp_path / "nope"), str(tmp_path / "run.csv"), "--out",
                  str(tmp_path / "c.csv")]) == 2
     assert "no such model directory" in capsys.readouterr().err
+
+
+def _build_in(root: str) -> str:
+    return str(build_kernel(st.random_model(seed=4), root=root).shared)
+
+
+def test_concurrent_builds_of_one_model_share_one_complete_folder(tmp_path) -> None:
+    """The user cache is shared by every run: processes building the same kernel at once
+    each compile in a private folder; one folder is kept, complete, and loads."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(3) as ex:
+        paths = list(ex.map(_build_in, [str(tmp_path)] * 3))
+    assert len(set(paths)) == 1
+    folders = [p for p in tmp_path.iterdir()]
+    assert len(folders) == 1, folders  # no private build folder left behind
+    kernel = Kernel(st.random_model(seed=4), build_kernel(st.random_model(seed=4),
+                                                          root=tmp_path))
+    corrected, _, _ = kernel.run(np.full(20, 20.0), np.full(20, 10.0))
+    assert np.all(np.isfinite(corrected))

@@ -58,6 +58,15 @@ def test_a_wheel_in_a_fresh_venv_runs_from_a_temporary_folder(tmp_path: Path) ->
     fogsf = str(env_dir / "bin" / "fogsf")
     where = _run([str(py), "-c", "import bindings.kernel as k; print(k.C_DIR)"], work, env)
     assert where.strip().startswith(purelib), where  # the installed sources, not the repo's
+    c_dir = Path(where.strip())
+    shipped = {p.relative_to(ROOT / "firmware" / "c") for p in (ROOT / "firmware" / "c").rglob("*")
+               if p.is_file() and "__pycache__" not in p.parts}
+    missing = [str(p) for p in shipped if not (c_dir / p).is_file()]
+    assert not missing, f"firmware/c files not in the wheel: {missing}"
+    from trainer import __version__
+
+    assert _run([fogsf, "--version"], work, env).strip() == f"fogsf {__version__}"
+    installed_before = sorted(p for p in Path(purelib).rglob("*") if "__pycache__" not in p.parts)
     _run([fogsf, "simulate", "--scenario", "paper", "--start-c", "10", "--stop-c", "30",
           "--ramp-rate", "2", "--seed", "1", "--out", "a.csv"], work, env)
     _run([fogsf, "train", "--train", "a.csv", "--iters", "10", "--out", "m"], work, env)
@@ -68,3 +77,9 @@ def test_a_wheel_in_a_fresh_venv_runs_from_a_temporary_folder(tmp_path: Path) ->
     kernels = list((tmp_path / "cache" / "fogsf" / "kernels").glob("*/libfogsf.so"))
     assert len(kernels) == 1, "the kernel build cache belongs in the user's cache directory"
     assert not any(Path(purelib).rglob("libfogsf.so")), "nothing is built inside the install"
+    out = _run([fogsf, "replay", "m", "a.csv", "--out", "c2.csv", "--build-dir", "kernels"],
+               work, env)
+    assert len(list((work / "kernels").glob("*/libfogsf.so"))) == 1, out
+    assert (work / "c.csv").read_bytes() == (work / "c2.csv").read_bytes()
+    installed_after = sorted(p for p in Path(purelib).rglob("*") if "__pycache__" not in p.parts)
+    assert installed_after == installed_before, "the run wrote into the installed package"

@@ -108,3 +108,172 @@ def test_a_log_that_never_reaches_20_c_names_ref_sf(tmp_path: Path, capsys) -> N
     assert main(["inspect", str(warm)]) == 2
     assert "--ref-sf" in capsys.readouterr().err
     assert main(["inspect", str(warm), "--ref-sf", "1.0"]) == 0
+
+
+# --- every dialect reads to the plain log's numbers, and says how it was read ----------------
+
+def _inspect_json(capsys, *argv: str) -> tuple[dict, str]:
+    assert main(["inspect", "--json", *argv]) == 0
+    out = capsys.readouterr()
+    return json.loads(out.out), out.err
+
+
+def _refused(capsys, *argv: str) -> str:
+    assert main(list(argv)) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+def _renamed(text: str, names: dict[str, str]) -> str:
+    head, rest = text.split("\n", 1)
+    return ",".join(names.get(h, h) for h in head.split(",")) + "\n" + rest
+
+
+DIALECTS = {  # name -> (rewrite of the plain text, encoding, options, the stderr note)
+    "bom": (lambda t: t, "utf-8-sig", [], "byte-order mark skipped"),
+    "semicolon": (lambda t: t.replace(",", ";"), "utf-8", [], "separated by ';'"),
+    "tab": (lambda t: t.replace(",", "\t"), "utf-8", [], "separated by tab"),
+    "semicolon-given": (lambda t: t.replace(",", ";"), "utf-8", ["--delimiter", ";"], None),
+    "excel-decimal-comma": (  # BOM, CRLF, ';' between cells, ',' in numbers
+        lambda t: t.replace(",", ";").replace(".", ",").replace("\n", "\r\n"), "utf-8-sig",
+        ["--decimal-comma"], "decimal comma"),
+    "rig-names": (lambda t: _renamed(t, RIG), "utf-8",
+                  ["--columns", ",".join(f"{k}={v}" for k, v in RIG.items())],
+                  "t -> time_s"),
+}
+
+
+@pytest.mark.parametrize("name", list(DIALECTS))
+def test_each_dialect_gives_the_plain_logs_numbers(name: str, plain: Path, tmp_path: Path,
+                                                   capsys) -> None:
+    want, err = _inspect_json(capsys, str(plain))
+    assert err == ""  # the plain format is read without comment
+    rewrite, encoding, opts, note = DIALECTS[name]
+    p = tmp_path / f"{name}.csv"
+    p.write_text(rewrite(plain.read_text()), encoding=encoding, newline="")
+    got, err = _inspect_json(capsys, str(p), *opts)
+    assert got == want
+    if note is None:
+        assert err == ""
+    else:
+        assert err.startswith(f"fogsf: read {p}: ") and note in err, err
+
+
+@pytest.mark.parametrize("suffix", [".json", ".toml"])
+def test_a_mapping_file_beside_the_logs_applies_and_is_named(suffix: str, plain: Path,
+                                                             tmp_path: Path, capsys) -> None:
+    want, _ = _inspect_json(capsys, str(plain))
+    rig = tmp_path / "rig.csv"
+    rig.write_text(_renamed(plain.read_text(), RIG))
+    mapping = tmp_path / f"fogsf-columns{suffix}"
+    mapping.write_text(json.dumps(RIG) if suffix == ".json"
+                       else "".join(f'{k} = "{v}"\n' for k, v in RIG.items()))
+    got, err = _inspect_json(capsys, str(rig))
+    assert got == want and f"({mapping})" in err, err
+    # the same file given by path, for a log in another folder
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "rig.csv").write_text(rig.read_text())
+    assert _inspect_json(capsys, str(other / "rig.csv"), "--columns", str(mapping))[0] == want
+    # --columns replaces the file beside the log (here with a column the log lacks)
+    err = _refused(capsys, "inspect", str(rig), "--columns", "time_s=seconds")
+    assert "--columns names 'seconds' for time_s" in err
+
+
+def test_a_mapping_file_beside_a_log_it_does_not_fit_is_refused(plain: Path, tmp_path: Path,
+                                                                capsys) -> None:
+    p = tmp_path / "plain.csv"
+    p.write_text(plain.read_text())
+    (tmp_path / "fogsf-columns.json").write_text(json.dumps({"temp_c": "board"}))
+    err = _refused(capsys, "inspect", str(p))
+    assert "fogsf-columns.json names 'board' for temp_c" in err
+    (tmp_path / "fogsf-columns.toml").write_text('temp_c = "board"\n')
+    assert "both fogsf-columns.json and fogsf-columns.toml" in _refused(capsys, "inspect",
+                                                                        str(p))
+
+
+@pytest.mark.parametrize(
+    ("body", "opts", "needle"),
+    [
+        ("time_s;temp_c,table_rate_dps;gyro_dps\n0;20;10;10\n", [],
+         "holds ',' and ';'; give --delimiter"),
+        ("time_s temp_c table_rate_dps gyro_dps\n0 20 10 10\n", [], "give --delimiter"),
+        ("time_s;temp_c;table_rate_dps;gyro_dps\n0;20,5;10;10\n", [],
+         "give --decimal-comma"),
+        ("time_s,temp_c,table_rate_dps,gyro_dps\n0,20,5,10,10\n", [], "--decimal-comma"),
+        ("time_s,temp_c,table_rate_dps,gyro_dps\n0,20,10,10\n",
+         ["--decimal-comma", "--delimiter", ","], "--decimal-comma needs"),
+        ("t,temp_c,table_rate_dps,gyro_dps\n0,20,10,10\n", ["--columns", "time_s=t,temp_c=t"],
+         "'t' is mapped to two names"),
+        ("time_s,temp_c,table_rate_dps,gyro_dps\n0,20,10,10\n", ["--columns", "bad.toml"],
+         "bad.toml: cannot read the column mapping"),
+    ],
+)
+def test_refusals_name_the_option_that_fixes_them(body: str, opts: list[str], needle: str,
+                                                  tmp_path: Path, capsys) -> None:
+    p = tmp_path / "x.csv"
+    p.write_text(body)
+    assert needle in _refused(capsys, "inspect", str(p), *opts)
+
+
+# --- a log that never reaches 20 C: every command that needs the reference takes --ref-sf ----
+
+def test_ref_sf_from_a_longer_run_makes_a_cold_log_usable(plain: Path, tmp_path: Path,
+                                                          capsys) -> None:
+    from trainer import stream as st
+
+    cold = tmp_path / "cold.csv"
+    assert main(["simulate", "--scenario", "paper", "--start-c", "-30", "--stop-c", "-10",
+                 "--ramp-rate", "2", "--seed", "4", "--out", str(cold)]) == 0
+    capsys.readouterr()
+    model = st.random_model(3, 4, 1, 8, decimation=10, seed=6)
+    model.save(tmp_path / "m")
+    argvs = {"inspect": ["inspect", str(cold)],
+             "train": ["train", "--train", str(cold), "--model", "poly", "--out",
+                       str(tmp_path / "poly")],
+             "replay": ["replay", str(tmp_path / "m"), str(cold), "--out",
+                        str(tmp_path / "c.csv"), "--build-dir", str(tmp_path / "kernels")]}
+    for cmd in ("inspect", "train"):
+        assert "--ref-sf" in _refused(capsys, *argvs[cmd]), cmd
+    assert main(argvs["replay"]) == 0  # replay runs the kernel, then says why no metrics
+    assert "no before/after metrics" in capsys.readouterr().out
+    ref = _inspect_json(capsys, str(plain))[0]["ref_sf_ratio"]
+    got = _inspect_json(capsys, str(cold), "--ref-sf", repr(ref))[0]
+    assert got["ref_sf_ratio"] == ref and got["metrics"]["rms_ppm"] > 0
+    assert main([*argvs["train"], "--ref-sf", repr(ref)]) == 0
+    metrics = json.loads((tmp_path / "poly" / "metrics.json").read_text())
+    assert metrics["ref_sf_ratio"] == ref
+    assert metrics["train"]["after"]["rms_ppm"] < metrics["train"]["before"]["rms_ppm"]
+    assert main([*argvs["replay"], "--ref-sf", repr(ref)]) == 0
+    assert "before: about --ref-sf" in capsys.readouterr().out
+
+
+# --- the command line: version, and every --help ends with examples that parse -------------
+
+def test_version(capsys) -> None:
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as ei:
+        main(["--version"])
+    assert ei.value.code == 0
+    assert capsys.readouterr().out.strip() == f"fogsf {version('fogsf')}"
+
+
+def test_every_help_ends_with_examples_that_parse(capsys) -> None:
+    import shlex
+
+    from trainer.cli import COMMANDS, build_parser
+
+    parser = build_parser()
+    for argv in ([], *([c] for c in COMMANDS)):
+        with pytest.raises(SystemExit):
+            main([*argv, "--help"])
+        text = capsys.readouterr().out.rstrip()
+        tail = text.rsplit("\n\n", 1)[-1].splitlines()
+        assert tail[0].strip().lower() in ("example:", "examples:"), (argv, tail)
+        for line in tail[1:]:
+            for cmd in line.split("#")[0].split("&&"):
+                words = shlex.split(cmd)
+                assert words[0] == "fogsf", (argv, line)
+                parser.parse_args(words[1:])  # exits (fails the test) on a bad example

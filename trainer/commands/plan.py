@@ -17,7 +17,7 @@ compared), OUT/plan.json and OUT/plan.png (temperature program; predicted residu
 rate, best against the paper's protocol).
 
 Example:
-  fogsf plan --range -40:50 --max-ramp 3 --hours 4.5 --gyros 8 --out plan/
+  fogsf plan --range=-40:50 --max-ramp 3 --hours 4.5 --gyros 8 --out plan/
 """
 
 from __future__ import annotations
