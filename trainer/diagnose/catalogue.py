@@ -76,8 +76,7 @@ class Candidate:
         """The coefficient names of this candidate's columns (one, or one per part)."""
         if not self.parts:
             return [self.coef_name]
-        return [f"{c.name}.{c.coef_name}" for c, _ in self.parts] + [
-            f"{self.own().name}.{self.own().coef_name}"]
+        return [f"{c.name}.{c.coef_name}" for c, _ in self.parts]
 
     def own(self) -> Candidate:
         """The candidate this one profiles (itself, or the last of a combined model)."""

@@ -209,19 +209,20 @@ def _adds_to(ctxs: list[RunContext], best: CandidateResult, other: CandidateResu
     return _significant(stats.sign_flip_p(d), d, y.shape[0])
 
 
-def _forward_select(sig: list[CandidateResult], ctxs: list[RunContext], y: np.ndarray,
-                    w: np.ndarray, folds: np.ndarray, blocks: np.ndarray, base: ModelFit
-                    ) -> tuple[list[CandidateResult], ModelFit]:
+def _forward_select(first_c: CandidateResult, pool: list[CandidateResult],
+                    ctxs: list[RunContext], y: np.ndarray, w: np.ndarray, folds: np.ndarray,
+                    blocks: np.ndarray) -> tuple[list[CandidateResult], ModelFit]:
     """The causes in the order found: the best significant candidate, then each further one
-    only when, added to the model with the ones before it (held at their chosen forms and
-    time constants, their own profiled), it wins on held-out blocks by the gain rule
+    of `pool` (identifiable candidates; a second effect can be hidden behind the first when
+    each is scored on the base alone) only when, added to the model with the ones before it
+    (held at their chosen forms and time constants, its own profiled), it wins on held-out
+    blocks by the gain rule
     (_significant). The combined model's coefficients replace the single fits'."""
-    first_c = sig[0]
     assert first_c.model is not None
     causes = [first_c]
     model = first_c.model
     chosen = [(catalogue.CATALOGUE[first_c.name], first_c.model.combo[1])]
-    rest = [c for c in sig[1:]]
+    rest = list(pool)
     while rest and len(causes) < MAX_CAUSES:
         best: tuple[CandidateResult, ModelFit, float] | None = None
         for r in rest:
@@ -238,7 +239,8 @@ def _forward_select(sig: list[CandidateResult], ctxs: list[RunContext], y: np.nd
         before, after = _weighted_rms(model.heldout), _weighted_rms(m.heldout)
         r.added_gain_pct = 100.0 * (1.0 - after / before) if before > 0 else 0.0
         r.evidence += (f"; added after {' + '.join(c.name for c in causes)}: held-out RMS "
-                       f"{before:.2f} -> {after:.2f} ppm (p={p:.2g})")
+                       f"{before:.2f} -> {after:.2f} ppm (p={p:.2g}): a cause")
+        r.significant = True
         causes.append(r)
         chosen.append((catalogue.CATALOGUE[r.name], m.combo[1]))
         rest.remove(r)
@@ -620,7 +622,10 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
             best.confounded_with = ambiguous[1:]
             best.separating_run = runs_needed
         else:
-            causes, chosen = _forward_select(sig, ctxs, y, w, folds, blocks, base)
+            pool = [c for c in results if c is not best and c.identifiable and c.model
+                    is not None and (c.significant or c.name not in catalogue.NODE_LIKE)
+                    and c.name not in ambiguous]
+            causes, chosen = _forward_select(best, pool, ctxs, y, w, folds, blocks)
     structure = _structure(chosen.heldout, sigma,
                            [chosen.heldout[run_ids == i] / sigma[run_ids == i]
                             for i in range(len(rs))])
