@@ -161,6 +161,35 @@ class Diagnosis:
         return float(np.sqrt(np.mean(self.sigma**2)))
 
 
+MIXED_GYRO_RATIO = 3.0  # joint-fit RMS over the worst single-log fit's, in noise units
+MIXED_GYRO_MIN_CHI2 = 10.0
+
+
+def _one_gyro(ctxs: list[RunContext], y: np.ndarray, sigma_win: np.ndarray) -> None:
+    """Refuse logs that one gyro's base model cannot share: the base fitted to all logs at
+    once leaves a weighted RMS (noise units) above MIXED_GYRO_RATIO times the worst fit of
+    any log on its own, and above sqrt(MIXED_GYRO_MIN_CHI2). Two gyros differ by tens to
+    hundreds of ppm in their SF law; one gyro's logs agree to a few ppm."""
+    if len(ctxs) < 2:
+        return
+    w = 1.0 / sigma_win**2
+
+    def rms(sub: list[RunContext], yy: np.ndarray, ww: np.ndarray) -> float:
+        st = profile_ls.build(sub, None)
+        fit = profile_ls.solve(st, yy, ww, np.arange(yy.shape[0]))
+        return float(np.sqrt(np.mean((yy - profile_ls.predict(st, fit)) ** 2 * ww)))
+
+    joint = rms(ctxs, y, w)
+    edges = np.cumsum([0] + [len(c.run) for c in ctxs])
+    single = max(rms([c], y[a:b], w[a:b])
+                 for c, a, b in zip(ctxs, edges[:-1], edges[1:], strict=True))
+    if joint > MIXED_GYRO_RATIO * single and joint**2 > MIXED_GYRO_MIN_CHI2:
+        raise UserError(f"the logs do not look like one gyro: one base model fitted to all "
+                        f"leaves {joint:.1f}x the noise, each log alone at most {single:.1f}x; "
+                        "diagnose one gyro's logs at a time (give only that gyro's LOG.CSV "
+                        "files)")
+
+
 def model_floor(ctxs: list[RunContext], y: np.ndarray, sigma_win: np.ndarray) -> float:
     """The base model's resolution (ppm): MODEL_FLOOR_FRAC of the RMS of its fitted thermal
     SF. The base (two nodes, quadratic laws) approximates a gyro with several nodes and
@@ -557,6 +586,7 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         ctxs.append(RunContext(r, drv, drv.power_on, bias_on))
     y = np.concatenate([r.y_ppm for r in rs])
     sigma_win = np.concatenate([r.sigma_ppm for r in rs])
+    _one_gyro(ctxs, y, sigma_win)
     floor = model_floor(ctxs, y, sigma_win)
     sigma = np.sqrt(sigma_win**2 + floor**2)
     w = 1.0 / sigma**2
