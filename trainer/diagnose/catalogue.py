@@ -83,10 +83,9 @@ class Candidate:
         return self.parts[-1][0] if self.parts and self.parts[-1][1] is _OWN else self
 
     def to_effect(self, coef: float, theta: GridValue) -> dict:
-        """The simulator's effect entry (trainer.sim.config.EffectConfig as a dict). Forms
-        the simulator has no effect for (a quadratic rate law, a bias on a lagged node, a
-        settling drift) carry their form in `params` and are written for reading, not for
-        `fogsf simulate` (which refuses unknown params)."""
+        """The simulator's effect entry (trainer.sim.config.EffectConfig as a dict); a form
+        other than the simulator's default carries it in `params` (exponent, node_tau_s,
+        settle_tau_s), which the simulator's effects take."""
         if self.name == "rate_nonlinearity":
             p = {"ref_rate_dps": 100.0}
             if theta is not None and first(theta) != 1.0:
