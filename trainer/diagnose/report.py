@@ -115,11 +115,12 @@ def summary_text(j: dict[str, Any]) -> str:
             c = next(x for x in j["candidates"] if x["effect"] == name)
             ps = ", ".join(_fmt_param(k, v, c["params"].get(k + "_ci95"))
                            for k, v in c["params"].items() if not k.endswith("_ci95"))
-            gain = (f"gain {c['gain_pct']:.1f}%" if i == 0 else
-                    f"gain {c['added_gain_pct']:.1f}% over the causes before it")
+            gain = (f"held-out RMS {c['heldout_rms_before_ppm']:.2f} -> "
+                    f"{c['heldout_rms_after_ppm']:.2f} ppm, gain {c['gain_pct']:.1f}%"
+                    if i == 0 else
+                    f"held-out gain {c['added_gain_pct']:.1f}% over the causes before it")
             lines.append(f"{'cause' if i == 0 else 'and cause'}: {name} ({ps}; 95% intervals) "
-                         f"held-out RMS {c['heldout_rms_before_ppm']:.2f} -> "
-                         f"{c['heldout_rms_after_ppm']:.2f} ppm, {gain}")
+                         f"{gain}")
         if j["unexplained"]:
             lines.append(f"cause: {' + '.join(j.get('causes') or [cause])}; "
                          f"{j['structure'].get('remaining_pct', 0.0):.0f}% of the structure "

@@ -267,6 +267,8 @@ def _forward_select(first_c: CandidateResult, pool: list[CandidateResult],
         r, m, p = best
         before, after = _weighted_rms(model.heldout), _weighted_rms(m.heldout)
         r.added_gain_pct = 100.0 * (1.0 - after / before) if before > 0 else 0.0
+        if r.evidence.startswith("not significant:"):
+            r.evidence = "on the base alone not significant:" + r.evidence[16:]
         r.evidence += (f"; added after {' + '.join(c.name for c in causes)}: held-out RMS "
                        f"{before:.2f} -> {after:.2f} ppm (p={p:.2g}): a cause")
         r.significant = True
