@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
@@ -92,7 +93,10 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     groups = {k: {"cases": len(v), "right": sum(r["ok"] for r in v),
                   "rate": sum(r["ok"] for r in v) / len(v)} for k, v in sorted(by.items())}
     eff = [r for r in results if r["kind"] == "effect"]
-    wrong_cause = [r for r in eff if r["cause"] not in (None, r["name"])]
+    def planted(r: dict[str, Any]) -> str:  # "aging:settling" -> "aging"
+        return str(r["name"]).split(":")[0]
+
+    wrong_cause = [r for r in eff if r["cause"] not in (None, planted(r))]
     null = [r for r in results if r["kind"] == "null"]
     two = [r for r in results if r["kind"] == "two"]
     ooc = [r for r in results if r["kind"] == "ooc"]
@@ -106,11 +110,13 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
         "groups": groups,
         "effects_right_rate": rate(eff),
         "effects_wrong_cause": len(wrong_cause),
-        "effects_ambiguous": sum(r["cause"] is None and r["name"] in r["ambiguous"]
+        "effects_ambiguous": sum(r["cause"] is None and planted(r) in r["ambiguous"]
                                  for r in eff),
         "null_false_causes": sum(r["cause"] is not None for r in null),
         "null_cases": len(null),
         "null_flagged_unexplained": sum(r["unexplained"] for r in null),
+        "effects_right_rate_without_temp_rate": rate([r for r in eff
+                                                      if planted(r) != "temp_rate"]),
         "null_mixed_cases": sum(r["name"] == "mixed" for r in null),
         "null_mixed_flagged_unexplained": sum(r["unexplained"] for r in null
                                               if r["name"] == "mixed"),
@@ -160,10 +166,12 @@ def main(argv: list[str] | None = None) -> int:
             results.append(r)
     s = summarise(results)
     s["seconds"] = time.time() - t0
+    s["command"] = " ".join(["python -m benchmarks.diagnose_rate", *(argv or sys.argv[1:])])
     for k, g in s["groups"].items():
         print(f"{k:28s} {g['right']:3d}/{g['cases']:3d} right ({100 * g['rate']:.0f}%)")
-    print(f"planted effects named right (name, parameter, gain): "
-          f"{100 * s['effects_right_rate']:.1f}%")
+    print(f"planted effects named right (name, parameter, significant): "
+          f"{100 * s['effects_right_rate']:.1f}% "
+          f"({100 * s['effects_right_rate_without_temp_rate']:.1f}% without temp_rate)")
     print(f"planted effects: {s['effects_wrong_cause']} wrong causes named, "
           f"{s['effects_ambiguous']} left ambiguous (the planted one among them)")
     print(f"null cases: {s['null_false_causes']} false causes in {s['null_cases']} "
