@@ -132,8 +132,11 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example (development gyros 100-101, 40 cases, about 20 s):\n"
+               "  python -m benchmarks.diagnose_rate --seeds-from dev --seeds 2 "
+               "--out out/bench-diagnose-dev.json")
     ap.add_argument("--out", default="out/bench-diagnose.json")
     ap.add_argument("--seeds", type=int, default=10, help="gyros (population) or seeds per "
                     "case kind (default gyro)")
