@@ -134,3 +134,15 @@ def test_refuses_logs_of_different_gyros(null_log) -> None:
     with pytest.raises(UserError) as e:
         verdict.diagnose([null_log, log2])
     assert "one gyro" in _one_line(e)
+
+
+def test_node_terms_need_the_chamber_air(null_log) -> None:
+    """Without chamber_c a lag or dT/dt term is confounded with the base, and the text names
+    the run that would separate them."""
+    bare = copy.copy(null_log)
+    bare.extra = {}
+    j = report.to_json(verdict.diagnose([bare]), {}, None)
+    for c in j["candidates"]:
+        if c["effect"] in ("temp_rate", "extra_lag"):
+            assert not c["identifiable"] and c["confounded_with"] == ["base"]
+            assert "chamber_c" in c["separating_run"]

@@ -194,6 +194,10 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
 # of the base's kind (within its 600-4000 s, away from both of its nodes) can still lower
 # the residual a little, and any node-like candidate would take that gain for itself.
 NODE_LIKE = ("temp_rate", "extra_lag")
+# also checked against a third base node: a drift over a log is what a slow node the base
+# lacks looks like (population gyros with 3-6 internal nodes), unless the log returns to
+# a temperature it held before, where a node comes back and a drift does not
+THIRD_NODE_CHECK = (*NODE_LIKE, "aging")
 
 
 def _node(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:

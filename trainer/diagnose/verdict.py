@@ -238,6 +238,15 @@ def _adds_to(ctxs: list[RunContext], best: CandidateResult, other: CandidateResu
     return _significant(stats.sign_flip_p(d), d, y.shape[0])
 
 
+def _beats_third_node(ctxs: list[RunContext], chosen: list[tuple[Candidate, GridValue]],
+                      m: ModelFit, y: np.ndarray, w: np.ndarray, folds: np.ndarray,
+                      blocks: np.ndarray) -> bool:
+    """Does `m` beat the causes so far plus a third base node, on held-out blocks?"""
+    ref = fit_model(ctxs, catalogue.combine(chosen, catalogue.EXTRA_NODE), y, w, folds)
+    d = _block_sums((ref.heldout**2 - m.heldout**2) * w, blocks)
+    return stats.sign_flip_p(d) < ALPHA
+
+
 def _forward_select(first_c: CandidateResult, pool: list[CandidateResult],
                     ctxs: list[RunContext], y: np.ndarray, w: np.ndarray, folds: np.ndarray,
                     blocks: np.ndarray) -> tuple[list[CandidateResult], ModelFit]:
@@ -260,7 +269,9 @@ def _forward_select(first_c: CandidateResult, pool: list[CandidateResult],
             d = _block_sums((model.heldout**2 - m.heldout**2) * w, blocks)
             p = stats.sign_flip_p(d)
             if _significant(p, d, y.shape[0]) and (
-                    best is None or _weighted_rms(m.heldout) < _weighted_rms(best[1].heldout)):
+                    best is None or _weighted_rms(m.heldout) < _weighted_rms(best[1].heldout)
+            ) and (r.name not in catalogue.THIRD_NODE_CHECK
+                   or _beats_third_node(ctxs, chosen, m, y, w, folds, blocks)):
                 best = (r, m, p)
         if best is None:
             break
@@ -695,13 +706,14 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
 
 def _against_extra_node(results: list[CandidateResult], ctxs: list[RunContext], y: np.ndarray,
                         w: np.ndarray, folds: np.ndarray, blocks: np.ndarray) -> None:
-    """A significant node-like candidate (catalogue.NODE_LIKE: a dT/dt term, an extra lag)
-    must also beat the base with a third node of its own kind on held-out blocks (p <
+    """A significant node-like candidate (catalogue.THIRD_NODE_CHECK: a dT/dt term, an extra
+    lag, and aging, a drift being what a missing slow node looks like over a log) must also
+    beat the base with a third node of its own kind on held-out blocks (p <
     ALPHA): otherwise what it explains is the base's node count, not the effect, and it is
     no longer significant. Both add one column, so the comparison is fair; a real dT/dt
     term or extra lag carries the housing running ahead of the board, which no node of the
     base's kind reproduces."""
-    todo = [c for c in results if c.significant and c.name in catalogue.NODE_LIKE]
+    todo = [c for c in results if c.significant and c.name in catalogue.THIRD_NODE_CHECK]
     if not todo:
         return
     ref = fit_model(ctxs, catalogue.EXTRA_NODE, y, w, folds)
@@ -808,6 +820,15 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
                      "self-heating rise of the board after a power-on), so there is no start-up "
                      "transient to see (pass --start power-on if the logs do begin at "
                      "power-on)")
+    if cand.name in catalogue.NODE_LIKE and all(c.driver.source == "board" for c in ctxs):
+        sep = "the chamber air logged (chamber_c), with " + SEPARATING_RUN[cand.name]
+        return CandidateResult(
+            cand.name, False, 0.0, heldout_before=before, heldout_after=before,
+            confounded_with=["base"], separating_run=sep,
+            evidence="not identifiable from these logs: no chamber air (chamber_c), so the "
+                     "housing running ahead of the board thermometer, which is all that "
+                     "tells this term from the base's nodes, cannot be seen; confounded "
+                     f"with the base model: the run that would separate them: {sep}")
     model = fit_model(ctxs, cand, y, w, folds)
     vis = visible_fraction(model, w)
     res = CandidateResult(cand.name, vis >= MIN_VISIBLE, vis, heldout_before=before)
