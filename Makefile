@@ -70,8 +70,9 @@ bench-population: $(STAMP)
 bench-plan: $(STAMP)
 	$(PY) -m benchmarks.plan --out $(OUT)/bench-plan.json
 
+# evaluation gyros 20000-20019 of the population, 400 cases, ~5 min on 2 cores
 bench-diagnose: $(STAMP)
-	$(PY) -m benchmarks.diagnose_rate --out $(OUT)/bench-diagnose.json
+	$(PY) -m benchmarks.diagnose_rate --seeds-from eval --seeds 20 --out $(OUT)/bench-diagnose.json
 
 clean:
 	rm -rf build out models

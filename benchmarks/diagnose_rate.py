@@ -1,17 +1,23 @@
 """Success rate of `fogsf diagnose` over many seeded cases (make bench-diagnose).
 
-Cases (trainer.diagnose.cases, ranges stated there): each of the seven catalogue effects
-planted at 3-20x the noise floor (visible part), null runs, out-of-catalogue effects
-(humidity, supply step, periodic), ramp-only and short-soak lag / dT/dt runs. For each:
-right or wrong by `cases.judge`, and the figures behind it. Prints a table and writes JSON.
+Cases (trainer.diagnose.cases, ranges stated there), on the gyro population
+(trainer.sim.population; `--gyros default`: the default gyro only, as before): every form
+variant of the catalogue effects (cases.VARIANTS) and the lag / dT/dt terms planted at 3-20x
+the noise floor (visible part), two effects at once (cases.PAIRS), nulls (one of the
+effects' setups, and a +/- 10, 50, 100, 200 deg/s table), out-of-catalogue effects
+(humidity, supply step, periodic), ramp-only and short-soak lag / dT/dt runs; half the logs
+without chamber_c. Seeds: `--seeds-from dev` (trainer.sim.population.DEV_SEEDS, for tuning)
+or `eval` (EVAL_SEEDS, for reporting only). For each case: right or wrong by `cases.judge`,
+and the figures behind it. Prints a table and writes JSON.
 
-    python -m benchmarks.diagnose_rate --out out/bench-diagnose.json [--seeds 20] [--jobs 2]
+    python -m benchmarks.diagnose_rate --seeds-from eval --seeds 10 --out out/bench-diagnose.json
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
@@ -20,40 +26,63 @@ from typing import Any
 
 from trainer.diagnose import cases
 
+Job = tuple[str, str, str, int, bool]  # kind, name, variant, seed, population gyro
 
-def one(job: tuple[str, str, int]) -> dict[str, Any]:
+
+def one(job: Job) -> dict[str, Any]:
     from trainer.diagnose import report, verdict
 
-    kind, name, seed = job
+    kind, name, variant, seed, population = job
     t0 = time.time()
-    case = cases.draw(kind, name, seed)
+    case = (cases.draw_population(kind, name, variant, seed) if population
+            else cases.draw(kind, name, seed))
+    name = f"{name}:{variant}" if variant and kind == "effect" else (
+        f"{name}+{variant}" if kind == "two" else name)
     try:
         logs, truth = cases.build(case)
         d = verdict.diagnose(logs)
     except Exception as e:  # a crash is a wrong answer, with its reason
         return {"kind": kind, "name": name, "seed": seed, "ok": False,
-                "reason": f"error: {e}", "cause": None, "unexplained": False,
+                "reason": f"error: {e}", "cause": None, "causes": [], "unexplained": False,
                 "ambiguous": [], "case": case.describe(), "multiple": case.multiple,
                 "structure": {}, "seconds": time.time() - t0, "significant": []}
     j = report.to_json(d, {}, None)
     o = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                    j["ambiguous"])
+                    j["ambiguous"], j["causes"])
     return {"kind": kind, "name": name, "seed": seed, "ok": o.ok, "reason": o.reason,
-            "cause": j["cause"], "unexplained": j["unexplained"], "ambiguous": j["ambiguous"],
+            "cause": j["cause"], "causes": j["causes"], "unexplained": j["unexplained"],
+            "ambiguous": j["ambiguous"],
             "case": case.describe(), "multiple": case.multiple_reached or case.multiple,
             "structure": j["structure"], "seconds": time.time() - t0,
             "significant": [c["effect"] for c in j["candidates"] if c["significant"]]}
 
 
-def jobs(seeds: int, first_seed: int) -> list[tuple[str, str, int]]:
-    out = []
+def jobs(seeds: int, first_seed: int) -> list[Job]:
+    """The default gyro's bench (as before this population bench)."""
+    out: list[Job] = []
     for i in range(seeds):
         s = first_seed + i
-        out += [("effect", e, s) for e in cases.EFFECTS]
-        out += [("null", "", 1000 + s), ("null", "", 2000 + s)]
-        out += [("ooc", k, s) for k in cases.OOC_KINDS]
-        out += [("ramp_only", k, s) for k in ("temp_rate", "extra_lag")]
-        out += [("short_soak", k, s) for k in ("temp_rate", "extra_lag")]
+        out += [("effect", e, "", s, False) for e in cases.EFFECTS]
+        out += [("null", "", "", 1000 + s, False), ("null", "", "", 2000 + s, False)]
+        out += [("ooc", k, "", s, False) for k in cases.OOC_KINDS]
+        out += [("ramp_only", k, "", s, False) for k in ("temp_rate", "extra_lag")]
+        out += [("short_soak", k, "", s, False) for k in ("temp_rate", "extra_lag")]
+    return out
+
+
+def population_jobs(seeds: range) -> list[Job]:
+    """20 cases per population gyro: 10 form variants, the lag and dT/dt terms, one pair,
+    two nulls, three out-of-catalogue effects, one ramp-only and one short-soak run."""
+    out: list[Job] = []
+    for s in seeds:
+        out += [("effect", e, v, s, True) for e, vs in cases.VARIANTS.items() for v in vs]
+        out += [("effect", e, "", s, True) for e in ("extra_lag", "temp_rate")]
+        a, b = cases.PAIRS[s % len(cases.PAIRS)]
+        out.append(("two", a, b, s, True))
+        out += [("null", "", "", s, True), ("null", "mixed", "", s, True)]
+        out += [("ooc", k, "", s, True) for k in cases.OOC_KINDS]
+        k = ("temp_rate", "extra_lag")[s % 2]
+        out += [("ramp_only", k, "", s, True), ("short_soak", k, "", s, True)]
     return out
 
 
@@ -64,8 +93,12 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     groups = {k: {"cases": len(v), "right": sum(r["ok"] for r in v),
                   "rate": sum(r["ok"] for r in v) / len(v)} for k, v in sorted(by.items())}
     eff = [r for r in results if r["kind"] == "effect"]
-    wrong_cause = [r for r in eff if r["cause"] not in (None, r["name"])]
+    def planted(r: dict[str, Any]) -> str:  # "aging:settling" -> "aging"
+        return str(r["name"]).split(":")[0]
+
+    wrong_cause = [r for r in eff if r["cause"] not in (None, planted(r))]
     null = [r for r in results if r["kind"] == "null"]
+    two = [r for r in results if r["kind"] == "two"]
     ooc = [r for r in results if r["kind"] == "ooc"]
     ramp = [r for r in results if r["kind"] == "ramp_only"]
     short = [r for r in results if r["kind"] == "short_soak"]
@@ -77,11 +110,17 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
         "groups": groups,
         "effects_right_rate": rate(eff),
         "effects_wrong_cause": len(wrong_cause),
-        "effects_ambiguous": sum(r["cause"] is None and r["name"] in r["ambiguous"]
+        "effects_ambiguous": sum(r["cause"] is None and planted(r) in r["ambiguous"]
                                  for r in eff),
         "null_false_causes": sum(r["cause"] is not None for r in null),
         "null_cases": len(null),
         "null_flagged_unexplained": sum(r["unexplained"] for r in null),
+        "effects_right_rate_without_temp_rate": rate([r for r in eff
+                                                      if planted(r) != "temp_rate"]),
+        "null_mixed_cases": sum(r["name"] == "mixed" for r in null),
+        "null_mixed_flagged_unexplained": sum(r["unexplained"] for r in null
+                                              if r["name"] == "mixed"),
+        "two_effects_both_named_rate": rate(two),
         "ooc_right_rate": rate(ooc),
         "ooc_named_catalogue_cause": sum(r["cause"] is not None for r in ooc),
         "ramp_only_no_guess_rate": rate(ramp),
@@ -93,14 +132,34 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example (development gyros 100-101, 40 cases, about 20 s):\n"
+               "  python -m benchmarks.diagnose_rate --seeds-from dev --seeds 2 "
+               "--out out/bench-diagnose-dev.json")
     ap.add_argument("--out", default="out/bench-diagnose.json")
-    ap.add_argument("--seeds", type=int, default=20, help="seeds per case kind")
-    ap.add_argument("--first-seed", type=int, default=100)
+    ap.add_argument("--seeds", type=int, default=10, help="gyros (population) or seeds per "
+                    "case kind (default gyro)")
+    ap.add_argument("--seeds-from", choices=["dev", "eval"], default="eval",
+                    help="population seed range: dev (tuning) or eval (reporting)")
+    ap.add_argument("--first-seed", type=int, default=None,
+                    help="first seed (default: the range's first + 100 for dev, its first "
+                         "for eval; 100 for --gyros default)")
+    ap.add_argument("--gyros", choices=["population", "default"], default="population")
     ap.add_argument("--jobs", type=int, default=2)
     args = ap.parse_args(argv)
-    todo = jobs(args.seeds, args.first_seed)
+    if args.gyros == "default":
+        todo = jobs(args.seeds, 100 if args.first_seed is None else args.first_seed)
+    else:
+        from trainer.sim.population import seed_range
+
+        rng = seed_range(args.seeds_from)
+        first = args.first_seed if args.first_seed is not None else (
+            rng.start + (100 if args.seeds_from == "dev" else 0))
+        if first not in rng or first + args.seeds - 1 not in rng:
+            ap.error(f"--first-seed {first} with --seeds {args.seeds} leaves the "
+                     f"{args.seeds_from} range {rng.start}-{rng.stop - 1}")
+        todo = population_jobs(range(first, first + args.seeds))
     t0 = time.time()
     results: list[dict[str, Any]] = []
     from tqdm import tqdm
@@ -110,14 +169,18 @@ def main(argv: list[str] | None = None) -> int:
             results.append(r)
     s = summarise(results)
     s["seconds"] = time.time() - t0
+    s["command"] = " ".join(["python -m benchmarks.diagnose_rate", *(argv or sys.argv[1:])])
     for k, g in s["groups"].items():
         print(f"{k:28s} {g['right']:3d}/{g['cases']:3d} right ({100 * g['rate']:.0f}%)")
-    print(f"planted effects named right (name, parameter, gain): "
-          f"{100 * s['effects_right_rate']:.1f}%")
+    print(f"planted effects named right (name, parameter, significant): "
+          f"{100 * s['effects_right_rate']:.1f}% "
+          f"({100 * s['effects_right_rate_without_temp_rate']:.1f}% without temp_rate)")
     print(f"planted effects: {s['effects_wrong_cause']} wrong causes named, "
           f"{s['effects_ambiguous']} left ambiguous (the planted one among them)")
     print(f"null cases: {s['null_false_causes']} false causes in {s['null_cases']} "
-          f"({s['null_flagged_unexplained']} flagged unexplained)")
+          f"({s['null_flagged_unexplained']} flagged unexplained; mixed-rate: "
+          f"{s['null_mixed_flagged_unexplained']} of {s['null_mixed_cases']})")
+    print(f"two effects at once: {100 * s['two_effects_both_named_rate']:.1f}% both named")
     print(f"out-of-catalogue: {100 * s['ooc_right_rate']:.1f}% unexplained with no cause "
           f"({s['ooc_named_catalogue_cause']} named a catalogue cause)")
     print(f"ramp-only lag / dT/dt: {100 * s['ramp_only_no_guess_rate']:.1f}% no guess")

@@ -12,11 +12,17 @@ wrong, name the cause, extend the model and measure the gain.
    bias_drift, aging; the simulator's, in its units) is added to the base in turn.
 3. Every model is scored on held-out data: contiguous blocks of windows left out in turn
    (or whole logs with --cv runs), significance by a paired sign-flip test over blocks.
-4. Names the cause, or none, with its parameters and 95 % intervals; `ambiguous` when the
-   logs cannot tell two apart (e.g. an extra thermal lag and a dT/dt term, which both show
-   as the housing running ahead of the board thermometer); `unexplained` when structure
-   remains that no candidate explains. A candidate the logs cannot show at all (asymmetry
-   at one |rate|, a lag on steady ramps) is called not identifiable, with the reason.
+4. Names the cause, or none, with its parameters and 95 % intervals, and every further
+   cause that wins on held-out blocks over the ones before it (`causes`, forward
+   selection). A significant cause is named even when structure remains, if it takes at
+   least 80 % of the base's excess held-out variance ("N % of the structure remains").
+   Significant: paired sign-flip p < 0.01 over blocks and the held-out weighted SSE lower
+   by at least 0.05 noise variances per window. `ambiguous` when the logs cannot tell two
+   apart (e.g. an extra thermal lag and a dT/dt term); `unexplained` when structure
+   remains. A candidate the logs cannot show at all (asymmetry at one |rate|, a lag on
+   steady ramps) is "confounded with the base", with the run that would separate them.
+   Noise per window: the window noise at its |table rate| level (about 1/|rate|) plus, in
+   quadrature, the base's resolution (2 % of its fitted thermal SF's RMS).
 5. Writes the extended model as a simulator configuration (--config-out, and in the JSON as
    extended_model) and simulates it to report how much closer it comes to the logs.
 
@@ -56,7 +62,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "leave one log out")
     parser.add_argument("--start", choices=["auto", "warm", "power-on"], default="auto",
                         help="how the logs start (auto: a self-heating rise of the board "
-                             "against the chamber air marks a power-on)")
+                             "against the chamber air, or at the log's start from the board "
+                             "thermometer alone, marks a power-on; the others override)")
     parser.add_argument("--effects", metavar="A,B,...",
                         help="candidates to try (default: the whole catalogue)")
     parser.add_argument("--no-simulate", action="store_true",

@@ -29,6 +29,7 @@ neither is separable from the base.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -64,18 +65,47 @@ class Candidate:
     # an effect of the start-up after a power-on: scored only when a run starts at power-on
     # (driver.identify, or --start); a warm start has no start-up transient
     needs_power_on: bool = False
+    # a grid of discrete forms (e.g. an exponent): no refinement or profile interval, the
+    # best form is reported as `grid_name`
+    forms: bool = False
+    # a combined model (forward selection): earlier causes at their chosen grid values, in
+    # order, then this one's own; names() gives one coefficient per part
+    parts: tuple[tuple[Candidate, GridValue], ...] = ()
+
+    def names(self) -> list[str]:
+        """The coefficient names of this candidate's columns (one, or one per part)."""
+        if not self.parts:
+            return [self.coef_name]
+        return [f"{c.name}.{c.coef_name}" for c, _ in self.parts]
+
+    def own(self) -> Candidate:
+        """The candidate this one profiles (itself, or the last of a combined model)."""
+        return self.parts[-1][0] if self.parts and self.parts[-1][1] is _OWN else self
 
     def to_effect(self, coef: float, theta: GridValue) -> dict:
-        """The simulator's effect entry (trainer.sim.config.EffectConfig as a dict)."""
+        """The simulator's effect entry (trainer.sim.config.EffectConfig as a dict); a form
+        other than the simulator's default carries it in `params` (exponent, node_tau_s,
+        settle_tau_s), which the simulator's effects take."""
+        if self.name == "rate_nonlinearity":
+            p = {"ref_rate_dps": 100.0}
+            if theta is not None and first(theta) != 1.0:
+                p["exponent"] = first(theta)
+            return {"name": self.name, "strength": coef, "params": p}
+        if self.name == "bias_drift":
+            p = {"ref_c": design.T_REF_C}
+            if theta is not None and first(theta) > 0.0:
+                p["node_tau_s"] = first(theta)
+            return {"name": self.name, "strength": coef, "params": p}
+        if self.name == "aging":
+            p = {}
+            if theta is not None and math.isfinite(first(theta)):
+                p["settle_tau_s"] = first(theta)
+            return {"name": self.name, "strength": coef, "params": p}
         if self.name == "warmup":
             return {"name": "warmup", "strength": coef, "params": {"tau_s": theta}}
         if self.name == "extra_lag":
             return {"name": "extra_lag", "strength": theta,
                     "params": {"sens_ppm_per_c": coef}}
-        if self.name == "rate_nonlinearity":
-            return {"name": self.name, "strength": coef, "params": {"ref_rate_dps": 100.0}}
-        if self.name == "bias_drift":
-            return {"name": self.name, "strength": coef, "params": {"ref_c": design.T_REF_C}}
         return {"name": self.name, "strength": coef, "params": {}}
 
 
@@ -100,7 +130,8 @@ def _temp_rate(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
 
 
 def _rate_nonlinearity(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
-    return np.abs(ctx.run.rate) / 100.0
+    """(|rate| / 100)^p: p = 1 linear in |rate|, 2 quadratic, 1.5 between (both terms)."""
+    return (np.abs(ctx.run.rate) / 100.0) ** (1.0 if g is None else first(g))
 
 
 def _asymmetry(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
@@ -108,11 +139,22 @@ def _asymmetry(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
 
 
 def _bias_drift(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
-    return design.board(ctx) * design.PPM_PER_DPH / ctx.run.rate
+    """A bias following the board thermometer (g = 0) or an internal node lagging the
+    driver by g seconds (e.g. the coil or the source). With one table rate the bias is an
+    SF term in temperature, and a lagged node would be a thermal node by another name: the
+    board's form only, which the base absorbs."""
+    tau = 0.0 if g is None or not ctx.bias_on else first(g)
+    temp = design.board(ctx) if tau <= 0.0 else design.node(ctx, tau)
+    return temp * design.PPM_PER_DPH / ctx.run.rate
 
 
 def _aging(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
-    return ctx.run.t_s / 3600.0
+    """Drift with time: linear (g = inf), or settling as tau (1 - exp(-t/tau)) with time
+    constant g; the coefficient is the initial slope in ppm/h either way."""
+    tau = math.inf if g is None else first(g)
+    if not math.isfinite(tau):
+        return ctx.run.t_s / 3600.0
+    return design.settle(ctx, tau) * tau / 3600.0
 
 
 WARMUP_GRID_S = tuple(float(x) for x in np.round(np.geomspace(60.0, 3600.0, 13), -1))
@@ -120,6 +162,9 @@ COIL_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 3000.0, 8
 COIL_RATIOS = (1.0, 1.41, 2.0)  # outer / inner layer
 COIL_GRID = tuple((t, r) for r in COIL_RATIOS for t in COIL_TAU_GRID_S
                   if t * r <= COIL_TAU_GRID_S[-1] + 1.0)
+RATE_EXPONENTS = (1.0, 1.5, 2.0)
+BIAS_NODE_TAU_S = (0.0, 300.0, 600.0, 1200.0, 2400.0)  # 0: the board thermometer
+AGING_SETTLE_S = (math.inf, 21600.0, 10800.0, 5400.0)  # inf: linear
 EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(4000.0, 32000.0, 10), -2))
 
 CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
@@ -132,14 +177,16 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", COIL_GRID,
               _temp_rate, "SF term in the coil's rate of temperature change",
               admissible=lambda b, g: b[1] <= COIL_TAU_GRID_S[-1], average=True),
-    Candidate("rate_nonlinearity", "strength_ppm_at_100dps", None, (None,),
-              _rate_nonlinearity, "SF that grows with |rate|"),
+    Candidate("rate_nonlinearity", "strength_ppm_at_100dps", "exponent", RATE_EXPONENTS,
+              _rate_nonlinearity, "SF that grows with |rate| (linear, quadratic or between)",
+              forms=True),
     Candidate("asymmetry", "strength_ppm", None, (None,), _asymmetry,
               "different SF for positive and negative rates"),
-    Candidate("bias_drift", "strength_dph_per_c", None, (None,), _bias_drift,
-              "temperature-dependent bias (leaks into the SF as bias/rate)"),
-    Candidate("aging", "strength_ppm_per_h", None, (None,), _aging,
-              "SF drift with elapsed time"),
+    Candidate("bias_drift", "strength_dph_per_c", "node_tau_s", BIAS_NODE_TAU_S, _bias_drift,
+              "temperature-dependent bias (leaks into the SF as bias/rate), following the "
+              "board (node_tau_s 0) or a lagged internal node", forms=True),
+    Candidate("aging", "strength_ppm_per_h", "settle_tau_s", AGING_SETTLE_S, _aging,
+              "SF drift with elapsed time, linear (settle_tau_s inf) or settling", forms=True),
 ]}
 
 # Not a cause: the reference that the node-like candidates (NODE_LIKE) must beat. The base's
@@ -147,6 +194,10 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
 # of the base's kind (within its 600-4000 s, away from both of its nodes) can still lower
 # the residual a little, and any node-like candidate would take that gain for itself.
 NODE_LIKE = ("temp_rate", "extra_lag")
+# also checked against a third base node: a drift over a log is what a slow node the base
+# lacks looks like (population gyros with 3-6 internal nodes), unless the log returns to
+# a temperature it held before, where a node comes back and a drift does not
+THIRD_NODE_CHECK = (*NODE_LIKE, "aging")
 
 
 def _node(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:
@@ -158,6 +209,28 @@ EXTRA_NODE = Candidate(
     "a third node of the base's kind (reference only)",
     admissible=lambda b, g: g is not None and all(
         max(first(g), t) >= design.MIN_TAU_RATIO * min(first(g), t) for t in b))
+
+
+_OWN: GridValue = None  # marks the profiled (last) part of a combined model
+
+
+def combine(chosen: list[tuple[Candidate, GridValue]], cand: Candidate) -> Candidate:
+    """`cand` added to earlier causes held at their chosen grid values (forward selection):
+    one column per cause, `cand`'s profiled over its grid as on its own."""
+    if any(c.name == cand.name for c, _ in chosen):
+        raise ValueError(f"{cand.name} is already in the model")
+    fixed = tuple(chosen)
+
+    def column(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
+        return np.column_stack([c.column(ctx, b, gv) for c, gv in fixed]
+                               + [cand.column(ctx, b, g)])
+
+    def admissible(b: BaseTheta, g: GridValue) -> bool:
+        return cand.admissible(b, g) and all(c.admissible(b, gv) for c, gv in fixed)
+
+    return Candidate("+".join([c.name for c, _ in fixed] + [cand.name]), cand.coef_name,
+                     cand.grid_name, cand.grid, column, cand.meaning, admissible,
+                     forms=True, parts=(*fixed, (cand, _OWN)))
 
 
 def with_extra_node(cand: Candidate) -> Candidate:

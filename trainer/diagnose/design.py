@@ -69,6 +69,14 @@ def decay(ctx: RunContext, tau_s: float) -> np.ndarray:
                    lambda: ctx.run.window_mean(np.exp(-ctx.run.log.time_s / tau_s)))
 
 
+def settle(ctx: RunContext, tau_s: float) -> np.ndarray:
+    """Window mean of 1 - exp(-t/tau), t since the log's start."""
+    def make() -> np.ndarray:
+        t = ctx.run.log.time_s - float(ctx.run.log.time_s[0])
+        return ctx.run.window_mean(1.0 - np.exp(-t / tau_s))
+    return _cached(ctx, ("settle", float(tau_s)), make)
+
+
 def board_rate_c_per_min(ctx: RunContext, smooth_s: float = 60.0) -> np.ndarray:
     """Window mean of the board temperature's rate of change (C/min), smoothed by a lag."""
     def make() -> np.ndarray:

@@ -9,8 +9,9 @@ the two (a chain of two first-order lags is symmetric in its time constants, so 
 the housing's is a convention: the faster one, as in a gyro whose housing follows the air
 within a few minutes). Without `chamber_c`, the board thermometer itself is the driver.
 
-A power-on start shows as a self-heating rise of the board at constant chamber air; its
-amplitude (above POWER_ON_MIN_C) decides whether the internal nodes' own (unseen)
+A power-on start shows as a self-heating rise of the board at constant chamber air, or,
+from the board thermometer alone (board_power_on), as a rise at the log's start that
+flattens; its amplitude (above POWER_ON_MIN_C) decides whether the internal nodes' own (unseen)
 self-heating transients belong in the base model.
 """
 
@@ -47,6 +48,41 @@ def _lag(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
     return first_order_lag(u, tau, dt, float(u[0]))
 
 
+MAX_SELF_HEAT_C = 15.0  # the population's boards heat by 2-8 C (+ housing 0.3-2 C)
+ONSET_FIT_S = 2400.0  # the first 40 min of the board thermometer
+ONSET_TAU_S = (60.0, 120.0, 240.0, 480.0, 900.0)
+
+
+def board_power_on(time_s: np.ndarray, board_c: np.ndarray) -> float:
+    """The self-heating rise (C) of the board at the log's start, from the board thermometer
+    alone; 0 when there is none. Over the first ONSET_FIT_S, board = a + b t + q (1 -
+    exp(-t/tau)) (tau profiled on ONSET_TAU_S): a power-on shows as q > 0 with the board
+    actually rising at the start (b + q/tau > 0; a ramp that begins with the log gives the
+    same curvature with the opposite initial slope, or a negative q). Returns the rise the
+    fit shows over the first 3 tau."""
+    t = np.asarray(time_s, dtype=np.float64)
+    t = t - t[0]
+    sel = t <= ONSET_FIT_S
+    if np.count_nonzero(sel) < 10 * DECIMATE:
+        return 0.0
+    tt = t[sel][::DECIMATE]
+    bb = np.asarray(board_c, dtype=np.float64)[sel][::DECIMATE]
+    best: tuple[float, float, np.ndarray] | None = None
+    for tau in ONSET_TAU_S:
+        xm = np.column_stack([np.ones_like(tt), tt, 1.0 - np.exp(-tt / tau)])
+        coef, *_ = np.linalg.lstsq(xm, bb, rcond=None)
+        sse = float(np.sum((bb - xm @ coef) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, tau, coef)
+    assert best is not None
+    _, tau, (_, b, q) = best
+    if q <= 0.0 or b + q / tau <= 0.0:
+        return 0.0
+    rise = float(b * 3.0 * tau + q * (1.0 - np.exp(-3.0)))
+    # a rise bigger than a board's self-heating is the chamber moving (a ramp into a soak)
+    return rise if 0.0 < rise <= MAX_SELF_HEAT_C else 0.0
+
+
 def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | None,
              start: str = "auto") -> Driver:
     """Find the driver of one run. start: "auto", "warm" or "power-on".
@@ -57,9 +93,11 @@ def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | No
     The chamber path is symmetric in (tau_h, tau_b), the self-heating path is not, so after
     a power-on both are identified; after a warm start the faster is taken as the housing's.
     """
+    onset = board_power_on(time_s, board_c) if start == "auto" else 0.0
     if chamber_c is None:
+        power_on = start == "power-on" or onset > POWER_ON_MIN_C
         return Driver(np.asarray(board_c, dtype=np.float64), "board", 0.0, 0.0, 0.0, 0.0,
-                      0.0, start == "power-on", 0.0)
+                      0.0, power_on, 0.0)
     dt10 = float(np.median(np.diff(time_s)))
     dt = dt10 * DECIMATE
     c = np.asarray(chamber_c, dtype=np.float64)[::DECIMATE]
@@ -86,7 +124,11 @@ def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | No
     assert best is not None
     sse, ta, tb, coef = best
     q_h, q_b = (float(coef[2]), float(coef[3])) if with_steps else (0.0, 0.0)
-    power_on = start == "power-on" or (start == "auto" and q_h + q_b > POWER_ON_MIN_C)
+    t_rel = np.asarray(time_s) - float(time_s[0])
+    early = np.asarray(chamber_c)[t_rel <= ONSET_FIT_S]
+    air_still = float(np.ptp(early)) < 1.0  # then a rise of the board is its own heating
+    power_on = start == "power-on" or (start == "auto" and (
+        q_h + q_b > POWER_ON_MIN_C or (air_still and onset > POWER_ON_MIN_C)))
     if not power_on:
         q_h = q_b = 0.0
         ta, tb = min(ta, tb), max(ta, tb)

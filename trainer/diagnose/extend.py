@@ -110,12 +110,16 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
         {"name": "node2", "parent": "housing", "tau_s": tau2, "self_heat_c": 0.0},
     ]
     cand = model.stack.candidate
+    coil = [gv if gv is not None else g for c, gv in cand.parts if c.name == "temp_rate"] \
+        if cand is not None and cand.parts else []
     if cand is not None and cand.name == "temp_rate":
+        coil = [g]
+    if coil:
         # the simulator's temp_rate differentiates the mean of the nodes named coil*: the
         # two layers, as fitted
         nodes += [{"name": f"coil_{layer}", "parent": "housing", "tau_s": tau,
                    "self_heat_c": 0.0}
-                  for layer, tau in zip(("inner", "outer"), catalogue.coil_taus(g),
+                  for layer, tau in zip(("inner", "outer"), catalogue.coil_taus(coil[0]),
                                         strict=True)]
     terms = [
         _sf_term("fitted board term", "board", coef["board_ppm_per_c"],
@@ -134,7 +138,10 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
         # the unseen self-heating transients of the internal nodes, exactly as fitted
         effects += [{"name": "warmup", "strength": coef[f"selfheat{i}_ppm"],
                      "params": {"tau_s": tau}} for i, tau in ((1, tau1), (2, tau2))]
-    if cand is not None:
+    if cand is not None and cand.parts:  # several causes (forward selection)
+        for (c, gv), name in zip(cand.parts, cand.names(), strict=True):
+            effects.append(c.to_effect(coef[name], g if gv is None else gv))
+    elif cand is not None:
         effects.append(cand.to_effect(coef[cand.coef_name], g))
     return {
         "scenario": "diagnose",

@@ -57,7 +57,7 @@ def build(ctxs: list[RunContext], cand: Candidate | None,
         mats.append(np.vstack(per_run))
     names = design.base_names(any_on, ctxs[0].bias_on)
     if cand is not None:
-        names = names + [cand.coef_name]
+        names = names + cand.names()
     return Stack(combos, np.stack(mats), names, cand)
 
 

@@ -6,7 +6,13 @@ extended_model. Added (documented, never replacing the contract's): base.heldout
 base.noise_floor_ppm, base.params, base.drivers, base.correlations; per candidate
 identifiable / significant / p_value / blocks_better / blocks; ambiguous (names that the
 logs cannot tell apart); structure (whiteness and excess variance of the chosen model's
-held-out residual); simulation (distance of the base and extended simulations to the logs).
+held-out residual, and remaining_pct: the share of the base's excess variance left);
+causes (every significant cause in the order forward selection found them, `cause` its
+first); per candidate confounded_with / separating_run (what it cannot be told from on
+these logs, "base" included, and the run that would) and added_gain_pct (its held-out gain
+over the causes before it); base.model_floor_ppm (added in quadrature to every window's
+noise, see verdict.model_floor); simulation (distance of the base and extended simulations
+to the logs).
 """
 
 from __future__ import annotations
@@ -63,6 +69,9 @@ def to_json(d: Diagnosis, extended_model: dict[str, Any],
             "p_value": c.p_value,
             "blocks_better": c.blocks_better,
             "blocks": c.blocks,
+            "confounded_with": c.confounded_with,
+            "separating_run": c.separating_run,
+            "added_gain_pct": c.added_gain_pct,
         })
     out = {
         "base": {
@@ -70,6 +79,7 @@ def to_json(d: Diagnosis, extended_model: dict[str, Any],
             "whiteness_p": d.base_whiteness_p,
             "heldout_rms_ppm": float(np.sqrt(np.mean(d.base.heldout**2))),
             "noise_floor_ppm": d.noise_floor_ppm,
+            "model_floor_ppm": d.model_floor_ppm,
             "window_s": d.window_s,
             "windows": int(d.y.shape[0]),
             "cv": d.cv_mode,
@@ -79,6 +89,7 @@ def to_json(d: Diagnosis, extended_model: dict[str, Any],
         },
         "candidates": cands,
         "cause": d.cause,
+        "causes": d.causes,
         "unexplained": d.unexplained,
         "extended_model": extended_model,
         "ambiguous": d.ambiguous,
@@ -100,14 +111,25 @@ def summary_text(j: dict[str, Any]) -> str:
                      f"{c['heldout_rms_after_ppm']:7.2f} {c['gain_pct']:6.1f}  {c['evidence']}")
     cause = j["cause"]
     if cause:
-        c = next(x for x in j["candidates"] if x["effect"] == cause)
-        ps = ", ".join(_fmt_param(k, v, c["params"].get(k + "_ci95"))
-                       for k, v in c["params"].items() if not k.endswith("_ci95"))
-        lines.append(f"cause: {cause} ({ps}; 95% intervals) held-out RMS "
-                     f"{c['heldout_rms_before_ppm']:.2f} -> {c['heldout_rms_after_ppm']:.2f} "
-                     f"ppm, gain {c['gain_pct']:.1f}%")
+        for i, name in enumerate(j.get("causes") or [cause]):
+            c = next(x for x in j["candidates"] if x["effect"] == name)
+            ps = ", ".join(_fmt_param(k, v, c["params"].get(k + "_ci95"))
+                           for k, v in c["params"].items() if not k.endswith("_ci95"))
+            gain = (f"held-out RMS {c['heldout_rms_before_ppm']:.2f} -> "
+                    f"{c['heldout_rms_after_ppm']:.2f} ppm, gain {c['gain_pct']:.1f}%"
+                    if i == 0 else
+                    f"held-out gain {c['added_gain_pct']:.1f}% over the causes before it")
+            lines.append(f"{'cause' if i == 0 else 'and cause'}: {name} ({ps}; 95% intervals) "
+                         f"{gain}")
+        if j["unexplained"]:
+            lines.append(f"cause: {' + '.join(j.get('causes') or [cause])}; "
+                         f"{j['structure'].get('remaining_pct', 0.0):.0f}% of the structure "
+                         "remains: unexplained beyond it")
     elif j["ambiguous"]:
-        lines.append("cause: none named; ambiguous between " + ", ".join(j["ambiguous"]))
+        c = next(x for x in j["candidates"] if x["effect"] == j["ambiguous"][0])
+        lines.append("cause: none named; confounded: " + ", ".join(j["ambiguous"])
+                     + (f" (the run that would separate them: {c['separating_run']})"
+                        if c.get("separating_run") else ""))
     else:
         lines.append("cause: none")
     lines.append(f"unexplained structure: {'yes' if j['unexplained'] else 'no'} (held-out "

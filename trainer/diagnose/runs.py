@@ -59,6 +59,14 @@ def pooled_sigma(win: SFWindows) -> np.ndarray:
 
 def load_run(log: ChamberLog, window_s: float, latitude_deg: float | None,
              min_windows: int = 12) -> Run:
+    for col, x in (("time_s", log.time_s), ("temp_c", log.temp_c),
+                   ("table_rate_dps", log.table_rate_dps), ("gyro_dps", log.gyro_dps),
+                   *((k, v) for k, v in log.extra.items() if k == "chamber_c")):
+        bad = np.flatnonzero(~np.isfinite(np.asarray(x, dtype=np.float64)))
+        if bad.size:
+            raise UserError(f"{log.path}: column {col!r} has {bad.size} NaN/Inf cells (first at "
+                            f"sample {int(bad[0])}); diagnose needs every cell: cut the log "
+                            "before them or fill them")
     win = sf_windows(log, window_s, latitude_deg)
     if len(win) < min_windows:
         raise UserError(f"{log.path}: only {len(win)} windows of {window_s:g} s; diagnose needs "

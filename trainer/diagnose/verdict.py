@@ -59,6 +59,33 @@ SOAK_RATE_C_PER_MIN = 0.02  # slower than this (driver, 5-min average) is a soak
 RAMP_MIN_C = 5.0  # a soak counts when the driver moved at least this much before it
 Z95 = 1.959964
 TRIM = 0.95
+MODEL_FLOOR_FRAC = 0.02  # see model_floor (dev gyros 0-39, mixed-rate nulls)
+MIN_DZ2 = 0.05  # held-out gain rule: mean drop of (e/sigma)^2 per window, in noise variances
+WHITE_EXCESS = 1.5  # non-whiteness counts as structure only above this excess variance
+DOMINANT_SHARE = 0.8  # a cause is named with structure remaining if it explains this much
+MAX_CAUSES = 3
+# the run that would separate a candidate from the base model when it is not identifiable
+SEPARATING_RUN = {
+    "rate_nonlinearity": "a second |table rate| (three or more to tell linear from quadratic)",
+    "asymmetry": "a second |table rate|, each with both signs",
+    "bias_drift": "a second |table rate| or both signs of the rate",
+    "aging": "a soak of at least 3 h at constant temperature, or the first temperature "
+             "repeated at the log's end",
+    "temp_rate": "a temperature step followed by a soak of at least 45 min",
+    "extra_lag": "a soak of at least 45 min after a ramp of 5 C or more",
+    "warmup": "a log that starts at power-on (or --start power-on if it does)",
+}
+# ... and from another candidate
+SEPARATES = {
+    frozenset(("temp_rate", "extra_lag")): "a soak of at least 45 min after a ramp of 5 C "
+                                           "or more",
+    frozenset(("warmup", "aging")): "a soak of at least 3 h at constant temperature",
+    frozenset(("asymmetry", "bias_drift")): "a second |table rate|, each with both signs",
+    frozenset(("rate_nonlinearity", "bias_drift")): "a third |table rate|",
+    frozenset(("aging", "extra_lag")): "a soak of at least 3 h at constant temperature",
+}
+SEPARATES_DEFAULT = ("a longer log with soaks at two temperatures, a power-on start and a "
+                     "second |table rate|")
 BATCH_WINDOWS = 10  # batch means for the residual's long-run variance (sse_scale)
 
 
@@ -100,6 +127,9 @@ class CandidateResult:
     evidence: str = ""
     model: ModelFit | None = None
     effect: dict | None = None  # simulator effect entry
+    confounded_with: list[str] = field(default_factory=list)  # "base" or candidate names
+    separating_run: str = ""  # the run that would separate it from them
+    added_gain_pct: float = 0.0  # forward selection: held-out gain over the causes before it
 
 
 @dataclass
@@ -123,10 +153,149 @@ class Diagnosis:
     extended: ModelFit  # base + cause (the base when there is no cause)
     cv_mode: str
     window_s: float
+    causes: list[str] = field(default_factory=list)  # forward selection, `cause` first
+    model_floor_ppm: float = 0.0
 
     @property
     def noise_floor_ppm(self) -> float:
         return float(np.sqrt(np.mean(self.sigma**2)))
+
+
+MIXED_GYRO_RATIO = 3.0  # joint-fit RMS over the worst single-log fit's, in noise units
+MIXED_GYRO_MIN_CHI2 = 10.0
+
+
+def _one_gyro(ctxs: list[RunContext], y: np.ndarray, sigma_win: np.ndarray) -> None:
+    """Refuse logs that one gyro's base model cannot share: the base fitted to all logs at
+    once leaves a weighted RMS (noise units) above MIXED_GYRO_RATIO times the worst fit of
+    any log on its own, and above sqrt(MIXED_GYRO_MIN_CHI2). Two gyros differ by tens to
+    hundreds of ppm in their SF law; one gyro's logs agree to a few ppm."""
+    if len(ctxs) < 2:
+        return
+    w = 1.0 / sigma_win**2
+
+    def rms(sub: list[RunContext], yy: np.ndarray, ww: np.ndarray) -> float:
+        st = profile_ls.build(sub, None)
+        fit = profile_ls.solve(st, yy, ww, np.arange(yy.shape[0]))
+        return float(np.sqrt(np.mean((yy - profile_ls.predict(st, fit)) ** 2 * ww)))
+
+    joint = rms(ctxs, y, w)
+    edges = np.cumsum([0] + [len(c.run) for c in ctxs])
+    single = max(rms([c], y[a:b], w[a:b])
+                 for c, a, b in zip(ctxs, edges[:-1], edges[1:], strict=True))
+    if joint > MIXED_GYRO_RATIO * single and joint**2 > MIXED_GYRO_MIN_CHI2:
+        raise UserError(f"the logs do not look like one gyro: one base model fitted to all "
+                        f"leaves {joint:.1f}x the noise, each log alone at most {single:.1f}x; "
+                        "diagnose one gyro's logs at a time (give only that gyro's LOG.CSV "
+                        "files)")
+
+
+def model_floor(ctxs: list[RunContext], y: np.ndarray, sigma_win: np.ndarray) -> float:
+    """The base model's resolution (ppm): MODEL_FLOOR_FRAC of the RMS of its fitted thermal
+    SF. The base (two nodes, quadratic laws) approximates a gyro with several nodes and
+    cubic laws to a fraction of its thermal swing; at a high |table rate| the window noise
+    (about 1/|rate|) falls below that, and the approximation would read as structure. It is
+    added in quadrature to every window's noise."""
+    st = profile_ls.build(ctxs, None)
+    fit = profile_ls.solve(st, y, 1.0 / sigma_win**2, np.arange(y.shape[0]))
+    pred = profile_ls.predict(st, fit)
+    return MODEL_FLOOR_FRAC * float(np.std(pred))
+
+
+def _significant(p: float, d: np.ndarray, n: int) -> bool:
+    """The held-out gain rule: better on held-out blocks (paired sign-flip p < ALPHA) and the
+    held-out weighted SSE lower by at least MIN_DZ2 noise variances per window on average.
+    It scales with the noise: a gain of a few % of RMS counts when the residual is near the
+    noise, and a big residual needs a gain that is big in noise units."""
+    return p < ALPHA and float(np.sum(d)) / max(n, 1) >= MIN_DZ2
+
+
+def _structure_remains(st: dict[str, float]) -> bool:
+    return bool(st["excess_variance"] > STRUCTURE_EXCESS
+                or (st["whiteness_p"] < STRUCTURE_P and st["excess_variance"] > WHITE_EXCESS))
+
+
+def _remaining_share(base_st: dict[str, float], st: dict[str, float]) -> float:
+    """Share of the base's excess held-out variance (above the noise) left after a model."""
+    e0 = base_st["excess_variance"] - 1.0
+    if e0 <= 0.0:
+        return 0.0
+    return float(np.clip((st["excess_variance"] - 1.0) / e0, 0.0, 1.0))
+
+
+def _adds_to(ctxs: list[RunContext], best: CandidateResult, other: CandidateResult,
+             y: np.ndarray, w: np.ndarray, folds: np.ndarray, blocks: np.ndarray) -> bool:
+    """Does `other` on top of `best` beat `best` alone on held-out blocks? (then the two are
+    two effects, not one effect two ways)."""
+    assert best.model is not None
+    try:
+        comb = catalogue.combine([(catalogue.CATALOGUE[best.name], best.model.combo[1])],
+                                 catalogue.CATALOGUE[other.name])
+    except ValueError:
+        return False
+    m = fit_model(ctxs, comb, y, w, folds)
+    d = _block_sums((best.model.heldout**2 - m.heldout**2) * w, blocks)
+    return _significant(stats.sign_flip_p(d), d, y.shape[0])
+
+
+def _beats_third_node(ctxs: list[RunContext], chosen: list[tuple[Candidate, GridValue]],
+                      m: ModelFit, y: np.ndarray, w: np.ndarray, folds: np.ndarray,
+                      blocks: np.ndarray) -> bool:
+    """Does `m` beat the causes so far plus a third base node, on held-out blocks?"""
+    ref = fit_model(ctxs, catalogue.combine(chosen, catalogue.EXTRA_NODE), y, w, folds)
+    d = _block_sums((ref.heldout**2 - m.heldout**2) * w, blocks)
+    return stats.sign_flip_p(d) < ALPHA
+
+
+def _forward_select(first_c: CandidateResult, pool: list[CandidateResult],
+                    ctxs: list[RunContext], y: np.ndarray, w: np.ndarray, folds: np.ndarray,
+                    blocks: np.ndarray) -> tuple[list[CandidateResult], ModelFit]:
+    """The causes in the order found: the best significant candidate, then each further one
+    of `pool` (identifiable candidates; a second effect can be hidden behind the first when
+    each is scored on the base alone) only when, added to the model with the ones before it
+    (held at their chosen forms and time constants, its own profiled), it wins on held-out
+    blocks by the gain rule
+    (_significant). The combined model's coefficients replace the single fits'."""
+    assert first_c.model is not None
+    causes = [first_c]
+    model = first_c.model
+    chosen = [(catalogue.CATALOGUE[first_c.name], first_c.model.combo[1])]
+    rest = list(pool)
+    while rest and len(causes) < MAX_CAUSES:
+        best: tuple[CandidateResult, ModelFit, float] | None = None
+        for r in rest:
+            comb = catalogue.combine(chosen, catalogue.CATALOGUE[r.name])
+            m = fit_model(ctxs, comb, y, w, folds)
+            d = _block_sums((model.heldout**2 - m.heldout**2) * w, blocks)
+            p = stats.sign_flip_p(d)
+            if _significant(p, d, y.shape[0]) and (
+                    best is None or _weighted_rms(m.heldout) < _weighted_rms(best[1].heldout)
+            ) and (r.name not in catalogue.THIRD_NODE_CHECK
+                   or _beats_third_node(ctxs, chosen, m, y, w, folds, blocks)):
+                best = (r, m, p)
+        if best is None:
+            break
+        r, m, p = best
+        before, after = _weighted_rms(model.heldout), _weighted_rms(m.heldout)
+        r.added_gain_pct = 100.0 * (1.0 - after / before) if before > 0 else 0.0
+        if r.evidence.startswith("not significant:"):
+            r.evidence = "on the base alone not significant:" + r.evidence[16:]
+        r.evidence += (f"; added after {' + '.join(c.name for c in causes)}: held-out RMS "
+                       f"{before:.2f} -> {after:.2f} ppm (p={p:.2g}): a cause")
+        r.significant = True
+        causes.append(r)
+        chosen.append((catalogue.CATALOGUE[r.name], m.combo[1]))
+        rest.remove(r)
+        model = m
+    if len(causes) > 1:
+        assert model.stack.candidate is not None
+        for c, name in zip(causes, model.stack.candidate.names(), strict=True):
+            cand = catalogue.CATALOGUE[c.name]
+            coef, se = model.coef(name), model.coef_se(name)
+            c.params[cand.coef_name] = coef
+            c.params[f"{cand.coef_name}_ci95"] = [coef - Z95 * se, coef + Z95 * se]
+            c.evidence += (f"; with the other causes: {cand.coef_name} = {coef:.4g}")
+    return causes, model
 
 
 def _weighted_rms(e: np.ndarray) -> float:
@@ -358,6 +527,9 @@ def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
     ci = [coef - Z95 * se, coef + Z95 * se]
     g = m.combo[1]
     out: dict[str, object] = {}
+    if cand.forms and cand.grid_name is not None:
+        return {cand.coef_name: coef, f"{cand.coef_name}_ci95": ci,
+                cand.grid_name: first(g)}
     if cand.grid_name is not None and g is not None and prof is not None and fine is not None:
         interval, accepted = prof
         lo, hi = _coef_range_over_profile(model, cand.coef_name, y, w, interval, accepted)
@@ -426,7 +598,10 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         drv = driver.identify(r.log.time_s, r.log.temp_c, r.log.extra.get("chamber_c"), start)
         ctxs.append(RunContext(r, drv, drv.power_on, bias_on))
     y = np.concatenate([r.y_ppm for r in rs])
-    sigma = np.concatenate([r.sigma_ppm for r in rs])
+    sigma_win = np.concatenate([r.sigma_ppm for r in rs])
+    _one_gyro(ctxs, y, sigma_win)
+    floor = model_floor(ctxs, y, sigma_win)
+    sigma = np.sqrt(sigma_win**2 + floor**2)
     w = 1.0 / sigma**2
     run_ids = np.concatenate([np.full(len(r), i) for i, r in enumerate(rs)])
     blocks = crossval.block_ids([len(r) for r in rs])
@@ -455,10 +630,14 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
     sig = sorted([c for c in results if c.significant], key=lambda c: c.heldout_after)
     soak_s = max(_longest_soak_after_ramp(c) for c in ctxs)
     sig, ambiguous = _nested_choice(sig, w, blocks, soak_s)
-    cause: str | None = None
     chosen = base
+    causes: list[CandidateResult] = []
     if ambiguous:
         chosen = sig[0].model or base
+        for c in (c for c in results if c.name in ambiguous):
+            c.confounded_with = [o for o in ambiguous if o != c.name]
+            c.separating_run = SEPARATES.get(frozenset(ambiguous[:2]), SEPARATES_DEFAULT)
+            c.evidence += f"; the run that would separate them: {c.separating_run}"
     elif sig:
         best = sig[0]
         assert best.model is not None
@@ -467,31 +646,57 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
             assert other.model is not None
             d = _block_sums((other.model.heldout**2 - best.model.heldout**2) * w, blocks)
             p = stats.sign_flip_p(d)
-            if p >= AMBIGUOUS_P:
+            if p >= AMBIGUOUS_P and not _adds_to(ctxs, best, other, y, w, folds, blocks):
                 ambiguous.append(other.name)
                 other.evidence += (f"; not separable from {best.name} on held-out blocks "
                                    f"(p={p:.2g})")
         if ambiguous:
             ambiguous.insert(0, best.name)
-            best.evidence += ("; ambiguous with " + ", ".join(ambiguous[1:]) +
-                              ": these logs cannot tell them apart (add a soak or step after "
-                              "a ramp, or several table rates)")
+            runs_needed = "; ".join(dict.fromkeys(
+                SEPARATES.get(frozenset((best.name, o)), SEPARATES_DEFAULT)
+                for o in ambiguous[1:]))
+            best.evidence += ("; confounded with " + ", ".join(ambiguous[1:]) +
+                              ": these logs cannot tell them apart; the run that would "
+                              f"separate them: {runs_needed}")
+            for o in (c for c in results if c.name in ambiguous[1:]):
+                o.confounded_with = [best.name]
+                o.separating_run = SEPARATES.get(frozenset((best.name, o.name)),
+                                                 SEPARATES_DEFAULT)
+            best.confounded_with = ambiguous[1:]
+            best.separating_run = runs_needed
         else:
-            cause = best.name
+            pool = [c for c in results if c is not best and c.identifiable and c.model
+                    is not None and (c.significant or c.name not in catalogue.NODE_LIKE)
+                    and c.name not in ambiguous]
+            causes, chosen = _forward_select(best, pool, ctxs, y, w, folds, blocks)
     structure = _structure(chosen.heldout, sigma,
                            [chosen.heldout[run_ids == i] / sigma[run_ids == i]
                             for i in range(len(rs))])
-    unexplained = (structure["whiteness_p"] < STRUCTURE_P
-                   or structure["excess_variance"] > STRUCTURE_EXCESS)
-    if unexplained and cause is not None:
-        best = sig[0]
-        best.evidence += ("; but structure remains after it (held-out residual "
-                          f"whiteness p={structure['whiteness_p']:.2g}, variance "
-                          f"{structure['excess_variance']:.2f}x the noise): not named with "
-                          "confidence")
-        cause = None
+    base_structure = _structure(base.heldout, sigma,
+                                [base.heldout[run_ids == i] / sigma[run_ids == i]
+                                 for i in range(len(rs))])
+    unexplained = _structure_remains(structure)
+    remains = _remaining_share(base_structure, structure)
+    structure["remaining_pct"] = 100.0 * remains
+    if unexplained and causes:
+        best = causes[0]
+        if remains <= 1.0 - DOMINANT_SHARE:
+            best.evidence += (f"; {100 * remains:.0f}% of the structure remains after "
+                              f"{' + '.join(c.name for c in causes)} (held-out whiteness "
+                              f"p={structure['whiteness_p']:.2g}, variance "
+                              f"{structure['excess_variance']:.2f}x the noise): unexplained "
+                              "beyond it")
+        else:
+            best.evidence += ("; but most of the structure remains after it "
+                              f"({100 * remains:.0f}% of the base's excess variance; "
+                              f"whiteness p={structure['whiteness_p']:.2g}, variance "
+                              f"{structure['excess_variance']:.2f}x the noise): not dominant, "
+                              "not named")
+            causes = []
+            chosen = base
+    cause = causes[0].name if causes else None
     extended = chosen if cause is not None else base
-    return Diagnosis(
+    return Diagnosis(causes=[c.name for c in causes], model_floor_ppm=floor,
         runs=rs, ctxs=ctxs, y=y, sigma=sigma, run_ids=run_ids, blocks=blocks, folds=folds,
         base=base, base_rms=base_rms, base_whiteness_p=stats.ljung_box_p(segs_in),
         correlations=correlations(ctxs, e_in), candidates=results, cause=cause,
@@ -501,13 +706,14 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
 
 def _against_extra_node(results: list[CandidateResult], ctxs: list[RunContext], y: np.ndarray,
                         w: np.ndarray, folds: np.ndarray, blocks: np.ndarray) -> None:
-    """A significant node-like candidate (catalogue.NODE_LIKE: a dT/dt term, an extra lag)
-    must also beat the base with a third node of its own kind on held-out blocks (p <
+    """A significant node-like candidate (catalogue.THIRD_NODE_CHECK: a dT/dt term, an extra
+    lag, and aging, a drift being what a missing slow node looks like over a log) must also
+    beat the base with a third node of its own kind on held-out blocks (p <
     ALPHA): otherwise what it explains is the base's node count, not the effect, and it is
     no longer significant. Both add one column, so the comparison is fair; a real dT/dt
     term or extra lag carries the housing running ahead of the board, which no node of the
     base's kind reproduces."""
-    todo = [c for c in results if c.significant and c.name in catalogue.NODE_LIKE]
+    todo = [c for c in results if c.significant and c.name in catalogue.THIRD_NODE_CHECK]
     if not todo:
         return
     ref = fit_model(ctxs, catalogue.EXTRA_NODE, y, w, folds)
@@ -609,23 +815,36 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
     if cand.needs_power_on and not any(c.power_on for c in ctxs):
         return CandidateResult(
             cand.name, False, 0.0, heldout_before=before, heldout_after=before,
+            confounded_with=["base"], separating_run=SEPARATING_RUN["warmup"],
             evidence="not identifiable from these logs: every run starts warm (no "
                      "self-heating rise of the board after a power-on), so there is no start-up "
                      "transient to see (pass --start power-on if the logs do begin at "
                      "power-on)")
+    if cand.name in catalogue.NODE_LIKE and all(c.driver.source == "board" for c in ctxs):
+        sep = "the chamber air logged (chamber_c), with " + SEPARATING_RUN[cand.name]
+        return CandidateResult(
+            cand.name, False, 0.0, heldout_before=before, heldout_after=before,
+            confounded_with=["base"], separating_run=sep,
+            evidence="not identifiable from these logs: no chamber air (chamber_c), so the "
+                     "housing running ahead of the board thermometer, which is all that "
+                     "tells this term from the base's nodes, cannot be seen; confounded "
+                     f"with the base model: the run that would separate them: {sep}")
     model = fit_model(ctxs, cand, y, w, folds)
     vis = visible_fraction(model, w)
     res = CandidateResult(cand.name, vis >= MIN_VISIBLE, vis, heldout_before=before)
     if not res.identifiable:
         res.heldout_after = before
+        res.confounded_with = ["base"]
+        res.separating_run = SEPARATING_RUN.get(cand.name, SEPARATES_DEFAULT)
         res.evidence = (f"not identifiable from these logs: {100 * (1 - vis):.1f}% of its "
                         "signature is absorbed by the base model (" + _why_hidden(cand.name)
-                        + ")")
+                        + "); confounded with the base model: the run that would separate them: "
+                        + res.separating_run)
         return res
     fine = None
     prof = None
     scale = 1.0
-    if cand.grid_name is not None:
+    if cand.grid_name is not None and not cand.forms:
         fine = _refine(ctxs, cand, model, y, w, folds)
         scale = sse_scale(fine, y, w, run_ids)
         (lo, hi), accepted = _profile_interval(model, fine, scale)
@@ -638,7 +857,7 @@ def _score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray
     res.p_value = stats.sign_flip_p(d)
     res.blocks = int(d.shape[0])
     res.blocks_better = int(np.sum(d > 0))
-    res.significant = res.p_value < ALPHA and res.gain_pct >= MIN_GAIN_PCT
+    res.significant = _significant(res.p_value, d, y.shape[0])
     res.model = fine or model
     res.params = _params(cand, model, fine, prof, y, w, scale)
     g = res.model.combo[1]

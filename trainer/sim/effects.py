@@ -99,20 +99,33 @@ def temp_rate(ctx: EffectContext, strength: float) -> EffectTerms:
     return _terms(ctx, sf_ppm=strength * rate_c_per_min)
 
 
-def rate_nonlinearity(ctx: EffectContext, strength: float,
-                      ref_rate_dps: float = 100.0) -> EffectTerms:
-    return _terms(ctx, sf_ppm=strength * np.abs(ctx.table_dps) / ref_rate_dps)
+def rate_nonlinearity(ctx: EffectContext, strength: float, ref_rate_dps: float = 100.0,
+                      exponent: float = 1.0) -> EffectTerms:
+    return _terms(ctx, sf_ppm=strength * (np.abs(ctx.table_dps) / ref_rate_dps) ** exponent)
 
 
 def asymmetry(ctx: EffectContext, strength: float) -> EffectTerms:
     return _terms(ctx, sf_ppm=0.5 * strength * np.sign(ctx.table_dps))
 
 
-def bias_drift(ctx: EffectContext, strength: float, ref_c: float = 20.0) -> EffectTerms:
-    return _terms(ctx, bias_dps=strength * (ctx.nodes[ctx.board_node] - ref_c) / 3600.0)
+def bias_drift(ctx: EffectContext, strength: float, ref_c: float = 20.0,
+               node_tau_s: float = 0.0) -> EffectTerms:
+    """On the board (node_tau_s 0), or on an internal node lagging the housing by node_tau_s."""
+    if node_tau_s > 0.0:
+        h = ctx.housing_c()
+        temp = first_order_lag(h, node_tau_s, ctx.dt_s, float(h[0]))
+    else:
+        temp = ctx.nodes[ctx.board_node]
+    return _terms(ctx, bias_dps=strength * (temp - ref_c) / 3600.0)
 
 
-def aging(ctx: EffectContext, strength: float) -> EffectTerms:
+def aging(ctx: EffectContext, strength: float, settle_tau_s: float = 0.0) -> EffectTerms:
+    """Linear (settle_tau_s 0), or settling: STRENGTH * tau/3600 * (1 - exp(-t/tau)), the
+    same initial slope in ppm/h."""
+    if settle_tau_s > 0.0:
+        t = ctx.t_s - float(ctx.t_s[0])
+        return _terms(ctx, sf_ppm=strength * settle_tau_s / 3600.0
+                      * (1.0 - np.exp(-t / settle_tau_s)))
     return _terms(ctx, sf_ppm=strength * ctx.t_s / 3600.0)
 
 
@@ -138,15 +151,18 @@ EFFECTS: dict[str, EffectInfo] = {e.name: e for e in [
                "(radial gradient in the winding); flips sign between up and down ramps",
                temp_rate, {}, 30.0),
     EffectInfo("rate_nonlinearity", "ppm at ref_rate_dps", "SF grows with |rate|: "
-               "STRENGTH * |rate| / ref_rate_dps (closed-loop reset / 2pi-gain errors)",
-               rate_nonlinearity, {"ref_rate_dps": 100.0}, 200.0),
+               "STRENGTH * (|rate| / ref_rate_dps)^exponent (closed-loop reset / 2pi-gain "
+               "errors)", rate_nonlinearity, {"ref_rate_dps": 100.0, "exponent": 1.0}, 200.0),
     EffectInfo("asymmetry", "ppm", "SF(+rate) - SF(-rate), the same at every |rate| "
                "(polarity-dependent feedback electronics)", asymmetry, {}, 100.0),
     EffectInfo("bias_drift", "deg/h/C", "bias following the board temperature, "
-               "STRENGTH * (T_board - ref_c); leaks into the apparent SF as bias/rate",
-               bias_drift, {"ref_c": 20.0}, 0.05),
+               "STRENGTH * (T - ref_c), T the board's or (node_tau_s > 0) an internal node "
+               "lagging the housing by node_tau_s; leaks into the apparent SF as bias/rate",
+               bias_drift, {"ref_c": 20.0, "node_tau_s": 0.0}, 0.05),
     EffectInfo("aging", "ppm/h", "SF drift with elapsed time at any temperature "
-               "(source ageing, fiber/potting relaxation)", aging, {}, 20.0),
+               "(source ageing, fiber/potting relaxation); linear, or settling with "
+               "settle_tau_s > 0 (initial slope STRENGTH)", aging, {"settle_tau_s": 0.0},
+               20.0),
 ]}
 
 
@@ -169,6 +185,8 @@ def check_effect(e: EffectConfig) -> None:
             raise UserError(f"effect {e.name}: parameter {k} must be a finite number")
     if e.name == "warmup" and e.params.get("tau_s", 1.0) <= 0:
         raise UserError("effect warmup: tau_s must be > 0")
+    if any(e.params.get(k, 0.0) < 0 for k in ("node_tau_s", "settle_tau_s", "exponent")):
+        raise UserError(f"effect {e.name}: node_tau_s, settle_tau_s and exponent must be >= 0")
     if e.name == "rate_nonlinearity" and e.params.get("ref_rate_dps", 1.0) <= 0:
         raise UserError("effect rate_nonlinearity: ref_rate_dps must be > 0")
 
