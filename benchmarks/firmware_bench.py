@@ -117,7 +117,8 @@ def bench_model(name: str, model: st.StreamModel, note: str, root: Path, steps: 
         row.update(flash_bytes=None, ram_bytes=None, instructions_per_step=None)
         return row
     build = build_kernel(model, root=root / "host")
-    arm = build_arm(build.directory, None, root / "m4f" / model.model_id)
+    arm = build_arm(build.directory, None, root / "m4f" / model.model_id,
+                    defines=build.defines)
     size = arm_size(arm, model)
     worst, mean = instructions(arm.bench_elf, model.decimation)
     row.update(flash_bytes=size.flash_bytes, ram_bytes=size.ram_bytes,

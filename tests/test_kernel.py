@@ -120,7 +120,7 @@ def test_streaming_equals_whole_log_and_runs_repeat_bit_for_bit(kroot) -> None:
     b = kernel.run(temp, gyro)
     state = kernel.new_state()
     kernel.run(temp[:777], gyro[:777], st=state)
-    kernel.lib.fogsf_reset(state)
+    kernel.lib.fogsf_reset(kernel.m, state)
     c = kernel.run(temp, gyro, st=state)  # reset really starts over
     for x, y in ((a, b), (b, c), (b, kernel.run(temp, gyro))):
         for u, v in zip(x, y, strict=True):
