@@ -121,3 +121,16 @@ def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
     proc = subprocess.run(["cmake", "-S", str(tmp_path / "app"), "-B", str(tmp_path / "c")],
                           capture_output=True, text=True)
     assert proc.returncode != 0 and "no big_one.h/.c" in proc.stderr, proc.stderr
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None, reason=f"{arm_tools_missing()}")
+def test_three_small_models_in_one_image_meet_the_size_target(tmp_path) -> None:
+    """make bench's image rows: three 1x16 poly-head models <= 24 KB flash, <= 1.5 KB RAM;
+    the three-model image costs more than the one-model image (the figures are measured)."""
+    from benchmarks.firmware_bench import IMAGE_TARGET, bench_image, small_poly_models
+    one = bench_image(small_poly_models(1), tmp_path)
+    three = bench_image(small_poly_models(3), tmp_path)
+    assert three["flash_bytes"] <= IMAGE_TARGET["flash_bytes"], three
+    assert three["ram_bytes"] <= IMAGE_TARGET["ram_bytes"], three
+    assert three["flash_bytes"] > one["flash_bytes"] and three["ram_bytes"] > one["ram_bytes"]
+    assert three["instructions_per_sample_worst"] > 2 * one["instructions_per_sample_worst"]
