@@ -13,7 +13,7 @@ help:
 	@echo "make test      create .venv and run the whole test suite"
 	@echo "make firmware  build the C kernel (host library; Cortex-M4F image + size if arm-none-eabi-gcc exists)"
 	@echo "make export    export the demo model to ONNX and C headers"
-	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang (root only)"
+	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang, cmake (root only)"
 	@echo "make bench     speed / size benchmarks (one and three models per image) -> out/bench.json"
 	@echo "make fuzz      libFuzzer + ASan + UBSan over the kernel until FUZZ_STEPS (1e7) steps"
 	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
