@@ -6,15 +6,16 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench bench-diagnose bench-transfer bench-population bench-plan paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
 	@echo "make test      create .venv and run the whole test suite"
 	@echo "make firmware  build the C kernel (host library; Cortex-M4F image + size if arm-none-eabi-gcc exists)"
 	@echo "make export    export the demo model to ONNX and C headers"
-	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang (root only)"
-	@echo "make bench     speed / size benchmarks -> out/bench.json"
+	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang, cmake (root only)"
+	@echo "make bench     speed / size benchmarks (one and three models per image) -> out/bench.json"
+	@echo "make fuzz      libFuzzer + ASan + UBSan over the kernel until FUZZ_STEPS (1e7) steps"
 	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
 	@echo "make bench-transfer  one ramp rate vs two, over seeds -> out/bench-transfer.json"
 	@echo "make bench-diagnose  diagnose success rate over planted effects -> out/bench-diagnose.json"
@@ -53,6 +54,9 @@ export: $(STAMP)
 
 bench: $(STAMP)
 	bash scripts/bench.sh $(OUT)
+
+fuzz: $(STAMP)
+	bash scripts/fuzz.sh build/fuzz
 
 # --- paper protocol: owned by the trainer work (issue 3) ---
 paper: $(STAMP)

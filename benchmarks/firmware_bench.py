@@ -10,7 +10,13 @@ plus the mean per sample over a decimation period.
 Until trained models exist the models are seeded random weights of the trainer's sizes (the
 paper's 2x200 LSTM on T and dT/dt, and the 1x16 lag-lstm on one lag-filtered temperature,
 D=50); `--model NAME=DIR`
-adds trained artifacts. Writes out/bench.json.
+adds trained artifacts.
+
+Images: one and three small models (1x16 LSTM with the polynomial head, seeded random weights)
+linked into one Cortex-M4F image through the model-as-data API (`fogsf export --name`), with
+its flash, RAM (one state per model, sized for the largest, + the step's stack bound) and the
+instructions of the worst sample stepping every model; the target for three is <= 24 KB flash
+and <= 1.5 KB RAM. Writes out/bench.json.
 """
 
 from __future__ import annotations
@@ -26,12 +32,45 @@ from pathlib import Path
 import numpy as np
 
 from bindings.firmware import arm_size, arm_tools_missing, build_arm, qemu_cmd
-from bindings.kernel import Kernel, build_kernel
+from bindings.kernel import Kernel, build_kernel, state_sizes
+from export.header import write_model
 from export.onnx_step import OrtStepper, build_step_onnx
 from trainer import stream as st
 from trainer.errors import UserError
 
 TARGET = {"flash_bytes": 32 * 1024, "ram_bytes": 2 * 1024, "instructions_per_step": 50_000}
+IMAGE_TARGET = {"flash_bytes": 24 * 1024, "ram_bytes": 1536}  # three small models, one image
+AXES = ("imu_x", "imu_y", "imu_z")
+
+
+def small_poly_models(n: int) -> list[st.StreamModel]:
+    """n 1x16 LSTM models with the polynomial head (seeded random weights), one per gyro."""
+    return [st.random_model(1, 1, 1, 16, decimation=50, seed=300 + a, poly_head=True)
+            for a in range(n)]
+
+
+def bench_image(models: list[st.StreamModel], root: Path) -> dict:
+    """Flash, RAM and instructions of one Cortex-M4F image stepping all `models`."""
+    names = AXES[:len(models)]
+    gen = root / f"image{len(models)}" / "models"
+    for name, model in zip(names, models, strict=True):
+        write_model(model, gen, name)
+    sizes: dict[str, int] = {}
+    for model in models:
+        for k, v in state_sizes(model).items():
+            sizes[k] = max(sizes.get(k, 0), v)
+    arm = build_arm(gen, None, root / f"image{len(models)}" / "m4f", names,
+                    tuple(f"-D{k}={v}" for k, v in sizes.items()))
+    size = arm_size(arm, models)
+    worst, mean = instructions(arm.bench_elf, models[0].decimation)
+    row = {"name": f"{len(models)}x small-lstm-1x16-poly in one image", "models": len(models),
+           "params": sum(m.params for m in models), "flash_bytes": size.flash_bytes,
+           "ram_bytes": size.ram_bytes,  # data + bss (all the states) + stack bound
+           "kernel_flash_bytes": size.kernel_flash_bytes, "state_bytes": size.state_bytes,
+           "stack_bytes": size.stack_bytes, "instructions_per_sample_worst": worst,
+           "instructions_per_sample_mean": mean}
+    row["meets_target"] = all(row[k] <= v for k, v in IMAGE_TARGET.items())
+    return row
 
 
 def random_models() -> list[tuple[str, st.StreamModel, str]]:
@@ -117,7 +156,8 @@ def bench_model(name: str, model: st.StreamModel, note: str, root: Path, steps: 
         row.update(flash_bytes=None, ram_bytes=None, instructions_per_step=None)
         return row
     build = build_kernel(model, root=root / "host")
-    arm = build_arm(build.directory, None, root / "m4f" / model.model_id)
+    arm = build_arm(build.directory, None, root / "m4f" / model.model_id,
+                    defines=build.defines)
     size = arm_size(arm, model)
     worst, mean = instructions(arm.bench_elf, model.decimation)
     row.update(flash_bytes=size.flash_bytes, ram_bytes=size.ram_bytes,
@@ -146,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
             models.append((name, st.StreamModel.load(path), f"trained artifact {path}"))
         rows = [bench_model(n, m, note, args.build.resolve(), args.steps)
                 for n, m, note in models]
+        images = [] if arm_tools_missing() else [
+            bench_image(small_poly_models(n), args.build.resolve()) for n in (1, 3)]
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)
         return 2
@@ -162,9 +204,19 @@ def main(argv: list[str] | None = None) -> int:
                          for r in rows)
     print("target (deployable): flash < 32768 B, RAM < 2048 B, < 50000 instructions per "
           f"10 Hz step; {verdicts}")
+    print(f"\n{'image (Cortex-M4F, -O2)':40s} {'flash B':>8s} {'RAM B':>7s} "
+          f"{'instr/sample worst':>19s} {'(mean)':>8s}")
+    for r in images:
+        print(f"{r['name']:40s} {r['flash_bytes']:8d} {r['ram_bytes']:7d} "
+              f"{r['instructions_per_sample_worst']:19d} {r['instructions_per_sample_mean']:8.0f}")
+    if images:
+        print(f"target (three models): flash <= {IMAGE_TARGET['flash_bytes']} B, RAM <= "
+              f"{IMAGE_TARGET['ram_bytes']} B; "
+              f"{'meets' if images[-1]['meets_target'] else 'misses'}")
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "bench.json"
-    path.write_text(json.dumps({"models": rows, "target": TARGET,
+    path.write_text(json.dumps({"models": rows, "target": TARGET, "images": images,
+                                "image_target": IMAGE_TARGET,
                                 "notes": "host_ns/ort_ns per model step (1 thread); "
                                          "instructions_per_step = Cortex-M4F instructions of "
                                          "the worst 10 Hz sample (the one running the model "

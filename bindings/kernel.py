@@ -1,9 +1,10 @@
 """Compile the C kernel for one model and drive it from Python through cffi (ABI mode).
 
-`build_kernel(model)` exports the model's header and compiles firmware/c into a folder keyed
-by the model id and a hash of the kernel sources and flags (so an edit rebuilds, a rerun does
-not): `libfogsf.so` for cffi and `libfogsf.a` for firmware builds. `Kernel` loads the shared
-library and offers the per-sample step, the whole-log function and the building blocks.
+`build_kernel(model)` exports the model as C (`bound_model.h/.c`, symbol `bound_model`) and
+compiles firmware/c with the state sized for exactly this model (FOGSF_MAX_* = its sizes) into
+a folder keyed by the model id and a hash of the kernel sources and flags (so an edit rebuilds,
+a rerun does not): `libfogsf.so` for cffi and `libfogsf.a` for firmware builds. `Kernel` loads
+the shared library and offers the per-sample step, the whole-log function and the building blocks.
 """
 
 from __future__ import annotations
@@ -74,10 +75,26 @@ class KernelBuild:
     shared: Path
     static: Path
     model_id: str
+    defines: tuple[str, ...] = ()  # the FOGSF_MAX_* flags the state was sized with
+
+
+BOUND_NAME = "bound_model"  # the C name of the model in a bindings build
+
+
+def max_defines(model: StreamModel) -> tuple[str, ...]:
+    """-D flags sizing fogsf_state for exactly this model."""
+    sizes = state_sizes(model)
+    return tuple(f"-D{k}={v}" for k, v in sizes.items())
+
+
+def state_sizes(model: StreamModel) -> dict[str, int]:
+    return {"FOGSF_MAX_LAYERS": model.layers, "FOGSF_MAX_HIDDEN": model.hidden,
+            "FOGSF_MAX_FEATURES": model.n_features,
+            "FOGSF_MAX_FILTERS": max(model.n_filters, 1)}
 
 
 def _source_hash(header: str, extra: tuple[str, ...]) -> str:
-    """Kernel sources, the generated header (so a template change rebuilds) and the flags."""
+    """Kernel sources, the generated model (so a template change rebuilds) and the flags."""
     h = hashlib.sha256(header.encode())
     for name in SOURCES + HEADERS:
         h.update((C_DIR / name).read_bytes())
@@ -94,19 +111,20 @@ def _run(cmd: list[str], where: Path) -> None:
 
 def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "gcc",
                  opt: str = "-O2", sanitize: bool = False) -> KernelBuild:
-    """Export the header and compile the kernel (cached by model id + sources + flags)."""
-    from export.header import render_header
+    """Export the model as C and compile the kernel (cached by model id + sources + flags)."""
+    from export.header import render_model
 
     if shutil.which(cc) is None:
         raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
-    flags = (*STRICT, opt, "-fPIC", *(SANITIZE if sanitize else ()))
-    header = render_header(model)
+    flags = (*STRICT, opt, "-fPIC", *max_defines(model), *(SANITIZE if sanitize else ()))
+    files = render_model(model, BOUND_NAME)
+    header = "".join(files.values())
     key = f"{model.model_id}-{cc}-{_source_hash(header, flags)}" + ("-san" if sanitize else "")
     out = Path(root) if root is not None else default_build_root()
     out = (out / key).resolve()
     shared, static = out / "libfogsf.so", out / "libfogsf.a"
     if shared.is_file() and static.is_file():
-        return KernelBuild(out, shared, static, model.model_id)
+        return KernelBuild(out, shared, static, model.model_id, max_defines(model))
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=out.parent))
@@ -118,11 +136,12 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
         # built in a private folder and renamed into place: concurrent runs of one model
         # (the user cache is shared) never compile into the same files, and a reader finds
         # the whole folder or none of it
-        (work / "fogsf_model.h").write_text(header)
+        for file_name, text in files.items():
+            (work / file_name).write_text(text)
         objs = []
-        for src in SOURCES:
-            obj = work / (Path(src).stem + ".o")
-            _run([cc, *flags, "-I", str(work), "-I", str(C_DIR), "-c", str(C_DIR / src),
+        for src in [C_DIR / name for name in SOURCES] + [work / f"{BOUND_NAME}.c"]:
+            obj = work / (src.stem + ".o")
+            _run([cc, *flags, "-I", str(work), "-I", str(C_DIR), "-c", str(src),
                   "-o", str(obj)], work)
             objs.append(str(obj))
         _run([cc, "-shared", *(SANITIZE if sanitize else ()), "-o", str(work / shared.name),
@@ -137,24 +156,24 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
                 raise
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return KernelBuild(out, shared, static, model.model_id)
+    return KernelBuild(out, shared, static, model.model_id, max_defines(model))
 
 
 def cdef(model: StreamModel) -> str:
     """The cffi declarations of fogsf.h for this model's sizes: the header's declarations
     (between its extern "C" guards) without comments and preprocessor lines, with the
-    model's size macros replaced by their values, so there is one statement of the API."""
+    state's size macros replaced by this model's sizes, so there is one statement of the API;
+    plus the bound model's symbol."""
     text = (C_DIR / "fogsf.h").read_text()
     body = text.split('extern "C" {\n#endif\n', 1)[1].split("#ifdef __cplusplus\n}", 1)[0]
     body = re.sub(r"/\*.*?\*/", "", body, flags=re.DOTALL)
     body = "\n".join(line for line in body.splitlines() if not line.lstrip().startswith("#"))
-    sizes = {"FOGSF_LAYERS": model.layers, "FOGSF_HIDDEN": model.hidden,
-             "FOGSF_N_FEATURES": model.n_features,
-             "FOGSF_N_FILTERS_ALLOC": max(model.n_filters, 1)}
+    sizes = state_sizes(model)
     unknown = set(re.findall(r"\bFOGSF_[A-Z_0-9]+\b", body)) - set(sizes)
     if unknown:
         raise RuntimeError(f"fogsf.h declarations use macros cdef() does not know: {unknown}")
-    return re.sub(r"\bFOGSF_[A-Z_0-9]+\b", lambda m: str(sizes[m.group(0)]), body)
+    body = re.sub(r"\bFOGSF_[A-Z_0-9]+\b", lambda m: str(sizes[m.group(0)]), body)
+    return body + f"\nextern fogsf_model {BOUND_NAME};\n"  # cffi: a const is a constant
 
 
 class Kernel:
@@ -168,7 +187,8 @@ class Kernel:
         self.ffi = cffi.FFI()
         self.ffi.cdef(cdef(model))
         self.lib = self.ffi.dlopen(str(self.build.shared))
-        got = self.ffi.string(self.lib.fogsf_model_id()).decode()
+        self.m = self.ffi.addressof(self.lib, BOUND_NAME)
+        got = self.ffi.string(self.m.model_id).decode()
         if got != model.model_id:
             raise UserError(f"{self.build.shared}: kernel of model {got}, expected "
                             f"{model.model_id}: delete {self.build.directory} and rerun")
@@ -177,7 +197,8 @@ class Kernel:
 
     def new_state(self):  # noqa: ANN201 - a cffi cdata pointer
         st = self.ffi.new("fogsf_state *")
-        self.lib.fogsf_init(st)
+        if self.lib.fogsf_init(self.m, st) != 0:
+            raise UserError(f"{self.build.shared}: the model does not fit the kernel's state")
         return st
 
     def step(self, st, temp_c: float, gyro_dps: float) -> tuple[float, float, int]:  # noqa: ANN001
@@ -185,7 +206,7 @@ class Kernel:
         out = self.ffi.new("fogsf_output *")
         with np.errstate(over="ignore"):
             t = float(np.float32(temp_c))
-        self.lib.fogsf_step(st, t, float(gyro_dps), out)
+        self.lib.fogsf_step(self.m, st, t, float(gyro_dps), out)
         return out.corrected_dps, out.sf_ppm, out.flags
 
     def _inputs(self, temp_c: np.ndarray, gyro_dps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -204,7 +225,7 @@ class Kernel:
         corrected, sf, flags = _outputs(n)
         st = st if st is not None else self.new_state()
         fb = self.ffi.from_buffer
-        self.lib.fogsf_run(st, fb("float[]", t), fb("double[]", g), n,
+        self.lib.fogsf_run(self.m, st, fb("float[]", t), fb("double[]", g), n,
                            fb("double[]", corrected), fb("float[]", sf), fb("uint32_t[]", flags))
         return corrected, sf, flags
 
@@ -216,9 +237,9 @@ class Kernel:
         corrected, sf, flags = _outputs(n)
         st = self.new_state()
         out = self.ffi.new("fogsf_output *")
-        step = self.lib.fogsf_step
+        step, m = self.lib.fogsf_step, self.m
         for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
-            step(st, ti, gi, out)
+            step(m, st, ti, gi, out)
             corrected[i], sf[i], flags[i] = out.corrected_dps, out.sf_ppm, out.flags
         return corrected, sf, flags
 
@@ -263,7 +284,7 @@ def trace_steps(kernel: Kernel, temp_c: np.ndarray, gyro_dps: np.ndarray
     hbuf = np.frombuffer(ffi.buffer(st.h[model.layers - 1]), np.float32)
     m = 0
     for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
-        lib.fogsf_step(st, ti, gi, out)
+        lib.fogsf_step(kernel.m, st, ti, gi, out)
         if i % model.decimation == 0:
             z[m], h[m], sf[m] = zbuf, hbuf, out.sf_ppm
             m += 1

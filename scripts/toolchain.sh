@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
-# Install the Cortex-M4F cross toolchain, QEMU and clang (the kernel is checked with gcc
-# and clang) when missing (Debian, root only).
+# Install the Cortex-M4F cross toolchain, QEMU, clang (the kernel is checked with gcc and
+# clang; clang's libFuzzer runs make fuzz) and cmake (firmware/c/CMakeLists.txt, the imu3
+# example) when missing (Debian, root only).
 set -u
 need=()
 command -v arm-none-eabi-gcc >/dev/null 2>&1 || need+=(gcc-arm-none-eabi)
 [ -e /usr/lib/arm-none-eabi/newlib ] || [ -e /usr/lib/arm-none-eabi/lib ] || need+=(libnewlib-arm-none-eabi)
 command -v qemu-system-arm >/dev/null 2>&1 || need+=(qemu-system-arm)
 command -v clang >/dev/null 2>&1 || need+=(clang)
+command -v cmake >/dev/null 2>&1 || need+=(cmake)
 if [ ${#need[@]} -eq 0 ]; then
-    echo "toolchain: arm-none-eabi-gcc, qemu-system-arm and clang present"
+    echo "toolchain: arm-none-eabi-gcc, qemu-system-arm, clang and cmake present"
     exit 0
 fi
 if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then

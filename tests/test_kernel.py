@@ -120,7 +120,7 @@ def test_streaming_equals_whole_log_and_runs_repeat_bit_for_bit(kroot) -> None:
     b = kernel.run(temp, gyro)
     state = kernel.new_state()
     kernel.run(temp[:777], gyro[:777], st=state)
-    kernel.lib.fogsf_reset(state)
+    kernel.lib.fogsf_reset(kernel.m, state)
     c = kernel.run(temp, gyro, st=state)  # reset really starts over
     for x, y in ((a, b), (b, c), (b, kernel.run(temp, gyro))):
         for u, v in zip(x, y, strict=True):
@@ -198,3 +198,28 @@ def test_gcc_and_clang_builds_give_the_same_bits(kroot) -> None:
     b = kernel_for(model, kroot, "clang").run(temp, gyro)
     for u, v in zip(a, b, strict=True):
         assert u.tobytes() == v.tobytes()
+
+
+def test_an_unusable_model_gives_zero_and_only_the_model_flag(kroot) -> None:
+    """A model larger than the state (or NULL, or with D = 0) is refused by init and gives
+    corrected = 0, sf = 0 and MODEL_INVALID from step, without touching the state."""
+    model = st.random_model(2, 4, 1, 8, 10, seed=21)
+    kernel = kernel_for(model, kroot)
+    ffi, lib = kernel.ffi, kernel.lib
+    assert lib.fogsf_model_check(kernel.m) == 0
+    state = kernel.new_state()
+    out = ffi.new("fogsf_output *")
+    for field, value in (("hidden", model.hidden + 1), ("layers", 0), ("decimation", 0),
+                         ("n_features", model.n_features + 1)):
+        bad = ffi.new("fogsf_model *", kernel.m[0])
+        setattr(bad, field, value)
+        assert lib.fogsf_model_check(bad) == 32, field
+        assert lib.fogsf_init(bad, ffi.new("fogsf_state *")) == 32, field
+        before = bytes(ffi.buffer(state))
+        lib.fogsf_step(bad, state, 20.0, 10.0, out)
+        assert (out.corrected_dps, out.sf_ppm, out.flags) == (0.0, 0.0, 32), field
+        assert bytes(ffi.buffer(state)) == before, field
+    lib.fogsf_step(ffi.NULL, state, 20.0, 10.0, out)
+    assert out.flags == 32 and out.corrected_dps == 0.0
+    lib.fogsf_step(kernel.m, state, 20.0, 10.0, out)  # the good model still runs on it
+    assert out.flags == 0 and out.corrected_dps != 0.0

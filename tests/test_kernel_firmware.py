@@ -17,8 +17,8 @@ from bindings.firmware import (
     run_qemu,
     write_golden,
 )
-from bindings.kernel import C_DIR, STRICT, Kernel, build_kernel
-from export.header import render_header
+from bindings.kernel import C_DIR, STRICT, Kernel, build_kernel, max_defines
+from export.header import write_model
 from trainer import stream as st
 
 FIXTURE = "tests/fixtures/small_model"
@@ -74,20 +74,33 @@ def test_strict_flags_compile_every_shape(cc, size, tmp_path) -> None:
     k, f, layers, hidden, d, stuck, poly = size
     model = st.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck,
                             poly_head=poly)
-    (tmp_path / "fogsf_model.h").write_text(render_header(model))
-    for src in ("fogsf.c", "fogsf_cell.c"):
-        proc = subprocess.run([cc, *STRICT, "-Wvla", "-O2", "-I", str(tmp_path), "-I",
-                               str(C_DIR), "-c", str(C_DIR / src), "-o",
-                               str(tmp_path / f"{src}.o")],
+    write_model(model, tmp_path, "shape")
+    for src in (C_DIR / "fogsf.c", C_DIR / "fogsf_cell.c", tmp_path / "shape.c"):
+        proc = subprocess.run([cc, *STRICT, "-Wvla", "-O2", *max_defines(model), "-I",
+                               str(tmp_path), "-I", str(C_DIR), "-c", str(src), "-o",
+                               str(tmp_path / f"{src.name}.o")],
                               capture_output=True, text=True)
         assert proc.returncode == 0, proc.stderr
+
+
+def test_a_model_larger_than_the_state_does_not_compile(tmp_path) -> None:
+    """NAME.c refuses FOGSF_MAX_* smaller than its model (the state could not hold it)."""
+    model = st.random_model(2, 4, 1, 32, 10, seed=1)
+    write_model(model, tmp_path, "big")
+    cmd = [*STRICT, "-I", str(tmp_path), "-I", str(C_DIR), "-c", str(tmp_path / "big.c"),
+           "-o", str(tmp_path / "big.o")]
+    proc = subprocess.run(["gcc", *cmd], capture_output=True, text=True)
+    assert proc.returncode != 0 and "big_fits_state" in proc.stderr, proc.stderr
+    ok = subprocess.run(["gcc", "-DFOGSF_MAX_HIDDEN=32", *cmd], capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
 
 
 def test_kernel_objects_need_no_library(golden) -> None:
     """No malloc, no libm, no stdio: the host objects reference only each other (and at most
     memset/memcpy, which a compiler may emit for loops)."""
     _, build, _, _ = golden
-    objs = [str(build.directory / "fogsf.o"), str(build.directory / "fogsf_cell.o")]
+    objs = [str(build.directory / "fogsf.o"), str(build.directory / "fogsf_cell.o"),
+            str(build.directory / "bound_model.o")]
     out = subprocess.run(["nm", "-u", *objs], capture_output=True, text=True, check=True).stdout
     undefined = {line.split()[-1] for line in out.splitlines() if line.strip().startswith("U")}
     assert undefined <= {"fogsf_lstm_cell", "memset", "memcpy"}, undefined
@@ -97,7 +110,7 @@ def test_kernel_objects_need_no_library(golden) -> None:
                     reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
 def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
     model, build, golden_dir, root = golden
-    arm = build_arm(build.directory, golden_dir, root / "m4f")
+    arm = build_arm(build.directory, golden_dir, root / "m4f", defines=build.defines)
     ok, out = run_qemu(arm.golden_elf)
     assert ok, out
     assert f"model {model.model_id}" in out and "PASS: 12000 outputs bit-exact" in out, out
@@ -120,8 +133,8 @@ def test_cortex_m4f_two_layers_no_filters_no_stuck_check(poly, tmp_path) -> None
     model = st.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0,
                             poly_head=poly)
     build = build_kernel(model, root=tmp_path / "host")
-    assert ("#define FOGSF_POLY_HEAD 1" in (build.directory / "fogsf_model.h").read_text()) == poly
+    assert ("quad_w, cube_w" in (build.directory / "bound_model.c").read_text()) == poly
     write_golden(model, Kernel(model, build), tmp_path / "golden")
-    arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f")
+    arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f", defines=build.defines)
     ok, out = run_qemu(arm.golden_elf)
     assert ok and "PASS: 12000 outputs bit-exact" in out, out

@@ -2,9 +2,9 @@
  * The fixed-size model path of the kernel: front end (sanitise, clamp, stuck detection,
  * block means, lag filters), model step (features, LSTM layers, head with the optional
  * polynomial terms) and the per-sample correction, exactly in the float32 order of
- * docs/stream-contract.md.
+ * docs/stream-contract.md. Sizes and weights come from the model struct at run time; the
+ * state arrays are sized by FOGSF_MAX_* (fogsf_model_check).
  */
-#define FOGSF_MODEL_WEIGHTS /* this translation unit holds the weights */
 #include "fogsf.h"
 
 typedef union {
@@ -29,89 +29,102 @@ static int double_finite(double v)
     return v - v == 0.0; /* Inf - Inf and NaN - NaN are NaN */
 }
 
-void fogsf_reset(fogsf_state *st)
+uint32_t fogsf_model_check(const fogsf_model *m)
+{
+    if (m == NULL || m->n_filters > FOGSF_MAX_FILTERS || m->n_features > FOGSF_MAX_FEATURES ||
+        m->n_features < 1u || m->layers > FOGSF_MAX_LAYERS || m->layers < 1u ||
+        m->hidden > FOGSF_MAX_HIDDEN || m->hidden < 1u || m->decimation < 1u ||
+        (m->n_filters > 0u && m->filter_alpha == NULL) || m->feat_w == NULL ||
+        m->feat_b == NULL || m->lstm_w == NULL || m->lstm_r == NULL || m->lstm_b == NULL ||
+        m->head_w == NULL || m->skip_w == NULL || (m->quad_w == NULL) != (m->cube_w == NULL)) {
+        return FOGSF_FLAG_MODEL_INVALID;
+    }
+    return 0u;
+}
+
+uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
 {
     int l, j;
-    for (l = 0; l < FOGSF_LAYERS; ++l) {
-        for (j = 0; j < FOGSF_HIDDEN; ++j) {
+    for (l = 0; l < FOGSF_MAX_LAYERS; ++l) {
+        for (j = 0; j < FOGSF_MAX_HIDDEN; ++j) {
             st->h[l][j] = 0.0f;
             st->c[l][j] = 0.0f;
         }
     }
-    for (j = 0; j < FOGSF_HIDDEN; ++j) {
+    for (j = 0; j < FOGSF_MAX_HIDDEN; ++j) {
         st->h_prev[j] = 0.0f;
     }
-    for (j = 0; j < FOGSF_N_FEATURES; ++j) {
+    for (j = 0; j < FOGSF_MAX_FEATURES; ++j) {
         st->z[j] = 0.0f;
     }
-    for (j = 0; j < FOGSF_N_FILTERS_ALLOC; ++j) {
+    for (j = 0; j < FOGSF_MAX_FILTERS; ++j) {
         st->y[j] = 0.0f;
     }
     st->acc = 0.0f;
-    st->t_last_good = FOGSF_T_REF_C;
+    st->t_last_good = m != NULL ? m->t_ref_c : 0.0f;
     st->sf_ppm = 0.0f;
     st->sf_flags = 0u;
     st->raw_prev_bits = 0u;
     st->stuck_run = 0u;
     st->n_acc = 0u;
     st->started = 0u;
+    return fogsf_model_check(m);
 }
 
-void fogsf_init(fogsf_state *st)
+uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st)
 {
-    fogsf_reset(st);
+    return fogsf_reset(m, st);
 }
 
 /* Contract step 4: one model step on the block-mean temperature tm. */
-static void model_step(fogsf_state *st, float tm)
+static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
 {
-    float s[FOGSF_N_INPUTS];
+    float s[1 + FOGSF_MAX_FILTERS];
     float y, sf, mag;
     const float *x = st->z;
-    size_t n_in = FOGSF_N_FEATURES;
-    int k, f, l, j;
+    const uint32_t nk = m->n_filters, nf = m->n_features, nh = m->hidden, ni = 1u + nk;
+    size_t n_in = nf;
+    uint32_t k, f, l, j;
 
-    for (k = 0; k < FOGSF_N_FILTERS; ++k) {
-        st->y[k] = st->y[k] + fogsf_filter_alpha[k] * (tm - st->y[k]);
+    for (k = 0; k < nk; ++k) {
+        st->y[k] = st->y[k] + m->filter_alpha[k] * (tm - st->y[k]);
     }
-    s[0] = tm - FOGSF_T_REF_C;
-    for (k = 0; k < FOGSF_N_FILTERS; ++k) {
-        s[1 + k] = st->y[k] - FOGSF_T_REF_C;
+    s[0] = tm - m->t_ref_c;
+    for (k = 0; k < nk; ++k) {
+        s[1 + k] = st->y[k] - m->t_ref_c;
     }
-    for (f = 0; f < FOGSF_N_FEATURES; ++f) {
-        float acc = fogsf_feat_b[f];
-        for (j = 0; j < FOGSF_N_INPUTS; ++j) {
-            acc = acc + fogsf_feat_w[f * FOGSF_N_INPUTS + j] * s[j];
+    for (f = 0; f < nf; ++f) {
+        float acc = m->feat_b[f];
+        for (j = 0; j < ni; ++j) {
+            acc = acc + m->feat_w[f * ni + j] * s[j];
         }
         st->z[f] = acc;
     }
-    for (l = 0; l < FOGSF_LAYERS; ++l) {
-        fogsf_lstm_cell(n_in, FOGSF_HIDDEN, fogsf_lstm_w[l], fogsf_lstm_r[l], fogsf_lstm_b[l],
-                        NULL, x, st->h[l], st->c[l], st->h_prev);
+    for (l = 0; l < m->layers; ++l) {
+        fogsf_lstm_cell(n_in, nh, m->lstm_w[l], m->lstm_r[l], m->lstm_b[l], NULL, x, st->h[l],
+                        st->c[l], st->h_prev);
         x = st->h[l];
-        n_in = FOGSF_HIDDEN;
+        n_in = nh;
     }
-    y = fogsf_head_b;
-    for (j = 0; j < FOGSF_HIDDEN; ++j) {
-        y = y + fogsf_head_w[j] * st->h[FOGSF_LAYERS - 1][j];
+    y = m->head_b;
+    for (j = 0; j < nh; ++j) {
+        y = y + m->head_w[j] * st->h[m->layers - 1u][j];
     }
-    for (j = 0; j < FOGSF_N_FEATURES; ++j) {
-        y = y + fogsf_skip_w[j] * st->z[j];
+    for (j = 0; j < nf; ++j) {
+        y = y + m->skip_w[j] * st->z[j];
     }
-#if FOGSF_POLY_HEAD
-    { /* polynomial head: the quadratic, then the cubic terms in z, in index order */
-        int i;
-        for (i = 0; i < FOGSF_N_FEATURES; ++i) {
-            for (j = 0; j < FOGSF_N_FEATURES; ++j) {
-                y = y + fogsf_quad_w[i * FOGSF_N_FEATURES + j] * (st->z[i] * st->z[j]);
+    if (m->quad_w != NULL) { /* polynomial head: the quadratic, then the cubic terms in z */
+        uint32_t i;
+        for (i = 0; i < nf; ++i) {
+            for (j = 0; j < nf; ++j) {
+                y = y + m->quad_w[i * nf + j] * (st->z[i] * st->z[j]);
             }
         }
-        for (i = 0; i < FOGSF_N_FEATURES; ++i) {
-            y = y + fogsf_cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
+        for (i = 0; i < nf; ++i) {
+            y = y + m->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
         }
     }
-#endif
-    sf = y * fogsf_out_scale + fogsf_out_offset;
+    sf = y * m->out_scale + m->out_offset;
     mag = sf < 0.0f ? -sf : sf;
     st->sf_flags = 0u;
     if (!(mag <= FOGSF_SF_LIMIT_PPM)) { /* a broken model, or NaN: never pass it on */
@@ -121,60 +134,64 @@ static void model_step(fogsf_state *st, float tm)
     st->sf_ppm = sf;
 }
 
-void fogsf_step(fogsf_state *st, float temp_c, double gyro_dps, fogsf_output *out)
+void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+                fogsf_output *out)
 {
     uint32_t flags = 0u;
     const uint32_t bits = float_bits(temp_c);
     float tc;
     double corrected;
 
+    if (fogsf_model_check(m) != 0u) { /* never index past the state or through NULL */
+        out->corrected_dps = 0.0;
+        out->sf_ppm = 0.0f;
+        out->flags = FOGSF_FLAG_MODEL_INVALID;
+        return;
+    }
+
     /* 1. temperature: stuck run on the raw bits, then sanitise and clamp */
     if (st->started != 0u && bits == st->raw_prev_bits) {
-#if FOGSF_STUCK_SAMPLES > 0
-        if (st->stuck_run < FOGSF_STUCK_SAMPLES) {
+        if (st->stuck_run < m->stuck_samples) {
             st->stuck_run += 1u;
         }
-#endif
     } else {
         st->stuck_run = 0u;
     }
     st->raw_prev_bits = bits;
-#if FOGSF_STUCK_SAMPLES > 0
-    if (st->stuck_run >= FOGSF_STUCK_SAMPLES) {
+    if (m->stuck_samples > 0u && st->stuck_run >= m->stuck_samples) {
         flags |= FOGSF_FLAG_TEMP_STUCK;
     }
-#endif
     if (!float_finite(temp_c)) {
         tc = st->t_last_good;
         flags |= FOGSF_FLAG_TEMP_INVALID;
     } else {
         tc = temp_c;
-        if (tc < FOGSF_T_MIN_C) {
-            tc = FOGSF_T_MIN_C;
+        if (tc < m->t_min_c) {
+            tc = m->t_min_c;
             flags |= FOGSF_FLAG_TEMP_CLAMPED;
-        } else if (tc > FOGSF_T_MAX_C) {
-            tc = FOGSF_T_MAX_C;
+        } else if (tc > m->t_max_c) {
+            tc = m->t_max_c;
             flags |= FOGSF_FLAG_TEMP_CLAMPED;
         }
         st->t_last_good = tc;
     }
 
-    /* 2.-3. priming at the first sample, then one model step per FOGSF_DECIMATION samples */
+    /* 2.-3. priming at the first sample, then one model step per m->decimation samples */
     if (st->started == 0u) {
-        int k;
+        uint32_t k;
         st->started = 1u;
-        for (k = 0; k < FOGSF_N_FILTERS; ++k) {
+        for (k = 0; k < m->n_filters; ++k) {
             st->y[k] = tc;
         }
-        model_step(st, tc);
+        model_step(m, st, tc);
     } else {
         st->acc = st->acc + tc;
         st->n_acc += 1u;
-        if (st->n_acc == (uint32_t)FOGSF_DECIMATION) {
-            const float tm = st->acc / (float)FOGSF_DECIMATION;
+        if (st->n_acc >= m->decimation) {
+            const float tm = st->acc / (float)m->decimation;
             st->acc = 0.0f;
             st->n_acc = 0u;
-            model_step(st, tm);
+            model_step(m, st, tm);
         }
     }
 
@@ -189,15 +206,16 @@ void fogsf_step(fogsf_state *st, float temp_c, double gyro_dps, fogsf_output *ou
     out->flags = flags | st->sf_flags;
 }
 
-uint32_t fogsf_run(fogsf_state *st, const float *temp_c, const double *gyro_dps, size_t n,
-                   double *corrected_dps, float *sf_ppm, uint32_t *flags)
+uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
+                   const double *gyro_dps, size_t n, double *corrected_dps, float *sf_ppm,
+                   uint32_t *flags)
 {
     uint32_t all = 0u;
     size_t i;
     fogsf_output out;
 
     for (i = 0; i < n; ++i) {
-        fogsf_step(st, temp_c[i], gyro_dps[i], &out);
+        fogsf_step(m, st, temp_c[i], gyro_dps[i], &out);
         if (corrected_dps != NULL) {
             corrected_dps[i] = out.corrected_dps;
         }
@@ -215,9 +233,4 @@ uint32_t fogsf_run(fogsf_state *st, const float *temp_c, const double *gyro_dps,
 size_t fogsf_state_size(void)
 {
     return sizeof(fogsf_state);
-}
-
-const char *fogsf_model_id(void)
-{
-    return FOGSF_MODEL_ID;
 }

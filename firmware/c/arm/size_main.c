@@ -1,8 +1,11 @@
-/* Cortex-M4F size probe: the kernel as an application links it (one state, one step call
- * per sample), so arm-none-eabi-size reports what the kernel + model cost in flash and RAM. */
+/* Cortex-M4F size probe: the kernel as an application links it (one state per model, one
+ * step call per model and sample), so arm-none-eabi-size reports what the kernel + models
+ * cost in flash and RAM. image_models.h (generated) lists the models of the image. */
 #include "fogsf.h"
+#include "image_models.h"
 
-static fogsf_state state;
+static const fogsf_model *const models[IMAGE_N_MODELS] = IMAGE_MODELS;
+static fogsf_state states[IMAGE_N_MODELS];
 volatile float probe_temp_c;
 volatile double probe_gyro_dps;
 volatile double probe_corrected_dps;
@@ -11,11 +14,15 @@ volatile uint32_t probe_samples;
 int main(void)
 {
     fogsf_output out;
-    uint32_t i;
-    fogsf_init(&state);
+    uint32_t i, a;
+    for (a = 0; a < IMAGE_N_MODELS; ++a) {
+        (void)fogsf_init(models[a], &states[a]);
+    }
     for (i = 0; i < probe_samples; ++i) {
-        fogsf_step(&state, probe_temp_c, probe_gyro_dps, &out);
-        probe_corrected_dps = out.corrected_dps;
+        for (a = 0; a < IMAGE_N_MODELS; ++a) {
+            fogsf_step(models[a], &states[a], probe_temp_c, probe_gyro_dps, &out);
+            probe_corrected_dps = out.corrected_dps;
+        }
     }
     return 0;
 }

@@ -97,13 +97,13 @@ unsigned long fogsf_golden_check(fogsf_puts_fn out)
     fogsf_output o;
 
     out("fogsf golden vectors: model ");
-    out(fogsf_model_id());
+    out(FOGSF_GOLDEN_MODEL->model_id);
     out(", ");
     put_uint(out, (unsigned long)FOGSF_GOLDEN_N);
     out(" samples, state ");
     put_uint(out, (unsigned long)fogsf_state_size());
     out(" bytes\n");
-    if (!same_text(fogsf_model_id(), FOGSF_GOLDEN_MODEL_ID)) {
+    if (!same_text(FOGSF_GOLDEN_MODEL->model_id, FOGSF_GOLDEN_MODEL_ID)) {
         out("FAIL: vectors are for model " FOGSF_GOLDEN_MODEL_ID "\n");
         return 1u;
     }
@@ -115,13 +115,13 @@ unsigned long fogsf_golden_check(fogsf_puts_fn out)
         temps[i] = t.f;
         gyros[i] = g.d;
     }
-    fogsf_init(&state);
+    (void)fogsf_init(FOGSF_GOLDEN_MODEL, &state);
     for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
-        fogsf_step(&state, temps[i], gyros[i], &o);
+        fogsf_step(FOGSF_GOLDEN_MODEL, &state, temps[i], gyros[i], &o);
         bad = compare(out, "step", i, o.sf_ppm, o.corrected_dps, o.flags, bad);
     }
-    fogsf_reset(&state);
-    (void)fogsf_run(&state, temps, gyros, FOGSF_GOLDEN_N, run_corrected, run_sf, run_flags);
+    (void)fogsf_reset(FOGSF_GOLDEN_MODEL, &state);
+    (void)fogsf_run(FOGSF_GOLDEN_MODEL, &state, temps, gyros, FOGSF_GOLDEN_N, run_corrected, run_sf, run_flags);
     for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
         bad = compare(out, "run", i, run_sf[i], run_corrected[i], run_flags[i], bad);
     }

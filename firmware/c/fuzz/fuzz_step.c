@@ -1,0 +1,245 @@
+/*
+ * libFuzzer harness of the fogsf kernel (clang -fsanitize=fuzzer,address,undefined):
+ *   mode 0  the activations on arbitrary float bits: exp finite and >= 0, sigmoid in [0, 1],
+ *           tanh in [-1, 1];
+ *   mode 1  the generic LSTM cell with sizes, weights and inputs from the fuzz data;
+ *   mode 2  fogsf_step with the generated model fuzz_model (fuzz_model.h) on adversarial
+ *           samples: (temperature bits, gyro bits, repeats) records, so NaN, Inf, denormals,
+ *           huge values and stuck thermometers (a record repeated up to 255 times) all occur;
+ *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state)
+ *           and every weight from the fuzz data (NaN, Inf, huge).
+ * After every step the totality contract is checked (corrected finite, |sf| <= limit, flags
+ * known, an invalid model gives 0); a violation aborts, which libFuzzer reports as a crash.
+ * The number of fogsf_step calls is printed at exit ("fuzz steps: N") for make fuzz.
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fogsf.h"
+#include "fuzz_model.h"
+
+static unsigned long long steps;
+
+static void report(void)
+{
+    fprintf(stderr, "fuzz steps: %llu\n", steps);
+}
+
+int LLVMFuzzerInitialize(int *argc, char ***argv);
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerInitialize(int *argc, char ***argv)
+{
+    (void)argc;
+    (void)argv;
+    atexit(report);
+    return 0;
+}
+
+static int finite_f(float v)
+{
+    return v - v == 0.0f;
+}
+
+static int finite_d(double v)
+{
+    return v - v == 0.0;
+}
+
+/* reads little pieces of the input; past the end it reads zeros */
+typedef struct {
+    const uint8_t *p;
+    size_t n, at;
+} reader;
+
+static uint8_t next_u8(reader *r)
+{
+    return r->at < r->n ? r->p[r->at++] : 0u;
+}
+
+static uint32_t next_u32(reader *r)
+{
+    uint32_t v = 0u;
+    int i;
+    for (i = 0; i < 4; ++i) {
+        v |= (uint32_t)next_u8(r) << (8 * i);
+    }
+    return v;
+}
+
+static float next_f32(reader *r)
+{
+    uint32_t u = next_u32(r);
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+static double next_f64(reader *r)
+{
+    uint64_t u = (uint64_t)next_u32(r) | ((uint64_t)next_u32(r) << 32);
+    double d;
+    memcpy(&d, &u, sizeof d);
+    return d;
+}
+
+static void check(const fogsf_model *m, const fogsf_output *out)
+{
+    const float sf = out->sf_ppm < 0.0f ? -out->sf_ppm : out->sf_ppm;
+    ++steps;
+    if (!finite_d(out->corrected_dps) || !finite_f(out->sf_ppm) || !(sf <= FOGSF_SF_LIMIT_PPM) ||
+        (out->flags & ~63u) != 0u) {
+        fprintf(stderr, "totality violated: corrected %g sf %g flags %u\n", out->corrected_dps,
+                (double)out->sf_ppm, (unsigned)out->flags);
+        abort();
+    }
+    if (fogsf_model_check(m) != 0u &&
+        (out->corrected_dps != 0.0 || out->flags != FOGSF_FLAG_MODEL_INVALID)) {
+        fprintf(stderr, "an invalid model must give 0 and MODEL_INVALID only\n");
+        abort();
+    }
+}
+
+static void run_samples(const fogsf_model *m, reader *r)
+{
+    fogsf_state st;
+    fogsf_output out;
+    (void)fogsf_init(m, &st);
+    while (r->at < r->n) {
+        const float t = next_f32(r);
+        const double g = next_f64(r);
+        unsigned rep = next_u8(r);
+        do {
+            fogsf_step(m, &st, t, g, &out);
+            check(m, &out);
+        } while (rep-- > 0u);
+    }
+}
+
+static void fuzz_activations(reader *r)
+{
+    while (r->at < r->n) {
+        const float x = next_f32(r);
+        const float e = fogsf_expf(x), s = fogsf_sigmoidf(x), t = fogsf_tanhf(x);
+        if (!finite_f(e) || !(e >= 0.0f) || !(s >= 0.0f && s <= 1.0f) ||
+            !(t >= -1.0f && t <= 1.0f)) {
+            fprintf(stderr, "activation out of range at x bits 0x%08x\n", (unsigned)r->at);
+            abort();
+        }
+    }
+}
+
+#define CELL_MAX 6
+static void fuzz_cell(reader *r)
+{
+    float w[4 * CELL_MAX * CELL_MAX], rr[4 * CELL_MAX * CELL_MAX], b[8 * CELL_MAX];
+    float p[3 * CELL_MAX], x[CELL_MAX], h[CELL_MAX], c[CELL_MAX], scratch[CELL_MAX];
+    const size_t n_in = 1u + next_u8(r) % CELL_MAX, hid = 1u + next_u8(r) % CELL_MAX;
+    const uint8_t opts = next_u8(r);
+    size_t i;
+    for (i = 0; i < 4 * hid * n_in; ++i) {
+        w[i] = next_f32(r);
+    }
+    for (i = 0; i < 4 * hid * hid; ++i) {
+        rr[i] = next_f32(r);
+    }
+    for (i = 0; i < 8 * hid; ++i) {
+        b[i] = next_f32(r);
+    }
+    for (i = 0; i < 3 * hid; ++i) {
+        p[i] = next_f32(r);
+    }
+    for (i = 0; i < n_in; ++i) {
+        x[i] = next_f32(r);
+    }
+    for (i = 0; i < hid; ++i) {
+        h[i] = next_f32(r);
+        c[i] = next_f32(r);
+    }
+    fogsf_lstm_cell(n_in, hid, w, rr, (opts & 1u) ? b : NULL, (opts & 2u) ? p : NULL, x, h, c,
+                    scratch);
+    for (i = 0; i < hid; ++i) { /* h = sigmoid * tanh: NaN only if the inputs carried one */
+        if (finite_f(h[i]) && !(h[i] >= -1.0f && h[i] <= 1.0f)) {
+            fprintf(stderr, "cell h out of [-1, 1]\n");
+            abort();
+        }
+    }
+}
+
+/* an adversarial model: every array a window of weights taken from the input */
+#define ADV_FLOATS 4096
+static float adv[ADV_FLOATS];
+
+static void fuzz_model_data(reader *r)
+{
+    fogsf_model m;
+    const float *lw[FOGSF_MAX_LAYERS + 1], *lr[FOGSF_MAX_LAYERS + 1], *lb[FOGSF_MAX_LAYERS + 1];
+    size_t i;
+    int l;
+    memset(&m, 0, sizeof m);
+    m.model_id = "adversarial";
+    m.n_filters = next_u8(r) % (FOGSF_MAX_FILTERS + 2u);
+    m.n_features = next_u8(r) % (FOGSF_MAX_FEATURES + 2u);
+    m.layers = next_u8(r) % (FOGSF_MAX_LAYERS + 2u);
+    m.hidden = next_u8(r) % (FOGSF_MAX_HIDDEN + 2u);
+    m.decimation = next_u8(r) % 5u;
+    m.stuck_samples = next_u8(r) % 8u;
+    m.sample_dt_s = next_f32(r);
+    m.t_ref_c = next_f32(r);
+    m.t_min_c = next_f32(r);
+    m.t_max_c = next_f32(r);
+    m.head_b = next_f32(r);
+    m.out_scale = next_f32(r);
+    m.out_offset = next_f32(r);
+    for (i = 0; i < 64u; ++i) { /* the weights: 64 values from the input, then repeated */
+        adv[i] = next_f32(r);
+    }
+    for (i = 64u; i < ADV_FLOATS; ++i) {
+        adv[i] = adv[i % 64u];
+    }
+    for (l = 0; l < FOGSF_MAX_LAYERS + 1; ++l) {
+        lw[l] = adv;
+        lr[l] = adv + 1;
+        lb[l] = adv + 2;
+    }
+    m.filter_alpha = adv + 3;
+    m.feat_w = adv + 4;
+    m.feat_b = adv + 5;
+    m.lstm_w = lw;
+    m.lstm_r = lr;
+    m.lstm_b = lb;
+    m.head_w = adv + 6;
+    m.skip_w = adv + 7;
+    if (next_u8(r) & 1u) {
+        m.quad_w = adv + 8;
+        m.cube_w = adv + 9;
+    }
+    run_samples(&m, r);
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    reader r;
+    if (size < 1u) {
+        return 0;
+    }
+    r.p = data;
+    r.n = size;
+    r.at = 1u;
+    switch (data[0] % 4u) {
+    case 0:
+        fuzz_activations(&r);
+        break;
+    case 1:
+        fuzz_cell(&r);
+        break;
+    case 2:
+        run_samples(&fuzz_model, &r);
+        break;
+    default:
+        fuzz_model_data(&r);
+        break;
+    }
+    return 0;
+}

@@ -1,0 +1,136 @@
+"""CMake integration: the `fogsf` library target, fogsf_add_model(), and the three-axis example
+firmware/examples/imu3 built for Cortex-M4F and run under QEMU, every output of every axis
+compared bit for bit with the numpy reference (trainer/stream.py)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bindings.firmware import arm_tools_missing, qemu_cmd, run_cmd
+from bindings.kernel import ROOT
+from trainer import stream as st
+
+EXAMPLE = ROOT / "firmware" / "examples" / "imu3"
+TOOLCHAIN = ROOT / "firmware" / "cmake" / "cortex-m4f.cmake"
+FOGSF = Path(sys.executable).parent / "fogsf"
+SAMPLES = 1500  # IMU3_SAMPLES of main.c
+AXES = "xyz"
+
+
+def imu3_models() -> list[st.StreamModel]:
+    """Three small models with polynomial heads, one per gyro (seeded random weights)."""
+    return [st.random_model(1, 1, 1, 16, decimation=10, seed=100 + a, poly_head=True)
+            for a in range(3)]
+
+
+def imu3_inputs(axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """The inputs main.c computes, op for op in float32 / float64."""
+    i = np.arange(SAMPLES)
+    temp = (np.float32(-40.0) + i.astype(np.float32) * np.float32(0.0625)) \
+        + np.float32(axis) * np.float32(0.5)
+    temp = temp.astype(np.float32)
+    temp[i % 331 == 17 + axis] = np.float32(np.nan)
+    gyro = 10.0 * float(axis + 1) + i.astype(np.float64) * 0.001
+    return temp, gyro
+
+
+def parse(text: str) -> dict[str, np.ndarray]:
+    """{axis: [SAMPLES, 3] uint64 rows of (sf bits, corrected bits, flags)}."""
+    rows: dict[str, list[list[int]]] = {a: [] for a in AXES}
+    for line in text.splitlines():
+        parts = line.split()
+        if len(parts) == 5 and parts[0] in rows:
+            assert int(parts[1], 16) == len(rows[parts[0]]), line
+            rows[parts[0]].append([int(p, 16) for p in parts[2:]])
+    return {a: np.array(r, dtype=np.uint64) for a, r in rows.items()}
+
+
+need_tools = pytest.mark.skipif(
+    arm_tools_missing() is not None or shutil.which("cmake") is None,
+    reason=f"needs cmake and the Cortex-M4F tools: {arm_tools_missing() or 'cmake missing'}")
+
+
+@pytest.fixture(scope="module")
+def imu3_build(tmp_path_factory):
+    root = tmp_path_factory.mktemp("imu3")
+    models = imu3_models()
+    for axis, model in zip(AXES, models, strict=True):
+        model.save(root / "models" / f"imu_{axis}")
+    build = root / "build"
+    run_cmd(["cmake", "-S", str(EXAMPLE), "-B", str(build), f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
+             f"-DIMU3_MODELS={root / 'models'}", f"-DFOGSF_EXECUTABLE={FOGSF}",
+             "-DCMAKE_BUILD_TYPE=Release"], "cmake configure (imu3)")
+    run_cmd(["cmake", "--build", str(build)], "cmake build (imu3)")
+    return models, build
+
+
+@need_tools
+def test_imu3_under_qemu_is_bit_exact_per_axis(imu3_build) -> None:
+    models, build = imu3_build
+    proc = subprocess.run(qemu_cmd(build / "imu3.elf"), capture_output=True, text=True,
+                          timeout=300)
+    text = proc.stdout + proc.stderr  # QEMU's semihosting console
+    assert proc.returncode == 0 and "imu3 done" in text, text[-2000:]
+    got = parse(text)
+    for a, (axis, model) in enumerate(zip(AXES, models, strict=True)):
+        temp, gyro = imu3_inputs(a)
+        ref = st.replay(model, temp, gyro)
+        assert got[axis].shape == (SAMPLES, 3), axis
+        np.testing.assert_array_equal(got[axis][:, 0], ref.sf_ppm.view(np.uint32), err_msg=axis)
+        np.testing.assert_array_equal(got[axis][:, 1], ref.corrected_dps.view(np.uint64),
+                                      err_msg=axis)
+        np.testing.assert_array_equal(got[axis][:, 2], ref.flags, err_msg=axis)
+        assert (ref.flags & st.FLAG_TEMP_INVALID).any()  # the planted NaNs were seen
+    # three different models: the axes must not all give the same SF
+    assert len({got[a][-1, 0] for a in AXES}) == 3
+
+
+@need_tools
+def test_cmake_raises_the_state_to_the_largest_model(imu3_build) -> None:
+    _, build = imu3_build
+    flags = (build / "CMakeFiles" / "imu3.dir" / "flags.make").read_text()
+    assert "-DFOGSF_MAX_HIDDEN=16" in flags and "-DFOGSF_MAX_LAYERS=1" in flags, flags
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None or shutil.which("gcc") is None,
+                    reason="needs cmake and gcc")
+def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
+    """DIR form on the host: a 2x24 model raises FOGSF_MAX_* and the library builds."""
+    model = st.random_model(2, 3, 2, 24, decimation=5, seed=9)
+    from export.header import write_model
+    write_model(model, tmp_path / "gen", "big_one")
+    (tmp_path / "app").mkdir()
+    (tmp_path / "app" / "main.c").write_text(
+        '#include "big_one.h"\nint main(void)\n{\n    fogsf_state s;\n'
+        "    return (int)fogsf_init(&big_one, &s);\n}\n")
+    (tmp_path / "app" / "CMakeLists.txt").write_text(
+        "cmake_minimum_required(VERSION 3.13)\nproject(app C)\n"
+        f"add_subdirectory({ROOT / 'firmware' / 'c'} fogsf)\nadd_executable(app main.c)\n"
+        f"fogsf_add_model(app NAME big_one DIR {tmp_path / 'gen'})\n")
+    run_cmd(["cmake", "-S", str(tmp_path / "app"), "-B", str(tmp_path / "b")], "cmake")
+    run_cmd(["cmake", "--build", str(tmp_path / "b")], "cmake build")
+    assert subprocess.run([str(tmp_path / "b" / "app")]).returncode == 0
+    bad = tmp_path / "app" / "CMakeLists.txt"
+    bad.write_text(bad.read_text().replace("DIR " + str(tmp_path / "gen"), "DIR /nonexistent"))
+    proc = subprocess.run(["cmake", "-S", str(tmp_path / "app"), "-B", str(tmp_path / "c")],
+                          capture_output=True, text=True)
+    assert proc.returncode != 0 and "no big_one.h/.c" in proc.stderr, proc.stderr
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None, reason=f"{arm_tools_missing()}")
+def test_three_small_models_in_one_image_meet_the_size_target(tmp_path) -> None:
+    """make bench's image rows: three 1x16 poly-head models <= 24 KB flash, <= 1.5 KB RAM;
+    the three-model image costs more than the one-model image (the figures are measured)."""
+    from benchmarks.firmware_bench import IMAGE_TARGET, bench_image, small_poly_models
+    one = bench_image(small_poly_models(1), tmp_path)
+    three = bench_image(small_poly_models(3), tmp_path)
+    assert three["flash_bytes"] <= IMAGE_TARGET["flash_bytes"], three
+    assert three["ram_bytes"] <= IMAGE_TARGET["ram_bytes"], three
+    assert three["flash_bytes"] > one["flash_bytes"] and three["ram_bytes"] > one["ram_bytes"]
+    assert three["instructions_per_sample_worst"] > 2 * one["instructions_per_sample_worst"]
