@@ -119,7 +119,11 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     flags = (*STRICT, opt, "-fPIC", *max_defines(model), *(SANITIZE if sanitize else ()))
     files = render_model(model, BOUND_NAME)
     header = "".join(files.values())
-    key = f"{model.model_id}-{cc}-{_source_hash(header, flags)}" + ("-san" if sanitize else "")
+    # the compiler by its name and a hash of how it was given (a path has slashes)
+    cc_tag = Path(cc).name + ("" if cc == Path(cc).name
+                              else "-" + hashlib.sha256(cc.encode()).hexdigest()[:6])
+    key = (f"{model.model_id}-{cc_tag}-{_source_hash(header, flags)}"
+           + ("-san" if sanitize else ""))
     out = Path(root) if root is not None else default_build_root()
     out = (out / key).resolve()
     shared, static = out / "libfogsf.so", out / "libfogsf.a"
@@ -147,6 +151,8 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
         _run([cc, "-shared", *(SANITIZE if sanitize else ()), "-o", str(work / shared.name),
               *objs], work)
         _run(["ar", "rcs", str(work / static.name), *objs], work)
+        if shared.is_file() and static.is_file():  # another process finished first
+            return KernelBuild(out, shared, static, model.model_id, max_defines(model))
         if out.is_dir():  # an incomplete folder (a file deleted by hand): replaced
             shutil.rmtree(out, ignore_errors=True)
         try:

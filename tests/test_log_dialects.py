@@ -181,12 +181,19 @@ def test_a_mapping_file_beside_the_logs_applies_and_is_named(suffix: str, plain:
     assert "--columns names 'seconds' for time_s" in err
 
 
-def test_a_mapping_file_beside_a_log_it_does_not_fit_is_refused(plain: Path, tmp_path: Path,
-                                                                capsys) -> None:
+def test_a_mapping_file_beside_the_logs_and_a_plain_log(plain: Path, tmp_path: Path,
+                                                       capsys) -> None:
     p = tmp_path / "plain.csv"
     p.write_text(plain.read_text())
     (tmp_path / "fogsf-columns.json").write_text(json.dumps({"temp_c": "board"}))
-    err = _refused(capsys, "inspect", str(p))
+    # a log already in the format's names is read as it is, and that is said
+    assert main(["inspect", str(p), "--json"]) == 0
+    assert "fogsf-columns.json not applied" in capsys.readouterr().err
+    # a log in neither the format's names nor the file's is refused, naming the file
+    header = plain.read_text().splitlines()[0]
+    q = tmp_path / "other.csv"
+    q.write_text(plain.read_text().replace(header, header.replace("temp_c", "t_board", 1), 1))
+    err = _refused(capsys, "inspect", str(q))
     assert "fogsf-columns.json names 'board' for temp_c" in err
     (tmp_path / "fogsf-columns.toml").write_text('temp_c = "board"\n')
     assert "both fogsf-columns.json and fogsf-columns.toml" in _refused(capsys, "inspect",
@@ -198,7 +205,10 @@ def test_a_mapping_file_beside_a_log_it_does_not_fit_is_refused(plain: Path, tmp
     [
         ("time_s;temp_c,table_rate_dps;gyro_dps\n0;20;10;10\n", [],
          "holds ',' and ';'; give --delimiter"),
-        ("time_s temp_c table_rate_dps gyro_dps\n0 20 10 10\n", [], "give --delimiter"),
+        ("time_s temp_c table_rate_dps gyro_dps\n0 20 10 10\n", [], "write the log with one"),
+        ("time_s\n0\n", [], "--columns time_s=NAME"),
+        ("time_s,temp_c,table_rate_dps,gyro_dps\n0,20,10,10\n", ["--decimal-comma"],
+         "decimal comma with ',' cells"),
         ("time_s;temp_c;table_rate_dps;gyro_dps\n0;20,5;10;10\n", [],
          "give --decimal-comma"),
         ("time_s,temp_c,table_rate_dps,gyro_dps\n0,20,5,10,10\n", [], "--decimal-comma"),

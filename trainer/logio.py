@@ -224,9 +224,12 @@ def _sniff(header_line: str, path: str) -> str:
     if len(found) == 1:
         return found[0]
     if not found:
-        raise LogError(path, 1, "no delimiter",
-                       f"the header {header_line.strip()[:60]!r} has no ',' ';' or tab between "
-                       "column names; give --delimiter")
+        if " " in header_line.strip():
+            raise LogError(path, 1, "no delimiter",
+                           f"the header {header_line.strip()[:60]!r} has no ',' ';' or tab "
+                           "between column names (spaces are not read as a delimiter): "
+                           "write the log with one of them")
+        return ","  # one column: the missing-column message says what is wrong
     raise LogError(path, 1, "ambiguous delimiter",
                    f"the header holds {' and '.join(DELIMITER_NAMES[d] for d in found)}; "
                    "give --delimiter")
@@ -271,6 +274,10 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
     if not lines or not lines[0].strip():
         raise LogError(path, 1 if lines else None, "empty file", "no header row")
     delim = dialect.delimiter or _sniff(lines[0], path)
+    if dialect.decimal_comma and delim == ",":
+        raise LogError(path, 1, "decimal comma with ',' cells",
+                       "--decimal-comma needs cells separated by ';' or tab, and this header "
+                       "uses ','")
     if dialect.delimiter is None and delim != ",":
         notes.append(f"cells separated by {DELIMITER_NAMES[delim]} (from the header)")
     if dialect.decimal_comma:
@@ -279,6 +286,12 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
     for h in raw:
         if not h:
             raise LogError(path, 1, "bad header", "an empty column name")
+    if (dialect.columns and dialect.columns_from != "--columns"
+            and all(r in raw for r in REQUIRED)
+            and not any(theirs in raw for _, theirs in dialect.columns)):
+        # a mapping file beside the logs, and this log is already in the format's names
+        notes.append(f"{dialect.columns_from} not applied: the header has the format's names")
+        dialect = replace(dialect, columns=())
     header = _rename(raw, dialect, path)
     moved = [f"{h} -> {n}" for h, n in zip(raw, header, strict=True) if h != n]
     if moved:

@@ -8,6 +8,28 @@ from __future__ import annotations
 import argparse
 
 
+def positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0 (an SF ratio, a time)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (v > 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected at least 1, got {text!r}")
+    return v
+
+
 def add_metric_options(parser: argparse.ArgumentParser) -> None:
     """--window-s and --latitude-deg, as every command that measures SF error takes them."""
     parser.add_argument("--window-s", type=float, default=100.0,

@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from trainer.commands import add_log_options, add_metric_options, read_logs
+from trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
 from trainer.logio import ChamberLog
 from trainer.metrics import (
     log_metrics,
@@ -35,7 +35,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "table_rates_dps, metrics)")
     add_metric_options(parser)
     add_log_options(parser)
-    parser.add_argument("--ref-sf", type=float, default=None,
+    parser.add_argument("--ref-sf", type=positive_float, default=None,
                         help="reference SF ratio (vs nominal) instead of the log's own at 20 C "
                              "(needed when the log never passes 20 C: take ref_sf_ratio from "
                              "`fogsf inspect --json` of a run of the same gyro that does)")

@@ -1,7 +1,8 @@
 """fogsf plan: the chamber program that buys the most accuracy per chamber hour.
 
 Builds candidate chamber programs inside the chamber's limits (one up-ramp; a loop up at
-one rate and down at another with soaks; three ramps at three rates), simulates each on
+one rate and down at another with soaks; three ramps at three rates; a staircase up and
+down with a soak at every level), simulates each on
 population gyros (development seeds: the planner is tuned nowhere else), trains the
 default model's lag bank on it, and predicts its residual at ramp rates across the
 envelope (test loops up and down with soaks, other runs than the program's), as a multiple

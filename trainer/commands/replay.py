@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from trainer.commands import add_log_options, add_metric_options, read_logs
+from trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -32,7 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_log_options(parser)
     parser.add_argument("--json", metavar="PATH", default=None,
                         help="also write the before/after metrics and flag counts as JSON")
-    parser.add_argument("--ref-sf", type=float, default=None, metavar="RATIO",
+    parser.add_argument("--ref-sf", type=positive_float, default=None, metavar="RATIO",
                         help="reference SF ratio (vs nominal) of the before-metrics instead "
                              "of the log's SF at 20 C (needed when the log never passes 20 C)")
     parser.add_argument("--cc", default="gcc", help="C compiler for the host kernel (gcc)")

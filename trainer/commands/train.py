@@ -29,7 +29,13 @@ import sys
 import textwrap
 from pathlib import Path
 
-from trainer.commands import add_log_options, add_metric_options, read_logs
+from trainer.commands import (
+    add_log_options,
+    add_metric_options,
+    positive_float,
+    positive_int,
+    read_logs,
+)
 from trainer.errors import UserError
 from trainer.transfer import RateTransfer, spans_ramp_rates
 
@@ -59,7 +65,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="part of each training log held out for validation "
                              "(fractions of its length; default 0.4:0.6)")
     add_metric_options(parser)
-    parser.add_argument("--ref-sf", type=float, default=None, metavar="RATIO",
+    parser.add_argument("--ref-sf", type=positive_float, default=None, metavar="RATIO",
                         help="reference SF ratio (vs nominal) of the before-metrics instead "
                              "of the training logs' SF at 20 C (needed when they never pass "
                              "20 C: take ref_sf_ratio from `fogsf inspect --json` of a run of "
@@ -86,7 +92,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--batch-size", type=int)
     g.add_argument("--lr", type=float)
     g.add_argument("--iters", type=int, help="training iterations (batches)")
-    g.add_argument("--lstm-window", type=int, metavar="STEPS",
+    g.add_argument("--lstm-window", type=positive_int, metavar="STEPS",
                    help="model steps per LSTM training window (default 256, 21 min at "
                         "5 s steps; larger than a log: whole logs)")
     g = parser.add_argument_group("GSA (gsa-lstm)")
@@ -106,8 +112,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from trainer.train import TrainOptions, run_training
 
-    if args.ref_sf is not None and not args.ref_sf > 0:
-        raise UserError(f"--ref-sf must be a positive SF ratio (about 1), got {args.ref_sf}")
     train_logs = read_logs(args, args.train)
     test_log = read_logs(args, [args.test])[0] if args.test else None
     opts = TrainOptions(

@@ -5,6 +5,8 @@ from __future__ import annotations
 from concurrent.futures import Executor
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from trainer.executors import run_all
 from trainer.plan.evaluate import evaluate_gyro, interval_gyro
 from trainer.plan.programs import Limits, candidates, paper_protocol
@@ -34,5 +36,5 @@ def search(limits: Limits, rates: tuple[float, ...], gyros: list[tuple[int, int 
                      limits, rates[len(rates) // 2], desc="intervals", unit="gyro",
                      progress=progress)
         for s in shown:
-            s.interval_x_floor = float(sorted(r[s.program.name] for r in iv)[len(iv) // 2])
+            s.interval_x_floor = float(np.median([r[s.program.name] for r in iv]))
     return ranked, paper_s
