@@ -74,7 +74,10 @@ def test_plan_cli_writes_a_program_that_simulate_reads_back(tmp_path: Path, caps
     plan = json.loads((out / "plan.json").read_text())
     best = plan["best"]
     assert best["hours"] <= 3 + 1e-9 and plan["gyro_seeds"] == [1, 2]
-    assert best["interval_x_floor"] is not None and best["interval_x_floor"] >= 1.0
+    # the interval's upper end is computed for the best and the paper's, not for the rest
+    assert np.isfinite(best["interval_x_floor"]) and np.isfinite(plan["paper"]["interval_x_floor"])
+    assert [p["interval_x_floor"] is None for p in plan["programs"][3:]] == \
+        [True] * (len(plan["programs"]) - 3)
     # the written program is what simulate --program runs: the chamber air follows it
     run = tmp_path / "run.csv"
     assert main(["simulate", "--program", str(out / "program.csv"), "--seed", "1",
@@ -119,5 +122,6 @@ def test_plan_from_logs_fits_a_gyro_to_each_log(tmp_path: Path, capsys) -> None:
     assert "fitted a gyro to" in text and "1 gyros fitted to earlier.csv" in text
     plan = json.loads((out / "plan.json").read_text())
     assert plan["from_logs"] == [str(log)] and plan["gyro_seeds"] is None
+    assert plan["best"]["interval_x_floor"] is None  # --interval-gyros 0
     assert main(["plan", "--from-logs", str(log), "--axes", "2", "--out", str(out)]) == 2
     assert "multiple" in capsys.readouterr().err
