@@ -97,6 +97,10 @@ def run(args: argparse.Namespace) -> int:
     if seeds[0] not in DEV_SEEDS or seeds[-1] not in DEV_SEEDS:
         raise UserError(f"--first/--gyros: plan on development seeds ({DEV_SEEDS.start}-"
                         f"{DEV_SEEDS.stop - 1}); evaluation seeds are for benchmarks")
+    elo, ehi = args.envelope_rate
+    if elo <= 0:
+        raise UserError("--envelope-rate: rates must be positive, e.g. 0.2:2")
+    limits = Limits(args.range[0], args.range[1], args.max_ramp, args.hours)
     gyros: list = [(s, s) for s in seeds]
     what = f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})"
     if args.from_logs:
@@ -108,10 +112,6 @@ def run(args: argparse.Namespace) -> int:
                         "multiple of it")
     if args.axes > 1:
         what += f", {len(gyros) // args.axes} IMUs of {args.axes} axes"
-    elo, ehi = args.envelope_rate
-    if elo <= 0:
-        raise UserError("--envelope-rate: rates must be positive, e.g. 0.2:2")
-    limits = Limits(args.range[0], args.range[1], args.max_ramp, args.hours)
     n_progs = len(candidates(limits))
     if not n_progs:
         raise UserError("no program fits: raise --hours or --max-ramp, or narrow --range")

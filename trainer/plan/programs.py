@@ -82,7 +82,12 @@ def paper_protocol(limits: Limits) -> Program:
     """The paper's protocol over the user's range: a 0.5 C/min and a 1 C/min up-ramp, two
     runs (4.5 h over -40..50 C)."""
     runs = tuple(_path(limits.lo_c, limits.hi_c, [("ramp", r)]) for r in (0.5, 1.0))
-    return Program("paper: up 0.5 + up 1 (two runs)", runs, (0.5, 1.0))
+    p = Program("paper: up 0.5 + up 1 (two runs)", runs, (0.5, 1.0))
+    bad = violations(p, limits)
+    if bad:  # a reference, shown anyway: say that it breaks the limits
+        p = Program(f"paper: up 0.5 + up 1 (two runs; outside your limits: {bad[0]})", runs,
+                    (0.5, 1.0))
+    return p
 
 
 def candidates(limits: Limits) -> list[Program]:
