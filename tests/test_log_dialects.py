@@ -87,7 +87,7 @@ def test_one_axis_of_a_three_axis_log(plain: Path, tmp_path: Path, capsys) -> No
     with open(imu, "w") as f:
         f.write(",".join(names) + "\n")
         np.savetxt(f, data, delimiter=",", fmt="%.10g")
-    with pytest.raises(LogError, match=r"--gyro-column gyro_x_dps \(fogsf train: --axis x\)"):
+    with pytest.raises(LogError, match=r"--gyro-column gyro_x_dps \(or --axis x\)"):
         read_log(imu)
     y = read_log(imu, Dialect(gyro_column="gyro_y_dps"))
     assert np.allclose(y.gyro_dps, axes["gyro_y_dps"], rtol=1e-9)
@@ -287,3 +287,21 @@ def test_every_help_ends_with_examples_that_parse(capsys) -> None:
                 words = shlex.split(cmd)
                 assert words[0] == "fogsf", (argv, line)
                 parser.parse_args(words[1:])  # exits (fails the test) on a bad example
+
+
+def test_quoted_cells_are_read_as_csv(plain: Path, tmp_path: Path, capsys) -> None:
+    lines = plain.read_text().splitlines()
+    quoted = tmp_path / "quoted.csv"
+    quoted.write_text("\n".join(",".join(f'"{c}"' for c in line.split(",")) for line in lines)
+                      + "\n")
+    _same(read_log(quoted), read_log(plain))
+    assert main(["inspect", str(quoted), "--axis", "z"]) == 2  # no gyro_z_dps: named
+    assert "gyro_z_dps" in capsys.readouterr().err
+    bad = tmp_path / "thousands.csv"
+    bad.write_text(lines[0] + "\n" + lines[1].replace(",", ',"1,0",', 1) + "\n")
+    with pytest.raises(LogError, match="line 2: delimiter inside a quoted cell"):
+        read_log(bad)
+    broken = tmp_path / "broken.csv"
+    broken.write_text('"time_s,temp_c\n')
+    with pytest.raises(LogError, match="bad quoting"):
+        read_log(broken)

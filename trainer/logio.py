@@ -235,6 +235,28 @@ def _sniff(header_line: str, path: str) -> str:
                    "give --delimiter")
 
 
+def _unquote(lines: list[str], delim: str, path: str) -> list[str]:
+    """Lines with CSV quoting ("time_s","0.1") read by the csv module and written back
+    without quotes; a quoted cell that holds the delimiter itself is refused."""
+    import csv
+
+    out = []
+    reader = csv.reader(lines, delimiter=delim, strict=True)
+    try:
+        rows = list(reader)
+    except csv.Error as e:
+        raise LogError(path, reader.line_num, "bad quoting", str(e)) from None
+    for i, row in enumerate(rows, start=1):
+        for cell in row:
+            if delim in cell:
+                raise LogError(path, i, "delimiter inside a quoted cell",
+                               f"{cell!r} holds {DELIMITER_NAMES[delim]}: write numbers "
+                               "without thousands separators (or use --decimal-comma with "
+                               "';' or tab cells)")
+        out.append(delim.join(row))
+    return out
+
+
 def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
     """The header in our names: --columns mapped, --gyro-column read as gyro_dps."""
     out = list(header)
@@ -257,7 +279,7 @@ def _missing_hint(missing: list[str], header: list[str]) -> str:
     if "gyro_dps" in missing and axes:
         axis = axes[0][len("gyro_"):-len("_dps")]
         return (f"; the log has {', '.join(axes)}: pick one with --gyro-column {axes[0]} "
-                f"(fogsf train: --axis {axis})")
+                f"(or --axis {axis})")
     return f"; {COLUMNS_HINT}"
 
 
@@ -282,6 +304,9 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
         notes.append(f"cells separated by {DELIMITER_NAMES[delim]} (from the header)")
     if dialect.decimal_comma:
         notes.append("decimal comma (--decimal-comma)")
+    if '"' in text:
+        lines = _unquote(lines, delim, path)
+        notes.append('quoted cells read as CSV ("...")')
     raw = [h.strip() for h in lines[0].split(delim)]
     for h in raw:
         if not h:

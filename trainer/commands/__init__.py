@@ -38,9 +38,9 @@ def add_metric_options(parser: argparse.ArgumentParser) -> None:
                         help="latitude for the earth rate when a log has no earth_rate_dps")
 
 
-def add_log_options(parser: argparse.ArgumentParser, axis: bool = False) -> None:
-    """--delimiter, --columns and --gyro-column (and --axis), as every command that reads
-    chamber logs takes them (docs/logs.md)."""
+def add_log_options(parser: argparse.ArgumentParser) -> None:
+    """--delimiter, --decimal-comma, --columns, --gyro-column and --axis, as every command
+    that reads chamber logs takes them (docs/logs.md)."""
     g = parser.add_argument_group("log format (docs/logs.md)")
     g.add_argument("--delimiter", choices=(",", ";", "tab"), default=None, metavar=",|;|tab",
                    help="cell delimiter (default: the one of , ; tab the header uses; a "
@@ -55,9 +55,8 @@ def add_log_options(parser: argparse.ArgumentParser, axis: bool = False) -> None
     g.add_argument("--gyro-column", metavar="NAME", default=None,
                    help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
                         "gyro_x_dps)")
-    if axis:
-        g.add_argument("--axis", metavar="X", default=None,
-                       help="shorthand for --gyro-column gyro_X_dps")
+    g.add_argument("--axis", metavar="X", default=None,
+                   help="shorthand for --gyro-column gyro_X_dps")
 
 
 def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - trainer.logio.Dialect
