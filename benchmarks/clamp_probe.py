@@ -17,13 +17,10 @@ import sys
 
 import numpy as np
 
-from benchmarks.population import PROTOCOLS, run_config
-from benchmarks.structure_rules import ratio
-from trainer.features import prepare
-from trainer.lag_bank import bank_spec, fit_bank, n_curved
-from trainer.sim import simulate
+from benchmarks.population import protocol_logs
+from benchmarks.structure_rules import bank_inputs, ratio
+from trainer.lag_bank import fit_bank, n_curved
 from trainer.sim.population import DEV_SEEDS, gyro_for_seed
-from trainer.train import TrainOptions, training_inputs
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -42,16 +39,9 @@ def main(argv: list[str] | None = None) -> int:
     for seed in seeds:
         gyro = gyro_for_seed(seed)
         for p in protocols:
-            train_names, test_name = PROTOCOLS[p]
-            logs = {r: simulate(run_config(gyro, r, seed)).log for r in (*train_names,
-                                                                        test_name)}
-            train, test = [logs[r] for r in train_names], logs[test_name]
-            ti = training_inputs(TrainOptions(model="lag-lstm"), train, bank_spec(),
-                                 physical=True)
-            z = np.concatenate(ti.z)
-            y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
+            train, test = protocol_logs(gyro, seed, p)
+            ti, z, y, zt = bank_inputs(train, test)
             bank = fit_bank(z, y, curved=n_curved())
-            zt = ti.norm.apply(prepare(test, ti.fe, None, None).s)
             lo, hi = z.min(axis=0), z.max(axis=0)
             zc = np.clip(zt, lo, hi)
             curved = (bank.intercept + zt @ bank.lin + (zc * zc) @ bank.quad

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.population import PROTOCOLS, run_config
+from benchmarks.population import protocol_logs
 from trainer.executors import add_executor_options, executor_from_args, run_all
 from trainer.sim.population import DEV_SEEDS
 
@@ -32,7 +32,6 @@ VARIANTS = {"node/256": ("node", 256), "node/whole": ("node", 100_000),
 def one_gyro(seed: int, protocols: tuple[str, ...]) -> dict:
     import torch
 
-    from trainer.sim import simulate
     from trainer.sim.population import gyro_for_seed
     from trainer.train import TrainOptions, run_training
 
@@ -41,15 +40,13 @@ def one_gyro(seed: int, protocols: tuple[str, ...]) -> dict:
     out: dict = {"gyro_seed": seed}
     with tempfile.TemporaryDirectory() as tmp:
         for p in protocols:
-            train_names, test_name = PROTOCOLS[p]
-            logs = {r: simulate(run_config(gyro, r, seed)).log for r in (*train_names,
-                                                                        test_name)}
+            train, test = protocol_logs(gyro, seed, p)
             for name, (structure, window) in VARIANTS.items():
                 t0 = time.perf_counter()
                 opts = TrainOptions(model="lag-lstm", seed=seed, progress=False, workers=1,
                                     transfer_check=False, structure=structure,
                                     lstm_window=window)
-                m, _ = run_training(opts, [logs[r] for r in train_names], logs[test_name],
+                m, _ = run_training(opts, train, test,
                                     Path(tmp) / f"{p}-{name.replace('/', '-')}")
                 out[f"{p}:{name}"] = {"ratio": m["test"]["after"]["rms_ppm"]
                                       / m["noise_floor_ppm"],

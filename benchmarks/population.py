@@ -92,6 +92,16 @@ def run_config(gyro: SimConfig, name: str, gyro_seed: int) -> SimConfig:
     return run_on_gyro(gyro, run_profile(name), gyro_seed * 16 + RUN_SEED_OFFSET[name], name)
 
 
+def protocol_logs(gyro: SimConfig, gyro_seed: int, protocol: str) -> tuple[list, object]:
+    """A protocol's training logs and its test log, simulated on `gyro`."""
+    from trainer.sim import simulate
+
+    train_names, test_name = PROTOCOLS[protocol]
+    logs = {r: simulate(run_config(gyro, r, gyro_seed)).log for r in (*train_names,
+                                                                     test_name)}
+    return [logs[r] for r in train_names], logs[test_name]
+
+
 def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, imported late
     from trainer.train import DEFAULT_MODEL, TrainOptions
 

@@ -30,15 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.population import PROTOCOLS, run_config
+from benchmarks.population import protocol_logs
 from trainer.features import front_end_for, prepare
 from trainer.lag_bank import BANK_LAMBDA, bank_design, bank_spec, fit_bank, n_curved
 from trainer.least_squares import TAU_GRID_S, fit_candidates, grid_data, node_candidates
 from trainer.metrics import log_metrics
-from trainer.sim import simulate
 from trainer.sim.population import DEV_SEEDS, gyro_for_seed
 from trainer.stream import expand
-from trainer.train import TrainOptions, training_inputs
+from trainer.train import TrainOptions, bank_data, training_inputs
 from trainer.transfer import CHI2_ALLOWANCE, long_run_ratio
 
 BANK_LAMBDAS = (1e-4, 1e-3, 1e-2)
@@ -86,11 +85,17 @@ def _gcv_lambda(z: np.ndarray, y: np.ndarray) -> float:
     return GCV_GRID[int(np.argmin(scores))]
 
 
-def bank_rules(train: list, test) -> dict[str, np.ndarray]:  # noqa: ANN001
+def bank_inputs(train: list, test) -> tuple:  # noqa: ANN001 - ChamberLogs
+    """(ti, z, y, zt): the default model's bank inputs as `train._fit_bank_head` builds them
+    (normalised features z and targets y of every training step) and the test log's z."""
     ti = training_inputs(TrainOptions(model="lag-lstm"), train, bank_spec(), physical=True)
-    z = np.concatenate(ti.z)
-    y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
-    zt = ti.norm.apply(prepare(test, ti.fe, None, None).s)
+    z, y = bank_data(ti)
+    return ti, z, y, ti.norm.apply(prepare(test, ti.fe, None, None).s)
+
+
+def bank_rules(train: list, test) -> dict[str, np.ndarray]:  # noqa: ANN001
+    ti, z, y, zt = bank_inputs(train, test)
+
     def pred(lam: float, curved: int | None) -> np.ndarray:
         return fit_bank(z, y, lam, curved).predict(zt) * ti.scale + ti.offset
 
@@ -118,10 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     for seed in seeds:
         gyro = gyro_for_seed(seed)
         for p in protocols:
-            train_names, test_name = PROTOCOLS[p]
-            logs = {r: simulate(run_config(gyro, r, seed)).log for r in (*train_names,
-                                                                        test_name)}
-            train, test = [logs[r] for r in train_names], logs[test_name]
+            train, test = protocol_logs(gyro, seed, p)
             preds = {**lag_family_rules(train, test), **bank_rules(train, test)}
             row = {k: ratio(test, v) for k, v in preds.items()}
             for k, v in row.items():

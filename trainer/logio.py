@@ -51,11 +51,6 @@ class Dialect:
     decimal_comma: bool = False  # cells written 20,5 (then separated by ; or tab)
     columns_from: str = "--columns"  # where `columns` came from, for messages
 
-    def __post_init__(self) -> None:
-        if self.decimal_comma and self.delimiter == ",":
-            raise UserError("--decimal-comma needs cells separated by ';' or tab, not ',': "
-                            "give --delimiter ';' or --delimiter tab")
-
     @staticmethod
     def mapping_file(path: str | Path) -> tuple[tuple[str, str], ...]:
         """A JSON object or TOML table {"time_s": "t", ...} (our name: the log's name)."""
@@ -75,14 +70,13 @@ class Dialect:
         """`time_s=t,temp_c=temperature` or a JSON/TOML file {"time_s": "t", ...}."""
         if text.lower().endswith((".json", ".toml")) and "=" not in text:
             return Dialect.mapping_file(text)
-        else:
-            pairs = []
-            for part in (p for p in text.split(",") if p.strip()):
-                ours, eq, theirs = part.partition("=")
-                if not eq or not ours.strip() or not theirs.strip():
-                    raise UserError(f"--columns: expected OURS=THEIRS pairs like "
-                                    f"time_s=t,temp_c=temperature, got {part!r}")
-                pairs.append((ours.strip(), theirs.strip()))
+        pairs = []
+        for part in (p for p in text.split(",") if p.strip()):
+            ours, eq, theirs = part.partition("=")
+            if not eq or not ours.strip() or not theirs.strip():
+                raise UserError(f"--columns: expected OURS=THEIRS pairs like "
+                                f"time_s=t,temp_c=temperature, got {part!r}")
+            pairs.append((ours.strip(), theirs.strip()))
         return Dialect._checked(pairs, "--columns")
 
     @staticmethod
@@ -296,10 +290,9 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
     if not lines or not lines[0].strip():
         raise LogError(path, 1 if lines else None, "empty file", "no header row")
     delim = dialect.delimiter or _sniff(lines[0], path)
-    if dialect.decimal_comma and delim == ",":
+    if dialect.decimal_comma and delim == ",":  # given or sniffed: one check for both
         raise LogError(path, 1, "decimal comma with ',' cells",
-                       "--decimal-comma needs cells separated by ';' or tab, and this header "
-                       "uses ','")
+                       "--decimal-comma needs cells separated by ';' or tab, not ','")
     if dialect.delimiter is None and delim != ",":
         notes.append(f"cells separated by {DELIMITER_NAMES[delim]} (from the header)")
     if dialect.decimal_comma:

@@ -214,23 +214,30 @@ def _fit_bank_head(ti: TrainingInputs) -> BankFit:
     """The lag bank fitted by ridge to the normalised targets of every step of the
     training logs (the validation part too: it only picks the LSTM's iteration, and the
     bank needs every transient the logs hold)."""
+    return fit_bank(*bank_data(ti), curved=n_curved())
+
+
+def bank_data(ti: TrainingInputs) -> tuple[np.ndarray, np.ndarray]:
+    """(z, y): the normalised features and targets of every step of the training logs,
+    what the lag bank is fitted to."""
     z = np.concatenate(ti.z)
     y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
-    return fit_bank(z, y, curved=n_curved())
+    return z, y
 
 
 def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
                       ) -> Callable[[ChamberLog], np.ndarray]:
     """The default model's fixed part (the lag bank by least squares) trained on `logs`:
-    a function giving a log's per-step SF error prediction (ppm vs nominal). Fast (no
-    LSTM), for benches and the planner."""
+    a function giving a log's SF error prediction (ppm vs nominal) per sample, held over
+    each model step as the kernel holds it. Fast (no LSTM), for benches and the planner."""
     ti = training_inputs(opts or TrainOptions(model="lag-lstm"), logs, bank_spec(),
                          physical=True)
     bank = _fit_bank_head(ti)
 
     def predict(log: ChamberLog) -> np.ndarray:
         s = prepare(log, ti.fe, None, None).s
-        return bank.predict(ti.norm.apply(s)) * ti.scale + ti.offset
+        steps = bank.predict(ti.norm.apply(s)) * ti.scale + ti.offset
+        return expand(steps, len(log), ti.fe.decimation)
 
     return predict
 

@@ -28,12 +28,12 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from trainer.commands import add_log_options, dialect_from_args
+from trainer.commands import add_log_options, positive_int, read_logs
 from trainer.errors import UserError
 from trainer.executors import add_executor_options
 
 if TYPE_CHECKING:
-    from trainer.logio import Dialect
+    from trainer.logio import ChamberLog
 
 
 def _pair(text: str) -> tuple[float, float]:
@@ -59,11 +59,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--test-rates", type=int, default=4, metavar="N",
                    help="envelope rates scored, log-spaced, ends included (default 4)")
     p = parser.add_argument_group("the gyros it is planned for")
-    p.add_argument("--gyros", type=int, default=24, metavar="N",
+    p.add_argument("--gyros", type=positive_int, default=24, metavar="N",
                    help="population gyros (development seeds from --first; default 24)")
     p.add_argument("--first", type=int, default=1, metavar="SEED",
                    help="first population seed (default 1; 0 is the default gyro)")
-    p.add_argument("--axes", type=int, default=1, metavar="N",
+    p.add_argument("--axes", type=positive_int, default=1, metavar="N",
                    help="gyros per IMU sharing the chamber (default 1): each group of N "
                         "consecutive gyros counts once, by its worst axis")
     p.add_argument("--from-logs", nargs="+", type=Path, metavar="LOG",
@@ -73,7 +73,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--interval-gyros", type=int, default=4, metavar="N",
                    help="gyros on which the rate-transfer interval is computed for the best "
                         "programs and the paper's (default 4; 0 skips it)")
-    p.add_argument("--top", type=int, default=10, help="programs printed (default 10)")
+    p.add_argument("--top", type=positive_int, default=10,
+                   help="programs printed (default 10)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
     add_log_options(parser)
     add_executor_options(parser)
@@ -87,10 +88,6 @@ def run(args: argparse.Namespace) -> int:
     from trainer.plan.search import search
     from trainer.sim.population import DEV_SEEDS
 
-    if args.gyros < 1:
-        raise UserError(f"--gyros must be at least 1, got {args.gyros}")
-    if args.axes < 1:
-        raise UserError(f"--axes must be at least 1, got {args.axes}")
     if not 1 <= args.test_rates <= 12:
         raise UserError(f"--test-rates must be 1-12, got {args.test_rates}")
     seeds = list(range(args.first, args.first + args.gyros))
@@ -104,8 +101,8 @@ def run(args: argparse.Namespace) -> int:
     gyros: list = [(s, s) for s in seeds]
     what = f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})"
     if args.from_logs:
-        gyros = [(i + 1, g) for i, g in enumerate(fitted_gyros(args.from_logs,
-                                                                  dialect_from_args(args)))]
+        fitted = fitted_gyros(read_logs(args, [str(p) for p in args.from_logs]))
+        gyros = [(i + 1, g) for i, g in enumerate(fitted)]
         what = f"{len(gyros)} gyros fitted to " + ", ".join(p.name for p in args.from_logs)
     if len(gyros) % args.axes:
         raise UserError(f"--axes {args.axes}: the number of gyros ({len(gyros)}) must be a "
@@ -137,17 +134,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def fitted_gyros(paths: list[Path], dialect: Dialect | None = None) -> list:
+def fitted_gyros(logs: list[ChamberLog]) -> list:
     """One simulator gyro per log: diagnose's base model fitted to it (thermal network,
     SF terms, bias, noise), for the planner to simulate programs on."""
     from trainer.diagnose import extend, verdict
-    from trainer.logio import read_log
     from trainer.sim.config import SimConfig
 
     out = []
-    for p in paths:
-        d = verdict.diagnose([read_log(p, dialect)], effects=[])
+    for log in logs:
+        d = verdict.diagnose([log], effects=[])
         out.append(SimConfig.from_dict(extend.sim_config(d, d.base, 0)))
-        print(f"fitted a gyro to {p}: nodes at "
+        print(f"fitted a gyro to {log.path}: nodes at "
               + ", ".join(f"{n.tau_s:.0f} s" for n in out[-1].thermal.nodes[2:]))
     return out

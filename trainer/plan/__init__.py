@@ -2,6 +2,7 @@
 
 programs.py builds candidate programs from templates inside the chamber's limits;
 evaluate.py simulates each on population gyros, trains the default model's lag bank on it
-and scores it at envelope rates the program does not contain; report.py ranks, writes the
-table, the figure and program.csv.
+and scores it on test loops across the rate envelope; search.py runs that over gyros on the
+executor; report.py ranks (also over the rates not in each program), writes the table, the
+figure and program.csv.
 """

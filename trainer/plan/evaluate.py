@@ -60,6 +60,13 @@ def _simulate(gyro, points, seed: int, name: str):  # noqa: ANN001, ANN202 - sim
     return simulate(run_on_gyro(gyro, prof, seed, name)).log
 
 
+def _program_logs(gyro, p: Program, seed: int) -> list:  # noqa: ANN001 - sim types
+    """The program's runs simulated on `gyro`, run k with noise seed `seed + k` (common
+    random numbers: every program's k-th run has the same noise, so programs differ by
+    their chamber program only, not by where they sit in the list)."""
+    return [_simulate(gyro, run, seed + k, f"plan-run{k}") for k, run in enumerate(p.runs)]
+
+
 def gyro_of(ref: int | SimConfig) -> SimConfig:
     from trainer.sim.population import gyro_for_seed
 
@@ -73,7 +80,6 @@ def evaluate_gyro(item: tuple[int, int | SimConfig], programs: list[Program], li
     "seconds"}, at every envelope rate (those in the program too: the test loop is another
     run, up and down)."""
     from trainer.metrics import log_metrics
-    from trainer.stream import expand
     from trainer.train import bank_compensation
 
     t0 = time.perf_counter()
@@ -84,15 +90,10 @@ def evaluate_gyro(item: tuple[int, int | SimConfig], programs: list[Program], li
              for i, r in enumerate(rates)}
     out: dict[str, dict[float, float]] = {}
     for p in programs:
-        # common random numbers: every program's k-th run has the same noise, so programs
-        # differ by their chamber program only, not by where they sit in the list
-        logs = [_simulate(gyro, run, gyro_seed * 1000 + k, f"plan-run{k}")
-                for k, run in enumerate(p.runs)]
-        predict = bank_compensation(logs)
+        predict = bank_compensation(_program_logs(gyro, p, gyro_seed * 1000))
         row = {}
         for r in rates:
-            log = tests[r]
-            m = log_metrics(log, correction_ppm=expand(predict(log), len(log), 50))
+            m = log_metrics(tests[r], correction_ppm=predict(tests[r]))
             row[r] = m["rms_ppm"] / m["noise_floor_ppm"]
         out[p.name] = row
     return {"gyro_seed": gyro_seed, "ratios": out, "seconds": time.perf_counter() - t0}
@@ -101,9 +102,8 @@ def evaluate_gyro(item: tuple[int, int | SimConfig], programs: list[Program], li
 def interval_gyro(item: tuple[int, int | SimConfig], programs: list[Program], limits: Limits,
                   rate: float) -> dict[str, float]:
     """The rate-transfer interval's upper end, as a multiple of the noise floor, on the test
-    loop at `rate`
-    for each program trained on one gyro: how sure `fogsf train --test` would be."""
-    from trainer.stream import expand
+    loop at `rate` for each program trained on one gyro: how sure `fogsf train --test`
+    would be."""
     from trainer.train import bank_compensation
     from trainer.transfer import INTERVAL_LO, rate_transfer
 
@@ -113,9 +113,8 @@ def interval_gyro(item: tuple[int, int | SimConfig], programs: list[Program], li
                      f"plan-interval-{rate:.3g}")
     out = {}
     for p in programs:
-        logs = [_simulate(gyro, run, gyro_seed * 1000 + 500 + k, f"plan-irun{k}")
-                for k, run in enumerate(p.runs)]
-        pred = expand(bank_compensation(logs)(test), len(test), 50)
+        logs = _program_logs(gyro, p, gyro_seed * 1000 + 500)
+        pred = bank_compensation(logs)(test)
         lo, hi = rate_transfer(logs, test, prediction_ppm=pred).rms_interval_ppm
         out[p.name] = hi * INTERVAL_LO / lo if lo > 0 else float("inf")  # lo: 0.8 x floor
     return out

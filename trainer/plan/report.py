@@ -31,9 +31,9 @@ def identifiable(p: Program) -> list[str]:
     """What the program lets the tools tell apart (rules from the simulator's effects and
     diagnose's confounding cases, not measured per program)."""
     out = []
-    holds = [a for run in p.runs for a, b in itertools.pairwise(run) if a[1] == b[1]]
+    holds = [(a, b) for run in p.runs for a, b in itertools.pairwise(run) if a[1] == b[1]]
     temps = [pt[1] for run in p.runs for pt in run]
-    inner = [a for a in holds if min(temps) < a[1] < max(temps)]
+    inner = [a for a, _ in holds if min(temps) < a[1] < max(temps)]
     if len(set(p.rates_c_per_min)) >= 2:
         out.append("lag structure (two or more ramp rates)")
     elif inner:
@@ -41,8 +41,7 @@ def identifiable(p: Program) -> list[str]:
     slopes = [np.sign(b[1] - a[1]) for run in p.runs for a, b in itertools.pairwise(run)]
     if 1 in slopes and -1 in slopes:
         out.append("temp_rate vs lag (up- and down-ramps)")
-    soak = max((b[0] - a[0] for run in p.runs for a, b in itertools.pairwise(run) if a[1] == b[1]),
-               default=0.0)
+    soak = max((b[0] - a[0] for a, b in holds), default=0.0)
     if soak >= LONG_SOAK_S:
         out.append("extra_lag vs aging / bias drift (a soak of at least 3 h)")
     return out
