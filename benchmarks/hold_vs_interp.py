@@ -46,8 +46,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("log", type=Path)
     ap.add_argument("--json", type=Path, default=Path("out/hold-vs-interp.json"))
     args = ap.parse_args(argv)
-    model = st.StreamModel.load(args.model)
     log = read_log(args.log)
+    model = st.StreamModel.load(args.model).at_rate(log.sample_dt_s)
     rows = {}
     print(f"model {model.model_id}, D={model.decimation}; SF error after correction, "
           "100 s windows, ppm")

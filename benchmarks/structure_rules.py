@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from trainer.features import front_end_for, prepare
+from trainer.features import MODEL_STEP_S, front_end_for, prepare
 from trainer.lag_bank import BANK_LAMBDA, bank_design, bank_spec, fit_bank, n_curved
 from trainer.least_squares import TAU_GRID_S, fit_candidates, grid_data, node_candidates
 from trainer.metrics import log_metrics
@@ -50,7 +50,7 @@ def ratio(log, steps: np.ndarray) -> float:  # noqa: ANN001 - a ChamberLog
 
 
 def lag_family_rules(train: list, test) -> dict[str, np.ndarray]:  # noqa: ANN001
-    fe = front_end_for([*train, test], 50, ())
+    fe = front_end_for([*train, test], MODEL_STEP_S, ())
     data, y = grid_data(train, fe, TAU_GRID_S, None)
     (td,), _ = grid_data([test], fe, TAU_GRID_S, None)
     s = np.concatenate([d.s for d in data])

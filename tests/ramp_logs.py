@@ -7,10 +7,12 @@ from trainer.sim.gyro import simulate
 from trainer.sim.scenarios import paper
 
 
-def short_ramp(rate: float, seed: int, gyro_seed: int | None = None) -> ChamberLog:
-    """-20 -> 40 C at `rate` C/min after a 10 min soak, warm start, 10 deg/s: 1-2 h at 10 Hz;
-    the default gyro, or the population's gyro `gyro_seed`."""
+def short_ramp(rate: float, seed: int, gyro_seed: int | None = None,
+               sample_rate_hz: float = 10.0) -> ChamberLog:
+    """-20 -> 40 C at `rate` C/min after a 10 min soak, warm start, 10 deg/s: 1-2 h at 10 Hz
+    (or `sample_rate_hz`); the default gyro, or the population's gyro `gyro_seed`."""
     cfg = paper(rate, seed)
+    cfg.dt_s = 1.0 / sample_rate_hz
     if gyro_seed is not None:
         from trainer.sim.population import gyro_for_seed, with_gyro
 

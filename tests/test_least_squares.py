@@ -14,7 +14,7 @@ def test_profile_when_every_candidate_is_plausible() -> None:
     cfg = paper(1.0, seed=4)
     cfg.profile.start_c, cfg.profile.stop_c = 0.0, 30.0
     log = simulate(cfg).log
-    fe = front_end_for([log], 50, ())
+    fe = front_end_for([log], 5.0, ())
     (tau, w), score = profile_effective_node([log], fe, grid=(1000.0,), leads=(0.0,))
     assert (tau, w) == (1000.0, 0.0) and score > 0
 
@@ -29,7 +29,7 @@ def test_profile_prefers_a_plausible_candidate() -> None:
     cfg = paper(1.0, seed=4)
     cfg.profile.start_c, cfg.profile.stop_c = 0.0, 30.0
     log = simulate(cfg).log
-    fe = front_end_for([log], 50, ())
+    fe = front_end_for([log], 5.0, ())
     node, _ = profile_effective_node([log], fe)
     data, y = grid_data([log], fe, (node[0],), None)
     cand = next(c for c in node_candidates(1, (node[0],)) if c.nodes[0] == node)

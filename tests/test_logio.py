@@ -70,7 +70,7 @@ def test_good_file_reads() -> None:
         (csv(good_rows()[:3] + ["0.2,20,10,10"]), "time not increasing", 5),
         (csv(good_rows()[:3] + ["0.1,20,10,10"]), "time not increasing", 5),
         (csv(good_rows()[:3] + ["0.4,20,10,10"]), "gap", 5),
-        (csv(good_rows()[:3] + ["0.25,20,10,10"]), "sample rate away from 10 Hz", 5),
+        (csv(good_rows()[:3] + ["0.25,20,10,10"]), "jitter", 5),
         (csv(good_rows()[:3] + ["0.3,20,0,10"]), "zero table rate", 5),
         (csv(good_rows()[:3] + ["0.3,101,10,10"]), "temperature out of range", 5),
         (csv(good_rows()[:3] + ["0.3,-60.5,10,10"]), "temperature out of range", 5),

@@ -28,7 +28,7 @@ FAST = {"iters": 40, "hidden": 8, "layers": 1, "batch_size": 8}
 def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path) -> None:
     train, test = logs
     over = FAST if model in ("lstm", "lag-lstm") else {}
-    opts = TrainOptions(model=model, progress=False, decimation=50, **over)
+    opts = TrainOptions(model=model, progress=False, model_step_s=5.0, **over)
     m, _ = run_training(opts, [train], test, tmp_path / model)
     before, after = m["test"]["before"], m["test"]["after"]
     # on its own training run every model is far below the uncompensated error

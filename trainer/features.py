@@ -18,12 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from trainer.errors import UserError
-from trainer.logio import ChamberLog
-from trainer.stream import FrontEnd, filter_alpha, frontend
+from trainer.logio import DT_TOLERANCE, ChamberLog, rate_text
+from trainer.stream import FrontEnd, decimation_for, filter_alpha, frontend
 
 T_REF_C = 20.0
 RANGE_MARGIN_C = 5.0  # the valid input range is the training range widened by this
-STUCK_SAMPLES = 36000  # 1 h of bitwise-identical readings flags a stuck thermometer
+STUCK_S = 3600.0  # 1 h of bitwise-identical readings flags a stuck thermometer
+MODEL_STEP_S = 5.0  # the default model step (50 samples at 10 Hz, 500 at 100 Hz)
 SEC_PER_MIN = 60.0
 
 
@@ -81,6 +82,7 @@ class SeqData:
     target_ppm: np.ndarray  # [n_steps] float64: measured SF error vs nominal
     train_mask: np.ndarray  # [n_steps] bool: usable for fitting (False in the validation part)
     decimation: int
+    step_s: float  # seconds per model step
 
     @property
     def n_steps(self) -> int:
@@ -91,15 +93,31 @@ class SeqData:
         return ~self.train_mask
 
 
-def front_end_for(logs: list[ChamberLog], decimation: int, taus_s: tuple[float, ...]
-                  ) -> FrontEnd:
-    """The front end's constants for models trained on `logs`."""
+def common_sample_dt(logs: list[ChamberLog]) -> float:
+    """The one sample period of `logs` (the first log's; logs at another rate, beyond the
+    reader's tolerance, are refused: a model is trained at one rate)."""
+    dt = logs[0].sample_dt_s
+    for lg in logs[1:]:
+        if abs(lg.sample_dt_s - dt) > DT_TOLERANCE * dt:
+            raise UserError(f"{lg.path} is sampled at {rate_text(lg.sample_dt_s)}, "
+                            f"{logs[0].path} at {rate_text(dt)}: train on logs of one sample "
+                            "rate (a model trained at one rate runs at any other)")
+    return dt
+
+
+def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ...],
+                  sample_dt_s: float | None = None) -> FrontEnd:
+    """The front end's constants for models trained on `logs`, one model step per `step_s`
+    seconds at the logs' one sample rate (or at `sample_dt_s`)."""
     lo = min(float(lg.temp_c.min()) for lg in logs) - RANGE_MARGIN_C
     hi = max(float(lg.temp_c.max()) for lg in logs) + RANGE_MARGIN_C
+    dt = common_sample_dt(logs) if sample_dt_s is None else sample_dt_s
+    d = decimation_for(step_s, dt)
     return FrontEnd(t_ref_c=T_REF_C, t_min_c=min(lo, T_REF_C - 1.0),
-                    t_max_c=max(hi, T_REF_C + 1.0), decimation=decimation,
-                    stuck_samples=STUCK_SAMPLES,
-                    filter_alpha=filter_alpha(list(taus_s), decimation))
+                    t_max_c=max(hi, T_REF_C + 1.0), decimation=d,
+                    stuck_samples=int(round(STUCK_S / dt)),
+                    filter_alpha=filter_alpha(list(taus_s), d, dt), sample_dt_s=dt,
+                    filter_tau_s=tuple(float(t) for t in taus_s))
 
 
 def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = None
@@ -121,12 +139,15 @@ def val_mask_for(n_steps: int, val_chunk: tuple[float, float]) -> np.ndarray:
 
 def prepare(log: ChamberLog, fe: FrontEnd, val_chunk: tuple[float, float] | None = None,
             latitude_deg: float | None = None, targets: np.ndarray | None = None) -> SeqData:
-    """Front end and targets of one log; `val_chunk` (fractions of the run) is held out."""
+    """Front end and targets of one log; `val_chunk` (fractions of the run) is held out.
+    A log at another sample rate than `fe`'s goes through `fe.at_rate` (the same model
+    step in seconds)."""
+    fe = fe.at_rate(log.sample_dt_s)
     out = frontend(log.temp_c, fe)
     t = step_targets(log, fe.decimation, latitude_deg) if targets is None else targets
     n = out.s.shape[0]
     val = val_mask_for(n, val_chunk) if val_chunk else np.zeros(n, dtype=bool)
-    return SeqData(log, out.s, t, ~val, fe.decimation)
+    return SeqData(log, out.s, t, ~val, fe.decimation, fe.step_s)
 
 
 @dataclass(frozen=True)

@@ -59,10 +59,11 @@ class History:
                 "best_val_rms_ppm": self.best_val_rms_ppm, "seconds": self.seconds}
 
 
-def windowed_rms_ppm(err_ppm: np.ndarray, mask: np.ndarray, decimation: int,
+def windowed_rms_ppm(err_ppm: np.ndarray, mask: np.ndarray, step_s: float,
                      window_s: float = METRIC_WINDOW_S) -> float:
-    """RMS of the error averaged over consecutive `window_s` windows of the masked steps."""
-    win = max(1, int(round(window_s / (decimation * 0.1))))
+    """RMS of the error averaged over consecutive `window_s` windows of the masked steps
+    (model steps of `step_s` seconds)."""
+    win = max(1, int(round(window_s / step_s)))
     idx = np.flatnonzero(mask)
     if idx.size == 0:
         return math.nan
@@ -81,7 +82,7 @@ def validation_rms(pred_ppm: list[np.ndarray], data: list[SeqData]) -> float:
     sq, n = 0.0, 0
     for p, d in zip(pred_ppm, data, strict=True):
         if d.val_mask.any():
-            r = windowed_rms_ppm(p - d.target_ppm, d.val_mask, d.decimation)
+            r = windowed_rms_ppm(p - d.target_ppm, d.val_mask, d.step_s)
             sq += r * r
             n += 1
     return math.sqrt(sq / n) if n else math.nan

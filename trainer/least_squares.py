@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -94,8 +94,8 @@ def grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...], latitude_deg: f
               ) -> tuple[list[SeqData], np.ndarray]:
     """Every log through a front end with one lag filter per grid time constant, and the
     targets of all their steps stacked."""
-    full = FrontEnd(fe.t_ref_c, fe.t_min_c, fe.t_max_c, fe.decimation, fe.stuck_samples,
-                    filter_alpha(list(grid), fe.decimation))
+    full = replace(fe, filter_alpha=filter_alpha(list(grid), fe.decimation, fe.sample_dt_s),
+                   filter_tau_s=tuple(float(t) for t in grid))
     data = [prepare(lg, full, None, latitude_deg) for lg in logs]
     return data, np.concatenate([d.target_ppm for d in data])
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from trainer.errors import UserError
-from trainer.logio import NOMINAL_DT_S, ChamberLog
+from trainer.logio import ChamberLog, rate_text
 
 SUB_WINDOWS = 10
 T_REF_C = 20.0
@@ -58,10 +58,11 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
                correction_ppm: np.ndarray | None = None) -> SFWindows:
     """Apparent SF per window; with `correction_ppm` (per sample, vs nominal SF), of the
     corrected output gyro / (1 + correction * 1e-6)."""
-    n = int(round(window_s / NOMINAL_DT_S))
+    dt = log.sample_dt_s
+    n = int(round(window_s / dt))
     if n < SUB_WINDOWS * 2:
         raise UserError(f"window of {window_s:g} s is too short: at least "
-                        f"{SUB_WINDOWS * 2 * NOMINAL_DT_S:g} s")
+                        f"{SUB_WINDOWS * 2 * dt:g} s at {rate_text(dt)}")
     gyro = log.gyro_dps
     if correction_ppm is not None:
         corr = np.asarray(correction_ppm, dtype=np.float64)
@@ -180,7 +181,7 @@ def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,
     of opposite sign gives SF = (m1 - m2) / (r1 - r2) and bias = (m2 r1 - m1 r2) / (r1 - r2)
     (for r2 = -r1: half the difference over r1, and half the sum)."""
     signal = log.gyro_dps - log.earth(latitude_deg)
-    skip = int(round(settle_s / NOMINAL_DT_S))
+    skip = int(round(settle_s / log.sample_dt_s))
     pl = [(a + skip, b) for a, b in plateaus(log.table_rate_dps) if b - a > skip + 1]
     out: list[tuple[float, float, float, float]] = []
     i = 0

@@ -92,7 +92,7 @@ def to_stream_model(net: StreamNet, kind: str, spec: FeatureSpec, norm: Normalis
                         t_min_c=fe.t_min_c, t_max_c=fe.t_max_c,
                         stuck_samples=fe.stuck_samples, filter_tau_s=list(spec.taus_s),
                         n_features=spec.n_features, layers=net.layers, hidden=net.hidden,
-                        weights=weights, poly_head=net.poly,
+                        weights=weights, poly_head=net.poly, sample_dt_s=fe.sample_dt_s,
                         extra={"feature_names": list(spec.names),
                                                 **(extra or {})})
     model.validate()

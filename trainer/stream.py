@@ -26,7 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import NamedTuple
 
@@ -124,6 +124,21 @@ def filter_alpha(filter_tau_s: list[float], decimation: int, sample_dt_s: float 
                     dtype=np.float32)
 
 
+# A model step may differ from D * dt by this fraction at most (D an integer of samples)
+STEP_TOLERANCE = 0.01
+
+
+def decimation_for(step_s: float, sample_dt_s: float, what: str = "the model step") -> int:
+    """Samples per model step: step_s / sample_dt_s, which must be (within STEP_TOLERANCE)
+    a whole number >= 1."""
+    d = max(1, int(round(step_s / sample_dt_s)))
+    if abs(d * sample_dt_s - step_s) > STEP_TOLERANCE * step_s:
+        raise UserError(f"{what} of {step_s:g} s is not a whole number of samples at "
+                        f"{1.0 / sample_dt_s:.6g} Hz ({step_s / sample_dt_s:.4g}); choose a "
+                        f"step that is a multiple of {sample_dt_s:.6g} s")
+    return d
+
+
 @dataclass(frozen=True)
 class FrontEnd:
     """What the front end needs (a subset of the artifact; the trainer can build one alone)."""
@@ -134,6 +149,37 @@ class FrontEnd:
     decimation: int
     stuck_samples: int
     filter_alpha: np.ndarray  # [K] float32
+    sample_dt_s: float = 0.1
+    filter_tau_s: tuple[float, ...] = ()  # () : unknown (the alphas are then rescaled)
+
+    @property
+    def step_s(self) -> float:
+        """The model step in seconds: D samples."""
+        return self.decimation * self.sample_dt_s
+
+    def at_rate(self, sample_dt_s: float) -> FrontEnd:
+        """The same front end for samples every `sample_dt_s`: the model step (s), the lag
+        filters' time constants (s) and the stuck-thermometer time (s) kept, in samples."""
+        d = decimation_for(self.step_s, sample_dt_s)
+        if d == self.decimation:  # the same samples per step, a step within 1 %: the same
+            return self
+        return replace(self, decimation=d, sample_dt_s=sample_dt_s,
+                       stuck_samples=int(round(self.stuck_samples * self.sample_dt_s
+                                               / sample_dt_s)),
+                       filter_alpha=_alpha_at(self.filter_alpha, self.filter_tau_s,
+                                              self.step_s, d * sample_dt_s))
+
+
+def _alpha_at(alpha: np.ndarray, taus_s: tuple[float, ...] | list[float], step_s: float,
+              new_step_s: float) -> np.ndarray:
+    """Filter coefficients for a model step of `new_step_s`: the same bits when the step is
+    the same (to 1e-9), else 1 - exp(-step/tau) afresh (from alpha when tau is unknown)."""
+    if abs(new_step_s - step_s) <= 1e-9 * step_s:
+        return np.asarray(alpha, dtype=np.float32)
+    if len(taus_s):
+        return np.array([-math.expm1(-new_step_s / t) for t in taus_s], dtype=np.float32)
+    keep = 1.0 - np.asarray(alpha, dtype=np.float64)
+    return (1.0 - keep ** (new_step_s / step_s)).astype(np.float32)
 
 
 _CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {
@@ -211,7 +257,32 @@ class StreamModel:
     def front_end(self) -> FrontEnd:
         return FrontEnd(t_ref_c=self.t_ref_c, t_min_c=self.t_min_c, t_max_c=self.t_max_c,
                         decimation=self.decimation, stuck_samples=self.stuck_samples,
-                        filter_alpha=self.weights["filter_alpha"])
+                        filter_alpha=self.weights["filter_alpha"],
+                        sample_dt_s=self.sample_dt_s,
+                        filter_tau_s=tuple(float(t) for t in self.filter_tau_s))
+
+    @property
+    def step_s(self) -> float:
+        """The model step in seconds (D samples of sample_dt_s)."""
+        return self.decimation * self.sample_dt_s
+
+    def at_rate(self, sample_dt_s: float) -> StreamModel:
+        """The same model for samples every `sample_dt_s` (docs/stream-contract.md, "Sample
+        rate"): D = step / dt (the step in seconds kept), filter alphas for that step (the
+        same bits when it is the same), stuck_samples for the same time. The weights are
+        unchanged; the model id changes (D and dt are part of it) and the result records
+        the id it was re-rated from as `rated_from`."""
+        fe = self.front_end.at_rate(sample_dt_s)
+        if fe.decimation == self.decimation:
+            return self
+        weights = dict(self.weights)
+        weights["filter_alpha"] = fe.filter_alpha
+        extra = dict(self.extra)
+        extra.setdefault("rated_from", self.model_id)
+        model = replace(self, decimation=fe.decimation, sample_dt_s=float(sample_dt_s),
+                        stuck_samples=fe.stuck_samples, weights=weights, extra=extra)
+        model.validate()
+        return model
 
     def config(self) -> dict:
         cfg = dict(self.extra)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -33,6 +34,7 @@ import numpy as np
 
 from trainer.errors import UserError
 from trainer.features import (
+    MODEL_STEP_S,
     FeatureSpec,
     Normaliser,
     SeqData,
@@ -62,7 +64,7 @@ EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
 @dataclass
 class TrainOptions:
     model: str
-    decimation: int = 50
+    model_step_s: float = MODEL_STEP_S  # one model step per this many seconds of samples
     seed: int = 0
     val_chunk: tuple[float, float] = (0.4, 0.6)
     window_s: float = 100.0
@@ -126,8 +128,8 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError(f"--structure must be one of {', '.join(STRUCTURES)}")
     if opts.node is not None and opts.nodes != 1:
         raise UserError("--node gives one effective node; drop it or use --nodes 1")
-    if opts.decimation < 1:
-        raise UserError("--decimation must be >= 1")
+    if not (math.isfinite(opts.model_step_s) and opts.model_step_s > 0):
+        raise UserError(f"--model-step-s must be > 0, got {opts.model_step_s!r}")
     lo, hi = opts.val_chunk
     if not 0.0 <= lo < hi <= 1.0 or hi - lo > 0.5:
         raise UserError("--val-chunk LO:HI must satisfy 0 <= LO < HI <= 1, at most half")
@@ -170,7 +172,7 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
 def _identify_node(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, float]:
     from trainer.least_squares import profile_effective_node
 
-    fe = front_end_for(logs, opts.decimation, ())
+    fe = front_end_for(logs, opts.model_step_s, ())
     node, _ = profile_effective_node(logs, fe, opts.latitude_deg)
     return node
 
@@ -179,7 +181,7 @@ def _identify_two_nodes(opts: TrainOptions, logs: list[ChamberLog]
                         ) -> list[tuple[float, float]]:
     from trainer.least_squares import profile_two_nodes
 
-    fe = front_end_for(logs, opts.decimation, ())
+    fe = front_end_for(logs, opts.model_step_s, ())
     nodes, _ = profile_two_nodes(logs, fe, opts.latitude_deg)
     return nodes
 
@@ -200,7 +202,7 @@ def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpe
                     targets: list[np.ndarray] | None = None,
                     physical: bool = False) -> TrainingInputs:
     """physical: features in one physical unit (`physical_normaliser`), not standardised."""
-    fe = front_end_for(logs, opts.decimation, spec.taus_s)
+    fe = front_end_for(logs, opts.model_step_s, spec.taus_s)
     ts = targets if targets is not None else [None] * len(logs)
     data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
             for lg, t in zip(logs, ts, strict=True)]
@@ -235,9 +237,9 @@ def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
     bank = _fit_bank_head(ti)
 
     def predict(log: ChamberLog) -> np.ndarray:
-        s = prepare(log, ti.fe, None, None).s
-        steps = bank.predict(ti.norm.apply(s)) * ti.scale + ti.offset
-        return expand(steps, len(log), ti.fe.decimation)
+        d = prepare(log, ti.fe, None, None)
+        steps = bank.predict(ti.norm.apply(d.s)) * ti.scale + ti.offset
+        return expand(steps, len(log), d.decimation)
 
     return predict
 
@@ -324,7 +326,8 @@ def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
     from trainer.executors import open_executor
     from trainer.gsa import SHORT_BUDGET, minimize
 
-    targets = [step_targets(lg, opts.decimation, opts.latitude_deg) for lg in logs]
+    d = front_end_for(logs, opts.model_step_s, ()).decimation
+    targets = [step_targets(lg, d, opts.latitude_deg) for lg in logs]
     payload = {"opts": opts, "logs": logs, "targets": targets,
                "node": opts.node or (None if opts.gsa_space == "extended"
                                      else _identify_node(opts, logs))}
@@ -360,7 +363,7 @@ def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
 def per_sample_prediction(fitted: Fitted, log: ChamberLog, latitude_deg: float | None
                           ) -> np.ndarray:
     d = prepare(log, fitted.fe, None, latitude_deg)
-    return expand(fitted.predict_steps(d), len(log), fitted.fe.decimation)
+    return expand(fitted.predict_steps(d), len(log), d.decimation)
 
 
 def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,
@@ -408,6 +411,8 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         "features": list(fitted.spec.names),
         "filter_tau_s": list(fitted.spec.taus_s),
         "decimation": fitted.fe.decimation,
+        "model_step_s": fitted.fe.step_s,
+        "sample_rate_hz": 1.0 / fitted.fe.sample_dt_s,
         "ref_sf_ratio": ref,
         "exportable": fitted.stream_model is not None,
         "train_seconds": train_s,

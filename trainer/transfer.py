@@ -39,7 +39,7 @@ SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows
 MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
 RATE_TOLERANCE = 0.15  # a target rate within 15 % of the training range is covered
 CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
-DECIMATION = 50
+STEP_S = 5.0  # the model step of the lag models compared
 LONG_RUN_STEPS = 20  # 100 s windows of 5 s model steps
 INTERVAL_WINDOW_S = 100.0
 INTERVAL_LO = 0.8  # the RMS of noise alone over a run's windows falls this far below its floor
@@ -230,7 +230,7 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     """How well the training logs determine the lag-temperature model on `target`;
     `prediction_ppm` (per sample of the target) is the trained model's prediction there, the
     model the interval is for (without it, the best-fitting lag model's)."""
-    from trainer.features import front_end_for
+    from trainer.features import common_sample_dt, front_end_for
     from trainer.fit import windowed_rms_ppm
     from trainer.least_squares import (
         MAX_NODE_SLOPE_PPM_PER_C,
@@ -240,7 +240,8 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
         node_candidates,
     )
 
-    fe = front_end_for([*train_logs, target], DECIMATION, ())
+    fe = front_end_for([*train_logs, target], STEP_S, (),
+                       sample_dt_s=common_sample_dt(train_logs))
     data, y = grid_data(train_logs, fe, TAU_GRID_S, latitude_deg)
     (tdata,), _ = grid_data([target], fe, TAU_GRID_S, latitude_deg)
     s = np.concatenate([d.s for d in data])
@@ -257,13 +258,13 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation)
     preds = {i: fits[i].cand.design(tdata.s) @ fits[i].coef for i in ok}
     every = np.ones(tdata.n_steps, dtype=bool)
-    spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, DECIMATION)
+    spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, tdata.step_s)
                        for i in ok])
     model_spread = spread
     if prediction_ppm is not None:
-        ref = _step_means(np.asarray(prediction_ppm, dtype=np.float64), DECIMATION)
+        ref = _step_means(np.asarray(prediction_ppm, dtype=np.float64), tdata.decimation)
         ref = ref[:tdata.n_steps]
-        model_spread = np.array([windowed_rms_ppm(preds[i] - ref, every, DECIMATION)
+        model_spread = np.array([windowed_rms_ppm(preds[i] - ref, every, tdata.step_s)
                                  for i in ok])
     excursion = lag_excursion_c(s, tdata.s)
     train_rates = training_ramp_rates(train_logs)

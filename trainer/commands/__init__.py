@@ -57,6 +57,9 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
                         "gyro_x_dps)")
     g.add_argument("--axis", metavar="X", default=None,
                    help="shorthand for --gyro-column gyro_X_dps")
+    g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
+                   help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
+                        "of time_s); every step must lie within 20 %% of 1/HZ")
 
 
 def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - trainer.logio.Dialect
@@ -73,7 +76,8 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - trainer.logio
     cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
-                   decimal_comma=getattr(args, "decimal_comma", False))
+                   decimal_comma=getattr(args, "decimal_comma", False),
+                   sample_rate_hz=getattr(args, "sample_rate_hz", None))
 
 
 def read_logs(args: argparse.Namespace, paths: list[str]) -> list:

@@ -5,15 +5,20 @@ Reads MODEL_DIR (stream.json + stream_weights.npz, written by `fogsf train`) and
   OUT/NAME.h       `extern const fogsf_model NAME;` and NAME_* size macros (firmware/c)
   OUT/NAME.c       the weights as static const float32 data and the model struct
 Models exported under different names link into one image (docs/firmware.md).
-The same model and name always give the same bytes.
+The same model and name always give the same bytes. `--sample-rate-hz` exports the model
+for firmware that runs at another rate than the training logs': the model step in seconds
+is kept, so D = step * rate (docs/stream-contract.md, "Sample rate").
 
-Example:
+Examples:
   fogsf export models/m --out build/m --name imu_x
+  fogsf export models/m --out build/m1k --name imu_x --sample-rate-hz 1000
 """
 
 from __future__ import annotations
 
 import argparse
+
+from trainer.commands import positive_float
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -23,6 +28,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--name", default="gyro_model",
                         help="C name of the model (its symbol, file names and macro prefix); "
                              "one name per model of an image (default gyro_model)")
+    parser.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
+                        help="the firmware's sample rate (default: the training logs'); "
+                             "the model step must be a whole number of samples at it")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,6 +44,13 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise UserError(str(e)) from None
     model = StreamModel.load(args.model)
+    if args.sample_rate_hz is not None:
+        rated = model.at_rate(1.0 / args.sample_rate_hz)
+        if rated is not model:
+            print(f"model {model.model_id} re-rated for {args.sample_rate_hz:g} Hz: "
+                  f"D {model.decimation} -> {rated.decimation} samples per "
+                  f"{model.step_s:g} s step")
+        model = rated
     paths = export_model(model, args.out, args.name)
     print(f"model {model.model_id} ({model.model}): {model.summary}")
     for kind, path in paths.items():

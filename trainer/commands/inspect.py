@@ -17,7 +17,7 @@ import argparse
 import json
 
 from trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
-from trainer.logio import ChamberLog
+from trainer.logio import ChamberLog, rate_text
 from trainer.metrics import (
     log_metrics,
     noise_floor_ppm,
@@ -31,8 +31,8 @@ from trainer.metrics import (
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", help="chamber log CSV (format: DESIGN.md)")
     parser.add_argument("--json", action="store_true",
-                        help="print the summary as JSON (samples, duration_s, temp_range_c, "
-                             "table_rates_dps, metrics)")
+                        help="print the summary as JSON (samples, duration_s, sample_rate_hz, "
+                             "temp_range_c, table_rates_dps, metrics)")
     add_metric_options(parser)
     add_log_options(parser)
     parser.add_argument("--ref-sf", type=positive_float, default=None,
@@ -52,6 +52,7 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
     return {
         "samples": len(log),
         "duration_s": log.duration_s,
+        "sample_rate_hz": log.sample_rate_hz,
         "temp_range_c": [float(log.temp_c.min()), float(log.temp_c.max())],
         "table_rates_dps": rates,
         "metrics": log_metrics(log, window_s, ref=ref, latitude_deg=latitude_deg),
@@ -70,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         rates = ", ".join(f"{r:+g}" for r in s["table_rates_dps"][:8])
         more = " ..." if len(s["table_rates_dps"]) > 8 else ""
         print(f"{log.path}: {s['samples']} samples, {s['duration_s']:.1f} s "
-              f"({s['duration_s'] / 3600:.2f} h) at 10 Hz")
+              f"({s['duration_s'] / 3600:.2f} h) at {rate_text(log.sample_dt_s)}")
         print(f"  board temperature {lo:.2f} .. {hi:.2f} C; table rates {rates}{more} deg/s")
         extra = [k for k in log.extra]
         if extra:

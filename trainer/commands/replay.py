@@ -2,10 +2,12 @@
 
 The model directory (from `fogsf train`) is exported to its C header and the kernel in
 firmware/c is compiled for it (cached in build/kernels/<model id>-..., or $FOGSF_BUILD_DIR).
-Every 10 Hz sample of the log (board temperature, raw gyro) goes through fogsf_step; the
+Every sample of the log (board temperature, raw gyro) goes through fogsf_step; the
 output CSV holds time_s, gyro_dps, gyro_corrected_dps and sf_error_ppm (the kernel's
 predicted SF error vs the nominal SF, held between model steps). The SF-error metrics of
 the log before and after the correction are printed (max|e|, p-p, RMS, STD, noise floor).
+A log at another sample rate than the model's training logs runs the model re-rated to it
+(the same model step in seconds; `fogsf export --sample-rate-hz` gives that firmware).
 Example:
   fogsf replay models/m run10.csv --out corrected.csv --plot replay.png
 """
@@ -46,9 +48,12 @@ def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
     """The replay CSV; doubles with 17 significant digits, sf_ppm (float32) with 9."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    from trainer.logio import write_rows
+
     rows = np.column_stack([time_s, gyro, corrected, sf_ppm.astype(np.float64)])
-    np.savetxt(path, rows, delimiter=",", fmt=["%.10g", "%.17g", "%.17g", "%.9g"],
-               header="time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm", comments="")
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write("time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm\n")
+        write_rows(f, rows, ["%.10g", "%.17g", "%.17g", "%.9g"])
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -65,6 +70,12 @@ def run(args: argparse.Namespace) -> int:
 
     model = StreamModel.load(args.model)
     log = read_logs(args, [args.log])[0]
+    rated = model.at_rate(log.sample_dt_s)
+    if rated is not model:
+        print(f"model {model.model_id} re-rated for the log's {log.sample_rate_hz:.6g} Hz: "
+              f"D {model.decimation} -> {rated.decimation} samples per {model.step_s:g} s "
+              f"step (model {rated.model_id})")
+        model = rated
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
     corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)
@@ -120,7 +131,7 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
     predicted = ((1.0 + sf.astype(np.float64) * 1e-6) / ref - 1.0) * 1e6
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5))
     ax1.plot(w.temp_c, before, ".", ms=4, label="measured SF error (before)")
-    ax1.plot(log.temp_c, predicted, "-", lw=0.8, label="C kernel prediction (10 Hz)")
+    ax1.plot(log.temp_c, predicted, "-", lw=0.8, label="C kernel prediction (every sample)")
     ax1.plot(w.temp_c, after, ".", ms=4, label="residual after correction")
     ax1.set_xlabel("board temperature [C]")
     ax1.set_ylabel("SF error [ppm] (about the SF at 20 C)")

@@ -1,4 +1,5 @@
-"""fogsf simulate: a closed-loop FOG on a rate table in a temperature chamber, at 10 Hz.
+"""fogsf simulate: a closed-loop FOG on a rate table in a temperature chamber, at 10 Hz
+(or at --sample-rate-hz, 1 Hz .. 4 kHz).
 
 Writes a chamber log (the CSV of DESIGN.md) with the board thermometer (temp_c), the
 table rate, the gyro output, the earth rate, the chamber air (chamber_c), every internal
@@ -16,6 +17,7 @@ examples:
   fogsf simulate --scenario paper --ramp-rate 1.0 --seed 7 --out run10.csv --summary
   fogsf simulate --scenario paper --ramp-rate 0.5 --effect temp_rate=30 --out run05.csv
   fogsf simulate --random-gyro 17 --ramp-rate 1.0 --summary
+  fogsf simulate --scenario paper --ramp-rate 1.0 --sample-rate-hz 100 --out run10_100hz.csv
   fogsf simulate --profile cycle --start-c -20 --stop-c 60 --table alternating --out c.csv
   fogsf simulate --program chamber.csv --table levels --rates-dps 10,100,-10,-100 --out p.csv
   fogsf simulate --scenario paper --plot docs/sim_paper.png
@@ -31,6 +33,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from trainer.errors import UserError
+from trainer.logio import RATE_RANGE_HZ
 
 if TYPE_CHECKING:
     from trainer.sim.config import SimConfig
@@ -90,6 +93,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     t.add_argument("--dwell-s", type=float, help="time on each rate (alternating / levels), s")
 
     n = parser.add_argument_group("site and noise")
+    n.add_argument("--sample-rate-hz", type=float, metavar="HZ",
+                   help="samples per second, 1 .. 4000 (default 10)")
     n.add_argument("--latitude-deg", type=float, help="latitude for the earth rate")
     n.add_argument("--arw", type=float, metavar="DEG_PER_SQRT_H",
                    help="angle random walk (default 0.05 deg/sqrt(h))")
@@ -167,6 +172,12 @@ def build_config(args: argparse.Namespace) -> SimConfig:
         tb.dwell_s = args.dwell_s
     if args.latitude_deg is not None:
         cfg.latitude_deg = args.latitude_deg
+    if args.sample_rate_hz is not None:
+        lo, hi = RATE_RANGE_HZ
+        if not lo <= args.sample_rate_hz <= hi:
+            raise UserError(f"--sample-rate-hz {args.sample_rate_hz:g}: allowed "
+                            f"{lo:g} .. {hi:g} Hz")
+        cfg.dt_s = 1.0 / args.sample_rate_hz
     nz = cfg.noise
     if args.no_noise:
         nz.arw_deg_per_sqrt_h = nz.pulse_arcsec = nz.temp_noise_c = nz.temp_lsb_c = 0.0

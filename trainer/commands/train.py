@@ -59,8 +59,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help=f"model family (default {DEFAULT_MODEL})")
     parser.add_argument("--out", required=True, help="model directory to write")
     parser.add_argument("--seed", type=int, default=0, help="seed (same seed, same model)")
-    parser.add_argument("--decimation", type=int, default=50,
-                        help="10 Hz samples per model step (default 50: a 5 s model step)")
+    parser.add_argument("--model-step-s", type=positive_float, default=5.0, metavar="S",
+                        help="seconds per model step (default 5: 50 samples at 10 Hz, 500 at "
+                             "100 Hz); the model runs at any sample rate with this step")
     parser.add_argument("--val-chunk", type=_chunk, default=(0.4, 0.6), metavar="LO:HI",
                         help="part of each training log held out for validation "
                              "(fractions of its length; default 0.4:0.6)")
@@ -115,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     train_logs = read_logs(args, args.train)
     test_log = read_logs(args, [args.test])[0] if args.test else None
     opts = TrainOptions(
-        model=args.model, decimation=args.decimation, seed=args.seed,
+        model=args.model, model_step_s=args.model_step_s, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
         rate_tau_s=args.rate_tau_s, poly_degree=args.poly_degree,
         node=tuple(args.node) if args.node else None, nodes=args.nodes or 1,

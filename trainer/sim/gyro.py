@@ -91,5 +91,6 @@ def simulate(cfg: SimConfig) -> SimResult:
     extra["true_sf_ppm"] = sf
     extra["true_bias_dph"] = bias * 3600.0
     log = ChamberLog(time_s=t, temp_c=temp_c, table_rate_dps=table, gyro_dps=out,
-                     earth_rate_dps=earth, extra=extra, path="<simulated>")
+                     earth_rate_dps=earth, extra=extra, path="<simulated>",
+                     nominal_dt_s=cfg.dt_s)
     return SimResult(cfg, log, nodes, sf, bias, ideal)
