@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan bench-rate paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -21,6 +21,7 @@ help:
 	@echo "make bench-diagnose  diagnose success rate over planted effects -> out/bench-diagnose.json"
 	@echo "make bench-population  compensation on evaluation gyros of the population -> out/bench-population.json"
 	@echo "make bench-plan  the planned chamber program vs the paper's on evaluation gyros -> out/bench-plan.json"
+	@echo "make bench-rate  one model at 10/100/1000 Hz; a 24 h 100 Hz replay, time and memory -> out/bench-sample-rate.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
@@ -78,6 +79,11 @@ bench-plan: $(STAMP)
 # ~2-5 min on 2 cores
 bench-diagnose: $(STAMP)
 	$(PY) -m benchmarks.diagnose_rate --seeds-from eval --first-seed 20020 --seeds 20 --out $(OUT)/bench-diagnose.json
+
+# any sample rate (issue 11): one model at 10/100/1000 Hz, and a 24 h 100 Hz log through
+# `fogsf replay` for time and memory, ~3 min
+bench-rate: $(STAMP)
+	$(PY) -m benchmarks.sample_rate --out $(OUT)/bench-sample-rate.json
 
 clean:
 	rm -rf build out models

@@ -326,8 +326,9 @@ def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
     from trainer.executors import open_executor
     from trainer.gsa import SHORT_BUDGET, minimize
 
-    d = front_end_for(logs, opts.model_step_s, ()).decimation
-    targets = [step_targets(lg, d, opts.latitude_deg) for lg in logs]
+    fe = front_end_for(logs, opts.model_step_s, ())
+    targets = [step_targets(lg, fe.at_rate(lg.sample_dt_s).decimation, opts.latitude_deg)
+               for lg in logs]
     payload = {"opts": opts, "logs": logs, "targets": targets,
                "node": opts.node or (None if opts.gsa_space == "extended"
                                      else _identify_node(opts, logs))}
