@@ -105,14 +105,16 @@ def dask_executor(address: str, timeout_s: float = 30.0) -> Iterator[Executor]:
         client.close()
 
 
-def add_executor_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--workers`` and ``--dask`` to a command's parser."""
-    g = parser.add_argument_group("parallel fitness evaluation")
+def add_executor_options(parser: argparse.ArgumentParser, what: str = "fitness evaluations"
+                         ) -> None:
+    """Add ``--workers`` and ``--dask`` to a command's parser; `what` is what they run in
+    parallel (train: GSA's fitness evaluations; plan: the candidate programs' fits)."""
+    g = parser.add_argument_group(f"parallel work ({what})")
     g.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="local worker processes for fitness evaluations "
+                   help=f"local worker processes for {what} "
                         f"(default: one per core, here {default_workers()}; 1 = inline)")
     g.add_argument("--dask", default=None, metavar="SCHEDULER_ADDRESS",
-                   help="run fitness evaluations on a Dask distributed cluster instead, "
+                   help=f"run {what} on a Dask distributed cluster instead, "
                         "e.g. tcp://10.0.0.5:8786 (start one with `dask scheduler` and "
                         "`dask worker ADDRESS`); workers need fogsf installed")
 

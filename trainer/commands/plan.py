@@ -77,7 +77,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="programs printed (default 10)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
     add_log_options(parser)
-    add_executor_options(parser)
+    add_executor_options(parser, "the candidate programs' fits")
 
 
 def run(args: argparse.Namespace) -> int:

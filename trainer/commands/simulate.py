@@ -202,7 +202,9 @@ def summary(result: SimResult, window_s: float) -> dict[str, Any]:
         out = log_summary(result.log, window_s, None, None)
     except UserError as e:  # e.g. the board never passes 20 C: no reference SF
         out = {"samples": len(result.log), "duration_s": result.log.duration_s,
-               "metrics": None, "metrics_note": str(e)}
+               "metrics": None,
+               "metrics_note": str(e).replace("give it with --ref-sf", "read the written log "
+                                              "with `fogsf inspect LOG --ref-sf`")}
     out["true_sf_ppm_range"] = [float(result.sf_ppm.min()), float(result.sf_ppm.max())]
     return out
 

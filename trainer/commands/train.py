@@ -106,7 +106,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--gsa-paper-constants", action="store_true",
                    help="G0=100, alpha=20 (the paper's); default: normalised box, G0=3, "
                         "alpha=2, which beats random search at budgets of tens of iterations")
-    add_executor_options(parser)
+    add_executor_options(parser, "gsa-lstm's fitness evaluations")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
