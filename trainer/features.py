@@ -1,7 +1,7 @@
 """Model inputs and training targets at the model rate (one step per D samples).
 
 Every model sees only what firmware has: the board thermometer, through the front end of the
-streaming contract (`trainer.stream.frontend`: sanitised 10 Hz temperature, block means of
+streaming contract (`trainer.stream.frontend`: the sanitised temperature, block means of
 D samples, first-order lag filters). Features are linear in the front end's
 s = [Tm - t_ref, y_1 - t_ref, ..., y_K - t_ref]: raw rows `A` (e.g. T, a filtered dT/dt,
 lag-filtered temperatures) normalised on the training data, so that z = feat_w s + feat_b
