@@ -81,7 +81,7 @@ bench-diagnose: $(STAMP)
 	$(PY) -m benchmarks.diagnose_rate --seeds-from eval --first-seed 20020 --seeds 20 --out $(OUT)/bench-diagnose.json
 
 # any sample rate (issue 11): one model at 10/100/1000 Hz, and a 24 h 100 Hz log through
-# `fogsf replay` for time and memory, ~3 min
+# `fogsf replay` for time and memory, ~2 min
 bench-rate: $(STAMP)
 	$(PY) -m benchmarks.sample_rate --out $(OUT)/bench-sample-rate.json
 

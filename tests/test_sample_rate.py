@@ -17,7 +17,15 @@ from bindings.kernel import Kernel, build_kernel
 from trainer import stream as st
 from trainer.errors import UserError
 from trainer.features import front_end_for
-from trainer.logio import ChamberLog, Dialect, LogError, parse_log, read_log, write_log
+from trainer.logio import (
+    ChamberLog,
+    Dialect,
+    LogError,
+    _read_plain,
+    parse_log,
+    read_log,
+    write_log,
+)
 from trainer.metrics import sf_windows
 
 
@@ -39,7 +47,13 @@ def test_reader_takes_any_constant_rate_in_range(rate_hz: float) -> None:
     assert bool(said) == (rate_hz != 10.0), log.read_notes
 
 
-@pytest.mark.parametrize("rate_hz", [0.5, 5000.0])
+@pytest.mark.parametrize("rate_hz", [0.995, 4000.02, 4030.0])
+def test_a_clock_a_little_off_the_range_ends_is_read(rate_hz: float) -> None:
+    assert parse_log(csv(rows(rate_hz, 20)), "x.csv").sample_rate_hz == pytest.approx(
+        rate_hz, rel=1e-5)
+
+
+@pytest.mark.parametrize("rate_hz", [0.5, 0.98, 4100.0, 5000.0])
 def test_reader_refuses_rates_out_of_range(rate_hz: float) -> None:
     with pytest.raises(LogError) as e:
         parse_log(csv(rows(rate_hz, 20)), "x.csv")
@@ -60,6 +74,10 @@ def test_gaps_and_jitter_are_refused_with_their_line(rate_hz: float) -> None:
         parse_log(csv(jitter), "x.csv")
     assert (e.value.rule, e.value.line) == ("jitter", 12)
     assert "+/- 20%" in str(e.value)
+    late = good[:10] + rows(rate_hz, 20, t0=10.3 * dt)  # a step of 1.3: late, none missed
+    with pytest.raises(LogError) as e:
+        parse_log(csv(late), "x.csv")
+    assert (e.value.rule, e.value.line) == ("jitter", 12)
 
 
 def test_a_stated_rate_is_checked_against_time_s() -> None:
@@ -77,11 +95,16 @@ def test_fast_and_general_readers_agree(tmp_path: Path) -> None:
     log = short_ramp(2.0, 5, sample_rate_hz=100.0).slice(0, 30_000)
     path = tmp_path / "a.csv"
     write_log(path, log)
+    assert _read_plain(path, Dialect()) is not None  # the fast path takes a plain log
     fast = read_log(path)  # numpy straight from the file
     general = parse_log(path.read_text(), str(path))
     for name, col in general.columns().items():
         np.testing.assert_array_equal(fast.columns()[name], col, err_msg=name)
     assert fast.read_notes == general.read_notes and fast.sample_dt_s == general.sample_dt_s
+    # blank lines at the end: still the fast path, the same log
+    path.write_text(path.read_text() + "\n\n")
+    assert _read_plain(path, Dialect()) is not None
+    np.testing.assert_array_equal(read_log(path).gyro_dps, general.gyro_dps)
     # a blank line inside: numpy would skip it; the reader still refuses it with its line
     lines = path.read_text().splitlines(keepends=True)
     path.write_text("".join(lines[:100] + ["\n"] + lines[100:]))
@@ -127,7 +150,7 @@ def test_model_step_is_seconds_and_re_rating_keeps_it() -> None:
     assert fe10.filter_alpha.tobytes() == fe100.filter_alpha.tobytes()
     with pytest.raises(UserError, match="train on logs of one sample rate"):
         front_end_for([log10, log100], 5.0, ())
-    with pytest.raises(UserError, match="not a whole number of samples"):
+    with pytest.raises(UserError, match="2.5 samples at 10 Hz, not a whole number"):
         front_end_for([log10], 0.25, ())
 
 
@@ -142,6 +165,11 @@ def test_re_rated_model_keeps_its_step_and_comes_back_to_its_id() -> None:
     assert model.at_rate(0.1 * 1.004) is model  # the same 50 samples, a step within 1 %
     slow = model.at_rate(1.0 / 3.0)  # 15 samples of 1/3 s
     assert slow.decimation == 15
+    near = model.at_rate(1.0 / 10.3)  # 52 samples: a step of 5.05 s, the alphas for it
+    assert near.decimation == 52
+    want = st.filter_alpha([200.0, 900.0], 52, 1.0 / 10.3)
+    assert near.weights["filter_alpha"].tobytes() == want.tobytes()
+    assert near.weights["filter_alpha"].tobytes() != model.weights["filter_alpha"].tobytes()
     with pytest.raises(UserError, match="multiple of"):
         model.at_rate(1.0 / 7.5)  # 37.5 samples per step
 
@@ -212,3 +240,32 @@ def test_train_at_100hz_runs_at_10_and_1000hz(tmp_path: Path) -> None:
     assert "D 500 -> 5000" in out
     header = (tmp_path / "fw" / "imu_z.h").read_text()
     assert "IMU_Z_DECIMATION 5000" in header
+
+
+def test_model_step_and_test_log_at_a_rate_5s_does_not_divide(tmp_path: Path) -> None:
+    """At 7.5 Hz a 5 s step is 37.5 samples: refused before any fitting, naming the log;
+    --model-step-s 4 (30 samples) trains and checks the rate transfer at that step."""
+    from trainer.train import TrainOptions, run_training
+
+    train = short_ramp(2.0, 31, sample_rate_hz=7.5)
+    test = short_ramp(3.0, 32, sample_rate_hz=7.5)
+    with pytest.raises(UserError, match="37.5 samples at 7.5 Hz"):
+        run_training(TrainOptions(model="poly", progress=False), [train], test, tmp_path / "a")
+    assert not (tmp_path / "a").exists()
+    m, _ = run_training(TrainOptions(model="poly", progress=False, model_step_s=4.0),
+                        [train], test, tmp_path / "b")
+    assert (m["decimation"], m["model_step_s"]) == (30, 4.0)
+    assert m["rate_transfer"]["consistent"] >= 1
+
+
+def test_simulate_writes_the_rate_asked_for(tmp_path: Path) -> None:
+    out = tmp_path / "s.csv"
+    p = subprocess.run([sys.executable, "-m", "trainer.cli", "simulate", "--profile", "soak",
+                        "--duration-min", "5", "--sample-rate-hz", "50", "--seed", "1",
+                        "--out", str(out)], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    log = read_log(out)
+    assert log.sample_rate_hz == 50.0 and len(log) == 5 * 60 * 50 + 1
+    p = subprocess.run([sys.executable, "-m", "trainer.cli", "inspect", str(out),
+                        "--sample-rate-hz", "10"], capture_output=True, text=True)
+    assert p.returncode == 2 and "jitter" in p.stderr and "--sample-rate-hz" in p.stderr

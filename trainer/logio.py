@@ -34,8 +34,11 @@ NOMINAL_DT_S = 0.1  # the paper's 10 Hz: the period given to a log of a single s
 # Sample rates a log may have (Hz): a 1 Hz logger to a 4 kHz gyro output
 RATE_RANGE_HZ = (1.0, 4000.0)
 # A step between samples must lie within nominal dt * (1 +/- DT_TOLERANCE) (0.08..0.12 s at
-# 10 Hz): a missed sample (twice the step) is a gap and is refused, as is jitter beyond it.
+# 10 Hz): a missed sample (twice the step) is refused as a gap, any other step beyond it as
+# jitter.
 DT_TOLERANCE = 0.2
+GAP_STEPS = 1.5  # a step this many nominal steps long or longer is a gap (a missed sample)
+RATE_SLACK = 0.01  # a median step up to 1 % beyond RATE_RANGE_HZ is a clock a little off
 TEMP_RANGE_C = (-60.0, 100.0)
 DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
 DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
@@ -325,7 +328,8 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
     if text.startswith("\ufeff"):  # a UTF-8 byte-order mark: encoding, not data
         text = text[1:]
         notes.append("UTF-8 byte-order mark skipped")
-    lines = text.splitlines()
+    # lines end at \n (as numpy's reader ends them; open() already turned \r\n and \r into it)
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     while lines and not lines[-1].strip():
         lines.pop()
     if not lines or not lines[0].strip():
@@ -368,13 +372,15 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
 
 
 def _data_lines(path: str | Path) -> int:
-    """Lines after the header (a last line without its newline counts), read in chunks."""
-    n, last = 0, b"\n"
+    """Lines after the header, read in chunks: a last line without its newline counts, blank
+    lines at the end (which every reader drops) do not."""
+    n, tail = 0, b""
     with open(path, "rb") as f:
         while chunk := f.read(1 << 24):
             n += chunk.count(b"\n")
-            last = chunk[-1:]
-    return n - 1 + (last != b"\n")
+            tail = (tail + chunk)[-4096:]
+    blank_end = tail[len(tail.rstrip(b" \t\r\n")):]
+    return n - 1 - blank_end.count(b"\n") + 1
 
 
 def _delimiter(first: str, path: str, dialect: Dialect, notes: list[str]) -> str:
@@ -426,8 +432,8 @@ def _log_of(data: np.ndarray, header: list[str], path: str, dialect: Dialect,
     """The parsed cells as a validated ChamberLog."""
     cols = {name: data[:, i] for i, name in enumerate(header)}
     dt = _validate(cols, path, dialect.sample_rate_hz)
-    if abs(dt - NOMINAL_DT_S) > DT_TOLERANCE * NOMINAL_DT_S:
-        notes.append(f"sample rate {rate_text(dt)} ("
+    if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
+        notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
                      f"{'--sample-rate-hz' if dialect.sample_rate_hz else 'from time_s'})")
     extra = {k: v for k, v in cols.items() if k not in REQUIRED and k != "earth_rate_dps"}
     return ChamberLog(
@@ -497,15 +503,16 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
             i = int(nonincr[0])
             raise LogError(path, i + 3, "time not increasing",
                            f"time_s {t[i + 1]:g} after {t[i]:g}")
-        if rate_hz is None and not 1.0 / hi_hz * (1 - 1e-6) <= nominal <= 1.0 / lo_hz * (1 + 1e-6):
+        slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
+        if rate_hz is None and not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
             raise LogError(path, None, "sample rate out of range",
                            f"the median step of time_s is {nominal:.6g} s "
-                           f"({rate_text(nominal)}); allowed {lo_hz:g} Hz .. "
-                           f"{hi_hz / 1000:g} kHz (time_s in seconds?)")
+                           f"({1.0 / nominal:.6g} Hz); allowed {lo_hz:g} Hz .. "
+                           f"{hi_hz / 1000:g} kHz, +/- {RATE_SLACK:.0%} (time_s in seconds?)")
         off = np.flatnonzero(np.abs(dt - nominal) > DT_TOLERANCE * nominal)
         if off.size:
             i = int(off[0])
-            kind = "gap" if dt[i] > nominal else "jitter"
+            kind = "gap" if dt[i] >= GAP_STEPS * nominal else "jitter"
             given = ("--sample-rate-hz" if rate_hz is not None
                      else "the median step of time_s")
             raise LogError(path, i + 3, kind,

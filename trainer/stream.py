@@ -128,14 +128,15 @@ def filter_alpha(filter_tau_s: list[float], decimation: int, sample_dt_s: float 
 STEP_TOLERANCE = 0.01
 
 
-def decimation_for(step_s: float, sample_dt_s: float, what: str = "the model step") -> int:
+def decimation_for(step_s: float, sample_dt_s: float, where: str | None = None) -> int:
     """Samples per model step: step_s / sample_dt_s, which must be (within STEP_TOLERANCE)
-    a whole number >= 1."""
+    a whole number >= 1; `where` (a log's path) starts the refusal."""
     d = max(1, int(round(step_s / sample_dt_s)))
     if abs(d * sample_dt_s - step_s) > STEP_TOLERANCE * step_s:
-        raise UserError(f"{what} of {step_s:g} s is not a whole number of samples at "
-                        f"{1.0 / sample_dt_s:.6g} Hz ({step_s / sample_dt_s:.4g}); choose a "
-                        f"step that is a multiple of {sample_dt_s:.6g} s")
+        raise UserError(f"{where + ': ' if where else ''}a model step of {step_s:g} s is "
+                        f"{step_s / sample_dt_s:.4g} samples at {1.0 / sample_dt_s:.6g} Hz, "
+                        "not a whole number: the step must be a multiple of "
+                        f"{sample_dt_s:.6g} s at this rate (`fogsf train --model-step-s`)")
     return d
 
 

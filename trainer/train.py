@@ -49,7 +49,7 @@ from trainer.features import (
 from trainer.lag_bank import BankFit, bank_spec, fit_bank, n_curved
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
-from trainer.stream import FrontEnd, StreamModel, expand
+from trainer.stream import FrontEnd, StreamModel, decimation_for, expand
 from trainer.transfer import ramp_segments, rate_transfer, training_ramp_rates
 
 if TYPE_CHECKING:  # trainer.fit imports torch; commands import this module at start-up
@@ -384,6 +384,8 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
                  test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, Fitted]:
     """Train, score, and write the model directory; returns metrics.json's content and the
     fitted model."""
+    for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
+        decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
     t0 = time.perf_counter()
     fitted = fit_model(opts, train_logs)
     train_s = time.perf_counter() - t0
@@ -397,7 +399,8 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     if test_log is not None and opts.transfer_check:
         metrics["rate_transfer"] = rate_transfer(
             train_logs, test_log, opts.latitude_deg,
-            per_sample_prediction(fitted, test_log, opts.latitude_deg)).as_dict()
+            per_sample_prediction(fitted, test_log, opts.latitude_deg),
+            step_s=fitted.fe.step_s).as_dict()
     metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
     # every ramp of every training log, read per segment (up and down, several rates a log)
     metrics["train_ramp_rates_c_per_min"] = training_ramp_rates(train_logs)

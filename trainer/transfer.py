@@ -39,8 +39,8 @@ SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows
 MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
 RATE_TOLERANCE = 0.15  # a target rate within 15 % of the training range is covered
 CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
-STEP_S = 5.0  # the model step of the lag models compared
-LONG_RUN_STEPS = 20  # 100 s windows of 5 s model steps
+STEP_S = 5.0  # the model step of the lag models compared (default: the trained model's)
+LONG_RUN_S = 100.0  # the residual's long-run variance over 100 s windows
 INTERVAL_WINDOW_S = 100.0
 INTERVAL_LO = 0.8  # the RMS of noise alone over a run's windows falls this far below its floor
 INTERVAL_SPREAD_K = 1.25  # 78 of 80 cases inside on development gyros 1-16 (docs/population.md)
@@ -226,7 +226,8 @@ class RateTransfer:
 
 def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
                   latitude_deg: float | None = None,
-                  prediction_ppm: np.ndarray | None = None) -> RateTransfer:
+                  prediction_ppm: np.ndarray | None = None, step_s: float = STEP_S
+                  ) -> RateTransfer:
     """How well the training logs determine the lag-temperature model on `target`;
     `prediction_ppm` (per sample of the target) is the trained model's prediction there, the
     model the interval is for (without it, the best-fitting lag model's)."""
@@ -240,7 +241,7 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
         node_candidates,
     )
 
-    fe = front_end_for([*train_logs, target], STEP_S, (),
+    fe = front_end_for([*train_logs, target], step_s, (),
                        sample_dt_s=common_sample_dt(train_logs))
     data, y = grid_data(train_logs, fe, TAU_GRID_S, latitude_deg)
     (tdata,), _ = grid_data([target], fe, TAU_GRID_S, latitude_deg)
@@ -253,7 +254,8 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     sse = np.array([f.sse for f in fits])
     best = int(np.argmin(sse))
     resid = y - fits[best].cand.design(s) @ fits[best].coef
-    inflation = long_run_ratio(resid, [d.n_steps for d in data])
+    inflation = long_run_ratio(resid, [d.n_steps for d in data],
+                               max(1, int(round(LONG_RUN_S / step_s))))
     noise_var = sse[best] / max(1, y.size - 6)
     ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation)
     preds = {i: fits[i].cand.design(tdata.s) @ fits[i].coef for i in ok}
@@ -306,7 +308,7 @@ def lag_excursion_c(train_s: np.ndarray, target_s: np.ndarray) -> float:
     return float(max(0.0, np.max(t_hi - hi), np.max(lo - t_lo)))
 
 
-def long_run_ratio(resid: np.ndarray, lengths: list[int], window: int = LONG_RUN_STEPS
+def long_run_ratio(resid: np.ndarray, lengths: list[int], window: int = 20
                    ) -> float:
     """How much more the residual varies over `window`-step means than white noise would:
     window * mean(window mean^2) / mean(resid^2), windows within each log, at least 1."""

@@ -45,6 +45,12 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(e)) from None
     model = StreamModel.load(args.model)
     if args.sample_rate_hz is not None:
+        from trainer.logio import RATE_RANGE_HZ
+
+        lo, hi = RATE_RANGE_HZ
+        if not lo <= args.sample_rate_hz <= hi:
+            raise UserError(f"--sample-rate-hz {args.sample_rate_hz:g}: allowed {lo:g} .. "
+                            f"{hi:g} Hz")
         rated = model.at_rate(1.0 / args.sample_rate_hz)
         if rated is not model:
             print(f"model {model.model_id} re-rated for {args.sample_rate_hz:g} Hz: "

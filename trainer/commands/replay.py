@@ -53,7 +53,7 @@ def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
     rows = np.column_stack([time_s, gyro, corrected, sf_ppm.astype(np.float64)])
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write("time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm\n")
-        write_rows(f, rows, ["%.10g", "%.17g", "%.17g", "%.9g"])
+        write_rows(f, rows, ["%.12g", "%.17g", "%.17g", "%.9g"])
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -104,7 +104,11 @@ def run(args: argparse.Namespace) -> int:
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
         print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
     if args.json:
-        Path(args.json).write_text(json.dumps({"model_id": model.model_id, "samples": len(log),
+        Path(args.json).write_text(json.dumps({"model_id": model.model_id,
+                                               "rated_from": model.extra.get("rated_from"),
+                                               "sample_rate_hz": log.sample_rate_hz,
+                                               "decimation": model.decimation,
+                                               "samples": len(log),
                                                "before": before, "after": after,
                                                "flags": counts}, indent=2) + "\n")
         print(f"wrote {args.json}")
