@@ -43,6 +43,11 @@ BANK_LAMBDA = 1e-3
 # cubic: protocol a 5.5 -> 3.2, b 1.31 -> 1.23, d 6.5 -> 5.3 (worst 27 -> 22), e 1.17 ->
 # 1.18 (worst 1.64 -> 1.52), c 10.5 -> 11.5 (cut-offs at 250-1000 s were worse in c and e).
 CURVED_MAX_TAU_S = 2000.0
+# The LSTM that learns what the bank leaves reads the first this many bank features (T, then
+# the fastest lags): its input weights are most of a model's flash (4H per input), and three
+# models must fit one Cortex-M4F image in 24 KB (issue 11). Set from a comparison on
+# development gyros (docs/train.md, "The LSTM's inputs").
+BANK_LSTM_INPUTS = 1
 
 
 def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:

@@ -6,8 +6,9 @@
  *   mode 2  fogsf_step with the generated model fuzz_model (fuzz_model.h) on adversarial
  *           samples: (temperature bits, gyro bits, repeats) records, so NaN, Inf, denormals,
  *           huge values and stuck thermometers (a record repeated up to 255 times) all occur;
- *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state)
- *           and every weight from the fuzz data (NaN, Inf, huge).
+ *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state),
+ *           lstm_inputs and quad_diag (sometimes invalid) and every weight from the fuzz
+ *           data (NaN, Inf, huge).
  * After every step the totality contract is checked (corrected finite, |sf| <= limit, flags
  * known, an invalid model gives 0); a violation aborts, which libFuzzer reports as a crash.
  * The number of fogsf_step calls is printed at exit ("fuzz steps: N") for make fuzz.
@@ -215,6 +216,10 @@ static void fuzz_model_data(reader *r)
         m.quad_w = adv + 8;
         m.cube_w = adv + 9;
     }
+    /* format 3: the first layer's inputs (0 = all, beyond F invalid) and the diagonal
+       quadratic (2 is invalid, so is 1 without the head) */
+    m.lstm_inputs = next_u8(r) % (FOGSF_MAX_FEATURES + 2u);
+    m.quad_diag = next_u8(r) % 3u;
     run_samples(&m, r);
 }
 
