@@ -14,9 +14,10 @@ adds trained artifacts.
 
 Images: one and three small models (1x16 LSTM with the polynomial head, seeded random weights:
 one-feature models, the lag bank's shape in the default model's form, and the same shape in
-the form before lstm_inputs/quad_diag, for comparison) linked into one Cortex-M4F image through the model-as-data API (`fogsf export --name`), with
-its flash, RAM (one state per model, sized for the largest, + the step's stack bound) and the
-instructions of the worst sample stepping every model; the target for three is <= 24 KB flash
+the form before lstm_inputs/quad_diag, for comparison) linked into one Cortex-M4F image
+through the model-as-data API (`fogsf export --name`), with its flash, RAM (one state per
+model, sized for the largest, + the step's stack bound) and the instructions of the worst
+sample stepping every model; the target for three is <= 24 KB flash
 and <= 1.5 KB RAM. Writes out/bench.json.
 """
 

@@ -104,6 +104,16 @@ def main(argv: list[str] | None = None) -> int:
             summary[f"{p}/{v}"] = stats
             cells.append(f"{stats['median']:>6.2f} {stats['p90']:>5.2f} {stats['worst']:>6.2f}")
         print(f"{p:>8} | " + " | ".join(f"{c:>19}" for c in cells))
+    base = variants[0]
+    print(f"paired, per (gyro, protocol): ratio of each variant to {base}'s, median "
+          "[p10, p90] (seed-shifted variants show the noise)")
+    for v in variants[1:]:
+        q = np.array([g["cases"][p][v]["ratio"] / g["cases"][p][base]["ratio"]
+                      for g in rows for p in protocols])
+        lo, hi = np.percentile(q, [10, 90])
+        summary[f"paired/{v}"] = {"median": float(np.median(q)), "p10": float(lo),
+                                  "p90": float(hi)}
+        print(f"  {v:>6} / {base}: {np.median(q):.3f} [{lo:.3f}, {hi:.3f}]")
     params = {v: rows[0]["cases"][protocols[0]][v]["params"] for v in variants}
     print("parameters (torch): " + ", ".join(f"{v}: {n}" for v, n in params.items()))
     out = Path(args.out)
