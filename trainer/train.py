@@ -8,7 +8,8 @@ Models (all causal, all from the board thermometer and time only):
   lr 0.02, Adam);
 - `lag-lstm` (the default): the physics part fitted by least squares and carried exactly in
   the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is the lag bank
-  (`trainer.lag_bank`: T and its lags at 11 time constants, ridge with a fixed prior) or,
+  (`trainer.lag_bank`: T and its lags at 11 time constants, ridge with a fixed prior; in the
+  head's diagonal quadratic, the LSTM reading the first BANK_LSTM_INPUTS features) or,
   with `structure="node"`, one or two effective sensing temperatures
   T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid;
 - `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
