@@ -16,8 +16,9 @@ least node sensitivity, a quadratic bank with cross terms, varying-coefficient f
 T - lag(T) with block cross-validation.
 
 In the firmware contract the bank is the polynomial head over 1 + K features (T and the K
-filters, normalised): the linear terms in skip_w, the squares on quad_w's diagonal, the
-cubes in cube_w; the LSTM then learns what the bank leaves, with the bank held fixed.
+filters, normalised): the linear terms in skip_w, the squares in quad_w (its diagonal
+form, `quad_diag`: no cross terms), the cubes in cube_w; the LSTM, reading the first
+BANK_LSTM_INPUTS features, then learns what the bank leaves, with the bank held fixed.
 """
 
 from __future__ import annotations
