@@ -12,10 +12,12 @@ paper's 2x200 LSTM on T and dT/dt, and the 1x16 lag-lstm on one lag-filtered tem
 D=50); `--model NAME=DIR`
 adds trained artifacts.
 
-Images: one and three small models (1x16 LSTM with the polynomial head, seeded random weights)
-linked into one Cortex-M4F image through the model-as-data API (`fogsf export --name`), with
-its flash, RAM (one state per model, sized for the largest, + the step's stack bound) and the
-instructions of the worst sample stepping every model; the target for three is <= 24 KB flash
+Images: one and three small models (1x16 LSTM with the polynomial head, seeded random weights:
+one-feature models, the lag bank's shape in the default model's form, and the same shape in
+the form before lstm_inputs/quad_diag, for comparison) linked into one Cortex-M4F image
+through the model-as-data API (`fogsf export --name`), with its flash, RAM (one state per
+model, sized for the largest, + the step's stack bound) and the instructions of the worst
+sample stepping every model; the target for three is <= 24 KB flash
 and <= 1.5 KB RAM. Writes out/bench.json.
 """
 
@@ -37,18 +39,30 @@ from export.header import write_model
 from export.onnx_step import OrtStepper, build_step_onnx
 from trainer import stream as st
 from trainer.errors import UserError
+from trainer.lag_bank import BANK_LSTM_INPUTS
 
 TARGET = {"flash_bytes": 32 * 1024, "ram_bytes": 2 * 1024, "instructions_per_step": 50_000}
 IMAGE_TARGET = {"flash_bytes": 24 * 1024, "ram_bytes": 1536}  # three small models, one image
 AXES = ("imu_x", "imu_y", "imu_z")
 
 
-def small_poly_models(n: int, filters: int = 1) -> list[st.StreamModel]:
+def small_poly_models(n: int, filters: int = 1, bank_form: bool = True
+                      ) -> list[st.StreamModel]:
     """n 1x16 LSTM models with the polynomial head (seeded random weights), one per gyro:
     one filter and feature (one effective node), or `filters` lags plus T (the lag bank's
-    shape, the default model: 11 filters, 12 features)."""
+    shape, the default model: 11 filters, 12 features). The bank's shape is the default
+    model's form: the LSTM reads z[0:BANK_LSTM_INPUTS], the quadratic is diagonal;
+    `bank_form=False` gives the previous form (the LSTM on all 12, a full 12 x 12 quad_w)."""
+    bank = filters > 1 and bank_form
     return [st.random_model(filters, filters + (filters > 1), 1, 16, decimation=50,
-                            seed=300 + a, poly_head=True) for a in range(n)]
+                            seed=300 + a, poly_head=True,
+                            lstm_inputs=BANK_LSTM_INPUTS if bank else None, quad_diag=bank)
+            for a in range(n)]
+
+
+# (filters, label, bank_form) of the image rows
+IMAGES = ((1, "small-lstm-1x16-poly", True), (11, "lag-bank-1x16", True),
+          (11, "lag-bank-1x16-all-inputs-full-quad", False))
 
 
 def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-lstm-1x16-poly"
@@ -191,9 +205,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = [bench_model(n, m, note, args.build.resolve(), args.steps)
                 for n, m, note in models]
         images = [] if arm_tools_missing() else [
-            bench_image(small_poly_models(n, k), args.build.resolve(), label)
-            for k, label in ((1, "small-lstm-1x16-poly"), (11, "lag-bank-1x16"))
-            for n in (1, 3)]
+            bench_image(small_poly_models(n, k, form), args.build.resolve(), label)
+            for k, label, form in IMAGES for n in (1, 3)]
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)
         return 2

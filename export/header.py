@@ -14,7 +14,9 @@ import numpy as np
 
 from trainer.stream import FORMAT, StreamModel
 
-FORMAT_VERSION = 2  # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c)
+# 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
+# also holds lstm_inputs and quad_diag (docs/stream-contract.md)
+FORMAT_VERSION = 3
 DEFAULT_NAME = "gyro_model"
 NAME_RULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
 PER_LINE = 6
@@ -68,7 +70,8 @@ def _context(model: StreamModel, name: str) -> dict:
         "filter_tau_s": ", ".join(c_float(t) for t in model.filter_tau_s) or "none",
         "filter_alpha": c_array(w["filter_alpha"]), "feat_w": c_array(w["feat_w"]),
         "feat_b": c_array(w["feat_b"]),
-        "lstm": [{"n_in": model.n_features if layer == 0 else model.hidden,
+        "lstm_inputs": model.n_lstm_inputs, "quad_diag": model.quad_diag,
+        "lstm": [{"n_in": model.n_lstm_inputs if layer == 0 else model.hidden,
                   "w": c_array(w[f"lstm{layer}_w"]), "r": c_array(w[f"lstm{layer}_r"]),
                   "b": c_array(w[f"lstm{layer}_b"])} for layer in names],
         "lstm_w_names": ", ".join(f"lstm{layer}_w" for layer in names),

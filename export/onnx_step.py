@@ -3,8 +3,10 @@
 Inputs `z` [1, F] (the features of contract step 4) and, per layer l, `h{l}` and `c{l}`
 [1, H]; outputs `sf_ppm` [1, 1] and the new `h{l}_out`, `c{l}_out` [1, H]. Each layer is an
 ONNX LSTM node over a sequence of length 1, so onnxruntime steps exactly like firmware.
-A model with the polynomial head gets a few more nodes (z quad_w z^T + (z*z*z) cube_w);
-without it the graph is what it was before the head existed.
+A model with the polynomial head gets a few more nodes (z quad_w z^T + (z*z*z) cube_w;
+(z*z) quad_w with the diagonal quadratic); without it the graph is what it was before the
+head existed. A model whose first LSTM layer reads z[0:N] only (`lstm_inputs`) slices z
+before it; without the key the graph is unchanged.
 """
 
 from __future__ import annotations
@@ -35,12 +37,21 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
              numpy_helper.from_array(w["skip_w"].reshape(f, 1), "skip_w"),
              numpy_helper.from_array(w["out_scale"].reshape(1), "out_scale"),
              numpy_helper.from_array(w["out_offset"].reshape(1), "out_offset")]
-    nodes = [helper.make_node("Unsqueeze", ["z", "axis0"], ["x0"])]
+    if model.lstm_inputs_narrowed:  # the first layer reads z[:, 0:N] only
+        n0 = model.n_lstm_inputs
+        inits += [numpy_helper.from_array(np.array([0], np.int64), "lstm_in_start"),
+                  numpy_helper.from_array(np.array([n0], np.int64), "lstm_in_end"),
+                  numpy_helper.from_array(np.array([1], np.int64), "lstm_in_axis")]
+        nodes = [helper.make_node("Slice", ["z", "lstm_in_start", "lstm_in_end",
+                                            "lstm_in_axis"], ["z_lstm"]),
+                 helper.make_node("Unsqueeze", ["z_lstm", "axis0"], ["x0"])]
+    else:
+        nodes = [helper.make_node("Unsqueeze", ["z", "axis0"], ["x0"])]
     inputs = [helper.make_tensor_value_info("z", TensorProto.FLOAT, [1, f])]
     outputs = [helper.make_tensor_value_info("sf_ppm", TensorProto.FLOAT, [1, 1])]
     x = "x0"
     for layer in range(layers):
-        n_in = f if layer == 0 else hid
+        n_in = model.n_lstm_inputs if layer == 0 else hid
         inits += [
             numpy_helper.from_array(w[f"lstm{layer}_w"].reshape(1, 4 * hid, n_in), f"W{layer}"),
             numpy_helper.from_array(w[f"lstm{layer}_r"].reshape(1, 4 * hid, hid), f"R{layer}"),
@@ -70,7 +81,7 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
     ]
     if model.poly_head:
         inits += poly_initializers(model)
-        nodes += poly_nodes(y_lin, "y")
+        nodes += poly_nodes(y_lin, "y", model.quad_diag)
     nodes += [
         helper.make_node("Mul", ["y", "out_scale"], ["y_scaled"]),
         helper.make_node("Add", ["y_scaled", "out_offset"], ["sf_ppm"]),
@@ -87,15 +98,28 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
 
 
 def poly_initializers(model: StreamModel) -> list[onnx.TensorProto]:
-    """quad_w [F, F], cube_w [F, 1] and the axis of the row sum."""
+    """quad_w [F, F] ([F, 1] with quad_diag), cube_w [F, 1] and the axis of the row sum."""
     f, w = model.n_features, model.weights
+    if model.quad_diag:
+        return [numpy_helper.from_array(w["quad_w"].reshape(f, 1), "quad_w"),
+                numpy_helper.from_array(w["cube_w"].reshape(f, 1), "cube_w")]
     return [numpy_helper.from_array(w["quad_w"].reshape(f, f), "quad_w"),
             numpy_helper.from_array(w["cube_w"].reshape(f, 1), "cube_w"),
             numpy_helper.from_array(np.array([1], np.int64), "axis1")]
 
 
-def poly_nodes(y_in: str, y_out: str) -> list[onnx.NodeProto]:
-    """y_out = y_in + z quad_w z^T + (z*z*z) cube_w, each [1, 1] (z is [1, F])."""
+def poly_nodes(y_in: str, y_out: str, quad_diag: bool = False) -> list[onnx.NodeProto]:
+    """y_out = y_in + z quad_w z^T + (z*z*z) cube_w, each [1, 1] (z is [1, F]); with
+    quad_diag, (z*z) quad_w for the quadratic."""
+    if quad_diag:
+        return [
+            helper.make_node("Mul", ["z", "z"], ["z_sq"]),
+            helper.make_node("MatMul", ["z_sq", "quad_w"], ["quad_sum"]),
+            helper.make_node("Mul", ["z_sq", "z"], ["z_cube"]),
+            helper.make_node("MatMul", ["z_cube", "cube_w"], ["cube_sum"]),
+            helper.make_node("Add", [y_in, "quad_sum"], ["y_quad"]),
+            helper.make_node("Add", ["y_quad", "cube_sum"], [y_out]),
+        ]
     return [
         helper.make_node("MatMul", ["z", "quad_w"], ["quad_zq"]),  # [1, F]: sum_i z_i Q_ij
         helper.make_node("Mul", ["quad_zq", "z"], ["quad_terms"]),

@@ -21,6 +21,9 @@ SIZES = [(3, 4, 1, 16, 10, 600, 0), (0, 3, 2, 5, 1, 0, 1), (2, 5, 2, 12, 7, 30, 
 # the same with the polynomial head (a 7-tuple is without it)
 POLY_SIZES = [(3, 4, 1, 16, 10, 600, 4, True), (0, 3, 2, 5, 2, 0, 5, True),
               (1, 1, 1, 1, 50, 5, 6, True)]
+# the narrowed forms: (..., poly, lstm_inputs N, quad_diag); the first is the lag bank's shape
+FORM_SIZES = [(11, 12, 1, 16, 50, 600, 7, True, 1, True), (3, 4, 2, 6, 3, 20, 8, True, 2, False),
+              (2, 5, 1, 8, 1, 0, 9, True, None, True), (0, 3, 2, 5, 4, 5, 10, False, 1, False)]
 
 
 @pytest.fixture(scope="session")
@@ -29,12 +32,13 @@ def kroot(tmp_path_factory):
 
 
 def model_of(size: tuple) -> st.StreamModel:
-    k, f, layers, hidden, d, stuck, seed, *poly = size
+    k, f, layers, hidden, d, stuck, seed, *rest = size
+    poly, n_in, diag = (*rest, None, False, False)[:3] if rest else (False, None, False)
     return st.random_model(k, f, layers, hidden, d, seed=seed, stuck_samples=stuck,
-                           poly_head=bool(poly and poly[0]))
+                           poly_head=bool(poly), lstm_inputs=n_in, quad_diag=bool(diag))
 
 
-@pytest.mark.parametrize("size", SIZES + POLY_SIZES)
+@pytest.mark.parametrize("size", SIZES + POLY_SIZES + FORM_SIZES)
 def test_kernel_equals_numpy_reference_bit_for_bit(size, kroot) -> None:
     model = model_of(size)
     kernel = kernel_for(model, kroot)
@@ -95,6 +99,15 @@ def test_kernel_vs_onnxruntime_on_random_inputs(seed, poly, kroot) -> None:
     temp[rng.integers(0, n, 50)] = rng.uniform(-60, 70, 50)
     gyro = rng.normal(10, 5, n)
     compare_with_ort(model, kernel_for(model, kroot), temp, gyro, f"random inputs, seed {seed}")
+
+
+@pytest.mark.parametrize("size", FORM_SIZES)
+def test_narrowed_forms_kernel_vs_onnxruntime(size, kroot) -> None:
+    """lstm_inputs and quad_diag: the ONNX step (Slice before the first LSTM, the diagonal
+    quadratic) against the kernel within the tolerances of the other models."""
+    model = model_of(size)
+    temp, gyro = golden_inputs(model, n=400 * model.decimation, seed=size[6])
+    compare_with_ort(model, kernel_for(model, kroot), temp, gyro, f"form {size}")
 
 
 @pytest.mark.parametrize("poly", [False, True])
@@ -221,5 +234,30 @@ def test_an_unusable_model_gives_zero_and_only_the_model_flag(kroot) -> None:
         assert bytes(ffi.buffer(state)) == before, field
     lib.fogsf_step(ffi.NULL, state, 20.0, 10.0, out)
     assert out.flags == 32 and out.corrected_dps == 0.0
+    # format 3's fields: lstm_inputs beyond F, quad_diag other than 0/1 or without the head
+    for field, value in (("lstm_inputs", model.n_features + 1), ("quad_diag", 2),
+                         ("quad_diag", 1)):
+        bad = ffi.new("fogsf_model *", kernel.m[0])
+        setattr(bad, field, value)
+        assert lib.fogsf_model_check(bad) == 32, (field, value)
+        before = bytes(ffi.buffer(state))
+        lib.fogsf_step(bad, state, 20.0, 10.0, out)
+        assert (out.corrected_dps, out.sf_ppm, out.flags) == (0.0, 0.0, 32), field
+        assert bytes(ffi.buffer(state)) == before, field
+    for value in (0, 1, model.n_features):  # 0 = all features (a model generated before)
+        ok = ffi.new("fogsf_model *", kernel.m[0])
+        ok.lstm_inputs = value
+        assert lib.fogsf_model_check(ok) == 0, value
+    # a model struct from before format 3 (both fields 0) computes what it did
+    old = ffi.new("fogsf_model *", kernel.m[0])
+    old.lstm_inputs, old.quad_diag = 0, 0
+    a, b = ffi.new("fogsf_state *"), ffi.new("fogsf_state *")
+    lib.fogsf_init(kernel.m, a)
+    lib.fogsf_init(old, b)
+    out_b = ffi.new("fogsf_output *")
+    for i, t in enumerate(np.linspace(-40.0, 50.0, 60).tolist()):
+        lib.fogsf_step(kernel.m, a, t, 10.0, out)
+        lib.fogsf_step(old, b, t, 10.0, out_b)
+        assert (out.sf_ppm, out.flags) == (out_b.sf_ppm, out_b.flags), i
     lib.fogsf_step(kernel.m, state, 20.0, 10.0, out)  # the good model still runs on it
     assert out.flags == 0 and out.corrected_dps != 0.0

@@ -6,6 +6,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
 
 from bindings.firmware import (
@@ -13,6 +14,7 @@ from bindings.firmware import (
     arm_tools_missing,
     build_arm,
     build_host_driver,
+    golden_inputs,
     run_host_driver,
     run_qemu,
     write_golden,
@@ -138,3 +140,33 @@ def test_cortex_m4f_two_layers_no_filters_no_stuck_check(poly, tmp_path) -> None
     arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f", defines=build.defines)
     ok, out = run_qemu(arm.golden_elf)
     assert ok and "PASS: 12000 outputs bit-exact" in out, out
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None,
+                    reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
+@pytest.mark.parametrize("k, f, layers, hidden, d, n_in, diag", [
+    (11, 12, 1, 16, 5, 1, True),   # the default model's shape (the lag bank)
+    (2, 4, 2, 6, 1, 3, False),     # a narrowed input into two layers, the full quadratic
+], ids=["lag-bank-form", "narrowed-2-layers"])
+def test_cortex_m4f_narrowed_forms(k, f, layers, hidden, d, n_in, diag, tmp_path) -> None:
+    """lstm_inputs and quad_diag on target: the golden vectors bit for bit under QEMU."""
+    model = st.random_model(k, f, layers, hidden, decimation=d, seed=78, poly_head=True,
+                            lstm_inputs=n_in, quad_diag=diag)
+    build = build_kernel(model, root=tmp_path / "host")
+    text = (build.directory / "bound_model.c").read_text()
+    assert f"static const float lstm0_w[{4 * hidden * n_in}]" in text
+    assert (f"static const float quad_w[{f}]" in text) == diag
+    kernel = Kernel(model, build)
+    temp, gyro = golden_inputs(model)  # the golden vectors' inputs: numpy = host first
+    corrected, sf, flags = kernel.run(temp, gyro)
+    ref = st.replay(model, temp, gyro)
+    assert sf.tobytes() == ref.sf_ppm.tobytes() and np.ptp(ref.sf_ppm) > 1.0
+    assert corrected.tobytes() == ref.corrected_dps.tobytes()
+    assert np.array_equal(flags, ref.flags)
+    write_golden(model, kernel, tmp_path / "golden")
+    exe = build_host_driver(build, tmp_path / "golden", tmp_path / "asan", sanitize=True)
+    ok, out = run_host_driver(exe)
+    assert ok and "PASS: 12000 outputs bit-exact" in out, out
+    arm = build_arm(build.directory, tmp_path / "golden", tmp_path / "m4f", defines=build.defines)
+    ok, out = run_qemu(arm.golden_elf)
+    assert ok and f"model {model.model_id}" in out and "PASS: 12000 outputs bit-exact" in out, out

@@ -9,7 +9,7 @@ import pytest
 from ramp_logs import short_ramp
 
 from benchmarks.population import PROTOCOLS, run_profile, summarise
-from trainer.lag_bank import CURVED_MAX_TAU_S, bank_spec, fit_bank
+from trainer.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, bank_spec, fit_bank
 from trainer.least_squares import TAU_GRID_S
 from trainer.sim.profiles import breakpoints
 from trainer.stream import StreamModel
@@ -64,15 +64,41 @@ def test_bank_artifact_carries_the_fixed_bank(two_rates_gyro, tmp_path: Path) ->
     sm = StreamModel.load(tmp_path / "b")
     f = 1 + len(TAU_GRID_S)
     assert sm.poly_head and sm.n_features == f and m["features"][0] == "T"
+    # no cross terms (an additive bank): the head holds the diagonal only, quad_w [F]
+    assert sm.quad_diag and sm.weights["quad_w"].shape == (f,)
     quad = sm.weights["quad_w"]
-    assert np.array_equal(quad, np.diag(np.diag(quad)))  # no cross terms: an additive bank
+    # the LSTM reads the first BANK_LSTM_INPUTS features (T first): 4H x N input weights
+    assert sm.n_lstm_inputs == BANK_LSTM_INPUTS < f
+    assert sm.weights["lstm0_w"].shape == (4 * FAST["hidden"], BANK_LSTM_INPUTS)
     slow = 1 + np.flatnonzero(np.asarray(TAU_GRID_S) > CURVED_MAX_TAU_S)
-    assert slow.size and not sm.weights["cube_w"][slow].any() and not np.diag(quad)[slow].any()
+    assert slow.size and not sm.weights["cube_w"][slow].any() and not quad[slow].any()
+    assert quad[0] != 0  # T's square
     assert sm.weights["cube_w"][0] != 0  # T itself is curved
     assert np.allclose(sm.weights["feat_w"], np.eye(f) / 50.0)
     assert fitted.info["lag_bank"]["dof"] > 2
     lo, hi = m["rate_transfer"]["rms_interval_ppm"]
     assert lo < m["rate_transfer"]["noise_floor_ppm"] < hi
+
+
+def test_lstm_inputs_option(two_rates_gyro, tmp_path: Path) -> None:
+    """--lstm-inputs N narrows the bank's LSTM to z[0:N] (N = F: every feature); outside
+    1..F, or for another structure, it is refused."""
+    from trainer.errors import UserError
+    from trainer.train import fit_model
+
+    logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
+    f = 1 + len(TAU_GRID_S)
+    for n_in in (3, f):
+        opts = TrainOptions(model="lag-lstm", progress=False, lstm_inputs=n_in, **FAST)
+        run_training(opts, logs, None, tmp_path / str(n_in))
+        sm = StreamModel.load(tmp_path / str(n_in))
+        assert sm.n_lstm_inputs == n_in and sm.weights["lstm0_w"].shape[1] == n_in
+        assert sm.lstm_inputs_narrowed == (n_in < f) and sm.quad_diag
+    for bad in (0, f + 1):
+        with pytest.raises(UserError, match="--lstm-inputs must lie in 1..12"):
+            fit_model(TrainOptions(model="lag-lstm", lstm_inputs=bad, **FAST), logs)
+    with pytest.raises(UserError, match="--lstm-inputs narrows the lag bank"):
+        fit_model(TrainOptions(model="lag-lstm", structure="node", lstm_inputs=1), logs)
 
 
 def test_protocol_programs_hold_what_they_promise() -> None:
@@ -120,3 +146,21 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
     # it never reaches the chamber's rate
     assert bank["train_ramp_rates_c_per_min"] == [pytest.approx(0.6, rel=0.05),
                                                   pytest.approx(2.2, rel=0.15)]
+
+
+def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Path) -> None:
+    """The default model in its narrowed form: the same seed gives the same artifact and the
+    same generated C, byte for byte; another seed another model."""
+    from export.header import render_model
+
+    logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
+    texts, ids = [], []
+    for run, seed in (("a", 4), ("b", 4), ("c", 5)):
+        run_training(TrainOptions(model="lag-lstm", progress=False, seed=seed, **FAST), logs,
+                     None, tmp_path / run)
+        sm = StreamModel.load(tmp_path / run)
+        assert sm.lstm_inputs_narrowed and sm.quad_diag
+        texts.append(render_model(sm, "imu_x"))
+        ids.append(sm.model_id)
+    assert texts[0] == texts[1] and ids[0] == ids[1]
+    assert ids[2] != ids[0] and texts[2] != texts[0]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -316,3 +317,107 @@ def test_poly_head_carries_the_polynomial_in_kernel_order(seed) -> None:
             acc = F32(acc + F32(c[i] * F32(F32(z[m, i] * z[m, i]) * z[m, i])))
         assert y[m].tobytes() == acc.tobytes(), f"seed {seed} step {m}"
     np.testing.assert_allclose(y, exact, atol=1e-6, err_msg=f"seed {seed}")
+
+
+# --- the narrowed LSTM input (lstm_inputs) and the diagonal quadratic (quad_diag) ---------
+
+def test_old_artifact_saves_again_without_the_new_keys(tmp_path) -> None:
+    """The fixture (written before lstm_inputs/quad_diag existed) keeps its id, and saving
+    it again writes the same config (no new keys) and the same arrays."""
+    old = st.StreamModel.load(FIXTURE)
+    assert old.model_id == FIXTURE_ID
+    assert old.lstm_inputs is None and old.n_lstm_inputs == old.n_features
+    assert not old.quad_diag and not old.lstm_inputs_narrowed
+    old.save(tmp_path / "again")
+    cfg_old = json.loads((Path(FIXTURE) / "stream.json").read_text())
+    cfg_new = json.loads((tmp_path / "again" / "stream.json").read_text())
+    assert set(cfg_new) - set(cfg_old) == {"poly_head"}  # the key of the earlier extension
+    assert "lstm_inputs" not in cfg_new and "quad_diag" not in cfg_new
+    again = st.StreamModel.load(tmp_path / "again")
+    assert again.model_id == FIXTURE_ID
+    with np.load(Path(FIXTURE) / "stream_weights.npz") as a, \
+            np.load(tmp_path / "again" / "stream_weights.npz") as b:
+        assert sorted(a.files) == sorted(b.files)
+        for k in a.files:
+            assert a[k].tobytes() == b[k].tobytes(), k
+
+
+def test_lstm_inputs_equal_to_f_is_the_old_model(tmp_path) -> None:
+    """lstm_inputs = F changes nothing: same id, not written, same outputs."""
+    plain = st.random_model(2, 4, 1, 6, 5, seed=12, poly_head=True)
+    same = st.random_model(2, 4, 1, 6, 5, seed=12, poly_head=True, lstm_inputs=4)
+    assert same.model_id == plain.model_id and not same.lstm_inputs_narrowed
+    same.save(tmp_path / "m")
+    assert "lstm_inputs" not in json.loads((tmp_path / "m" / "stream.json").read_text())
+
+
+@pytest.mark.parametrize("n_in, diag", [(1, True), (3, False), (5, True), (2, True)])
+def test_new_forms_roundtrip_and_enter_the_id(n_in, diag, tmp_path) -> None:
+    model = st.random_model(3, 5, 2, 6, 4, seed=13, poly_head=True,
+                            lstm_inputs=n_in, quad_diag=diag)
+    assert model.weights["lstm0_w"].shape == (24, n_in)
+    assert model.weights["lstm1_w"].shape == (24, 6)
+    assert model.weights["quad_w"].shape == ((5,) if diag else (5, 5))
+    model.save(tmp_path / "m")
+    cfg = json.loads((tmp_path / "m" / "stream.json").read_text())
+    assert cfg.get("lstm_inputs") == (n_in if n_in < 5 else None)
+    assert cfg.get("quad_diag") == (True if diag else None)
+    again = st.StreamModel.load(tmp_path / "m")
+    assert again.model_id == model.model_id
+    assert again.n_lstm_inputs == n_in and again.quad_diag == diag
+    # the keys are part of the id: the same arrays under the other reading differ
+    if n_in < 5:
+        wider = replace(again, lstm_inputs=None)
+        assert wider.expected_shapes()["lstm0_w"] == (24, 5)
+    if diag:
+        with pytest.raises(UserError, match="quad_w"):
+            replace(again, quad_diag=False).validate()
+    ids = {model.model_id,
+           st.random_model(3, 5, 2, 6, 4, seed=13, poly_head=True).model_id}
+    assert len(ids) == 2 or (n_in == 5 and not diag)
+
+
+def test_new_forms_compute_the_full_model_with_zeros_bit_for_bit() -> None:
+    """quad_diag = a full quad_w with that diagonal; lstm_inputs N = a full lstm0_w whose
+    columns N.. are zero: adding the zero terms changes no bit, so the narrowed forms compute
+    exactly the model they stand for (and their op order is the contract's)."""
+    narrow = st.random_model(4, 5, 1, 8, 3, seed=14, poly_head=True, lstm_inputs=2,
+                             quad_diag=True)
+    w = dict(narrow.weights)
+    w["quad_w"] = np.diag(narrow.weights["quad_w"]).astype(np.float32)
+    lstm_w = np.zeros((32, 5), np.float32)
+    lstm_w[:, :2] = narrow.weights["lstm0_w"]
+    w["lstm0_w"] = lstm_w
+    full = replace(narrow, weights=w, lstm_inputs=None, quad_diag=False)
+    full.validate()
+    temp, gyro = st.chamber_ramp(hours=1.0, seed=14)
+    a, b = st.replay(narrow, temp, gyro), st.replay(full, temp, gyro)
+    assert np.ptp(a.sf_ppm) > 10.0
+    assert a.sf_ppm.tobytes() == b.sf_ppm.tobytes()
+    assert a.corrected_dps.tobytes() == b.corrected_dps.tobytes()
+    # and the LSTM input is really narrowed: changing z[2:] only through the LSTM's view
+    # (columns it does not read) is what the full model with nonzero columns would see
+    w2 = dict(w)
+    w2["lstm0_w"] = lstm_w + np.float32(0.5) * (np.arange(5) >= 2).astype(np.float32)
+    wider = replace(full, weights=w2)
+    assert st.replay(wider, temp, gyro).sf_ppm.tobytes() != a.sf_ppm.tobytes()
+
+
+@pytest.mark.parametrize("breakage, message", [
+    (lambda d: _edit_cfg(d, lstm_inputs=0), r"lstm_inputs.*\[1, n_features = 4\]"),
+    (lambda d: _edit_cfg(d, lstm_inputs=5), r"lstm_inputs.*\[1, n_features = 4\]"),
+    (lambda d: _edit_cfg(d, lstm_inputs="2"), "lstm_inputs.*must be an integer"),
+    (lambda d: _edit_cfg(d, lstm_inputs=True), "lstm_inputs.*must be an integer"),
+    (lambda d: _edit_cfg(d, lstm_inputs=2.0), "lstm_inputs.*must be an integer"),
+    (lambda d: _edit_cfg(d, lstm_inputs=3), r"lstm0_w.*shape.*lstm_inputs=3"),
+    (lambda d: _edit_cfg(d, quad_diag="yes"), "quad_diag.*true or false"),
+    (lambda d: _edit_cfg(d, quad_diag=False), "quad_w.*shape"),
+    (lambda d: _edit_cfg(d, poly_head=False), "quad_diag.*needs the polynomial head"),
+    (lambda d: _edit_weights(d, "quad_w", lambda a: np.diag(a).copy()), "quad_w.*shape"),
+])
+def test_load_refuses_bad_new_keys(tmp_path, breakage, message) -> None:
+    st.random_model(2, 4, 1, 6, 5, seed=15, poly_head=True, lstm_inputs=2,
+                    quad_diag=True).save(tmp_path / "m")
+    breakage(tmp_path / "m")
+    with pytest.raises(UserError, match=message):
+        st.StreamModel.load(tmp_path / "m")

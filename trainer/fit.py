@@ -40,6 +40,8 @@ class LSTMConfig:
     time_limit_s: float | None = None
     poly_head: bool = False  # carry the least-squares polynomial of the features exactly
     cubes: bool = True  # with poly_head: cubic terms too
+    lstm_inputs: int | None = None  # the first LSTM layer reads z[:N]; None: every feature
+    quad_diag: bool = False  # the polynomial head's quadratic is diagonal (the lag bank's)
 
 
 @dataclass
@@ -155,7 +157,8 @@ def _init_fixed_head(net: StreamNet, head: BankFit) -> None:
     only what it leaves."""
     with torch.no_grad():
         net.skip.weight.copy_(torch.from_numpy(head.lin[None, :].astype(np.float32)))
-        net.quad.copy_(torch.from_numpy(np.diag(head.quad).astype(np.float32)))
+        quad = head.quad if net.quad_diag else np.diag(head.quad)
+        net.quad.copy_(torch.from_numpy(quad.astype(np.float32)))
         net.cube.copy_(torch.from_numpy(head.cube.astype(np.float32)))
         net.head.bias.fill_(float(head.intercept))
         net.head.weight.mul_(0.1)
@@ -179,7 +182,8 @@ def _train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden, poly=cfg.poly_head or head is not None,
-                    cubes=cfg.cubes)
+                    cubes=cfg.cubes, lstm_inputs=cfg.lstm_inputs,
+                    quad_diag=cfg.quad_diag and head is not None)
     if head is not None:
         _init_fixed_head(net, head)
     else:

@@ -16,8 +16,9 @@ least node sensitivity, a quadratic bank with cross terms, varying-coefficient f
 T - lag(T) with block cross-validation.
 
 In the firmware contract the bank is the polynomial head over 1 + K features (T and the K
-filters, normalised): the linear terms in skip_w, the squares on quad_w's diagonal, the
-cubes in cube_w; the LSTM then learns what the bank leaves, with the bank held fixed.
+filters, normalised): the linear terms in skip_w, the squares in quad_w (its diagonal
+form, `quad_diag`: no cross terms), the cubes in cube_w; the LSTM, reading the first
+BANK_LSTM_INPUTS features, then learns what the bank leaves, with the bank held fixed.
 """
 
 from __future__ import annotations
@@ -43,6 +44,11 @@ BANK_LAMBDA = 1e-3
 # cubic: protocol a 5.5 -> 3.2, b 1.31 -> 1.23, d 6.5 -> 5.3 (worst 27 -> 22), e 1.17 ->
 # 1.18 (worst 1.64 -> 1.52), c 10.5 -> 11.5 (cut-offs at 250-1000 s were worse in c and e).
 CURVED_MAX_TAU_S = 2000.0
+# The LSTM that learns what the bank leaves reads the first this many bank features (T, then
+# the fastest lags): its input weights are most of a model's flash (4H per input), and three
+# models must fit one Cortex-M4F image in 24 KB (issue 11). Set from a comparison on
+# development gyros (docs/train.md, "The LSTM's inputs").
+BANK_LSTM_INPUTS = 1
 
 
 def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:

@@ -19,27 +19,38 @@ from trainer.stream import FrontEnd, StreamModel, torch_to_onnx_lstm
 class StreamNet(nn.Module):
     """LSTM layers, a linear head on the last h and a linear skip from z; with `poly` also
     the contract's polynomial head: sum_ij quad_ij z_i z_j + sum_i cube_i z_i^3 (the physics
-    least-squares model carried exactly, so the LSTM learns only what it leaves)."""
+    least-squares model carried exactly, so the LSTM learns only what it leaves).
+    `lstm_inputs` N: the first LSTM layer reads z[..., :N] only (None: all F);
+    `quad_diag`: quad is the diagonal [F] only (sum_i quad_i z_i^2)."""
 
     def __init__(self, n_features: int, layers: int, hidden: int, poly: bool = False,
-                 cubes: bool = True) -> None:
+                 cubes: bool = True, lstm_inputs: int | None = None,
+                 quad_diag: bool = False) -> None:
         super().__init__()
         self.layers, self.hidden, self.poly = layers, hidden, poly
-        self.lstm = nn.LSTM(n_features, hidden, layers, batch_first=True)
+        self.n_features = n_features
+        self.lstm_inputs = n_features if lstm_inputs is None else int(lstm_inputs)
+        if not 1 <= self.lstm_inputs <= n_features:
+            raise ValueError(f"lstm_inputs must lie in [1, {n_features}], got {lstm_inputs}")
+        self.quad_diag = bool(poly and quad_diag)
+        self.lstm = nn.LSTM(self.lstm_inputs, hidden, layers, batch_first=True)
         self.head = nn.Linear(hidden, 1)
         self.skip = nn.Linear(n_features, 1, bias=False)
         if poly:
-            self.quad = nn.Parameter(torch.zeros(n_features, n_features))
+            self.quad = nn.Parameter(torch.zeros(n_features) if self.quad_diag
+                                     else torch.zeros(n_features, n_features))
             self.cube = nn.Parameter(torch.zeros(n_features), requires_grad=cubes)
 
     def forward(self, z: torch.Tensor,
                 state: tuple[torch.Tensor, torch.Tensor] | None = None
                 ) -> tuple[torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
         """z [B, T, F] -> (normalised output [B, T], (h, c))."""
-        out, state = self.lstm(z, state)
+        x = z if self.lstm_inputs == self.n_features else z[..., :self.lstm_inputs]
+        out, state = self.lstm(x, state)
         y = self.head(out).squeeze(-1) + self.skip(z).squeeze(-1)
         if self.poly:
-            y = y + ((z @ self.quad) * z).sum(-1) + (z * z * z) @ self.cube
+            quad = (z * z) @ self.quad if self.quad_diag else ((z @ self.quad) * z).sum(-1)
+            y = y + quad + (z * z * z) @ self.cube
         return y, state
 
 
@@ -93,6 +104,9 @@ def to_stream_model(net: StreamNet, kind: str, spec: FeatureSpec, norm: Normalis
                         stuck_samples=fe.stuck_samples, filter_tau_s=list(spec.taus_s),
                         n_features=spec.n_features, layers=net.layers, hidden=net.hidden,
                         weights=weights, poly_head=net.poly, sample_dt_s=fe.sample_dt_s,
+                        lstm_inputs=(net.lstm_inputs if net.lstm_inputs != net.n_features
+                                     else None),
+                        quad_diag=net.quad_diag,
                         extra={"feature_names": list(spec.names),
                                                 **(extra or {})})
     model.validate()

@@ -191,6 +191,11 @@ _CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {
 }
 POLY_KEY = "poly_head"  # optional stream.json key (absent = false): quad_w and cube_w present
 POLY_ARRAYS = ("quad_w", "cube_w")
+# optional stream.json key (absent = n_features): the first LSTM layer reads z[0:N] only
+LSTM_INPUTS_KEY = "lstm_inputs"
+# optional stream.json key (absent = false; needs the polynomial head): quad_w is [F], the
+# diagonal only (y += quad_w[i] * (z_i * z_i))
+QUAD_DIAG_KEY = "quad_diag"
 
 
 @dataclass
@@ -211,13 +216,30 @@ class StreamModel:
     sample_dt_s: float = 0.1
     extra: dict = field(default_factory=dict)  # unknown stream.json keys, kept on save
     poly_head: bool = False  # y also carries sum quad_w[i,j] z_i z_j + sum cube_w[i] z_i^3
+    lstm_inputs: int | None = None  # the first LSTM layer reads z[0:N]; None: all F
+    quad_diag: bool = False  # with poly_head: quad_w [F] is the diagonal of the quadratic
 
     def __post_init__(self) -> None:
-        if POLY_KEY in self.extra:  # given as a stream.json key: it is the field
-            extra = dict(self.extra)
-            value = extra.pop(POLY_KEY)
-            self.extra = extra
-            self.poly_head = self.poly_head or value
+        extra = dict(self.extra)
+        if POLY_KEY in extra:  # given as a stream.json key: it is the field
+            self.poly_head = self.poly_head or extra.pop(POLY_KEY)
+        if QUAD_DIAG_KEY in extra:
+            self.quad_diag = self.quad_diag or extra.pop(QUAD_DIAG_KEY)
+        if LSTM_INPUTS_KEY in extra:
+            value = extra.pop(LSTM_INPUTS_KEY)
+            self.lstm_inputs = value if self.lstm_inputs is None else self.lstm_inputs
+        self.extra = extra
+
+    @property
+    def n_lstm_inputs(self) -> int:
+        """N: how many features (z[0:N]) the first LSTM layer reads (F unless narrowed)."""
+        return self.n_features if self.lstm_inputs is None else self.lstm_inputs
+
+    @property
+    def lstm_inputs_narrowed(self) -> bool:
+        """True when the first layer reads fewer than all F features (the key is written
+        and enters the model id only then)."""
+        return self.n_lstm_inputs != self.n_features
 
     # -- shape bookkeeping
     @property
@@ -232,10 +254,10 @@ class StreamModel:
             "out_scale": (1,), "out_offset": (1,),
         }
         if self.poly_head:
-            shapes["quad_w"] = (f, f)
+            shapes["quad_w"] = (f,) if self.quad_diag else (f, f)
             shapes["cube_w"] = (f,)
         for layer in range(self.layers):
-            n_in = f if layer == 0 else h
+            n_in = self.n_lstm_inputs if layer == 0 else h
             shapes[f"lstm{layer}_w"] = (4 * h, n_in)
             shapes[f"lstm{layer}_r"] = (4 * h, h)
             shapes[f"lstm{layer}_b"] = (8 * h,)
@@ -249,9 +271,11 @@ class StreamModel:
     @property
     def summary(self) -> str:
         """One line for people: sizes, head, decimation, parameters."""
-        poly = " + polynomial head" if self.poly_head else ""
+        poly = ((" + polynomial head (diagonal quadratic)" if self.quad_diag
+                 else " + polynomial head") if self.poly_head else "")
+        reads = (f" on z[0:{self.n_lstm_inputs}]" if self.lstm_inputs_narrowed else "")
         return (f"K={self.n_filters} filters, F={self.n_features} features, "
-                f"{self.layers}x{self.hidden} LSTM{poly}, D={self.decimation}, "
+                f"{self.layers}x{self.hidden} LSTM{reads}{poly}, D={self.decimation}, "
                 f"{self.params} parameters")
 
     @property
@@ -294,16 +318,24 @@ class StreamModel:
             "filter_tau_s": list(self.filter_tau_s), "n_features": self.n_features,
             "layers": self.layers, "hidden": self.hidden, POLY_KEY: self.poly_head,
         })
+        # the extensions after poly_head are written only when they change something, so
+        # an artifact without them saves as it did before they existed
+        if self.lstm_inputs_narrowed:
+            cfg[LSTM_INPUTS_KEY] = self.n_lstm_inputs
+        if self.quad_diag:
+            cfg[QUAD_DIAG_KEY] = True
         return cfg
 
     @property
     def model_id(self) -> str:
         """16 hex digits of SHA-256 over the contract config and the float32 weight bytes.
 
-        `poly_head` enters only when true, so models without the head keep the ids they had
-        before the key existed."""
+        `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag` only
+        when true, so models without them keep the ids they had before the keys existed."""
+        optional = {POLY_KEY: self.poly_head, LSTM_INPUTS_KEY: self.lstm_inputs_narrowed,
+                    QUAD_DIAG_KEY: self.quad_diag}
         cfg = {k: v for k, v in self.config().items()
-               if k in _CONFIG_KEYS or (k == POLY_KEY and self.poly_head)}
+               if k in _CONFIG_KEYS or optional.get(k, False)}
         digest = hashlib.sha256(json.dumps(cfg, sort_keys=True, separators=(",", ":")).encode())
         for name in sorted(self.weights):
             arr = np.ascontiguousarray(self.weights[name], dtype="<f4")
@@ -335,6 +367,16 @@ class StreamModel:
                 raise bad(f"'{name}' must be a finite temperature in C, got {value!r}")
         if not isinstance(self.poly_head, bool):
             raise bad(f"'{POLY_KEY}' must be true or false, got {self.poly_head!r}")
+        if not isinstance(self.quad_diag, bool):
+            raise bad(f"'{QUAD_DIAG_KEY}' must be true or false, got {self.quad_diag!r}")
+        if self.quad_diag and not self.poly_head:
+            raise bad(f"'{QUAD_DIAG_KEY}' is true but '{POLY_KEY}' is false: a diagonal "
+                      f"quadratic needs the polynomial head")
+        n_in = self.lstm_inputs
+        if n_in is not None and (not isinstance(n_in, int) or isinstance(n_in, bool)
+                                 or not 1 <= n_in <= self.n_features):
+            raise bad(f"'{LSTM_INPUTS_KEY}' must be an integer in [1, n_features = "
+                      f"{self.n_features}], got {n_in!r}")
         if not self.t_min_c < self.t_max_c:
             raise bad(f"t_min_c ({self.t_min_c}) must be below t_max_c ({self.t_max_c})")
         if not self.t_min_c <= self.t_ref_c <= self.t_max_c:
@@ -346,7 +388,8 @@ class StreamModel:
         expected = self.expected_shapes()
         missing = sorted(set(expected) - set(self.weights))
         if missing:
-            why = (f" ({POLY_KEY} is true: the polynomial head needs quad_w [F, F] and cube_w "
+            quad = "[F]" if self.quad_diag else "[F, F]"
+            why = (f" ({POLY_KEY} is true: the polynomial head needs quad_w {quad} and cube_w "
                    f"[F])" if self.poly_head and set(missing) & set(POLY_ARRAYS) else "")
             raise bad(f"{WEIGHTS_FILE} lacks array(s) {', '.join(missing)}{why}")
         stray = sorted(set(POLY_ARRAYS) & set(self.weights) - set(expected))
@@ -358,9 +401,12 @@ class StreamModel:
             if arr.dtype != np.float32:
                 raise bad(f"array '{name}' must be float32, got {arr.dtype}")
             if arr.shape != shape:
+                extra = (f" {LSTM_INPUTS_KEY}={self.n_lstm_inputs}" if name == "lstm0_w"
+                         and self.lstm_inputs_narrowed else "")
+                extra += f" {QUAD_DIAG_KEY}=true" if name == "quad_w" and self.quad_diag else ""
                 raise bad(f"array '{name}' has shape {arr.shape}, expected {shape} from "
                           f"K={self.n_filters} F={self.n_features} L={self.layers} "
-                          f"H={self.hidden}")
+                          f"H={self.hidden}{extra}")
             if not np.all(np.isfinite(arr)):
                 raise bad(f"array '{name}' holds NaN or Inf")
         alpha = self.weights["filter_alpha"].astype(np.float64)
@@ -418,9 +464,14 @@ class StreamModel:
                 weights = {k: npz[k] for k in npz.files}
         except (OSError, ValueError) as e:
             raise UserError(f"{w_path}: cannot read the weights: {e}") from None
-        if not isinstance(cfg.get(POLY_KEY, False), bool):
-            raise UserError(f"{cfg_path}: key '{POLY_KEY}' must be true or false, got "
-                            f"{cfg[POLY_KEY]!r}")
+        for key in (POLY_KEY, QUAD_DIAG_KEY):
+            if not isinstance(cfg.get(key, False), bool):
+                raise UserError(f"{cfg_path}: key '{key}' must be true or false, got "
+                                f"{cfg[key]!r}")
+        n_in = cfg.get(LSTM_INPUTS_KEY)
+        if n_in is not None and (not isinstance(n_in, int) or isinstance(n_in, bool)):
+            raise UserError(f"{cfg_path}: key '{LSTM_INPUTS_KEY}' must be an integer (the "
+                            f"features z[0:N] the first LSTM layer reads), got {n_in!r}")
         model = cls(
             model=cfg["model"], decimation=cfg["decimation"], t_ref_c=float(cfg["t_ref_c"]),
             t_min_c=float(cfg["t_min_c"]), t_max_c=float(cfg["t_max_c"]),
@@ -429,8 +480,11 @@ class StreamModel:
                           for t in cfg["filter_tau_s"]],
             n_features=cfg["n_features"], layers=cfg["layers"], hidden=cfg["hidden"],
             weights=weights, sample_dt_s=float(cfg["sample_dt_s"]),
-            extra={k: v for k, v in cfg.items() if k not in _CONFIG_KEYS and k != POLY_KEY},
-            poly_head=cfg.get(POLY_KEY, False),
+            extra={k: v for k, v in cfg.items()
+                   if k not in _CONFIG_KEYS and k not in (POLY_KEY, LSTM_INPUTS_KEY,
+                                                          QUAD_DIAG_KEY)},
+            poly_head=cfg.get(POLY_KEY, False), lstm_inputs=n_in,
+            quad_diag=cfg.get(QUAD_DIAG_KEY, False),
         )
         model.validate(where=str(d))
         return model
@@ -562,8 +616,9 @@ def lstm_cell(w: np.ndarray, r: np.ndarray, b: np.ndarray, x: np.ndarray, h: np.
 
 def head(model: StreamModel, h_last: np.ndarray, z: np.ndarray) -> tuple[F32, F32, int]:
     """(y, sf_ppm, flags) from the last layer's h and z, sequential from head_b; with the
-    polynomial head, then + quad_w[i, j] * (z_i * z_j) (i, then j ascending) and
-    + cube_w[i] * ((z_i * z_i) * z_i), one float32 op at a time as the kernel."""
+    polynomial head, then + quad_w[i, j] * (z_i * z_j) (i, then j ascending; with
+    quad_diag + quad_w[i] * (z_i * z_i), i ascending) and + cube_w[i] * ((z_i * z_i) * z_i),
+    one float32 op at a time as the kernel."""
     wts = model.weights
     y = wts["head_b"][0]
     for j in range(h_last.shape[0]):
@@ -572,9 +627,13 @@ def head(model: StreamModel, h_last: np.ndarray, z: np.ndarray) -> tuple[F32, F3
         y = y + wts["skip_w"][j] * z[j]
     if model.poly_head:
         quad, cube = wts["quad_w"], wts["cube_w"]
-        for i in range(z.shape[0]):
-            for j in range(z.shape[0]):
-                y = y + quad[i, j] * (z[i] * z[j])
+        if model.quad_diag:
+            for i in range(z.shape[0]):
+                y = y + quad[i] * (z[i] * z[i])
+        else:
+            for i in range(z.shape[0]):
+                for j in range(z.shape[0]):
+                    y = y + quad[i, j] * (z[i] * z[j])
         for i in range(z.shape[0]):
             y = y + cube[i] * ((z[i] * z[i]) * z[i])
     sf = y * wts["out_scale"][0] + wts["out_offset"][0]
@@ -599,7 +658,7 @@ def lstm_step(model: StreamModel, z: np.ndarray, h: np.ndarray, c: np.ndarray
               ) -> tuple[F32, F32, int, np.ndarray, np.ndarray]:
     """One model step from z: (y, sf_ppm, flags, h [L,H], c [L,H]); h and c are new arrays."""
     h, c = h.copy(), c.copy()
-    x = np.asarray(z, dtype=np.float32)
+    x = np.asarray(z, dtype=np.float32)[:model.n_lstm_inputs]
     for layer in range(model.layers):
         h[layer], c[layer] = lstm_cell(model.weights[f"lstm{layer}_w"],
                                        model.weights[f"lstm{layer}_r"],
@@ -701,7 +760,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                  decimation: int = 10, seed: int = 0, *, taus_s: list[float] | None = None,
                  t_ref_c: float = 20.0, t_min_c: float = -45.0, t_max_c: float = 55.0,
                  stuck_samples: int = 600, gain: float = 0.8, out_scale: float = 300.0,
-                 out_offset: float = 40.0, poly_head: bool = False) -> StreamModel:
+                 out_offset: float = 40.0, poly_head: bool = False,
+                 lstm_inputs: int | None = None, quad_diag: bool = False) -> StreamModel:
     """A seeded random model in the artifact format.
 
     Scaled so nothing saturates on chamber temperatures: z is O(1) over -45..55 C, every gate's
@@ -709,7 +769,9 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     of tanh and sf_ppm spans a few hundred ppm (out_scale) around out_offset.
     With `poly_head`, quad_w and cube_w come from a second generator seeded from `seed` (the
     other arrays are those of the same call without the head), scaled so that the quadratic
-    and cubic terms are O(0.3) each, like the skip term.
+    and cubic terms are O(0.3) each, like the skip term. `lstm_inputs` N: the first LSTM
+    layer reads z[0:N] (its W is [4H, N], so the draws after it differ); `quad_diag`: quad_w
+    is the diagonal [F] only (drawn from the head's generator, at the scale of a row).
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
@@ -728,7 +790,7 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
         "feat_b": u((f,), 0.2),
     }
     for layer in range(layers):
-        n_in = f if layer == 0 else h
+        n_in = (f if lstm_inputs is None else lstm_inputs) if layer == 0 else h
         # uniform(-a, a) has std a/sqrt(3); inputs are O(1/sqrt(n)) in norm per component
         weights[f"lstm{layer}_w"] = u((4 * h, n_in), gain * math.sqrt(3.0 / (n_in + h)))
         weights[f"lstm{layer}_r"] = u((4 * h, h), gain * math.sqrt(3.0 / (n_in + h)))
@@ -740,12 +802,14 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     weights["out_offset"] = np.array([out_offset], np.float32)
     if poly_head:
         poly_rng = np.random.default_rng([seed, 1])  # its own stream: the draws above stay put
-        weights["quad_w"] = u((f, f), 0.3 * math.sqrt(3.0) / f, poly_rng)
+        weights["quad_w"] = (u((f,), 0.3 * math.sqrt(3.0 / f), poly_rng) if quad_diag
+                             else u((f, f), 0.3 * math.sqrt(3.0) / f, poly_rng))
         weights["cube_w"] = u((f,), 0.3 * math.sqrt(3.0 / f), poly_rng)
     model = StreamModel(model="random-lstm", decimation=decimation, t_ref_c=t_ref_c,
                         t_min_c=t_min_c, t_max_c=t_max_c, stuck_samples=stuck_samples,
                         filter_tau_s=list(taus_s), n_features=f, layers=layers, hidden=h,
-                        weights=weights, extra={"random_seed": seed}, poly_head=poly_head)
+                        weights=weights, extra={"random_seed": seed}, poly_head=poly_head,
+                        lstm_inputs=lstm_inputs, quad_diag=quad_diag)
     model.validate()
     return model
 

@@ -8,7 +8,8 @@ Models (all causal, all from the board thermometer and time only):
   lr 0.02, Adam);
 - `lag-lstm` (the default): the physics part fitted by least squares and carried exactly in
   the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is the lag bank
-  (`trainer.lag_bank`: T and its lags at 11 time constants, ridge with a fixed prior) or,
+  (`trainer.lag_bank`: T and its lags at 11 time constants, ridge with a fixed prior; in the
+  head's diagonal quadratic, the LSTM reading the first BANK_LSTM_INPUTS features) or,
   with `structure="node"`, one or two effective sensing temperatures
   T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid;
 - `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
@@ -46,7 +47,7 @@ from trainer.features import (
     prepare,
     step_targets,
 )
-from trainer.lag_bank import BankFit, bank_spec, fit_bank, n_curved
+from trainer.lag_bank import BANK_LSTM_INPUTS, BankFit, bank_spec, fit_bank, n_curved
 from trainer.logio import ChamberLog
 from trainer.metrics import log_metrics, reference_sf_of_logs
 from trainer.stream import FrontEnd, StreamModel, decimation_for, expand
@@ -80,6 +81,8 @@ class TrainOptions:
     lr: float | None = None
     iters: int | None = None
     lstm_window: int | None = None  # model steps per LSTM training window (default 256)
+    # the lag bank's LSTM reads z[0:N] (T first, then the fastest lags); None: BANK_LSTM_INPUTS
+    lstm_inputs: int | None = None
     gsa_agents: int = 8
     gsa_iters: int = 8
     gsa_fitness_iters: int = 80
@@ -128,6 +131,10 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError(f"--structure must be one of {', '.join(STRUCTURES)}")
     if opts.node is not None and opts.nodes != 1:
         raise UserError("--node gives one effective node; drop it or use --nodes 1")
+    if opts.lstm_inputs is not None and not (opts.model == "lag-lstm"
+                                             and opts.structure == "bank"):
+        raise UserError("--lstm-inputs narrows the lag bank's LSTM: it needs --model "
+                        "lag-lstm with --structure bank")
     if not (math.isfinite(opts.model_step_s) and opts.model_step_s > 0):
         raise UserError(f"--model-step-s must be > 0, got {opts.model_step_s!r}")
     lo, hi = opts.val_chunk
@@ -158,7 +165,14 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
                               else None)
     if kind == "lag-lstm":
         if opts.structure == "bank" and opts.node is None and opts.nodes == 1:
-            return _fit_with_spec(opts, train_logs, bank_spec(), _lstm_config(opts),
+            spec = bank_spec()
+            n_in = BANK_LSTM_INPUTS if opts.lstm_inputs is None else opts.lstm_inputs
+            if not 1 <= n_in <= spec.n_features:
+                raise UserError(f"--lstm-inputs must lie in 1..{spec.n_features} (the lag "
+                                f"bank's features), got {n_in}")
+            # the bank's quadratic is diagonal: the head carries quad_w [F], not [F, F]
+            return _fit_with_spec(opts, train_logs, spec,
+                                  _lstm_config(opts, lstm_inputs=n_in, quad_diag=True),
                                   head_fn=_fit_bank_head)
         if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
             spec = effective_node_features(*_identify_two_nodes(opts, train_logs))

@@ -2,7 +2,7 @@
  * The fixed-size model path of the kernel: front end (sanitise, clamp, stuck detection,
  * block means, lag filters), model step (features, LSTM layers, head with the optional
  * polynomial terms) and the per-sample correction, exactly in the float32 order of
- * docs/stream-contract.md. Sizes and weights come from the model struct at run time; the
+ * docs/stream-contract.md (with the optional narrowed LSTM input and diagonal quadratic). Sizes and weights come from the model struct at run time; the
  * state arrays are sized by FOGSF_MAX_* (fogsf_model_check).
  */
 #include "fogsf.h"
@@ -36,7 +36,9 @@ uint32_t fogsf_model_check(const fogsf_model *m)
         m->hidden > FOGSF_MAX_HIDDEN || m->hidden < 1u || m->decimation < 1u ||
         (m->n_filters > 0u && m->filter_alpha == NULL) || m->feat_w == NULL ||
         m->feat_b == NULL || m->lstm_w == NULL || m->lstm_r == NULL || m->lstm_b == NULL ||
-        m->head_w == NULL || m->skip_w == NULL || (m->quad_w == NULL) != (m->cube_w == NULL)) {
+        m->head_w == NULL || m->skip_w == NULL || (m->quad_w == NULL) != (m->cube_w == NULL) ||
+        m->lstm_inputs > m->n_features || m->quad_diag > 1u ||
+        (m->quad_diag != 0u && m->quad_w == NULL)) {
         return FOGSF_FLAG_MODEL_INVALID;
     }
     return 0u;
@@ -83,7 +85,7 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
     float y, sf, mag;
     const float *x = st->z;
     const uint32_t nk = m->n_filters, nf = m->n_features, nh = m->hidden, ni = 1u + nk;
-    size_t n_in = nf;
+    size_t n_in = m->lstm_inputs != 0u ? m->lstm_inputs : nf; /* layer 0 reads z[0:n_in] */
     uint32_t k, f, l, j;
 
     for (k = 0; k < nk; ++k) {
@@ -115,9 +117,15 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
     }
     if (m->quad_w != NULL) { /* polynomial head: the quadratic, then the cubic terms in z */
         uint32_t i;
-        for (i = 0; i < nf; ++i) {
-            for (j = 0; j < nf; ++j) {
-                y = y + m->quad_w[i * nf + j] * (st->z[i] * st->z[j]);
+        if (m->quad_diag != 0u) { /* the diagonal only: quad_w [F] */
+            for (i = 0; i < nf; ++i) {
+                y = y + m->quad_w[i] * (st->z[i] * st->z[i]);
+            }
+        } else {
+            for (i = 0; i < nf; ++i) {
+                for (j = 0; j < nf; ++j) {
+                    y = y + m->quad_w[i * nf + j] * (st->z[i] * st->z[j]);
+                }
             }
         }
         for (i = 0; i < nf; ++i) {

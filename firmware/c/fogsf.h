@@ -60,7 +60,7 @@ extern "C" {
  * Arrays are float32, row-major, in the layout of docs/stream-contract.md. */
 typedef struct fogsf_model {
     const char *model_id;         /* 16 hex digits, the artifact's id */
-    uint32_t format_version;      /* 2: the model as data */
+    uint32_t format_version;      /* 2: the model as data; 3: + lstm_inputs, quad_diag */
     uint32_t n_filters;           /* K lag filters */
     uint32_t n_features;          /* F features */
     uint32_t layers;              /* L LSTM layers */
@@ -77,9 +77,12 @@ typedef struct fogsf_model {
     const float *const *lstm_b;   /* [L] -> [8H] = [Wb; Rb] */
     const float *head_w;          /* [H] */
     const float *skip_w;          /* [F] */
-    const float *quad_w;          /* [F][F], NULL without the polynomial head */
+    const float *quad_w;          /* [F][F] ([F] with quad_diag), NULL without the poly head */
     const float *cube_w;          /* [F], NULL without the polynomial head */
     float head_b, out_scale, out_offset;
+    /* format 3 (both 0 in a model generated before: all features, a full quadratic) */
+    uint32_t lstm_inputs;         /* N: LSTM layer 0 reads z[0:N], W is [4H][N]; 0 = all F */
+    uint32_t quad_diag;           /* 1: quad_w is the diagonal [F] of the quadratic; 0: [F][F] */
 } fogsf_model;
 
 /* Caller-owned state, sized for the largest model (FOGSF_MAX_*). Treat as opaque. */
@@ -106,7 +109,8 @@ typedef struct fogsf_output {
     uint32_t flags;       /* FOGSF_FLAG_* */
 } fogsf_output;
 
-/* 0 when m fits fogsf_state (FOGSF_MAX_*) and is complete, else FOGSF_FLAG_MODEL_INVALID. */
+/* 0 when m fits fogsf_state (FOGSF_MAX_*) and is complete (lstm_inputs <= F, quad_diag 0 or
+ * 1 and only with the polynomial head), else FOGSF_FLAG_MODEL_INVALID. */
 uint32_t fogsf_model_check(const fogsf_model *m);
 
 /* Start a log: zero LSTM state, filters primed by the first sample. init == reset. Returns

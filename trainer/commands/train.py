@@ -37,6 +37,7 @@ from trainer.commands import (
     read_logs,
 )
 from trainer.errors import UserError
+from trainer.lag_bank import BANK_LSTM_INPUTS, bank_spec
 from trainer.transfer import RateTransfer, spans_ramp_rates
 
 
@@ -93,6 +94,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--batch-size", type=int)
     g.add_argument("--lr", type=float)
     g.add_argument("--iters", type=int, help="training iterations (batches)")
+    g.add_argument("--lstm-inputs", type=positive_int, metavar="N",
+                   help="lag-lstm on the lag bank: the LSTM reads the first N bank features "
+                        f"(T, then the fastest lags; default {BANK_LSTM_INPUTS}, "
+                        f"{bank_spec().n_features} = all): "
+                        "4 x hidden input weights per feature in the firmware's flash")
     g.add_argument("--lstm-window", type=positive_int, metavar="STEPS",
                    help="model steps per LSTM training window (default 256, 21 min at "
                         "5 s steps; larger than a log: whole logs)")
@@ -122,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
         node=tuple(args.node) if args.node else None, nodes=args.nodes or 1,
         structure=args.structure or ("node" if args.nodes or args.node else "bank"),
         layers=args.layers, hidden=args.hidden, batch_size=args.batch_size, lr=args.lr,
-        iters=args.iters, lstm_window=args.lstm_window, gsa_agents=args.gsa_agents,
+        iters=args.iters, lstm_window=args.lstm_window, lstm_inputs=args.lstm_inputs,
+        gsa_agents=args.gsa_agents,
         gsa_iters=args.gsa_iters,
         gsa_fitness_iters=args.gsa_fitness_iters, gsa_space=args.gsa_space,
         gsa_paper_constants=args.gsa_paper_constants,

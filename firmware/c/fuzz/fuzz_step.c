@@ -6,8 +6,9 @@
  *   mode 2  fogsf_step with the generated model fuzz_model (fuzz_model.h) on adversarial
  *           samples: (temperature bits, gyro bits, repeats) records, so NaN, Inf, denormals,
  *           huge values and stuck thermometers (a record repeated up to 255 times) all occur;
- *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state)
- *           and every weight from the fuzz data (NaN, Inf, huge).
+ *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state),
+ *           lstm_inputs and quad_diag (sometimes invalid) and every weight from the fuzz
+ *           data (NaN, Inf, huge).
  * After every step the totality contract is checked (corrected finite, |sf| <= limit, flags
  * known, an invalid model gives 0); a violation aborts, which libFuzzer reports as a crash.
  * The number of fogsf_step calls is printed at exit ("fuzz steps: N") for make fuzz.
@@ -177,6 +178,7 @@ static void fuzz_model_data(reader *r)
     const float *lw[FOGSF_MAX_LAYERS + 1], *lr[FOGSF_MAX_LAYERS + 1], *lb[FOGSF_MAX_LAYERS + 1];
     size_t i;
     int l;
+    uint8_t opts;
     memset(&m, 0, sizeof m);
     m.model_id = "adversarial";
     m.n_filters = next_u8(r) % (FOGSF_MAX_FILTERS + 2u);
@@ -211,10 +213,16 @@ static void fuzz_model_data(reader *r)
     m.lstm_b = lb;
     m.head_w = adv + 6;
     m.skip_w = adv + 7;
-    if (next_u8(r) & 1u) {
+    opts = next_u8(r);
+    if (opts & 1u) {
         m.quad_w = adv + 8;
         m.cube_w = adv + 9;
     }
+    /* format 3, from the same byte (so the older corpus keeps its meaning: 0 and 0): the
+       first layer's inputs (bits 1-3; 0 = all, beyond F invalid) and the diagonal quadratic
+       (bits 4-7; 2 is invalid, so is 1 without the head) */
+    m.lstm_inputs = ((uint32_t)(opts >> 1) & 7u) % (FOGSF_MAX_FEATURES + 2u);
+    m.quad_diag = (uint32_t)(opts >> 4) % 3u;
     run_samples(&m, r);
 }
 
