@@ -54,7 +54,10 @@ def one(job: Job) -> dict[str, Any]:
             "ambiguous": j["ambiguous"],
             "case": case.describe(), "multiple": case.multiple_reached or case.multiple,
             "structure": j["structure"], "seconds": time.time() - t0,
-            "significant": [c["effect"] for c in j["candidates"] if c["significant"]]}
+            "significant": [c["effect"] for c in j["candidates"] if c["significant"]],
+            "params": {c["effect"]: c["params"] for c in j["candidates"]
+                       if c["effect"] in (j["causes"] or [case.name])},
+            "truth": case.params}
 
 
 def jobs(seeds: int, first_seed: int) -> list[Job]:
@@ -84,6 +87,14 @@ def population_jobs(seeds: range) -> list[Job]:
         k = ("temp_rate", "extra_lag")[s % 2]
         out += [("ramp_only", k, "", s, True), ("short_soak", k, "", s, True)]
     return out
+
+
+def group(job: Job) -> str:
+    """The summary group a job lands in (as `summarise` names them)."""
+    kind, name, variant, _, _ = job
+    name = f"{name}:{variant}" if variant and kind == "effect" else (
+        f"{name}+{variant}" if kind == "two" else name)
+    return f"{kind}:{name}" if name else kind
 
 
 def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
@@ -147,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
                          "for eval; 100 for --gyros default)")
     ap.add_argument("--gyros", choices=["population", "default"], default="population")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--only", action="append", default=[], metavar="PREFIX",
+                    help="run only the cases whose group (e.g. effect:temp_rate, null, "
+                         "ooc:humidity) starts with PREFIX (repeatable; for investigation)")
     args = ap.parse_args(argv)
     if args.gyros == "default":
         todo = jobs(args.seeds, 100 if args.first_seed is None else args.first_seed)
@@ -160,6 +174,8 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--first-seed {first} with --seeds {args.seeds} leaves the "
                      f"{args.seeds_from} range {rng.start}-{rng.stop - 1}")
         todo = population_jobs(range(first, first + args.seeds))
+    if args.only:
+        todo = [j for j in todo if any(group(j).startswith(p) for p in args.only)]
     t0 = time.time()
     results: list[dict[str, Any]] = []
     from tqdm import tqdm
