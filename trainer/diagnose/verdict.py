@@ -33,6 +33,7 @@ Decision rules (all on held-out residuals, per block of windows, never per windo
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -467,12 +468,14 @@ def _fits_per_value(model: ModelFit, y: np.ndarray, w: np.ndarray
 
 
 def _coef_range_over_profile(model: ModelFit, name: str, y: np.ndarray, w: np.ndarray,
-                             interval: tuple[float, float], accepted: list[GridValue]
+                             interval: tuple[float, float], accepted: list[GridValue],
+                             factor: Callable[[GridValue], float] = lambda v: 1.0
                              ) -> tuple[float, float]:
     """The linear coefficient's 95 % range over every grid value of the nonlinear parameter
     inside its profile interval (each at its best base time constants; further profiled
     parameters at accepted values): the coefficient's interval then carries the time
-    constant's uncertainty too."""
+    constant's uncertainty too. `factor(v)` scales the coefficient at grid value v (a
+    quantity derived from it, e.g. temp_rate's housing coupling)."""
     lines = {_line(v) for v in accepted}
     lo, hi = np.inf, -np.inf
     i = model.stack.names.index(name)
@@ -480,8 +483,8 @@ def _coef_range_over_profile(model: ModelFit, name: str, y: np.ndarray, w: np.nd
         if not (interval[0] <= first(v) <= interval[1] and _line(v) in lines):
             continue
         se = math.sqrt(max(fit.cov[i, i], 0.0) * max(1.0, model.chi2_red))
-        lo = min(lo, float(fit.beta[i]) - Z95 * se)
-        hi = max(hi, float(fit.beta[i]) + Z95 * se)
+        a, b = ((float(fit.beta[i]) + z * se) * factor(v) for z in (-Z95, Z95))
+        lo, hi = min(lo, a, b), max(hi, a, b)
     return lo, hi
 
 
@@ -544,8 +547,23 @@ def _params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
                     f"{cand.grid_name}_ci95": [min(interval[0], gv), max(interval[1], gv)]})
         if cand.name == "temp_rate":
             out["coil_outer_tau_s_best_fit"] = catalogue.coil_taus(g)[1]
+            out.update(_housing_coupling(model, fine, y, w, interval, accepted))
         return out
     return {cand.coef_name: coef, f"{cand.coef_name}_ci95": ci}
+
+
+def _housing_coupling(coarse: ModelFit, fine: ModelFit, y: np.ndarray, w: np.ndarray,
+                      interval: tuple[float, float], accepted: list[GridValue]
+                      ) -> dict[str, object]:
+    """temp_rate's coupling to the housing (catalogue.housing_coupling), at the best fit and
+    its 95 % range over the coil time constants the profile accepts: what the logs pin of
+    a dT/dt term (the strength in ppm/(C/min) also needs the coil's time constants)."""
+    name = catalogue.CATALOGUE["temp_rate"].coef_name
+    best = catalogue.housing_coupling(fine.coef(name), fine.combo[1])
+    lo, hi = _coef_range_over_profile(coarse, name, y, w, interval, accepted,
+                                      lambda v: catalogue.housing_coupling(1.0, v))
+    return {"housing_ppm_per_c": best,
+            "housing_ppm_per_c_ci95": [min(lo, best), max(hi, best)]}
 
 
 def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str, float]]:
