@@ -57,7 +57,8 @@ def one(job: Job) -> dict[str, Any]:
             "significant": [c["effect"] for c in j["candidates"] if c["significant"]],
             "params": {c["effect"]: c["params"] for c in j["candidates"]
                        if c["effect"] in (j["causes"] or [case.name])},
-            "truth": case.params}
+            "truth": case.params,
+            "p_values": {c["effect"]: c.get("p_value") for c in j["candidates"]}}
 
 
 def jobs(seeds: int, first_seed: int) -> list[Job]:
