@@ -533,5 +533,8 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
     if case.kind == "short_soak":
         if cause is None and case.name in ambiguous:
             return out(True, "ambiguous, as short soaks leave it")
+        if case.name == "temp_rate" and truth["housing_ppm_per_c"] == 0 and cause is None:
+            return out(True, "no coil node behind the housing: confounded with the gyro's "
+                             "own nodes, not named")
         return out(cause == case.name, f"cause {cause!r}, planted {case.name}")
     raise ValueError(case.kind)
