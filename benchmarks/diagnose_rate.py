@@ -98,6 +98,18 @@ def group(job: Job) -> str:
     return f"{kind}:{name}" if name else kind
 
 
+def _strength_within(eff: list[dict[str, Any]], name: str, tol: float) -> int:
+    """Cases of `name` named with the strength in ppm/(C/min) within `tol` (the criterion
+    before version 3, kept for comparison: see docs/diagnose.md)."""
+    n = 0
+    for r in eff:
+        p = r["params"].get(name, {})
+        if r["name"] == name and r["cause"] == name and "strength" in r["truth"] and p:
+            true, est = float(r["truth"]["strength"]), float(p["strength_ppm_per_c_per_min"])
+            n += abs(est - true) <= tol * abs(true)
+    return n
+
+
 def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     by: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for r in results:
@@ -120,6 +132,9 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
 
     return {
         "groups": groups,
+        "temp_rate_strength_within_50pct": _strength_within(eff, "temp_rate", 0.5),
+        "temp_rate_coil_behind_housing": sum(
+            r["truth"].get("housing_ppm_per_c", 0) != 0 for r in eff if planted(r) == "temp_rate"),
         "effects_right_rate": rate(eff),
         "effects_wrong_cause": len(wrong_cause),
         "effects_ambiguous": sum(r["cause"] is None and planted(r) in r["ambiguous"]
@@ -192,6 +207,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"planted effects named right (name, parameter, significant): "
           f"{100 * s['effects_right_rate']:.1f}% "
           f"({100 * s['effects_right_rate_without_temp_rate']:.1f}% without temp_rate)")
+    n_tr = s["groups"].get("effect:temp_rate", {}).get("cases", 0)
+    print(f"temp_rate: strength within 50 % in {s['temp_rate_strength_within_50pct']} of "
+          f"{n_tr} (judged on the housing coupling; {s['temp_rate_coil_behind_housing']} "
+          "with a coil node behind the housing)")
     print(f"planted effects: {s['effects_wrong_cause']} wrong causes named, "
           f"{s['effects_ambiguous']} left ambiguous (the planted one among them)")
     print(f"null cases: {s['null_false_causes']} false causes in {s['null_cases']} "

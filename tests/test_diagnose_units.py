@@ -172,7 +172,7 @@ def test_housing_coupling_of_a_dtdt_term() -> None:
     from trainer.sim.config import NodeConfig, SimConfig
 
     rng = np.random.default_rng(20261123)
-    s, tau = float(rng.uniform(10.0, 3000.0)), float(rng.uniform(150.0, 1500.0))
+    s, tau = float(rng.uniform(10.0, 3000.0)), round(float(rng.uniform(150.0, 1500.0)), 1)
     assert catalogue.housing_coupling(s, (tau, 1.0)) == pytest.approx(s * 60.0 / tau)
     cfg = SimConfig()
     cfg.thermal.nodes = [NodeConfig("housing", "chamber", 60.0, 0.0),
