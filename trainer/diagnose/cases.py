@@ -474,7 +474,11 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
     asymmetry is reported confounded with the base (its separating run named); a slow
     warm-up is right when named (tau within 50 %) or explained by the base's own unseen
     self-heating (no cause, no structure left); a settling aging's initial slope is held to
-    50 %; two planted effects are right when `causes` holds both and nothing else."""
+    50 %; two planted effects are right when `causes` holds both and nothing else. A dT/dt
+    term is judged on its housing coupling (housing_coupling, 50 %): the logs pin that, and
+    the strength only with the unseen coil's time constants; one whose coil nodes all sit
+    behind other internal nodes (coupling 0) is part of the gyro's own thermal SF law, and
+    is right when no cause is named (docs/diagnose.md, "The dT/dt term's strength")."""
     ambiguous = ambiguous or []
     causes = causes if causes is not None else ([cause] if cause else [])
 

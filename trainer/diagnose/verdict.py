@@ -11,6 +11,9 @@ Decision rules (all on held-out residuals, per block of windows, never per windo
 - A node-like candidate (a dT/dt term, an extra lag) must also beat the base with a third
   node of the base's own kind on held-out blocks (p < ALPHA): the base's two nodes stand
   for the FOG's several, and on long logs any added node lowers the residual a little.
+- The three candidates that can each take a slow misfit of the base's node count (a dT/dt
+  term, an extra lag, aging: catalogue.THIRD_NODE_CHECK) must reach p < ALPHA / k, k the
+  identifiable ones among them (Bonferroni within that family, _slow_misfit_family).
 - A warmup (start-up transient) is scored only when a run starts at power-on.
 - Profiled parameters: the interval is where the profiled SSE stays within 3.84 units
   (reduced chi-square times the residual's long-run variance ratio) of its minimum, on the
