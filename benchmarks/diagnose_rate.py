@@ -54,7 +54,11 @@ def one(job: Job) -> dict[str, Any]:
             "ambiguous": j["ambiguous"],
             "case": case.describe(), "multiple": case.multiple_reached or case.multiple,
             "structure": j["structure"], "seconds": time.time() - t0,
-            "significant": [c["effect"] for c in j["candidates"] if c["significant"]]}
+            "significant": [c["effect"] for c in j["candidates"] if c["significant"]],
+            "params": {c["effect"]: c["params"] for c in j["candidates"]
+                       if c["effect"] in (j["causes"] or [case.name])},
+            "truth": case.params,
+            "p_values": {c["effect"]: c.get("p_value") for c in j["candidates"]}}
 
 
 def jobs(seeds: int, first_seed: int) -> list[Job]:
@@ -86,6 +90,26 @@ def population_jobs(seeds: range) -> list[Job]:
     return out
 
 
+def group(job: Job) -> str:
+    """The summary group a job lands in (as `summarise` names them)."""
+    kind, name, variant, _, _ = job
+    name = f"{name}:{variant}" if variant and kind == "effect" else (
+        f"{name}+{variant}" if kind == "two" else name)
+    return f"{kind}:{name}" if name else kind
+
+
+def _strength_within(eff: list[dict[str, Any]], name: str, tol: float) -> int:
+    """Cases of `name` named with the strength in ppm/(C/min) within `tol` (the criterion
+    before version 3, kept for comparison: see docs/diagnose.md)."""
+    n = 0
+    for r in eff:
+        p = r["params"].get(name, {})
+        if r["name"] == name and r["cause"] == name and "strength" in r["truth"] and p:
+            true, est = float(r["truth"]["strength"]), float(p["strength_ppm_per_c_per_min"])
+            n += abs(est - true) <= tol * abs(true)
+    return n
+
+
 def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
     by: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for r in results:
@@ -108,6 +132,9 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
 
     return {
         "groups": groups,
+        "temp_rate_strength_within_50pct": _strength_within(eff, "temp_rate", 0.5),
+        "temp_rate_coil_behind_housing": sum(
+            r["truth"].get("housing_ppm_per_c", 0) != 0 for r in eff if planted(r) == "temp_rate"),
         "effects_right_rate": rate(eff),
         "effects_wrong_cause": len(wrong_cause),
         "effects_ambiguous": sum(r["cause"] is None and planted(r) in r["ambiguous"]
@@ -147,6 +174,9 @@ def main(argv: list[str] | None = None) -> int:
                          "for eval; 100 for --gyros default)")
     ap.add_argument("--gyros", choices=["population", "default"], default="population")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--only", action="append", default=[], metavar="PREFIX",
+                    help="run only the cases whose group (e.g. effect:temp_rate, null, "
+                         "ooc:humidity) starts with PREFIX (repeatable; for investigation)")
     args = ap.parse_args(argv)
     if args.gyros == "default":
         todo = jobs(args.seeds, 100 if args.first_seed is None else args.first_seed)
@@ -160,6 +190,8 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--first-seed {first} with --seeds {args.seeds} leaves the "
                      f"{args.seeds_from} range {rng.start}-{rng.stop - 1}")
         todo = population_jobs(range(first, first + args.seeds))
+    if args.only:
+        todo = [j for j in todo if any(group(j).startswith(p) for p in args.only)]
     t0 = time.time()
     results: list[dict[str, Any]] = []
     from tqdm import tqdm
@@ -175,6 +207,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"planted effects named right (name, parameter, significant): "
           f"{100 * s['effects_right_rate']:.1f}% "
           f"({100 * s['effects_right_rate_without_temp_rate']:.1f}% without temp_rate)")
+    n_tr = s["groups"].get("effect:temp_rate", {}).get("cases", 0)
+    print(f"temp_rate: strength within 50 % in {s['temp_rate_strength_within_50pct']} of "
+          f"{n_tr} (judged on the housing coupling; {s['temp_rate_coil_behind_housing']} "
+          "with a coil node behind the housing)")
     print(f"planted effects: {s['effects_wrong_cause']} wrong causes named, "
           f"{s['effects_ambiguous']} left ambiguous (the planted one among them)")
     print(f"null cases: {s['null_false_causes']} false causes in {s['null_cases']} "

@@ -157,3 +157,34 @@ def test_short_soak_dtdt_seed_711_is_not_named_extra_lag() -> None:
     case = cases.draw("short_soak", "temp_rate", 711)
     out, j, _ = _run(case)
     assert out.ok, f"[{case.describe()}] -> {out.reason}; ambiguous={j['ambiguous']}"
+
+
+def _population_dtdt_gyros(n: int) -> list[int]:
+    """Development gyros (seeded draws from trainer.sim.population.DEV_SEEDS, above the
+    bench's tuning ranges) with at least one coil node right behind the housing."""
+    from trainer.sim.population import gyro_for_seed
+
+    rng = np.random.default_rng([MASTER_SEED, 11])
+    out: list[int] = []
+    while len(out) < n:
+        s = int(rng.integers(1000, 10_000))
+        if any(nd.name.startswith("coil") and nd.parent == "housing"
+               for nd in gyro_for_seed(s).thermal.nodes):
+            out.append(s)
+    return out
+
+
+@pytest.mark.parametrize("seed", _population_dtdt_gyros(2))
+def test_dtdt_term_on_a_population_gyro_gets_its_housing_coupling(seed: int) -> None:
+    """On a population gyro (unseen coil nodes at 150-4000 s, any topology) the strength in
+    ppm/(C/min) needs the coil's time constants, but the housing coupling is pinned: named,
+    significant, coupling within 50 % (cases.judge), and inside its reported interval."""
+    case = cases.draw_population("effect", "temp_rate", "", seed)
+    logs, truth = cases.build(case)
+    j = report.to_json(verdict.diagnose(logs), {}, None)
+    out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
+                      j["ambiguous"], j["causes"])
+    c = next(c for c in j["candidates"] if c["effect"] == "temp_rate")
+    assert out.ok, f"[{case.describe()}] -> {out.reason}; params={c['params']}"
+    lo, hi = c["params"]["housing_ppm_per_c_ci95"]
+    assert lo <= c["params"]["housing_ppm_per_c"] <= hi, f"seed {seed}: {c['params']}"

@@ -161,3 +161,27 @@ def test_out_of_catalogue_numpy_term_is_unexplained() -> None:
     d = verdict.diagnose([log])
     assert d.unexplained
     assert d.cause is None
+
+
+def test_housing_coupling_of_a_dtdt_term() -> None:
+    """A coil layer lagging the housing by tau has dT/dt = (housing - T) / tau: the term
+    S * dT_coil/dt (C/min) holds the housing with S * 60 * mean(1/tau); a coil node behind
+    another internal node holds it with nothing (cases.housing_coupling, the bench's
+    truth, and catalogue.housing_coupling, the diagnosis's, agree on a two-layer coil)."""
+    from trainer.diagnose import cases, catalogue
+    from trainer.sim.config import NodeConfig, SimConfig
+
+    rng = np.random.default_rng(20261123)
+    s, tau = float(rng.uniform(10.0, 3000.0)), round(float(rng.uniform(150.0, 1500.0)), 1)
+    assert catalogue.housing_coupling(s, (tau, 1.0)) == pytest.approx(s * 60.0 / tau)
+    cfg = SimConfig()
+    cfg.thermal.nodes = [NodeConfig("housing", "chamber", 60.0, 0.0),
+                         NodeConfig("board", "housing", 300.0, 0.0),
+                         NodeConfig("coil_inner", "housing", tau, 0.0),
+                         NodeConfig("coil_outer", "housing", 2.0 * tau, 0.0)]
+    assert cases.housing_coupling(cfg, s) == pytest.approx(
+        catalogue.housing_coupling(s, (tau, 2.0)), rel=1e-3), f"S={s}, tau={tau}"
+    cfg.thermal.nodes[3] = NodeConfig("coil_outer", "coil_inner", 2.0 * tau, 0.0)
+    assert cases.housing_coupling(cfg, s) == pytest.approx(s * 60.0 / tau / 2.0)
+    cfg.thermal.nodes[2] = NodeConfig("coil_inner", "board", tau, 0.0)
+    assert cases.housing_coupling(cfg, s) == 0.0

@@ -73,7 +73,8 @@ PARAM_CHECK: dict[str, tuple[str, str, float]] = {
     # effect: (param key in the diagnosis, truth key, relative tolerance)
     "warmup": ("tau_s", "tau_s", 0.5),
     "extra_lag": ("sens_ppm_per_c", "sens_ppm_per_c", 0.3),  # and tau_s inside its interval
-    "temp_rate": ("strength_ppm_per_c_per_min", "strength", 0.5),
+    # the dT/dt term: its coupling to the housing, what the logs pin (see housing_coupling)
+    "temp_rate": ("housing_ppm_per_c", "housing_ppm_per_c", 0.5),
     "rate_nonlinearity": ("strength_ppm_at_100dps", "strength", 0.3),
     "asymmetry": ("strength_ppm", "strength", 0.3),
     "bias_drift": ("strength_dph_per_c", "strength", 0.3),
@@ -426,6 +427,8 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
                      "strength": e.strength}
         else:
             truth = {"strength": e.strength, **e.params}
+        if e.name == "temp_rate":
+            truth["housing_ppm_per_c"] = housing_coupling(final, e.strength)
         case.params = truth
         return [_strip(simulate(final).log, case.chamber)], {"effect": case.name, **truth}
     # out of catalogue
@@ -440,6 +443,18 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
     amp = case.multiple * floor / max(float(unit), 1e-12)
     case.params = {**case.params, "amplitude_ppm": amp}
     return [_with_sf(log, amp * x)], {"effect": None, "ooc": case.name, "amplitude_ppm": amp}
+
+
+def housing_coupling(cfg: SimConfig, strength: float) -> float:
+    """A planted dT/dt term's coupling to the housing (ppm per C): the simulator's term is
+    strength * d(mean of the coil nodes)/dt in C/min, and a coil node right behind the
+    housing has dT/dt = (housing - T) / tau, so the term holds the housing with strength *
+    60 * mean over the coil nodes of 1/tau (0 for a node behind another internal node).
+    This is what a diagnosis can pin (catalogue.housing_coupling): the base model holds
+    every lagged node but not the housing's lead over the board."""
+    coils = [n for n in cfg.thermal.nodes if n.name.startswith("coil")]
+    return strength * 60.0 * sum(1.0 / n.tau_s for n in coils if n.parent == "housing") \
+        / len(coils)
 
 
 @dataclass
@@ -459,7 +474,11 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
     asymmetry is reported confounded with the base (its separating run named); a slow
     warm-up is right when named (tau within 50 %) or explained by the base's own unseen
     self-heating (no cause, no structure left); a settling aging's initial slope is held to
-    50 %; two planted effects are right when `causes` holds both and nothing else."""
+    50 %; two planted effects are right when `causes` holds both and nothing else. A dT/dt
+    term is judged on its housing coupling (housing_coupling, 50 %): the logs pin that, and
+    the strength only with the unseen coil's time constants; one whose coil nodes all sit
+    behind other internal nodes (coupling 0) is part of the gyro's own thermal SF law, and
+    is right when no cause is named (docs/diagnose.md, "The dT/dt term's strength")."""
     ambiguous = ambiguous or []
     causes = causes if causes is not None else ([cause] if cause else [])
 
@@ -477,6 +496,11 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
             c.get("separating_run"))
         return out(ok, f"cause {cause!r}; confounded with {c.get('confounded_with')}, "
                        f"separating run: {c.get('separating_run')!r}")
+    if case.kind == "effect" and case.name == "temp_rate" and truth["housing_ppm_per_c"] == 0:
+        # every coil node sits behind another internal node: the term is a combination of
+        # internal nodes' temperatures, i.e. part of the gyro's own thermal SF law
+        return out(cause is None, "no coil node behind the housing: confounded with the "
+                   f"gyro's own nodes, {'not named' if cause is None else f'named {cause}'}")
     if case.kind == "effect" and case.variant == "slow" and cause is None:
         return out(not unexplained, "explained by the base's self-heating" if not unexplained
                    else "unexplained, not named")
@@ -513,5 +537,8 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
     if case.kind == "short_soak":
         if cause is None and case.name in ambiguous:
             return out(True, "ambiguous, as short soaks leave it")
+        if case.name == "temp_rate" and truth["housing_ppm_per_c"] == 0 and cause is None:
+            return out(True, "no coil node behind the housing: confounded with the gyro's "
+                             "own nodes, not named")
         return out(cause == case.name, f"cause {cause!r}, planted {case.name}")
     raise ValueError(case.kind)

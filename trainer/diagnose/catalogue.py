@@ -123,6 +123,15 @@ def coil_taus(g: GridValue) -> tuple[float, float]:
     return float(g[0]), float(round(g[0] * g[1], 1))
 
 
+def housing_coupling(strength: float, g: GridValue) -> float:
+    """The dT/dt term's coupling to the housing (ppm per C): a layer lagging the housing by
+    tau has dT/dt = (housing - T) / tau, so strength * dT_coil/dt holds the housing with
+    strength * 60 * mean(1 / tau) (C/min). The base model holds every lagged node's
+    temperature but not the housing's lead over the board, so this, not the strength, is
+    what the logs pin; the strength needs the coil's time constants too."""
+    return strength * 60.0 * float(np.mean([1.0 / t for t in coil_taus(g)]))
+
+
 def _temp_rate(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     h = design.drive(ctx)
     rates = [(h - design.node(ctx, tau)) / tau for tau in coil_taus(g)]
@@ -158,7 +167,9 @@ def _aging(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
 
 
 WARMUP_GRID_S = tuple(float(x) for x in np.round(np.geomspace(60.0, 3600.0, 13), -1))
-COIL_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 3000.0, 8), -1))
+# the coil's layers: 150-3000 s, the population's internal nodes from their fastest
+# (docs/population.md) to the base's slowest next to a coil
+COIL_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(150.0, 3000.0, 11), -1))
 COIL_RATIOS = (1.0, 1.41, 2.0)  # outer / inner layer
 COIL_GRID = tuple((t, r) for r in COIL_RATIOS for t in COIL_TAU_GRID_S
                   if t * r <= COIL_TAU_GRID_S[-1] + 1.0)
