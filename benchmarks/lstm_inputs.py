@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.population import PROTOCOLS, run_config
+from benchmarks.population import PROTOCOLS, runs_for
 from trainer.executors import add_executor_options, executor_from_args, run_all
 
 
@@ -37,15 +37,13 @@ def bench_gyro(gyro_seed: int, variants: tuple[str, ...], protocols: tuple[str, 
     """Every variant on every protocol for one development gyro."""
     import torch
 
-    from trainer.sim import simulate
     from trainer.sim.population import gyro_for_seed
     from trainer.train import TrainOptions, run_training
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     gyro = gyro_for_seed(gyro_seed)
-    needed = sorted({r for p in protocols for r in (*PROTOCOLS[p][0], PROTOCOLS[p][1])})
-    logs = {r: simulate(run_config(gyro, r, gyro_seed)).log for r in needed}
+    logs = runs_for(gyro, gyro_seed, protocols)
     out: dict = {"gyro_seed": gyro_seed, "gyro": gyro.scenario, "cases": {}}
     with tempfile.TemporaryDirectory() as tmp:
         for p in protocols:

@@ -92,13 +92,19 @@ def run_config(gyro: SimConfig, name: str, gyro_seed: int) -> SimConfig:
     return run_on_gyro(gyro, run_profile(name), gyro_seed * 16 + RUN_SEED_OFFSET[name], name)
 
 
-def protocol_logs(gyro: SimConfig, gyro_seed: int, protocol: str) -> tuple[list, object]:
-    """A protocol's training logs and its test log, simulated on `gyro`."""
+def runs_for(gyro: SimConfig, gyro_seed: int, protocols: tuple[str, ...] | list[str]
+             ) -> dict:
+    """Every run the protocols need (training and test), simulated once on `gyro`."""
     from trainer.sim import simulate
 
+    needed = sorted({r for p in protocols for r in (*PROTOCOLS[p][0], PROTOCOLS[p][1])})
+    return {r: simulate(run_config(gyro, r, gyro_seed)).log for r in needed}
+
+
+def protocol_logs(gyro: SimConfig, gyro_seed: int, protocol: str) -> tuple[list, object]:
+    """A protocol's training logs and its test log, simulated on `gyro`."""
     train_names, test_name = PROTOCOLS[protocol]
-    logs = {r: simulate(run_config(gyro, r, gyro_seed)).log for r in (*train_names,
-                                                                     test_name)}
+    logs = runs_for(gyro, gyro_seed, [protocol])
     return [logs[r] for r in train_names], logs[test_name]
 
 
@@ -116,15 +122,13 @@ def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ..
     """Every model on every protocol for one population gyro (one unit of work)."""
     import torch
 
-    from trainer.sim import simulate
     from trainer.sim.population import gyro_for_seed
     from trainer.train import run_training
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     gyro = gyro_for_seed(gyro_seed)
-    needed = sorted({r for p in protocols for r in (*PROTOCOLS[p][0], PROTOCOLS[p][1])})
-    logs = {r: simulate(run_config(gyro, r, gyro_seed)).log for r in needed}
+    logs = runs_for(gyro, gyro_seed, protocols)
     out: dict = {"gyro_seed": gyro_seed, "gyro": gyro.scenario, "cases": {}}
     with tempfile.TemporaryDirectory() as tmp:
         for p in protocols:
