@@ -213,6 +213,14 @@ def nominal_step_s(time_s: np.ndarray) -> float:
     return 1.0 / float(f"{1.0 / step:.6g}") if step > 0 else step
 
 
+def check_rate_hz(rate_hz: float, option: str = "--sample-rate-hz") -> float:
+    """A stated sample rate, refused outside RATE_RANGE_HZ; returned as given."""
+    lo, hi = RATE_RANGE_HZ
+    if not lo <= rate_hz <= hi:
+        raise UserError(f"{option} {rate_hz:g}: allowed {lo:g} .. {hi:g} Hz")
+    return rate_hz
+
+
 def rate_text(dt_s: float) -> str:
     """A sample period as people say it: '10 Hz', '2.5 kHz', '0.5 Hz'."""
     hz = 1.0 / dt_s
@@ -493,8 +501,8 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
     """Refuse a broken log (DESIGN.md's rules); return its nominal sample period (s)."""
     t = cols["time_s"]
     lo_hz, hi_hz = RATE_RANGE_HZ
-    if rate_hz is not None and not lo_hz <= rate_hz <= hi_hz:
-        raise UserError(f"--sample-rate-hz {rate_hz:g}: allowed {lo_hz:g} .. {hi_hz:g} Hz")
+    if rate_hz is not None:
+        check_rate_hz(rate_hz)
     nominal = 1.0 / rate_hz if rate_hz is not None else nominal_step_s(t)
     if t.shape[0] >= 2:
         dt = np.diff(t)

@@ -167,20 +167,18 @@ class FrontEnd:
         return replace(self, decimation=d, sample_dt_s=sample_dt_s,
                        stuck_samples=int(round(self.stuck_samples * self.sample_dt_s
                                                / sample_dt_s)),
-                       filter_alpha=_alpha_at(self.filter_alpha, self.filter_tau_s,
-                                              self.step_s, d * sample_dt_s))
+                       filter_alpha=self._alpha_at(d, sample_dt_s))
 
-
-def _alpha_at(alpha: np.ndarray, taus_s: tuple[float, ...] | list[float], step_s: float,
-              new_step_s: float) -> np.ndarray:
-    """Filter coefficients for a model step of `new_step_s`: the same bits when the step is
-    the same (to 1e-9), else 1 - exp(-step/tau) afresh (from alpha when tau is unknown)."""
-    if abs(new_step_s - step_s) <= 1e-9 * step_s:
-        return np.asarray(alpha, dtype=np.float32)
-    if len(taus_s):
-        return np.array([-math.expm1(-new_step_s / t) for t in taus_s], dtype=np.float32)
-    keep = 1.0 - np.asarray(alpha, dtype=np.float64)
-    return (1.0 - keep ** (new_step_s / step_s)).astype(np.float32)
+    def _alpha_at(self, decimation: int, sample_dt_s: float) -> np.ndarray:
+        """Filter coefficients for D samples of sample_dt_s: the same bits when the step is
+        the same (to 1e-9), else `filter_alpha` afresh (rescaled when tau is unknown)."""
+        new_step_s = decimation * sample_dt_s
+        if abs(new_step_s - self.step_s) <= 1e-9 * self.step_s:
+            return np.asarray(self.filter_alpha, dtype=np.float32)
+        if len(self.filter_tau_s):
+            return filter_alpha(list(self.filter_tau_s), decimation, sample_dt_s)
+        keep = 1.0 - np.asarray(self.filter_alpha, dtype=np.float64)
+        return (1.0 - keep ** (new_step_s / self.step_s)).astype(np.float32)
 
 
 _CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {

@@ -80,6 +80,16 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - trainer.logio
                    sample_rate_hz=getattr(args, "sample_rate_hz", None))
 
 
+def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel
+    """`model.at_rate(sample_dt_s)`, said on stdout when it changes the model (`what`: the
+    rate's origin, e.g. "the log's 100 Hz")."""
+    out = model.at_rate(sample_dt_s)
+    if out is not model:
+        print(f"model {model.model_id} re-rated for {what}: D {model.decimation} -> "
+              f"{out.decimation} samples per {model.step_s:g} s step (model {out.model_id})")
+    return out
+
+
 def read_logs(args: argparse.Namespace, paths: list[str]) -> list:
     """Read logs with the options of `add_log_options`; how a log was read when it is not
     in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import argparse
 
-from trainer.commands import positive_float
+from trainer.commands import positive_float, rated
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -45,18 +45,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(e)) from None
     model = StreamModel.load(args.model)
     if args.sample_rate_hz is not None:
-        from trainer.logio import RATE_RANGE_HZ
+        from trainer.logio import check_rate_hz
 
-        lo, hi = RATE_RANGE_HZ
-        if not lo <= args.sample_rate_hz <= hi:
-            raise UserError(f"--sample-rate-hz {args.sample_rate_hz:g}: allowed {lo:g} .. "
-                            f"{hi:g} Hz")
-        rated = model.at_rate(1.0 / args.sample_rate_hz)
-        if rated is not model:
-            print(f"model {model.model_id} re-rated for {args.sample_rate_hz:g} Hz: "
-                  f"D {model.decimation} -> {rated.decimation} samples per "
-                  f"{model.step_s:g} s step")
-        model = rated
+        model = rated(model, 1.0 / check_rate_hz(args.sample_rate_hz),
+                      f"{args.sample_rate_hz:g} Hz")
     paths = export_model(model, args.out, args.name)
     print(f"model {model.model_id} ({model.model}): {model.summary}")
     for kind, path in paths.items():

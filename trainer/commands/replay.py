@@ -20,7 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
+from trainer.commands import (
+    add_log_options,
+    add_metric_options,
+    positive_float,
+    rated,
+    read_logs,
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -70,12 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
     model = StreamModel.load(args.model)
     log = read_logs(args, [args.log])[0]
-    rated = model.at_rate(log.sample_dt_s)
-    if rated is not model:
-        print(f"model {model.model_id} re-rated for the log's {log.sample_rate_hz:.6g} Hz: "
-              f"D {model.decimation} -> {rated.decimation} samples per {model.step_s:g} s "
-              f"step (model {rated.model_id})")
-        model = rated
+    model = rated(model, log.sample_dt_s, f"the log's {log.sample_rate_hz:.6g} Hz")
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
     corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)
