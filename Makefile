@@ -34,10 +34,10 @@ $(STAMP): pyproject.toml constraints.txt
 venv: $(STAMP)
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check trainer export bindings tests benchmarks
+	$(VENV)/bin/ruff check fogsf tests benchmarks
 
 test: $(STAMP)
-	$(VENV)/bin/ruff check trainer export bindings tests benchmarks
+	$(VENV)/bin/ruff check fogsf tests benchmarks
 	$(PY) -m pytest -q tests
 
 demo: $(STAMP)

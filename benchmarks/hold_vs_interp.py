@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from trainer import stream as st
-from trainer.logio import read_log
-from trainer.metrics import log_metrics
+from fogsf.trainer.logs.logio import read_log
+from fogsf.trainer.logs.metrics import log_metrics
+from fogsf.trainer.models import stream as st
 
 
 def variants(model: st.StreamModel, log) -> dict[str, np.ndarray]:  # noqa: ANN001

@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from trainer.logio import write_log
-from trainer.metrics import reference_sf_of_logs, sf_error_ppm, sf_windows
-from trainer.sim.gyro import simulate
-from trainer.sim.scenarios import paper
-from trainer.train import MODELS, TrainOptions, per_sample_prediction, run_training
-from trainer.transfer import RateTransfer
+from fogsf.trainer.logs.logio import write_log
+from fogsf.trainer.logs.metrics import reference_sf_of_logs, sf_error_ppm, sf_windows
+from fogsf.trainer.sim.gyro import simulate
+from fogsf.trainer.sim.scenarios import paper
+from fogsf.trainer.training.train import MODELS, TrainOptions, per_sample_prediction, run_training
+from fogsf.trainer.training.transfer import RateTransfer
 
 # The paper's Table 2 (1e-6); DESIGN.md reads 450.24 as the RMS about the 20 C reference.
 PAPER = {"before": 450.24, "mlp": 32.46, "lstm": 13.02, "gsa-lstm": 11.23}

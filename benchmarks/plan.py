@@ -20,12 +20,12 @@ import sys
 import time
 from pathlib import Path
 
-from trainer.executors import add_executor_options, executor_from_args, run_all
-from trainer.plan.evaluate import envelope_program, evaluate_gyro, test_rates
-from trainer.plan.programs import Limits
-from trainer.plan.report import as_json, score, table_md, write_outputs
-from trainer.plan.search import search
-from trainer.sim.population import EVAL_SEEDS
+from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
+from fogsf.trainer.plan.evaluate import envelope_program, evaluate_gyro, test_rates
+from fogsf.trainer.plan.programs import Limits
+from fogsf.trainer.plan.report import as_json, score, table_md, write_outputs
+from fogsf.trainer.plan.search import search
+from fogsf.trainer.sim.population import EVAL_SEEDS
 
 
 def main(argv: list[str] | None = None) -> int:

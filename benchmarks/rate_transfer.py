@@ -11,7 +11,7 @@ log's noise floor for
 - the oracle: least squares on the simulator's TRUE node temperatures with the simulator's
   own SF structure (source, coil mean and its square, inner coil, board), fitted on the
   0.5 C/min run: no model built on the board thermometer can know more,
-and the rate-transfer spread of `trainer.transfer` for both training sets: how much lag
+and the rate-transfer spread of `training.transfer` for both training sets: how much lag
 models that fit the training data equally well disagree on the test log.
 
     python -m benchmarks.rate_transfer --out out/bench-transfer.json --seeds 8
@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from trainer.features import step_targets
-from trainer.metrics import log_metrics
-from trainer.sim.gyro import SimResult, simulate
-from trainer.sim.scenarios import paper
-from trainer.train import TrainOptions, run_training
+from fogsf.trainer.logs.metrics import log_metrics
+from fogsf.trainer.models.features import step_targets
+from fogsf.trainer.sim.gyro import SimResult, simulate
+from fogsf.trainer.sim.scenarios import paper
+from fogsf.trainer.training.train import TrainOptions, run_training
 
 
 def true_structure(r: SimResult) -> np.ndarray:

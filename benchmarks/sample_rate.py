@@ -30,13 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from bindings.kernel import Kernel, build_kernel
-from trainer.logio import ChamberLog, read_log, write_log
-from trainer.metrics import log_metrics
-from trainer.sim.gyro import simulate
-from trainer.sim.scenarios import paper
-from trainer.stream import StreamModel
-from trainer.train import TrainOptions, run_training
+from fogsf.bindings.kernel import Kernel, build_kernel
+from fogsf.trainer.logs.logio import ChamberLog, read_log, write_log
+from fogsf.trainer.logs.metrics import log_metrics
+from fogsf.trainer.models.stream import StreamModel
+from fogsf.trainer.sim.gyro import simulate
+from fogsf.trainer.sim.scenarios import paper
+from fogsf.trainer.training.train import TrainOptions, run_training
 
 RATES_HZ = (10.0, 100.0, 1000.0)
 TRAIN_SEED, TEST_SEED, DAY_SEED = 1, 2, 3
@@ -101,7 +101,7 @@ def day_replay(work: Path, model_dir: Path) -> dict:
     del log
     model = StreamModel.load(model_dir).at_rate(1.0 / DAY_RATE_HZ)
     build_kernel(model)  # cached: the replay below does not compile
-    cmd = [sys.executable, "-m", "trainer.cli", "replay", str(model_dir), str(path),
+    cmd = [sys.executable, "-m", "fogsf", "replay", str(model_dir), str(path),
            "--out", str(work / "corrected.csv"), "--json", str(work / "replay.json")]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True)

@@ -7,4 +7,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 MODEL="${FIRMWARE_MODEL:-tests/fixtures/small_model}"
 OUT="${FIRMWARE_OUT:-build/firmware}"
-exec .venv/bin/python -m bindings.firmware "$MODEL" --out "$OUT"
+exec .venv/bin/python -m fogsf.bindings.firmware "$MODEL" --out "$OUT"

@@ -7,4 +7,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT="${1:-build/fuzz}"
 STEPS="${FUZZ_STEPS:-10000000}"
-exec .venv/bin/python -m bindings.fuzz --out "$OUT" --steps "$STEPS"
+exec .venv/bin/python -m fogsf.bindings.fuzz --out "$OUT" --steps "$STEPS"

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bindings.kernel import Kernel, build_kernel
-from trainer.stream import StreamModel
+from fogsf.bindings.kernel import Kernel, build_kernel
+from fogsf.trainer.models.stream import StreamModel
 
 _KERNELS: dict[tuple[str, str], Kernel] = {}
 

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from trainer.logio import ChamberLog
-from trainer.sim.gyro import simulate
-from trainer.sim.scenarios import paper
+from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.sim.gyro import simulate
+from fogsf.trainer.sim.scenarios import paper
 
 
 def short_ramp(rate: float, seed: int, gyro_seed: int | None = None,
@@ -14,7 +14,7 @@ def short_ramp(rate: float, seed: int, gyro_seed: int | None = None,
     cfg = paper(rate, seed)
     cfg.dt_s = 1.0 / sample_rate_hz
     if gyro_seed is not None:
-        from trainer.sim.population import gyro_for_seed, with_gyro
+        from fogsf.trainer.sim.population import gyro_for_seed, with_gyro
 
         cfg = with_gyro(cfg, gyro_for_seed(gyro_seed))
     cfg.profile.start_c, cfg.profile.stop_c = -20.0, 40.0

@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from bindings.kernel import Kernel, build_kernel
-from trainer import stream as st
-from trainer.cli import main
-from trainer.errors import UserError
-from trainer.logio import ChamberLog, read_log, write_log
+from fogsf.bindings.kernel import Kernel, build_kernel
+from fogsf.trainer.cli import main
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.logio import ChamberLog, read_log, write_log
+from fogsf.trainer.models import stream as st
 
 
 def small_log(path, seed: int = 0, hours: float = 1.0) -> ChamberLog:

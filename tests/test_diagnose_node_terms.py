@@ -20,10 +20,10 @@ import json
 import numpy as np
 import pytest
 
-from trainer.diagnose import cases, catalogue, design, driver, extend, report, runs, verdict
-from trainer.logio import ChamberLog
-from trainer.sim.config import SimConfig
-from trainer.sim.gyro import simulate
+from fogsf.trainer.diagnose import cases, catalogue, design, driver, extend, report, runs, verdict
+from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.sim.config import SimConfig
+from fogsf.trainer.sim.gyro import simulate
 
 MASTER_SEED = 20261122
 STRONG = (15.0, 20.0)
@@ -160,9 +160,9 @@ def test_short_soak_dtdt_seed_711_is_not_named_extra_lag() -> None:
 
 
 def _population_dtdt_gyros(n: int) -> list[int]:
-    """Development gyros (seeded draws from trainer.sim.population.DEV_SEEDS, above the
+    """Development gyros (seeded draws from fogsf.trainer.sim.population.DEV_SEEDS, above the
     bench's tuning ranges) with at least one coil node right behind the housing."""
-    from trainer.sim.population import gyro_for_seed
+    from fogsf.trainer.sim.population import gyro_for_seed
 
     rng = np.random.default_rng([MASTER_SEED, 11])
     out: list[int] = []

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bindings.firmware import arm_tools_missing, qemu_cmd, run_cmd
-from bindings.kernel import ROOT
-from trainer import stream as st
+from fogsf.bindings.firmware import arm_tools_missing, qemu_cmd, run_cmd
+from fogsf.bindings.kernel import ROOT
+from fogsf.trainer.models import stream as st
 
 EXAMPLE = ROOT / "firmware" / "examples" / "imu3"
 TOOLCHAIN = ROOT / "firmware" / "cmake" / "cortex-m4f.cmake"
@@ -103,7 +103,7 @@ def test_cmake_raises_the_state_to_the_largest_model(imu3_build) -> None:
 def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
     """DIR form on the host: a 2x24 model raises FOGSF_MAX_* and the library builds."""
     model = st.random_model(2, 3, 2, 24, decimation=5, seed=9)
-    from export.header import write_model
+    from fogsf.export.header import write_model
     write_model(model, tmp_path / "gen", "big_one")
     (tmp_path / "app").mkdir()
     (tmp_path / "app" / "main.c").write_text(

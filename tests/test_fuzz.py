@@ -8,7 +8,7 @@ import subprocess
 
 import pytest
 
-from bindings.fuzz import CORPUS, build_fuzzer, regression, run_fuzzer
+from fogsf.bindings.fuzz import CORPUS, build_fuzzer, regression, run_fuzzer
 
 pytestmark = pytest.mark.skipif(shutil.which("clang") is None, reason="clang not installed")
 
@@ -56,8 +56,8 @@ def test_the_harness_reports_a_totality_violation(fuzzer, tmp_path) -> None:
     MODEL_INVALID for it, which the kernel gives: so run the harness built against a kernel
     whose invalid-model branch is broken (corrected = gyro) and expect an abort."""
     exe, root = fuzzer
-    from bindings.fuzz import FUZZ_DIR, FUZZ_FLAGS, FUZZ_MAX
-    from bindings.kernel import C_DIR, STRICT
+    from fogsf.bindings.fuzz import FUZZ_DIR, FUZZ_FLAGS, FUZZ_MAX
+    from fogsf.bindings.kernel import C_DIR, STRICT
     broken = tmp_path / "fogsf.c"
     text = (C_DIR / "fogsf.c").read_text()
     needle = "        out->corrected_dps = 0.0;\n        out->sf_ppm = 0.0f;"

@@ -9,6 +9,7 @@ import sys
 import sysconfig
 import tomllib
 import venv
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -20,9 +21,32 @@ def test_every_package_is_in_pyproject() -> None:
     listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
                  ["packages"])
     found = {".".join(p.parent.relative_to(ROOT).parts)
-             for top in ("trainer", "export", "bindings")
-             for p in (ROOT / top).rglob("__init__.py")}
+             for p in (ROOT / "fogsf").rglob("__init__.py") if "__pycache__" not in p.parts}
     assert found <= listed, f"add to [tool.setuptools] packages: {sorted(found - listed)}"
+    assert {name.split(".")[0] for name in listed} == {"fogsf"}, "one top-level package"
+
+
+DECOYS = ("export", "trainer", "bindings", "stream", "logio", "metrics")
+
+
+def plant_decoys(folder: Path) -> None:
+    """Modules named like fogsf's own, as a user's working folder may hold them: importing
+    one fails loudly."""
+    for name in DECOYS:
+        (folder / f"{name}.py").write_text(f"raise ImportError('decoy {name}.py was imported')\n")
+
+
+def test_decoy_modules_in_the_working_folder_do_not_break_the_cli(tmp_path: Path) -> None:
+    plant_decoys(tmp_path)
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    fogsf = [sys.executable, "-m", "fogsf"]
+    _run([*fogsf, "simulate", "--scenario", "paper", "--start-c", "10", "--stop-c", "30",
+          "--ramp-rate", "2", "--seed", "1", "--out", "a.csv"], tmp_path, env)
+    _run([*fogsf, "inspect", "a.csv"], tmp_path, env)
+    _run([*fogsf, "train", "--train", "a.csv", "--iters", "10", "--out", "m"], tmp_path, env)
+    _run([*fogsf, "export", "m", "--out", "build"], tmp_path, env)
+    out = _run([*fogsf, "replay", "m", "a.csv", "--out", "c.csv"], tmp_path, env)
+    assert "replayed" in out
 
 
 def _run(cmd: list[str], cwd: Path, env: dict[str, str]) -> str:
@@ -37,9 +61,8 @@ def test_a_wheel_in_a_fresh_venv_runs_from_a_temporary_folder(tmp_path: Path) ->
     src.mkdir()
     shutil.copy(ROOT / "pyproject.toml", src)
     skip = shutil.ignore_patterns("__pycache__", "*.egg-info")
-    for name in ("trainer", "export", "bindings"):
-        shutil.copytree(ROOT / name, src / name, ignore=skip)
-    shutil.copytree(ROOT / "firmware" / "c", src / "firmware" / "c", ignore=skip)
+    shutil.copytree(ROOT / "fogsf", src / "fogsf", ignore=skip)
+    shutil.copytree(ROOT / "firmware", src / "firmware", ignore=skip)
     env = {k: v for k, v in os.environ.items() if k not in ("FOGSF_BUILD_DIR", "PYTHONPATH")}
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
     _run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation",
@@ -53,17 +76,25 @@ def test_a_wheel_in_a_fresh_venv_runs_from_a_temporary_folder(tmp_path: Path) ->
     # the pinned dependencies (torch among them) come from the project's venv, not the net
     Path(purelib, "fogsf-deps.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     _run([str(py), "-m", "pip", "install", "-q", "--no-deps", str(wheel)], tmp_path, env)
+    top = {name.split("/")[0] for name in zipfile.ZipFile(wheel).namelist()}
+    assert {n for n in top if not n.endswith(".dist-info")} == {"fogsf"}, sorted(top)
     work = tmp_path / "work"
     work.mkdir()
+    plant_decoys(work)
+    env["PYTHONPATH"] = str(work)
     fogsf = str(env_dir / "bin" / "fogsf")
-    where = _run([str(py), "-c", "import bindings.kernel as k; print(k.C_DIR)"], work, env)
-    assert where.strip().startswith(purelib), where  # the installed sources, not the repo's
-    c_dir = Path(where.strip())
-    shipped = {p.relative_to(ROOT / "firmware" / "c") for p in (ROOT / "firmware" / "c").rglob("*")
+    where = _run([str(py), "-c", "import fogsf, fogsf.bindings.kernel as k; "
+                  "print(k.C_DIR); print(fogsf.cmake_dir); print(fogsf.toolchain_file)"],
+                 work, env).split()
+    assert where[0].startswith(purelib), where  # the installed sources, not the repo's
+    assert where[0] == where[1] and Path(where[1], "CMakeLists.txt").is_file(), where
+    assert Path(where[2]).is_file(), where
+    firmware = Path(where[1]).parent
+    shipped = {p.relative_to(ROOT / "firmware") for p in (ROOT / "firmware").rglob("*")
                if p.is_file() and "__pycache__" not in p.parts}
-    missing = [str(p) for p in shipped if not (c_dir / p).is_file()]
-    assert not missing, f"firmware/c files not in the wheel: {missing}"
-    from trainer import __version__
+    missing = [str(p) for p in shipped if not (firmware / p).is_file()]
+    assert not missing, f"firmware files not in the wheel: {missing}"
+    from fogsf import __version__
 
     assert _run([fogsf, "--version"], work, env).strip() == f"fogsf {__version__}"
     installed_before = sorted(p for p in Path(purelib).rglob("*") if "__pycache__" not in p.parts)

@@ -10,10 +10,10 @@ import pytest
 from kernel_helpers import kernel_for
 from onnx.reference import ReferenceEvaluator
 
-from bindings.firmware import golden_inputs
-from bindings.kernel import trace_steps
-from export.onnx_step import OrtStepper, build_step_onnx, state_names
-from trainer import stream as st
+from fogsf.bindings.firmware import golden_inputs
+from fogsf.bindings.kernel import trace_steps
+from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
+from fogsf.trainer.models import stream as st
 
 # (K filters, F features, L layers, H hidden, D decimation, stuck_samples, seed)
 SIZES = [(3, 4, 1, 16, 10, 600, 0), (0, 3, 2, 5, 1, 0, 1), (2, 5, 2, 12, 7, 30, 2),
@@ -56,8 +56,8 @@ def test_kernel_equals_numpy_reference_bit_for_bit(size, kroot) -> None:
 def simulated_ramp(seed: int) -> tuple[np.ndarray, np.ndarray]:
     """The simulator's paper run at 1 C/min (54,001 samples), else a numpy ramp."""
     try:
-        from trainer.sim.gyro import simulate
-        from trainer.sim.scenarios import paper
+        from fogsf.trainer.sim.gyro import simulate
+        from fogsf.trainer.sim.scenarios import paper
     except ImportError:  # the simulator is another branch's work
         return st.chamber_ramp(hours=1.6, seed=seed)
     log = simulate(paper(1.0, seed=seed)).log

@@ -9,7 +9,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from bindings.firmware import (
+from fogsf.bindings.firmware import (
     arm_size,
     arm_tools_missing,
     build_arm,
@@ -19,9 +19,9 @@ from bindings.firmware import (
     run_qemu,
     write_golden,
 )
-from bindings.kernel import C_DIR, STRICT, Kernel, build_kernel, max_defines
-from export.header import write_model
-from trainer import stream as st
+from fogsf.bindings.kernel import C_DIR, STRICT, Kernel, build_kernel, max_defines
+from fogsf.export.header import write_model
+from fogsf.trainer.models import stream as st
 
 FIXTURE = "tests/fixtures/small_model"
 

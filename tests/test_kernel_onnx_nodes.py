@@ -14,7 +14,7 @@ from kernel_helpers import kernel_for
 from onnx import helper
 from onnx.backend.test.case.node import lstm as onnx_lstm
 
-from trainer import stream as st
+from fogsf.trainer.models import stream as st
 
 CASES = ["export_defaults", "export_initial_bias", "export_peepholes", "export_batchwise",
          "export_reverse", "export_bidirectional"]

@@ -8,12 +8,12 @@ import pytest
 import torch
 from kernel_helpers import kernel_for
 
-from bindings.kernel import trace_steps
-from trainer import stream as st
+from fogsf.bindings.kernel import trace_steps
+from fogsf.trainer.models import stream as st
 
-features = pytest.importorskip("trainer.features")
-nets = pytest.importorskip("trainer.nets")
-fit = pytest.importorskip("trainer.fit")
+features = pytest.importorskip("fogsf.trainer.models.features")
+nets = pytest.importorskip("fogsf.trainer.models.nets")
+fit = pytest.importorskip("fogsf.trainer.training.fit")
 
 
 @pytest.fixture(scope="session")

@@ -9,11 +9,11 @@ import pytest
 from ramp_logs import short_ramp
 
 from benchmarks.population import PROTOCOLS, run_profile, summarise
-from trainer.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, bank_spec, fit_bank
-from trainer.least_squares import TAU_GRID_S
-from trainer.sim.profiles import breakpoints
-from trainer.stream import StreamModel
-from trainer.train import TrainOptions, run_training
+from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, bank_spec, fit_bank
+from fogsf.trainer.models.least_squares import TAU_GRID_S
+from fogsf.trainer.models.stream import StreamModel
+from fogsf.trainer.sim.profiles import breakpoints
+from fogsf.trainer.training.train import TrainOptions, run_training
 
 FAST = {"iters": 30, "hidden": 8, "layers": 1, "batch_size": 8}
 
@@ -83,8 +83,8 @@ def test_bank_artifact_carries_the_fixed_bank(two_rates_gyro, tmp_path: Path) ->
 def test_lstm_inputs_option(two_rates_gyro, tmp_path: Path) -> None:
     """--lstm-inputs N narrows the bank's LSTM to z[0:N] (N = F: every feature); outside
     1..F, or for another structure, it is refused."""
-    from trainer.errors import UserError
-    from trainer.train import fit_model
+    from fogsf.trainer.errors import UserError
+    from fogsf.trainer.training.train import fit_model
 
     logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
     f = 1 + len(TAU_GRID_S)
@@ -125,8 +125,8 @@ def test_summary_counts_interval_coverage() -> None:
 def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> None:  # noqa: ANN001
     import json
 
-    from trainer.cli import main
-    from trainer.logio import write_log
+    from fogsf.trainer.cli import main
+    from fogsf.trainer.logs.logio import write_log
 
     paths = {}
     for k, lg in two_rates_gyro.items():
@@ -151,7 +151,7 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
 def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Path) -> None:
     """The default model in its narrowed form: the same seed gives the same artifact and the
     same generated C, byte for byte; another seed another model."""
-    from export.header import render_model
+    from fogsf.export.header import render_model
 
     logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
     texts, ids = [], []

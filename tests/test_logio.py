@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trainer.logio import ChamberLog, LogError, parse_log, read_log, write_log
+from fogsf.trainer.logs.logio import ChamberLog, LogError, parse_log, read_log, write_log
 
 HEADER = "time_s,temp_c,table_rate_dps,gyro_dps"
 
@@ -116,7 +116,7 @@ def test_cli_refusal_is_one_line_no_traceback(tmp_path: Path) -> None:
 
     p = tmp_path / "bad.csv"
     p.write_text(csv(good_rows()[:3] + ["0.3,20,0,10"]))
-    r = subprocess.run([sys.executable, "-m", "trainer.cli", "inspect", str(p)],
+    r = subprocess.run([sys.executable, "-m", "fogsf", "inspect", str(p)],
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert "Traceback" not in r.stderr

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trainer.errors import UserError
-from trainer.logio import ChamberLog
-from trainer.metrics import (
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.metrics import (
     log_metrics,
     metrics_block,
     plateau_pairs,

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trainer.cli import main
-from trainer.errors import UserError
-from trainer.logio import read_log
-from trainer.plan.evaluate import evaluate_gyro
-from trainer.plan.programs import Limits, Program, _path, candidates, violations
-from trainer.plan.report import score
+from fogsf.trainer.cli import main
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.logio import read_log
+from fogsf.trainer.plan.evaluate import evaluate_gyro
+from fogsf.trainer.plan.programs import Limits, Program, _path, candidates, violations
+from fogsf.trainer.plan.report import score
 
 
 @pytest.mark.parametrize("seed", range(6))

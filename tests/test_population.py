@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from trainer.cli import main
-from trainer.metrics import log_metrics
-from trainer.sim import SimConfig, simulate
-from trainer.sim import population as pop
-from trainer.sim.config import SF_FACTORS, validate
-from trainer.sim.scenarios import paper
-from trainer.sim.thermal import effective_tau_s
+from fogsf.trainer.cli import main
+from fogsf.trainer.logs.metrics import log_metrics
+from fogsf.trainer.sim import SimConfig, simulate
+from fogsf.trainer.sim import population as pop
+from fogsf.trainer.sim.config import SF_FACTORS, validate
+from fogsf.trainer.sim.scenarios import paper
+from fogsf.trainer.sim.thermal import effective_tau_s
 
 DRAWS = [pop.gyro_for_seed(s) for s in range(1, 81)]
 

@@ -13,11 +13,9 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from bindings.kernel import Kernel, build_kernel
-from trainer import stream as st
-from trainer.errors import UserError
-from trainer.features import front_end_for
-from trainer.logio import (
+from fogsf.bindings.kernel import Kernel, build_kernel
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.logio import (
     ChamberLog,
     Dialect,
     LogError,
@@ -26,7 +24,9 @@ from trainer.logio import (
     read_log,
     write_log,
 )
-from trainer.metrics import sf_windows
+from fogsf.trainer.logs.metrics import sf_windows
+from fogsf.trainer.models import stream as st
+from fogsf.trainer.models.features import front_end_for
 
 
 def rows(rate_hz: float, n: int, t0: float = 0.0) -> list[str]:
@@ -116,7 +116,7 @@ def test_fast_and_general_readers_agree(tmp_path: Path) -> None:
 def test_write_rows_writes_what_savetxt_writes(tmp_path: Path) -> None:
     import io
 
-    from trainer.logio import write_rows
+    from fogsf.trainer.logs.logio import write_rows
 
     rng = np.random.default_rng(3)
     data = rng.normal(size=(1234, 3)) * np.array([1e-9, 1.0, 1e6])
@@ -213,7 +213,7 @@ def test_train_at_100hz_runs_at_10_and_1000hz(tmp_path: Path) -> None:
         log: ChamberLog = short_ramp(3.0, 22, sample_rate_hz=hz)
         write_log(tmp_path / f"test{hz:g}.csv", log)
         tests[hz] = log
-    fogsf = [sys.executable, "-m", "trainer.cli"]
+    fogsf = [sys.executable, "-m", "fogsf"]
 
     def run(*args: str) -> str:
         p = subprocess.run([*fogsf, *args], capture_output=True, text=True)
@@ -245,7 +245,7 @@ def test_train_at_100hz_runs_at_10_and_1000hz(tmp_path: Path) -> None:
 def test_model_step_and_test_log_at_a_rate_5s_does_not_divide(tmp_path: Path) -> None:
     """At 7.5 Hz a 5 s step is 37.5 samples: refused before any fitting, naming the log;
     --model-step-s 4 (30 samples) trains and checks the rate transfer at that step."""
-    from trainer.train import TrainOptions, run_training
+    from fogsf.trainer.training.train import TrainOptions, run_training
 
     train = short_ramp(2.0, 31, sample_rate_hz=7.5)
     test = short_ramp(3.0, 32, sample_rate_hz=7.5)
@@ -260,12 +260,12 @@ def test_model_step_and_test_log_at_a_rate_5s_does_not_divide(tmp_path: Path) ->
 
 def test_simulate_writes_the_rate_asked_for(tmp_path: Path) -> None:
     out = tmp_path / "s.csv"
-    p = subprocess.run([sys.executable, "-m", "trainer.cli", "simulate", "--profile", "soak",
+    p = subprocess.run([sys.executable, "-m", "fogsf", "simulate", "--profile", "soak",
                         "--duration-min", "5", "--sample-rate-hz", "50", "--seed", "1",
                         "--out", str(out)], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
     log = read_log(out)
     assert log.sample_rate_hz == 50.0 and len(log) == 5 * 60 * 50 + 1
-    p = subprocess.run([sys.executable, "-m", "trainer.cli", "inspect", str(out),
+    p = subprocess.run([sys.executable, "-m", "fogsf", "inspect", str(out),
                         "--sample-rate-hz", "10"], capture_output=True, text=True)
     assert p.returncode == 2 and "jitter" in p.stderr and "--sample-rate-hz" in p.stderr

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from trainer.cli import main
-from trainer.logio import read_log
-from trainer.sim import SimConfig
+from fogsf.trainer.cli import main
+from fogsf.trainer.logs.logio import read_log
+from fogsf.trainer.sim import SimConfig
 
 SHORT = ["--scenario", "paper", "--start-c", "15", "--stop-c", "25", "--ramp-rate", "1"]
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trainer.metrics import log_metrics, reference_sf, sf_error_ppm, sf_windows
-from trainer.sim import simulate
-from trainer.sim.calibrate import noiseless
-from trainer.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper
+from fogsf.trainer.logs.metrics import log_metrics, reference_sf, sf_error_ppm, sf_windows
+from fogsf.trainer.sim import simulate
+from fogsf.trainer.sim.calibrate import noiseless
+from fogsf.trainer.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper
 
 
 @pytest.mark.parametrize("seed", [7, 21])

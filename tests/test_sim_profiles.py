@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from trainer.errors import UserError
-from trainer.metrics import plateaus
-from trainer.sim.config import ProfileConfig, TableConfig
-from trainer.sim.profiles import breakpoints, chamber_series, read_program, table_series
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.metrics import plateaus
+from fogsf.trainer.sim.config import ProfileConfig, TableConfig
+from fogsf.trainer.sim.profiles import breakpoints, chamber_series, read_program, table_series
 
 
 def test_soak() -> None:

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from trainer import stream as st
-from trainer.errors import UserError
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.models import stream as st
 
 F32 = np.float32
 

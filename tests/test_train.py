@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from trainer.errors import UserError
-from trainer.logio import ChamberLog
-from trainer.stream import StreamModel, replay
-from trainer.train import TrainOptions, per_sample_prediction, run_training
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.models.stream import StreamModel, replay
+from fogsf.trainer.training.train import TrainOptions, per_sample_prediction, run_training
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,7 @@ def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path)
 def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="lag-lstm", progress=False, **FAST)
-    from trainer.train import fit_model
+    from fogsf.trainer.training.train import fit_model
 
     fitted = fit_model(opts, [train])
     torch_pred = per_sample_prediction(fitted, test, None)
@@ -60,8 +60,8 @@ def test_no_start_up_transient_after_reset(logs) -> None:
     """Firmware starts from reset at power-on: the exported model's first 10 minutes on an
     unseen run (the soak before its ramp) are no worse than the run as a whole, and within
     twice the noise floor (the LSTM state starting from zero once left ~200 ppm there)."""
-    from trainer.metrics import noise_floor_ppm, sf_error_ppm, sf_windows
-    from trainer.train import fit_model
+    from fogsf.trainer.logs.metrics import noise_floor_ppm, sf_error_ppm, sf_windows
+    from fogsf.trainer.training.train import fit_model
 
     train, test = logs
     fitted = fit_model(TrainOptions(model="lag-lstm", progress=False, **FAST), [train])
@@ -121,9 +121,9 @@ def test_gsa_fitness_is_the_same_in_worker_processes(logs) -> None:
     """The fitness pickles to worker processes and gives the same value there as inline."""
     import functools
 
-    from trainer.executors import open_executor
-    from trainer.features import step_targets
-    from trainer.train import gsa_fitness
+    from fogsf.trainer.gsa.executors import open_executor
+    from fogsf.trainer.models.features import step_targets
+    from fogsf.trainer.training.train import gsa_fitness
 
     train, _ = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_fitness_iters=4)
@@ -150,7 +150,7 @@ def test_static_models_are_refused_by_export_with_a_reason(logs, tmp_path: Path)
 
 def test_bad_options_refused(logs) -> None:
     train, _ = logs
-    from trainer.train import fit_model
+    from fogsf.trainer.training.train import fit_model
 
     with pytest.raises(UserError, match="unknown model"):
         fit_model(TrainOptions(model="svm"), [train])

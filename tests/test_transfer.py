@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 from ramp_logs import short_ramp
 
-from trainer.logio import ChamberLog, write_log
-from trainer.sim.gyro import simulate
-from trainer.sim.scenarios import soak
-from trainer.transfer import ramp_rate_c_per_min, rate_transfer
+from fogsf.trainer.logs.logio import ChamberLog, write_log
+from fogsf.trainer.sim.gyro import simulate
+from fogsf.trainer.sim.scenarios import soak
+from fogsf.trainer.training.transfer import ramp_rate_c_per_min, rate_transfer
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def test_train_command_reports_rate_transfer(runs, tmp_path: Path) -> None:
     write_log(tmp_path / "a.csv", runs["a"])
     write_log(tmp_path / "fast.csv", runs["fast"])
     out = subprocess.run(
-        [sys.executable, "-m", "trainer.cli", "train", "--train", str(tmp_path / "a.csv"),
+        [sys.executable, "-m", "fogsf", "train", "--train", str(tmp_path / "a.csv"),
          "--test", str(tmp_path / "fast.csv"), "--model", "poly", "--out", str(tmp_path / "m")],
         check=True, capture_output=True, text=True).stdout
     said = " ".join(out.split())
@@ -71,7 +71,7 @@ def test_train_command_reports_rate_transfer(runs, tmp_path: Path) -> None:
 def test_train_without_test_log_says_one_rate_is_an_extrapolation(runs, tmp_path: Path) -> None:
     write_log(tmp_path / "a.csv", runs["a"])
     write_log(tmp_path / "fast.csv", runs["fast"])
-    cmd = [sys.executable, "-m", "trainer.cli", "train", "--model", "poly"]
+    cmd = [sys.executable, "-m", "fogsf", "train", "--model", "poly"]
     one = subprocess.run([*cmd, "--train", str(tmp_path / "a.csv"), "--out",
                           str(tmp_path / "one")], check=True, capture_output=True,
                          text=True).stdout
@@ -88,7 +88,7 @@ def test_train_without_test_log_says_one_rate_is_an_extrapolation(runs, tmp_path
 def test_long_run_ratio_of_white_and_structured_residuals() -> None:
     import numpy as np
 
-    from trainer.transfer import long_run_ratio
+    from fogsf.trainer.training.transfer import long_run_ratio
 
     rng = np.random.default_rng(9)
     white = rng.normal(size=4000)
@@ -99,7 +99,7 @@ def test_long_run_ratio_of_white_and_structured_residuals() -> None:
 
 
 def _program_log(points: list[list[float]], seed: int) -> ChamberLog:
-    from trainer.sim.config import ProfileConfig
+    from fogsf.trainer.sim.config import ProfileConfig
 
     cfg = soak(seed=seed)
     cfg.thermal.start = "warm"
@@ -108,7 +108,7 @@ def _program_log(points: list[list[float]], seed: int) -> ChamberLog:
 
 
 def test_ramp_segments_read_up_and_down_rates_of_one_log() -> None:
-    from trainer.transfer import ramp_rates, ramp_segments
+    from fogsf.trainer.training.transfer import ramp_rates, ramp_segments
 
     # 20 min soak, up 60 C at 1 C/min, 20 min soak, down 60 C at 2 C/min, 20 min soak
     log = _program_log([[0, -10], [1200, -10], [4800, 50], [6000, 50], [7800, -10],
@@ -121,7 +121,7 @@ def test_ramp_segments_read_up_and_down_rates_of_one_log() -> None:
 
 
 def test_a_ramp_whose_rate_changes_is_two_segments() -> None:
-    from trainer.transfer import ramp_rates
+    from fogsf.trainer.training.transfer import ramp_rates
 
     # 0.5 C/min for 50 min, then 2 C/min for 20 min, no soak between
     log = _program_log([[0, -20], [600, -20], [3600, 5], [4800, 45]], seed=42)

@@ -1,0 +1,25 @@
+"""Export a streaming model artifact to ONNX (the step) and to the generated C model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from fogsf.trainer.models.stream import StreamModel
+
+ONNX_NAME = "model.onnx"
+
+
+def export_model(model: StreamModel, out_dir: str | Path, name: str = "gyro_model"
+                 ) -> dict[str, Path]:
+    """Write out_dir/model.onnx, out_dir/NAME.h and out_dir/NAME.c; returns
+    {'onnx': p, 'header': p, 'source': p}."""
+    from fogsf.export.header import check_name, write_model
+    from fogsf.export.onnx_step import build_step_onnx
+
+    check_name(name)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    onnx_path = out / ONNX_NAME
+    onnx_path.write_bytes(build_step_onnx(model).SerializeToString())
+    header, source = write_model(model, out, name)
+    return {"onnx": onnx_path, "header": header, "source": source}

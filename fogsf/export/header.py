@@ -1,0 +1,104 @@
+"""Render the generated C model `NAME.h` + `NAME.c` from a model artifact (jinja2 templates).
+
+NAME.h declares `extern const fogsf_model NAME` and NAME_* size macros; NAME.c holds the weights
+as `static const` float32 arrays and the model struct, so several models link into one image.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import jinja2
+import numpy as np
+
+from fogsf.trainer.models.stream import FORMAT, StreamModel
+
+# 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
+# also holds lstm_inputs and quad_diag (docs/stream-contract.md)
+FORMAT_VERSION = 3
+DEFAULT_NAME = "gyro_model"
+NAME_RULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
+PER_LINE = 6
+
+
+def c_float(value: float | np.floating) -> str:
+    """A float32 as a C float literal that reads back to the same bits (%.9g)."""
+    v = np.float32(value)
+    if not np.isfinite(v):
+        raise ValueError(f"cannot print non-finite weight {v} as a C literal")
+    text = f"{float(v):.9g}"
+    if not any(ch in text for ch in ".e"):
+        text += ".0"
+    return text + "f"
+
+
+def c_array(values: np.ndarray) -> str:
+    """Comma-separated float literals, PER_LINE per line, indented by 4."""
+    flat = [c_float(v) for v in np.asarray(values, np.float32).ravel()] or ["0.0f"]
+    lines = [", ".join(flat[i:i + PER_LINE]) for i in range(0, len(flat), PER_LINE)]
+    return ",\n".join("    " + line for line in lines)
+
+
+def _environment() -> jinja2.Environment:
+    return jinja2.Environment(loader=jinja2.PackageLoader("fogsf.export", "templates"),
+                              undefined=jinja2.StrictUndefined, keep_trailing_newline=True,
+                              autoescape=False)
+
+
+def check_name(name: str) -> str:
+    """A model name is a C identifier that does not start with fogsf_ (the kernel's prefix)."""
+    if not NAME_RULE.fullmatch(name) or name.lower().startswith("fogsf"):
+        raise ValueError(f"model name {name!r} must be a C identifier (letters, digits, _) "
+                         "not starting with 'fogsf': pass another --name")
+    return name
+
+
+def _context(model: StreamModel, name: str) -> dict:
+    w = model.weights
+    names = range(model.layers)
+    check_name(name)
+    return {
+        "name": name, "upper": name.upper(), "guard": f"{name.upper()}_FOGSF_MODEL_H",
+        "format": FORMAT, "format_version": FORMAT_VERSION, "model_id": model.model_id,
+        "kind": model.model.replace('"', "'").replace("*/", "* /"), "params": model.params,
+        "k": model.n_filters, "k_alloc": max(model.n_filters, 1), "f": model.n_features,
+        "layers": model.layers, "hidden": model.hidden, "decimation": model.decimation,
+        "sample_dt_s": c_float(model.sample_dt_s), "t_ref_c": c_float(model.t_ref_c),
+        "t_min_c": c_float(model.t_min_c), "t_max_c": c_float(model.t_max_c),
+        "stuck_samples": model.stuck_samples,
+        "filter_tau_s": ", ".join(c_float(t) for t in model.filter_tau_s) or "none",
+        "filter_alpha": c_array(w["filter_alpha"]), "feat_w": c_array(w["feat_w"]),
+        "feat_b": c_array(w["feat_b"]),
+        "lstm_inputs": model.n_lstm_inputs, "quad_diag": model.quad_diag,
+        "lstm": [{"n_in": model.n_lstm_inputs if layer == 0 else model.hidden,
+                  "w": c_array(w[f"lstm{layer}_w"]), "r": c_array(w[f"lstm{layer}_r"]),
+                  "b": c_array(w[f"lstm{layer}_b"])} for layer in names],
+        "lstm_w_names": ", ".join(f"lstm{layer}_w" for layer in names),
+        "lstm_r_names": ", ".join(f"lstm{layer}_r" for layer in names),
+        "lstm_b_names": ", ".join(f"lstm{layer}_b" for layer in names),
+        "head_w": c_array(w["head_w"]), "skip_w": c_array(w["skip_w"]),
+        "head_b": c_float(w["head_b"][0]), "out_scale": c_float(w["out_scale"][0]),
+        "out_offset": c_float(w["out_offset"][0]), "poly_head": model.poly_head,
+        "quad_w": c_array(w["quad_w"]) if model.poly_head else "",
+        "cube_w": c_array(w["cube_w"]) if model.poly_head else "",
+    }
+
+
+def render_model(model: StreamModel, name: str = DEFAULT_NAME) -> dict[str, str]:
+    """{'NAME.h': text, 'NAME.c': text}: the same model and name give the same bytes."""
+    ctx = _context(model, name)
+    env = _environment()
+    return {f"{name}.h": env.get_template("model.h.j2").render(**ctx),
+            f"{name}.c": env.get_template("model.c.j2").render(**ctx)}
+
+
+def write_model(model: StreamModel, out_dir: Path, name: str = DEFAULT_NAME) -> list[Path]:
+    """Write NAME.h and NAME.c into out_dir (created); returns their paths."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for file_name, text in render_model(model, name).items():
+        path = out_dir / file_name
+        path.write_text(text)
+        paths.append(path)
+    return paths

@@ -1,0 +1,77 @@
+"""The `fogsf` entry point: one sub-command per module in fogsf.trainer.commands."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import re
+import sys
+
+from fogsf import __version__
+from fogsf.trainer.errors import UserError
+
+# name -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("fogsf.trainer.commands.simulate",
+                 "simulate a FOG on a rate table in a temperature chamber (writes a log)"),
+    "inspect": ("fogsf.trainer.commands.inspect",
+                "a chamber log's summary and SF-error metrics: run this first on a new log"),
+    "train": ("fogsf.trainer.commands.train",
+              "train a compensation model (default lag-lstm; poly, polyrate, mlp, lstm, "
+              "gsa-lstm)"),
+    "export": ("fogsf.trainer.commands.export", "export a trained model to ONNX and C headers"),
+    "replay": ("fogsf.trainer.commands.replay",
+               "run the compiled C kernel over a log, sample by sample"),
+    "diagnose": ("fogsf.trainer.commands.diagnose",
+                 "fit the simulator to measured logs, name what it misses, extend it"),
+    "plan": ("fogsf.trainer.commands.plan",
+             "the chamber program that buys the most accuracy per chamber hour"),
+}
+
+
+EXAMPLE_HEAD = re.compile(r"^(examples?):", re.IGNORECASE | re.MULTILINE)
+
+
+def split_doc(doc: str) -> tuple[str, str | None]:
+    """A command's docstring as (description, epilog): the examples go last in --help."""
+    starts = [m.start() for m in EXAMPLE_HEAD.finditer(doc)]
+    if not starts:
+        return doc.strip(), None
+    return doc[:starts[-1]].strip(), doc[starts[-1]:].strip()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fogsf",
+        description="Fiber-optic gyro thermal scale-factor error: from chamber logs to "
+                    "firmware. Run `fogsf COMMAND --help` for each command.",
+        epilog="example:\n  fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv"
+               " && fogsf inspect run10.csv",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"fogsf {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (module, help_text) in COMMANDS.items():
+        mod = importlib.import_module(module)
+        desc, epilog = split_doc(mod.__doc__ or help_text)
+        p = sub.add_parser(name, help=help_text, description=desc, epilog=epilog,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        mod.configure(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except UserError as e:
+        print(f"fogsf {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fogsf: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,105 @@
+"""One module per `fogsf` sub-command: each has `configure(parser)` and `run(args) -> int`.
+
+Heavy imports (torch, onnx) live inside `run`, so `fogsf inspect` starts fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0 (an SF ratio, a time)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (v > 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected at least 1, got {text!r}")
+    return v
+
+
+def add_metric_options(parser: argparse.ArgumentParser) -> None:
+    """--window-s and --latitude-deg, as every command that measures SF error takes them."""
+    parser.add_argument("--window-s", type=float, default=100.0,
+                        help="SF window length in seconds for the metrics (default 100)")
+    parser.add_argument("--latitude-deg", type=float, default=None,
+                        help="latitude for the earth rate when a log has no earth_rate_dps")
+
+
+def add_log_options(parser: argparse.ArgumentParser) -> None:
+    """--delimiter, --decimal-comma, --columns, --gyro-column and --axis, as every command
+    that reads chamber logs takes them (docs/logs.md)."""
+    g = parser.add_argument_group("log format (docs/logs.md)")
+    g.add_argument("--delimiter", choices=(",", ";", "tab"), default=None, metavar=",|;|tab",
+                   help="cell delimiter (default: the one of , ; tab the header uses; a "
+                        "header with several is refused)")
+    g.add_argument("--decimal-comma", action="store_true",
+                   help="numbers are written 20,5 (cells then separated by ; or tab)")
+    g.add_argument("--columns", metavar="OURS=THEIRS,...|MAP.json", default=None,
+                   help="map the log's column names to the format's, e.g. "
+                        "time_s=t,temp_c=temperature,table_rate_dps=table,gyro_dps=omega, or "
+                        'a JSON/TOML file {"time_s": "t", ...}; default: fogsf-columns.json '
+                        "(or .toml) beside each log, when there is one")
+    g.add_argument("--gyro-column", metavar="NAME", default=None,
+                   help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
+                        "gyro_x_dps)")
+    g.add_argument("--axis", metavar="X", default=None,
+                   help="shorthand for --gyro-column gyro_X_dps")
+    g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
+                   help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
+                        "of time_s); every step must lie within 20 %% of 1/HZ")
+
+
+def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - fogsf.trainer.logs.logio.Dialect
+    """The `Dialect` the options of `add_log_options` give."""
+    from fogsf.trainer.errors import UserError
+    from fogsf.trainer.logs.logio import DELIMITERS, Dialect
+
+    gyro = getattr(args, "gyro_column", None)
+    axis = getattr(args, "axis", None)
+    if axis is not None:
+        if gyro is not None:
+            raise UserError("give --axis or --gyro-column, not both")
+        gyro = f"gyro_{axis}_dps"
+    cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
+    delim = getattr(args, "delimiter", None)
+    return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
+                   decimal_comma=getattr(args, "decimal_comma", False),
+                   sample_rate_hz=getattr(args, "sample_rate_hz", None))
+
+
+def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel
+    """`model.at_rate(sample_dt_s)`, said on stdout when it changes the model (`what`: the
+    rate's origin, e.g. "the log's 100 Hz")."""
+    out = model.at_rate(sample_dt_s)
+    if out is not model:
+        print(f"model {model.model_id} re-rated for {what}: D {model.decimation} -> "
+              f"{out.decimation} samples per {model.step_s:g} s step (model {out.model_id})")
+    return out
+
+
+def read_logs(args: argparse.Namespace, paths: list[str]) -> list:
+    """Read logs with the options of `add_log_options`; how a log was read when it is not
+    in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr."""
+    import sys
+
+    from fogsf.trainer.logs.logio import read_log
+
+    dialect = dialect_from_args(args)
+    logs = [read_log(p, dialect) for p in paths]
+    for lg in logs:
+        if lg.read_notes:
+            print(f"fogsf: read {lg.path}: {'; '.join(lg.read_notes)}", file=sys.stderr)
+    return logs

@@ -1,0 +1,156 @@
+"""Run the compiled C kernel over a chamber log, sample by sample, as the gyro firmware would.
+
+The model directory (from `fogsf train`) is exported to its C header and the kernel in
+firmware/c is compiled for it (cached in build/kernels/<model id>-..., or $FOGSF_BUILD_DIR).
+Every sample of the log (board temperature, raw gyro) goes through fogsf_step; the
+output CSV holds time_s, gyro_dps, gyro_corrected_dps and sf_error_ppm (the kernel's
+predicted SF error vs the nominal SF, held between model steps). The SF-error metrics of
+the log before and after the correction are printed (max|e|, p-p, RMS, STD, noise floor).
+A log at another sample rate than the model's training logs runs the model re-rated to it
+(the same model step in seconds; `fogsf export --sample-rate-hz` gives that firmware).
+Example:
+  fogsf replay models/m run10.csv --out corrected.csv --plot replay.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from fogsf.trainer.commands import (
+    add_log_options,
+    add_metric_options,
+    positive_float,
+    rated,
+    read_logs,
+)
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("model", metavar="MODEL_DIR", help="model directory from `fogsf train`")
+    parser.add_argument("log", metavar="LOG.csv", help="chamber log (format: DESIGN.md)")
+    parser.add_argument("--out", required=True, metavar="CSV",
+                        help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm")
+    parser.add_argument("--plot", metavar="PNG", default=None,
+                        help="before/after plot of the SF error (windows vs temperature, time)")
+    add_metric_options(parser)
+    add_log_options(parser)
+    parser.add_argument("--json", metavar="PATH", default=None,
+                        help="also write the before/after metrics and flag counts as JSON")
+    parser.add_argument("--ref-sf", type=positive_float, default=None, metavar="RATIO",
+                        help="reference SF ratio (vs nominal) of the before-metrics instead "
+                             "of the log's SF at 20 C (needed when the log never passes 20 C)")
+    parser.add_argument("--cc", default="gcc", help="C compiler for the host kernel (gcc)")
+    parser.add_argument("--build-dir", metavar="DIR", default=None,
+                        help="where compiled kernels are cached (default: $FOGSF_BUILD_DIR, "
+                             "build/kernels in a checkout, else ~/.cache/fogsf/kernels)")
+
+
+def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
+                    corrected: np.ndarray, sf_ppm: np.ndarray) -> None:
+    """The replay CSV; doubles with 17 significant digits, sf_ppm (float32) with 9."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    from fogsf.trainer.logs.logio import write_rows
+
+    rows = np.column_stack([time_s, gyro, corrected, sf_ppm.astype(np.float64)])
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write("time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm\n")
+        write_rows(f, rows, ["%.12g", "%.17g", "%.17g", "%.9g"])
+
+
+def flag_counts(flags: np.ndarray) -> dict[str, int]:
+    from fogsf.trainer.models.stream import FLAG_NAMES
+
+    return {name: int(np.count_nonzero(flags & bit)) for bit, name in FLAG_NAMES.items()}
+
+
+def run(args: argparse.Namespace) -> int:
+    from fogsf.bindings.kernel import Kernel, build_kernel
+    from fogsf.trainer.errors import UserError
+    from fogsf.trainer.logs.metrics import log_metrics
+    from fogsf.trainer.models.stream import StreamModel
+
+    model = StreamModel.load(args.model)
+    log = read_logs(args, [args.log])[0]
+    model = rated(model, log.sample_dt_s, f"the log's {log.sample_rate_hz:.6g} Hz")
+    build = build_kernel(model, root=args.build_dir, cc=args.cc)
+    kernel = Kernel(model, build)
+    corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)
+    write_corrected(args.out, log.time_s, log.gyro_dps, corrected, sf)
+    print(f"kernel {build.shared} (model {model.model_id}, {model.layers}x{model.hidden} "
+          f"LSTM, D={model.decimation})")
+    print(f"replayed {len(log)} samples of {log.path}; wrote {args.out}")
+    counts = flag_counts(flags)
+    flagged = {k: v for k, v in counts.items() if v}
+    print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
+                       else "none"))
+    try:
+        before = log_metrics(log, args.window_s, ref=args.ref_sf,
+                             latitude_deg=args.latitude_deg)
+        after = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg,
+                            correction_ppm=sf.astype(np.float64))
+    except UserError as e:  # e.g. a log that never passes 20 C has no reference SF
+        print(f"no before/after metrics: {e}")
+        before = after = None
+    if before is not None and after is not None:
+        about = "--ref-sf" if args.ref_sf is not None else "the log's SF at 20 C"
+        print(f"SF error, {args.window_s:g} s windows (before: about {about}; "
+              f"after: measured / predicted - 1):")
+        for name, m in (("before", before), ("after", after)):
+            print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
+                  f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
+        print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"model_id": model.model_id,
+                                               "rated_from": model.extra.get("rated_from"),
+                                               "sample_rate_hz": log.sample_rate_hz,
+                                               "decimation": model.decimation,
+                                               "samples": len(log),
+                                               "before": before, "after": after,
+                                               "flags": counts}, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    if args.plot and before is not None:
+        plot(log, sf, args.window_s, args.latitude_deg, args.plot, model.model_id,
+             args.ref_sf)
+        print(f"plot: {args.plot}")
+    return 0
+
+
+def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # noqa: ANN001
+         path: str, model_id: str, ref: float | None = None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fogsf.trainer.logs.metrics import reference_sf, sf_error_ppm, sf_windows
+
+    w = sf_windows(log, window_s, latitude_deg)
+    ref = ref if ref is not None else reference_sf(w)
+    before = sf_error_ppm(w, ref)
+    after = sf_error_ppm(sf_windows(log, window_s, latitude_deg, sf.astype(np.float64)), 1.0)
+    predicted = ((1.0 + sf.astype(np.float64) * 1e-6) / ref - 1.0) * 1e6
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5))
+    ax1.plot(w.temp_c, before, ".", ms=4, label="measured SF error (before)")
+    ax1.plot(log.temp_c, predicted, "-", lw=0.8, label="C kernel prediction (every sample)")
+    ax1.plot(w.temp_c, after, ".", ms=4, label="residual after correction")
+    ax1.set_xlabel("board temperature [C]")
+    ax1.set_ylabel("SF error [ppm] (about the SF at 20 C)")
+    ax1.legend(loc="best", fontsize=8)
+    ax1.grid(alpha=0.3)
+    hours = w.t_s / 3600.0
+    ax2.plot(hours, before, ".-", ms=3, lw=0.6, label="before")
+    ax2.plot(hours, after, ".-", ms=3, lw=0.6, label="after (C kernel)")
+    ax2.set_xlabel("time [h]")
+    ax2.set_ylabel(f"SF error per {window_s:g} s window [ppm]")
+    ax2.legend(loc="best", fontsize=8)
+    ax2.grid(alpha=0.3)
+    fig.suptitle(f"fogsf replay: {Path(log.path).name}, model {model_id}; RMS "
+                 f"{np.sqrt(np.mean(before**2)):.1f} -> {np.sqrt(np.mean(after**2)):.1f} ppm")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,75 @@
+"""Chamber logs as per-window observations for system identification.
+
+A window is one of `logs.metrics.sf_windows` (whole windows on one table-rate plateau).
+Its observation is the apparent SF error vs nominal, y = (mean(gyro - earth) / mean(table)
+- 1) in ppm. Every slower quantity a model needs (a lag-filtered temperature, an
+exponential of time) is computed at 10 Hz and averaged over exactly the window's samples,
+so the model and the data see the same averaging.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.metrics import SFWindows, sf_windows
+
+
+@dataclass
+class Run:
+    """One log and its windows. Window arrays have one entry per window."""
+
+    name: str
+    log: ChamberLog
+    win: SFWindows
+    y_ppm: np.ndarray  # apparent SF error vs nominal
+    sigma_ppm: np.ndarray  # noise of y per window (pooled per |rate| level)
+    cache: dict[tuple, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.win)
+
+    def window_mean(self, x: np.ndarray) -> np.ndarray:
+        """Mean of a per-sample series over each window's samples."""
+        c = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=np.float64))])
+        return (c[self.win.stop] - c[self.win.start]) / (self.win.stop - self.win.start)
+
+    @property
+    def rate(self) -> np.ndarray:
+        return self.win.rate_dps
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return self.win.t_s
+
+
+def pooled_sigma(win: SFWindows) -> np.ndarray:
+    """Per-window noise, pooled over the windows at the same |rate| (one window's own
+    estimate has only a few degrees of freedom; the noise of a ratio scales with 1/|rate|)."""
+    mag = np.round(np.abs(win.rate_dps), 6)
+    out = np.empty(len(win))
+    for m in np.unique(mag):
+        sel = mag == m
+        out[sel] = np.sqrt(np.mean(win.noise_ppm[sel] ** 2))
+    return out
+
+
+def load_run(log: ChamberLog, window_s: float, latitude_deg: float | None,
+             min_windows: int = 12) -> Run:
+    for col, x in (("time_s", log.time_s), ("temp_c", log.temp_c),
+                   ("table_rate_dps", log.table_rate_dps), ("gyro_dps", log.gyro_dps),
+                   *((k, v) for k, v in log.extra.items() if k == "chamber_c")):
+        bad = np.flatnonzero(~np.isfinite(np.asarray(x, dtype=np.float64)))
+        if bad.size:
+            raise UserError(f"{log.path}: column {col!r} has {bad.size} NaN/Inf cells (first at "
+                            f"sample {int(bad[0])}); diagnose needs every cell: cut the log "
+                            "before them or fill them")
+    win = sf_windows(log, window_s, latitude_deg)
+    if len(win) < min_windows:
+        raise UserError(f"{log.path}: only {len(win)} windows of {window_s:g} s; diagnose needs "
+                        f"at least {min_windows} (a longer log or a shorter --window-s)")
+    y = (win.sf_ratio - 1.0) * 1e6
+    return Run(name=log.path, log=log, win=win, y_ppm=y, sigma_ppm=pooled_sigma(win))

@@ -1,0 +1,1 @@
+"""The gravitational search algorithm, its search spaces, test functions and executors."""

@@ -1,0 +1,110 @@
+"""The lag bank: the default model's structure, chosen over the gyro population.
+
+A real gyro's SF error is a sum of polynomials of several internal temperatures, each
+lagging the board thermometer differently (and with either sign), so no one or two
+effective nodes hold it. The bank holds them all at once: the board temperature T and its
+first-order lag filters at every time constant of `TAU_GRID_S` (60 s .. 2 h), each entering
+on its own (no cross terms): T and the lags up to CURVED_MAX_TAU_S (2000 s) as cubics, the slower
+lags linearly, all fitted together by ridge regression with one fixed
+penalty (a physics prior chosen on development gyros). No structure is selected, so there
+is no selection to get wrong; the penalty shrinks what the data does not determine.
+
+Chosen over the alternatives on development gyros (docs/population.md has the figures):
+one effective node with a cubic (the previous default), the best of one and two nodes, the
+mean and the median of every lag model consistent with the training data, the lag model of
+least node sensitivity, a quadratic bank with cross terms, varying-coefficient forms in
+T - lag(T) with block cross-validation.
+
+In the firmware contract the bank is the polynomial head over 1 + K features (T and the K
+filters, normalised): the linear terms in skip_w, the squares in quad_w (its diagonal
+form, `quad_diag`: no cross terms), the cubes in cube_w; the LSTM, reading the first
+BANK_LSTM_INPUTS features, then learns what the bank leaves, with the bank held fixed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsf.trainer.models.features import FeatureSpec
+from fogsf.trainer.models.least_squares import TAU_GRID_S
+
+# The ridge penalty, as a multiple of the centred design's mean diagonal (so it does not
+# depend on the logs' length): a fixed physics prior, chosen on development gyros 1-24 over
+# 1e-4 .. 1e-2 (docs/population.md). Penalties chosen from the training data (GCV, GCV
+# with the residual's long-run variance, leave-one-log-or-segment-out) were each worse in
+# the tail: collinear lags let in-sample criteria take small penalties whose cubic terms
+# extrapolate (one case: 24 x the noise floor with GCV, 1.1 x with this prior).
+BANK_LAMBDA = 1e-3
+# Lags slower than this enter linearly only: the SF's curvature is carried by T and the
+# faster lags, the slow lags carry the hysteresis as a first-order correction. Cubics of slow
+# lags extrapolate worst where a run takes them beyond the training range. Development gyros
+# 1-24, least squares, median test RMS / noise floor with every lag cubic -> lags to 1712 s
+# cubic: protocol a 5.5 -> 3.2, b 1.31 -> 1.23, d 6.5 -> 5.3 (worst 27 -> 22), e 1.17 ->
+# 1.18 (worst 1.64 -> 1.52), c 10.5 -> 11.5 (cut-offs at 250-1000 s were worse in c and e).
+CURVED_MAX_TAU_S = 2000.0
+# The LSTM that learns what the bank leaves reads the first this many bank features (T, then
+# the fastest lags): its input weights are most of a model's flash (4H per input), and three
+# models must fit one Cortex-M4F image in 24 KB (issue 11). Set from a comparison on
+# development gyros (docs/train.md, "The LSTM's inputs").
+BANK_LSTM_INPUTS = 1
+
+
+def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:
+    """Features T and lag(T, tau) for every tau of `grid`: the rows of an identity."""
+    k = len(grid)
+    rows = tuple(tuple(1.0 if j == i else 0.0 for j in range(k + 1)) for i in range(k + 1))
+    names = ("T",) + tuple(f"lag(T,{t:.0f}s)" for t in grid)
+    return FeatureSpec(tuple(float(t) for t in grid), rows, names)
+
+
+def n_curved(grid: tuple[float, ...] = TAU_GRID_S) -> int:
+    """How many bank features (T first, then the lags in grid order) carry squares and cubes:
+    T and every lag of at most CURVED_MAX_TAU_S."""
+    return 1 + sum(1 for t in grid if t <= CURVED_MAX_TAU_S)
+
+
+def bank_design(z: np.ndarray, curved: int | None = None) -> np.ndarray:
+    """Columns z of every feature, then z^2 and z^3 of the first `curved` (default: all)."""
+    x = np.asarray(z, dtype=np.float64)
+    c = x[:, :x.shape[1] if curved is None else curved]
+    return np.column_stack([x, c * c, c * c * c])
+
+
+@dataclass
+class BankFit:
+    """A ridge fit of the bank in normalised units: y = intercept + lin.z + quad.z^2 +
+    cube.z^3 (y the normalised target)."""
+
+    intercept: float
+    lin: np.ndarray
+    quad: np.ndarray
+    cube: np.ndarray
+    lam: float  # the penalty, as a multiple of the design's mean diagonal
+    dof: float  # effective degrees of freedom of the fit
+
+    def predict(self, z: np.ndarray) -> np.ndarray:
+        x = np.asarray(z, dtype=np.float64)
+        return self.intercept + x @ self.lin + (x * x) @ self.quad + (x * x * x) @ self.cube
+
+
+def fit_bank(z: np.ndarray, y: np.ndarray, lam: float = BANK_LAMBDA,
+             curved: int | None = None) -> BankFit:
+    """Ridge regression of y on bank_design(z, curved), the intercept unpenalised, with
+    penalty `lam` times the centred design's mean diagonal."""
+    x = bank_design(z, curved)
+    y = np.asarray(y, dtype=np.float64)
+    mu, ym = x.mean(axis=0), float(np.mean(y))
+    xc = x - mu
+    u, sv, vt = np.linalg.svd(xc, full_matrices=False)
+    uy = u.T @ (y - ym)
+    scale = float(np.mean(sv**2))
+    f = sv**2 / (sv**2 + lam * scale)
+    coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
+    k = z.shape[1]
+    c = k if curved is None else curved
+    quad, cube = np.zeros(k), np.zeros(k)
+    quad[:c], cube[:c] = coef[k:k + c], coef[k + c:]
+    return BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
+                   lam=lam, dof=float(f.sum()) + 1.0)

@@ -1,0 +1,221 @@
+"""A population of gyros: `sample_gyro(rng)` draws a physically plausible FOG with structural
+variety, so that methods are measured on gyros they were not tuned on.
+
+What varies (every range is a constant below; docs/population.md lists them):
+- thermal network: housing and board (as the default gyro) plus 3-6 internal sensing nodes
+  (coil layers, source, preamp, Y-waveguide), in a star (every node behind the housing), a
+  chain (each behind the previous, slowest last) or a mix; time constants log-uniform over
+  `INTERNAL_TAU_S`, self-heating over `*_SELF_HEAT_C`;
+- SF law: the five factors of K = 2 pi L D / (Km K_DA lambda c), each on its own node(s)
+  (lambda on the source, L and D on the coil layers, Km on the waveguide or coil, K_DA on the
+  preamp or board), each linear, quadratic or cubic in its temperature, with either sign;
+  in a share `CANCEL_SHARE` of gyros the slowest part (the source) opposes the others and
+  cancels most of their static slope, so the SF error is small but strongly hysteretic;
+- magnitude: the sum of the factors' static swings over -40..+50 C is log-uniform over
+  `SWING_PPM` (the default gyro: about 2900 ppm of swings, 835 ppm max|error| at 1 C/min);
+- bias and noise around the default gyro's.
+
+Seeds: `gyro_for_seed(seed)` is `sample_gyro(default_rng(seed))`, except seed 0, which is the
+default gyro (`SimConfig()`'s). Development seeds (`DEV_SEEDS`) are for tuning; evaluation
+seeds (`EVAL_SEEDS`) are for reporting only: no threshold or default may be tuned on them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fogsf.trainer.sim.config import (
+    SF_FACTORS,
+    BiasConfig,
+    NodeConfig,
+    NoiseConfig,
+    ProfileConfig,
+    ScaleFactorConfig,
+    SFTermConfig,
+    SimConfig,
+    TableConfig,
+    ThermalConfig,
+)
+
+DEV_SEEDS = range(0, 10_000)
+EVAL_SEEDS = range(20_000, 30_000)
+
+HOUSING_TAU_S = (40.0, 200.0)
+BOARD_TAU_S = (120.0, 600.0)
+INTERNAL_TAU_S = (150.0, 4000.0)
+HOUSING_SELF_HEAT_C = (0.3, 2.0)
+BOARD_SELF_HEAT_C = (2.0, 8.0)
+INTERNAL_SELF_HEAT_C = (0.0, 5.0)
+N_INTERNAL = (3, 6)
+TOPOLOGIES = ("star", "chain", "mixed")
+LAWS = ("linear", "quadratic", "cubic")
+LAW_P = (0.35, 0.45, 0.20)
+SWING_PPM = (1000.0, 6000.0)
+CANCEL_SHARE = 0.3
+CANCEL_RATIO = (0.6, 1.0)  # the source's slope as a share of the others' (opposite sign)
+QUAD_SHARE = (-0.6, 0.6)  # quadratic swing as a share of the linear one at 45 C
+CUBE_SHARE = (-0.4, 0.4)
+ARW_DEG_PER_SQRT_H = (0.03, 0.08)
+BIAS_DPH = (-1.0, 1.0)
+BIAS_LIN_DPH_PER_C = (-0.01, 0.01)
+SPAN_C = (-40.0, 50.0)  # the temperature span the swing is measured over
+REF_C = 20.0
+
+# Internal parts in the order they are added; the first three are always there.
+_ROLES = ("coil_inner", "source", "preamp", "coil_outer", "waveguide", "coil_mid")
+
+
+def _log_uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
+    lo, hi = lo_hi
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _uniform(rng: np.random.Generator, lo_hi: tuple[float, float]) -> float:
+    return float(rng.uniform(*lo_hi))
+
+
+def _thermal(rng: np.random.Generator) -> tuple[ThermalConfig, str]:
+    n = int(rng.integers(N_INTERNAL[0], N_INTERNAL[1] + 1))
+    topology = str(rng.choice(TOPOLOGIES))
+    nodes = [NodeConfig("housing", "chamber", round(_log_uniform(rng, HOUSING_TAU_S), 1),
+                        round(_uniform(rng, HOUSING_SELF_HEAT_C), 2)),
+             NodeConfig("board", "housing", round(_log_uniform(rng, BOARD_TAU_S), 1),
+                        round(_uniform(rng, BOARD_SELF_HEAT_C), 2))]
+    roles = list(_ROLES[:n])
+    taus = {r: round(_log_uniform(rng, INTERNAL_TAU_S), 1) for r in roles}
+    if topology == "chain":  # slowest last: each part behind the one before it
+        roles.sort(key=lambda r: taus[r])
+        # a chain adds the time constants: keep its total within the range's top
+        scale = min(1.0, INTERNAL_TAU_S[1] / sum(taus.values()) * 1.5)
+        taus = {r: round(max(INTERNAL_TAU_S[0] / 2, t * scale), 1) for r, t in taus.items()}
+    placed: list[str] = []
+    for r in roles:
+        if topology == "star" or not placed:
+            parent = "housing"
+        elif topology == "chain":
+            parent = placed[-1]
+        else:
+            parent = "housing" if rng.random() < 0.5 else str(rng.choice(placed))
+        nodes.append(NodeConfig(r, parent, taus[r], round(_uniform(rng, INTERNAL_SELF_HEAT_C),
+                                                           2)))
+        placed.append(r)
+    return ThermalConfig(nodes=nodes, start="warm", board_node="board"), topology
+
+
+def _weights(rng: np.random.Generator, names: list[str]) -> dict[str, float]:
+    if len(names) == 1:
+        return {names[0]: 1.0}
+    w = rng.dirichlet(np.ones(len(names)))
+    w = np.round(w, 3)
+    w[-1] = round(1.0 - float(w[:-1].sum()), 3)
+    return {n: float(x) for n, x in zip(names, w, strict=True)}
+
+
+def _term_nodes(rng: np.random.Generator, factor: str, internal: list[str]
+                ) -> dict[str, float]:
+    coils = [r for r in internal if r.startswith("coil")]
+    if factor == "lambda":
+        return {"source": 1.0}
+    if factor in ("L", "D"):
+        return _weights(rng, coils)
+    if factor == "Km":
+        return {"waveguide": 1.0} if "waveguide" in internal else {"coil_inner": 1.0}
+    return {str(rng.choice(["preamp", "board"])): 1.0}  # K_DA
+
+
+def _shape(rng: np.random.Generator, law: str) -> tuple[float, float, float]:
+    """(lin, quad, cube) of a law with a linear slope of magnitude in 0.2..1 and either sign."""
+    lin = float(rng.choice([-1.0, 1.0])) * _uniform(rng, (0.2, 1.0))
+    h = 45.0  # half the span: shares are of the linear swing at 45 C from the reference
+    quad = lin * _uniform(rng, QUAD_SHARE) / h if law in ("quadratic", "cubic") else 0.0
+    cube = lin * _uniform(rng, CUBE_SHARE) / h**2 if law == "cubic" else 0.0
+    return lin, quad, cube
+
+
+def _swing(lin: float, quad: float, cube: float) -> float:
+    d = np.linspace(SPAN_C[0] - REF_C, SPAN_C[1] - REF_C, 181)
+    v = lin * d + quad * d * d + cube * d**3
+    return float(v.max() - v.min())
+
+
+def _sf(rng: np.random.Generator, internal: list[str]) -> tuple[ScaleFactorConfig, bool]:
+    factors = ("lambda", "L", "D", "Km", "K_DA")
+    names = {"lambda": "source wavelength", "L": "coil length", "D": "coil diameter",
+             "Km": "Y-waveguide Km", "K_DA": "D/A gain"}
+    shapes = {f: _shape(rng, str(rng.choice(LAWS, p=LAW_P))) for f in factors}
+    cancel = bool(rng.random() < CANCEL_SHARE)
+    if cancel:  # the source's SF slope opposes the sum of the others' (signs through K)
+        others = sum(SF_FACTORS[f] * shapes[f][0] for f in factors if f != "lambda")
+        if abs(others) < 0.3:  # nothing to cancel: make the others agree first
+            shapes = {f: (abs(s[0]), s[1] * np.sign(s[0]), s[2] * np.sign(s[0]))
+                      if f != "lambda" else s for f, s in shapes.items()}
+            others = sum(SF_FACTORS[f] * shapes[f][0] for f in factors if f != "lambda")
+        target_sf_slope = -_uniform(rng, CANCEL_RATIO) * others
+        lin, quad, cube = shapes["lambda"]
+        new_lin = target_sf_slope * SF_FACTORS["lambda"]
+        k = new_lin / lin
+        shapes["lambda"] = (new_lin, quad * k, cube * k)
+    swing = sum(_swing(*s) for s in shapes.values())
+    scale = _log_uniform(rng, SWING_PPM) / swing
+    terms = [SFTermConfig(names[f], f, _term_nodes(rng, f, internal),
+                          float(f"{shapes[f][0] * scale:.5g}"),
+                          float(f"{shapes[f][1] * scale:.5g}"), REF_C,
+                          float(f"{shapes[f][2] * scale:.5g}"))
+             for f in factors]
+    return ScaleFactorConfig(terms=terms), cancel
+
+
+def sample_gyro(rng: np.random.Generator) -> SimConfig:
+    """One random gyro (thermal network, SF law, bias, noise) with the default chamber run
+    (the paper's ramp; set `profile`, `table` and `seed` for the run you want)."""
+    thermal, topology = _thermal(rng)
+    internal = [n.name for n in thermal.nodes[2:]]
+    sf, cancel = _sf(rng, internal)
+    nodes = [n.name for n in thermal.nodes]
+    bias = BiasConfig(bias_dph=round(_uniform(rng, BIAS_DPH), 3),
+                      lin_dph_per_c=round(_uniform(rng, BIAS_LIN_DPH_PER_C), 4),
+                      node=str(rng.choice(nodes)))
+    noise = NoiseConfig(arw_deg_per_sqrt_h=round(_log_uniform(rng, ARW_DEG_PER_SQRT_H), 4))
+    cfg = SimConfig(scenario=f"population:{topology}{':cancel' if cancel else ''}")
+    cfg.thermal, cfg.sf, cfg.bias, cfg.noise = thermal, sf, bias, noise
+    return cfg
+
+
+def gyro_for_seed(seed: int) -> SimConfig:
+    """The population's gyro number `seed` (seed 0: the default gyro)."""
+    if seed == 0:
+        return SimConfig(scenario="population:default")
+    return sample_gyro(np.random.default_rng([seed, 0x9F0]))
+
+
+def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:
+    """`run`'s chamber program, table, seed and effects on `gyro`'s physics (a new config)."""
+    import copy
+
+    out = copy.deepcopy(run)
+    out.thermal = copy.deepcopy(gyro.thermal)
+    out.thermal.start = run.thermal.start
+    out.sf, out.bias, out.noise = (copy.deepcopy(gyro.sf), copy.deepcopy(gyro.bias),
+                                   copy.deepcopy(gyro.noise))
+    return out
+
+
+def run_on_gyro(gyro: SimConfig, profile: ProfileConfig, seed: int, name: str,
+                table_dps: float = 10.0) -> SimConfig:
+    """A warm-start run of `profile` on `gyro` at a constant table rate (the benches' and
+    the planner's runs)."""
+    run = SimConfig(scenario=f"population:{name}", seed=seed)
+    run.profile = profile
+    run.table = TableConfig(kind="constant", rate_dps=table_dps)
+    run.thermal.start = "warm"
+    return with_gyro(run, gyro)
+
+
+def seed_range(name: str) -> range:
+    """DEV_SEEDS or EVAL_SEEDS by name ("dev" or "eval")."""
+    ranges = {"dev": DEV_SEEDS, "eval": EVAL_SEEDS}
+    if name not in ranges:
+        raise ValueError(f"seed range must be one of {', '.join(ranges)}")
+    return ranges[name]

@@ -1,0 +1,472 @@
+"""`fogsf train`: fit a compensation model on training logs, score it on a test log.
+
+Models (all causal, all from the board thermometer and time only):
+- `poly`: polynomial in T (the industry's first try);
+- `polyrate`: polynomial in T with a filtered dT/dt (the industry standard);
+- `mlp`: the paper's MLP baseline on (T, filtered dT/dt);
+- `lstm`: the paper's LSTM on (T, filtered dT/dt), Table 1 defaults (2 x 200, batch 32,
+  lr 0.02, Adam);
+- `lag-lstm` (the default): the physics part fitted by least squares and carried exactly in
+  the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is the lag bank
+  (`models.lag_bank`: T and its lags at 11 time constants, ridge with a fixed prior; in the
+  head's diagonal quadratic, the LSTM reading the first BANK_LSTM_INPUTS features) or,
+  with `structure="node"`, one or two effective sensing temperatures
+  T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid;
+- `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
+  four) and (tau, w) of T_eff; fitness is the error on the validation part of the training
+  logs, never the test log.
+
+The LSTM models run at the model rate (one step per D samples, state carried) and are
+written in the firmware artifact format (stream.json + stream_weights.npz) for `fogsf export`.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.metrics import log_metrics, reference_sf_of_logs
+from fogsf.trainer.models.features import (
+    MODEL_STEP_S,
+    FeatureSpec,
+    Normaliser,
+    SeqData,
+    effective_node_features,
+    fit_normaliser,
+    front_end_for,
+    make_features,
+    physical_normaliser,
+    prepare,
+    step_targets,
+)
+from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, BankFit, bank_spec, fit_bank, n_curved
+from fogsf.trainer.models.stream import FrontEnd, StreamModel, decimation_for, expand
+from fogsf.trainer.training.transfer import ramp_segments, rate_transfer, training_ramp_rates
+
+if TYPE_CHECKING:  # training.fit imports torch; commands import this module at start-up
+    from fogsf.trainer.training.fit import LSTMConfig
+
+MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
+DEFAULT_MODEL = "lag-lstm"  # what `fogsf train` fits without --model
+STRUCTURES = ("bank", "node")  # lag-lstm: the lag bank, or one / two effective nodes
+EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
+
+
+@dataclass
+class TrainOptions:
+    model: str
+    model_step_s: float = MODEL_STEP_S  # one model step per this many seconds of samples
+    seed: int = 0
+    val_chunk: tuple[float, float] = (0.4, 0.6)
+    window_s: float = 100.0
+    latitude_deg: float | None = None
+    rate_tau_s: float = 120.0
+    poly_degree: int = 3
+    node: tuple[float, float] | None = None  # (tau_s, w) of T_eff; None: identified
+    nodes: int = 1  # effective nodes of lag-lstm (2 needs logs at two or more ramp rates)
+    structure: str = "bank"  # lag-lstm: "bank" (the lag bank) or "node" (1 or 2 effective nodes)
+    layers: int | None = None
+    hidden: int | None = None
+    batch_size: int | None = None
+    lr: float | None = None
+    iters: int | None = None
+    lstm_window: int | None = None  # model steps per LSTM training window (default 256)
+    # the lag bank's LSTM reads z[0:N] (T first, then the fastest lags); None: BANK_LSTM_INPUTS
+    lstm_inputs: int | None = None
+    gsa_agents: int = 8
+    gsa_iters: int = 8
+    gsa_fitness_iters: int = 80
+    gsa_space: str = "extended"  # "paper": Table 1's four only
+    gsa_paper_constants: bool = False  # G0=100, alpha=20 as in the paper; else SHORT_BUDGET
+    workers: int | None = None
+    dask: str | None = None
+    progress: bool = True
+    transfer_check: bool = True  # with a test log: the rate-transfer check and its interval
+    ref_sf: float | None = None  # reference SF of the before-metrics; None: measured at 20 C
+    extra: dict = field(default_factory=dict)
+
+
+def lstm_defaults(model: str) -> dict:
+    if model == "lstm":  # the paper's Table 1
+        return {"layers": 2, "hidden": 200, "batch_size": 32, "lr": 0.02, "iters": 300}
+    # lag-lstm, gsa-lstm: the physics least-squares polynomial of T_eff carried exactly in
+    # the head, the LSTM learns the residual
+    return {"layers": 1, "hidden": 16, "batch_size": 32, "lr": 0.01, "iters": 400,
+            "poly_head": True}
+
+
+@dataclass
+class Fitted:
+    """A trained model: per-step predictions (ppm vs nominal) and what to save."""
+
+    kind: str
+    spec: FeatureSpec
+    fe: FrontEnd
+    predict_steps: Callable[[SeqData], np.ndarray]
+    params: int
+    weights_bytes: int
+    info: dict
+    stream_model: StreamModel | None = None  # the firmware artifact (exportable models)
+    torch_state: dict | None = None
+
+
+def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
+    if opts.model not in MODELS:
+        raise UserError(f"unknown model {opts.model!r}; choose one of {', '.join(MODELS)}")
+    if not train_logs:
+        raise UserError("give at least one training log (--train)")
+    if opts.nodes not in (1, 2):
+        raise UserError("--nodes must be 1 or 2")
+    if opts.structure not in STRUCTURES:
+        raise UserError(f"--structure must be one of {', '.join(STRUCTURES)}")
+    if opts.node is not None and opts.nodes != 1:
+        raise UserError("--node gives one effective node; drop it or use --nodes 1")
+    if opts.lstm_inputs is not None and not (opts.model == "lag-lstm"
+                                             and opts.structure == "bank"):
+        raise UserError("--lstm-inputs narrows the lag bank's LSTM: it needs --model "
+                        "lag-lstm with --structure bank")
+    if not (math.isfinite(opts.model_step_s) and opts.model_step_s > 0):
+        raise UserError(f"--model-step-s must be > 0, got {opts.model_step_s!r}")
+    lo, hi = opts.val_chunk
+    if not 0.0 <= lo < hi <= 1.0 or hi - lo > 0.5:
+        raise UserError("--val-chunk LO:HI must satisfy 0 <= LO < HI <= 1, at most half")
+
+
+def _lstm_config(opts: TrainOptions, **over: object) -> LSTMConfig:
+    from fogsf.trainer.training.fit import LSTMConfig
+
+    d = lstm_defaults(opts.model)
+    for k in ("layers", "hidden", "batch_size", "lr", "iters"):
+        if getattr(opts, k) is not None:
+            d[k] = getattr(opts, k)
+    if opts.lstm_window is not None:
+        d["window"] = opts.lstm_window
+    d.update(over)
+    return LSTMConfig(seed=opts.seed, **d)
+
+
+def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
+    """Train `opts.model` on `train_logs` (validation part held out inside them)."""
+    _check(opts, train_logs)
+    kind = opts.model
+    if kind in ("poly", "polyrate", "mlp", "lstm"):
+        spec = make_features(rate_tau_s=None if kind == "poly" else opts.rate_tau_s)
+        return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
+                              else None)
+    if kind == "lag-lstm":
+        if opts.structure == "bank" and opts.node is None and opts.nodes == 1:
+            spec = bank_spec()
+            n_in = BANK_LSTM_INPUTS if opts.lstm_inputs is None else opts.lstm_inputs
+            if not 1 <= n_in <= spec.n_features:
+                raise UserError(f"--lstm-inputs must lie in 1..{spec.n_features} (the lag "
+                                f"bank's features), got {n_in}")
+            # the bank's quadratic is diagonal: the head carries quad_w [F], not [F, F]
+            return _fit_with_spec(opts, train_logs, spec,
+                                  _lstm_config(opts, lstm_inputs=n_in, quad_diag=True),
+                                  head_fn=_fit_bank_head)
+        if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
+            spec = effective_node_features(*_identify_two_nodes(opts, train_logs))
+            return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts, cubes=False))
+        tau, w = opts.node or _identify_node(opts, train_logs)
+        spec = effective_node_features((tau, w))
+        return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts))
+    return _fit_gsa(opts, train_logs)
+
+
+def _identify_node(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, float]:
+    from fogsf.trainer.models.least_squares import profile_effective_node
+
+    fe = front_end_for(logs, opts.model_step_s, ())
+    node, _ = profile_effective_node(logs, fe, opts.latitude_deg)
+    return node
+
+
+def _identify_two_nodes(opts: TrainOptions, logs: list[ChamberLog]
+                        ) -> list[tuple[float, float]]:
+    from fogsf.trainer.models.least_squares import profile_two_nodes
+
+    fe = front_end_for(logs, opts.model_step_s, ())
+    nodes, _ = profile_two_nodes(logs, fe, opts.latitude_deg)
+    return nodes
+
+
+@dataclass
+class TrainingInputs:
+    """The logs at the model rate, their normalised features and the output scaling."""
+
+    fe: FrontEnd
+    data: list[SeqData]
+    norm: Normaliser
+    z: list[np.ndarray]
+    offset: float
+    scale: float
+
+
+def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
+                    targets: list[np.ndarray] | None = None,
+                    physical: bool = False) -> TrainingInputs:
+    """physical: features in one physical unit (`physical_normaliser`), not standardised."""
+    fe = front_end_for(logs, opts.model_step_s, spec.taus_s)
+    ts = targets if targets is not None else [None] * len(logs)
+    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
+            for lg, t in zip(logs, ts, strict=True)]
+    norm = physical_normaliser(spec) if physical else fit_normaliser(spec, data)
+    y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
+    return TrainingInputs(fe, data, norm, [norm.apply(d.s) for d in data],
+                          float(y.mean()), float(y.std() or 1.0))
+
+
+def _fit_bank_head(ti: TrainingInputs) -> BankFit:
+    """The lag bank fitted by ridge to the normalised targets of every step of the
+    training logs (the validation part too: it only picks the LSTM's iteration, and the
+    bank needs every transient the logs hold)."""
+    return fit_bank(*bank_data(ti), curved=n_curved())
+
+
+def bank_data(ti: TrainingInputs) -> tuple[np.ndarray, np.ndarray]:
+    """(z, y): the normalised features and targets of every step of the training logs,
+    what the lag bank is fitted to."""
+    z = np.concatenate(ti.z)
+    y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
+    return z, y
+
+
+def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
+                      ) -> Callable[[ChamberLog], np.ndarray]:
+    """The default model's fixed part (the lag bank by least squares) trained on `logs`:
+    a function giving a log's SF error prediction (ppm vs nominal) per sample, held over
+    each model step as the kernel holds it. Fast (no LSTM), for benches and the planner."""
+    ti = training_inputs(opts or TrainOptions(model="lag-lstm"), logs, bank_spec(),
+                         physical=True)
+    bank = _fit_bank_head(ti)
+
+    def predict(log: ChamberLog) -> np.ndarray:
+        d = prepare(log, ti.fe, None, None)
+        steps = bank.predict(ti.norm.apply(d.s)) * ti.scale + ti.offset
+        return expand(steps, len(log), d.decimation)
+
+    return predict
+
+
+def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
+                   lstm_cfg: LSTMConfig | None,
+                   head_fn: Callable[[TrainingInputs], BankFit] | None = None) -> Fitted:
+    ti = training_inputs(opts, logs, spec, physical=head_fn is not None)
+    fe, data, norm, z, offset, scale = ti.fe, ti.data, ti.norm, ti.z, ti.offset, ti.scale
+    kind = opts.model
+    if kind in ("poly", "polyrate"):
+        from fogsf.trainer.models.least_squares import fit_linear
+
+        lf = fit_linear(data, z, opts.poly_degree, with_rate=kind == "polyrate")
+        return Fitted(kind, spec, fe, lambda d: lf.predict(norm.apply(d.s)), lf.params,
+                      4 * lf.params, {"degree": opts.poly_degree,
+                                      "coef": lf.coef.tolist(),
+                                      "feat_w": norm.feat_w.tolist(),
+                                      "feat_b": norm.feat_b.tolist()})
+    import torch
+
+    from fogsf.trainer.models.nets import count_params, to_stream_model
+    from fogsf.trainer.training.fit import MLPConfig, predict_stream, train_mlp, train_stream
+
+    if kind == "mlp":
+        net, hist = train_mlp(data, z, MLPConfig(seed=opts.seed), offset, scale,
+                              opts.progress)
+
+        def predict(d: SeqData) -> np.ndarray:
+            with torch.no_grad():
+                out = net(torch.from_numpy(norm.apply(d.s))).numpy().astype(np.float64)
+            return out * scale + offset
+
+        n = count_params(net)
+        return Fitted(kind, spec, fe, predict, n, 4 * n, {"history": hist.as_dict()},
+                      torch_state=net.state_dict())
+    head = head_fn(ti) if head_fn is not None else None
+    net, hist = train_stream(data, z, lstm_cfg, offset, scale, opts.progress, head)
+    info: dict = {"history": hist.as_dict(), "hyper": asdict(lstm_cfg)}
+    if head is not None:
+        info["lag_bank"] = {"ridge_lambda": head.lam, "dof": head.dof}
+    sm = to_stream_model(net, kind, spec, norm, fe, offset, scale,
+                         extra={"hyper": asdict(lstm_cfg), **({"structure": "lag-bank"}
+                                                               if head is not None else {})})
+    n = count_params(net)
+    return Fitted(kind, spec, fe, lambda d: predict_stream(net, norm.apply(d.s)) * scale
+                  + offset, n, 4 * n, info, stream_model=sm, torch_state=net.state_dict())
+
+
+# --- GSA --------------------------------------------------------------------------------
+
+def gsa_space(kind: str):
+    from fogsf.trainer.gsa.optimizer import Param
+
+    space = [Param("batch_size", 8, 64, "int"), Param("layers", 1, 3, "int"),
+             Param("hidden", 4, 256, "int"), Param("lr", 1e-3, 5e-2, "log-real")]
+    if kind == "extended":
+        space += [Param("tau_s", 120.0, 7200.0, "log-real"),
+                  Param("w", 0.0, 0.5, "real")]
+    return space
+
+
+def gsa_fitness(params: dict, payload: dict) -> float:
+    """Validation RMS (ppm) of an LSTM trained with `params` on the payload's logs."""
+    import torch
+
+    torch.set_num_threads(1)
+    opts: TrainOptions = payload["opts"]
+    logs: list[ChamberLog] = payload["logs"]
+    node = (params["tau_s"], params["w"]) if "tau_s" in params else payload["node"]
+    spec = effective_node_features(tuple(node))
+    cfg = _lstm_config(opts, layers=int(params["layers"]), hidden=int(params["hidden"]),
+                       batch_size=int(params["batch_size"]), lr=float(params["lr"]),
+                       iters=opts.gsa_fitness_iters,
+                       eval_every=max(1, opts.gsa_fitness_iters // 4))
+    ti = training_inputs(opts, logs, spec, payload["targets"])
+    from fogsf.trainer.training.fit import train_stream
+
+    _, hist = train_stream(ti.data, ti.z, cfg, ti.offset, ti.scale, False)
+    return float(hist.best_val_rms_ppm)
+
+
+def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
+    from fogsf.trainer.gsa.executors import open_executor
+    from fogsf.trainer.gsa.optimizer import SHORT_BUDGET, minimize
+
+    fe = front_end_for(logs, opts.model_step_s, ())
+    targets = [step_targets(lg, fe.at_rate(lg.sample_dt_s).decimation, opts.latitude_deg)
+               for lg in logs]
+    payload = {"opts": opts, "logs": logs, "targets": targets,
+               "node": opts.node or (None if opts.gsa_space == "extended"
+                                     else _identify_node(opts, logs))}
+    fn = functools.partial(gsa_fitness, payload=payload)
+    space = gsa_space(opts.gsa_space)
+    t0 = time.perf_counter()
+    with open_executor(workers=opts.workers, dask=opts.dask) as ex:
+        res = minimize(fn, space, n_agents=opts.gsa_agents, n_iters=opts.gsa_iters,
+                       seed=opts.seed, executor=ex, progress=opts.progress,
+                       **({} if opts.gsa_paper_constants else SHORT_BUDGET))
+    search_s = time.perf_counter() - t0
+    best = res.best_params
+    node = (best["tau_s"], best["w"]) if "tau_s" in best else payload["node"]
+    final = TrainOptions(**{**asdict(opts), "model": "gsa-lstm",
+                            "layers": int(best["layers"]), "hidden": int(best["hidden"]),
+                            "batch_size": int(best["batch_size"]), "lr": float(best["lr"]),
+                            "node": (float(node[0]), float(node[1]))})
+    final.iters = opts.iters or lstm_defaults("gsa-lstm")["iters"]
+    spec = effective_node_features(final.node)
+    fitted = _fit_with_spec(final, logs, spec, _lstm_config(final))
+    fitted.info["gsa"] = {"best_params": best, "best_fitness_ppm": res.best_fitness,
+                          "best_curve": list(res.best_curve),
+                          "mean_curve": list(res.mean_curve), "agents": opts.gsa_agents,
+                          "iters": opts.gsa_iters, "fitness_iters": opts.gsa_fitness_iters,
+                          "constants": "paper" if opts.gsa_paper_constants else SHORT_BUDGET,
+                          "search_seconds": search_s}
+    fitted.info["gsa_result"] = res
+    return fitted
+
+
+# --- scoring and saving -----------------------------------------------------------------
+
+def per_sample_prediction(fitted: Fitted, log: ChamberLog, latitude_deg: float | None
+                          ) -> np.ndarray:
+    d = prepare(log, fitted.fe, None, latitude_deg)
+    return expand(fitted.predict_steps(d), len(log), d.decimation)
+
+
+def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,
+          latitude_deg: float | None) -> dict:
+    """Before/after metrics over `logs` (their windows pooled)."""
+    if len(logs) != 1:
+        return {f"log{i}": score(fitted, [lg], ref, window_s, latitude_deg)
+                for i, lg in enumerate(logs)}
+    lg = logs[0]
+    pred = per_sample_prediction(fitted, lg, latitude_deg)
+    return {"before": log_metrics(lg, window_s, ref=ref, latitude_deg=latitude_deg),
+            "after": log_metrics(lg, window_s, latitude_deg=latitude_deg,
+                                 correction_ppm=pred)}
+
+
+def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
+                 test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, Fitted]:
+    """Train, score, and write the model directory; returns metrics.json's content and the
+    fitted model."""
+    for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
+        decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
+    t0 = time.perf_counter()
+    fitted = fit_model(opts, train_logs)
+    train_s = time.perf_counter() - t0
+    ref = opts.ref_sf if opts.ref_sf is not None else reference_sf_of_logs(
+        train_logs, opts.window_s, opts.latitude_deg)
+    metrics: dict = {"model": fitted.kind, "window_s": opts.window_s}
+    if test_log is not None:
+        test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)
+        metrics["noise_floor_ppm"] = test["before"]["noise_floor_ppm"]
+        metrics["test"] = test
+    if test_log is not None and opts.transfer_check:
+        metrics["rate_transfer"] = rate_transfer(
+            train_logs, test_log, opts.latitude_deg,
+            per_sample_prediction(fitted, test_log, opts.latitude_deg),
+            step_s=fitted.fe.step_s).as_dict()
+    metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
+    # every ramp of every training log, read per segment (up and down, several rates a log)
+    metrics["train_ramp_rates_c_per_min"] = training_ramp_rates(train_logs)
+    metrics["train_ramp_segments"] = [[asdict(sg) for sg in ramp_segments(lg)]
+                                      for lg in train_logs]
+    if "noise_floor_ppm" not in metrics:
+        first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
+        metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]
+    metrics.update({
+        "params": fitted.params,
+        "weights_bytes": fitted.weights_bytes,
+        "features": list(fitted.spec.names),
+        "filter_tau_s": list(fitted.spec.taus_s),
+        "decimation": fitted.fe.decimation,
+        "model_step_s": fitted.fe.step_s,
+        "sample_rate_hz": 1.0 / fitted.fe.sample_dt_s,
+        "ref_sf_ratio": ref,
+        "exportable": fitted.stream_model is not None,
+        "train_seconds": train_s,
+        "seed": opts.seed,
+        "val_chunk": list(opts.val_chunk),
+    })
+    if fitted.stream_model is not None:
+        metrics["model_id"] = fitted.stream_model.model_id
+        hist = fitted.info.get("history", {})
+        # best_iter 0: no training step beat the least-squares start on the validation part,
+        # so the model is that start (its LSTM contributes nothing learned)
+        metrics["kept_least_squares_start"] = bool(hist.get("best_iter", 1) == 0)
+    save(fitted, metrics, out_dir)
+    return metrics, fitted
+
+
+def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    info = {k: v for k, v in fitted.info.items() if k != "gsa_result"}
+    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (out_dir / "train_info.json").write_text(json.dumps(
+        {"model": fitted.kind, "features": list(fitted.spec.names),
+         "filter_tau_s": list(fitted.spec.taus_s), **info}, indent=2, default=_json) + "\n")
+    if fitted.stream_model is not None:
+        fitted.stream_model.save(out_dir)
+    if fitted.torch_state is not None:
+        import torch
+
+        torch.save(fitted.torch_state, out_dir / "model.pt")
+    res = fitted.info.get("gsa_result")
+    if res is not None:
+        res.save_json(out_dir / "gsa_fitness.json")
+        res.plot(out_dir / "gsa_fitness.png")
+
+
+def _json(o: object) -> object:
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(type(o).__name__)
