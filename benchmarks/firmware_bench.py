@@ -38,6 +38,7 @@ from fogsf.bindings.kernel import Kernel, build_kernel, state_sizes
 from fogsf.export.header import write_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx
 from fogsf.trainer.errors import UserError
+from fogsf.trainer.models import samples
 from fogsf.trainer.models import stream as st
 from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS
 
@@ -54,7 +55,7 @@ def small_poly_models(n: int, filters: int = 1, bank_form: bool = True
     model's form: the LSTM reads z[0:BANK_LSTM_INPUTS], the quadratic is diagonal;
     `bank_form=False` gives the previous form (the LSTM on all 12, a full 12 x 12 quad_w)."""
     bank = filters > 1 and bank_form
-    return [st.random_model(filters, filters + (filters > 1), 1, 16, decimation=50,
+    return [samples.random_model(filters, filters + (filters > 1), 1, 16, decimation=50,
                             seed=300 + a, poly_head=True,
                             lstm_inputs=BANK_LSTM_INPUTS if bank else None, quad_diag=bank)
             for a in range(n)]
@@ -93,9 +94,9 @@ def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-ls
 
 def random_models() -> list[tuple[str, st.StreamModel, str]]:
     return [
-        ("paper-lstm-2x200", st.random_model(1, 2, 2, 200, decimation=50, seed=200),
+        ("paper-lstm-2x200", samples.random_model(1, 2, 2, 200, decimation=50, seed=200),
          "random weights (seeded), the paper's 2x200 LSTM on T and dT/dt"),
-        ("small-lstm-1x16", st.random_model(1, 1, 1, 16, decimation=50, seed=16),
+        ("small-lstm-1x16", samples.random_model(1, 1, 1, 16, decimation=50, seed=16),
          "random weights (seeded), the trainer's lag-lstm size (1x16 on T_eff)"),
     ]
 
@@ -106,7 +107,7 @@ def host_ns_per_step(model: st.StreamModel, root: Path, steps: int) -> float:
     every = replace(model, decimation=1, weights=dict(model.weights))
     every.weights["filter_alpha"] = st.filter_alpha(model.filter_tau_s, 1, model.sample_dt_s)
     kernel = Kernel(every, build_kernel(every, root=root))
-    temp, gyro = st.chamber_ramp(hours=steps / 36000 + 0.01, seed=1)
+    temp, gyro = samples.chamber_ramp(hours=steps / 36000 + 0.01, seed=1)
     temp, gyro = temp[:steps], gyro[:steps]
     best = np.inf
     for _ in range(5):

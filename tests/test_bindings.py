@@ -12,11 +12,11 @@ from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.trainer.cli import main
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.logio import ChamberLog, read_log, write_log
-from fogsf.trainer.models import stream as st
+from fogsf.trainer.models import reference, samples
 
 
 def small_log(path, seed: int = 0, hours: float = 1.0) -> ChamberLog:
-    temp, gyro = st.chamber_ramp(hours=hours, seed=seed)
+    temp, gyro = samples.chamber_ramp(hours=hours, seed=seed)
     n = temp.shape[0]
     log = ChamberLog(time_s=np.arange(n) * 0.1, temp_c=temp, table_rate_dps=np.full(n, 10.0),
                      gyro_dps=gyro, earth_rate_dps=np.zeros(n))
@@ -25,18 +25,18 @@ def small_log(path, seed: int = 0, hours: float = 1.0) -> ChamberLog:
 
 
 def test_build_is_cached_by_model_id(tmp_path) -> None:
-    model = st.random_model(seed=4)
+    model = samples.random_model(seed=4)
     a = build_kernel(model, root=tmp_path)
     mtime = a.shared.stat().st_mtime_ns
-    b = build_kernel(st.random_model(seed=4), root=tmp_path)
+    b = build_kernel(samples.random_model(seed=4), root=tmp_path)
     assert b.shared == a.shared and b.shared.stat().st_mtime_ns == mtime
     assert model.model_id in a.directory.name
-    other = build_kernel(st.random_model(seed=5), root=tmp_path)
+    other = build_kernel(samples.random_model(seed=5), root=tmp_path)
     assert other.directory != a.directory
 
 
 def test_kernel_refuses_a_library_of_another_model(tmp_path) -> None:
-    a, b = st.random_model(seed=4), st.random_model(seed=5)
+    a, b = samples.random_model(seed=4), samples.random_model(seed=5)
     with pytest.raises(UserError, match="kernel of model"):
         Kernel(b, build_kernel(a, root=tmp_path))
 
@@ -44,7 +44,7 @@ def test_kernel_refuses_a_library_of_another_model(tmp_path) -> None:
 def test_replay_writes_the_kernel_output_and_prints_metrics(tmp_path, capsys, monkeypatch
                                                              ) -> None:
     monkeypatch.setenv("FOGSF_BUILD_DIR", str(tmp_path / "kernels"))
-    model = st.random_model(3, 4, 1, 8, decimation=10, seed=6)
+    model = samples.random_model(3, 4, 1, 8, decimation=10, seed=6)
     model.save(tmp_path / "m")
     log = small_log(tmp_path / "run.csv", hours=2.0)
     rc = main(["replay", str(tmp_path / "m"), str(tmp_path / "run.csv"), "--out",
@@ -74,12 +74,12 @@ def test_replay_of_the_true_model_removes_the_sf_error(tmp_path, capsys, monkeyp
     monkeypatch.setenv("FOGSF_BUILD_DIR", str(tmp_path / "kernels"))
     seed = 8
     rng = np.random.default_rng(seed)
-    model = st.random_model(2, 4, 1, 8, decimation=10, seed=seed,
+    model = samples.random_model(2, 4, 1, 8, decimation=10, seed=seed,
                             out_scale=float(rng.uniform(200, 600)))
     model.save(tmp_path / "m")
-    temp, _ = st.chamber_ramp(hours=2.0, seed=seed)
+    temp, _ = samples.chamber_ramp(hours=2.0, seed=seed)
     n = temp.shape[0]
-    sf_true = st.replay(model, temp, np.zeros(n)).sf_ppm.astype(np.float64)
+    sf_true = reference.replay(model, temp, np.zeros(n)).sf_ppm.astype(np.float64)
     gyro = 10.0 * (1.0 + sf_true * 1e-6) + rng.normal(0, 0.002, n)
     write_log(tmp_path / "run.csv", ChamberLog(np.arange(n) * 0.1, temp, np.full(n, 10.0),
                                                gyro, np.zeros(n)))
@@ -99,7 +99,7 @@ def test_replay_refuses_a_missing_model(tmp_path, capsys) -> None:
 
 
 def _build_in(root: str) -> str:
-    return str(build_kernel(st.random_model(seed=4), root=root).shared)
+    return str(build_kernel(samples.random_model(seed=4), root=root).shared)
 
 
 def test_concurrent_builds_of_one_model_share_one_complete_folder(tmp_path) -> None:
@@ -112,7 +112,7 @@ def test_concurrent_builds_of_one_model_share_one_complete_folder(tmp_path) -> N
     assert len(set(paths)) == 1
     folders = [p for p in tmp_path.iterdir()]
     assert len(folders) == 1, folders  # no private build folder left behind
-    kernel = Kernel(st.random_model(seed=4), build_kernel(st.random_model(seed=4),
+    kernel = Kernel(samples.random_model(seed=4), build_kernel(samples.random_model(seed=4),
                                                           root=tmp_path))
     corrected, _, _ = kernel.run(np.full(20, 20.0), np.full(20, 10.0))
     assert np.all(np.isfinite(corrected))

@@ -15,6 +15,7 @@ from fogsf.export.header import c_float, check_name, render_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
 from fogsf.export.torch_step import TorchStep
 from fogsf.trainer.cli import main
+from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st
 
 SIZES = [(2, 4, 1, 8, 10, 0), (0, 3, 2, 5, 1, 1), (3, 6, 2, 16, 4, 2)]
@@ -28,7 +29,7 @@ FORMS = [(11, 12, 1, 16, 50, 5, True, 1, True), (3, 5, 2, 6, 3, 6, True, 2, Fals
 
 def form_model(k: int, f: int, layers: int, hidden: int, d: int, seed: int, poly: bool,
                n_in: int | None = None, diag: bool = False) -> st.StreamModel:
-    return st.random_model(k, f, layers, hidden, d, seed=seed, poly_head=poly,
+    return samples.random_model(k, f, layers, hidden, d, seed=seed, poly_head=poly,
                            lstm_inputs=n_in, quad_diag=diag)
 
 
@@ -76,13 +77,13 @@ def test_onnx_step_matches_torch_and_reference(params) -> None:
 @pytest.mark.parametrize("poly, n_in, diag", [(False, None, False), (True, None, False),
                                               (True, 1, True), (True, 3, False)])
 def test_onnx_step_matches_numpy_reference_over_a_ramp(poly, n_in, diag) -> None:
-    model = st.random_model(2, 4, 2, 8, 10, seed=7, poly_head=poly, lstm_inputs=n_in,
+    model = samples.random_model(2, 4, 2, 8, 10, seed=7, poly_head=poly, lstm_inputs=n_in,
                             quad_diag=diag)
-    temp, _ = st.chamber_ramp(hours=1.0, seed=7)
-    s = st.frontend(temp, model.front_end).s
-    ref = st.run_steps(model, s)
+    temp, _ = samples.chamber_ramp(hours=1.0, seed=7)
+    s = reference.frontend(temp, model.front_end).s
+    ref = reference.run_steps(model, s)
     sf, hl = OrtStepper(build_step_onnx(model), model.layers, model.hidden).run(
-        st.features(model, s))
+        reference.features(model, s))
     assert np.max(np.abs(hl - ref.h_last)) <= 1e-6
     assert np.max(np.abs(sf - ref.sf_ppm)) <= 1e-6 * np.ptp(ref.sf_ppm) + 1e-5
 
@@ -152,7 +153,7 @@ def test_c_float_roundtrips_every_kind_of_float() -> None:
 
 @pytest.mark.parametrize("poly", [False, True])
 def test_export_command_writes_both_files(poly, tmp_path, capsys) -> None:
-    model = st.random_model(seed=3, poly_head=poly)
+    model = samples.random_model(seed=3, poly_head=poly)
     model.save(tmp_path / "m")
     assert main(["export", str(tmp_path / "m"), "--out", str(tmp_path / "b"),
                  "--name", "imu_y"]) == 0

@@ -1,6 +1,6 @@
 """CMake integration: the `fogsf` library target, fogsf_add_model(), and the three-axis example
 firmware/examples/imu3 built for Cortex-M4F and run under QEMU, every output of every axis
-compared bit for bit with the numpy reference (trainer/stream.py)."""
+compared bit for bit with the numpy reference (fogsf/trainer/models/reference.py)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ import pytest
 
 from fogsf.bindings.firmware import arm_tools_missing, qemu_cmd, run_cmd
 from fogsf.bindings.kernel import ROOT
+from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st
 
 EXAMPLE = ROOT / "firmware" / "examples" / "imu3"
@@ -25,7 +26,7 @@ AXES = "xyz"
 
 def imu3_models() -> list[st.StreamModel]:
     """Three small models with polynomial heads, one per gyro (seeded random weights)."""
-    return [st.random_model(1, 1, 1, 16, decimation=10, seed=100 + a, poly_head=True)
+    return [samples.random_model(1, 1, 1, 16, decimation=10, seed=100 + a, poly_head=True)
             for a in range(3)]
 
 
@@ -80,7 +81,7 @@ def test_imu3_under_qemu_is_bit_exact_per_axis(imu3_build) -> None:
     got = parse(text)
     for a, (axis, model) in enumerate(zip(AXES, models, strict=True)):
         temp, gyro = imu3_inputs(a)
-        ref = st.replay(model, temp, gyro)
+        ref = reference.replay(model, temp, gyro)
         assert got[axis].shape == (SAMPLES, 3), axis
         np.testing.assert_array_equal(got[axis][:, 0], ref.sf_ppm.view(np.uint32), err_msg=axis)
         np.testing.assert_array_equal(got[axis][:, 1], ref.corrected_dps.view(np.uint64),
@@ -102,7 +103,7 @@ def test_cmake_raises_the_state_to_the_largest_model(imu3_build) -> None:
                     reason="needs cmake and gcc")
 def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
     """DIR form on the host: a 2x24 model raises FOGSF_MAX_* and the library builds."""
-    model = st.random_model(2, 3, 2, 24, decimation=5, seed=9)
+    model = samples.random_model(2, 3, 2, 24, decimation=5, seed=9)
     from fogsf.export.header import write_model
     write_model(model, tmp_path / "gen", "big_one")
     (tmp_path / "app").mkdir()

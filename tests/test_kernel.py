@@ -13,6 +13,7 @@ from onnx.reference import ReferenceEvaluator
 from fogsf.bindings.firmware import golden_inputs
 from fogsf.bindings.kernel import trace_steps
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
+from fogsf.trainer.models import f32, reference, samples
 from fogsf.trainer.models import stream as st
 
 # (K filters, F features, L layers, H hidden, D decimation, stuck_samples, seed)
@@ -34,7 +35,7 @@ def kroot(tmp_path_factory):
 def model_of(size: tuple) -> st.StreamModel:
     k, f, layers, hidden, d, stuck, seed, *rest = size
     poly, n_in, diag = (*rest, None, False, False)[:3] if rest else (False, None, False)
-    return st.random_model(k, f, layers, hidden, d, seed=seed, stuck_samples=stuck,
+    return samples.random_model(k, f, layers, hidden, d, seed=seed, stuck_samples=stuck,
                            poly_head=bool(poly), lstm_inputs=n_in, quad_diag=bool(diag))
 
 
@@ -45,7 +46,7 @@ def test_kernel_equals_numpy_reference_bit_for_bit(size, kroot) -> None:
     seed = size[6]
     temp, gyro = golden_inputs(model, n=2500, seed=seed)
     corrected, sf, flags = kernel.run(temp, gyro)
-    ref = st.replay(model, temp, gyro)
+    ref = reference.replay(model, temp, gyro)
     bad = np.flatnonzero(sf.view(np.uint32) != ref.sf_ppm.view(np.uint32))
     assert bad.size == 0, f"seed {seed}: sf differs at samples {bad[:20].tolist()}"
     np.testing.assert_array_equal(corrected.view(np.uint64), ref.corrected_dps.view(np.uint64),
@@ -59,7 +60,7 @@ def simulated_ramp(seed: int) -> tuple[np.ndarray, np.ndarray]:
         from fogsf.trainer.sim.gyro import simulate
         from fogsf.trainer.sim.scenarios import paper
     except ImportError:  # the simulator is another branch's work
-        return st.chamber_ramp(hours=1.6, seed=seed)
+        return samples.chamber_ramp(hours=1.6, seed=seed)
     log = simulate(paper(1.0, seed=seed)).log
     return log.temp_c, log.gyro_dps
 
@@ -81,7 +82,7 @@ def compare_with_ort(model: st.StreamModel, kernel, temp: np.ndarray, gyro: np.n
 
 
 def test_kernel_vs_onnxruntime_over_a_simulated_ramp(kroot) -> None:
-    model = st.random_model(3, 4, 1, 16, decimation=1, seed=11)
+    model = samples.random_model(3, 4, 1, 16, decimation=1, seed=11)
     temp, gyro = simulated_ramp(seed=11)
     assert len(temp) >= 50_000
     compare_with_ort(model, kernel_for(model, kroot), temp, gyro, "simulated 1 C/min ramp")
@@ -91,7 +92,7 @@ def test_kernel_vs_onnxruntime_over_a_simulated_ramp(kroot) -> None:
 def test_kernel_vs_onnxruntime_on_random_inputs(seed, poly, kroot) -> None:
     rng = np.random.default_rng(seed)
     layers, hidden = int(rng.integers(1, 3)), int(rng.integers(4, 40))
-    model = st.random_model(int(rng.integers(0, 4)), int(rng.integers(1, 7)), layers, hidden,
+    model = samples.random_model(int(rng.integers(0, 4)), int(rng.integers(1, 7)), layers, hidden,
                             decimation=int(rng.integers(1, 4)), seed=seed, poly_head=poly)
     n = 12_000
     # a random walk across the range with jumps, so the filters and the LSTM see everything
@@ -112,7 +113,7 @@ def test_narrowed_forms_kernel_vs_onnxruntime(size, kroot) -> None:
 
 @pytest.mark.parametrize("poly", [False, True])
 def test_kernel_vs_onnx_reference(poly, kroot) -> None:
-    model = st.random_model(2, 4, 2, 6, decimation=3, seed=31, poly_head=poly)
+    model = samples.random_model(2, 4, 2, 6, decimation=3, seed=31, poly_head=poly)
     temp, gyro = golden_inputs(model, n=900, seed=31)
     z, h_c, sf_c = trace_steps(kernel_for(model, kroot), temp, gyro)
     ref = ReferenceEvaluator(build_step_onnx(model))
@@ -155,7 +156,7 @@ def test_streaming_equals_whole_log_and_runs_repeat_bit_for_bit(kroot) -> None:
 def test_bad_inputs_give_finite_outputs_and_the_right_flags(seed, kroot) -> None:
     rng = np.random.default_rng(seed)
     stuck = int(rng.integers(3, 40))
-    model = st.random_model(2, 4, 1, 8, decimation=int(rng.integers(1, 6)), seed=seed,
+    model = samples.random_model(2, 4, 1, 8, decimation=int(rng.integers(1, 6)), seed=seed,
                             stuck_samples=stuck)
     kernel = kernel_for(model, kroot)
     n = 2000
@@ -192,7 +193,7 @@ def test_activations_equal_reference_bits_and_are_accurate(kroot) -> None:
     x = np.concatenate([np.linspace(-100, 100, 20001), rng.normal(0, 4, 20000),
                         [0.0, -0.0, 0.625, -0.625, 10.0, -10.0, 87.9, -87.1, 1e30, -1e30,
                          np.inf, -np.inf, np.nan, 1e-40]]).astype(np.float32)
-    for name, ref in (("exp", st.exp_f32), ("sigmoid", st.sigmoid_f32), ("tanh", st.tanh_f32)):
+    for name, ref in (("exp", f32.exp_f32), ("sigmoid", f32.sigmoid_f32), ("tanh", f32.tanh_f32)):
         got = kernel.activation(name, x)
         bad = np.flatnonzero(got.view(np.uint32) != ref(x).view(np.uint32))
         assert bad.size == 0, f"{name}: C and numpy differ at x = {x[bad[:10]].tolist()}"
@@ -216,7 +217,7 @@ def test_gcc_and_clang_builds_give_the_same_bits(kroot) -> None:
 def test_an_unusable_model_gives_zero_and_only_the_model_flag(kroot) -> None:
     """A model larger than the state (or NULL, or with D = 0) is refused by init and gives
     corrected = 0, sf = 0 and MODEL_INVALID from step, without touching the state."""
-    model = st.random_model(2, 4, 1, 8, 10, seed=21)
+    model = samples.random_model(2, 4, 1, 8, 10, seed=21)
     kernel = kernel_for(model, kroot)
     ffi, lib = kernel.ffi, kernel.lib
     assert lib.fogsf_model_check(kernel.m) == 0

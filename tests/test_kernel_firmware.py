@@ -21,6 +21,7 @@ from fogsf.bindings.firmware import (
 )
 from fogsf.bindings.kernel import C_DIR, STRICT, Kernel, build_kernel, max_defines
 from fogsf.export.header import write_model
+from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st
 
 FIXTURE = "tests/fixtures/small_model"
@@ -38,7 +39,7 @@ def golden(tmp_path_factory):
 
 
 def test_fixture_is_the_documented_random_model() -> None:
-    want = st.random_model(filters=3, n_features=4, layers=1, hidden=16, decimation=10,
+    want = samples.random_model(filters=3, n_features=4, layers=1, hidden=16, decimation=10,
                            seed=2026)
     assert st.StreamModel.load(FIXTURE).model_id == want.model_id
 
@@ -74,7 +75,7 @@ def test_strict_flags_compile_every_shape(cc, size, tmp_path) -> None:
     if shutil.which(cc) is None:
         pytest.skip(f"{cc} not installed")
     k, f, layers, hidden, d, stuck, poly = size
-    model = st.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck,
+    model = samples.random_model(k, f, layers, hidden, d, seed=1, stuck_samples=stuck,
                             poly_head=poly)
     write_model(model, tmp_path, "shape")
     for src in (C_DIR / "fogsf.c", C_DIR / "fogsf_cell.c", tmp_path / "shape.c"):
@@ -87,7 +88,7 @@ def test_strict_flags_compile_every_shape(cc, size, tmp_path) -> None:
 
 def test_a_model_larger_than_the_state_does_not_compile(tmp_path) -> None:
     """NAME.c refuses FOGSF_MAX_* smaller than its model (the state could not hold it)."""
-    model = st.random_model(2, 4, 1, 32, 10, seed=1)
+    model = samples.random_model(2, 4, 1, 32, 10, seed=1)
     write_model(model, tmp_path, "big")
     cmd = [*STRICT, "-I", str(tmp_path), "-I", str(C_DIR), "-c", str(tmp_path / "big.c"),
            "-o", str(tmp_path / "big.o")]
@@ -132,7 +133,7 @@ def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
 def test_cortex_m4f_two_layers_no_filters_no_stuck_check(poly, tmp_path) -> None:
     """The other shapes on target: 2 layers, K=0, stuck detection off, a step per sample;
     and the same with the polynomial head (quadratic and cubic terms in z)."""
-    model = st.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0,
+    model = samples.random_model(0, 3, 2, 12, decimation=1, seed=77, stuck_samples=0,
                             poly_head=poly)
     build = build_kernel(model, root=tmp_path / "host")
     assert ("quad_w, cube_w" in (build.directory / "bound_model.c").read_text()) == poly
@@ -150,7 +151,7 @@ def test_cortex_m4f_two_layers_no_filters_no_stuck_check(poly, tmp_path) -> None
 ], ids=["lag-bank-form", "narrowed-2-layers"])
 def test_cortex_m4f_narrowed_forms(k, f, layers, hidden, d, n_in, diag, tmp_path) -> None:
     """lstm_inputs and quad_diag on target: the golden vectors bit for bit under QEMU."""
-    model = st.random_model(k, f, layers, hidden, decimation=d, seed=78, poly_head=True,
+    model = samples.random_model(k, f, layers, hidden, decimation=d, seed=78, poly_head=True,
                             lstm_inputs=n_in, quad_diag=diag)
     build = build_kernel(model, root=tmp_path / "host")
     text = (build.directory / "bound_model.c").read_text()
@@ -159,7 +160,7 @@ def test_cortex_m4f_narrowed_forms(k, f, layers, hidden, d, n_in, diag, tmp_path
     kernel = Kernel(model, build)
     temp, gyro = golden_inputs(model)  # the golden vectors' inputs: numpy = host first
     corrected, sf, flags = kernel.run(temp, gyro)
-    ref = st.replay(model, temp, gyro)
+    ref = reference.replay(model, temp, gyro)
     assert sf.tobytes() == ref.sf_ppm.tobytes() and np.ptp(ref.sf_ppm) > 1.0
     assert corrected.tobytes() == ref.corrected_dps.tobytes()
     assert np.array_equal(flags, ref.flags)

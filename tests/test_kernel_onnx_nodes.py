@@ -14,7 +14,7 @@ from kernel_helpers import kernel_for
 from onnx import helper
 from onnx.backend.test.case.node import lstm as onnx_lstm
 
-from fogsf.trainer.models import stream as st
+from fogsf.trainer.models import samples
 
 CASES = ["export_defaults", "export_initial_bias", "export_peepholes", "export_batchwise",
          "export_reverse", "export_bidirectional"]
@@ -74,7 +74,7 @@ def run_cell(kernel, node, inputs: list[np.ndarray]) -> dict[str, np.ndarray]:  
 
 @pytest.mark.parametrize("case", CASES)
 def test_generic_cell_passes_onnx_lstm_node_case(case, monkeypatch, kroot) -> None:
-    kernel = kernel_for(st.random_model(seed=0), kroot)
+    kernel = kernel_for(samples.random_model(seed=0), kroot)
     calls = capture(case, monkeypatch)
     assert calls, f"{case} produced no test case"
     for node, inputs, outputs, name in calls:
@@ -88,7 +88,7 @@ def test_generic_cell_passes_onnx_lstm_node_case(case, monkeypatch, kroot) -> No
 
 def test_generic_cell_matches_reference_on_random_sizes(kroot) -> None:
     """Random sizes, peepholes and biases: C cell vs ONNX's LSTMHelper (float64 maths)."""
-    kernel = kernel_for(st.random_model(seed=0), kroot)
+    kernel = kernel_for(samples.random_model(seed=0), kroot)
     rng = np.random.default_rng(17)
     for trial in range(8):
         n_in, hid, seq = (int(v) for v in rng.integers(1, 24, 3))

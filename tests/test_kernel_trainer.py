@@ -9,6 +9,7 @@ import torch
 from kernel_helpers import kernel_for
 
 from fogsf.bindings.kernel import trace_steps
+from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st
 
 features = pytest.importorskip("fogsf.trainer.models.features")
@@ -23,12 +24,12 @@ def kroot(tmp_path_factory):
 
 @pytest.mark.parametrize("layers, hidden, seed", [(1, 16, 0), (2, 7, 1)])
 def test_trainer_network_and_kernel_agree(layers, hidden, seed, kroot) -> None:
-    temp, gyro = st.chamber_ramp(hours=3.0, seed=seed)
+    temp, gyro = samples.chamber_ramp(hours=3.0, seed=seed)
     spec = features.make_features(rate_tau_s=120.0)  # the paper's inputs: T and dT/dt
     fe = st.FrontEnd(t_ref_c=20.0, t_min_c=-45.0, t_max_c=60.0, decimation=20,
                      stuck_samples=3000,
                      filter_alpha=st.filter_alpha(list(spec.taus_s), 20))
-    s = st.frontend(temp, fe).s
+    s = reference.frontend(temp, fe).s
     a = spec.matrix()
     raw = s.astype(np.float64) @ a.T
     norm = features.Normaliser((a / raw.std(axis=0)[:, None]).astype(np.float32),

@@ -231,13 +231,13 @@ def test_refusals_name_the_option_that_fixes_them(body: str, opts: list[str], ne
 
 def test_ref_sf_from_a_longer_run_makes_a_cold_log_usable(plain: Path, tmp_path: Path,
                                                           capsys) -> None:
-    from fogsf.trainer.models import stream as st
+    from fogsf.trainer.models import samples
 
     cold = tmp_path / "cold.csv"
     assert main(["simulate", "--scenario", "paper", "--start-c", "-30", "--stop-c", "-10",
                  "--ramp-rate", "2", "--seed", "4", "--out", str(cold)]) == 0
     capsys.readouterr()
-    model = st.random_model(3, 4, 1, 8, decimation=10, seed=6)
+    model = samples.random_model(3, 4, 1, 8, decimation=10, seed=6)
     model.save(tmp_path / "m")
     argvs = {"inspect": ["inspect", str(cold)],
              "train": ["train", "--train", str(cold), "--model", "poly", "--out",

@@ -25,6 +25,7 @@ from fogsf.trainer.logs.logio import (
     write_log,
 )
 from fogsf.trainer.logs.metrics import sf_windows
+from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st
 from fogsf.trainer.models.features import front_end_for
 
@@ -155,7 +156,7 @@ def test_model_step_is_seconds_and_re_rating_keeps_it() -> None:
 
 
 def test_re_rated_model_keeps_its_step_and_comes_back_to_its_id() -> None:
-    model = st.random_model(2, 3, 1, 8, decimation=50, seed=4, taus_s=[200.0, 900.0],
+    model = samples.random_model(2, 3, 1, 8, decimation=50, seed=4, taus_s=[200.0, 900.0],
                             stuck_samples=36000)
     fast = model.at_rate(0.001)
     assert (fast.decimation, fast.stuck_samples) == (5000, 3_600_000)
@@ -175,21 +176,21 @@ def test_re_rated_model_keeps_its_step_and_comes_back_to_its_id() -> None:
 
 
 def test_kernel_at_1khz_is_bit_exact() -> None:
-    model = st.random_model(2, 3, 1, 8, decimation=50, seed=8, taus_s=[120.0, 600.0],
+    model = samples.random_model(2, 3, 1, 8, decimation=50, seed=8, taus_s=[120.0, 600.0],
                             poly_head=True).at_rate(0.001)
     rng = np.random.default_rng(8)
     n = 120_000  # 2 min at 1 kHz: 24 model steps
     temp = (20 + np.cumsum(rng.normal(0, 0.002, n)) + rng.normal(0, 0.05, n)).astype(np.float32)
     gyro = 10.0 + rng.normal(0, 0.01, n)
     got = Kernel(model, build_kernel(model)).run(temp, gyro)
-    want = st.replay(model, temp, gyro)
+    want = reference.replay(model, temp, gyro)
     assert got[1].tobytes() == want.sf_ppm.tobytes()
     assert got[0].tobytes() == want.corrected_dps.tobytes()
 
 
 def test_a_day_at_100hz_through_the_kernel_is_bit_exact() -> None:
     """24 h at 100 Hz (8.64 million samples): counters and the held output stay exact."""
-    model = st.random_model(2, 3, 1, 8, decimation=50, seed=9, taus_s=[300.0, 1800.0],
+    model = samples.random_model(2, 3, 1, 8, decimation=50, seed=9, taus_s=[300.0, 1800.0],
                             poly_head=True, stuck_samples=36000).at_rate(0.01)
     n = 24 * 3600 * 100
     t = np.arange(n) * 0.01
@@ -197,7 +198,7 @@ def test_a_day_at_100hz_through_the_kernel_is_bit_exact() -> None:
             + np.random.default_rng(9).normal(0, 0.03, n)).astype(np.float32)
     gyro = np.full(n, 10.0)
     got = Kernel(model, build_kernel(model)).run(temp, gyro)
-    want = st.replay(model, temp, gyro)
+    want = reference.replay(model, temp, gyro)
     assert got[1].tobytes() == want.sf_ppm.tobytes()
     assert np.array_equal(got[2], want.flags) and not got[2].any()
 

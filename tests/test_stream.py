@@ -1,4 +1,4 @@
-"""The numpy reference of the streaming contract (trainer/stream.py)."""
+"""The numpy reference of the streaming contract (fogsf/trainer/models/: stream, reference, f32)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from fogsf.trainer.errors import UserError
+from fogsf.trainer.models import f32, reference, samples
 from fogsf.trainer.models import stream as st
 
 F32 = np.float32
@@ -81,12 +82,12 @@ def test_frontend_matches_per_sample_state_machine_bit_for_bit(seed: int) -> Non
     rng = np.random.default_rng(seed)
     decimation = int(rng.integers(1, 13))
     k = int(rng.integers(0, 4))
-    model = st.random_model(filters=k, decimation=decimation, seed=seed,
+    model = samples.random_model(filters=k, decimation=decimation, seed=seed,
                             stuck_samples=int(rng.integers(0, 60)))
     n = int(rng.integers(500, 3000))
     temp = bad_temperature_log(seed, n)
     fe = model.front_end
-    out = st.frontend(temp, fe)
+    out = reference.frontend(temp, fe)
     steps, rows, flags = scalar_frontend(temp, fe)
     assert out.step_index.tolist() == steps, f"seed {seed}"
     np.testing.assert_array_equal(out.s.view(np.uint32), rows.view(np.uint32),
@@ -100,9 +101,9 @@ def test_frontend_matches_per_sample_state_machine_bit_for_bit(seed: int) -> Non
 
 
 def test_invalid_first_samples_use_t_ref_and_stuck_counts_repeats() -> None:
-    model = st.random_model(filters=1, decimation=1, stuck_samples=3, t_ref_c=20.0)
+    model = samples.random_model(filters=1, decimation=1, stuck_samples=3, t_ref_c=20.0)
     temp = np.array([np.nan, 25.0, 25.0, 25.0, 25.0, 25.0, 26.0])
-    out = st.frontend(temp, model.front_end)
+    out = reference.frontend(temp, model.front_end)
     assert out.s[0, 0] == 0.0  # Tm = t_ref
     assert out.flags.tolist() == [1, 0, 0, 0, 4, 4, 0]
 
@@ -110,13 +111,13 @@ def test_invalid_first_samples_use_t_ref_and_stuck_counts_repeats() -> None:
 def test_activations_close_to_exact() -> None:
     x = np.linspace(-30, 30, 400001).astype(np.float32)
     xd = x.astype(np.float64)
-    assert np.max(np.abs(st.sigmoid_f32(x) - 1 / (1 + np.exp(-xd)))) < 1.2e-7
-    assert np.max(np.abs(st.tanh_f32(x) - np.tanh(xd))) < 1.2e-7
-    e = st.exp_f32(x).astype(np.float64)
+    assert np.max(np.abs(f32.sigmoid_f32(x) - 1 / (1 + np.exp(-xd)))) < 1.2e-7
+    assert np.max(np.abs(f32.tanh_f32(x) - np.tanh(xd))) < 1.2e-7
+    e = f32.exp_f32(x).astype(np.float64)
     assert np.max(np.abs(e / np.exp(xd) - 1)) < 2.5e-7
     # total: NaN and huge inputs give finite, saturated values
     odd = np.array([np.nan, np.inf, -np.inf, 1e30, -1e30], np.float32)
-    assert np.all(np.isfinite(st.sigmoid_f32(odd))) and np.all(np.isfinite(st.tanh_f32(odd)))
+    assert np.all(np.isfinite(f32.sigmoid_f32(odd))) and np.all(np.isfinite(f32.tanh_f32(odd)))
 
 
 def test_gate_order_converters_match_torch() -> None:
@@ -133,7 +134,7 @@ def test_gate_order_converters_match_torch() -> None:
                                     p["bias_hh_l0"])
     h, c = h0[0, 0].numpy(), c0[0, 0].numpy()
     for t in range(6):
-        h, c = st.lstm_cell(w, r, b, x[t, 0].numpy(), h, c)
+        h, c = reference.lstm_cell(w, r, b, x[t, 0].numpy(), h, c)
         np.testing.assert_allclose(h, y_t[t, 0].numpy(), atol=2e-6)
     np.testing.assert_allclose(c, c_t[0, 0].numpy(), atol=2e-6)
     back = st.onnx_to_torch_lstm(w, r, b)
@@ -143,12 +144,12 @@ def test_gate_order_converters_match_torch() -> None:
 
 
 def test_save_load_roundtrip_and_model_id(tmp_path) -> None:
-    model = st.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9)
+    model = samples.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9)
     model.save(tmp_path / "m")
     again = st.StreamModel.load(tmp_path / "m")
     assert again.model_id == model.model_id
     assert again.params == model.params
-    other = st.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9)
+    other = samples.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9)
     other.weights["lstm1_r"][0, 0] = np.nextafter(other.weights["lstm1_r"][0, 0], F32(9))
     assert other.model_id != model.model_id
 
@@ -165,7 +166,7 @@ def test_save_load_roundtrip_and_model_id(tmp_path) -> None:
     (lambda d: _edit_weights(d, "head_w", lambda a: a * np.nan), "NaN"),
 ])
 def test_load_refuses_broken_artifacts(tmp_path, breakage, message) -> None:
-    st.random_model(seed=1).save(tmp_path / "m")
+    samples.random_model(seed=1).save(tmp_path / "m")
     breakage(tmp_path / "m")
     with pytest.raises(UserError, match=message):
         st.StreamModel.load(tmp_path / "m")
@@ -185,12 +186,12 @@ def _edit_weights(d, name, fn) -> None:
 
 
 def test_replay_is_total_and_flags_bad_gyro() -> None:
-    model = st.random_model(filters=2, decimation=3, seed=4, stuck_samples=10)
+    model = samples.random_model(filters=2, decimation=3, seed=4, stuck_samples=10)
     n = 400
     temp = bad_temperature_log(4, n)
     gyro = np.full(n, 10.0)
     gyro[[5, 50, 300]] = [np.nan, np.inf, 1.7e308]
-    out = st.replay(model, temp, gyro)
+    out = reference.replay(model, temp, gyro)
     assert np.all(np.isfinite(out.corrected_dps)) and np.all(np.isfinite(out.sf_ppm))
     assert np.all(out.flags[[5, 50]] & st.FLAG_GYRO_INVALID)
     assert out.corrected_dps[5] == 0.0
@@ -200,20 +201,20 @@ def test_replay_is_total_and_flags_bad_gyro() -> None:
 
 
 def test_sf_clamp_flags_a_broken_model() -> None:
-    model = st.random_model(seed=2)
+    model = samples.random_model(seed=2)
     model.weights["out_scale"][0] = F32(1e30)
-    out = st.replay(model, np.full(30, 30.0), np.full(30, 10.0))
+    out = reference.replay(model, np.full(30, 30.0), np.full(30, 10.0))
     assert np.all(np.abs(out.sf_ppm) <= st.SF_LIMIT_PPM)
     assert np.all(out.flags & st.FLAG_SF_CLAMPED)
     assert np.all(np.isfinite(out.corrected_dps))
 
 
 def test_random_model_is_seeded_and_not_saturated() -> None:
-    a = st.random_model(filters=2, n_features=4, layers=2, hidden=16, decimation=10, seed=5)
-    b = st.random_model(filters=2, n_features=4, layers=2, hidden=16, decimation=10, seed=5)
+    a = samples.random_model(filters=2, n_features=4, layers=2, hidden=16, decimation=10, seed=5)
+    b = samples.random_model(filters=2, n_features=4, layers=2, hidden=16, decimation=10, seed=5)
     assert a.model_id == b.model_id
-    temp, _ = st.chamber_ramp(hours=2.0, seed=5)
-    steps = st.run_steps(a, st.frontend(temp, a.front_end).s)
+    temp, _ = samples.chamber_ramp(hours=2.0, seed=5)
+    steps = reference.run_steps(a, reference.frontend(temp, a.front_end).s)
     frac_saturated = np.mean(np.abs(steps.h_last) > 0.95)
     assert frac_saturated < 0.05
     assert np.ptp(steps.h_last) > 0.2  # the LSTM does move
@@ -232,7 +233,7 @@ def test_old_artifact_without_poly_key_loads_with_its_old_model_id(tmp_path) -> 
     assert old.poly_head is False and "poly_head" not in old.extra
     assert old.model_id == FIXTURE_ID
     # a saved model now says "poly_head": false; with or without the key, one id
-    model = st.random_model(filters=2, n_features=3, layers=1, hidden=4, seed=8)
+    model = samples.random_model(filters=2, n_features=3, layers=1, hidden=4, seed=8)
     model.save(tmp_path / "m")
     assert json.loads((tmp_path / "m" / "stream.json").read_text())["poly_head"] is False
     _edit_cfg_drop(tmp_path / "m", "poly_head")
@@ -247,8 +248,8 @@ def _edit_cfg_drop(d, key: str) -> None:
 
 
 def test_poly_model_roundtrips_and_keeps_the_other_draws(tmp_path) -> None:
-    plain = st.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9)
-    poly = st.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9,
+    plain = samples.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9)
+    poly = samples.random_model(filters=2, n_features=3, layers=2, hidden=4, decimation=5, seed=9,
                            poly_head=True)
     assert set(poly.weights) - set(plain.weights) == {"quad_w", "cube_w"}
     for name, arr in plain.weights.items():
@@ -273,7 +274,7 @@ def test_poly_model_roundtrips_and_keeps_the_other_draws(tmp_path) -> None:
     (lambda d: _edit_cfg(d, poly_head=False), "holds cube_w, quad_w but poly_head is false"),
 ])
 def test_load_refuses_broken_poly_artifacts(tmp_path, breakage, message) -> None:
-    st.random_model(seed=1, poly_head=True).save(tmp_path / "m")
+    samples.random_model(seed=1, poly_head=True).save(tmp_path / "m")
     breakage(tmp_path / "m")
     with pytest.raises(UserError, match=message):
         st.StreamModel.load(tmp_path / "m")
@@ -291,23 +292,24 @@ def test_poly_head_carries_the_polynomial_in_kernel_order(seed) -> None:
     contract's order (a scalar loop written here) and within float32 rounding of the exact
     quadratic + cubic in z; with everything on, y = linear head + polynomial."""
     rng = np.random.default_rng(seed)
-    model = st.random_model(filters=int(rng.integers(0, 3)), n_features=int(rng.integers(1, 6)),
-                            decimation=int(rng.integers(1, 5)), seed=seed, poly_head=True)
+    model = samples.random_model(filters=int(rng.integers(0, 3)),
+                                 n_features=int(rng.integers(1, 6)),
+                                 decimation=int(rng.integers(1, 5)), seed=seed, poly_head=True)
     temp = np.linspace(-45.0, 55.0, 400 * model.decimation) + rng.normal(0, 0.05)
-    s = st.frontend(temp, model.front_end).s
-    z = st.features(model, s)
+    s = reference.frontend(temp, model.front_end).s
+    z = reference.features(model, s)
     q, c = model.weights["quad_w"], model.weights["cube_w"]
     exact = (np.einsum("ni,ij,nj->n", z.astype(np.float64), q.astype(np.float64),
                        z.astype(np.float64)) + (z.astype(np.float64) ** 3) @ c)
     assert np.ptp(exact) > 0.05, f"seed {seed}: the polynomial barely moves"
-    full = st.run_steps(model, s)
-    linear = st.random_model(filters=model.n_filters, n_features=model.n_features,
+    full = reference.run_steps(model, s)
+    linear = samples.random_model(filters=model.n_filters, n_features=model.n_features,
                              decimation=model.decimation, seed=seed)
-    y_lin = st.run_steps(linear, s).y
+    y_lin = reference.run_steps(linear, s).y
     np.testing.assert_allclose(full.y, y_lin + exact, atol=2e-6, err_msg=f"seed {seed}")
     for name in ("head_w", "head_b", "skip_w"):
         model.weights[name] = np.zeros_like(model.weights[name])
-    y = st.run_steps(model, s).y
+    y = reference.run_steps(model, s).y
     for m in range(0, z.shape[0], 7):
         acc = F32(0)
         for i in range(z.shape[1]):
@@ -344,8 +346,8 @@ def test_old_artifact_saves_again_without_the_new_keys(tmp_path) -> None:
 
 def test_lstm_inputs_equal_to_f_is_the_old_model(tmp_path) -> None:
     """lstm_inputs = F changes nothing: same id, not written, same outputs."""
-    plain = st.random_model(2, 4, 1, 6, 5, seed=12, poly_head=True)
-    same = st.random_model(2, 4, 1, 6, 5, seed=12, poly_head=True, lstm_inputs=4)
+    plain = samples.random_model(2, 4, 1, 6, 5, seed=12, poly_head=True)
+    same = samples.random_model(2, 4, 1, 6, 5, seed=12, poly_head=True, lstm_inputs=4)
     assert same.model_id == plain.model_id and not same.lstm_inputs_narrowed
     same.save(tmp_path / "m")
     assert "lstm_inputs" not in json.loads((tmp_path / "m" / "stream.json").read_text())
@@ -353,7 +355,7 @@ def test_lstm_inputs_equal_to_f_is_the_old_model(tmp_path) -> None:
 
 @pytest.mark.parametrize("n_in, diag", [(1, True), (3, False), (5, True), (2, True)])
 def test_new_forms_roundtrip_and_enter_the_id(n_in, diag, tmp_path) -> None:
-    model = st.random_model(3, 5, 2, 6, 4, seed=13, poly_head=True,
+    model = samples.random_model(3, 5, 2, 6, 4, seed=13, poly_head=True,
                             lstm_inputs=n_in, quad_diag=diag)
     assert model.weights["lstm0_w"].shape == (24, n_in)
     assert model.weights["lstm1_w"].shape == (24, 6)
@@ -373,7 +375,7 @@ def test_new_forms_roundtrip_and_enter_the_id(n_in, diag, tmp_path) -> None:
         with pytest.raises(UserError, match="quad_w"):
             replace(again, quad_diag=False).validate()
     ids = {model.model_id,
-           st.random_model(3, 5, 2, 6, 4, seed=13, poly_head=True).model_id}
+           samples.random_model(3, 5, 2, 6, 4, seed=13, poly_head=True).model_id}
     assert len(ids) == 2 or (n_in == 5 and not diag)
 
 
@@ -381,7 +383,7 @@ def test_new_forms_compute_the_full_model_with_zeros_bit_for_bit() -> None:
     """quad_diag = a full quad_w with that diagonal; lstm_inputs N = a full lstm0_w whose
     columns N.. are zero: adding the zero terms changes no bit, so the narrowed forms compute
     exactly the model they stand for (and their op order is the contract's)."""
-    narrow = st.random_model(4, 5, 1, 8, 3, seed=14, poly_head=True, lstm_inputs=2,
+    narrow = samples.random_model(4, 5, 1, 8, 3, seed=14, poly_head=True, lstm_inputs=2,
                              quad_diag=True)
     w = dict(narrow.weights)
     w["quad_w"] = np.diag(narrow.weights["quad_w"]).astype(np.float32)
@@ -390,8 +392,8 @@ def test_new_forms_compute_the_full_model_with_zeros_bit_for_bit() -> None:
     w["lstm0_w"] = lstm_w
     full = replace(narrow, weights=w, lstm_inputs=None, quad_diag=False)
     full.validate()
-    temp, gyro = st.chamber_ramp(hours=1.0, seed=14)
-    a, b = st.replay(narrow, temp, gyro), st.replay(full, temp, gyro)
+    temp, gyro = samples.chamber_ramp(hours=1.0, seed=14)
+    a, b = reference.replay(narrow, temp, gyro), reference.replay(full, temp, gyro)
     assert np.ptp(a.sf_ppm) > 10.0
     assert a.sf_ppm.tobytes() == b.sf_ppm.tobytes()
     assert a.corrected_dps.tobytes() == b.corrected_dps.tobytes()
@@ -400,7 +402,7 @@ def test_new_forms_compute_the_full_model_with_zeros_bit_for_bit() -> None:
     w2 = dict(w)
     w2["lstm0_w"] = lstm_w + np.float32(0.5) * (np.arange(5) >= 2).astype(np.float32)
     wider = replace(full, weights=w2)
-    assert st.replay(wider, temp, gyro).sf_ppm.tobytes() != a.sf_ppm.tobytes()
+    assert reference.replay(wider, temp, gyro).sf_ppm.tobytes() != a.sf_ppm.tobytes()
 
 
 @pytest.mark.parametrize("breakage, message", [
@@ -416,7 +418,7 @@ def test_new_forms_compute_the_full_model_with_zeros_bit_for_bit() -> None:
     (lambda d: _edit_weights(d, "quad_w", lambda a: np.diag(a).copy()), "quad_w.*shape"),
 ])
 def test_load_refuses_bad_new_keys(tmp_path, breakage, message) -> None:
-    st.random_model(2, 4, 1, 6, 5, seed=15, poly_head=True, lstm_inputs=2,
+    samples.random_model(2, 4, 1, 6, 5, seed=15, poly_head=True, lstm_inputs=2,
                     quad_diag=True).save(tmp_path / "m")
     breakage(tmp_path / "m")
     with pytest.raises(UserError, match=message):

@@ -12,7 +12,8 @@ from ramp_logs import short_ramp
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.logio import ChamberLog
-from fogsf.trainer.models.stream import StreamModel, replay
+from fogsf.trainer.models.reference import replay
+from fogsf.trainer.models.stream import StreamModel
 from fogsf.trainer.training.train import TrainOptions, per_sample_prediction, run_training
 
 

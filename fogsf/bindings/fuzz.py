@@ -20,6 +20,7 @@ from pathlib import Path
 from fogsf.bindings.kernel import C_DIR, STRICT
 from fogsf.export.header import write_model
 from fogsf.trainer.errors import UserError
+from fogsf.trainer.models import samples
 from fogsf.trainer.models import stream as st
 
 FUZZ_DIR = C_DIR / "fuzz"
@@ -31,7 +32,7 @@ STEPS_RE = re.compile(r"fuzz steps: (\d+)")
 
 
 def fuzz_model() -> st.StreamModel:
-    return st.random_model(1, 1, 1, 16, decimation=2, seed=11, stuck_samples=5,
+    return samples.random_model(1, 1, 1, 16, decimation=2, seed=11, stuck_samples=5,
                            poly_head=True)
 
 

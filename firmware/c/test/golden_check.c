@@ -1,5 +1,5 @@
 /*
- * Golden-vector check: the expected outputs (golden_vectors.h, written by bindings/firmware.py
+ * Golden-vector check: the expected outputs (golden_vectors.h, written by fogsf/bindings/firmware.py
  * from the host build) are compared bit for bit: sf_ppm as float32 bits, the corrected rate
  * as float64 bits, the flags exactly. Mismatches are printed with their index (first 10).
  */

@@ -58,7 +58,7 @@ to log10 lr -4..-1) make GSA move mostly along the wide ones. ``normalize=True``
 agents in the unit cube instead (each parameter's search range mapped to [0, 1]); with the
 same seed it is the raw search with G0 divided by the box width. For hyper-parameter
 searches of tens of iterations use ``minimize(..., **SHORT_BUDGET)`` (normalize, G0 = 3,
-alpha = 2): ``python -m benchmarks.gsa_short_budget`` measures it against random search
+alpha = 2): ``python -m benchmarks.probes.gsa_short_budget`` measures it against random search
 and the defaults at equal evaluation counts.
 """
 
@@ -86,7 +86,7 @@ BOUNDS = ("reflect", "clip", "random")
 
 # Settings for hyper-parameter searches of a few hundred evaluations (tens of iterations):
 # every parameter mapped to [0, 1], gentler gravity. On synthetic problems over the paper's
-# Table 1 space (python -m benchmarks.gsa_short_budget) these beat random search at equal
+# Table 1 space (python -m benchmarks.probes.gsa_short_budget) these beat random search at equal
 # evaluations, where Rashedi's constants (tuned for T = 1000) do worse than random search.
 SHORT_BUDGET: dict[str, Any] = {"normalize": True, "g0": 3.0, "alpha": 2.0}
 

@@ -1,7 +1,7 @@
 """Model inputs and training targets at the model rate (one step per D samples).
 
 Every model sees only what firmware has: the board thermometer, through the front end of the
-streaming contract (`models.stream.frontend`: the sanitised temperature, block means of
+streaming contract (`models.reference.frontend`: the sanitised temperature, block means of
 D samples, first-order lag filters). Features are linear in the front end's
 s = [Tm - t_ref, y_1 - t_ref, ..., y_K - t_ref]: raw rows `A` (e.g. T, a filtered dT/dt,
 lag-filtered temperatures) normalised on the training data, so that z = feat_w s + feat_b
@@ -19,7 +19,8 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.logio import DT_TOLERANCE, ChamberLog, rate_text
-from fogsf.trainer.models.stream import FrontEnd, decimation_for, filter_alpha, frontend
+from fogsf.trainer.models.reference import frontend
+from fogsf.trainer.models.stream import FrontEnd, decimation_for, filter_alpha
 
 T_REF_C = 20.0
 RANGE_MARGIN_C = 5.0  # the valid input range is the training range widened by this

@@ -50,7 +50,8 @@ from fogsf.trainer.models.features import (
     step_targets,
 )
 from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, BankFit, bank_spec, fit_bank, n_curved
-from fogsf.trainer.models.stream import FrontEnd, StreamModel, decimation_for, expand
+from fogsf.trainer.models.reference import expand
+from fogsf.trainer.models.stream import FrontEnd, StreamModel, decimation_for
 from fogsf.trainer.training.transfer import ramp_segments, rate_transfer, training_ramp_rates
 
 if TYPE_CHECKING:  # training.fit imports torch; commands import this module at start-up

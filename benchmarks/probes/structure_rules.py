@@ -17,7 +17,7 @@ for these rules (all fitted on the protocol's training logs, scored on its test 
 
 Run it on development seeds only (the choice it informs is tuned there):
 
-    python -m benchmarks.structure_rules --first 1 --n 24 --protocols a,b,c,d,e
+    python -m benchmarks.probes.structure_rules --first 1 --n 24 --protocols a,b,c,d,e
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from fogsf.trainer.models.least_squares import (
     grid_data,
     node_candidates,
 )
-from fogsf.trainer.models.stream import expand
+from fogsf.trainer.models.reference import expand
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
 from fogsf.trainer.training.train import TrainOptions, bank_data, training_inputs
 from fogsf.trainer.training.transfer import CHI2_ALLOWANCE, long_run_ratio
@@ -113,7 +113,8 @@ def bank_rules(train: list, test) -> dict[str, np.ndarray]:  # noqa: ANN001
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="example: python -m benchmarks.structure_rules --first 1 --n 4 --protocols a,b")
+        epilog="example: python -m benchmarks.probes.structure_rules --first 1 --n 4 "
+               "--protocols a,b")
     ap.add_argument("--first", type=int, default=1)
     ap.add_argument("--n", type=int, default=24)
     ap.add_argument("--protocols", default="a,b,c,d,e")

@@ -6,7 +6,7 @@ log with each way of filling the samples between steps: held, linear extrapolati
 last two steps (causal), linear interpolation one step late (causal), and interpolation to
 the next step (needs the future: a bound, not an option for firmware).
 
-    python -m benchmarks.hold_vs_interp out/demo/model out/demo/run10.csv
+    python -m benchmarks.probes.hold_vs_interp out/demo/model out/demo/run10.csv
 """
 
 from __future__ import annotations
@@ -20,14 +20,15 @@ import numpy as np
 
 from fogsf.trainer.logs.logio import read_log
 from fogsf.trainer.logs.metrics import log_metrics
+from fogsf.trainer.models import reference
 from fogsf.trainer.models import stream as st
 
 
 def variants(model: st.StreamModel, log) -> dict[str, np.ndarray]:  # noqa: ANN001
     """Per-sample SF predictions (ppm) of each way of filling between model steps."""
-    fe = st.frontend(log.temp_c, model.front_end)
-    sf = st.run_steps(model, fe.s).sf_ppm.astype(np.float64)
-    held = st.replay(model, log.temp_c, log.gyro_dps).sf_ppm.astype(np.float64)
+    fe = reference.frontend(log.temp_c, model.front_end)
+    sf = reference.run_steps(model, fe.s).sf_ppm.astype(np.float64)
+    held = reference.replay(model, log.temp_c, log.gyro_dps).sf_ppm.astype(np.float64)
     n, d, m = len(log.temp_c), model.decimation, len(sf)
     i = np.arange(n)
     k = np.minimum(i // d, m - 1)

@@ -8,7 +8,7 @@ fastest lags) for several N on the same population gyros and protocols, and prin
 RMS / noise floor (median, p90, worst) per variant. A variant `N@S` trains with the seed
 shifted by S, which measures the seed-to-seed noise of the same structure.
 
-    python -m benchmarks.lstm_inputs --n 8 --variants 12,12@1,1,3 --protocols a,b,e
+    python -m benchmarks.probes.lstm_inputs --n 8 --variants 12,12@1,1,3 --protocols a,b,e
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ log from the zero state firmware starts from), on protocol (e) of the population
 (one loop 1 up / 2 down C/min with 30 min soaks, tested on 1 up / 1.5 down) and (b).
 Prints test RMS / noise floor per gyro and median / worst.
 
-    python -m benchmarks.lstm_window --first 1 --n 6 --out out/lstm-window.json
+    python -m benchmarks.probes.lstm_window --first 1 --n 6 --out out/lstm-window.json
 """
 
 from __future__ import annotations

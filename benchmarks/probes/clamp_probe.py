@@ -7,7 +7,7 @@ training range [min, max] before the polynomial (every term, or the squares and 
 only, the linear terms extrapolating), against no clamp: test RMS / noise floor.
 A probe for the kernel change, not the kernel change.
 
-    python -m benchmarks.clamp_probe --first 1 --n 16
+    python -m benchmarks.probes.clamp_probe --first 1 --n 16
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import sys
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from benchmarks.structure_rules import bank_inputs, ratio
+from benchmarks.probes.structure_rules import bank_inputs, ratio
 from fogsf.trainer.models.lag_bank import fit_bank, n_curved
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
 

@@ -14,7 +14,7 @@ Problems: a bowl sum (u - c)^2 and a rotated ellipsoid (condition 100), random c
 each drawn from a seeded generator. Figure: the best fitness found, mean and median over
 problems (the optimum is 0 up to integer rounding).
 
-    python -m benchmarks.gsa_short_budget [--problems 40] [--budgets 8x8 10x20 20x30]
+    python -m benchmarks.probes.gsa_short_budget [--problems 40] [--budgets 8x8 10x20 20x30]
 """
 
 from __future__ import annotations
@@ -68,7 +68,7 @@ VARIANTS: list[tuple[str, dict]] = [
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m benchmarks.gsa_short_budget",
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.probes.gsa_short_budget",
                                  description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--problems", type=int, default=40, help="problems per kind (40)")

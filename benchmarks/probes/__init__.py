@@ -1,0 +1,1 @@
+"""One-off probes: each reproduces the evidence behind one default (docs/decisions.md)."""
