@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+import shlex
 from pathlib import Path
 
 import numpy as np
@@ -121,3 +123,30 @@ def test_cli_refusal_is_one_line_no_traceback(tmp_path: Path) -> None:
     assert r.returncode == 2
     assert "Traceback" not in r.stderr
     assert f"{p}: line 5: zero table rate" in r.stderr
+
+
+def test_header_only_file_is_one_clean_line(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    p = tmp_path / "empty.csv"
+    p.write_text("time_s,temp_c,table_rate_dps,gyro_dps\n")
+    r = subprocess.run([sys.executable, "-W", "default", "-m", "fogsf", "inspect", str(p)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [
+        f"fogsf inspect: error: {p}: line 1: empty file: a header but no data rows"], r.stderr
+
+
+@pytest.mark.parametrize("name", ["gx[dps]", "gyro_x", "wz", "omega_y"])
+def test_a_gyro_like_column_suggests_gyro_column(name: str) -> None:
+    text = csv(good_rows()).replace("gyro_dps", name, 1)
+    with pytest.raises(LogError, match=re.escape(f"--gyro-column {shlex.quote(name)}")):
+        parse_log(text, "x.csv")
+
+
+def test_no_gyro_like_column_gets_the_column_map_hint() -> None:
+    text = csv(good_rows()).replace("gyro_dps", "temp_x", 1)
+    with pytest.raises(LogError, match="--columns") as e:
+        parse_log(text, "x.csv")
+    assert "--gyro-column" not in str(e.value)

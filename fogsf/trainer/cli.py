@@ -29,6 +29,24 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+# A value such as -20:60 (LO:HI with a negative LO) is not a negative number to argparse,
+# which takes it for an option: it is joined to its option (--range -20:60 -> --range=-20:60).
+NEGATIVE_RANGE = re.compile(r"^-\d*\.?\d+(?:[eE][-+]?\d+)?:[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?$")
+
+
+def join_negative_ranges(argv: list[str]) -> list[str]:
+    """`--opt -20:60` -> `--opt=-20:60`, so that argparse reads the range as a value."""
+    out: list[str] = []
+    for arg in argv:
+        prev = out[-1] if out else ""
+        if (NEGATIVE_RANGE.match(arg) and prev.startswith("--") and "=" not in prev
+                and prev != "--"):
+            out[-1] = f"{prev}={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 EXAMPLE_HEAD = re.compile(r"^(examples?):", re.IGNORECASE | re.MULTILINE)
 
 
@@ -62,6 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = join_negative_ranges(sys.argv[1:] if argv is None else list(argv))
     args = build_parser().parse_args(argv)
     try:
         return int(args._run(args) or 0)

@@ -77,9 +77,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="time constant of the dT/dt filter (default 120 s)")
     parser.add_argument("--structure", choices=("bank", "node"), default=None,
                         help="lag-lstm's physics part: bank (default: T and its lags at 11 "
-                             "time constants from 60 s to 2 h, each a cubic, ridge by GCV; "
-                             "chosen over the gyro population, docs/population.md) or node "
-                             "(one or two effective nodes, --nodes; the previous default)")
+                             "time constants from 60 s to 2 h, cubic up to 2000 s and linear "
+                             "beyond, ridge with one fixed prior; docs/decisions.md) or node "
+                             "(one or two effective nodes with a cubic, --nodes)")
     parser.add_argument("--nodes", type=int, choices=(1, 2), default=None,
                         help="effective sensing nodes of lag-lstm with --structure node "
                              "(default 1; 2 needs training logs at two or more ramp rates)")

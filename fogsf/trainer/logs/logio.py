@@ -20,7 +20,9 @@ import io
 import json
 import math
 import re
+import shlex
 import tomllib
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -320,13 +322,25 @@ def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
     return out
 
 
+# A column that looks like a gyro's rate: gx, gx[dps], gyro_x, wx, omega_z, ...
+GYRO_LIKE = re.compile(r"(?i)gyro|^(gyr|g|w|omega)[_ -]?[xyz](?![a-z0-9])")
+
+
 def _missing_hint(missing: list[str], header: list[str]) -> str:
     axes = [h for h in header if re.fullmatch(r"gyro_\w+_dps", h)]
     if "gyro_dps" in missing and axes:
         axis = axes[0][len("gyro_"):-len("_dps")]
         return (f"; the log has {', '.join(axes)}: pick one with --gyro-column {axes[0]} "
                 f"(or --axis {axis})")
-    return f"; {COLUMNS_HINT}"
+    hints = []
+    if "gyro_dps" in missing:
+        like = [h for h in header if h not in REQUIRED + OPTIONAL and GYRO_LIKE.search(h)]
+        if like:
+            hints.append(f"the gyro's rate (deg/s) may be {', '.join(like)}: read it with "
+                         f"--gyro-column {shlex.quote(like[0])}")
+    if set(missing) - {"gyro_dps"} or not hints:
+        hints.append(COLUMNS_HINT)
+    return "; " + "; ".join(hints)
 
 
 def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
@@ -370,7 +384,9 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
             notes: list[str] = []
             delim = _delimiter(first, p, dialect, notes)
             header = _header(first, delim, p, dialect, notes)
-            data = np.loadtxt(f, delimiter=delim, dtype=np.float64, ndmin=2, comments=None)
+            with warnings.catch_warnings():  # a header-only file is refused below, not warned
+                warnings.filterwarnings("ignore", "loadtxt: input contained no data")
+                data = np.loadtxt(f, delimiter=delim, dtype=np.float64, ndmin=2, comments=None)
     except (OSError, UnicodeDecodeError, ValueError):
         return None
     if (data.shape[0] != _data_lines(path) or data.shape[1] != len(header)

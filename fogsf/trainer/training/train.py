@@ -299,7 +299,8 @@ def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec
     sm = to_stream_model(net, kind, spec, norm, fe, offset, scale,
                          extra={"hyper": asdict(lstm_cfg), **({"structure": "lag-bank"}
                                                                if head is not None else {})})
-    n = count_params(net)
+    n = sm.params  # the artifact's count, as `fogsf export` prints it (filter alphas and the
+    # polynomial head included; the torch net holds the LSTM and linear head only)
     return Fitted(kind, spec, fe, lambda d: predict_stream(net, norm.apply(d.s)) * scale
                   + offset, n, 4 * n, info, stream_model=sm, torch_state=net.state_dict())
 
