@@ -20,7 +20,18 @@ import json
 import numpy as np
 import pytest
 
-from fogsf.trainer.diagnose import cases, catalogue, design, driver, extend, report, runs, verdict
+from fogsf.trainer.diagnose import (
+    cases,
+    catalogue,
+    design,
+    driver,
+    extend,
+    fits,
+    report,
+    runs,
+    selection,
+    verdict,
+)
 from fogsf.trainer.logs.logio import ChamberLog
 from fogsf.trainer.sim.config import SimConfig
 from fogsf.trainer.sim.gyro import simulate
@@ -35,7 +46,7 @@ def _draws(tag: str, n: int, span: tuple[float, float]) -> list[tuple[int, float
     return [(int(rng.integers(0, 1_000_000)), float(rng.uniform(*span))) for _ in range(n)]
 
 
-def _run(case: cases.Case) -> tuple[cases.Outcome, dict, verdict.Diagnosis]:
+def _run(case: cases.Case) -> tuple[cases.Outcome, dict, fits.Diagnosis]:
     logs, truth = cases.build(case)
     d = verdict.diagnose(logs)
     j = report.to_json(d, {}, None)
@@ -123,7 +134,7 @@ def test_weak_aging_on_a_warm_start_is_not_taken_for_a_warmup(seed: int,
     assert out.ok, f"[{case.describe()}] -> {out.reason}; ambiguous={j['ambiguous']}"
 
 
-def _nested_pair(rng: np.random.Generator) -> tuple[list[verdict.CandidateResult], np.ndarray,
+def _nested_pair(rng: np.random.Generator) -> tuple[list[fits.CandidateResult], np.ndarray,
                                                     np.ndarray]:
     """extra_lag a little but clearly better than temp_rate on every held-out block."""
     n = 90
@@ -132,9 +143,9 @@ def _nested_pair(rng: np.random.Generator) -> tuple[list[verdict.CandidateResult
     e_big = e_small * 0.97
     out = []
     for name, e in (("extra_lag", e_big), ("temp_rate", e_small)):
-        m = verdict.ModelFit(None, None, None, e, 1.0)  # type: ignore[arg-type]
-        out.append(verdict.CandidateResult(name, True, 1.0, {"tau_s": 9000.0},
-                                           heldout_after=float(np.sqrt(np.mean(e * e))),
+        m = fits.ModelFit(None, None, None, e, 1.0)  # type: ignore[arg-type]
+        out.append(fits.CandidateResult(name, True, 1.0, {"tau_s": 9000.0},
+                                        heldout_after=float(np.sqrt(np.mean(e * e))),
                                            significant=True, model=m))
     return out, np.ones(n), blocks
 
@@ -145,11 +156,11 @@ def test_short_soak_never_lets_the_extra_lag_win(soak_s: float) -> None:
     is not named over the dT/dt term: the pair is ambiguous (seen on the benchmark's
     short-soak seed 711, a dT/dt term named extra_lag)."""
     sig, w, blocks = _nested_pair(np.random.default_rng(5))
-    kept, ambiguous = verdict._nested_choice(sig, w, blocks, soak_s)
+    kept, ambiguous = selection.nested_choice(sig, w, blocks, soak_s)
     assert sorted(ambiguous) == ["extra_lag", "temp_rate"]
     # with a long soak after a ramp, the same edge names the extra lag
     sig, w, blocks = _nested_pair(np.random.default_rng(5))
-    kept, ambiguous = verdict._nested_choice(sig, w, blocks, verdict.MIN_SOAK_FOR_LAG_S)
+    kept, ambiguous = selection.nested_choice(sig, w, blocks, selection.MIN_SOAK_FOR_LAG_S)
     assert not ambiguous and kept[0].name == "extra_lag"
 
 

@@ -10,7 +10,12 @@ Stages (one small module each):
 - `profile_ls`: weighted linear least squares, profiled over grids of time constants.
 - `crossval`: held-out residuals by leaving out contiguous blocks (or whole runs).
 - `stats`: whiteness (Ljung-Box), paired sign-flip tests, correlations, intervals.
-- `verdict`: fit, score every candidate on held-out data, name the cause or none.
+- `fits`: a fitted model with its held-out residuals, and the records of a diagnosis.
+- `intervals`: profiled parameters of a candidate: refinement, intervals, reported values.
+- `selection`: score each candidate against the base on held-out blocks, and choose among
+  them (significance, third node, nesting, ambiguity, forward selection).
+- `verdict`: fit, score every candidate on held-out data, name the cause or none (entry
+  point `diagnose`).
 - `extend`: the fitted, extended model as a simulator configuration, and its distance
   to the measured logs.
 - `report`: the JSON of DESIGN.md and a Markdown report with plots.

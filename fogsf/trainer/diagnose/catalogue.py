@@ -23,7 +23,7 @@ are held to 600-3000 s too (the FOG's own nodes). With the base's slower node fr
 lag of 4000-6000 s by another name. An extra lag is an extra *slow* node, profiled from
 4000 s up (the base's nodes stay within 600-4000 s) and above 1.4x the base's slower node.
 Both terms are (node - housing) / tau in form, so what tells them apart is how long they
-keep settling after a ramp stops (see verdict._nested_choice); on steady ramps alone
+keep settling after a ramp stops (see selection.nested_choice); on steady ramps alone
 neither is separable from the base.
 """
 
@@ -60,7 +60,7 @@ class Candidate:
     meaning: str
     admissible: Callable[[BaseTheta, GridValue], bool] = lambda b, g: True
     # report the coefficient and parameter as profile-likelihood averages over the grid
-    # parameter (see verdict._profile_average) rather than at its best value
+    # parameter (see intervals._profile_average) rather than at its best value
     average: bool = False
     # an effect of the start-up after a power-on: scored only when a run starts at power-on
     # (driver.identify, or --start); a warm start has no start-up transient
@@ -247,7 +247,7 @@ def combine(chosen: list[tuple[Candidate, GridValue]], cand: Candidate) -> Candi
 def with_extra_node(cand: Candidate) -> Candidate:
     """`cand` on a base with a third node of its kind (EXTRA_NODE), both profiled: its grid
     values get the node's time constant appended. Its design matrices carry one column more
-    than its names say; it is for profile SSEs only (see verdict._interval_with_extra_node)."""
+    than its names say; it is for profile SSEs only (see intervals.interval_with_extra_node)."""
     nested = isinstance(cand.grid[0], tuple)
 
     def own(gg: GridValue) -> GridValue:

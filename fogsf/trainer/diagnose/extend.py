@@ -28,7 +28,7 @@ import numpy as np
 
 from fogsf.trainer.diagnose import catalogue, design
 from fogsf.trainer.diagnose.design import RunContext
-from fogsf.trainer.diagnose.verdict import Diagnosis, ModelFit
+from fogsf.trainer.diagnose.fits import Diagnosis, ModelFit
 from fogsf.trainer.logs.logio import EARTH_RATE_DPS
 from fogsf.trainer.logs.metrics import plateaus, sf_windows
 

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from fogsf.trainer.diagnose import design
-from fogsf.trainer.diagnose.verdict import Diagnosis
+from fogsf.trainer.diagnose.fits import Diagnosis
 
 
 def _num(x: float) -> float | None:

@@ -9,8 +9,8 @@ lags linearly, all fitted together by ridge regression with one fixed
 penalty (a physics prior chosen on development gyros). No structure is selected, so there
 is no selection to get wrong; the penalty shrinks what the data does not determine.
 
-Chosen over the alternatives on development gyros (docs/population.md has the figures):
-one effective node with a cubic (the previous default), the best of one and two nodes, the
+Chosen over the alternatives on development gyros (docs/decisions.md has the figures):
+one effective node with a cubic (`--structure node`), the best of one and two nodes, the
 mean and the median of every lag model consistent with the training data, the lag model of
 least node sensitivity, a quadratic bank with cross terms, varying-coefficient forms in
 T - lag(T) with block cross-validation.
@@ -32,7 +32,7 @@ from fogsf.trainer.models.least_squares import TAU_GRID_S
 
 # The ridge penalty, as a multiple of the centred design's mean diagonal (so it does not
 # depend on the logs' length): a fixed physics prior, chosen on development gyros 1-24 over
-# 1e-4 .. 1e-2 (docs/population.md). Penalties chosen from the training data (GCV, GCV
+# 1e-4 .. 1e-2 (docs/decisions.md). Penalties chosen from the training data (GCV, GCV
 # with the residual's long-run variance, leave-one-log-or-segment-out) were each worse in
 # the tail: collinear lags let in-sample criteria take small penalties whose cubic terms
 # extrapolate (one case: 24 x the noise floor with GCV, 1.1 x with this prior).
@@ -46,8 +46,8 @@ BANK_LAMBDA = 1e-3
 CURVED_MAX_TAU_S = 2000.0
 # The LSTM that learns what the bank leaves reads the first this many bank features (T, then
 # the fastest lags): its input weights are most of a model's flash (4H per input), and three
-# models must fit one Cortex-M4F image in 24 KB (issue 11). Set from a comparison on
-# development gyros (docs/train.md, "The LSTM's inputs").
+# models must fit one Cortex-M4F image in 24 KB (docs/firmware.md). Set from a comparison on
+# development gyros (docs/decisions.md).
 BANK_LSTM_INPUTS = 1
 
 
