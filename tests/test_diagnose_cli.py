@@ -27,7 +27,8 @@ def diagnosed(tmp_path_factory: pytest.TempPathFactory) -> dict:
     rc = cli.main(["diagnose", str(log_path), "--json", str(out / "d.json"),
                    "--report", str(out / "d.md")])
     assert rc == 0
-    return {"dir": out, "truth": truth, "json": json.loads((out / "d.json").read_text())}
+    return {"dir": out, "truth": truth, "json": json.loads((out / "d.json").read_text()),
+            "log": log_path}
 
 
 def test_json_has_the_contract(diagnosed: dict) -> None:
@@ -77,3 +78,16 @@ def test_bad_input_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert cli.main(["diagnose", str(short)]) == 2
     assert "windows" in capsys.readouterr().err
     assert cli.main(["diagnose", str(short), "--cv", "runs"]) == 2
+
+
+def test_noise_floor_is_inspects_window_noise_and_the_base_resolution(
+        diagnosed: dict, capsys: pytest.CaptureFixture[str]) -> None:
+    b = diagnosed["json"]["base"]
+    capsys.readouterr()
+    assert cli.main(["inspect", str(diagnosed["log"]), "--window-s", f"{b['window_s']:g}",
+                     "--json"]) == 0
+    inspected = json.loads(capsys.readouterr().out)["metrics"]["noise_floor_ppm"]
+    assert b["window_noise_ppm"] == pytest.approx(inspected, rel=1e-9)
+    assert b["noise_floor_ppm"] ** 2 == pytest.approx(
+        b["window_noise_ppm"] ** 2 + b["model_floor_ppm"] ** 2, rel=1e-9)
+    assert b["noise_floor_ppm"] > b["window_noise_ppm"]

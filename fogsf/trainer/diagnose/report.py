@@ -80,6 +80,7 @@ def to_json(d: Diagnosis, extended_model: dict[str, Any],
             "heldout_rms_ppm": float(np.sqrt(np.mean(d.base.heldout**2))),
             "noise_floor_ppm": d.noise_floor_ppm,
             "model_floor_ppm": d.model_floor_ppm,
+            "window_noise_ppm": d.window_noise_ppm,
             "window_s": d.window_s,
             "windows": int(d.y.shape[0]),
             "cv": d.cv_mode,
@@ -104,7 +105,10 @@ def summary_text(j: dict[str, Any]) -> str:
     lines = [f"base model: in-sample RMS {b['rms_ppm']:.2f} ppm, held-out "
              f"{b['heldout_rms_ppm']:.2f} ppm, noise floor {b['noise_floor_ppm']:.2f} ppm "
              f"({b['windows']} windows of "
-             f"{b['window_s']:g} s), whiteness p={b['whiteness_p']:.3g}"]
+             f"{b['window_s']:g} s), whiteness p={b['whiteness_p']:.3g}",
+             f"  noise floor = window noise {b['window_noise_ppm']:.2f} ppm (what `fogsf "
+             f"inspect --window-s {b['window_s']:g}` reports) and the base's resolution "
+             f"{b['model_floor_ppm']:.2f} ppm in quadrature"]
     lines.append(f"{'effect':18s} {'before':>7s} {'after':>7s} {'gain%':>6s}  evidence")
     for c in sorted(j["candidates"], key=lambda c: c["heldout_rms_after_ppm"] or 0.0):
         lines.append(f"{c['effect']:18s} {c['heldout_rms_before_ppm']:7.2f} "
@@ -191,7 +195,9 @@ def markdown(j: dict[str, Any], d: Diagnosis, md_path: Path, config_path: str | 
            "Logs: " + ", ".join(f"`{r.name}`" for r in d.runs), "",
            "## Base model", "",
            f"- windows: {b['windows']} of {b['window_s']:g} s; noise floor "
-           f"{b['noise_floor_ppm']:.2f} ppm",
+           f"{b['noise_floor_ppm']:.2f} ppm: the window noise {b['window_noise_ppm']:.2f} ppm "
+           f"(`fogsf inspect --window-s {b['window_s']:g}`) and the base's resolution "
+           f"{b['model_floor_ppm']:.2f} ppm in quadrature",
            f"- residual RMS {b['rms_ppm']:.2f} ppm in sample, {b['heldout_rms_ppm']:.2f} ppm "
            f"held out ({b['cv']} cross-validation); Ljung-Box whiteness p = "
            f"{b['whiteness_p']:.3g}",
