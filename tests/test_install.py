@@ -112,5 +112,18 @@ def test_a_wheel_in_a_fresh_venv_runs_from_a_temporary_folder(tmp_path: Path) ->
                work, env)
     assert len(list((work / "kernels").glob("*/libfogsf.so"))) == 1, out
     assert (work / "c.csv").read_bytes() == (work / "c2.csv").read_bytes()
+    if shutil.which("cmake") and shutil.which("cc"):  # a firmware project on the installed C
+        app = work / "app"
+        app.mkdir()
+        (app / "main.c").write_text('#include "imu_x.h"\nint main(void)\n{\n    fogsf_state s;\n'
+                                    "    return (int)fogsf_init(&imu_x, &s);\n}\n")
+        (app / "CMakeLists.txt").write_text(
+            "cmake_minimum_required(VERSION 3.13)\nproject(app C)\n"
+            "add_subdirectory(${FOGSF_DIR} fogsf)\nadd_executable(app main.c)\n"
+            "fogsf_add_model(app NAME imu_x MODEL ${MODEL})\n")
+        _run(["cmake", "-S", str(app), "-B", str(work / "app-build"), f"-DFOGSF_DIR={where[1]}",
+              f"-DMODEL={work / 'm'}", f"-DFOGSF_EXECUTABLE={fogsf}"], work, env)
+        _run(["cmake", "--build", str(work / "app-build")], work, env)
+        assert subprocess.run([str(work / "app-build" / "app")]).returncode == 0
     installed_after = sorted(p for p in Path(purelib).rglob("*") if "__pycache__" not in p.parts)
     assert installed_after == installed_before, "the run wrote into the installed package"
