@@ -28,7 +28,7 @@ from fogsf.trainer.sim.scenarios import paper
 from fogsf.trainer.training.train import MODELS, TrainOptions, per_sample_prediction, run_training
 from fogsf.trainer.training.transfer import RateTransfer
 
-# The paper's Table 2 (1e-6); DESIGN.md reads 450.24 as the RMS about the 20 C reference.
+# The paper's Table 2 (1e-6); 450.24 is read as the RMS about the 20 C reference.
 PAPER = {"before": 450.24, "mlp": 32.46, "lstm": 13.02, "gsa-lstm": 11.23}
 PAPER_PEAK = {"before": 835.1, "gsa-lstm": 38.02}
 

@@ -1,4 +1,4 @@
-"""Chamber-log reader: round trip, speed-independent checks, and every refusal of DESIGN.md."""
+"""Chamber-log reader: round trip, speed-independent checks, and every refusal of docs/logs.md."""
 
 from __future__ import annotations
 

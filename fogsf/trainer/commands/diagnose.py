@@ -46,7 +46,8 @@ from fogsf.trainer.errors import UserError
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("logs", nargs="+", metavar="LOG.CSV", help="measured chamber logs")
     add_log_options(parser)
-    parser.add_argument("--json", metavar="DIAG.JSON", help="write the diagnosis (DESIGN.md)")
+    parser.add_argument("--json", metavar="DIAG.JSON",
+                        help="write the diagnosis (its keys: docs/diagnose.md)")
     parser.add_argument("--report", metavar="DIAG.MD",
                         help="write a Markdown report with residual plots beside it")
     parser.add_argument("--config-out", metavar="SIM.JSON",

@@ -31,7 +31,7 @@ from fogsf.trainer.commands import (
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL_DIR", help="model directory from `fogsf train`")
-    parser.add_argument("log", metavar="LOG.csv", help="chamber log (format: DESIGN.md)")
+    parser.add_argument("log", metavar="LOG.csv", help="chamber log (format: docs/logs.md)")
     parser.add_argument("--out", required=True, metavar="CSV",
                         help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm")
     parser.add_argument("--plot", metavar="PNG", default=None,

@@ -1,7 +1,7 @@
 """fogsf simulate: a closed-loop FOG on a rate table in a temperature chamber, at 10 Hz
 (or at --sample-rate-hz, 1 Hz .. 4 kHz).
 
-Writes a chamber log (the CSV of DESIGN.md) with the board thermometer (temp_c), the
+Writes a chamber log (the CSV of docs/logs.md) with the board thermometer (temp_c), the
 table rate, the gyro output, the earth rate, the chamber air (chamber_c), every internal
 node's thermometer (temp_<node>_c) and the truth (true_sf_ppm: the SF error vs nominal per
 sample; true_bias_dph). The physics (fogsf.trainer.sim): a thermal network of first-order lags

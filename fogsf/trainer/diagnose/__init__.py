@@ -18,6 +18,6 @@ Stages (one small module each):
   point `diagnose`).
 - `extend`: the fitted, extended model as a simulator configuration, and its distance
   to the measured logs.
-- `report`: the JSON of DESIGN.md and a Markdown report with plots.
+- `report`: the JSON of docs/diagnose.md and a Markdown report with plots.
 - `cases`: planted-effect cases (simulated) for the tests and `benchmarks.diagnose_rate`.
 """

@@ -1,4 +1,4 @@
-"""The diagnosis as the JSON of DESIGN.md, a Markdown report with plots, and a short text.
+"""The diagnosis as the JSON of docs/diagnose.md, a Markdown report with plots, and a short text.
 
 JSON keys of the contract: base {rms_ppm, whiteness_p}, candidates [{effect, params,
 heldout_rms_before_ppm, heldout_rms_after_ppm, gain_pct, evidence}], cause, unexplained,

@@ -1,4 +1,4 @@
-"""Chamber logs: the CSV format of DESIGN.md, read with every refusal it lists, and written.
+"""Chamber logs: the CSV format of docs/logs.md, read with every refusal it lists, and written.
 
 A log is one gyro run in the chamber at a constant sample rate between 1 Hz and 4 kHz (the
 paper's rigs log at 10 Hz; gyro firmware runs at its output rate). The nominal rate is the
@@ -514,7 +514,7 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
 
 
 def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:
-    """Refuse a broken log (DESIGN.md's rules); return its nominal sample period (s)."""
+    """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s)."""
     t = cols["time_s"]
     lo_hz, hi_hz = RATE_RANGE_HZ
     if rate_hz is not None:

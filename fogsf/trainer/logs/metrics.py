@@ -135,7 +135,7 @@ def noise_floor_ppm(w: SFWindows) -> float:
 
 
 def metrics_block(err_ppm: np.ndarray, window_s: float, noise_floor: float) -> dict[str, float]:
-    """The metrics block of DESIGN.md: max|e|, peak-to-peak, RMS about zero (the reference),
+    """The metrics block (docs/logs.md): max|e|, peak-to-peak, RMS about zero (the reference),
     STD about the mean, the window length and the noise floor, all in ppm (window in s)."""
     e = np.asarray(err_ppm, dtype=np.float64)
     return {
