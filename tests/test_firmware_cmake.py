@@ -105,15 +105,14 @@ def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
     """DIR form on the host: a 2x24 model raises FOGSF_MAX_* and the library builds."""
     model = samples.random_model(2, 3, 2, 24, decimation=5, seed=9)
     from fogsf.export.header import write_model
-    write_model(model, tmp_path / "gen", "big_one")
-    (tmp_path / "app").mkdir()
+    write_model(model, tmp_path / "app" / "gen", "big_one")  # beside the app: DIR gen
     (tmp_path / "app" / "main.c").write_text(
         '#include "big_one.h"\nint main(void)\n{\n    fogsf_state s;\n'
         "    return (int)fogsf_init(&big_one, &s);\n}\n")
     (tmp_path / "app" / "CMakeLists.txt").write_text(  # as a firmware project finds fogsf
         "cmake_minimum_required(VERSION 3.13)\nproject(app C)\n"
         "add_subdirectory(${FOGSF_DIR} fogsf)\nadd_executable(app main.c)\n"
-        f"fogsf_add_model(app NAME big_one DIR {tmp_path / 'gen'})\n")
+        "fogsf_add_model(app NAME big_one DIR gen)\n")
     fogsf_dir = subprocess.run([sys.executable, "-c", "import fogsf; print(fogsf.cmake_dir)"],
                                capture_output=True, text=True, check=True).stdout.strip()
     run_cmd(["cmake", "-S", str(tmp_path / "app"), "-B", str(tmp_path / "b"),
@@ -121,7 +120,7 @@ def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
     run_cmd(["cmake", "--build", str(tmp_path / "b")], "cmake build")
     assert subprocess.run([str(tmp_path / "b" / "app")]).returncode == 0
     bad = tmp_path / "app" / "CMakeLists.txt"
-    bad.write_text(bad.read_text().replace("DIR " + str(tmp_path / "gen"), "DIR /nonexistent"))
+    bad.write_text(bad.read_text().replace("DIR gen", "DIR /nonexistent"))
     proc = subprocess.run(["cmake", "-S", str(tmp_path / "app"), "-B", str(tmp_path / "c"),
                            f"-DFOGSF_DIR={fogsf_dir}"], capture_output=True, text=True)
     assert proc.returncode != 0 and "no big_one.h/.c" in proc.stderr, proc.stderr
