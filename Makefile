@@ -48,7 +48,7 @@ demo: $(STAMP)
 toolchain:
 	bash scripts/toolchain.sh
 
-# --- firmware / export / bench: owned by the export-and-firmware work (issue 4) ---
+# --- firmware: the C kernel, its export, speed and size, fuzzing ---
 firmware: $(STAMP)
 	bash scripts/firmware.sh
 
@@ -61,15 +61,15 @@ bench: $(STAMP)
 fuzz: $(STAMP)
 	bash scripts/fuzz.sh build/fuzz
 
-# --- paper protocol: owned by the trainer work (issue 3) ---
+# --- the paper's protocol, Table 2 side by side (default gyro), ~4 min ---
 paper: $(STAMP)
 	$(PY) -m benchmarks.paper --out $(OUT)/paper
 
-# --- diagnose success rate: owned by the diagnose work (issue 5) ---
+# --- one ramp rate vs two on the default gyro (noise seeds 0-7), ~40 s ---
 bench-transfer: $(STAMP)
 	$(PY) -m benchmarks.rate_transfer --out $(OUT)/bench-transfer.json
 
-# --- compensation over the gyro population (issue 9): evaluation seeds, ~15 min on 2 cores ---
+# --- compensation over the gyro population: evaluation seeds, ~15 min on 2 cores ---
 POP_N ?= 24
 bench-population: $(STAMP)
 	$(PY) -m benchmarks.population --seeds eval --n $(POP_N) --out $(OUT)/bench-population.json
@@ -82,7 +82,7 @@ bench-plan: $(STAMP)
 bench-diagnose: $(STAMP)
 	$(PY) -m benchmarks.diagnose_rate --seeds-from eval --first-seed 20020 --seeds 20 --out $(OUT)/bench-diagnose.json
 
-# any sample rate (issue 11): one model at 10/100/1000 Hz, and a 24 h 100 Hz log through
+# any sample rate: one model at 10/100/1000 Hz, and a 24 h 100 Hz log through
 # `fogsf replay` for time and memory, ~2 min
 bench-rate: $(STAMP)
 	$(PY) -m benchmarks.sample_rate --out $(OUT)/bench-sample-rate.json

@@ -19,6 +19,8 @@ _HERE = Path(__file__).resolve().parent
 # An installed wheel holds the firmware folder inside the package; a checkout has it beside.
 _FIRMWARE = _HERE / "firmware" if (_HERE / "firmware" / "c").is_dir() else _HERE.parent / "firmware"
 
+in_checkout: bool = _FIRMWARE != _HERE / "firmware"
+"""True when run from a source checkout (firmware/ beside the package), not an installed wheel."""
 firmware_dir: str = str(_FIRMWARE)
 """The firmware folder: c/ (kernel and CMake), cmake/ (toolchain files), examples/."""
 cmake_dir: str = str(_FIRMWARE / "c")

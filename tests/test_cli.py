@@ -1,6 +1,8 @@
 import subprocess
 import sys
 
+import pytest
+
 
 def test_help_lists_every_command() -> None:
     out = subprocess.run([sys.executable, "-m", "fogsf", "--help"], check=True,
@@ -9,16 +11,29 @@ def test_help_lists_every_command() -> None:
         assert name in out
 
 
-def test_a_negative_range_is_read_as_a_value() -> None:
-    from fogsf.trainer.cli import build_parser, join_negative_ranges
+@pytest.mark.parametrize("command, argv, key, value", [
+    ("plan", ["--range", "-20:60", "--out", "p"], "range", (-20.0, 60.0)),
+    ("plan", ["--range=-20:60", "--out", "p"], "range", (-20.0, 60.0)),
+    ("plan", ["--range", "-40.5:-1e1", "--out", "p"], "range", (-40.5, -10.0)),
+    ("simulate", ["--profile", "steps", "--levels-c", "-20,40,5", "--out", "x.csv"],
+     "levels_c", [-20.0, 40.0, 5.0]),
+    ("simulate", ["--table", "levels", "--rates-dps", "-10,10", "--out", "x.csv"],
+     "rates_dps", [-10.0, 10.0]),
+    ("simulate", ["--start-c", "-40", "--out", "x.csv"], "start_c", -40.0),
+])
+def test_a_value_led_by_a_negative_number_reaches_the_command(
+        command: str, argv: list[str], key: str, value: object,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Through `fogsf`'s main as a user types it: the command gets the value."""
+    import importlib
 
-    for argv in (["plan", "--range", "-20:60", "--out", "p"],
-                 ["plan", "--range=-20:60", "--out", "p"]):
-        args = build_parser().parse_args(join_negative_ranges(argv))
-        assert args.range == (-20.0, 60.0)
-    args = build_parser().parse_args(join_negative_ranges(
-        ["plan", "--range", "-40.5:-1e1", "--envelope-rate", "0.2:2", "--out", "p"]))
-    assert args.range == (-40.5, -10.0) and args.envelope_rate == (0.2, 2.0)
+    from fogsf.trainer import cli
+
+    seen = {}
+    mod = importlib.import_module(cli.COMMANDS[command][0])
+    monkeypatch.setattr(mod, "run", lambda args: seen.update(vars(args)) or 0)
+    assert cli.main([command, *argv]) == 0
+    assert seen[key] == value
 
 
 def test_train_help_describes_the_bank_the_code_fits() -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from fogsf.trainer import cli
-from fogsf.trainer.diagnose import cases
+from fogsf.trainer.diagnose import cases, report
 from fogsf.trainer.logs.logio import read_log, write_log
 from fogsf.trainer.sim.config import SimConfig
 
@@ -91,3 +91,7 @@ def test_noise_floor_is_inspects_window_noise_and_the_base_resolution(
     assert b["noise_floor_ppm"] ** 2 == pytest.approx(
         b["window_noise_ppm"] ** 2 + b["model_floor_ppm"] ** 2, rel=1e-9)
     assert b["noise_floor_ppm"] > b["window_noise_ppm"]
+    text = report.summary_text(diagnosed["json"])  # what `fogsf diagnose` prints
+    assert (f"noise floor = window noise {inspected:.2f} ppm (one log's is what `fogsf inspect "
+            f"--window-s {b['window_s']:g}` reports) and the base's resolution "
+            f"{b['model_floor_ppm']:.2f} ppm in quadrature") in text

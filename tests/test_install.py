@@ -36,6 +36,20 @@ def plant_decoys(folder: Path) -> None:
         (folder / f"{name}.py").write_text(f"raise ImportError('decoy {name}.py was imported')\n")
 
 
+def test_every_module_imports_beside_decoys(tmp_path: Path) -> None:
+    """Every fogsf module, the lazily imported ones too, with the decoys first on the path."""
+    plant_decoys(tmp_path)
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    code = ("import importlib, pkgutil, fogsf\n"
+            "names = [m.name for m in pkgutil.walk_packages(fogsf.__path__, 'fogsf.')\n"
+            "         if not m.name.endswith('__main__')]\n"
+            "for n in names:\n"
+            "    importlib.import_module(n)\n"
+            "print(len(names))\n")
+    n = int(_run([sys.executable, "-c", code], tmp_path, env))
+    assert n > 50, n
+
+
 def test_decoy_modules_in_the_working_folder_do_not_break_the_cli(tmp_path: Path) -> None:
     plant_decoys(tmp_path)
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
@@ -87,6 +101,16 @@ def test_a_wheel_in_a_fresh_venv_runs_from_a_temporary_folder(tmp_path: Path) ->
                   "print(k.C_DIR); print(fogsf.cmake_dir); print(fogsf.toolchain_file)"],
                  work, env).split()
     assert where[0].startswith(purelib), where  # the installed sources, not the repo's
+    # an install reached through a symlinked folder is still an install, not a checkout
+    linked = tmp_path / "linked-site"
+    linked.symlink_to(purelib, target_is_directory=True)
+    flags = _run([str(py), "-c", f"import sys; sys.path.insert(0, {str(linked)!r}); "
+                  "import fogsf, fogsf.bindings.kernel as k; "
+                  "print(fogsf.__file__, fogsf.in_checkout, k.IN_CHECKOUT, "
+                  "k.default_build_root())"],
+                 work, env).split()
+    assert flags[0].startswith(str(linked)) and flags[1:3] == ["False", "False"], flags
+    assert not flags[3].startswith((purelib, str(linked))), flags
     assert where[0] == where[1] and Path(where[1], "CMakeLists.txt").is_file(), where
     assert Path(where[2]).is_file(), where
     firmware = Path(where[1]).parent

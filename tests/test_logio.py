@@ -145,8 +145,9 @@ def test_a_gyro_like_column_suggests_gyro_column(name: str) -> None:
         parse_log(text, "x.csv")
 
 
-def test_no_gyro_like_column_gets_the_column_map_hint() -> None:
-    text = csv(good_rows()).replace("gyro_dps", "temp_x", 1)
+@pytest.mark.parametrize("name", ["temp_x", "gyro_temp", "gyro_temp_c", "gx_degc"])
+def test_no_gyro_like_column_gets_the_column_map_hint(name: str) -> None:
+    text = csv(good_rows()).replace("gyro_dps", name, 1)
     with pytest.raises(LogError, match="--columns") as e:
         parse_log(text, "x.csv")
     assert "--gyro-column" not in str(e.value)

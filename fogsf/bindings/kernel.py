@@ -28,7 +28,7 @@ from fogsf.trainer.models.stream import StreamModel
 C_DIR = Path(fogsf.cmake_dir)
 """The kernel's C sources: firmware/c in a checkout, fogsf/firmware/c in an installed wheel."""
 ROOT = Path(fogsf.firmware_dir).parent
-IN_CHECKOUT = not Path(fogsf.firmware_dir).is_relative_to(Path(fogsf.__file__).parent)
+IN_CHECKOUT = fogsf.in_checkout
 SOURCES = ("fogsf.c", "fogsf_cell.c")
 HEADERS = ("fogsf.h",)
 # The flags of the issue: strict C99, warnings are errors, no contraction into FMA (bit-exact

@@ -29,13 +29,15 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-# A value such as -20:60 (LO:HI with a negative LO) is not a negative number to argparse,
-# which takes it for an option: it is joined to its option (--range -20:60 -> --range=-20:60).
-NEGATIVE_RANGE = re.compile(r"^-\d*\.?\d+(?:[eE][-+]?\d+)?:[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?$")
+# A value that starts with a negative number but is not one (LO:HI such as -20:60, a list
+# such as -20,40,5) is taken by argparse for an option: it is joined to its option
+# (--range -20:60 -> --range=-20:60).
+_NUM = r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?"
+NEGATIVE_RANGE = re.compile(rf"^-\d*\.?\d+(?:[eE][-+]?\d+)?(?:[:,]{_NUM})+$")
 
 
 def join_negative_ranges(argv: list[str]) -> list[str]:
-    """`--opt -20:60` -> `--opt=-20:60`, so that argparse reads the range as a value."""
+    """`--opt -20:60` -> `--opt=-20:60` (and -20,40,5), so argparse reads it as a value."""
     out: list[str] = []
     for arg in argv:
         prev = out[-1] if out else ""
@@ -63,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="fogsf",
         description="Fiber-optic gyro thermal scale-factor error: from chamber logs to "
                     "firmware. Run `fogsf COMMAND --help` for each command.",
-        epilog="example:\n  fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv"
+        epilog="Example:\n  fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv"
                " && fogsf inspect run10.csv",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

@@ -60,10 +60,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="chamber ramp rate in C/min (paper: 0.5 and 1.0)")
     g.add_argument("--seed", type=int, help="random seed (same seed, same bytes)")
     g.add_argument("--random-gyro", type=int, metavar="GYRO_SEED",
-                   help="a gyro drawn from the population (trainer/sim/population.py; "
+                   help="a gyro drawn from the population (docs/population.md; "
                         "0 is the default gyro) instead of the default gyro; the run's noise "
                         "seed is GYRO_SEED unless --seed is given. Development seeds "
-                        "0-9999, evaluation seeds 20000-29999 (docs/population.md)")
+                        "0-9999, evaluation seeds 20000-29999")
     g.add_argument("--effect", action="append", default=[], metavar="NAME=STRENGTH[,k=v]",
                    help="switch on an effect (repeatable); see --list-effects")
 

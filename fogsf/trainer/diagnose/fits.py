@@ -86,17 +86,15 @@ class Diagnosis:
     window_s: float
     causes: list[str] = field(default_factory=list)  # forward selection, `cause` first
     model_floor_ppm: float = 0.0
+    # the windows' own noise alone, RMS over every window of every log: for one log what
+    # `fogsf inspect --window-s W` reports as its noise floor
+    window_noise_ppm: float = 0.0
 
     @property
     def noise_floor_ppm(self) -> float:
         """RMS over windows of each window's noise and the base's resolution in quadrature."""
         return float(np.sqrt(np.mean(self.sigma**2)))
 
-    @property
-    def window_noise_ppm(self) -> float:
-        """The windows' own noise alone: what `fogsf inspect --window-s W` reports as its
-        noise floor for one log at this window length."""
-        return float(np.sqrt(max(np.mean(self.sigma**2) - self.model_floor_ppm**2, 0.0)))
 
 
 def weighted_rms(e: np.ndarray) -> float:

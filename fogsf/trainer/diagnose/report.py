@@ -106,9 +106,9 @@ def summary_text(j: dict[str, Any]) -> str:
              f"{b['heldout_rms_ppm']:.2f} ppm, noise floor {b['noise_floor_ppm']:.2f} ppm "
              f"({b['windows']} windows of "
              f"{b['window_s']:g} s), whiteness p={b['whiteness_p']:.3g}",
-             f"  noise floor = window noise {b['window_noise_ppm']:.2f} ppm (what `fogsf "
-             f"inspect --window-s {b['window_s']:g}` reports) and the base's resolution "
-             f"{b['model_floor_ppm']:.2f} ppm in quadrature"]
+             f"  noise floor = window noise {b['window_noise_ppm']:.2f} ppm (one log's is "
+             f"what `fogsf inspect --window-s {b['window_s']:g}` reports) and the base's "
+             f"resolution {b['model_floor_ppm']:.2f} ppm in quadrature"]
     lines.append(f"{'effect':18s} {'before':>7s} {'after':>7s} {'gain%':>6s}  evidence")
     for c in sorted(j["candidates"], key=lambda c: c["heldout_rms_after_ppm"] or 0.0):
         lines.append(f"{c['effect']:18s} {c['heldout_rms_before_ppm']:7.2f} "

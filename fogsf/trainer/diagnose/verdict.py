@@ -290,6 +290,7 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
     cause = causes[0].name if causes else None
     extended = chosen if cause is not None else base
     return Diagnosis(causes=[c.name for c in causes], model_floor_ppm=floor,
+        window_noise_ppm=float(np.sqrt(np.mean(sigma_win**2))),
         runs=rs, ctxs=ctxs, y=y, sigma=sigma, run_ids=run_ids, blocks=blocks, folds=folds,
         base=base, base_rms=base_rms, base_whiteness_p=stats.ljung_box_p(segs_in),
         correlations=correlations(ctxs, e_in), candidates=results, cause=cause,

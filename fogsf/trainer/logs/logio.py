@@ -322,8 +322,10 @@ def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
     return out
 
 
-# A column that looks like a gyro's rate: gx, gx[dps], gyro_x, wx, omega_z, ...
+# A column that looks like a gyro's rate: gx, gx[dps], gyro_x, wx, omega_z, ...; not a
+# thermometer (gyro_temp, gyro_temp_c, gx_degc)
 GYRO_LIKE = re.compile(r"(?i)gyro|^(gyr|g|w|omega)[_ -]?[xyz](?![a-z0-9])")
+TEMPERATURE_LIKE = re.compile(r"(?i)temp|deg_?c\b|_c$|\[c\]")
 
 
 def _missing_hint(missing: list[str], header: list[str]) -> str:
@@ -334,7 +336,8 @@ def _missing_hint(missing: list[str], header: list[str]) -> str:
                 f"(or --axis {axis})")
     hints = []
     if "gyro_dps" in missing:
-        like = [h for h in header if h not in REQUIRED + OPTIONAL and GYRO_LIKE.search(h)]
+        like = [h for h in header if h not in REQUIRED + OPTIONAL and GYRO_LIKE.search(h)
+                and not TEMPERATURE_LIKE.search(h)]
         if like:
             hints.append(f"the gyro's rate (deg/s) may be {', '.join(like)}: read it with "
                          f"--gyro-column {shlex.quote(like[0])}")

@@ -159,7 +159,7 @@ class Normaliser:
     feat_b: np.ndarray  # [F] float32
 
     def apply(self, s: np.ndarray) -> np.ndarray:
-        """z per step for training (float32; the kernel's exact order is stream.features)."""
+        """z per step for training (float32; the kernel's exact order is reference.features)."""
         return (s.astype(np.float64) @ self.feat_w.T.astype(np.float64)
                 + self.feat_b).astype(np.float32)
 
