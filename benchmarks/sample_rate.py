@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.bindings.kernel import Kernel, build_kernel
-from fogsf.trainer.logs.logio import ChamberLog, read_log, write_log
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.logio import read_log, write_log
 from fogsf.trainer.logs.metrics import log_metrics
 from fogsf.trainer.models.stream import StreamModel
 from fogsf.trainer.sim.gyro import simulate

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.sim.gyro import simulate
 from fogsf.trainer.sim.scenarios import paper
 

@@ -11,7 +11,8 @@ import pytest
 from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.trainer.cli import main
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog, read_log, write_log
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.logio import read_log, write_log
 from fogsf.trainer.models import reference, samples
 
 

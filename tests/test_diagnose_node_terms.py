@@ -32,7 +32,7 @@ from fogsf.trainer.diagnose import (
     selection,
     verdict,
 )
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.sim.config import SimConfig
 from fogsf.trainer.sim.gyro import simulate
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fogsf.trainer.diagnose import crossval, driver, stats, verdict
-from fogsf.trainer.logs.logio import ChamberLog, earth_rate_vertical_dps
+from fogsf.trainer.logs.chamber_log import ChamberLog, earth_rate_vertical_dps
 from fogsf.trainer.sim.lag import first_order_lag
 
 DT = 0.1

@@ -11,7 +11,9 @@ import pytest
 
 from fogsf.trainer.cli import main
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import Dialect, LogError, read_log
+from fogsf.trainer.logs.chamber_log import LogError
+from fogsf.trainer.logs.dialect import Dialect
+from fogsf.trainer.logs.logio import read_log
 
 SHORT = ["--scenario", "paper", "--start-c", "15", "--stop-c", "25", "--ramp-rate", "1",
          "--seed", "3"]

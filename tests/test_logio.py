@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.logio import ChamberLog, LogError, parse_log, read_log, write_log
+from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
+from fogsf.trainer.logs.logio import parse_log, read_log, write_log
 
 HEADER = "time_s,temp_c,table_rate_dps,gyro_dps"
 

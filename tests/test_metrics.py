@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import (
     log_metrics,
     metrics_block,

@@ -15,15 +15,9 @@ from ramp_logs import short_ramp
 
 from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import (
-    ChamberLog,
-    Dialect,
-    LogError,
-    _read_plain,
-    parse_log,
-    read_log,
-    write_log,
-)
+from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
+from fogsf.trainer.logs.dialect import Dialect
+from fogsf.trainer.logs.logio import _read_plain, parse_log, read_log, write_log
 from fogsf.trainer.logs.metrics import sf_windows
 from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st

@@ -11,7 +11,7 @@ import pytest
 from ramp_logs import short_ramp
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.models.reference import replay
 from fogsf.trainer.models.stream import StreamModel
 from fogsf.trainer.training.train import TrainOptions, per_sample_prediction, run_training

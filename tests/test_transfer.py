@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 from ramp_logs import short_ramp
 
-from fogsf.trainer.logs.logio import ChamberLog, write_log
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.logio import write_log
 from fogsf.trainer.sim.gyro import simulate
 from fogsf.trainer.sim.scenarios import soak
 from fogsf.trainer.training.transfer import ramp_rate_c_per_min, rate_transfer

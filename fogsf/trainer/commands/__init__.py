@@ -62,10 +62,10 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
                         "of time_s); every step must lie within 20 %% of 1/HZ")
 
 
-def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - fogsf.trainer.logs.logio.Dialect
+def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.Dialect
     """The `Dialect` the options of `add_log_options` give."""
     from fogsf.trainer.errors import UserError
-    from fogsf.trainer.logs.logio import DELIMITERS, Dialect
+    from fogsf.trainer.logs.dialect import DELIMITERS, Dialect
 
     gyro = getattr(args, "gyro_column", None)
     axis = getattr(args, "axis", None)

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(e)) from None
     model = StreamModel.load(args.model)
     if args.sample_rate_hz is not None:
-        from fogsf.trainer.logs.logio import check_rate_hz
+        from fogsf.trainer.logs.chamber_log import check_rate_hz
 
         model = rated(model, 1.0 / check_rate_hz(args.sample_rate_hz),
                       f"{args.sample_rate_hz:g} Hz")

@@ -17,7 +17,7 @@ import argparse
 import json
 
 from fogsf.trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
-from fogsf.trainer.logs.logio import ChamberLog, rate_text
+from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 from fogsf.trainer.logs.metrics import (
     log_metrics,
     noise_floor_ppm,

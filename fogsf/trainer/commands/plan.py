@@ -33,7 +33,7 @@ from fogsf.trainer.errors import UserError
 from fogsf.trainer.gsa.executors import add_executor_options
 
 if TYPE_CHECKING:
-    from fogsf.trainer.logs.logio import ChamberLog
+    from fogsf.trainer.logs.chamber_log import ChamberLog
 
 
 def _pair(text: str) -> tuple[float, float]:

@@ -33,7 +33,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import check_rate_hz
+from fogsf.trainer.logs.chamber_log import check_rate_hz
 
 if TYPE_CHECKING:
     from fogsf.trainer.sim.config import SimConfig

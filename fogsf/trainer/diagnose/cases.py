@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from fogsf.trainer.diagnose import design, driver, profile_ls, runs
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.sim.config import ProfileConfig, SimConfig, TableConfig
 from fogsf.trainer.sim.effects import EFFECTS as SIM_EFFECTS
 from fogsf.trainer.sim.effects import EffectConfig

@@ -29,7 +29,7 @@ import numpy as np
 from fogsf.trainer.diagnose import catalogue, design
 from fogsf.trainer.diagnose.design import RunContext
 from fogsf.trainer.diagnose.fits import Diagnosis, ModelFit
-from fogsf.trainer.logs.logio import EARTH_RATE_DPS
+from fogsf.trainer.logs.chamber_log import EARTH_RATE_DPS
 from fogsf.trainer.logs.metrics import plateaus, sf_windows
 
 PROGRAM_STEP_S = 10.0

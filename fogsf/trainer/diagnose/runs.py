@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import SFWindows, sf_windows
 
 

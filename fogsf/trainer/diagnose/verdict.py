@@ -63,7 +63,7 @@ from fogsf.trainer.diagnose.fits import (
     weighted_rms,
 )
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 
 STRUCTURE_P = 1e-8
 STRUCTURE_EXCESS = 2.5  # held-out trimmed mean (e/sigma)^2 above which structure remains

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog, rate_text
+from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 
 SUB_WINDOWS = 10
 T_REF_C = 20.0

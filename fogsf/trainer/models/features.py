@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import DT_TOLERANCE, ChamberLog, rate_text
+from fogsf.trainer.logs.chamber_log import DT_TOLERANCE, ChamberLog, rate_text
 from fogsf.trainer.models.reference import frontend
 from fogsf.trainer.models.stream import FrontEnd, decimation_for, filter_alpha
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsf.trainer.logs.logio import ChamberLog, earth_rate_vertical_dps
+from fogsf.trainer.logs.chamber_log import ChamberLog, earth_rate_vertical_dps
 from fogsf.trainer.sim import profiles, thermal
 from fogsf.trainer.sim.config import NoiseConfig, SimConfig, validate
 from fogsf.trainer.sim.effects import EffectContext, apply_effects

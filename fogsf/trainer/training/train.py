@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import log_metrics, reference_sf_of_logs
 from fogsf.trainer.models.features import (
     MODEL_STEP_S,

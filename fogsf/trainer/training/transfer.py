@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import ChamberLog
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import noise_floor_ppm, sf_windows
 
 SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows

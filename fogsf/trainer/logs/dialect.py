@@ -1,0 +1,214 @@
+"""How a log file writes the format (a `Dialect`): the delimiter (given or sniffed), the
+column names mapped to ours (`--columns`, a mapping file beside the log, `--gyro-column`),
+quoted cells, decimal commas; and the header read through it, with a hint when a required
+column is missing."""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+import tomllib
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.chamber_log import OPTIONAL, REQUIRED, LogError, is_temperature
+
+DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
+DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
+# A column mapping in one of these files beside a log applies to it when --columns is not given
+MAPPING_FILES = ("fogsf-columns.json", "fogsf-columns.toml")
+COLUMNS_HINT = ("map the log's names with --columns time_s=NAME,temp_c=NAME,... or a "
+                "fogsf-columns.json beside the log (docs/logs.md)")
+DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d*,\d+([eE][-+]?\d+)?\s*$")
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How a log file writes the format: delimiter, column names, which gyro column."""
+
+    delimiter: str | None = None  # None: sniffed from the header among , ; and tab
+    columns: tuple[tuple[str, str], ...] = ()  # (our name, the log's name)
+    gyro_column: str | None = None  # the log's column read as gyro_dps
+    decimal_comma: bool = False  # cells written 20,5 (then separated by ; or tab)
+    columns_from: str = "--columns"  # where `columns` came from, for messages
+    sample_rate_hz: float | None = None  # stated (--sample-rate-hz); None: from time_s
+
+    @staticmethod
+    def mapping_file(path: str | Path) -> tuple[tuple[str, str], ...]:
+        """A JSON object or TOML table {"time_s": "t", ...} (our name: the log's name)."""
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8-sig")
+            m = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
+        except (OSError, ValueError) as e:  # TOMLDecodeError is a ValueError
+            raise UserError(f"{p}: cannot read the column mapping ({e})") from None
+        if not isinstance(m, dict) or not m or not all(isinstance(v, str) for v in m.values()):
+            raise UserError(f"{p}: expected a mapping of our names to the log's, e.g. "
+                            '{"time_s": "t", "temp_c": "temperature"} (TOML: time_s = "t")')
+        return Dialect._checked(list(m.items()), str(p))
+
+    @staticmethod
+    def parse_columns(text: str) -> tuple[tuple[str, str], ...]:
+        """`time_s=t,temp_c=temperature` or a JSON/TOML file {"time_s": "t", ...}."""
+        if text.lower().endswith((".json", ".toml")) and "=" not in text:
+            return Dialect.mapping_file(text)
+        pairs = []
+        for part in (p for p in text.split(",") if p.strip()):
+            ours, eq, theirs = part.partition("=")
+            if not eq or not ours.strip() or not theirs.strip():
+                raise UserError(f"--columns: expected OURS=THEIRS pairs like "
+                                f"time_s=t,temp_c=temperature, got {part!r}")
+            pairs.append((ours.strip(), theirs.strip()))
+        return Dialect._checked(pairs, "--columns")
+
+    @staticmethod
+    def _checked(pairs: list[tuple[str, str]], source: str) -> tuple[tuple[str, str], ...]:
+        known = (*REQUIRED, *OPTIONAL)
+        ours_seen: set[str] = set()
+        for ours, _ in pairs:
+            if ours not in known and not is_temperature(ours):
+                raise UserError(f"{source}: {ours!r} is not a column of the format "
+                                f"({', '.join(known)}, temp_<name>_c)")
+            if ours in ours_seen:
+                raise UserError(f"{source}: {ours} is mapped twice")
+            ours_seen.add(ours)
+        theirs = [t for _, t in pairs]
+        twice = sorted({t for t in theirs if theirs.count(t) > 1})
+        if twice:
+            raise UserError(f"{source}: the log's column {twice[0]!r} is mapped to two names")
+        return tuple(pairs)
+
+
+def mapping_beside(log_path: str | Path) -> Path | None:
+    """The column mapping file (MAPPING_FILES) in the log's folder, if any; two are refused."""
+    folder = Path(log_path).parent
+    found = [folder / n for n in MAPPING_FILES if (folder / n).is_file()]
+    if len(found) > 1:
+        raise UserError(f"{folder}: both {found[0].name} and {found[1].name}; keep one")
+    return found[0] if found else None
+
+
+def _sniff(header_line: str, path: str) -> str:
+    """The one of , ; and tab that the header uses; none or several are refused."""
+    found = [d for d in DELIMITER_NAMES if d in header_line]
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        if " " in header_line.strip():
+            raise LogError(path, 1, "no delimiter",
+                           f"the header {header_line.strip()[:60]!r} has no ',' ';' or tab "
+                           "between column names (spaces are not read as a delimiter): "
+                           "write the log with one of them")
+        return ","  # one column: the missing-column message says what is wrong
+    raise LogError(path, 1, "ambiguous delimiter",
+                   f"the header holds {' and '.join(DELIMITER_NAMES[d] for d in found)}; "
+                   "give --delimiter")
+
+
+def unquote_lines(lines: list[str], delim: str, path: str) -> list[str]:
+    """Lines with CSV quoting ("time_s","0.1") read by the csv module and written back
+    without quotes; a quoted cell that holds the delimiter itself is refused."""
+    import csv
+
+    out = []
+    reader = csv.reader(lines, delimiter=delim, strict=True)
+    try:
+        rows = list(reader)
+    except csv.Error as e:
+        raise LogError(path, reader.line_num, "bad quoting", str(e)) from None
+    for i, row in enumerate(rows, start=1):
+        for cell in row:
+            if delim in cell:
+                raise LogError(path, i, "delimiter inside a quoted cell",
+                               f"{cell!r} holds {DELIMITER_NAMES[delim]}: write numbers "
+                               "without thousands separators (or use --decimal-comma with "
+                               "';' or tab cells)")
+        out.append(delim.join(row))
+    return out
+
+
+def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
+    """The header in our names: --columns mapped, --gyro-column read as gyro_dps."""
+    out = list(header)
+    pairs = list(dialect.columns)
+    if dialect.gyro_column is not None:
+        pairs.append(("gyro_dps", dialect.gyro_column))
+    for ours, theirs in pairs:
+        opt = "--gyro-column" if (ours, theirs) == ("gyro_dps", dialect.gyro_column) \
+            else dialect.columns_from
+        if theirs not in header:
+            raise LogError(path, 1, "no such column",
+                           f"{opt} names {theirs!r} for {ours}; header has: "
+                           f"{', '.join(header)}")
+        out[header.index(theirs)] = ours
+    return out
+
+
+# A column that looks like a gyro's rate: gx, gx[dps], gyro_x, wx, omega_z, ...; not a
+# thermometer (gyro_temp, gyro_temp_c, gx_degc)
+GYRO_LIKE = re.compile(r"(?i)gyro|^(gyr|g|w|omega)[_ -]?[xyz](?![a-z0-9])")
+TEMPERATURE_LIKE = re.compile(r"(?i)temp|deg_?c\b|_c$|\[c\]")
+
+
+def _missing_hint(missing: list[str], header: list[str]) -> str:
+    axes = [h for h in header if re.fullmatch(r"gyro_\w+_dps", h)]
+    if "gyro_dps" in missing and axes:
+        axis = axes[0][len("gyro_"):-len("_dps")]
+        return (f"; the log has {', '.join(axes)}: pick one with --gyro-column {axes[0]} "
+                f"(or --axis {axis})")
+    hints = []
+    if "gyro_dps" in missing:
+        like = [h for h in header if h not in REQUIRED + OPTIONAL and GYRO_LIKE.search(h)
+                and not TEMPERATURE_LIKE.search(h)]
+        if like:
+            hints.append(f"the gyro's rate (deg/s) may be {', '.join(like)}: read it with "
+                         f"--gyro-column {shlex.quote(like[0])}")
+    if set(missing) - {"gyro_dps"} or not hints:
+        hints.append(COLUMNS_HINT)
+    return "; " + "; ".join(hints)
+
+
+def find_delimiter(first: str, path: str, dialect: Dialect, notes: list[str]) -> str:
+    delim = dialect.delimiter or _sniff(first, path)
+    if dialect.decimal_comma and delim == ",":  # given or sniffed: one check for both
+        raise LogError(path, 1, "decimal comma with ',' cells",
+                       "--decimal-comma needs cells separated by ';' or tab, not ','")
+    if dialect.delimiter is None and delim != ",":
+        notes.append(f"cells separated by {DELIMITER_NAMES[delim]} (from the header)")
+    if dialect.decimal_comma:
+        notes.append("decimal comma (--decimal-comma)")
+    return delim
+
+
+def read_header(first: str, delim: str, path: str, dialect: Dialect, notes: list[str]
+            ) -> list[str]:
+    """The header row in our names, checked: no empty or repeated name, every required one."""
+    raw = [h.strip() for h in first.split(delim)]
+    for h in raw:
+        if not h:
+            raise LogError(path, 1, "bad header", "an empty column name")
+    if (dialect.columns and dialect.columns_from != "--columns"
+            and all(r in raw for r in REQUIRED)
+            and not any(theirs in raw for _, theirs in dialect.columns)):
+        # a mapping file beside the logs, and this log is already in the format's names
+        notes.append(f"{dialect.columns_from} not applied: the header has the format's names")
+        dialect = replace(dialect, columns=())
+    header = _rename(raw, dialect, path)
+    moved = [f"{h} -> {n}" for h, n in zip(raw, header, strict=True) if h != n]
+    if moved:
+        src = dialect.columns_from if dialect.columns else "--gyro-column"
+        notes.append(f"columns {', '.join(moved)} ({src})")
+    seen: set[str] = set()
+    for h in header:
+        if h in seen:
+            raise LogError(path, 1, "bad header", f"column {h!r} appears twice"
+                           + (" (after --columns / --gyro-column)" if header != raw else ""))
+        seen.add(h)
+    missing = [c for c in REQUIRED if c not in seen]
+    if missing:
+        raise LogError(path, 1, "missing required column",
+                       f"{', '.join(missing)} (header has: {', '.join(raw)})"
+                       + _missing_hint(missing, raw))
+    return header
