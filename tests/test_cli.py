@@ -48,3 +48,19 @@ def test_train_help_describes_the_bank_the_code_fits() -> None:
     assert f"cubic up to {CURVED_MAX_TAU_S:.0f} s" in text and "one fixed prior" in text
     lo, hi = min(TAU_GRID_S), max(TAU_GRID_S)
     assert lo == 60.0 and hi == 7200.0, "the help says 60 s to 2 h"
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["plan", "--range", "60:-20", "--out", "p"], "argument --range: expected LO < HI"),
+    (["nope"], "invalid choice: 'nope'"),
+    (["train", "--train"], "argument --train: expected one argument"),
+])
+def test_option_refusals_are_one_line(argv: list[str], says: str,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    from fogsf.trainer import cli
+
+    with pytest.raises(SystemExit) as e:
+        cli.main(argv)
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and says in err[0] and err[0].endswith("--help)"), err

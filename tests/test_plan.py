@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -125,3 +126,14 @@ def test_plan_from_logs_fits_a_gyro_to_each_log(tmp_path: Path, capsys) -> None:
     assert plan["best"]["interval_x_floor"] is None  # --interval-gyros 0
     assert main(["plan", "--from-logs", str(log), "--axes", "2", "--out", str(out)]) == 2
     assert "multiple" in capsys.readouterr().err
+
+
+def test_no_program_fits_says_how_many_hours_would(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["plan", "--range", "-20:60", "--hours", "1", "--gyros", "1",
+                 "--out", str(tmp_path / "p")]) == 2
+    err = capsys.readouterr().err
+    hours = float(re.search(r"--hours ([0-9.]+) or more", err)[1])
+    assert not candidates(Limits(-20.0, 60.0, 3.0, 1.0))
+    assert candidates(Limits(-20.0, 60.0, 3.0, hours)), "the hint must be enough"
+    assert not candidates(Limits(-20.0, 60.0, 3.0, hours - 0.1)), "and not more than needed"

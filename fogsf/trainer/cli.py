@@ -6,6 +6,7 @@ import argparse
 import importlib
 import re
 import sys
+from typing import NoReturn
 
 from fogsf import __version__
 from fogsf.trainer.errors import UserError
@@ -60,8 +61,15 @@ def split_doc(doc: str) -> tuple[str, str | None]:
     return doc[:starts[-1]].strip(), doc[starts[-1]:].strip()
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's refusals in one line, as every other refusal of fogsf (exit status 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="fogsf",
         description="Fiber-optic gyro thermal scale-factor error: from chamber logs to "
                     "firmware. Run `fogsf COMMAND --help` for each command.",

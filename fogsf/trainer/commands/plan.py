@@ -24,7 +24,9 @@ Example:
 from __future__ import annotations
 
 import argparse
+import math
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -111,7 +113,13 @@ def run(args: argparse.Namespace) -> int:
         what += f", {len(gyros) // args.axes} IMUs of {args.axes} axes"
     n_progs = len(candidates(limits))
     if not n_progs:
-        raise UserError("no program fits: raise --hours or --max-ramp, or narrow --range")
+        unbounded = candidates(replace(limits, hours=72.0))  # the longest --hours allowed
+        shortest = min((p.hours for p in unbounded), default=None)
+        need = (f": the shortest within {limits.lo_c:g}..{limits.hi_c:g} C at <= "
+                f"{limits.max_ramp_c_per_min:g} C/min takes {shortest:.2f} h, so --hours "
+                f"{math.ceil(shortest * 10) / 10:g} or more" if shortest else "")
+        raise UserError(f"no program fits in {limits.hours:g} h{need}; or raise --max-ramp, "
+                        "or narrow --range")
     rates = test_rates(elo, ehi, args.test_rates)
     print(f"{n_progs} candidate programs within {limits.lo_c:g}..{limits.hi_c:g} C, "
           f"<= {limits.max_ramp_c_per_min:g} C/min, <= {limits.hours:g} h; scored at "

@@ -20,7 +20,7 @@ examples:
   fogsf simulate --scenario paper --ramp-rate 1.0 --sample-rate-hz 100 --out run10_100hz.csv
   fogsf simulate --profile cycle --start-c -20 --stop-c 60 --table alternating --out c.csv
   fogsf simulate --program chamber.csv --table levels --rates-dps 10,100,-10,-100 --out p.csv
-  fogsf simulate --scenario paper --plot docs/sim_paper.png
+  fogsf simulate --scenario paper --plot sim_paper.png
   fogsf simulate --list-effects
 """
 
