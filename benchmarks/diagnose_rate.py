@@ -99,8 +99,8 @@ def group(job: Job) -> str:
 
 
 def _strength_within(eff: list[dict[str, Any]], name: str, tol: float) -> int:
-    """Cases of `name` named with the strength in ppm/(C/min) within `tol` (the criterion
-    before version 3, kept for comparison: see docs/diagnose.md)."""
+    """Cases of `name` named with the strength in ppm/(C/min) within `tol` (printed beside the
+    housing coupling the bench judges temp_rate on: docs/diagnose.md)."""
     n = 0
     for r in eff:
         p = r["params"].get(name, {})
