@@ -21,7 +21,10 @@ def test_every_package_is_in_pyproject() -> None:
     listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
                  ["packages"])
     found = {".".join(p.parent.relative_to(ROOT).parts)
-             for p in (ROOT / "fogsf").rglob("__init__.py") if "__pycache__" not in p.parts}
+             for p in (ROOT / "fogsf").rglob("*") if p.is_file() and "__pycache__" not in p.parts}
+    # every folder of firmware/ holding files ships as fogsf.firmware.*
+    found |= {".".join(("fogsf", *p.parent.relative_to(ROOT).parts))
+              for p in (ROOT / "firmware").rglob("*") if p.is_file()}
     assert found <= listed, f"add to [tool.setuptools] packages: {sorted(found - listed)}"
     assert {name.split(".")[0] for name in listed} == {"fogsf"}, "one top-level package"
 
