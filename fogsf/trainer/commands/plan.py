@@ -101,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--envelope-rate: rates must be positive, e.g. 0.2:2")
     limits = Limits(args.range[0], args.range[1], args.max_ramp, args.hours)
     gyros: list = [(s, s) for s in seeds]
-    what = f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})"
+    what = (f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})" if len(seeds) > 1
+            else f"development gyro {seeds[0]}")
     if args.from_logs:
         fitted = fitted_gyros(read_logs(args, [str(p) for p in args.from_logs]))
         gyros = [(i + 1, g) for i, g in enumerate(fitted)]
@@ -110,7 +111,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--axes {args.axes}: the number of gyros ({len(gyros)}) must be a "
                         "multiple of it")
     if args.axes > 1:
-        what += f", {len(gyros) // args.axes} IMUs of {args.axes} axes"
+        imus = len(gyros) // args.axes
+        what += f", {imus} IMU{'s' if imus > 1 else ''} of {args.axes} axes"
     n_progs = len(candidates(limits))
     if not n_progs:
         unbounded = candidates(replace(limits, hours=72.0))  # the longest --hours allowed
