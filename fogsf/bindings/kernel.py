@@ -27,8 +27,7 @@ from fogsf.trainer.models.stream import StreamModel
 
 C_DIR = Path(fogsf.cmake_dir)
 """The kernel's C sources: firmware/c in a checkout, fogsf/firmware/c in an installed wheel."""
-ROOT = Path(fogsf.firmware_dir).parent
-IN_CHECKOUT = fogsf.in_checkout
+ROOT = Path(fogsf.firmware_dir).parent  # the checkout's root when fogsf.in_checkout
 SOURCES = ("fogsf.c", "fogsf_cell.c")
 HEADERS = ("fogsf.h",)
 # The flags of the issue: strict C99, warnings are errors, no contraction into FMA (bit-exact
@@ -57,7 +56,7 @@ def default_build_root() -> Path:
     env = os.environ.get("FOGSF_BUILD_DIR")
     if env:
         return Path(env)
-    if IN_CHECKOUT:
+    if fogsf.in_checkout:
         return ROOT / "build" / "kernels"
     return user_cache_dir() / "kernels"
 

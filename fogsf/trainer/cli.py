@@ -33,8 +33,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
 # A value that starts with a negative number but is not one (LO:HI such as -20:60, a list
 # such as -20,40,5) is taken by argparse for an option: it is joined to its option
 # (--range -20:60 -> --range=-20:60).
-_NUM = r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?"
-NEGATIVE_RANGE = re.compile(rf"^-\d*\.?\d+(?:[eE][-+]?\d+)?(?:[:,]{_NUM})+$")
+_UNSIGNED = r"\d*\.?\d+(?:[eE][-+]?\d+)?"
+NEGATIVE_RANGE = re.compile(rf"^-{_UNSIGNED}(?:[:,][-+]?{_UNSIGNED})+$")
 
 
 def join_negative_ranges(argv: list[str]) -> list[str]:
