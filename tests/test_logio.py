@@ -74,7 +74,8 @@ def test_good_file_reads() -> None:
         (csv(good_rows()[:3] + ["0.1,20,10,10"]), "time not increasing", 5),
         (csv(good_rows()[:3] + ["0.4,20,10,10"]), "gap", 5),
         (csv(good_rows()[:3] + ["0.25,20,10,10"]), "jitter", 5),
-        (csv(good_rows()[:3] + ["0.3,20,0,10"]), "zero table rate", 5),
+        (csv([f"{0.1 * i:.1f},20,0,0" for i in range(4)]), "no row measures", None),
+        (csv([r + ",0" for r in good_rows()], HEADER + ",valid"), "no row measures", None),
         (csv(good_rows()[:3] + ["0.3,101,10,10"]), "temperature out of range", 5),
         (csv(good_rows()[:3] + ["0.3,-60.5,10,10"]), "temperature out of range", 5),
         (csv([r + ",120" for r in good_rows()], HEADER + ",chamber_c"),
@@ -106,6 +107,19 @@ def test_unknown_columns_kept_and_temperature_like_names_checked() -> None:
     assert log.extra["pressure_hpa"][0] == 500
 
 
+def test_rows_that_measure_nothing_stay_in_the_log(tmp_path: Path) -> None:
+    """Zero table rate or valid = 0: kept, not measuring; written back and read the same."""
+    rows = [f"{0.1 * i:.1f},20,{0 if i in (1, 2) else 10},10,{0 if i == 4 else 1}"
+            for i in range(6)]
+    log = parse_log(csv(rows, HEADER + ",valid"), "x.csv")
+    assert len(log) == 6
+    assert log.measures.tolist() == [True, False, False, True, False, True]
+    write_log(tmp_path / "v.csv", log)
+    back = read_log(tmp_path / "v.csv")
+    assert back.valid is not None and back.measures.tolist() == log.measures.tolist()
+    assert "valid" not in back.extra
+
+
 def test_no_earth_rate_needs_latitude() -> None:
     log = parse_log(csv(good_rows()), "x.csv")
     with pytest.raises(LogError, match="latitude"):
@@ -118,12 +132,12 @@ def test_cli_refusal_is_one_line_no_traceback(tmp_path: Path) -> None:
     import sys
 
     p = tmp_path / "bad.csv"
-    p.write_text(csv(good_rows()[:3] + ["0.3,20,0,10"]))
+    p.write_text(csv(good_rows()[:3] + ["0.25,20,10,10"]))
     r = subprocess.run([sys.executable, "-m", "fogsf", "inspect", str(p)],
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert "Traceback" not in r.stderr
-    assert f"{p}: line 5: zero table rate" in r.stderr
+    assert f"{p}: line 5: jitter" in r.stderr
 
 
 def test_header_only_file_is_one_clean_line(tmp_path: Path) -> None:

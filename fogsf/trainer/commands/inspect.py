@@ -46,7 +46,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
             ref: float | None) -> dict:
     rates = sorted({round(float(log.table_rate_dps[a]), 9)
-                    for a, _ in plateaus(log.table_rate_dps)})
+                    for a, _ in plateaus(log.table_rate_dps, log.measures)})
     if ref is None:
         ref = reference_sf(sf_windows(log, window_s, latitude_deg))
     return {

@@ -12,7 +12,7 @@ import numpy as np
 from fogsf.trainer.errors import UserError
 
 REQUIRED = ("time_s", "temp_c", "table_rate_dps", "gyro_dps")
-OPTIONAL = ("earth_rate_dps", "chamber_c")
+OPTIONAL = ("earth_rate_dps", "chamber_c", "valid")
 NOMINAL_DT_S = 0.1  # the paper's 10 Hz: the period given to a log of a single sample
 # Sample rates a log may have (Hz): a 1 Hz logger to a 4 kHz gyro output
 RATE_RANGE_HZ = (1.0, 4000.0)
@@ -53,6 +53,10 @@ class ChamberLog:
     # the nominal sample period (s): set by the reader and the simulator; None: the median
     # step of time_s (0.1 s for a log of one sample)
     nominal_dt_s: float | None = None
+    # per sample, True where the row measures (the `valid` column or expression); None: every
+    # row. Rows that do not measure stay in the log (the model runs over them as firmware
+    # would) but give no SF, no training target and no metric; see `measures`.
+    valid: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])
@@ -71,6 +75,13 @@ class ChamberLog:
     @property
     def duration_s(self) -> float:
         return float(self.time_s[-1] - self.time_s[0]) if len(self) else 0.0
+
+    @property
+    def measures(self) -> np.ndarray:
+        """Per sample, True where the row measures the SF: `valid` and a non-zero table rate
+        (at rest the SF is undefined)."""
+        m = self.table_rate_dps != 0.0
+        return m if self.valid is None else m & self.valid
 
     def earth(self, latitude_deg: float | None = None) -> np.ndarray:
         """Earth rate on the sensitive axis: the log's column, else from a latitude.
@@ -93,6 +104,8 @@ class ChamberLog:
         }
         if self.earth_rate_dps is not None:
             cols["earth_rate_dps"] = self.earth_rate_dps
+        if self.valid is not None:
+            cols["valid"] = self.valid.astype(np.float64)
         cols.update(self.extra)
         return cols
 
@@ -105,6 +118,7 @@ class ChamberLog:
             gyro_dps=self.gyro_dps[start:stop],
             earth_rate_dps=None if self.earth_rate_dps is None
             else self.earth_rate_dps[start:stop],
+            valid=None if self.valid is None else self.valid[start:stop],
             extra={k: v[start:stop] for k, v in self.extra.items()},
             path=self.path,
             read_notes=self.read_notes,

@@ -142,13 +142,15 @@ def _log_of(data: np.ndarray, header: list[str], path: str, dialect: Dialect,
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
         notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
                      f"{'--sample-rate-hz' if dialect.sample_rate_hz else 'from time_s'})")
-    extra = {k: v for k, v in cols.items() if k not in REQUIRED and k != "earth_rate_dps"}
+    extra = {k: v for k, v in cols.items()
+             if k not in REQUIRED and k not in ("earth_rate_dps", "valid")}
     return ChamberLog(
         time_s=cols["time_s"],
         temp_c=cols["temp_c"],
         table_rate_dps=cols["table_rate_dps"],
         gyro_dps=cols["gyro_dps"],
         earth_rate_dps=cols.get("earth_rate_dps"),
+        valid=cols["valid"] != 0.0 if "valid" in cols else None,
         extra=extra,
         path=path,
         read_notes=tuple(notes),
@@ -226,10 +228,14 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
                            f"step {dt[i]:.4g} s from time_s {t[i]:g}; allowed "
                            f"{nominal:.4g} s +/- {DT_TOLERANCE:.0%} ({rate_text(nominal)}, "
                            f"{given})")
-    zero = np.flatnonzero(cols["table_rate_dps"] == 0.0)
-    if zero.size:
-        raise LogError(path, int(zero[0]) + 2, "zero table rate",
-                       "table_rate_dps must be non-zero (the SF is undefined at rest)")
+    measures = cols["table_rate_dps"] != 0.0
+    if "valid" in cols:
+        measures = measures & (cols["valid"] != 0.0)
+    if not measures.any():
+        raise LogError(path, None, "no row measures",
+                       "every row has a zero table rate" + (" or valid = 0" if "valid" in cols
+                                                            else "")
+                       + ": the SF is measured while the table turns")
     lo, hi = TEMP_RANGE_C
     for name, v in cols.items():
         if not is_temperature(name):
@@ -251,7 +257,8 @@ def write_log(path: str | Path, log: ChamberLog) -> None:
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(",".join(names) + "\n")
         # time_s with 12 digits: a 4 kHz step (0.25 ms) stays exact past 10^5 s
-        write_rows(f, data, ["%.12g" if n == "time_s" else "%.10g" for n in names])
+        write_rows(f, data, ["%.12g" if n == "time_s" else "%d" if n == "valid" else "%.10g"
+                             for n in names])
 
 
 def write_rows(f: io.TextIOBase, data: np.ndarray, fmts: list[str], chunk: int = 50_000

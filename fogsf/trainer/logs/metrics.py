@@ -44,14 +44,19 @@ class SFWindows:
         return int(self.t_s.shape[0])
 
 
-def plateaus(table_rate_dps: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) index ranges over which the table rate does not change."""
+def plateaus(table_rate_dps: np.ndarray, measures: np.ndarray | None = None
+             ) -> list[tuple[int, int]]:
+    """[start, stop) index ranges over which the table rate does not change; with `measures`
+    (`ChamberLog.measures`), only the measuring runs inside them."""
     r = np.asarray(table_rate_dps)
     if r.size == 0:
         return []
-    change = np.flatnonzero(np.abs(np.diff(r)) > 1e-9 * np.maximum(np.abs(r[1:]), 1.0)) + 1
-    edges = np.concatenate([[0], change, [r.size]])
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    change = np.abs(np.diff(r)) > 1e-9 * np.maximum(np.abs(r[1:]), 1.0)
+    if measures is not None:
+        change |= measures[1:] != measures[:-1]
+    edges = np.concatenate([[0], np.flatnonzero(change) + 1, [r.size]])
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)
+            if measures is None or measures[a]]
 
 
 def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,
@@ -71,7 +76,7 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
         gyro = gyro / (1.0 + corr * 1e-6)
     signal = gyro - log.earth(latitude_deg)
     starts: list[int] = []
-    for a, b in plateaus(log.table_rate_dps):
+    for a, b in plateaus(log.table_rate_dps, log.measures):
         starts.extend(range(a, b - n + 1, n))
     if not starts:
         raise UserError(f"{log.path}: no complete {window_s:g} s window at a constant table "
@@ -182,7 +187,8 @@ def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,
     (for r2 = -r1: half the difference over r1, and half the sum)."""
     signal = log.gyro_dps - log.earth(latitude_deg)
     skip = int(round(settle_s / log.sample_dt_s))
-    pl = [(a + skip, b) for a, b in plateaus(log.table_rate_dps) if b - a > skip + 1]
+    pl = [(a + skip, b) for a, b in plateaus(log.table_rate_dps, log.measures)
+          if b - a > skip + 1]
     out: list[tuple[float, float, float, float]] = []
     i = 0
     while i + 1 < len(pl):  # pairs do not share a plateau

@@ -80,10 +80,11 @@ class SeqData:
 
     log: ChamberLog
     s: np.ndarray  # [n_steps, 1+K] float32
-    target_ppm: np.ndarray  # [n_steps] float64: measured SF error vs nominal
-    train_mask: np.ndarray  # [n_steps] bool: usable for fitting (False in the validation part)
+    target_ppm: np.ndarray  # [n_steps] float64: measured SF error vs nominal (0: unmeasured)
+    train_mask: np.ndarray  # [n_steps] bool: measured and outside the validation part
     decimation: int
     step_s: float  # seconds per model step
+    measured: np.ndarray  # [n_steps] bool: the step holds a row that measures (log.measures)
 
     @property
     def n_steps(self) -> int:
@@ -91,7 +92,8 @@ class SeqData:
 
     @property
     def val_mask(self) -> np.ndarray:
-        return ~self.train_mask
+        """Measured steps of the validation part."""
+        return self.measured & ~self.train_mask
 
 
 def common_sample_dt(logs: list[ChamberLog]) -> float:
@@ -123,13 +125,17 @@ def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ..
 
 def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = None
                  ) -> np.ndarray:
-    """Mean SF error (ppm vs nominal) over the samples each model step's output is held for."""
-    ratio = (log.gyro_dps - log.earth(latitude_deg)) / log.table_rate_dps
+    """Mean SF error (ppm vs nominal) over the measuring samples (`log.measures`) each model
+    step's output is held for; NaN for a step without one."""
+    m = log.measures
+    table = np.where(m, log.table_rate_dps, 1.0)
+    ratio = np.where(m, (log.gyro_dps - log.earth(latitude_deg)) / table, 0.0)
     n = ratio.shape[0]
-    n_steps = (n - 1) // decimation + 1
-    sums = np.add.reduceat(ratio, np.arange(n_steps) * decimation)
-    counts = np.diff(np.append(np.arange(n_steps) * decimation, n))
-    return (sums / counts - 1.0) * 1e6
+    starts = np.arange((n - 1) // decimation + 1) * decimation
+    sums = np.add.reduceat(ratio, starts)
+    counts = np.add.reduceat(m.astype(np.float64), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(counts > 0, (sums / counts - 1.0) * 1e6, np.nan)
 
 
 def val_mask_for(n_steps: int, val_chunk: tuple[float, float]) -> np.ndarray:
@@ -148,7 +154,9 @@ def prepare(log: ChamberLog, fe: FrontEnd, val_chunk: tuple[float, float] | None
     t = step_targets(log, fe.decimation, latitude_deg) if targets is None else targets
     n = out.s.shape[0]
     val = val_mask_for(n, val_chunk) if val_chunk else np.zeros(n, dtype=bool)
-    return SeqData(log, out.s, t, ~val, fe.decimation, fe.step_s)
+    measured = np.isfinite(t)
+    return SeqData(log, out.s, np.where(measured, t, 0.0), ~val & measured, fe.decimation,
+                   fe.step_s, measured)
 
 
 @dataclass(frozen=True)

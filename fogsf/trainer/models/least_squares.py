@@ -93,11 +93,16 @@ def _two_node_design(s: np.ndarray, k1: int, w1: float, k2: int, w2: float) -> n
 def grid_data(logs: list, fe: FrontEnd, grid: tuple[float, ...], latitude_deg: float | None
               ) -> tuple[list[SeqData], np.ndarray]:
     """Every log through a front end with one lag filter per grid time constant, and the
-    targets of all their steps stacked."""
+    targets of all their measured steps stacked (rows: `measured_rows`)."""
     full = replace(fe, filter_alpha=filter_alpha(list(grid), fe.decimation, fe.sample_dt_s),
                    filter_tau_s=tuple(float(t) for t in grid))
     data = [prepare(lg, full, None, latitude_deg) for lg in logs]
-    return data, np.concatenate([d.target_ppm for d in data])
+    return data, np.concatenate([d.target_ppm[d.measured] for d in data])
+
+
+def measured_rows(data: list[SeqData]) -> np.ndarray:
+    """The front-end rows of the measured steps of `data`, stacked (`grid_data`'s targets)."""
+    return np.concatenate([d.s[d.measured] for d in data])
 
 
 @dataclass(frozen=True)
@@ -175,7 +180,7 @@ def _profile(logs: list, fe: FrontEnd, latitude_deg: float | None,
     it by chance (with two ramp rates it picked one 6 x the noise floor on the rate between,
     where the best in-sample fit was at 1.1 x)."""
     data, y = grid_data(logs, fe, grid, latitude_deg)
-    fits = fit_candidates(candidates, np.concatenate([d.s for d in data]), y)
+    fits = fit_candidates(candidates, measured_rows(data), y)
     pool = [f for f in fits if f.plausible] or fits
     best = min(pool, key=lambda f: f.sse)  # the first of equals, in candidate order
     return best.cand, math.sqrt(best.sse / y.size)

@@ -235,10 +235,10 @@ def _fit_bank_head(ti: TrainingInputs) -> BankFit:
 
 
 def bank_data(ti: TrainingInputs) -> tuple[np.ndarray, np.ndarray]:
-    """(z, y): the normalised features and targets of every step of the training logs,
-    what the lag bank is fitted to."""
-    z = np.concatenate(ti.z)
-    y = np.concatenate([(d.target_ppm - ti.offset) / ti.scale for d in ti.data])
+    """(z, y): the normalised features and targets of every measured step of the training
+    logs, what the lag bank is fitted to."""
+    z = np.concatenate([z[d.measured] for z, d in zip(ti.z, ti.data, strict=True)])
+    y = np.concatenate([(d.target_ppm[d.measured] - ti.offset) / ti.scale for d in ti.data])
     return z, y
 
 

@@ -237,6 +237,7 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
         TAU_GRID_S,
         fit_candidates,
         grid_data,
+        measured_rows,
         node_candidates,
     )
     from fogsf.trainer.training.fit import windowed_rms_ppm
@@ -245,7 +246,7 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
                        sample_dt_s=common_sample_dt(train_logs))
     data, y = grid_data(train_logs, fe, TAU_GRID_S, latitude_deg)
     (tdata,), _ = grid_data([target], fe, TAU_GRID_S, latitude_deg)
-    s = np.concatenate([d.s for d in data])
+    s = measured_rows(data)
     fits = [f for f in fit_candidates(node_candidates(1) + node_candidates(2), s, y)
             if f.plausible]
     if not fits:
@@ -254,12 +255,12 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     sse = np.array([f.sse for f in fits])
     best = int(np.argmin(sse))
     resid = y - fits[best].cand.design(s) @ fits[best].coef
-    inflation = long_run_ratio(resid, [d.n_steps for d in data],
+    inflation = long_run_ratio(resid, [int(d.measured.sum()) for d in data],
                                max(1, int(round(LONG_RUN_S / step_s))))
     noise_var = sse[best] / max(1, y.size - 6)
     ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation)
     preds = {i: fits[i].cand.design(tdata.s) @ fits[i].coef for i in ok}
-    every = np.ones(tdata.n_steps, dtype=bool)
+    every = tdata.measured
     spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, tdata.step_s)
                        for i in ok])
     model_spread = spread
