@@ -69,15 +69,13 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.
 
     gyro = getattr(args, "gyro_column", None)
     axis = getattr(args, "axis", None)
-    if axis is not None:
-        if gyro is not None:
-            raise UserError("give --axis or --gyro-column, not both")
-        gyro = f"gyro_{axis}_dps"
+    if axis is not None and gyro is not None:
+        raise UserError("give --axis or --gyro-column, not both")
     cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
                    decimal_comma=getattr(args, "decimal_comma", False),
-                   sample_rate_hz=getattr(args, "sample_rate_hz", None))
+                   sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis)
 
 
 def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel

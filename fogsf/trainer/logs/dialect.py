@@ -34,6 +34,12 @@ class Dialect:
     decimal_comma: bool = False  # cells written 20,5 (then separated by ; or tab)
     columns_from: str = "--columns"  # where `columns` came from, for messages
     sample_rate_hz: float | None = None  # stated (--sample-rate-hz); None: from time_s
+    axis: str | None = None  # --axis A: gyro_A_dps read as gyro_dps
+
+    @property
+    def gyro_name(self) -> str | None:
+        """The log's column read as gyro_dps: --gyro-column, or gyro_A_dps for --axis A."""
+        return self.gyro_column or (f"gyro_{self.axis}_dps" if self.axis else None)
 
     @staticmethod
     def mapping_file(path: str | Path) -> tuple[tuple[str, str], ...]:
@@ -133,11 +139,12 @@ def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
     """The header in our names: --columns mapped, --gyro-column read as gyro_dps."""
     out = list(header)
     pairs = list(dialect.columns)
-    if dialect.gyro_column is not None:
-        pairs.append(("gyro_dps", dialect.gyro_column))
+    gyro = dialect.gyro_name
+    if gyro is not None:
+        pairs.append(("gyro_dps", gyro))
     for ours, theirs in pairs:
-        opt = "--gyro-column" if (ours, theirs) == ("gyro_dps", dialect.gyro_column) \
-            else dialect.columns_from
+        opt = ("--gyro-column" if dialect.gyro_column else "--axis") \
+            if (ours, theirs) == ("gyro_dps", gyro) else dialect.columns_from
         if theirs not in header:
             raise LogError(path, 1, "no such column",
                            f"{opt} names {theirs!r} for {ours}; header has: "
@@ -152,12 +159,21 @@ GYRO_LIKE = re.compile(r"(?i)gyro|^(gyr|g|w|omega)[_ -]?[xyz](?![a-z0-9])")
 TEMPERATURE_LIKE = re.compile(r"(?i)temp|deg_?c\b|_c$|\[c\]")
 
 
+AXIS_GYRO = re.compile(r"gyro_(\w+)_dps")
+
+
+def log_axes(header: list[str]) -> list[str]:
+    """The axes A of a header in the format's names (gyro_A_dps columns), in header order:
+    what `--axis all` runs over."""
+    return [m.group(1) for h in header if (m := AXIS_GYRO.fullmatch(h))]
+
+
 def _missing_hint(missing: list[str], header: list[str]) -> str:
-    axes = [h for h in header if re.fullmatch(r"gyro_\w+_dps", h)]
+    axes = log_axes(header)
     if "gyro_dps" in missing and axes:
-        axis = axes[0][len("gyro_"):-len("_dps")]
-        return (f"; the log has {', '.join(axes)}: pick one with --gyro-column {axes[0]} "
-                f"(or --axis {axis})")
+        names = [f"gyro_{a}_dps" for a in axes]
+        return (f"; the log has {', '.join(names)}: pick one with --gyro-column {names[0]} "
+                f"(or --axis {axes[0]})")
     hints = []
     if "gyro_dps" in missing:
         like = [h for h in header if h not in REQUIRED + OPTIONAL and GYRO_LIKE.search(h)
