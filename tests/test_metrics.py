@@ -35,10 +35,13 @@ def ramp_log(n: int, sf_ppm: np.ndarray, rate: np.ndarray | float = 10.0, noise_
 def test_windows_do_not_straddle_rate_changes() -> None:
     rate = np.where(np.arange(5000) < 2550, 10.0, -20.0)
     log = ramp_log(5000, np.zeros(5000), rate)
-    w = sf_windows(log, window_s=100.0)
+    w = sf_windows(log, window_s=100.0, settle_s=0.0)
     assert plateaus(rate) == [(0, 2550), (2550, 5000)]
     # 2 whole windows in the first plateau, 2 in the second; the tails are not windows
     assert list(w.start) == [0, 1000, 2550, 3550]
+    # the settle margin (2 s by default) starts the second plateau's windows 20 samples late;
+    # the log's first plateau follows no change and is not settled
+    assert list(sf_windows(log, window_s=100.0).start) == [0, 1000, 2570, 3570]
     assert set(np.unique(w.rate_dps)) == {10.0, -20.0}
     np.testing.assert_allclose(w.sf_ratio, 1.0, atol=1e-12)
 
@@ -115,5 +118,9 @@ def test_reference_needs_20c() -> None:
 
 
 def test_short_log_refused() -> None:
-    with pytest.raises(UserError, match="no complete"):
-        sf_windows(ramp_log(500, np.zeros(500)))
+    # under 5 s at one rate: no window (the refusal names the options that decide it)
+    with pytest.raises(UserError, match="no complete.*--settle-s.*--window-s"):
+        sf_windows(ramp_log(45, np.zeros(45)))
+    # 50 s, shorter than a 100 s window: one SF sample, with its noise from sub-windows
+    w = sf_windows(ramp_log(500, np.zeros(500), noise_dps=1e-3))
+    assert len(w) == 1 and w.stop[0] - w.start[0] == 500 and np.isfinite(w.noise_ppm[0])

@@ -30,10 +30,32 @@ def positive_int(text: str) -> int:
     return v
 
 
-def add_metric_options(parser: argparse.ArgumentParser) -> None:
-    """--window-s and --latitude-deg, as every command that measures SF error takes them."""
-    parser.add_argument("--window-s", type=float, default=100.0,
-                        help="SF window length in seconds for the metrics (default 100)")
+def non_negative_float(text: str) -> float:
+    """An argparse type: a finite number >= 0 (a margin in seconds)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (v >= 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return v
+
+
+def add_metric_options(parser: argparse.ArgumentParser, skip: bool = False) -> None:
+    """--window-s, --settle-s and --latitude-deg (with `skip`, --skip-s too), as every
+    command that measures SF error takes them (docs/logs.md, "What the figures mean")."""
+    parser.add_argument("--window-s", type=positive_float, default=100.0,
+                        help="SF window length in seconds for the metrics (default 100): a "
+                             "table-rate plateau is cut into windows of this length; a "
+                             "shorter plateau (from 5 s) is one window")
+    parser.add_argument("--settle-s", type=non_negative_float, default=2.0,
+                        help="seconds left out after each change of the commanded table rate "
+                             "while the table slews to it (default 2)")
+    if skip:
+        parser.add_argument("--skip-s", type=non_negative_float, default=0.0,
+                            help="leave the log's first S seconds out of the metrics (the "
+                                 "model still runs over them): for a log that starts while "
+                                 "the temperature moves")
     parser.add_argument("--latitude-deg", type=float, default=None,
                         help="latitude for the earth rate when a log has no earth_rate_dps")
 

@@ -5,7 +5,11 @@ format (a bad file is refused with its file, line and rule), then summarised: sa
 duration, board-temperature range, table rates, and the SF error about the SF at 20 C
 (board thermometer) in windows of --window-s: max|e|, peak-to-peak, RMS (about the 20 C
 reference) and STD (about the mean), beside the noise floor (what the gyro's own noise
-leaves in one window).
+leaves in one window). SF comes from plateaus of constant commanded table rate, each
+after a settle margin (--settle-s); a log with +/- pairs (adjacent plateaus of opposite
+sign and equal |rate|) shows the gyro's bias and its drift with temperature, and a
+staircase (three or more |rates|) the SF per rate step, its nonlinearity and asymmetry
+(IEEE Std 952). A log that starts while the temperature moves is said so (--skip-s).
 
 Example:
   fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv && fogsf inspect run10.csv
@@ -15,16 +19,23 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from fogsf.trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 from fogsf.trainer.logs.metrics import (
+    DPS_TO_DPH,
+    SETTLE_S,
+    find_pairs,
     log_metrics,
     noise_floor_ppm,
     plateaus,
+    rate_steps,
     reference_sf,
     sf_error_ppm,
     sf_windows,
+    start_note,
+    start_ramp_c_per_min,
 )
 
 
@@ -32,8 +43,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", help="chamber log CSV (format: docs/logs.md)")
     parser.add_argument("--json", action="store_true",
                         help="print the summary as JSON (samples, duration_s, sample_rate_hz, "
-                             "temp_range_c, table_rates_dps, metrics)")
-    add_metric_options(parser)
+                             "temp_range_c, table_rates_dps, metrics, settle_s, skip_s, "
+                             "start_ramp_c_per_min, pairs, rate_steps)")
+    add_metric_options(parser, skip=True)
     add_log_options(parser)
     parser.add_argument("--ref-sf", type=positive_float, default=None,
                         help="reference SF ratio (vs nominal) instead of the log's own at 20 C "
@@ -43,26 +55,70 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="write a plot of the SF error vs board temperature and time")
 
 
+def pairs_summary(log: ChamberLog, latitude_deg: float | None, settle_s: float
+                  ) -> dict | None:
+    """The +/- pairs' bias (deg/h), its spread and thermal drift; None without pairs."""
+    pp = find_pairs(log, latitude_deg, settle_s)
+    if pp is None:
+        return None
+    bias = pp.bias_dps * DPS_TO_DPH
+    return {"count": len(pp), "rates_dps": sorted({round(float(r), 6) for r in pp.rate_dps}),
+            "bias_dph": float(bias.mean()), "bias_std_dph": float(bias.std()),
+            "bias_range_dph": [float(bias.min()), float(bias.max())],
+            "bias_drift_dph_per_c": pp.bias_drift_dph_per_c(),
+            "sf_ppm": float((pp.sf_ratio.mean() - 1.0) * 1e6)}
+
+
 def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
-            ref: float | None) -> dict:
+            ref: float | None, settle_s: float = SETTLE_S, skip_s: float = 0.0) -> dict:
     rates = sorted({round(float(log.table_rate_dps[a]), 9)
                     for a, _ in plateaus(log.table_rate_dps, log.measures)})
     if ref is None:
-        ref = reference_sf(sf_windows(log, window_s, latitude_deg))
+        ref = reference_sf(sf_windows(log, window_s, latitude_deg, settle_s=settle_s,
+                                      skip_s=skip_s))
+    steps = rate_steps(log, latitude_deg, settle_s)
     return {
         "samples": len(log),
         "duration_s": log.duration_s,
         "sample_rate_hz": log.sample_rate_hz,
         "temp_range_c": [float(log.temp_c.min()), float(log.temp_c.max())],
         "table_rates_dps": rates,
-        "metrics": log_metrics(log, window_s, ref=ref, latitude_deg=latitude_deg),
+        "metrics": log_metrics(log, window_s, ref=ref, latitude_deg=latitude_deg,
+                               settle_s=settle_s, skip_s=skip_s),
         "ref_sf_ratio": ref,
+        "settle_s": settle_s,
+        "skip_s": skip_s,
+        "start_ramp_c_per_min": start_ramp_c_per_min(log),
+        "pairs": pairs_summary(log, latitude_deg, settle_s),
+        "rate_steps": None if steps is None else steps.as_dict(),
     }
+
+
+def print_plateau_figures(s: dict) -> None:
+    """The pairs' bias and the staircase's figures, when the log has them."""
+    p = s["pairs"]
+    if p is not None:
+        drift = ("" if p["bias_drift_dph_per_c"] is None
+                 else f", drift {p['bias_drift_dph_per_c']:+.4f} deg/h/C")
+        lo, hi = p["bias_range_dph"]
+        print(f"  bias from {p['count']} +/- pairs: {p['bias_dph']:+.4f} deg/h (std "
+              f"{p['bias_std_dph']:.4f}, {lo:+.4f} .. {hi:+.4f}){drift}; taken off before SF")
+    st = s["rate_steps"]
+    if st is not None:
+        print(f"  rate steps: SF nonlinearity {st['sf_nonlinearity_ppm_fs']:.1f} ppm of full "
+              f"scale, asymmetry {st['sf_asymmetry_ppm']:+.1f} ppm (IEEE Std 952)")
+        for r, a, b in zip(st["rates_dps"], st["sf_pos_ppm"], st["sf_neg_ppm"], strict=True):
+            pos = "   -   " if a is None else f"{a:+9.1f}"
+            neg = "   -   " if b is None else f"{b:+9.1f}"
+            print(f"    |rate| {r:8.3f} deg/s   SF+ {pos} ppm   SF- {neg} ppm")
 
 
 def run(args: argparse.Namespace) -> int:
     log = read_logs(args, [args.log])[0]
-    s = summary(log, args.window_s, args.latitude_deg, args.ref_sf)
+    note = start_note(log, args.skip_s)
+    if note:
+        print(f"fogsf: {note}", file=sys.stderr)
+    s = summary(log, args.window_s, args.latitude_deg, args.ref_sf, args.settle_s, args.skip_s)
     if args.json:
         print(json.dumps(s, indent=2))
     else:
@@ -77,26 +133,29 @@ def run(args: argparse.Namespace) -> int:
         if extra:
             print(f"  extra columns: {', '.join(extra)}")
         ref = "the given reference" if args.ref_sf is not None else "the SF at 20 C"
-        print(f"  SF error about {ref}, {m['window_s']:g} s windows:")
+        print(f"  SF error about {ref}, {m['window_s']:g} s windows (settle "
+              f"{s['settle_s']:g} s{f', first {args.skip_s:g} s skipped' if args.skip_s else ''}):")
         print(f"    max|e| {m['max_abs_ppm']:.2f} ppm   p-p {m['pp_ppm']:.2f} ppm   "
               f"RMS {m['rms_ppm']:.2f} ppm   STD {m['std_ppm']:.2f} ppm")
         print(f"    noise floor {m['noise_floor_ppm']:.2f} ppm (1 sigma of one window)")
         print(f"  reference SF ratio {s['ref_sf_ratio']:.9f} (vs nominal; --ref-sf)")
+        print_plateau_figures(s)
     if args.plot:
-        plot(log, args.window_s, args.latitude_deg, args.ref_sf, args.plot)
+        plot(log, args.window_s, args.latitude_deg, args.ref_sf, args.plot, args.settle_s,
+             args.skip_s)
         if not args.json:
             print(f"  plot: {args.plot}")
     return 0
 
 
 def plot(log: ChamberLog, window_s: float, latitude_deg: float | None, ref: float | None,
-         path: str) -> None:
+         path: str, settle_s: float = SETTLE_S, skip_s: float = 0.0) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    w = sf_windows(log, window_s, latitude_deg)
+    w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
     e = sf_error_ppm(w, ref if ref is not None else reference_sf(w))
     floor = noise_floor_ppm(w)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))

@@ -8,6 +8,9 @@ predicted SF error vs the nominal SF, held between model steps). The SF-error me
 the log before and after the correction are printed (max|e|, p-p, RMS, STD, noise floor).
 A log at another sample rate than the model's training logs runs the model re-rated to it
 (the same model step in seconds; `fogsf export --sample-rate-hz` gives that firmware).
+The kernel starts from reset at the log's first sample, its lag states at that sample's
+temperature: a log that starts while the temperature moves is said so, and --skip-s S
+leaves its first S seconds out of the metrics (the kernel still runs over them).
 Example:
   fogsf replay models/m run10.csv --out corrected.csv --plot replay.png
 """
@@ -16,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +40,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm")
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="before/after plot of the SF error (windows vs temperature, time)")
-    add_metric_options(parser)
+    add_metric_options(parser, skip=True)
     add_log_options(parser)
     parser.add_argument("--json", metavar="PATH", default=None,
                         help="also write the before/after metrics and flag counts as JSON")
@@ -71,11 +75,14 @@ def flag_counts(flags: np.ndarray) -> dict[str, int]:
 def run(args: argparse.Namespace) -> int:
     from fogsf.bindings.kernel import Kernel, build_kernel
     from fogsf.trainer.errors import UserError
-    from fogsf.trainer.logs.metrics import log_metrics
+    from fogsf.trainer.logs.metrics import log_metrics, start_note
     from fogsf.trainer.models.stream import StreamModel
 
     model = StreamModel.load(args.model)
     log = read_logs(args, [args.log])[0]
+    note = start_note(log, args.skip_s)
+    if note:
+        print(f"fogsf: {note}", file=sys.stderr)
     model = rated(model, log.sample_dt_s, f"the log's {log.sample_rate_hz:.6g} Hz")
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
@@ -89,17 +96,19 @@ def run(args: argparse.Namespace) -> int:
     print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
                        else "none"))
     try:
+        span = {"settle_s": args.settle_s, "skip_s": args.skip_s}
         before = log_metrics(log, args.window_s, ref=args.ref_sf,
-                             latitude_deg=args.latitude_deg)
+                             latitude_deg=args.latitude_deg, **span)
         after = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg,
-                            correction_ppm=sf.astype(np.float64))
+                            correction_ppm=sf.astype(np.float64), **span)
     except UserError as e:  # e.g. a log that never passes 20 C has no reference SF
         print(f"no before/after metrics: {e}")
         before = after = None
     if before is not None and after is not None:
         about = "--ref-sf" if args.ref_sf is not None else "the log's SF at 20 C"
-        print(f"SF error, {args.window_s:g} s windows (before: about {about}; "
-              f"after: measured / predicted - 1):")
+        skipped = f", first {args.skip_s:g} s skipped" if args.skip_s else ""
+        print(f"SF error, {args.window_s:g} s windows (settle {args.settle_s:g} s{skipped}; "
+              f"before: about {about}; after: measured / predicted - 1):")
         for name, m in (("before", before), ("after", after)):
             print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
@@ -110,18 +119,22 @@ def run(args: argparse.Namespace) -> int:
                                                "sample_rate_hz": log.sample_rate_hz,
                                                "decimation": model.decimation,
                                                "samples": len(log),
+                                               "window_s": args.window_s,
+                                               "settle_s": args.settle_s,
+                                               "skip_s": args.skip_s,
                                                "before": before, "after": after,
                                                "flags": counts}, indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.plot and before is not None:
         plot(log, sf, args.window_s, args.latitude_deg, args.plot, model.model_id,
-             args.ref_sf)
+             args.ref_sf, args.settle_s, args.skip_s)
         print(f"plot: {args.plot}")
     return 0
 
 
 def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # noqa: ANN001
-         path: str, model_id: str, ref: float | None = None) -> None:
+         path: str, model_id: str, ref: float | None = None, settle_s: float = 2.0,
+         skip_s: float = 0.0) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -129,10 +142,11 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
 
     from fogsf.trainer.logs.metrics import reference_sf, sf_error_ppm, sf_windows
 
-    w = sf_windows(log, window_s, latitude_deg)
+    w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
     ref = ref if ref is not None else reference_sf(w)
     before = sf_error_ppm(w, ref)
-    after = sf_error_ppm(sf_windows(log, window_s, latitude_deg, sf.astype(np.float64)), 1.0)
+    after = sf_error_ppm(sf_windows(log, window_s, latitude_deg, sf.astype(np.float64),
+                                    settle_s, skip_s), 1.0)
     predicted = ((1.0 + sf.astype(np.float64) * 1e-6) / ref - 1.0) * 1e6
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5))
     ax1.plot(w.temp_c, before, ".", ms=4, label="measured SF error (before)")

@@ -124,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     opts = TrainOptions(
         model=args.model, model_step_s=args.model_step_s, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
+        settle_s=args.settle_s,
         rate_tau_s=args.rate_tau_s, poly_degree=args.poly_degree,
         node=tuple(args.node) if args.node else None, nodes=args.nodes or 1,
         structure=args.structure or ("node" if args.nodes or args.node else "bank"),

@@ -1,16 +1,40 @@
-"""Scale-factor error from a chamber log: windows, the 20 C reference, the metrics block.
+"""Scale-factor error from a chamber log: the one place SF is measured.
 
-The apparent SF ratio of a window is mean(gyro - earth) / mean(table) (nominal SF = 1).
-Windows are non-overlapping, `window_s` long, and never straddle a change of table rate:
-each rate plateau is cut into whole windows from its start (a plateau's tail shorter than a
-window is not a window). The SF error in ppm is relative to the SF at 20 C (board
-thermometer) of the training data; after compensation the residual is measured / predicted
-- 1, i.e. the window ratio of the corrected output.
+Plateaus. The table column gives the commanded rate; a plateau is a run of rows at one
+commanded rate that measure (`ChamberLog.measures`). A table takes a moment to reach a newly
+commanded rate, so the first `settle_s` seconds of every plateau but the log's first are
+left out (SETTLE_S covers a table slewing about 1 s); with `skip_s`, the log's first seconds
+too. What is left counts from MIN_PLATEAU_S up.
+
+Windows. A settled plateau at least `window_s` long is cut into whole non-overlapping
+windows from its start (its tail shorter than a window is not a window); a shorter one
+(MIN_PLATEAU_S .. window_s) is one window. On a log at one constant rate nothing is
+settled and every window is `window_s` long, as it always was. The apparent SF ratio of a
+window is mean(gyro - bias - earth) / mean(table) (nominal SF = 1). The SF error in ppm is
+relative to the SF at 20 C (board thermometer) of the training data; after compensation
+the residual is measured / predicted - 1, i.e. the window ratio of the corrected output.
+
++/- pairs. Adjacent plateaus of opposite sign and equal |rate| (`PAIR_RATE_TOL`) give SF
+and bias separately (IEEE Std 952): SF = (m1 - m2) / (r1 - r2), bias = (m2 r1 - m1 r2) /
+(r1 - r2). When a log has pairs, their bias, interpolated in time between pair centres, is
+taken off the gyro before any window, target or metric is measured, so that it does not
+leak into the SF at low rates (a bias b reads as b / rate in SF). A pair's bias also holds
+half the SF asymmetry times the rate (one pair cannot tell them apart).
+
+Rate steps. A log with plateaus at three or more |rates| (a staircase) gives the SF per
+rate step, the SF nonlinearity (largest deviation of a rate level's mean output from the
+least-squares straight line through all plateaus, ppm of the full-scale output) and the SF
+asymmetry ((SF+ - SF-) / mean SF, ppm) as IEEE Std 952 defines them (`rate_steps`).
 
 The noise floor is the SF error that the gyro's own noise leaves in one window: each window
-is cut into `SUB_WINDOWS` sub-windows, a straight line is fitted to their ratios (so thermal
-drift inside the window is not counted as noise), and the residual spread over sqrt(n) is
-that window's noise; the floor is the RMS over windows.
+is cut into `SUB_WINDOWS` sub-windows (fewer in a short one, at least 3), a straight line is
+fitted to their ratios (so thermal drift inside the window is not counted as noise), and the
+residual spread over sqrt(n) is that window's noise; the floor is the RMS over windows.
+
+Model steps. `step_windows` maps the windows onto model steps (a step belongs to the window
+holding its middle sample) and `windows_rms` is the RMS of an error's window means there:
+what training validates on and the rate-transfer check measures, so that every command uses
+the same windows and the user's --window-s and --settle-s.
 """
 
 from __future__ import annotations
@@ -23,8 +47,16 @@ from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 
 SUB_WINDOWS = 10
+MIN_SUB_WINDOWS = 3  # a line and a spread need three
 T_REF_C = 20.0
 REF_BAND_C = 5.0  # windows within this of T_REF_C are fitted to find the SF at T_REF_C
+SETTLE_S = 2.0  # left out after each change of commanded rate (covers a ~1 s table slew)
+MIN_PLATEAU_S = 5.0  # a settled plateau shorter than this measures nothing
+PAIR_RATE_TOL = 0.01  # |r1| and |r2| within 1 % (and 1e-6 deg/s) make a +/- pair
+MIN_RATE_LEVELS = 3  # |rates| a staircase needs for nonlinearity and asymmetry
+DPS_TO_DPH = 3600.0
+START_SPAN_S = 300.0  # the start of a log: its first 5 minutes
+START_MOVING_C_PER_MIN = 0.05  # faster than this at the start is "moving" (a soak is slower)
 
 
 @dataclass
@@ -35,7 +67,7 @@ class SFWindows:
     temp_c: np.ndarray  # mean board temperature
     rate_dps: np.ndarray  # mean table rate
     sf_ratio: np.ndarray  # apparent SF / nominal SF
-    noise_ppm: np.ndarray  # noise of this window's ratio, ppm of nominal
+    noise_ppm: np.ndarray  # noise of this window's ratio, ppm of nominal (NaN: too short)
     start: np.ndarray  # first sample index (int)
     stop: np.ndarray  # one past the last sample index (int)
     window_s: float
@@ -59,49 +91,128 @@ def plateaus(table_rate_dps: np.ndarray, measures: np.ndarray | None = None
             if measures is None or measures[a]]
 
 
-def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,
-               correction_ppm: np.ndarray | None = None) -> SFWindows:
-    """Apparent SF per window; with `correction_ppm` (per sample, vs nominal SF), of the
-    corrected output gyro / (1 + correction * 1e-6)."""
+def _samples(seconds: float, dt: float) -> int:
+    return int(np.ceil(seconds / dt - 1e-6)) if seconds > 0 else 0
+
+
+def settled_plateaus(log: ChamberLog, settle_s: float = SETTLE_S, skip_s: float = 0.0
+                     ) -> list[tuple[int, int]]:
+    """The measuring plateaus without their first `settle_s` seconds (but the log's first
+    plateau, which follows no change), without the log's first `skip_s` seconds, and at least
+    MIN_PLATEAU_S long."""
+    if settle_s < 0 or skip_s < 0:
+        raise UserError("--settle-s and --skip-s must be >= 0")
     dt = log.sample_dt_s
+    settle = _samples(settle_s, dt)
+    first = 0
+    if skip_s > 0 and len(log):
+        first = int(np.searchsorted(log.time_s, log.time_s[0] + skip_s - 1e-9))
+    shortest = max(1, _samples(MIN_PLATEAU_S, dt))
+    out: list[tuple[int, int]] = []
+    for a, b in plateaus(log.table_rate_dps, log.measures):
+        a = max(a + settle if a > 0 else a, first)
+        if b - a >= shortest:
+            out.append((a, b))
+    return out
+
+
+def measuring_mask(log: ChamberLog, settle_s: float = SETTLE_S, skip_s: float = 0.0
+                   ) -> np.ndarray:
+    """Per sample, True inside a settled plateau: the samples SF and targets come from."""
+    m = np.zeros(len(log), dtype=bool)
+    for a, b in settled_plateaus(log, settle_s, skip_s):
+        m[a:b] = True
+    return m
+
+
+def window_samples(window_s: float, dt: float) -> int:
+    """Samples per window; a window too short for the noise estimate is refused."""
     n = int(round(window_s / dt))
     if n < SUB_WINDOWS * 2:
-        raise UserError(f"window of {window_s:g} s is too short: at least "
+        raise UserError(f"--window-s {window_s:g} is too short: at least "
                         f"{SUB_WINDOWS * 2 * dt:g} s at {rate_text(dt)}")
-    gyro = log.gyro_dps
-    if correction_ppm is not None:
-        corr = np.asarray(correction_ppm, dtype=np.float64)
-        if corr.shape != gyro.shape:
-            raise UserError(f"correction has {corr.shape[0]} samples, log has {gyro.shape[0]}")
-        gyro = gyro / (1.0 + corr * 1e-6)
-    signal = gyro - log.earth(latitude_deg)
-    starts: list[int] = []
-    for a, b in plateaus(log.table_rate_dps, log.measures):
-        starts.extend(range(a, b - n + 1, n))
-    if not starts:
-        raise UserError(f"{log.path}: no complete {window_s:g} s window at a constant table "
-                        "rate (the log or its rate plateaus are too short)")
-    idx = np.asarray(starts)[:, None] + np.arange(n)[None, :]
+    return n
+
+
+def sf_spans(log: ChamberLog, window_s: float = 100.0, settle_s: float = SETTLE_S,
+             skip_s: float = 0.0) -> np.ndarray:
+    """[k, 2] sample ranges [start, stop) of the SF windows (module docstring)."""
+    n = window_samples(window_s, log.sample_dt_s)
+    spans: list[tuple[int, int]] = []
+    for a, b in settled_plateaus(log, settle_s, skip_s):
+        if b - a >= n:
+            spans.extend((s, s + n) for s in range(a, b - n + 1, n))
+        else:
+            spans.append((a, b))
+    if not spans:
+        raise UserError(
+            f"{log.path}: no complete SF window: no table-rate plateau of {MIN_PLATEAU_S:g} s "
+            f"or more after the {settle_s:g} s settle margin (--settle-s)"
+            + (f" and the first {skip_s:g} s (--skip-s)" if skip_s else "")
+            + f", and none holds a {window_s:g} s window (--window-s)")
+    return np.asarray(spans, dtype=np.int64).reshape(-1, 2)
+
+
+def _span_stats(signal: np.ndarray, table: np.ndarray, starts: np.ndarray, n: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ratio, noise ppm, row index matrix) of windows of one length `n`."""
+    idx = starts[:, None] + np.arange(n)[None, :]
     sig = signal[idx]
-    tab = log.table_rate_dps[idx]
+    tab = table[idx]
     ratio = sig.mean(axis=1) / tab.mean(axis=1)
-    m = n // SUB_WINDOWS
-    sub = (sig[:, : m * SUB_WINDOWS].reshape(len(starts), SUB_WINDOWS, m).mean(axis=2)
-           / tab[:, : m * SUB_WINDOWS].reshape(len(starts), SUB_WINDOWS, m).mean(axis=2))
-    x = np.arange(SUB_WINDOWS) - (SUB_WINDOWS - 1) / 2.0
+    k = min(SUB_WINDOWS, n)
+    if k < MIN_SUB_WINDOWS:
+        return ratio, np.full(starts.size, np.nan), idx
+    m = n // k
+    sub = (sig[:, : m * k].reshape(starts.size, k, m).mean(axis=2)
+           / tab[:, : m * k].reshape(starts.size, k, m).mean(axis=2))
+    x = np.arange(k) - (k - 1) / 2.0
     slope = (sub * x).sum(axis=1) / (x * x).sum()
     resid = sub - sub.mean(axis=1, keepdims=True) - slope[:, None] * x[None, :]
-    noise = np.sqrt((resid**2).sum(axis=1) / (SUB_WINDOWS - 2) / SUB_WINDOWS)
-    return SFWindows(
-        t_s=log.time_s[idx].mean(axis=1),
-        temp_c=log.temp_c[idx].mean(axis=1),
-        rate_dps=tab.mean(axis=1),
-        sf_ratio=ratio,
-        noise_ppm=noise * 1e6,
-        start=np.asarray(starts),
-        stop=np.asarray(starts) + n,
-        window_s=float(window_s),
-    )
+    noise = np.sqrt((resid**2).sum(axis=1) / (k - 2) / k)
+    return ratio, noise * 1e6, idx
+
+
+def sf_signal(log: ChamberLog, latitude_deg: float | None = None,
+              correction_ppm: np.ndarray | None = None, settle_s: float = SETTLE_S,
+              remove_bias: bool = True) -> np.ndarray:
+    """Per sample, what the SF multiplies: gyro - bias - earth; with `correction_ppm` (per
+    sample, vs nominal SF), (gyro - bias) / (1 + correction * 1e-6) - earth. The bias is the
+    +/- pairs' (`bias_track`), none without pairs."""
+    gyro = log.gyro_dps
+    if remove_bias:
+        b = bias_track(log, latitude_deg, settle_s)
+        if b is not None:
+            gyro = gyro - b
+    if correction_ppm is not None:
+        corr = np.asarray(correction_ppm, dtype=np.float64)
+        if corr.shape != log.gyro_dps.shape:
+            raise UserError(f"correction has {corr.shape[0]} samples, log has "
+                            f"{log.gyro_dps.shape[0]}")
+        gyro = gyro / (1.0 + corr * 1e-6)
+    return gyro - log.earth(latitude_deg)
+
+
+def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,
+               correction_ppm: np.ndarray | None = None, settle_s: float = SETTLE_S,
+               skip_s: float = 0.0) -> SFWindows:
+    """Apparent SF per window; with `correction_ppm` (per sample, vs nominal SF), of the
+    corrected output (`sf_signal`)."""
+    spans = sf_spans(log, window_s, settle_s, skip_s)
+    signal = sf_signal(log, latitude_deg, correction_ppm, settle_s)
+    k = spans.shape[0]
+    out = {f: np.empty(k) for f in ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm")}
+    lengths = spans[:, 1] - spans[:, 0]
+    for n in np.unique(lengths):  # windows of one length at a time (most are window_s)
+        sel = np.flatnonzero(lengths == n)
+        ratio, noise, idx = _span_stats(signal, log.table_rate_dps, spans[sel, 0], int(n))
+        out["sf_ratio"][sel] = ratio
+        out["noise_ppm"][sel] = noise
+        out["t_s"][sel] = log.time_s[idx].mean(axis=1)
+        out["temp_c"][sel] = log.temp_c[idx].mean(axis=1)
+        out["rate_dps"][sel] = log.table_rate_dps[idx].mean(axis=1)
+    return SFWindows(start=spans[:, 0].copy(), stop=spans[:, 1].copy(),
+                     window_s=float(window_s), **out)
 
 
 def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
@@ -121,9 +232,10 @@ def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
 
 
 def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
-                         latitude_deg: float | None = None, t_ref_c: float = T_REF_C) -> float:
+                         latitude_deg: float | None = None, t_ref_c: float = T_REF_C,
+                         settle_s: float = SETTLE_S) -> float:
     """The SF at `t_ref_c` over several logs (e.g. all training runs) together."""
-    ws = [sf_windows(lg, window_s, latitude_deg) for lg in logs]
+    ws = [sf_windows(lg, window_s, latitude_deg, settle_s=settle_s) for lg in logs]
     merged = SFWindows(*(np.concatenate([getattr(w, f) for w in ws]) for f in
                          ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm", "start",
                           "stop")), window_s=float(window_s))
@@ -136,7 +248,9 @@ def sf_error_ppm(w: SFWindows, ref: float) -> np.ndarray:
 
 
 def noise_floor_ppm(w: SFWindows) -> float:
-    return float(np.sqrt(np.mean(w.noise_ppm**2)))
+    """RMS of the windows' noise (windows too short for an estimate left out)."""
+    ok = np.isfinite(w.noise_ppm)
+    return float(np.sqrt(np.mean(w.noise_ppm[ok] ** 2))) if ok.any() else float("nan")
 
 
 def metrics_block(err_ppm: np.ndarray, window_s: float, noise_floor: float) -> dict[str, float]:
@@ -155,14 +269,16 @@ def metrics_block(err_ppm: np.ndarray, window_s: float, noise_floor: float) -> d
 
 def log_metrics(log: ChamberLog, window_s: float = 100.0, ref: float | None = None,
                 latitude_deg: float | None = None,
-                correction_ppm: np.ndarray | None = None) -> dict[str, float]:
+                correction_ppm: np.ndarray | None = None, settle_s: float = SETTLE_S,
+                skip_s: float = 0.0) -> dict[str, float]:
     """The metrics block of a log.
 
     Without a correction: SF error about `ref` (the apparent SF ratio at 20 C; measured on
     this log when not given). With `correction_ppm` (a model's per-sample prediction of the
     SF error vs nominal): the residual measured / predicted - 1 (no reference is used).
+    `skip_s`: the log's first seconds are left out (the model still ran over them).
     """
-    w = sf_windows(log, window_s, latitude_deg, correction_ppm)
+    w = sf_windows(log, window_s, latitude_deg, correction_ppm, settle_s, skip_s)
     if correction_ppm is not None:
         ref = 1.0
     elif ref is None:
@@ -170,41 +286,246 @@ def log_metrics(log: ChamberLog, window_s: float = 100.0, ref: float | None = No
     return metrics_block(sf_error_ppm(w, ref), window_s, noise_floor_ppm(w))
 
 
+# --- +/- pairs and rate steps ---------------------------------------------------------------
+
 @dataclass
 class PlateauPairs:
-    """SF and bias separated by consecutive +/- rate plateaus (one entry per pair)."""
+    """SF and bias separated by adjacent +/- rate plateaus (one entry per pair)."""
 
     t_s: np.ndarray
     temp_c: np.ndarray
     sf_ratio: np.ndarray
     bias_dps: np.ndarray
+    rate_dps: np.ndarray  # |rate| of the pair
+
+    def __len__(self) -> int:
+        return int(self.t_s.shape[0])
+
+    def bias_drift_dph_per_c(self) -> float | None:
+        """Slope of the pairs' bias over their board temperature (deg/h per C); None when
+        the temperature spans less than 1 C or there are fewer than 3 pairs."""
+        if len(self) < 3 or np.ptp(self.temp_c) < 1.0:
+            return None
+        return float(np.polyfit(self.temp_c, self.bias_dps * DPS_TO_DPH, 1)[0])
 
 
-def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,
-                  settle_s: float = 0.0) -> PlateauPairs:
-    """For schedules that alternate the table rate's sign: each pair of consecutive plateaus
-    of opposite sign gives SF = (m1 - m2) / (r1 - r2) and bias = (m2 r1 - m1 r2) / (r1 - r2)
-    (for r2 = -r1: half the difference over r1, and half the sum)."""
+@dataclass
+class _Plateau:
+    start: int
+    stop: int
+    rate: float  # mean commanded rate
+    mean: float  # mean of gyro - earth
+    t_s: float
+    temp_c: float
+
+
+def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
+                   ) -> list[_Plateau]:
     signal = log.gyro_dps - log.earth(latitude_deg)
-    skip = int(round(settle_s / log.sample_dt_s))
-    pl = [(a + skip, b) for a, b in plateaus(log.table_rate_dps, log.measures)
-          if b - a > skip + 1]
-    out: list[tuple[float, float, float, float]] = []
+    return [_Plateau(a, b, float(log.table_rate_dps[a:b].mean()), float(signal[a:b].mean()),
+                     float(log.time_s[a:b].mean()), float(log.temp_c[a:b].mean()))
+            for a, b in settled_plateaus(log, settle_s)]
+
+
+def _is_pair(p: _Plateau, q: _Plateau) -> bool:
+    if np.sign(p.rate) == np.sign(q.rate) or p.rate == 0 or q.rate == 0:
+        return False
+    big = max(abs(p.rate), abs(q.rate))
+    return abs(abs(p.rate) - abs(q.rate)) <= PAIR_RATE_TOL * big + 1e-6
+
+
+def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
+               settle_s: float = SETTLE_S) -> PlateauPairs | None:
+    """The log's +/- pairs: adjacent settled plateaus of opposite sign and equal |rate|
+    (PAIR_RATE_TOL), no plateau in two pairs; None without any."""
+    pl = _plateau_means(log, latitude_deg, settle_s)
+    out: list[tuple[float, float, float, float, float]] = []
     i = 0
-    while i + 1 < len(pl):  # pairs do not share a plateau
-        (a1, b1), (a2, b2) = pl[i], pl[i + 1]
-        r1, r2 = log.table_rate_dps[a1:b1].mean(), log.table_rate_dps[a2:b2].mean()
-        if np.sign(r1) == np.sign(r2):
+    while i + 1 < len(pl):
+        p, q = pl[i], pl[i + 1]
+        if not _is_pair(p, q):
             i += 1
             continue
         i += 2
-        m1, m2 = signal[a1:b1].mean(), signal[a2:b2].mean()
-        sf = (m1 - m2) / (r1 - r2)
-        bias = (m2 * r1 - m1 * r2) / (r1 - r2)
-        t = 0.5 * (log.time_s[a1:b1].mean() + log.time_s[a2:b2].mean())
-        temp = 0.5 * (log.temp_c[a1:b1].mean() + log.temp_c[a2:b2].mean())
-        out.append((t, temp, sf, bias))
+        sf = (p.mean - q.mean) / (p.rate - q.rate)
+        bias = (q.mean * p.rate - p.mean * q.rate) / (p.rate - q.rate)
+        out.append((0.5 * (p.t_s + q.t_s), 0.5 * (p.temp_c + q.temp_c), sf, bias,
+                    0.5 * (abs(p.rate) + abs(q.rate))))
     if not out:
-        raise UserError(f"{log.path}: no consecutive +/- table-rate plateaus to pair")
+        return None
     a = np.asarray(out)
-    return PlateauPairs(t_s=a[:, 0], temp_c=a[:, 1], sf_ratio=a[:, 2], bias_dps=a[:, 3])
+    return PlateauPairs(t_s=a[:, 0], temp_c=a[:, 1], sf_ratio=a[:, 2], bias_dps=a[:, 3],
+                        rate_dps=a[:, 4])
+
+
+def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,
+                  settle_s: float = SETTLE_S) -> PlateauPairs:
+    """`find_pairs`, refused when the log has none."""
+    pp = find_pairs(log, latitude_deg, settle_s)
+    if pp is None:
+        raise UserError(f"{log.path}: no adjacent +/- table-rate plateaus of equal |rate| "
+                        f"to pair (each at least {MIN_PLATEAU_S:g} s after the {settle_s:g} s "
+                        "settle margin, --settle-s)")
+    return pp
+
+
+def bias_track(log: ChamberLog, latitude_deg: float | None = None,
+               settle_s: float = SETTLE_S) -> np.ndarray | None:
+    """Per sample, the pairs' bias (deg/s) interpolated in time between pair centres (held
+    before the first and after the last); None for a log without pairs."""
+    pp = find_pairs(log, latitude_deg, settle_s)
+    if pp is None:
+        return None
+    return np.interp(log.time_s, pp.t_s, pp.bias_dps)
+
+
+@dataclass
+class RateSteps:
+    """SF per rate step of a staircase and IEEE Std 952's nonlinearity and asymmetry.
+
+    A least-squares fit over every settled plateau's mean output m = (SF + a dT) r + b + c dT
+    (dT: the plateau's board temperature minus the log's mean; the thermal terms only when
+    the temperature spans 1 C) gives the line; SF+ and SF- come from the same fit with a
+    slope for each sign."""
+
+    rates_dps: np.ndarray  # |rate| levels
+    sf_pos_ppm: np.ndarray  # SF at +rate vs nominal, ppm (NaN: no plateau there)
+    sf_neg_ppm: np.ndarray
+    sf_ppm: float  # the line's slope vs nominal, ppm (at the log's mean temperature)
+    bias_dps: float  # the line's intercept
+    nonlinearity_ppm: float  # max |level mean - line| / full-scale output, ppm
+    asymmetry_ppm: float  # (SF+ - SF-) / mean SF, ppm (the separate-slope fit)
+
+    def as_dict(self) -> dict:
+        return {"rates_dps": self.rates_dps.tolist(),
+                "sf_pos_ppm": _nan_none(self.sf_pos_ppm), "sf_neg_ppm": _nan_none(self.sf_neg_ppm),
+                "sf_ppm": self.sf_ppm, "bias_dph": self.bias_dps * DPS_TO_DPH,
+                "sf_nonlinearity_ppm_fs": self.nonlinearity_ppm,
+                "sf_asymmetry_ppm": self.asymmetry_ppm}
+
+
+def _nan_none(a: np.ndarray) -> list[float | None]:
+    return [None if not np.isfinite(x) else float(x) for x in a]
+
+
+def _rate_levels(rates: np.ndarray) -> np.ndarray:
+    """Per plateau, the index of its |rate| level (levels within PAIR_RATE_TOL merged)."""
+    mag = np.abs(rates)
+    order = np.argsort(mag)
+    level = np.empty(mag.size, dtype=int)
+    k, base = -1, -np.inf
+    for i in order:
+        if mag[i] > base * (1 + PAIR_RATE_TOL) + 1e-6:
+            k, base = k + 1, mag[i]
+        level[i] = k
+    return level
+
+
+def rate_steps(log: ChamberLog, latitude_deg: float | None = None,
+               settle_s: float = SETTLE_S) -> RateSteps | None:
+    """The staircase figures (`RateSteps`); None for a log with fewer than MIN_RATE_LEVELS
+    |rates| or without both signs."""
+    pl = _plateau_means(log, latitude_deg, settle_s)
+    if not pl:
+        return None
+    r = np.array([p.rate for p in pl])
+    m = np.array([p.mean for p in pl])
+    temp = np.array([p.temp_c for p in pl])
+    level = _rate_levels(r)
+    if level.max() + 1 < MIN_RATE_LEVELS or not ((r > 0).any() and (r < 0).any()):
+        return None
+    dtemp = temp - temp.mean()
+    thermal = [r * dtemp, dtemp] if np.ptp(temp) >= 1.0 else []
+    one = np.ones_like(r)
+    line, *_ = np.linalg.lstsq(np.column_stack([r, one, *thermal]), m, rcond=None)
+    split, *_ = np.linalg.lstsq(np.column_stack([np.where(r > 0, r, 0.0), np.where(r < 0, r, 0.0),
+                                                 one, *thermal]), m, rcond=None)
+    resid = m - np.column_stack([r, one, *thermal]) @ line
+    sign = np.sign(r)
+    dev = [abs(resid[(level == k) & (sign == s)].mean())
+           for k in range(level.max() + 1) for s in (-1, 1) if ((level == k) & (sign == s)).any()]
+    sf, bias = float(line[0]), float(line[1])
+    # per plateau: SF with the fitted bias and thermal terms taken off (at the mean temp)
+    per = m - bias - (line[3] * dtemp if thermal else 0.0) - (line[2] * r * dtemp if thermal
+                                                             else 0.0)
+    per_sf = (per / r - 1.0) * 1e6
+    levels = np.arange(level.max() + 1)
+    rates = np.array([np.abs(r[level == k]).mean() for k in levels])
+    pos = np.array([per_sf[(level == k) & (r > 0)].mean() if ((level == k) & (r > 0)).any()
+                    else np.nan for k in levels])
+    neg = np.array([per_sf[(level == k) & (r < 0)].mean() if ((level == k) & (r < 0)).any()
+                    else np.nan for k in levels])
+    full_scale = abs(sf) * float(np.abs(r).max())
+    return RateSteps(rates, pos, neg, (sf - 1.0) * 1e6, bias, float(max(dev)) / full_scale * 1e6,
+                     float((split[0] - split[1]) / (0.5 * (split[0] + split[1]))) * 1e6)
+
+
+# --- model steps ------------------------------------------------------------------------------
+
+def step_means(x: np.ndarray, decimation: int, mask: np.ndarray | None = None) -> np.ndarray:
+    """Mean of a per-sample series over each model step's samples (the masked ones; NaN for a
+    step with none)."""
+    x = np.asarray(x, dtype=np.float64)
+    starts = np.arange((x.size - 1) // decimation + 1) * decimation
+    if mask is None:
+        return np.add.reduceat(x, starts) / np.diff(np.append(starts, x.size))
+    sums = np.add.reduceat(np.where(mask, x, 0.0), starts)
+    counts = np.add.reduceat(mask.astype(np.float64), starts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(counts > 0, sums / counts, np.nan)
+
+
+def step_windows(log: ChamberLog, decimation: int, window_s: float = 100.0,
+                 settle_s: float = SETTLE_S, skip_s: float = 0.0) -> np.ndarray:
+    """The SF windows (`sf_spans`) as [k, 2] model-step ranges: a step belongs to the window
+    holding its middle sample; windows holding no step are dropped."""
+    spans = sf_spans(log, window_s, settle_s, skip_s)
+    n_steps = (len(log) - 1) // decimation + 1
+    half = (decimation - 1) / 2.0
+    lo = np.ceil((spans[:, 0] - half) / decimation).astype(np.int64)
+    hi = np.ceil((spans[:, 1] - half) / decimation).astype(np.int64)
+    lo, hi = np.clip(lo, 0, n_steps), np.clip(hi, 0, n_steps)
+    keep = hi > lo
+    return np.column_stack([lo[keep], hi[keep]])
+
+
+def windows_rms(err: np.ndarray, windows: np.ndarray, mask: np.ndarray | None = None) -> float:
+    """RMS over `windows` ([k, 2] step ranges) of the mean of `err` over each window's
+    (masked, finite) steps; windows without such a step are left out; NaN without any."""
+    e = np.asarray(err, dtype=np.float64)
+    ok = np.isfinite(e) if mask is None else np.isfinite(e) & mask
+    c = np.concatenate([[0.0], np.cumsum(np.where(ok, e, 0.0))])
+    n = np.concatenate([[0], np.cumsum(ok)])
+    a, b = windows[:, 0], windows[:, 1]
+    cnt = n[b] - n[a]
+    sel = cnt > 0
+    if not sel.any():
+        return float("nan")
+    means = (c[b][sel] - c[a][sel]) / cnt[sel]
+    return float(np.sqrt(np.mean(means**2)))
+
+
+# --- the start of a log -----------------------------------------------------------------------
+
+def start_ramp_c_per_min(log: ChamberLog, span_s: float = START_SPAN_S) -> float:
+    """|dT/dt| of the board temperature over the log's first `span_s` seconds (a straight
+    line fitted; the whole log when shorter), C/min."""
+    t = log.time_s
+    k = int(np.searchsorted(t, t[0] + span_s))
+    k = max(k, min(len(log), 3))
+    if k < 3 or t[k - 1] <= t[0]:
+        return 0.0
+    return abs(float(np.polyfit(t[:k] - t[0], log.temp_c[:k], 1)[0])) * 60.0
+
+
+def start_note(log: ChamberLog, skip_s: float = 0.0) -> str | None:
+    """One line when the log starts while its board temperature moves; None otherwise."""
+    rate = start_ramp_c_per_min(log)
+    if rate <= START_MOVING_C_PER_MIN:
+        return None
+    done = (f"the first {skip_s:g} s are left out of the metrics (--skip-s)" if skip_s > 0
+            else "--skip-s S leaves the first S seconds out of the metrics")
+    return (f"note: {log.path} starts while the board temperature moves ({rate:.2f} C/min over "
+            f"its first {min(START_SPAN_S, log.duration_s):.0f} s): a model's lag states start "
+            "at the first sample's temperature, as if the gyro had soaked there, so its output "
+            f"is wrong until they catch up; {done}")

@@ -8,7 +8,9 @@ lag-filtered temperatures) normalised on the training data, so that z = feat_w s
 is exactly what the C kernel computes.
 
 The target of step j is the measured SF error (ppm vs nominal) over the samples that step's
-prediction is applied to: [jD, (j+1)D), i.e. the mean of (gyro - earth) / table there.
+prediction is applied to: [jD, (j+1)D), i.e. the mean of (gyro - bias - earth) / table over
+those of them that measure SF (`logs.metrics.measuring_mask`: settled table-rate plateaus;
+the bias is the +/- pairs' when the log has pairs, `logs.metrics.bias_track`).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import DT_TOLERANCE, ChamberLog, rate_text
+from fogsf.trainer.logs.metrics import SETTLE_S, measuring_mask, sf_signal, step_means, step_windows
 from fogsf.trainer.models.reference import frontend
 from fogsf.trainer.models.stream import FrontEnd, decimation_for, filter_alpha
 
@@ -84,7 +87,10 @@ class SeqData:
     train_mask: np.ndarray  # [n_steps] bool: measured and outside the validation part
     decimation: int
     step_s: float  # seconds per model step
-    measured: np.ndarray  # [n_steps] bool: the step holds a row that measures (log.measures)
+    measured: np.ndarray  # [n_steps] bool: the step holds a row that measures (settled)
+    # [k, 2] step ranges of the SF windows (`logs.metrics.step_windows`): what the error
+    # is averaged over before its RMS (validation, the rate-transfer check)
+    windows: np.ndarray | None = None
 
     @property
     def n_steps(self) -> int:
@@ -123,19 +129,15 @@ def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ..
                     filter_tau_s=tuple(float(t) for t in taus_s))
 
 
-def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = None
-                 ) -> np.ndarray:
-    """Mean SF error (ppm vs nominal) over the measuring samples (`log.measures`) each model
-    step's output is held for; NaN for a step without one."""
-    m = log.measures
+def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = None,
+                 settle_s: float = SETTLE_S) -> np.ndarray:
+    """Mean SF error (ppm vs nominal) over the measuring samples (settled plateaus,
+    `measuring_mask`) each model step's output is held for, the +/- pairs' bias taken off;
+    NaN for a step without one."""
+    m = measuring_mask(log, settle_s)
     table = np.where(m, log.table_rate_dps, 1.0)
-    ratio = np.where(m, (log.gyro_dps - log.earth(latitude_deg)) / table, 0.0)
-    n = ratio.shape[0]
-    starts = np.arange((n - 1) // decimation + 1) * decimation
-    sums = np.add.reduceat(ratio, starts)
-    counts = np.add.reduceat(m.astype(np.float64), starts)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(counts > 0, (sums / counts - 1.0) * 1e6, np.nan)
+    ratio = np.where(m, sf_signal(log, latitude_deg, settle_s=settle_s) / table, 0.0)
+    return (step_means(ratio, decimation, m) - 1.0) * 1e6
 
 
 def val_mask_for(n_steps: int, val_chunk: tuple[float, float]) -> np.ndarray:
@@ -145,18 +147,23 @@ def val_mask_for(n_steps: int, val_chunk: tuple[float, float]) -> np.ndarray:
 
 
 def prepare(log: ChamberLog, fe: FrontEnd, val_chunk: tuple[float, float] | None = None,
-            latitude_deg: float | None = None, targets: np.ndarray | None = None) -> SeqData:
+            latitude_deg: float | None = None, targets: np.ndarray | None = None,
+            window_s: float = 100.0, settle_s: float = SETTLE_S) -> SeqData:
     """Front end and targets of one log; `val_chunk` (fractions of the run) is held out.
     A log at another sample rate than `fe`'s goes through `fe.at_rate` (the same model
-    step in seconds)."""
+    step in seconds). The SF windows (`window_s`, `settle_s`) are those of every metric."""
     fe = fe.at_rate(log.sample_dt_s)
     out = frontend(log.temp_c, fe)
-    t = step_targets(log, fe.decimation, latitude_deg) if targets is None else targets
+    t = step_targets(log, fe.decimation, latitude_deg, settle_s) if targets is None else targets
     n = out.s.shape[0]
     val = val_mask_for(n, val_chunk) if val_chunk else np.zeros(n, dtype=bool)
     measured = np.isfinite(t)
+    try:
+        windows = step_windows(log, fe.decimation, window_s, settle_s)
+    except UserError:  # no SF window: a log that only trains (its steps still give targets)
+        windows = np.zeros((0, 2), dtype=np.int64)
     return SeqData(log, out.s, np.where(measured, t, 0.0), ~val & measured, fe.decimation,
-                   fe.step_s, measured)
+                   fe.step_s, measured, windows)
 
 
 @dataclass(frozen=True)

@@ -3,8 +3,9 @@
 The LSTM learns from random windows of `window` model steps (batch `batch_size`), each
 started from a zero state as the firmware starts from reset; the first `burn_in` steps of a
 window are not scored. The run keeps the weights with the best validation score (RMS of the
-SF residual over 100 s windows of the held-out part), evaluated on whole sequences from
-reset, exactly as the firmware streams them.
+SF residual over the SF windows of the held-out part: --window-s, --settle-s, as every
+metric, `logs.metrics.step_windows`), evaluated on whole sequences from reset, exactly as
+the firmware streams them.
 """
 
 from __future__ import annotations
@@ -19,11 +20,10 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from fogsf.trainer.logs.metrics import windows_rms
 from fogsf.trainer.models.features import SeqData
 from fogsf.trainer.models.lag_bank import BankFit
 from fogsf.trainer.models.nets import MLP, StreamNet
-
-METRIC_WINDOW_S = 100.0
 
 
 @dataclass
@@ -61,22 +61,11 @@ class History:
                 "best_val_rms_ppm": self.best_val_rms_ppm, "seconds": self.seconds}
 
 
-def windowed_rms_ppm(err_ppm: np.ndarray, mask: np.ndarray, step_s: float,
-                     window_s: float = METRIC_WINDOW_S) -> float:
-    """RMS of the error averaged over consecutive `window_s` windows of the masked steps
-    (model steps of `step_s` seconds)."""
-    win = max(1, int(round(window_s / step_s)))
-    idx = np.flatnonzero(mask)
-    if idx.size == 0:
-        return math.nan
-    breaks = np.flatnonzero(np.diff(idx) != 1) + 1
-    means: list[float] = []
-    for run in np.split(idx, breaks):
-        for a in range(0, run.size - win + 1, win):
-            means.append(float(np.mean(err_ppm[run[a:a + win]])))
-        if run.size < win:
-            means.append(float(np.mean(err_ppm[run])))
-    return float(np.sqrt(np.mean(np.square(means))))
+def windowed_rms_ppm(err_ppm: np.ndarray, windows: np.ndarray,
+                     mask: np.ndarray | None = None) -> float:
+    """RMS of the error averaged over each SF window (`SeqData.windows`, model-step ranges)
+    of the masked steps (`logs.metrics.windows_rms`)."""
+    return windows_rms(err_ppm, windows, mask)
 
 
 def validation_rms(pred_ppm: list[np.ndarray], data: list[SeqData]) -> float:
@@ -84,10 +73,19 @@ def validation_rms(pred_ppm: list[np.ndarray], data: list[SeqData]) -> float:
     sq, n = 0.0, 0
     for p, d in zip(pred_ppm, data, strict=True):
         if d.val_mask.any():
-            r = windowed_rms_ppm(p - d.target_ppm, d.val_mask, d.step_s)
-            sq += r * r
-            n += 1
+            r = windowed_rms_ppm(p - d.target_ppm, _windows(d), d.val_mask)
+            if math.isfinite(r):
+                sq += r * r
+                n += 1
     return math.sqrt(sq / n) if n else math.nan
+
+
+def _windows(d: SeqData) -> np.ndarray:
+    """The log's SF windows; for data prepared without them, every step its own window."""
+    if d.windows is not None and d.windows.size:
+        return d.windows
+    j = np.arange(d.n_steps)
+    return np.column_stack([j, j + 1])
 
 
 def predict_stream(net: StreamNet, z: np.ndarray) -> np.ndarray:

@@ -35,7 +35,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.metrics import log_metrics, reference_sf_of_logs
+from fogsf.trainer.logs.metrics import SETTLE_S, log_metrics, reference_sf_of_logs
 from fogsf.trainer.models.features import (
     MODEL_STEP_S,
     FeatureSpec,
@@ -70,6 +70,7 @@ class TrainOptions:
     seed: int = 0
     val_chunk: tuple[float, float] = (0.4, 0.6)
     window_s: float = 100.0
+    settle_s: float = SETTLE_S  # left out after each change of table rate (logs.metrics)
     latitude_deg: float | None = None
     rate_tau_s: float = 120.0
     poly_degree: int = 3
@@ -219,7 +220,7 @@ def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpe
     """physical: features in one physical unit (`physical_normaliser`), not standardised."""
     fe = front_end_for(logs, opts.model_step_s, spec.taus_s)
     ts = targets if targets is not None else [None] * len(logs)
-    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t)
+    data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t, opts.window_s, opts.settle_s)
             for lg, t in zip(logs, ts, strict=True)]
     norm = physical_normaliser(spec) if physical else fit_normaliser(spec, data)
     y = np.concatenate([d.target_ppm[d.train_mask] for d in data])
@@ -343,8 +344,8 @@ def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
     from fogsf.trainer.gsa.optimizer import SHORT_BUDGET, minimize
 
     fe = front_end_for(logs, opts.model_step_s, ())
-    targets = [step_targets(lg, fe.at_rate(lg.sample_dt_s).decimation, opts.latitude_deg)
-               for lg in logs]
+    targets = [step_targets(lg, fe.at_rate(lg.sample_dt_s).decimation, opts.latitude_deg,
+                            opts.settle_s) for lg in logs]
     payload = {"opts": opts, "logs": logs, "targets": targets,
                "node": opts.node or (None if opts.gsa_space == "extended"
                                      else _identify_node(opts, logs))}
@@ -384,16 +385,17 @@ def per_sample_prediction(fitted: Fitted, log: ChamberLog, latitude_deg: float |
 
 
 def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,
-          latitude_deg: float | None) -> dict:
+          latitude_deg: float | None, settle_s: float = SETTLE_S) -> dict:
     """Before/after metrics over `logs` (their windows pooled)."""
     if len(logs) != 1:
-        return {f"log{i}": score(fitted, [lg], ref, window_s, latitude_deg)
+        return {f"log{i}": score(fitted, [lg], ref, window_s, latitude_deg, settle_s)
                 for i, lg in enumerate(logs)}
     lg = logs[0]
     pred = per_sample_prediction(fitted, lg, latitude_deg)
-    return {"before": log_metrics(lg, window_s, ref=ref, latitude_deg=latitude_deg),
+    return {"before": log_metrics(lg, window_s, ref=ref, latitude_deg=latitude_deg,
+                                  settle_s=settle_s),
             "after": log_metrics(lg, window_s, latitude_deg=latitude_deg,
-                                 correction_ppm=pred)}
+                                 correction_ppm=pred, settle_s=settle_s)}
 
 
 def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
@@ -406,18 +408,20 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     fitted = fit_model(opts, train_logs)
     train_s = time.perf_counter() - t0
     ref = opts.ref_sf if opts.ref_sf is not None else reference_sf_of_logs(
-        train_logs, opts.window_s, opts.latitude_deg)
-    metrics: dict = {"model": fitted.kind, "window_s": opts.window_s}
+        train_logs, opts.window_s, opts.latitude_deg, settle_s=opts.settle_s)
+    metrics: dict = {"model": fitted.kind, "window_s": opts.window_s,
+                     "settle_s": opts.settle_s}
     if test_log is not None:
-        test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg)
+        test = score(fitted, [test_log], ref, opts.window_s, opts.latitude_deg, opts.settle_s)
         metrics["noise_floor_ppm"] = test["before"]["noise_floor_ppm"]
         metrics["test"] = test
     if test_log is not None and opts.transfer_check:
         metrics["rate_transfer"] = rate_transfer(
             train_logs, test_log, opts.latitude_deg,
             per_sample_prediction(fitted, test_log, opts.latitude_deg),
-            step_s=fitted.fe.step_s).as_dict()
-    metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg)
+            step_s=fitted.fe.step_s, window_s=opts.window_s, settle_s=opts.settle_s).as_dict()
+    metrics["train"] = score(fitted, train_logs, ref, opts.window_s, opts.latitude_deg,
+                             opts.settle_s)
     # every ramp of every training log, read per segment (up and down, several rates a log)
     metrics["train_ramp_rates_c_per_min"] = training_ramp_rates(train_logs)
     metrics["train_ramp_segments"] = [[asdict(sg) for sg in ramp_segments(lg)]

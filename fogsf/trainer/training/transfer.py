@@ -19,6 +19,8 @@ the board temperatures of a target log (its gyro output is not used):
    misspecified model) are "consistent with the training data";
 3. how far their predictions on the target log spread: the windowed RMS difference of each
    consistent model's prediction from the best one's, reported as the median and maximum.
+   The windows are the SF windows of every metric (`logs.metrics.step_windows`: the user's
+   --window-s and --settle-s, short plateaus one window each), and so is the noise floor.
 
 A small spread says the training data pins the compensation down on the target's
 temperature history; a spread far above the noise floor says it does not, and whatever a
@@ -33,7 +35,14 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.metrics import noise_floor_ppm, sf_windows
+from fogsf.trainer.logs.metrics import (
+    SETTLE_S,
+    noise_floor_ppm,
+    sf_windows,
+    step_means,
+    step_windows,
+    windows_rms,
+)
 
 SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows
 MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
@@ -41,7 +50,6 @@ RATE_TOLERANCE = 0.15  # a target rate within 15 % of the training range is cove
 CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
 STEP_S = 5.0  # the model step of the lag models compared (default: the trained model's)
 LONG_RUN_S = 100.0  # the residual's long-run variance over 100 s windows
-INTERVAL_WINDOW_S = 100.0
 INTERVAL_LO = 0.8  # the RMS of noise alone over a run's windows falls this far below its floor
 INTERVAL_SPREAD_K = 1.25  # 78 of 80 cases inside on development gyros 1-16 (docs/population.md)
 EXCURSION_NOTE_C = 5.0  # lag states this far beyond the training range are worth a note
@@ -184,14 +192,14 @@ class RateTransfer:
     # long-run variance of the best fit's residual / white noise's (1: the lag family explains
     # the training data to its noise; more: structure is left, and the allowance widens)
     residual_long_run_ratio: float = 1.0
-    noise_floor_ppm: float = 0.0  # the target log's (100 s windows)
+    noise_floor_ppm: float = 0.0  # the target log's (SF windows of --window-s)
     # the largest windowed RMS difference between a consistent lag model and the model being
     # judged (the trained model's prediction on the target); spread_max_ppm without one
     model_spread_max_ppm: float = 0.0
     # how far (C) the target drives any lag-filter state (60 s .. 2 h) beyond the range the
     # training logs gave it: the compensation there extrapolates in temperature
     lag_excursion_c: float = 0.0
-    # where the RMS error (100 s windows) left on the target should fall (`rms_interval`)
+    # where the RMS error (SF windows) left on the target should fall (`rms_interval`)
     rms_interval_ppm: tuple[float, float] = (0.0, 0.0)
 
     def as_dict(self) -> dict:
@@ -226,11 +234,12 @@ class RateTransfer:
 
 def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
                   latitude_deg: float | None = None,
-                  prediction_ppm: np.ndarray | None = None, step_s: float = STEP_S
-                  ) -> RateTransfer:
+                  prediction_ppm: np.ndarray | None = None, step_s: float = STEP_S,
+                  window_s: float = 100.0, settle_s: float = SETTLE_S) -> RateTransfer:
     """How well the training logs determine the lag-temperature model on `target`;
     `prediction_ppm` (per sample of the target) is the trained model's prediction there, the
-    model the interval is for (without it, the best-fitting lag model's)."""
+    model the interval is for (without it, the best-fitting lag model's). Spreads and the
+    noise floor are over the target's SF windows (`window_s`, `settle_s`)."""
     from fogsf.trainer.models.features import common_sample_dt, front_end_for
     from fogsf.trainer.models.least_squares import (
         MAX_NODE_SLOPE_PPM_PER_C,
@@ -240,8 +249,6 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
         measured_rows,
         node_candidates,
     )
-    from fogsf.trainer.training.fit import windowed_rms_ppm
-
     fe = front_end_for([*train_logs, target], step_s, (),
                        sample_dt_s=common_sample_dt(train_logs))
     data, y = grid_data(train_logs, fe, TAU_GRID_S, latitude_deg)
@@ -261,14 +268,12 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation)
     preds = {i: fits[i].cand.design(tdata.s) @ fits[i].coef for i in ok}
     every = tdata.measured
-    spread = np.array([windowed_rms_ppm(preds[i] - preds[best], every, tdata.step_s)
-                       for i in ok])
+    windows = step_windows(target, tdata.decimation, window_s, settle_s)
+    spread = np.array([windows_rms(preds[i] - preds[best], windows, every) for i in ok])
     model_spread = spread
     if prediction_ppm is not None:
-        ref = _step_means(np.asarray(prediction_ppm, dtype=np.float64), tdata.decimation)
-        ref = ref[:tdata.n_steps]
-        model_spread = np.array([windowed_rms_ppm(preds[i] - ref, every, tdata.step_s)
-                                 for i in ok])
+        ref = step_means(prediction_ppm, tdata.decimation)[:tdata.n_steps]
+        model_spread = np.array([windows_rms(preds[i] - ref, windows, every) for i in ok])
     excursion = lag_excursion_c(s, tdata.s)
     train_rates = training_ramp_rates(train_logs)
     target_rates = ramp_rates(target) or [0.0]
@@ -277,7 +282,7 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
                if not lo * (1 - RATE_TOLERANCE) <= r <= hi * (1 + RATE_TOLERANCE)]
     covered = not outside
     target_rate = outside[0] if outside else max(target_rates)
-    floor = noise_floor_ppm(sf_windows(target, INTERVAL_WINDOW_S, latitude_deg))
+    floor = noise_floor_ppm(sf_windows(target, window_s, latitude_deg, settle_s=settle_s))
     m_max = float(np.max(model_spread))
     interval = rms_interval(floor, m_max)
     return RateTransfer(train_rates, target_rate, bool(covered), len(fits), int(ok.size),
@@ -286,19 +291,13 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
 
 
 def rms_interval(floor_ppm: float, model_spread_max_ppm: float) -> tuple[float, float]:
-    """The interval for the RMS error the judged model leaves on the target (100 s windows):
+    """The interval for the RMS error the judged model leaves on the target (SF windows):
     from INTERVAL_LO times the noise floor (noise alone scatters that far below it) to the
     floor and INTERVAL_SPREAD_K times the largest distance from the model to a lag model
     consistent with the training data, added in quadrature. INTERVAL_SPREAD_K is calibrated
     on development gyros for 90 % coverage (docs/population.md)."""
     top = INTERVAL_SPREAD_K * model_spread_max_ppm
     return (INTERVAL_LO * floor_ppm, float(np.hypot(floor_ppm, top)))
-
-
-def _step_means(x: np.ndarray, decimation: int) -> np.ndarray:
-    n_steps = (x.size - 1) // decimation + 1
-    starts = np.arange(n_steps) * decimation
-    return np.add.reduceat(x, starts) / np.diff(np.append(starts, x.size))
 
 
 def lag_excursion_c(train_s: np.ndarray, target_s: np.ndarray) -> float:
