@@ -13,7 +13,7 @@ import copy
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.metrics import plateau_pairs, sf_windows
+from fogsf.trainer.logs.metrics import plateau_pairs, rate_steps, sf_windows
 from fogsf.trainer.sim import SimConfig, simulate
 from fogsf.trainer.sim.config import ProfileConfig, TableConfig
 from fogsf.trainer.sim.effects import EFFECTS, EffectConfig, describe, parse_effect
@@ -36,10 +36,10 @@ def with_effect(cfg: SimConfig, name: str, strength: float, **params: float) -> 
     return c
 
 
-def window_shift_ppm(cfg: SimConfig, fx: SimConfig):
+def window_shift_ppm(cfg: SimConfig, fx: SimConfig, remove_bias: bool = True):
     """(windows, apparent SF with the effect - without, in ppm) per window."""
-    w0 = sf_windows(simulate(cfg).log)
-    w1 = sf_windows(simulate(fx).log)
+    w0 = sf_windows(simulate(cfg).log, remove_bias=remove_bias)
+    w1 = sf_windows(simulate(fx).log, remove_bias=remove_bias)
     return w1, (w1.sf_ratio - w0.sf_ratio) * 1e6
 
 
@@ -95,12 +95,23 @@ def test_asymmetry_splits_plus_and_minus_sf_at_every_rate(draw: int) -> None:
     msg = f"draw seed {draw}: strength {strength:.1f}, seed {seed}"
     table = TableConfig(kind="levels", rates_dps=[10.0, -10.0, 100.0, -100.0], dwell_s=200.0)
     cfg = base(seed, ProfileConfig(kind="soak", start_c=20.0, duration_s=3200.0), table)
-    w, d = window_shift_ppm(cfg, with_effect(cfg, "asymmetry", strength))
+    fx = with_effect(cfg, "asymmetry", strength)
+    # the raw windows (the +/- pairs' bias left in) split SF+ from SF-
+    w, d = window_shift_ppm(cfg, fx, remove_bias=False)
     for r in (10.0, 100.0):
         plus = np.mean(d[np.isclose(w.rate_dps, r)])
         minus = np.mean(d[np.isclose(w.rate_dps, -r)])
         assert plus - minus == pytest.approx(strength, rel=0.02, abs=1.0), msg
         assert plus == pytest.approx(strength / 2, rel=0.02, abs=1.0), msg
+    # a pair's bias holds asymmetry x rate / 2: taken off at its own rate, both signs read
+    # the mean SF (what one SF correction compensates) ...
+    w, d = window_shift_ppm(cfg, fx)
+    for r in (10.0, -10.0, 100.0, -100.0):
+        assert np.mean(d[np.isclose(w.rate_dps, r)]) == pytest.approx(0.0, abs=1.0), msg
+    # ... and the rate steps (IEEE 952) give the asymmetry back
+    a0 = rate_steps(simulate(cfg).log).asymmetry_ppm
+    a1 = rate_steps(simulate(fx).log).asymmetry_ppm
+    assert a1 - a0 == pytest.approx(strength, rel=0.02, abs=1.0), msg
 
 
 @pytest.mark.parametrize("draw", DRAW_SEEDS)

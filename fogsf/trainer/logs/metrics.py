@@ -16,15 +16,20 @@ the residual is measured / predicted - 1, i.e. the window ratio of the corrected
 
 +/- pairs. Adjacent plateaus of opposite sign and equal |rate| (`PAIR_RATE_TOL`) give SF
 and bias separately (IEEE Std 952): SF = (m1 - m2) / (r1 - r2), bias = (m2 r1 - m1 r2) /
-(r1 - r2). When a log has pairs, their bias, interpolated in time between pair centres, is
-taken off the gyro before any window, target or metric is measured, so that it does not
-leak into the SF at low rates (a bias b reads as b / rate in SF). A pair's bias also holds
-half the SF asymmetry times the rate (one pair cannot tell them apart).
+(r1 - r2), refined with the +/- plateaus next to the pair so that an SF drifting with
+temperature between its two plateaus does not read as bias (`_pair_fit`). When a log has
+pairs, their bias, interpolated in time between pair centres, is taken off the gyro before
+any window, target or metric is measured, so that it does not leak into the SF at low rates
+(a bias b reads as b / rate in SF). A pair's bias also holds half the SF asymmetry times
+its rate (one pair cannot tell them apart), so it is taken off only at its own |rate|: there
+each plateau then reads the mean of SF+ and SF- (what one SF correction can compensate);
+a |rate| without pairs keeps its bias.
 
-Rate steps. A log with plateaus at three or more |rates| (a staircase) gives the SF per
-rate step, the SF nonlinearity (largest deviation of a rate level's mean output from the
-least-squares straight line through all plateaus, ppm of the full-scale output) and the SF
-asymmetry ((SF+ - SF-) / mean SF, ppm) as IEEE Std 952 defines them (`rate_steps`).
+Rate steps. A log with plateaus at two or more |rates| in both directions (a staircase)
+gives the SF per rate step, the SF nonlinearity (largest deviation of a rate level's mean
+output from the least-squares straight line through all plateaus, ppm of the full-scale
+output) and the SF asymmetry ((SF+ - SF-) / mean SF, ppm) as IEEE Std 952 defines them
+(`rate_steps`).
 
 The noise floor is the SF error that the gyro's own noise leaves in one window: each window
 is cut into `SUB_WINDOWS` sub-windows (fewer in a short one, at least 3), a straight line is
@@ -53,7 +58,7 @@ REF_BAND_C = 5.0  # windows within this of T_REF_C are fitted to find the SF at 
 SETTLE_S = 2.0  # left out after each change of commanded rate (covers a ~1 s table slew)
 MIN_PLATEAU_S = 5.0  # a settled plateau shorter than this measures nothing
 PAIR_RATE_TOL = 0.01  # |r1| and |r2| within 1 % (and 1e-6 deg/s) make a +/- pair
-MIN_RATE_LEVELS = 3  # |rates| a staircase needs for nonlinearity and asymmetry
+MIN_RATE_LEVELS = 2  # |rates| (each in both directions) that nonlinearity and asymmetry need
 DPS_TO_DPH = 3600.0
 START_SPAN_S = 300.0  # the start of a log: its first 5 minutes
 START_MOVING_C_PER_MIN = 0.05  # faster than this at the start is "moving" (a soak is slower)
@@ -195,11 +200,11 @@ def sf_signal(log: ChamberLog, latitude_deg: float | None = None,
 
 def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,
                correction_ppm: np.ndarray | None = None, settle_s: float = SETTLE_S,
-               skip_s: float = 0.0) -> SFWindows:
+               skip_s: float = 0.0, remove_bias: bool = True) -> SFWindows:
     """Apparent SF per window; with `correction_ppm` (per sample, vs nominal SF), of the
-    corrected output (`sf_signal`)."""
+    corrected output (`sf_signal`; `remove_bias` False: the pairs' bias is left in)."""
     spans = sf_spans(log, window_s, settle_s, skip_s)
-    signal = sf_signal(log, latitude_deg, correction_ppm, settle_s)
+    signal = sf_signal(log, latitude_deg, correction_ppm, settle_s, remove_bias)
     k = spans.shape[0]
     out = {f: np.empty(k) for f in ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm")}
     lengths = spans[:, 1] - spans[:, 0]
@@ -334,10 +339,30 @@ def _is_pair(p: _Plateau, q: _Plateau) -> bool:
     return abs(abs(p.rate) - abs(q.rate)) <= PAIR_RATE_TOL * big + 1e-6
 
 
+def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float]:
+    """(SF ratio, bias) at time `tc` from a pair and its +/- neighbours: a least-squares fit
+    of m = r (s0 + s1 tau) + b0 + b1 tau (tau = t - tc; with three plateaus no b1, with two
+    neither s1 nor b1). With both neighbours at +/-r this is the bias (m0 + 3 m1 + 3 m2 +
+    m3) / 8 (signs alternating), which cancels an SF that drifts linearly, even
+    quadratically, in time (the SF moving between the two plateaus of a pair on a ramp
+    would otherwise read as bias: 5 ppm at 100 deg/s is 0.9 deg/h) and a linear bias drift."""
+    r = np.array([p.rate for p in group])
+    m = np.array([p.mean for p in group])
+    tau = np.array([p.t_s for p in group]) - tc
+    cols = [r, np.ones_like(r)]
+    if len(group) >= 3:
+        cols.append(r * tau)
+    if len(group) >= 4:
+        cols.append(tau)
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols), m, rcond=None)
+    return float(coef[0]), float(coef[1])
+
+
 def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
                settle_s: float = SETTLE_S) -> PlateauPairs | None:
     """The log's +/- pairs: adjacent settled plateaus of opposite sign and equal |rate|
-    (PAIR_RATE_TOL), no plateau in two pairs; None without any."""
+    (PAIR_RATE_TOL), no plateau in two pairs; None without any. Each pair's SF and bias are
+    at its centre time, from the pair and the +/- plateaus next to it (`_pair_fit`)."""
     pl = _plateau_means(log, latitude_deg, settle_s)
     out: list[tuple[float, float, float, float, float]] = []
     i = 0
@@ -346,10 +371,15 @@ def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
         if not _is_pair(p, q):
             i += 1
             continue
+        group = [p, q]
+        if i > 0 and _is_pair(pl[i - 1], p):
+            group.insert(0, pl[i - 1])
+        if i + 2 < len(pl) and _is_pair(q, pl[i + 2]):
+            group.append(pl[i + 2])
         i += 2
-        sf = (p.mean - q.mean) / (p.rate - q.rate)
-        bias = (q.mean * p.rate - p.mean * q.rate) / (p.rate - q.rate)
-        out.append((0.5 * (p.t_s + q.t_s), 0.5 * (p.temp_c + q.temp_c), sf, bias,
+        tc = 0.5 * (p.t_s + q.t_s)
+        sf, bias = _pair_fit(group, tc)
+        out.append((tc, 0.5 * (p.temp_c + q.temp_c), sf, bias,
                     0.5 * (abs(p.rate) + abs(q.rate))))
     if not out:
         return None
@@ -371,12 +401,20 @@ def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,
 
 def bias_track(log: ChamberLog, latitude_deg: float | None = None,
                settle_s: float = SETTLE_S) -> np.ndarray | None:
-    """Per sample, the pairs' bias (deg/s) interpolated in time between pair centres (held
-    before the first and after the last); None for a log without pairs."""
+    """Per sample, the bias (deg/s) of the pairs at the sample's |table rate|, interpolated
+    in time between their centres (held before the first and after the last); 0 at a |rate|
+    without pairs (a pair's bias holds asymmetry x rate / 2: it is not moved to another
+    rate). None for a log without pairs."""
     pp = find_pairs(log, latitude_deg, settle_s)
     if pp is None:
         return None
-    return np.interp(log.time_s, pp.t_s, pp.bias_dps)
+    out = np.zeros(len(log))
+    mag = np.abs(log.table_rate_dps)
+    for r in np.unique(pp.rate_dps):
+        at = np.abs(pp.rate_dps - r) <= PAIR_RATE_TOL * r + 1e-6
+        here = np.abs(mag - r) <= PAIR_RATE_TOL * r + 1e-6
+        out[here] = np.interp(log.time_s[here], pp.t_s[at], pp.bias_dps[at])
+    return out
 
 
 @dataclass
