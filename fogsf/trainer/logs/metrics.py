@@ -430,7 +430,7 @@ class RateSteps:
     sf_pos_ppm: np.ndarray  # SF at +rate vs nominal, ppm (NaN: no plateau there)
     sf_neg_ppm: np.ndarray
     sf_ppm: float  # the line's slope vs nominal, ppm (at the log's mean temperature)
-    bias_dps: float  # the line's intercept
+    bias_dps: float  # the separate-slope fit's intercept (the line's holds asymmetry too)
     nonlinearity_ppm: float  # max |level mean - line| / full-scale output, ppm
     asymmetry_ppm: float  # (SF+ - SF-) / mean SF, ppm (the separate-slope fit)
 
@@ -475,27 +475,32 @@ def rate_steps(log: ChamberLog, latitude_deg: float | None = None,
     dtemp = temp - temp.mean()
     thermal = [r * dtemp, dtemp] if np.ptp(temp) >= 1.0 else []
     one = np.ones_like(r)
-    line, *_ = np.linalg.lstsq(np.column_stack([r, one, *thermal]), m, rcond=None)
-    split, *_ = np.linalg.lstsq(np.column_stack([np.where(r > 0, r, 0.0), np.where(r < 0, r, 0.0),
-                                                 one, *thermal]), m, rcond=None)
-    resid = m - np.column_stack([r, one, *thermal]) @ line
+    line_x = np.column_stack([r, one, *thermal])
+    line, *_ = np.linalg.lstsq(line_x, m, rcond=None)
+    split_x = np.column_stack([np.where(r > 0, r, 0.0), np.where(r < 0, r, 0.0), one, *thermal])
+    split, *_ = np.linalg.lstsq(split_x, m, rcond=None)
+    resid = m - line_x @ line
     sign = np.sign(r)
-    dev = [abs(resid[(level == k) & (sign == s)].mean())
-           for k in range(level.max() + 1) for s in (-1, 1) if ((level == k) & (sign == s)).any()]
-    sf, bias = float(line[0]), float(line[1])
-    # per plateau: SF with the fitted bias and thermal terms taken off (at the mean temp)
-    per = m - bias - (line[3] * dtemp if thermal else 0.0) - (line[2] * r * dtemp if thermal
-                                                             else 0.0)
+    groups = [(level == k) & (sign == s) for k in range(level.max() + 1) for s in (-1, 1)]
+    dev = max(abs(float(resid[g].mean())) for g in groups if g.any())
+    # per plateau: SF with the split fit's bias and thermal terms taken off (the split fit's
+    # intercept is the bias whatever the asymmetry; the line's holds asymmetry x rate / 2)
+    bias = float(split[2])
+    per = m - bias - (split[3] * r * dtemp + split[4] * dtemp if thermal else 0.0)
     per_sf = (per / r - 1.0) * 1e6
-    levels = np.arange(level.max() + 1)
+    levels = range(level.max() + 1)
     rates = np.array([np.abs(r[level == k]).mean() for k in levels])
-    pos = np.array([per_sf[(level == k) & (r > 0)].mean() if ((level == k) & (r > 0)).any()
-                    else np.nan for k in levels])
-    neg = np.array([per_sf[(level == k) & (r < 0)].mean() if ((level == k) & (r < 0)).any()
-                    else np.nan for k in levels])
+
+    def side(k: int, positive: bool) -> float:
+        sel = (level == k) & ((r > 0) if positive else (r < 0))
+        return float(per_sf[sel].mean()) if sel.any() else float("nan")
+
+    pos = np.array([side(k, True) for k in levels])
+    neg = np.array([side(k, False) for k in levels])
+    sf = float(line[0])
     full_scale = abs(sf) * float(np.abs(r).max())
-    return RateSteps(rates, pos, neg, (sf - 1.0) * 1e6, bias, float(max(dev)) / full_scale * 1e6,
-                     float((split[0] - split[1]) / (0.5 * (split[0] + split[1]))) * 1e6)
+    asym = float((split[0] - split[1]) / (0.5 * (split[0] + split[1]))) * 1e6
+    return RateSteps(rates, pos, neg, (sf - 1.0) * 1e6, bias, dev / full_scale * 1e6, asym)
 
 
 # --- model steps ------------------------------------------------------------------------------

@@ -1,0 +1,201 @@
+"""Rate-table plateaus (IEEE Std 952 style): the settle margin after each change of
+commanded rate, +/- pairs separating SF and bias, a staircase's SF per rate step,
+nonlinearity and asymmetry, the bias taken off before SF and targets, one windowing for
+every command (--window-s, --settle-s), and a log that starts while the temperature moves
+(--skip-s). Truth comes from the generator."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.logio import write_log
+from fogsf.trainer.logs.metrics import (
+    find_pairs,
+    plateau_pairs,
+    rate_steps,
+    sf_spans,
+    sf_windows,
+    start_note,
+    step_means,
+    step_windows,
+    windows_rms,
+)
+from fogsf.trainer.models.features import step_targets
+from fogsf.trainer.sim.config import TableConfig
+from fogsf.trainer.sim.gyro import SimResult, simulate
+from fogsf.trainer.sim.scenarios import paper
+
+EARTH_DPS = 0.0023
+
+
+def reversal_run(seed: int, rate_dps: float = 100.0, dwell_s: float = 60.0,
+                 ramp_c_per_min: float = 1.0) -> SimResult:
+    """-20 -> 40 C at `ramp_c_per_min` after a 10 min soak, the table reversing +/-rate every
+    `dwell_s`; bias 1 deg/h + 0.02 deg/h/C (board), ARW 0.005 deg/sqrt(h) (a navigation-grade
+    FOG; the paper scenario's 0.05 would put 0.2 deg/h of noise on each pair's bias)."""
+    cfg = paper(ramp_c_per_min, seed)
+    cfg.profile.start_c, cfg.profile.stop_c = -20.0, 40.0
+    cfg.profile.soak_before_s = 600.0
+    cfg.table = TableConfig(kind="alternating", rate_dps=rate_dps, dwell_s=dwell_s)
+    cfg.bias.bias_dph, cfg.bias.lin_dph_per_c = 1.0, 0.02
+    cfg.noise.arw_deg_per_sqrt_h = 0.005
+    return simulate(cfg)
+
+
+def test_reversal_pairs_give_bias_within_0p1_dph_and_sf() -> None:
+    res = reversal_run(5)
+    log = res.log
+    pp = plateau_pairs(log)
+    assert len(pp) == 35  # 70 plateaus of 60 s
+    true_bias_dph = np.interp(pp.t_s, log.time_s, res.bias_dps) * 3600.0
+    true_sf_ppm = np.interp(pp.t_s, log.time_s, res.sf_ppm)
+    # the SF moves ~5 ppm/min on the ramp: a bare pair would read 1.8 deg/h of it as bias
+    assert np.max(np.abs(pp.bias_dps * 3600.0 - true_bias_dph)) < 0.1
+    assert np.max(np.abs((pp.sf_ratio - 1.0) * 1e6 - true_sf_ppm)) < 1.0
+    assert pp.bias_drift_dph_per_c() == pytest.approx(0.02, abs=0.003)
+
+
+def test_bias_is_taken_off_before_sf_windows_and_targets() -> None:
+    res = reversal_run(6, rate_dps=10.0, dwell_s=100.0)  # 1 deg/h reads 28 ppm at 10 deg/s
+    log = res.log
+    truth = [res.sf_ppm[a:b].mean() for a, b in zip(*sf_spans(log).T, strict=True)]
+    w = sf_windows(log)
+    raw = sf_windows(log, remove_bias=False)
+    assert np.max(np.abs((w.sf_ratio - 1.0) * 1e6 - truth)) < 3.0
+    assert np.max(np.abs((raw.sf_ratio - 1.0) * 1e6 - truth)) > 20.0
+    # training targets (per 5 s model step) carry no bias either
+    t = step_targets(log, 50)
+    true_steps = step_means(res.sf_ppm, 50)
+    ok = np.isfinite(t)
+    assert abs(np.mean(t[ok] - true_steps[ok])) < 1.0
+
+
+def staircase(slew_s: float = 1.0, e0: float = 150.0, asym: float = 20.0, quad: float = 30.0,
+              bias_dph: float = 1.0) -> tuple[ChamberLog, dict[float, tuple[float, float]]]:
+    """0, 4, 8 ... 100 deg/s, each +r then -r for 16 s, at 20 C; the table reaches each new
+    command by a linear slew over `slew_s` (the commanded column steps). SF error vs nominal:
+    e0 + quad (|r| / 100)^2 ppm, +asym/2 for r > 0 and -asym/2 for r < 0. Returns the log and,
+    per |rate|, the true (SF+, SF-) in ppm."""
+    dt, per = 0.1, 160
+    levels = [4.0 * k for k in range(26)]
+    cmd = np.repeat([s * r for r in levels for s in (1.0, -1.0)], per)
+    actual = cmd.copy()
+    k = int(round(slew_s / dt))
+    for c in np.flatnonzero(np.diff(cmd) != 0) + 1:
+        a, b = cmd[c - 1], cmd[c]
+        actual[c:c + k] = a + (b - a) * (np.arange(k) + 0.5) / k
+    mag = np.abs(actual)
+    e = e0 + quad * (mag / 100.0) ** 2 + np.sign(actual) * asym / 2
+    gyro = actual * (1 + e * 1e-6) + bias_dph / 3600.0 + EARTH_DPS
+    n = cmd.size
+    log = ChamberLog(np.arange(n) * dt, np.full(n, 20.0), cmd, gyro, np.full(n, EARTH_DPS))
+    truth = {r: (e0 + quad * (r / 100) ** 2 + asym / 2, e0 + quad * (r / 100) ** 2 - asym / 2)
+             for r in levels[1:]}
+    return log, truth
+
+
+def test_staircase_with_a_slewing_table_needs_the_settle_margin() -> None:
+    log, truth = staircase()
+    st = rate_steps(log)
+    assert st is not None and st.rates_dps.tolist() == pytest.approx(sorted(truth))
+    want_pos = np.array([truth[r][0] for r in sorted(truth)])
+    want_neg = np.array([truth[r][1] for r in sorted(truth)])
+    np.testing.assert_allclose(st.sf_pos_ppm, want_pos, atol=0.05)
+    np.testing.assert_allclose(st.sf_neg_ppm, want_neg, atol=0.05)
+    assert st.asymmetry_ppm == pytest.approx(20.0, abs=0.05)
+    # IEEE 952 nonlinearity: the largest deviation of a rate level's output from the
+    # least-squares line through every plateau, ppm of the full-scale output
+    r = np.array([s * q for q in sorted(truth) for s in (1.0, -1.0)])
+    m = np.array([q * (1 + 1e-6 * (truth[q][0] if s > 0 else truth[q][1])) * s
+                  for q in sorted(truth) for s in (1.0, -1.0)])
+    slope, icpt = np.polyfit(r, m, 1)
+    want_nl = np.max(np.abs(m - slope * r - icpt)) / (slope * 100.0) * 1e6
+    assert st.nonlinearity_ppm == pytest.approx(want_nl, rel=0.02)
+    assert st.bias_dps * 3600 == pytest.approx(1.0, abs=1e-3)  # the bias under asymmetry
+    # windows (one per 14 s settled plateau) read the mean of SF+ and SF- at each rate
+    w = sf_windows(log)
+    want = np.array([np.mean(truth[abs(float(x))]) for x in w.rate_dps])
+    assert np.max(np.abs((w.sf_ratio - 1.0) * 1e6 - want)) < 0.05
+    # without the settle margin the slewing second is measured as if the table were there
+    bad = rate_steps(log, settle_s=0.0)
+    assert bad is not None and np.max(np.abs(bad.sf_pos_ppm - want_pos)) > 1000.0
+    raw = sf_windows(log, settle_s=0.0)
+    want0 = np.array([np.mean(truth[abs(float(x))]) for x in raw.rate_dps])
+    assert np.max(np.abs((raw.sf_ratio - 1.0) * 1e6 - want0)) > 1000.0
+
+
+def test_windows_on_model_steps_and_their_rms() -> None:
+    res = reversal_run(7)
+    log = res.log
+    spans = sf_spans(log, 50.0)
+    assert np.all(spans[:, 1] - spans[:, 0] == 500)  # 58 s plateaus: one 50 s window each
+    win = step_windows(log, 50, 50.0)
+    assert win.shape == spans.shape and np.all(win[:, 1] - win[:, 0] == 10)
+    err = np.zeros((len(log) - 1) // 50 + 1)
+    err[win[0, 0]:win[0, 1]] = 3.0  # one window at 3 ppm, the others at 0
+    assert windows_rms(err, win) == pytest.approx(3.0 / np.sqrt(len(win)))
+    # constant-rate logs: the settle margin changes nothing (no change of rate)
+    const = paper(1.0, 3)
+    const.profile.start_c, const.profile.stop_c = 0.0, 30.0
+    clog = simulate(const).log
+    a, b = sf_windows(clog), sf_windows(clog, settle_s=0.0)
+    assert np.array_equal(a.sf_ratio, b.sf_ratio) and np.array_equal(a.start, b.start)
+    assert find_pairs(clog) is None and rate_steps(clog) is None
+
+
+def _run(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "fogsf", *argv], capture_output=True,
+                          text=True)
+
+
+def test_train_test_on_reversal_logs_honours_window_s(tmp_path: Path) -> None:
+    for name, seed in (("a", 11), ("b", 12)):
+        write_log(tmp_path / f"{name}.csv", reversal_run(seed, ramp_c_per_min=2.0).log)
+    out = _run("train", "--train", str(tmp_path / "a.csv"), "--test", str(tmp_path / "b.csv"),
+               "--model", "poly", "--window-s", "50", "--out", str(tmp_path / "m"))
+    assert out.returncode == 0, out.stderr
+    saved = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    assert saved["window_s"] == 50.0 and saved["settle_s"] == 2.0
+    assert saved["test"]["after"]["window_s"] == 50.0
+    assert saved["rate_transfer"]["noise_floor_ppm"] > 0
+    assert saved["test"]["after"]["rms_ppm"] < 0.5 * saved["test"]["before"]["rms_ppm"]
+    # a window the plateaus cannot hold is refused naming the options
+    bad = _run("inspect", str(tmp_path / "a.csv"), "--settle-s", "56", "--skip-s", "58")
+    assert bad.returncode != 0 and "--settle-s" in bad.stderr and "--window-s" in bad.stderr
+    assert "Traceback" not in bad.stderr
+
+
+def test_inspect_reports_pairs_rate_steps_and_a_moving_start(tmp_path: Path) -> None:
+    log, _ = staircase()
+    write_log(tmp_path / "stairs.csv", log)
+    out = _run("inspect", str(tmp_path / "stairs.csv"), "--json", "--ref-sf", "1.00015")
+    assert out.returncode == 0, out.stderr
+    s = json.loads(out.stdout)
+    assert s["rate_steps"]["sf_asymmetry_ppm"] == pytest.approx(20.0, abs=0.1)
+    assert s["rate_steps"]["sf_nonlinearity_ppm_fs"] > 0
+    assert s["pairs"]["count"] == 25 and s["settle_s"] == 2.0
+    assert "starts while" not in out.stderr  # 20 C throughout
+    text = _run("inspect", str(tmp_path / "stairs.csv"), "--ref-sf", "1.00015").stdout
+    assert "nonlinearity" in text and "asymmetry" in text and "+/- pairs" in text
+
+    res = reversal_run(8, ramp_c_per_min=2.0)
+    mid = res.log.slice(int(np.searchsorted(res.log.time_s, 1500.0)), len(res.log))
+    assert start_note(res.log) is None  # a 10 min soak first
+    assert "starts while the board temperature moves" in start_note(mid)
+    write_log(tmp_path / "mid.csv", mid)
+    out = _run("inspect", str(tmp_path / "mid.csv"), "--json", "--skip-s", "600",
+               "--ref-sf", "1.0")
+    assert out.returncode == 0, out.stderr
+    assert "starts while the board temperature moves" in out.stderr
+    assert "first 600 s are left out" in out.stderr
+    s = json.loads(out.stdout)
+    assert s["skip_s"] == 600.0 and s["start_ramp_c_per_min"] == pytest.approx(2.0, rel=0.2)
+    w = sf_windows(mid, skip_s=600.0)
+    assert w.start[0] >= 6000
