@@ -106,7 +106,9 @@ def print_plateau_figures(s: dict) -> None:
     st = s["rate_steps"]
     if st is not None:
         print(f"  rate steps: SF nonlinearity {st['sf_nonlinearity_ppm_fs']:.1f} ppm of full "
-              f"scale, asymmetry {st['sf_asymmetry_ppm']:+.1f} ppm (IEEE Std 952)")
+              f"scale, asymmetry {st['sf_asymmetry_ppm']:+.1f} ppm (IEEE Std 952); bias "
+              f"{st['bias_dph']:+.4f} deg/h (a +/- pair's bias holds asymmetry x rate / 2, "
+              "this one does not)")
         for r, a, b in zip(st["rates_dps"], st["sf_pos_ppm"], st["sf_neg_ppm"], strict=True):
             pos = "   -   " if a is None else f"{a:+9.1f}"
             neg = "   -   " if b is None else f"{b:+9.1f}"
