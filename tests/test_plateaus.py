@@ -199,3 +199,22 @@ def test_inspect_reports_pairs_rate_steps_and_a_moving_start(tmp_path: Path) -> 
     assert s["skip_s"] == 600.0 and s["start_ramp_c_per_min"] == pytest.approx(2.0, rel=0.2)
     w = sf_windows(mid, skip_s=600.0)
     assert w.start[0] >= 6000
+
+
+def test_diagnose_runs_on_staircase_and_reversal_logs(tmp_path: Path) -> None:
+    from fogsf.trainer import cli
+
+    log, _ = staircase()
+    rng = np.random.default_rng(0)
+    log.gyro_dps = log.gyro_dps + rng.normal(0.0, 0.005 / 60 / np.sqrt(0.1), len(log))
+    log.temp_c = 20.0 + 0.005 * log.time_s / 60.0 * 30.0
+    write_log(tmp_path / "stairs.csv", log)
+    write_log(tmp_path / "rev.csv", reversal_run(13, ramp_c_per_min=2.0).log)
+    for name in ("stairs.csv", "rev.csv"):
+        assert cli.main(["diagnose", str(tmp_path / name), "--json",
+                         str(tmp_path / f"{name}.json")]) == 0
+    noiseless, _ = staircase()  # no noise to weigh windows by: refused, no traceback
+    write_log(tmp_path / "quiet.csv", noiseless)
+    out = _run("diagnose", str(tmp_path / "quiet.csv"))
+    assert out.returncode == 2 and "noise of its SF windows" in out.stderr
+    assert "Traceback" not in out.stderr

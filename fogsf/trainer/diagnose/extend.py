@@ -36,8 +36,10 @@ PROGRAM_STEP_S = 10.0
 
 
 def _table(rate: np.ndarray, dt: float) -> tuple[dict[str, Any], bool]:
-    """Table schedule from the rate plateaus; the flag says whether it reproduces the log."""
-    pl = plateaus(rate)
+    """Table schedule from the rate plateaus; the flag says whether it reproduces the log.
+    Rows at rest measure nothing (and a simulated table never rests): only the moving
+    plateaus make the schedule, so a log with rests is not reproduced exactly."""
+    pl = plateaus(rate, rate != 0.0)
     rates = [float(rate[a]) for a, _ in pl]
     lengths = [b - a for a, b in pl]
     if len(pl) == 1:
@@ -171,7 +173,7 @@ def simulated_windows(cfg: dict[str, Any], window_s: float) -> tuple[np.ndarray,
     quiet["noise"] = {"arw_deg_per_sqrt_h": 0.0, "pulse_arcsec": 0.0, "temp_noise_c": 0.0,
                       "temp_lsb_c": 0.0}
     res = simulate(SimConfig.from_dict(quiet))
-    w = sf_windows(res.log, window_s)
+    w = sf_windows(res.log, window_s, remove_bias=False)  # as diagnose.runs reads the logs
     return w.t_s, (w.sf_ratio - 1.0) * 1e6
 
 

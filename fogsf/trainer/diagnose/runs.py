@@ -1,6 +1,9 @@
 """Chamber logs as per-window observations for system identification.
 
-A window is one of `logs.metrics.sf_windows` (whole windows on one table-rate plateau).
+A window is one of `logs.metrics.sf_windows` (whole windows on one settled table-rate
+plateau, or a whole plateau shorter than a window), with the gyro's bias left in: the
+catalogue models bias drift and asymmetry by what they do to the apparent SF (a bias b
+reads as b / rate), so the +/- pairs' bias is not taken off here as other commands do.
 Its observation is the apparent SF error vs nominal, y = (mean(gyro - earth) / mean(table)
 - 1) in ppm. Every slower quantity a model needs (a lag-filtered temperature, an
 exponential of time) is computed at 10 Hz and averaged over exactly the window's samples,
@@ -50,10 +53,12 @@ def pooled_sigma(win: SFWindows) -> np.ndarray:
     """Per-window noise, pooled over the windows at the same |rate| (one window's own
     estimate has only a few degrees of freedom; the noise of a ratio scales with 1/|rate|)."""
     mag = np.round(np.abs(win.rate_dps), 6)
-    out = np.empty(len(win))
+    out = np.full(len(win), np.nan)
     for m in np.unique(mag):
         sel = mag == m
-        out[sel] = np.sqrt(np.mean(win.noise_ppm[sel] ** 2))
+        ok = np.isfinite(win.noise_ppm[sel])  # windows too short for an estimate: NaN
+        if ok.any():
+            out[sel] = np.sqrt(np.mean(win.noise_ppm[sel][ok] ** 2))
     return out
 
 
@@ -67,9 +72,15 @@ def load_run(log: ChamberLog, window_s: float, latitude_deg: float | None,
             raise UserError(f"{log.path}: column {col!r} has {bad.size} NaN/Inf cells (first at "
                             f"sample {int(bad[0])}); diagnose needs every cell: cut the log "
                             "before them or fill them")
-    win = sf_windows(log, window_s, latitude_deg)
+    win = sf_windows(log, window_s, latitude_deg, remove_bias=False)
     if len(win) < min_windows:
         raise UserError(f"{log.path}: only {len(win)} windows of {window_s:g} s; diagnose needs "
                         f"at least {min_windows} (a longer log or a shorter --window-s)")
     y = (win.sf_ratio - 1.0) * 1e6
-    return Run(name=log.path, log=log, win=win, y_ppm=y, sigma_ppm=pooled_sigma(win))
+    sigma = pooled_sigma(win)
+    if not np.all(np.isfinite(sigma) & (sigma > 0)):
+        raise UserError(f"{log.path}: the noise of its SF windows cannot be measured (zero, as "
+                        "in a noiseless simulation, or windows of fewer than 3 samples at a "
+                        "|rate|): diagnose weighs windows by it; use a real or noisy log, or a "
+                        "longer --window-s")
+    return Run(name=log.path, log=log, win=win, y_ppm=y, sigma_ppm=sigma)
