@@ -39,9 +39,10 @@ def test_windows_do_not_straddle_rate_changes() -> None:
     assert plateaus(rate) == [(0, 2550), (2550, 5000)]
     # 2 whole windows in the first plateau, 2 in the second; the tails are not windows
     assert list(w.start) == [0, 1000, 2550, 3550]
-    # the settle margin (2 s by default) starts the second plateau's windows 20 samples late;
+    # the settle margin (2 s by default) is trimmed off the second plateau's first window;
     # the log's first plateau follows no change and is not settled
-    assert list(sf_windows(log, window_s=100.0).start) == [0, 1000, 2570, 3570]
+    w = sf_windows(log, window_s=100.0)
+    assert list(w.start) == [0, 1000, 2570, 3550] and list(w.stop) == [1000, 2000, 3550, 4550]
     assert set(np.unique(w.rate_dps)) == {10.0, -20.0}
     np.testing.assert_allclose(w.sf_ratio, 1.0, atol=1e-12)
 

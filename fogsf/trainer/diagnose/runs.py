@@ -77,10 +77,18 @@ def load_run(log: ChamberLog, window_s: float, latitude_deg: float | None,
         raise UserError(f"{log.path}: only {len(win)} windows of {window_s:g} s; diagnose needs "
                         f"at least {min_windows} (a longer log or a shorter --window-s)")
     y = (win.sf_ratio - 1.0) * 1e6
-    sigma = pooled_sigma(win)
-    if not np.all(np.isfinite(sigma) & (sigma > 0)):
-        raise UserError(f"{log.path}: the noise of its SF windows cannot be measured (zero, as "
-                        "in a noiseless simulation, or windows of fewer than 3 samples at a "
-                        "|rate|): diagnose weighs windows by it; use a real or noisy log, or a "
-                        "longer --window-s")
-    return Run(name=log.path, log=log, win=win, y_ppm=y, sigma_ppm=sigma)
+    return Run(name=log.path, log=log, win=win, y_ppm=y, sigma_ppm=usable_sigma(pooled_sigma(win)))
+
+
+NOISELESS_SIGMA_PPM = 1e-3  # the weight of windows whose noise is zero (a noiseless simulation)
+
+
+def usable_sigma(sigma: np.ndarray) -> np.ndarray:
+    """Window noise for weights: a level whose noise cannot be measured (zero in a noiseless
+    simulation; NaN for windows of fewer than 3 samples) takes the smallest measured one,
+    or NOISELESS_SIGMA_PPM when none is measured (never an infinite weight)."""
+    ok = np.isfinite(sigma) & (sigma > 0)
+    if ok.all():
+        return sigma
+    fill = float(sigma[ok].min()) if ok.any() else NOISELESS_SIGMA_PPM
+    return np.where(ok, sigma, fill)

@@ -6,10 +6,12 @@ commanded rate, so the first `settle_s` seconds of every plateau but the log's f
 left out (SETTLE_S covers a table slewing about 1 s); with `skip_s`, the log's first seconds
 too. What is left counts from MIN_PLATEAU_S up.
 
-Windows. A settled plateau at least `window_s` long is cut into whole non-overlapping
-windows from its start (its tail shorter than a window is not a window); a shorter one
-(MIN_PLATEAU_S .. window_s) is one window. On a log at one constant rate nothing is
-settled and every window is `window_s` long, as it always was. The apparent SF ratio of a
+Windows. A plateau at least `window_s` long is cut into whole non-overlapping windows from
+its commanded start (its tail shorter than a window is not a window), and the settle margin
+(and a skipped start) is trimmed off the windows it falls in, so that a plateau keeps its
+number of windows; a shorter plateau is one window of its settled samples (from
+MIN_PLATEAU_S up). On a log at one constant rate nothing is settled and every window is
+`window_s` long, as it always was. The apparent SF ratio of a
 window is mean(gyro - bias - earth) / mean(table) (nominal SF = 1). The SF error in ppm is
 relative to the SF at 20 C (board thermometer) of the training data; after compensation
 the residual is measured / predicted - 1, i.e. the window ratio of the corrected output.
@@ -100,25 +102,28 @@ def _samples(seconds: float, dt: float) -> int:
     return int(np.ceil(seconds / dt - 1e-6)) if seconds > 0 else 0
 
 
+def _plateau_starts(log: ChamberLog, settle_s: float, skip_s: float
+                    ) -> list[tuple[int, int, int]]:
+    """(commanded start, first counted sample, stop) of every measuring plateau: the first
+    counted sample is `settle_s` after the start (but on the log's first plateau, which
+    follows no change) and not before the log's first `skip_s` seconds."""
+    if settle_s < 0 or skip_s < 0:
+        raise UserError("--settle-s and --skip-s must be >= 0")
+    settle = _samples(settle_s, log.sample_dt_s)
+    first = 0
+    if skip_s > 0 and len(log):
+        first = int(np.searchsorted(log.time_s, log.time_s[0] + skip_s - 1e-9))
+    return [(a, max(a + settle if a > 0 else a, first), b)
+            for a, b in plateaus(log.table_rate_dps, log.measures)]
+
+
 def settled_plateaus(log: ChamberLog, settle_s: float = SETTLE_S, skip_s: float = 0.0
                      ) -> list[tuple[int, int]]:
     """The measuring plateaus without their first `settle_s` seconds (but the log's first
     plateau, which follows no change), without the log's first `skip_s` seconds, and at least
     MIN_PLATEAU_S long."""
-    if settle_s < 0 or skip_s < 0:
-        raise UserError("--settle-s and --skip-s must be >= 0")
-    dt = log.sample_dt_s
-    settle = _samples(settle_s, dt)
-    first = 0
-    if skip_s > 0 and len(log):
-        first = int(np.searchsorted(log.time_s, log.time_s[0] + skip_s - 1e-9))
-    shortest = max(1, _samples(MIN_PLATEAU_S, dt))
-    out: list[tuple[int, int]] = []
-    for a, b in plateaus(log.table_rate_dps, log.measures):
-        a = max(a + settle if a > 0 else a, first)
-        if b - a >= shortest:
-            out.append((a, b))
-    return out
+    shortest = max(1, _samples(MIN_PLATEAU_S, log.sample_dt_s))
+    return [(a, b) for _, a, b in _plateau_starts(log, settle_s, skip_s) if b - a >= shortest]
 
 
 def measuring_mask(log: ChamberLog, settle_s: float = SETTLE_S, skip_s: float = 0.0
@@ -141,14 +146,21 @@ def window_samples(window_s: float, dt: float) -> int:
 
 def sf_spans(log: ChamberLog, window_s: float = 100.0, settle_s: float = SETTLE_S,
              skip_s: float = 0.0) -> np.ndarray:
-    """[k, 2] sample ranges [start, stop) of the SF windows (module docstring)."""
+    """[k, 2] sample ranges [start, stop) of the SF windows: a plateau at least a window long
+    is cut into whole windows from its commanded start, as on a log at one rate, and the
+    samples that do not count (the settle margin, the skipped start) are trimmed off the
+    windows they fall in (a window left shorter than MIN_PLATEAU_S is dropped); a plateau
+    shorter than a window is one window of its counted samples from MIN_PLATEAU_S up. So a
+    plateau of four windows keeps four windows, the first 2 s shorter."""
     n = window_samples(window_s, log.sample_dt_s)
+    shortest = max(1, _samples(MIN_PLATEAU_S, log.sample_dt_s))
     spans: list[tuple[int, int]] = []
-    for a, b in settled_plateaus(log, settle_s, skip_s):
-        if b - a >= n:
-            spans.extend((s, s + n) for s in range(a, b - n + 1, n))
+    for a0, a, b in _plateau_starts(log, settle_s, skip_s):
+        if b - a0 < n:
+            grid = [(a, b)]
         else:
-            spans.append((a, b))
+            grid = [(max(s, a), s + n) for s in range(a0, b - n + 1, n)]
+        spans.extend((x, y) for x, y in grid if y - x >= shortest)
     if not spans:
         raise UserError(
             f"{log.path}: no complete SF window: no table-rate plateau of {MIN_PLATEAU_S:g} s "
