@@ -220,3 +220,27 @@ def test_diagnose_runs_on_staircase_and_reversal_logs(tmp_path: Path) -> None:
     write_log(tmp_path / "quiet.csv", noiseless)
     out = _run("diagnose", str(tmp_path / "quiet.csv"))
     assert "Traceback" not in out.stderr and out.returncode in (0, 2), out.stderr
+
+
+def test_replay_of_a_log_that_starts_mid_ramp_says_so_and_skips(tmp_path: Path) -> None:
+    from ramp_logs import short_ramp
+
+    write_log(tmp_path / "train.csv", short_ramp(1.0, 21))
+    whole = short_ramp(1.0, 22)
+    i = int(np.searchsorted(whole.time_s, whole.time_s[0] + 1800.0))  # 20 min into the ramp
+    write_log(tmp_path / "mid.csv", whole.slice(i, len(whole)))
+    out = _run("train", "--train", str(tmp_path / "train.csv"), "--iters", "20",
+               "--no-progress", "--out", str(tmp_path / "m"))
+    assert out.returncode == 0, out.stderr
+    after = {}
+    for skip in ("0", "1800"):
+        rep = _run("replay", str(tmp_path / "m"), str(tmp_path / "mid.csv"), "--out",
+                   str(tmp_path / "c.csv"), "--json", str(tmp_path / f"r{skip}.json"),
+                   "--skip-s", skip, "--ref-sf", "1.0")
+        assert rep.returncode == 0, rep.stderr
+        assert "starts while the board temperature moves" in rep.stderr
+        j = json.loads((tmp_path / f"r{skip}.json").read_text())
+        assert j["skip_s"] == float(skip) and j["samples"] == len(whole) - i
+        after[skip] = j["after"]["rms_ppm"]
+    # the lag states catch up: the first half hour holds most of the error
+    assert after["1800"] < after["0"]
