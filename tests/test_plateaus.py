@@ -131,6 +131,43 @@ def test_staircase_with_a_slewing_table_needs_the_settle_margin() -> None:
     assert np.max(np.abs((raw.sf_ratio - 1.0) * 1e6 - want0)) > 1000.0
 
 
+def test_staircase_at_bang_bang_set_points() -> None:
+    """The staircase at four heater set points (-20, 10, 40, 70 C) held bang-bang (+/-0.5 C,
+    2 min), the table at rest on the 30 min ramps between them; SF 150 + 5 (T - 20) + 0.05
+    (T - 20)^2 ppm and bias 1 + 0.02 (T - 20) deg/h on top of the rate terms; ARW 0.005
+    deg/sqrt(h). The thermal polynomial keeps the rate figures clean."""
+    dt, per = 0.1, 160
+    stair = np.repeat([s * 4.0 * k for k in range(26) for s in (1.0, -1.0)], per)
+    cmds, temps = [], []
+    prev = -20.0
+    for sp in (-20.0, 10.0, 40.0, 70.0):
+        cmds.append(np.zeros(18000))
+        temps.append(np.linspace(prev, sp, 18000))
+        tt = np.arange(stair.size) * dt
+        temps.append(sp + 0.5 * (4 * np.abs((tt / 120.0) % 1.0 - 0.5) - 1))
+        cmds.append(stair)
+        prev = sp
+    cmd, temp = np.concatenate(cmds), np.concatenate(temps)
+    mag = np.abs(cmd)
+    e = (150 + 5 * (temp - 20) + 0.05 * (temp - 20) ** 2 + 30 * (mag / 100) ** 2
+         + np.sign(cmd) * 10)
+    rng = np.random.default_rng(1)
+    gyro = (cmd * (1 + e * 1e-6) + (1 + 0.02 * (temp - 20)) / 3600 + EARTH_DPS
+            + rng.normal(0, 0.005 / 60 / np.sqrt(dt), cmd.size))
+    n = cmd.size
+    log = ChamberLog(np.arange(n) * dt, temp, cmd, gyro, np.full(n, EARTH_DPS))
+    st = rate_steps(log)
+    _, truth = staircase()
+    nl = rate_steps(staircase()[0]).nonlinearity_ppm  # the same rate terms at 20 C, noiseless
+    assert st is not None and st.temp_c == 20.0
+    assert st.asymmetry_ppm == pytest.approx(20.0, abs=0.3)
+    assert st.nonlinearity_ppm == pytest.approx(nl, abs=0.5)
+    assert st.bias_dps * 3600 == pytest.approx(1.0, abs=0.02)
+    want = np.array([truth[r][0] for r in sorted(truth)])
+    assert np.max(np.abs(st.sf_pos_ppm - want)[3:]) < 1.0  # from 16 deg/s: noise < 1 ppm
+    assert np.max(np.abs(st.sf_pos_ppm - want)) < 4.0
+
+
 def test_windows_on_model_steps_and_their_rms() -> None:
     res = reversal_run(7)
     log = res.log

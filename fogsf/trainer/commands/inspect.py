@@ -109,6 +109,7 @@ def print_plateau_figures(s: dict) -> None:
               f"scale, asymmetry {st['sf_asymmetry_ppm']:+.1f} ppm (IEEE Std 952); bias "
               f"{st['bias_dph']:+.4f} deg/h (a +/- pair's bias holds asymmetry x rate / 2, "
               "this one does not)")
+        print(f"    SF per rate step vs nominal, at {st['temp_c']:.1f} C board temperature:")
         for r, a, b in zip(st["rates_dps"], st["sf_pos_ppm"], st["sf_neg_ppm"], strict=True):
             pos = "   -   " if a is None else f"{a:+9.1f}"
             neg = "   -   " if b is None else f"{b:+9.1f}"

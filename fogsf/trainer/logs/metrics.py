@@ -433,10 +433,13 @@ def bias_track(log: ChamberLog, latitude_deg: float | None = None,
 class RateSteps:
     """SF per rate step of a staircase and IEEE Std 952's nonlinearity and asymmetry.
 
-    A least-squares fit over every settled plateau's mean output m = (SF + a dT) r + b + c dT
-    (dT: the plateau's board temperature minus the log's mean; the thermal terms only when
-    the temperature spans 1 C) gives the line; SF+ and SF- come from the same fit with a
-    slope for each sign."""
+    A least-squares fit over every settled plateau's mean output m = (SF + a(T)) r + b + c(T)
+    gives the line: a(T) and c(T), the SF's and the bias's thermal change, are polynomials
+    in the plateau's board temperature T about `temp_c` (20 C when the plateaus span it,
+    else their mean) of a degree the span allows (none under 1 C, a line under 5 C, a
+    quadratic under 20 C, a cubic beyond: a staircase at several heater set points). SF+
+    and SF- come from the same fit with a slope for each sign; the SF per step is at
+    `temp_c`."""
 
     rates_dps: np.ndarray  # |rate| levels
     sf_pos_ppm: np.ndarray  # SF at +rate vs nominal, ppm (NaN: no plateau there)
@@ -445,13 +448,14 @@ class RateSteps:
     bias_dps: float  # the separate-slope fit's intercept (the line's holds asymmetry too)
     nonlinearity_ppm: float  # max |level mean - line| / full-scale output, ppm
     asymmetry_ppm: float  # (SF+ - SF-) / mean SF, ppm (the separate-slope fit)
+    temp_c: float = T_REF_C  # the board temperature the SF per step is at
 
     def as_dict(self) -> dict:
         return {"rates_dps": self.rates_dps.tolist(),
                 "sf_pos_ppm": _nan_none(self.sf_pos_ppm), "sf_neg_ppm": _nan_none(self.sf_neg_ppm),
                 "sf_ppm": self.sf_ppm, "bias_dph": self.bias_dps * DPS_TO_DPH,
                 "sf_nonlinearity_ppm_fs": self.nonlinearity_ppm,
-                "sf_asymmetry_ppm": self.asymmetry_ppm}
+                "sf_asymmetry_ppm": self.asymmetry_ppm, "temp_c": self.temp_c}
 
 
 def _nan_none(a: np.ndarray) -> list[float | None]:
@@ -484,8 +488,7 @@ def rate_steps(log: ChamberLog, latitude_deg: float | None = None,
     level = _rate_levels(r)
     if level.max() + 1 < MIN_RATE_LEVELS or not ((r > 0).any() and (r < 0).any()):
         return None
-    dtemp = temp - temp.mean()
-    thermal = [r * dtemp, dtemp] if np.ptp(temp) >= 1.0 else []
+    t0, thermal = _thermal_columns(r, temp)
     one = np.ones_like(r)
     line_x = np.column_stack([r, one, *thermal])
     line, *_ = np.linalg.lstsq(line_x, m, rcond=None)
@@ -498,7 +501,7 @@ def rate_steps(log: ChamberLog, latitude_deg: float | None = None,
     # per plateau: SF with the split fit's bias and thermal terms taken off (the split fit's
     # intercept is the bias whatever the asymmetry; the line's holds asymmetry x rate / 2)
     bias = float(split[2])
-    per = m - bias - (split[3] * r * dtemp + split[4] * dtemp if thermal else 0.0)
+    per = m - bias - (np.column_stack(thermal) @ split[3:] if thermal else 0.0)
     per_sf = (per / r - 1.0) * 1e6
     levels = range(level.max() + 1)
     rates = np.array([np.abs(r[level == k]).mean() for k in levels])
@@ -512,7 +515,21 @@ def rate_steps(log: ChamberLog, latitude_deg: float | None = None,
     sf = float(line[0])
     full_scale = abs(sf) * float(np.abs(r).max())
     asym = float((split[0] - split[1]) / (0.5 * (split[0] + split[1]))) * 1e6
-    return RateSteps(rates, pos, neg, (sf - 1.0) * 1e6, bias, dev / full_scale * 1e6, asym)
+    return RateSteps(rates, pos, neg, (sf - 1.0) * 1e6, bias, dev / full_scale * 1e6, asym, t0)
+
+
+def _thermal_columns(r: np.ndarray, temp: np.ndarray) -> tuple[float, list[np.ndarray]]:
+    """(T0, columns r u^k and u^k for k = 1..degree), u = (T - T0) / the largest |T - T0|:
+    the SF's and the bias's change with board temperature in `rate_steps` (degree by span:
+    0 under 1 C, 1 under 5 C, 2 under 20 C, else 3)."""
+    span = float(np.ptp(temp))
+    t0 = T_REF_C if temp.min() <= T_REF_C <= temp.max() else float(temp.mean())
+    degree = 0 if span < 1.0 else 1 if span < 5.0 else 2 if span < 20.0 else 3
+    if degree == 0:
+        return t0, []
+    u = (temp - t0) / max(float(np.max(np.abs(temp - t0))), 1e-9)
+    powers = [u**k for k in range(1, degree + 1)]
+    return t0, [r * p for p in powers] + powers
 
 
 # --- model steps ------------------------------------------------------------------------------
