@@ -92,14 +92,14 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 def slew(target_dps: np.ndarray, dt_s: float, accel_dps2: float) -> np.ndarray:
     """The table's actual rate at each sample when it follows `target_dps` (a step function)
-    with at most accel_dps2: a change commanded at sample i is still r0 there and moves by
-    accel * dt a sample after it. accel_dps2 <= 0: the table is there at once."""
+    from rest with at most accel_dps2: a change commanded at sample i is still r0 there and
+    moves by accel * dt a sample after it. accel_dps2 <= 0: the table is there at once."""
     target = np.asarray(target_dps, dtype=np.float64)
     if accel_dps2 <= 0 or target.shape[0] == 0:
         return target.copy()
     out = np.empty_like(target)
     starts = np.concatenate([[0], np.flatnonzero(np.diff(target)) + 1, [target.shape[0]]])
-    r0 = float(target[0])
+    r0 = 0.0
     for a, b in zip(starts[:-1], starts[1:], strict=True):
         dist = float(target[a]) - r0
         moved = np.minimum(accel_dps2 * dt_s * np.arange(b - a + 1), abs(dist))
