@@ -310,3 +310,32 @@ def test_simulate_with_the_schedule_given_as_a_series_is_unchanged() -> None:
         np.testing.assert_array_equal(v, b.log.columns()[k])
     with pytest.raises(ValueError, match="table_dps"):
         simulate(cfg, table_dps=t[:-1])
+
+
+def test_plateaus_and_pairs_carry_the_truth() -> None:
+    run = rigs.run_rig(small_staircase(arw_deg_per_sqrt_h=0.0), gyro_seed=2, seed=0)
+    plats = rigs.plateaus(run, settle_s=2.0)
+    assert len(plats) == 20 and all(p.stop - p.start == 140 for p in plats)
+    prs = rigs.pairs(plats)
+    assert [q.rate_dps for q in prs] == [4.0, 8.0, 12.0, 16.0, 20.0] * 2
+    r = run.axes[""].result
+    for q in prs:
+        gp = r.ideal_dps[q.plus.start:q.plus.stop].mean()
+        gm = r.ideal_dps[q.minus.start:q.minus.stop].mean()
+        assert ((gp - gm) / (2 * q.rate_dps) - 1) * 1e6 == pytest.approx(q.sf_ppm, abs=0.5)
+        assert q.plus.rate_dps > 0 > q.minus.rate_dps
+    stalled = rigs.run_rig(small_staircase(stalls_per_h=120.0), gyro_seed=2, seed=0)
+    for p in rigs.plateaus(stalled):
+        assert stalled.measures[p.start:p.stop].all()
+
+
+@pytest.mark.parametrize("kind", rigs.RIG_KINDS)
+def test_rig_log_in_one_call(tmp_path: Path, kind: str) -> None:
+    seeds = (20001, 20002, 20003) if kind == "imu3" else (20001,)
+    chamber = rigs.ramp(20.0, 21.0, 1.0, 30.0)
+    lg = rigs.rig_log(kind, tmp_path / f"{kind}.csv", "reversals", seeds, seed=1,
+                      chamber=chamber, rate_hz=20.0)
+    assert lg.path.is_file() and lg.mapping_path is not None
+    assert set(lg.truth) == ({"x", "y", "z"} if kind == "imu3" else {""})
+    with pytest.raises(ValueError, match="gyro seed"):
+        rigs.rig_log(kind, tmp_path / "no.csv", "reversals", (1, 2), chamber=chamber)

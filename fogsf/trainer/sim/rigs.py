@@ -518,3 +518,97 @@ def _one_axis(run: RigRun) -> str:
     if len(run.axes) != 1:
         raise ValueError(f"this writer takes a one-axis run, got axes {', '.join(run.axes)}")
     return next(iter(run.axes))
+
+
+# --- truth per plateau and per +/- pair (for benches) ------------------------------------
+
+@dataclass(frozen=True)
+class Plateau:
+    """Samples [start, stop) at one commanded rate, after the settle margin, and the
+    truth's means over them."""
+
+    start: int
+    stop: int
+    rate_dps: float  # commanded
+    sf_ppm: float
+    bias_dph: float
+    temp_c: float  # the log's thermometer
+
+
+def plateaus(run: RigRun, axis: str = "", settle_s: float = 2.0, min_s: float = 5.0
+             ) -> list[Plateau]:
+    """The log's plateaus of non-zero commanded rate that measure (enabled, no stall) for
+    at least min_s after settle_s; a stall ends a plateau."""
+    ax, dt = run.axes[axis], run.protocol.dt_s
+    key = np.where(run.measures, run.command_dps, 0.0)
+    edges = np.concatenate([[0], np.flatnonzero(np.diff(key)) + 1, [key.shape[0]]])
+    skip, need = int(round(settle_s / dt)), int(round(min_s / dt))
+    out = []
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        rate = float(key[a])
+        # a stall's recovery rows are flagged: settle only after a commanded change
+        start = a + (skip if a == 0 or run.command_dps[a - 1] != rate else 0)
+        if rate == 0.0 or b - start < need:
+            continue
+        out.append(Plateau(int(start), int(b), rate, float(ax.result.sf_ppm[start:b].mean()),
+                           float(ax.result.bias_dps[start:b].mean() * 3600.0),
+                           float(ax.temp_c[start:b].mean())))
+    return out
+
+
+@dataclass(frozen=True)
+class PairTruth:
+    """A +/- pair of adjacent plateaus of equal |rate| and the truth's means over both."""
+
+    plus: Plateau
+    minus: Plateau
+    rate_dps: float  # |rate|
+    sf_ppm: float
+    bias_dph: float
+    temp_c: float
+
+
+def pairs(plats: Sequence[Plateau]) -> list[PairTruth]:
+    """Adjacent plateaus of equal |rate| and opposite sign, each used once, in order."""
+    out, i = [], 0
+    while i + 1 < len(plats):
+        p, q = plats[i], plats[i + 1]
+        if p.rate_dps == -q.rate_dps and q.start - p.stop <= p.stop - p.start:
+            plus, minus = (p, q) if p.rate_dps > 0 else (q, p)
+            n1, n2 = p.stop - p.start, q.stop - q.start
+            w = (n1, n2)
+            out.append(PairTruth(plus, minus, abs(p.rate_dps),
+                                 float(np.average([p.sf_ppm, q.sf_ppm], weights=w)),
+                                 float(np.average([p.bias_dph, q.bias_dph], weights=w)),
+                                 float(np.average([p.temp_c, q.temp_c], weights=w))))
+            i += 2
+        else:
+            i += 1
+    return out
+
+
+# --- one call: a protocol's log in a rig's convention ------------------------------------
+
+PROTOCOLS = {"reversals": reversal_protocol, "staircase": staircase_protocol}
+RIG_KINDS = ("ros", "plain", "imu3")
+
+
+def rig_log(kind: str, path: str | Path, protocol: RigProtocol | str = "reversals",
+            gyro_seeds: Sequence[int] = (0,), seed: int = 0, **kw: Any) -> RigLog:
+    """Run `protocol` (a RigProtocol or a name in PROTOCOLS, built with `kw`) on the
+    population's gyro(s) and write the log the way rig `kind` writes it: "ros" and "plain"
+    take one gyro seed, "imu3" three (x, y, z, skew-mounted at SKEW_COSINE)."""
+    if kind not in RIG_KINDS:
+        raise ValueError(f"rig kind must be one of {', '.join(RIG_KINDS)}, got {kind!r}")
+    if isinstance(protocol, str):
+        if protocol not in PROTOCOLS:
+            raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got "
+                             f"{protocol!r}")
+        protocol = PROTOCOLS[protocol](**kw)
+    want = 3 if kind == "imu3" else 1
+    if len(gyro_seeds) != want:
+        raise ValueError(f"rig {kind!r} takes {want} gyro seed(s), got {len(gyro_seeds)}")
+    if kind == "imu3":
+        return write_imu3(path, run_imu3(protocol, gyro_seeds, seed))
+    run = run_rig(protocol, gyro_seeds[0], seed)
+    return write_ros(path, run) if kind == "ros" else write_plain(path, run, mapping=True)
