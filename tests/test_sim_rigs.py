@@ -339,3 +339,16 @@ def test_rig_log_in_one_call(tmp_path: Path, kind: str) -> None:
     assert set(lg.truth) == ({"x", "y", "z"} if kind == "imu3" else {""})
     with pytest.raises(ValueError, match="gyro seed"):
         rigs.rig_log(kind, tmp_path / "no.csv", "reversals", (1, 2), chamber=chamber)
+
+
+def test_simulate_rig_cli(tmp_path: Path) -> None:
+    from fogsf.trainer.cli import main
+
+    out = tmp_path / "ros" / "ros.csv"
+    assert main(["simulate", "--rig", "ros", "--random-gyro", "3", "--out", str(out),
+                 "--truth", str(tmp_path / "truth.csv"), "--stalls-per-h", "10"]) == 0
+    assert (out.parent / "fogsf-columns.toml").is_file() and (tmp_path / "truth.csv").is_file()
+    head = out.read_text().split("\n", 2)
+    assert head[0].startswith("sec,nanosec,gyro_raw") and head[1].startswith("1700000000,0,")
+    assert main(["simulate", "--rig", "imu3", "--scenario", "paper", "--out", str(out)]) == 2
+    assert main(["simulate", "--rig", "imu3", "--gyro-seeds", "1,2", "--out", str(out)]) == 2

@@ -142,9 +142,9 @@ class Chamber:
 
 def _triangle(t0: float, length_s: float, centre_c: float, swing_c: float, period_s: float,
               heat_share: float) -> list[list[float]]:
-    """Points of a bang-bang hold from t0 for length_s: up to centre+swing with the heater
-    on (heat_share of the period), down to centre-swing with it off, ..., starting and
-    ending at the centre."""
+    """Points of a bang-bang hold from t0 for length_s: from the centre up to centre+swing
+    with the heater on (heat_share of the period), down to centre-swing with it off, and so
+    on; the last leg cut at the end of the hold."""
     pts = [[t0, centre_c]]
     up, down = heat_share * period_s, (1.0 - heat_share) * period_s
     t, level = t0 + up / 2.0, centre_c + swing_c
@@ -180,7 +180,7 @@ def bang_bang(set_points_c: Sequence[float] = (-20.0, 0.0, 20.0, 40.0, 60.0),
         tri = _triangle(t, settle_s + hold_s, sp, swing_c, period_s, heat_share)
         pts += tri
         t += settle_s + hold_s
-    return Chamber(_strictly_increasing(pts), _merged(stopped))
+    return Chamber(_strictly_increasing(pts), [(a, b) for a, b in stopped if b > a])
 
 
 def ramp(start_c: float = -20.0, stop_c: float = 50.0, rate_c_per_min: float = 1.0,
@@ -200,10 +200,6 @@ def _strictly_increasing(pts: list[list[float]]) -> list[list[float]]:
         if p[0] > out[-1][0] + 1e-9:
             out.append([float(p[0]), float(p[1])])
     return out
-
-
-def _merged(intervals: list[tuple[float, float]]) -> list[tuple[float, float]]:
-    return [(a, b) for a, b in intervals if b > a]
 
 
 # --- protocols and runs --------------------------------------------------------------------
