@@ -352,3 +352,22 @@ def test_simulate_rig_cli(tmp_path: Path) -> None:
     assert head[0].startswith("sec,nanosec,gyro_raw") and head[1].startswith("1700000000,0,")
     assert main(["simulate", "--rig", "imu3", "--scenario", "paper", "--out", str(out)]) == 2
     assert main(["simulate", "--rig", "imu3", "--gyro-seeds", "1,2", "--out", str(out)]) == 2
+    assert main(["simulate", "--rig", "plain", "--effect", "nosuch=1", "--out", str(out)]) == 2
+    assert main(["simulate", "--rig", "plain", "--protocol", "staircase", "--rate-dps", "8",
+                 "--effect", "asymmetry=30", "--out", str(tmp_path / "p" / "p.csv")]) == 0
+
+
+def test_rate_effects_see_the_axis_rate() -> None:
+    from fogsf.trainer.sim.effects import EffectConfig
+
+    fx = [EffectConfig("asymmetry", 20.0), EffectConfig("rate_nonlinearity", 10.0)]
+    base = rigs.run_rig(small_staircase(), gyro_seed=2, seed=0)
+    run = rigs.run_rig(small_staircase(effects=fx), gyro_seed=2, seed=0)
+    extra = run.truth("").sf_ppm - base.truth("").sf_ppm
+    rate = run.table_dps
+    np.testing.assert_allclose(extra, 10.0 * np.sign(rate) + 10.0 * np.abs(rate) / 100.0,
+                               atol=1e-6)
+    imu = rigs.run_imu3(small_reversals(effects=fx[1:]), seed=0)
+    np.testing.assert_allclose(
+        imu.truth("x").sf_ppm - rigs.run_imu3(small_reversals(), seed=0).truth("x").sf_ppm,
+        10.0 * np.abs(imu.table_dps) * rigs.SKEW_COSINE / 100.0, atol=1e-6)

@@ -282,8 +282,9 @@ RIG_REFUSES = ("scenario", "config", "ramp_rate", "profile", "start_c", "stop_c"
 
 def _rig_protocol(args: argparse.Namespace) -> Any:
     from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim.effects import parse_effect
 
-    kw: dict[str, Any] = {}
+    kw: dict[str, Any] = {"effects": [parse_effect(text) for text in args.effect]}
     if args.sample_rate_hz is not None:
         kw["rate_hz"] = check_rate_hz(args.sample_rate_hz)
     for opt, key in (("accel_dps2", "accel_dps2"), ("stalls_per_h", "stalls_per_h"),
@@ -314,9 +315,9 @@ def run_rig(args: argparse.Namespace) -> int:
     from fogsf.trainer.sim import rigs
 
     given = [f"--{o.replace('_', '-')}" for o in RIG_REFUSES if getattr(args, o, None)]
-    if given or args.effect:
-        raise UserError(f"--rig runs its own protocol: {', '.join(given or ['--effect'])} "
-                        "does not apply (see --protocol)")
+    if given:
+        raise UserError(f"--rig runs its own protocol: {', '.join(given)} does not apply "
+                        "(see --protocol)")
     if not args.out:
         raise UserError("--rig needs --out LOG.CSV (the column map is written beside it)")
     base = args.random_gyro if args.random_gyro is not None else 0

@@ -28,6 +28,7 @@ from fogsf.trainer.logs.chamber_log import EARTH_RATE_DPS
 from fogsf.trainer.logs.dialect import MAPPING_FILES
 from fogsf.trainer.logs.logio import write_rows
 from fogsf.trainer.sim.config import BiasConfig, ProfileConfig, SimConfig, TableConfig
+from fogsf.trainer.sim.effects import EffectConfig
 from fogsf.trainer.sim.gyro import SimResult, simulate
 from fogsf.trainer.sim.population import gyro_for_seed, with_gyro
 from fogsf.trainer.sim.profiles import chamber_series
@@ -214,7 +215,8 @@ class RigProtocol:
     temp_lsb_c: the thermometer's step (1, 0.25 or 0.0625 C); bias: the gyros' bias law
     (None: each gyro's own, from the population); arw_deg_per_sqrt_h: the gyros' angle
     random walk (None: each gyro's own; 0.05 deg/sqrt(h) is 0.27 deg/h on the mean of a
-    +/- pair of 60 s plateaus).
+    +/- pair of 60 s plateaus); effects: the simulator's optional effects on every gyro
+    (e.g. rate_nonlinearity, asymmetry: they see the rate the axis actually turns at).
     """
 
     chamber: Chamber
@@ -228,6 +230,7 @@ class RigProtocol:
     latitude_deg: float = LATITUDE_DEG
     bias: BiasConfig | None = None
     arw_deg_per_sqrt_h: float | None = None
+    effects: list[EffectConfig] = field(default_factory=list)
 
     @property
     def dt_s(self) -> float:
@@ -343,6 +346,7 @@ def _axis_config(p: RigProtocol, gyro_seed: int, noise_seed: int) -> SimConfig:
         cfg.bias = replace(p.bias)
     if p.arw_deg_per_sqrt_h is not None:
         cfg.noise.arw_deg_per_sqrt_h = p.arw_deg_per_sqrt_h
+    cfg.effects = [replace(e, params=dict(e.params)) for e in p.effects]
     return cfg
 
 
