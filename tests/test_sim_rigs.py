@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -371,3 +372,19 @@ def test_rate_effects_see_the_axis_rate() -> None:
     np.testing.assert_allclose(
         imu.truth("x").sf_ppm - rigs.run_imu3(small_reversals(), seed=0).truth("x").sf_ppm,
         10.0 * np.abs(imu.table_dps) * rigs.SKEW_COSINE / 100.0, atol=1e-6)
+
+
+def test_bench_cases_write_train_and_test(tmp_path: Path) -> None:
+    cases = rigs.bench_cases()
+    assert set(cases) >= {"ros-staircase", "plain-reversals", "imu3-reversals",
+                          "thermometer-1c", "thermometer-0.25c"}
+    short = rigs.ramp(20.0, 21.0, 1.0, 30.0)
+    case = replace(cases["thermometer-1c"], train=replace(cases["thermometer-1c"].train,
+                                                          chamber=short),
+                   test=replace(cases["thermometer-1c"].test, chamber=short))
+    train, test = rigs.write_case(tmp_path, case, (20005,), seed=3)
+    assert train.path.parent.name == "train" and test.path.parent.name == "test"
+    assert (tmp_path / "test" / "fogsf-columns.toml").is_file()
+    assert train.path.read_bytes() != test.path.read_bytes()  # another noise seed
+    temps = np.loadtxt(test.path, delimiter=",", skiprows=1)[:, 1]
+    np.testing.assert_array_equal(temps, np.round(temps))

@@ -612,3 +612,58 @@ def rig_log(kind: str, path: str | Path, protocol: RigProtocol | str = "reversal
         return write_imu3(path, run_imu3(protocol, gyro_seeds, seed))
     run = run_rig(protocol, gyro_seeds[0], seed)
     return write_ros(path, run) if kind == "ros" else write_plain(path, run, mapping=True)
+
+
+# --- bench cases: a training and a held-out test log per rig --------------------------------
+
+@dataclass(frozen=True)
+class BenchCase:
+    """A rig convention with a training protocol and a held-out test protocol (another
+    chamber path, another noise seed), as `make bench-rigs` runs them."""
+
+    kind: str  # one of RIG_KINDS
+    train: RigProtocol
+    test: RigProtocol
+    note: str
+
+
+def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
+    """The issue-18 conventions, each trained on one protocol and tested on another:
+
+    ros-staircase: ROS log, staircase at 5 set points with stalls; test at 4 others.
+    plain-reversals: plain rad/s log, +/-100 deg/s 60 s over -20 -> 50 C at 1 C/min; test
+    the same over 50 -> -20 C at 0.7 C/min. imu3-reversals: the same on a skew IMU.
+    thermometer-1c / -0.25c: the plain reversals with a thermometer of 1 C / 0.25 C steps.
+    """
+    up = ramp(-20.0, 50.0, 1.0, 600.0)
+    down = ramp(50.0, -20.0, 0.7, 600.0)
+    steps = staircase()
+    hold = 2 * schedule_s(steps)
+    stairs = staircase_protocol(chamber=bang_bang(hold_s=hold), rate_hz=rate_hz,
+                                stalls_per_h=6.0)
+    stairs_test = replace(stairs, chamber=bang_bang((-10.0, 10.0, 30.0, 50.0), hold_s=hold))
+    rev, rev_test = (reversal_protocol(chamber=c, rate_hz=rate_hz) for c in (up, down))
+    cases = {
+        "ros-staircase": BenchCase("ros", stairs, stairs_test,
+                                   "staircase 0..100 deg/s both ways, 5 -> 4 set points"),
+        "plain-reversals": BenchCase("plain", rev, rev_test,
+                                     "+/-100 deg/s 60 s, up 1 C/min -> down 0.7 C/min"),
+        "imu3-reversals": BenchCase("imu3", rev, rev_test,
+                                    "skew 3-axis IMU, reversals, up -> down ramp"),
+    }
+    for lsb, name in ((1.0, "1c"), (0.25, "0.25c")):
+        cases[f"thermometer-{name}"] = BenchCase(
+            "plain", replace(rev, temp_lsb_c=lsb), replace(rev_test, temp_lsb_c=lsb),
+            f"reversals with a thermometer of {lsb:g} C steps")
+    return cases
+
+
+def write_case(folder: str | Path, case: BenchCase, gyro_seeds: Sequence[int], seed: int
+               ) -> tuple[RigLog, RigLog]:
+    """The case's training log in folder/train and its test log in folder/test (each with
+    its column map), noise seeds `seed` and `seed + 1`."""
+    folder = Path(folder)
+    name = {"ros": "ros.csv", "plain": "plain.csv", "imu3": "imu.csv"}[case.kind]
+    train = rig_log(case.kind, folder / "train" / name, case.train, gyro_seeds, seed)
+    test = rig_log(case.kind, folder / "test" / name, case.test, gyro_seeds, seed + 1)
+    return train, test
