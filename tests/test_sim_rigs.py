@@ -154,8 +154,7 @@ def test_pairs_give_true_sf_and_bias_at_one_temperature() -> None:
 
 
 def test_earth_rate_per_axis() -> None:
-    run = rigs.run_imu3(small_reversals(), gyro_seeds=(1, 2, 3), seed=0,
-                        rotating_earth=True)
+    run = rigs.run_imu3(small_reversals(rotating_earth=True), gyro_seeds=(1, 2, 3), seed=0)
     vertical = rigs.earth_map_dps(rigs.LATITUDE_DEG, rigs.SKEW_COSINE)
     assert vertical == pytest.approx(rigs.earth_map_dps(rigs.LATITUDE_DEG) / math.sqrt(3))
     for a in rigs.AXES:

@@ -216,7 +216,9 @@ class RigProtocol:
     (None: each gyro's own, from the population); arw_deg_per_sqrt_h: the gyros' angle
     random walk (None: each gyro's own; 0.05 deg/sqrt(h) is 0.27 deg/h on the mean of a
     +/- pair of 60 s plateaus); effects: the simulator's optional effects on every gyro
-    (e.g. rate_nonlinearity, asymmetry: they see the rate the axis actually turns at).
+    (e.g. rate_nonlinearity, asymmetry: they see the rate the axis actually turns at);
+    rotating_earth: a tilted axis also sees the horizontal earth rate turning with the table
+    (off: each axis sees the vertical earth rate x its cosine, what a column map can say).
     """
 
     chamber: Chamber
@@ -231,6 +233,7 @@ class RigProtocol:
     bias: BiasConfig | None = None
     arw_deg_per_sqrt_h: float | None = None
     effects: list[EffectConfig] = field(default_factory=list)
+    rotating_earth: bool = False
 
     @property
     def dt_s(self) -> float:
@@ -362,11 +365,11 @@ def run_rig(p: RigProtocol, gyro_seed: int = 0, seed: int = 0) -> RigRun:
 def run_imu3(p: RigProtocol, gyro_seeds: Sequence[int] = (1, 2, 3), seed: int = 0,
              cosines: Sequence[float] = (SKEW_COSINE,) * 3,
              azimuths_deg: Sequence[float] = (0.0, 120.0, 240.0),
-             rotating_earth: bool = False, axes: Sequence[str] = AXES) -> RigRun:
+             axes: Sequence[str] = AXES) -> RigRun:
     """Gyros on one table, axis i at cosine cosines[i] to the table axis (vertical) and
     azimuth azimuths_deg[i]: each sees table * cosine and the earth's vertical rate *
-    cosine; `rotating_earth` adds the horizontal earth rate turning with the table (zero
-    on average over whole turns, up to 0.0034 deg/s on a skew axis)."""
+    cosine; the protocol's `rotating_earth` adds the horizontal earth rate turning with the
+    table (zero on average over whole turns, up to 0.0034 deg/s on a skew axis)."""
     t, chamber = chamber_series(ProfileConfig(kind="program", points=p.chamber.points),
                                 p.dt_s)
     command, actual, stalled, enabled = _table(p, t, seed)
@@ -375,7 +378,7 @@ def run_imu3(p: RigProtocol, gyro_seeds: Sequence[int] = (1, 2, 3), seed: int = 
     runs: dict[str, AxisRun] = {}
     for i, (name, gseed, cos) in enumerate(zip(axes, gyro_seeds, cosines, strict=True)):
         earth = _earth_on_axis(p.latitude_deg, cos, azimuths_deg[i % len(azimuths_deg)],
-                               angle_deg if rotating_earth else None)
+                               angle_deg if p.rotating_earth else None)
         cfg = _axis_config(p, gseed, _noise_seed(seed, i))
         runs[name] = AxisRun(gseed, cos, simulate(cfg, table_dps=actual * cos,
                                                   earth_dps=earth))
@@ -632,7 +635,8 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
 
     ros-staircase: ROS log, staircase at 5 set points with stalls; test at 4 others.
     plain-reversals: plain rad/s log, +/-100 deg/s 60 s over -20 -> 50 C at 1 C/min; test
-    the same over 50 -> -20 C at 0.7 C/min. imu3-reversals: the same on a skew IMU.
+    the same over 50 -> -20 C at 0.7 C/min. imu3-reversals: the same on a skew IMU;
+    imu3-earth: with the horizontal earth rate turning with the table.
     thermometer-1c / -0.25c: the plain reversals with a thermometer of 1 C / 0.25 C steps.
     """
     up = ramp(-20.0, 50.0, 1.0, 600.0)
@@ -650,6 +654,10 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
                                      "+/-100 deg/s 60 s, up 1 C/min -> down 0.7 C/min"),
         "imu3-reversals": BenchCase("imu3", rev, rev_test,
                                     "skew 3-axis IMU, reversals, up -> down ramp"),
+        "imu3-earth": BenchCase("imu3", replace(rev, rotating_earth=True),
+                                replace(rev_test, rotating_earth=True),
+                                "the same with the horizontal earth rate turning with the "
+                                "table"),
     }
     for lsb, name in ((1.0, "1c"), (0.25, "0.25c")):
         cases[f"thermometer-{name}"] = BenchCase(
