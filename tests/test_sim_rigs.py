@@ -375,7 +375,7 @@ def test_rate_effects_see_the_axis_rate() -> None:
 
 def test_bench_cases_write_train_and_test(tmp_path: Path) -> None:
     cases = rigs.bench_cases()
-    assert set(cases) >= {"ros-staircase", "plain-reversals", "imu3-reversals",
+    assert set(cases) >= {"ros-staircase", "ros-bias", "plain-reversals", "imu3-reversals",
                           "thermometer-1c", "thermometer-0.25c"}
     short = rigs.ramp(20.0, 21.0, 1.0, 30.0)
     case = replace(cases["thermometer-1c"], train=replace(cases["thermometer-1c"].train,
