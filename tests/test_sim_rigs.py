@@ -337,7 +337,7 @@ def test_rig_log_in_one_call(tmp_path: Path, kind: str) -> None:
                       chamber=chamber, rate_hz=20.0)
     assert lg.path.is_file() and lg.mapping_path is not None
     assert set(lg.truth) == ({"x", "y", "z"} if kind == "imu3" else {""})
-    with pytest.raises(ValueError, match="gyro seed"):
+    with pytest.raises(UserError, match="gyro seed"):
         rigs.rig_log(kind, tmp_path / "no.csv", "reversals", (1, 2), chamber=chamber)
 
 
@@ -387,3 +387,25 @@ def test_bench_cases_write_train_and_test(tmp_path: Path) -> None:
     assert train.path.read_bytes() != test.path.read_bytes()  # another noise seed
     temps = np.loadtxt(test.path, delimiter=",", skiprows=1)[:, 1]
     np.testing.assert_array_equal(temps, np.round(temps))
+
+
+@pytest.mark.parametrize("change,word", [
+    ({"rate_hz": 0.5}, "rate_hz"), ({"accel_dps2": -1.0}, "accel_dps2"),
+    ({"stalls_per_h": 1e9}, "stalls_per_h"), ({"stall_share": (0.5, 1.5)}, "stall_share"),
+    ({"temp_lsb_c": float("nan")}, "temp_lsb_c"), ({"schedule": []}, "schedule"),
+    ({"schedule": [rigs.Step(10.0, 0.0)]}, "dwell_s"), ({"latitude_deg": 95.0}, "latitude"),
+])
+def test_bad_protocols_refused(change: dict[str, object], word: str) -> None:
+    with pytest.raises(UserError, match=word):
+        rigs.run_rig(replace(small_reversals(), **change))
+
+
+def test_bad_chambers_refused() -> None:
+    with pytest.raises(UserError, match="period_s"):
+        rigs.bang_bang((20.0,), period_s=0.0)
+    with pytest.raises(UserError, match="ramp_c_per_min"):
+        rigs.bang_bang((20.0, 30.0), ramp_c_per_min=0.0)
+    with pytest.raises(UserError, match="rate_c_per_min"):
+        rigs.ramp(20.0, 30.0, 0.0)
+    with pytest.raises(UserError, match="leave -60..100"):
+        rigs.run_rig(rigs.reversal_protocol(chamber=rigs.ramp(20.0, 130.0, 10.0, 10.0)))

@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from fogsf.trainer.logs.chamber_log import EARTH_RATE_DPS
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.chamber_log import EARTH_RATE_DPS, RATE_RANGE_HZ
 from fogsf.trainer.logs.dialect import MAPPING_FILES
 from fogsf.trainer.logs.logio import write_rows
 from fogsf.trainer.sim.config import BiasConfig, ProfileConfig, SimConfig, TableConfig
@@ -168,6 +169,11 @@ def bang_bang(set_points_c: Sequence[float] = (-20.0, 0.0, 20.0, 40.0, 60.0),
     """Set points held by a bang-bang heater: the air oscillates +/- swing_c (a triangle of
     period_s, rising heat_share of it) about each set point for settle_s + hold_s; between
     set points a ramp at ramp_c_per_min. The table is stopped during each ramp and settle."""
+    _require(bool(set_points_c), "bang_bang: give at least one set point")
+    _require(period_s > 0 and 0 < heat_share < 1 and swing_c >= 0,
+             "bang_bang: period_s must be > 0, heat_share in 0..1, swing_c >= 0")
+    _require(ramp_c_per_min > 0 and hold_s > 0 and settle_s >= 0,
+             "bang_bang: ramp_c_per_min and hold_s must be > 0, settle_s >= 0")
     pts: list[list[float]] = []
     stopped: list[tuple[float, float]] = []
     t = 0.0
@@ -188,10 +194,17 @@ def ramp(start_c: float = -20.0, stop_c: float = 50.0, rate_c_per_min: float = 1
          soak_s: float = 600.0, stopped_s: float = 0.0) -> Chamber:
     """Soak at start_c, ramp to stop_c, soak there; the table stopped for the first
     stopped_s."""
+    _require(rate_c_per_min > 0 and soak_s >= 0 and stopped_s >= 0,
+             "ramp: rate_c_per_min must be > 0, soak_s and stopped_s >= 0")
     ramp_s = abs(stop_c - start_c) / rate_c_per_min * 60.0
     pts = [[0.0, start_c], [soak_s, start_c], [soak_s + ramp_s, stop_c],
            [2 * soak_s + ramp_s, stop_c]]
     return Chamber(_strictly_increasing(pts), [(0.0, stopped_s)] if stopped_s > 0 else [])
+
+
+def _require(ok: bool, message: str) -> None:
+    if not ok:
+        raise UserError(message)
 
 
 def _strictly_increasing(pts: list[list[float]]) -> list[list[float]]:
@@ -357,6 +370,35 @@ def _noise_seed(seed: int, axis: int) -> int:
     return seed if axis == 0 else int(np.random.SeedSequence([seed, axis]).generate_state(1)[0])
 
 
+MAX_STALLS_PER_H = 3600.0
+
+
+def check_protocol(p: RigProtocol) -> None:
+    """Refuse a protocol that cannot be played (UserError naming the field and the rule)."""
+    lo, hi = RATE_RANGE_HZ
+    rules = [
+        (lo <= p.rate_hz <= hi, f"rate_hz must lie in {lo:g}..{hi:g}, got {p.rate_hz!r}"),
+        (math.isfinite(p.accel_dps2) and p.accel_dps2 >= 0,
+         f"accel_dps2 must be >= 0, got {p.accel_dps2!r}"),
+        (0 <= p.stalls_per_h <= MAX_STALLS_PER_H,
+         f"stalls_per_h must lie in 0..{MAX_STALLS_PER_H:g}, got {p.stalls_per_h!r}"),
+        (0 < p.stall_s[0] <= p.stall_s[1] < math.inf,
+         f"stall_s must be (shortest, longest) > 0, got {p.stall_s!r}"),
+        (0 <= p.stall_share[0] <= p.stall_share[1] < 1,
+         f"stall_share must be (lowest, highest) in 0..1, got {p.stall_share!r}"),
+        (math.isfinite(p.temp_lsb_c) and p.temp_lsb_c >= 0,
+         f"temp_lsb_c must be >= 0, got {p.temp_lsb_c!r}"),
+        (abs(p.latitude_deg) <= 90, f"latitude_deg must lie in -90..90, got {p.latitude_deg!r}"),
+        (bool(p.schedule), "schedule: give at least one Step"),
+        (all(math.isfinite(s.rate_dps) and math.isfinite(s.dwell_s) and s.dwell_s > 0
+             for s in p.schedule), "schedule: every rate must be finite, every dwell_s > 0"),
+        (len(p.chamber.points) >= 2, "chamber: at least two (time_s, temp_c) points"),
+    ]
+    for ok, message in rules:
+        if not ok:
+            raise UserError(f"rig protocol: {message}")
+
+
 def run_rig(p: RigProtocol, gyro_seed: int = 0, seed: int = 0) -> RigRun:
     """One gyro (population member gyro_seed) on the table axis, noise seed `seed`."""
     return run_imu3(p, (gyro_seed,), seed, cosines=(1.0,), axes=("",))
@@ -370,6 +412,7 @@ def run_imu3(p: RigProtocol, gyro_seeds: Sequence[int] = (1, 2, 3), seed: int = 
     azimuth azimuths_deg[i]: each sees table * cosine and the earth's vertical rate *
     cosine; the protocol's `rotating_earth` adds the horizontal earth rate turning with the
     table (zero on average over whole turns, up to 0.0034 deg/s on a skew axis)."""
+    check_protocol(p)
     t, chamber = chamber_series(ProfileConfig(kind="program", points=p.chamber.points),
                                 p.dt_s)
     command, actual, stalled, enabled = _table(p, t, seed)
@@ -602,15 +645,15 @@ def rig_log(kind: str, path: str | Path, protocol: RigProtocol | str = "reversal
     population's gyro(s) and write the log the way rig `kind` writes it: "ros" and "plain"
     take one gyro seed, "imu3" three (x, y, z, skew-mounted at SKEW_COSINE)."""
     if kind not in RIG_KINDS:
-        raise ValueError(f"rig kind must be one of {', '.join(RIG_KINDS)}, got {kind!r}")
+        raise UserError(f"rig kind must be one of {', '.join(RIG_KINDS)}, got {kind!r}")
     if isinstance(protocol, str):
         if protocol not in PROTOCOLS:
-            raise ValueError(f"protocol must be one of {', '.join(PROTOCOLS)}, got "
-                             f"{protocol!r}")
+            raise UserError(f"protocol must be one of {', '.join(PROTOCOLS)}, got "
+                            f"{protocol!r}")
         protocol = PROTOCOLS[protocol](**kw)
     want = 3 if kind == "imu3" else 1
     if len(gyro_seeds) != want:
-        raise ValueError(f"rig {kind!r} takes {want} gyro seed(s), got {len(gyro_seeds)}")
+        raise UserError(f"rig {kind!r} takes {want} gyro seed(s), got {len(gyro_seeds)}")
     if kind == "imu3":
         return write_imu3(path, run_imu3(protocol, gyro_seeds, seed))
     run = run_rig(protocol, gyro_seeds[0], seed)
