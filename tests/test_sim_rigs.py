@@ -409,3 +409,19 @@ def test_bad_chambers_refused() -> None:
         rigs.ramp(20.0, 30.0, 0.0)
     with pytest.raises(UserError, match="leave -60..100"):
         rigs.run_rig(rigs.reversal_protocol(chamber=rigs.ramp(20.0, 130.0, 10.0, 10.0)))
+
+
+def test_stamp_jitter(tmp_path: Path) -> None:
+    p = replace(small_reversals(), rate_hz=100.0, stamp_jitter_s=0.0005)
+    run = rigs.run_rig(p, gyro_seed=1, seed=2)
+    jitter = run.stamp_s - run.time_s
+    assert 0.0003 < np.abs(jitter).max() <= 0.0005 and abs(jitter.mean()) < 2e-5
+    lg = rigs.write_ros(tmp_path / "ros.csv", run)
+    raw = np.loadtxt(lg.path, delimiter=",", skiprows=1, dtype=np.int64, usecols=(0, 1))
+    ns = (raw[:, 0] - raw[0, 0]) * 1_000_000_000 + raw[:, 1]
+    np.testing.assert_allclose(ns * 1e-9, run.stamp_s, atol=1e-9)
+    np.testing.assert_allclose(lg.truth[""].time_s - rigs.EPOCH_S, run.stamp_s, atol=1e-6)
+    log = read_log(rigs.write_plain(tmp_path / "p" / "plain.csv", run, gyro_unit="deg/s").path)
+    assert log.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
+    with pytest.raises(UserError, match="stamp_jitter_s"):
+        rigs.run_rig(replace(p, stamp_jitter_s=0.001))

@@ -128,6 +128,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "and the next two)")
     r.add_argument("--accel-dps2", type=float, help="table acceleration (default 300)")
     r.add_argument("--stalls-per-h", type=float, help="table stalls an hour (default 0)")
+    r.add_argument("--stamp-jitter-s", type=float,
+                   help="time stamps off the sample times by up to this, s (default 0; at "
+                        "most 5 %% of a sample)")
     r.add_argument("--temp-lsb-c", type=float,
                    help="thermometer step, C (1, 0.25, default 0.0625)")
     r.add_argument("--truth", metavar="TRUTH.CSV",
@@ -289,6 +292,7 @@ def _rig_protocol(args: argparse.Namespace) -> Any:
         kw["rate_hz"] = check_rate_hz(args.sample_rate_hz)
     for opt, key in (("accel_dps2", "accel_dps2"), ("stalls_per_h", "stalls_per_h"),
                      ("temp_lsb_c", "temp_lsb_c"), ("latitude_deg", "latitude_deg"),
+                     ("stamp_jitter_s", "stamp_jitter_s"),
                      ("arw", "arw_deg_per_sqrt_h")):
         v = getattr(args, opt)
         if v is not None:

@@ -231,7 +231,9 @@ class RigProtocol:
     +/- pair of 60 s plateaus); effects: the simulator's optional effects on every gyro
     (e.g. rate_nonlinearity, asymmetry: they see the rate the axis actually turns at);
     rotating_earth: a tilted axis also sees the horizontal earth rate turning with the table
-    (off: each axis sees the vertical earth rate x its cosine, what a column map can say).
+    (off: each axis sees the vertical earth rate x its cosine, what a column map can say);
+    stamp_jitter_s: the logger's time stamps off the sample times by up to this (uniform;
+    below 5 % of a sample so that steps stay within the reader's 20 %).
     """
 
     chamber: Chamber
@@ -247,6 +249,7 @@ class RigProtocol:
     arw_deg_per_sqrt_h: float | None = None
     effects: list[EffectConfig] = field(default_factory=list)
     rotating_earth: bool = False
+    stamp_jitter_s: float = 0.0
 
     @property
     def dt_s(self) -> float:
@@ -323,6 +326,7 @@ class RigRun:
     enabled: np.ndarray  # bool: the table running (not stopped for the heater)
     heating: np.ndarray  # bool: the chamber's heater on (the air warming)
     axes: dict[str, AxisRun]
+    stamp_s: np.ndarray  # the logger's time stamps, from 0: time_s + its jitter
 
     @property
     def measures(self) -> np.ndarray:
@@ -331,7 +335,7 @@ class RigRun:
     def truth(self, axis: str, epoch_s: float = 0.0) -> Truth:
         ax = self.axes[axis]
         r = ax.result
-        return Truth(self.time_s + epoch_s, r.sf_ppm, r.bias_dps * 3600.0, self.table_dps,
+        return Truth(self.stamp_s + epoch_s, r.sf_ppm, r.bias_dps * 3600.0, self.table_dps,
                      self.command_dps, self.table_dps * ax.cosine, r.log.earth_rate_dps,
                      r.ideal_dps, ax.cosine, self.measures)
 
@@ -388,6 +392,9 @@ def check_protocol(p: RigProtocol) -> None:
          f"stall_share must be (lowest, highest) in 0..1, got {p.stall_share!r}"),
         (math.isfinite(p.temp_lsb_c) and p.temp_lsb_c >= 0,
          f"temp_lsb_c must be >= 0, got {p.temp_lsb_c!r}"),
+        (0 <= p.stamp_jitter_s <= 0.05 / p.rate_hz,
+         f"stamp_jitter_s must lie in 0..{0.05 / p.rate_hz:g} (5 % of a sample), got "
+         f"{p.stamp_jitter_s!r}"),
         (abs(p.latitude_deg) <= 90, f"latitude_deg must lie in -90..90, got {p.latitude_deg!r}"),
         (bool(p.schedule), "schedule: give at least one Step"),
         (all(math.isfinite(s.rate_dps) and math.isfinite(s.dwell_s) and s.dwell_s > 0
@@ -425,7 +432,16 @@ def run_imu3(p: RigProtocol, gyro_seeds: Sequence[int] = (1, 2, 3), seed: int = 
         cfg = _axis_config(p, gseed, _noise_seed(seed, i))
         runs[name] = AxisRun(gseed, cos, simulate(cfg, table_dps=actual * cos,
                                                   earth_dps=earth))
-    return RigRun(p, t, command, actual, stalled, enabled, heating, runs)
+    return RigRun(p, t, command, actual, stalled, enabled, heating, runs, _stamps(p, t, seed))
+
+
+def _stamps(p: RigProtocol, t_s: np.ndarray, seed: int) -> np.ndarray:
+    """The logger's time stamps: each sample's time plus uniform jitter of +/- stamp_jitter_s
+    (a ROS node stamps a message when it handles it, not when the gyro sampled)."""
+    if p.stamp_jitter_s <= 0:
+        return t_s
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7173]))
+    return t_s + rng.uniform(-p.stamp_jitter_s, p.stamp_jitter_s, t_s.shape[0])
 
 
 def _earth_on_axis(latitude_deg: float, cosine: float, azimuth_deg: float,
@@ -490,7 +506,7 @@ def write_ros(path: str | Path, run: RigRun, steps_per_rev: float = STEPS_PER_RE
     rig_heating, rig_enabled, rig_stalled (0/1); with `mapping`, fogsf-columns.toml
     beside it."""
     ax = run.axes[_one_axis(run)]
-    ns = np.int64(round(epoch_s * 1e9)) + np.round(run.time_s * 1e9).astype(np.int64)
+    ns = np.int64(round(epoch_s * 1e9)) + np.round(run.stamp_s * 1e9).astype(np.int64)
     cols = {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000,
             "gyro_raw": ax.gyro_dps / DEG_PER_RAD, "gyro_temp": ax.temp_c,
             "rig_rate": run.command_dps * steps_per_rev / 360.0,
@@ -517,7 +533,7 @@ def write_plain(path: str | Path, run: RigRun, gyro_unit: str = "rad/s",
     if gyro_unit not in ("rad/s", "deg/s"):
         raise ValueError(f"gyro_unit must be 'rad/s' or 'deg/s', got {gyro_unit!r}")
     rad = gyro_unit == "rad/s"
-    cols = {"time_s": run.time_s + epoch_s, "temp_c": ax.temp_c,
+    cols = {"time_s": run.stamp_s + epoch_s, "temp_c": ax.temp_c,
             "table_rate_dps": run.command_dps,
             "gyro_rad_s" if rad else "gyro_dps": ax.gyro_dps / DEG_PER_RAD if rad
             else ax.gyro_dps,
@@ -536,7 +552,7 @@ def write_imu3(path: str | Path, run: RigRun, epoch_s: float = EPOCH_S,
     axis its table share (table_rate_<a>_dps = table_rate_dps * cosine) and earth rate."""
     names = list(run.axes)
     first = run.axes[names[0]]
-    cols: dict[str, np.ndarray] = {"time_s": run.time_s + epoch_s, "temp_c": first.temp_c,
+    cols: dict[str, np.ndarray] = {"time_s": run.stamp_s + epoch_s, "temp_c": first.temp_c,
                                    "table_rate_dps": run.command_dps}
     cols.update({f"gyro_{a}_dps": run.axes[a].gyro_dps for a in names})
     cols.update({f"temp_{a}_c": run.axes[a].temp_c for a in names})
@@ -679,7 +695,8 @@ QUIET_ARW = 0.01  # deg/sqrt(h): 0.055 deg/h (1 sigma) on the mean of a 60 s + 6
 def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
     """The issue-18 conventions, each trained on one protocol and tested on another:
 
-    ros-staircase: ROS log, staircase at 5 set points with stalls; test at 4 others.
+    ros-staircase: ROS log, staircase at 5 set points with stalls and time stamps jittered
+    by 2 % of a sample; test at 4 other set points.
     plain-reversals: plain rad/s log, +/-100 deg/s 60 s over -20 -> 50 C at 1 C/min; test
     the same over 50 -> -20 C at 0.7 C/min. imu3-reversals: the same on a skew IMU;
     imu3-earth: with the horizontal earth rate turning with the table. ros-bias: the
@@ -692,9 +709,11 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
     steps = staircase()
     hold = 2 * schedule_s(steps)
     stairs = staircase_protocol(chamber=bang_bang(hold_s=hold), rate_hz=rate_hz,
-                                stalls_per_h=6.0)
+                                stalls_per_h=6.0, stamp_jitter_s=0.02 / rate_hz)
     stairs_test = replace(stairs, chamber=bang_bang((-10.0, 10.0, 30.0, 50.0), hold_s=hold))
     rev, rev_test = (reversal_protocol(chamber=c, rate_hz=rate_hz) for c in (up, down))
+    ros_quiet: dict[str, Any] = {"arw_deg_per_sqrt_h": QUIET_ARW, "stalls_per_h": 6.0,
+                                 "stamp_jitter_s": 0.02 / rate_hz}
     cases = {
         "ros-staircase": BenchCase("ros", stairs, stairs_test,
                                    "staircase 0..100 deg/s both ways, 5 -> 4 set points"),
@@ -702,10 +721,7 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
                                      "+/-100 deg/s 60 s, up 1 C/min -> down 0.7 C/min"),
         "imu3-reversals": BenchCase("imu3", rev, rev_test,
                                     "skew 3-axis IMU, reversals, up -> down ramp"),
-        "ros-bias": BenchCase("ros", replace(rev, arw_deg_per_sqrt_h=QUIET_ARW,
-                                             stalls_per_h=6.0),
-                              replace(rev_test, arw_deg_per_sqrt_h=QUIET_ARW,
-                                      stalls_per_h=6.0),
+        "ros-bias": BenchCase("ros", replace(rev, **ros_quiet), replace(rev_test, **ros_quiet),
                               f"ROS log, reversals, ARW {QUIET_ARW:g} deg/sqrt(h): bias per "
                               "pair to 0.1 deg/h is above the noise"),
         "imu3-earth": BenchCase("imu3", replace(rev, rotating_earth=True),
