@@ -107,11 +107,11 @@ def map_reads(raw: list[str], columns: tuple[tuple[str, str], ...]) -> set[str]:
     return names
 
 
-def pick_axis(plan: ColumnPlan, gyro: str | None, axis: str | None, option: str, path: str
-              ) -> ColumnPlan:
+def pick_axis(plan: ColumnPlan, gyro: str | None, axis: str | None, option: str, path: str,
+              notes: list[str]) -> ColumnPlan:
     """`gyro` (--gyro-column, or gyro_A_dps for --axis A) read as gyro_dps; for --axis A also
     table_rate_A_dps and earth_rate_A_dps, when there are such names, as the common ones
-    (which they replace)."""
+    (which they replace). What moved is said in `notes`."""
     if gyro is None:
         return plan
     names = plan.names
@@ -126,14 +126,16 @@ def pick_axis(plan: ColumnPlan, gyro: str | None, axis: str | None, option: str,
                 moves[own.format(axis)] = common
     replaced = set(moves.values()) - {"gyro_dps"}
     origin = f"--axis {axis}" if option == "--axis" else option
+    moved = [f"{s.name} -> {moves[s.name]}" for s in plan.sources if s.name in moves]
+    notes.append(f"columns {', '.join(moved)} ({origin})")
     return ColumnPlan(plan.raw, tuple(
-        replace(s, name=moves[s.name], origin=origin) if s.name in moves else s
+        replace(s, name=moves[s.name]) if s.name in moves else s
         for s in plan.sources if s.name not in replaced))
 
 
 def moved_notes(plan: ColumnPlan) -> list[str]:
-    """What the map and --gyro-column / --axis did, one note per origin: `t -> time_s` for a
-    renamed column, `time_s = sec + nanosec * 1e-9` for a computed one."""
+    """What the map did, one note per origin: `t -> time_s` for a renamed column,
+    `time_s = sec + nanosec * 1e-9` for a computed one."""
     by_origin: dict[str, list[str]] = {}
     for s in plan.sources:
         if s.expr is None and s.column is not None and plan.raw[s.column] != s.name:

@@ -257,9 +257,9 @@ def read_header(first: str, delim: str, path: str, dialect: Dialect, notes: list
     empty or repeated name, every required one."""
     raw = raw_header(first, delim, path)
     mapped = map_plan(raw, dialect, path, notes)
+    notes.extend(moved_notes(mapped))
     option = "--gyro-column" if dialect.gyro_column else "--axis"
-    plan = pick_axis(mapped, dialect.gyro_name, dialect.axis, option, path)
-    notes.extend(moved_notes(plan))
+    plan = pick_axis(mapped, dialect.gyro_name, dialect.axis, option, path, notes)
     seen: set[str] = set()
     for h in plan.names:
         if h in seen:

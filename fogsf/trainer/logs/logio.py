@@ -22,6 +22,7 @@ import numpy as np
 
 from fogsf.trainer.logs.chamber_log import (
     DT_TOLERANCE,
+    EPOCH_S,
     GAP_STEPS,
     NOMINAL_DT_S,
     RATE_RANGE_HZ,
@@ -31,9 +32,11 @@ from fogsf.trainer.logs.chamber_log import (
     ChamberLog,
     LogError,
     check_rate_hz,
+    epoch_text,
     is_temperature,
     nominal_step_s,
     rate_text,
+    time_text,
 )
 from fogsf.trainer.logs.column_map import ColumnPlan
 from fogsf.trainer.logs.dialect import (
@@ -246,7 +249,8 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
         if nonincr.size:
             i = int(nonincr[0])
             raise LogError(path, i + 3, "time not increasing",
-                           f"time_s {t[i + 1]:g} after {t[i]:g}")
+                           f"time_s {time_text(t, i + 1)} after {time_text(t, i)}"
+                           f"{epoch_text(t)}")
         slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
         if rate_hz is None and not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
             raise LogError(path, None, "sample rate out of range",
@@ -260,9 +264,9 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
             given = ("--sample-rate-hz" if rate_hz is not None
                      else "the median step of time_s")
             raise LogError(path, i + 3, kind,
-                           f"step {dt[i]:.4g} s from time_s {t[i]:g}; allowed "
+                           f"step {dt[i]:.4g} s from time_s {time_text(t, i)}; allowed "
                            f"{nominal:.4g} s +/- {DT_TOLERANCE:.0%} ({rate_text(nominal)}, "
-                           f"{given})")
+                           f"{given}){epoch_text(t)}")
     measures = cols["table_rate_dps"] != 0.0
     if "valid" in cols:
         measures = measures & (cols["valid"] != 0.0)
@@ -291,8 +295,10 @@ def write_log(path: str | Path, log: ChamberLog) -> None:
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(",".join(names) + "\n")
-        # time_s with 12 digits: a 4 kHz step (0.25 ms) stays exact past 10^5 s
-        write_rows(f, data, ["%.12g" if n == "time_s" else "%d" if n == "valid" else "%.10g"
+        # time_s with 12 digits: a 4 kHz step (0.25 ms) stays exact past 10^5 s; an epoch
+        # time base (1.7e9 s) with 17, float64's every digit
+        t_fmt = "%.17g" if len(log) and np.abs(log.time_s).max() >= EPOCH_S else "%.12g"
+        write_rows(f, data, [t_fmt if n == "time_s" else "%d" if n == "valid" else "%.10g"
                              for n in names])
 
 
