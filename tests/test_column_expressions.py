@@ -262,6 +262,11 @@ def test_names_that_are_not_identifiers(tmp_path: Path) -> None:
     assert log.gyro_dps[1] == pytest.approx(2 * (10.0 + 1e-4))
     assert log.measures.tolist() == [i % 3 != 1 for i in range(20)]
     assert list(log.extra) == ["gx[dps]", "flag"]
+    # Python reads the micro sign (U+00B5) in an identifier as mu (U+03BC): still the column
+    p.write_text(p.read_text().replace("gx[dps]", "g_\u00b5rad", 1))
+    log = read_log(p, Dialect(columns=Dialect.parse_columns(
+        "time_s=t [s],temp_c=temp C,table_rate_dps=table,gyro_dps=g_\u00b5rad * 1e-6")))
+    assert log.gyro_dps[1] == pytest.approx(1e-6 * (10.0 + 1e-4))
 
 
 # --- per-axis names ----------------------------------------------------------------------

@@ -19,6 +19,7 @@ from fogsf.trainer.logs.expressions import (
     EvaluationError,
     Expression,
     ExpressionError,
+    column_named,
     parse_expression,
 )
 
@@ -162,13 +163,14 @@ def _entry(ours: str, text: str, raw: list[str], origin: str, path: str) -> Sour
                        f"{origin}: {ours} = {text!r} is neither a column of the log nor an "
                        f"expression: {e}; header has: {', '.join(raw)}") from None
     for name in expr.names:
-        if name not in raw:
+        if column_named(name, raw) is None:
             where = "" if expr.is_name else f" (in {text.strip()})"
             raise LogError(path, 1, "no such column",
                            f"{origin} names {name!r} for {ours}{where}; header has: "
                            f"{', '.join(raw)}")
     if expr.is_name:
-        return Source(ours, column=raw.index(expr.names[0]), origin=origin)
+        return Source(ours, column=raw.index(column_named(expr.names[0], raw) or ""),
+                      origin=origin)
     return Source(ours, expr=expr, origin=origin)
 
 

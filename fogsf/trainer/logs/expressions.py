@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import ast
 import re
-from collections.abc import Callable, Mapping
+import unicodedata
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,10 +71,18 @@ class Expression:
     def evaluate(self, columns: Mapping[str, np.ndarray], n: int) -> np.ndarray:
         """The value at each of `n` rows, float64 (a condition gives 1.0 and 0.0)."""
         env = {alias: columns[name] for alias, name in self.aliases}
-        env.update({k: columns[k] for k in self.names if k in columns})
+        env.update({k: columns[column_named(k, columns) or k] for k in self.names})
         with np.errstate(all="ignore"):
             v = _Evaluator(env, dict(self.aliases)).value(self.tree)
         return np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)).copy()
+
+
+def column_named(name: str, columns: Collection[str]) -> str | None:
+    """The column an expression's `name` reads: the column of that name, else the one whose
+    name Python reads as `name` (identifiers are NFKC-normalised: a micro sign is a mu)."""
+    if name in columns:
+        return name
+    return next((c for c in columns if unicodedata.normalize("NFKC", c) == name), None)
 
 
 def parse_expression(text: str, condition: bool = False) -> Expression:
