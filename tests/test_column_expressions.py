@@ -364,7 +364,7 @@ MAP = "time_s=sec,temp_c=temp,table_rate_dps=table,gyro_dps=omega"
     ("valid=flag > 5", "no row measures: valid = flag > 5 (--columns) is 0 on every row"),
     ("valid=flag * 2", "line 3: column map: valid = flag * 2 (--columns) is 2: valid takes a "
      "condition"),
-    ("valid=n", "line 4: column map: valid (--columns) is 2"),
+    ("valid=n", "line 4: column map: valid (the log's 'n') (--columns) is 2"),
     ("speed=omega", "'speed' is not a column of the format (time_s, temp_c, table_rate_dps, "
      "gyro_dps, earth_rate_dps, chamber_c, valid, temp_<name>_c, gyro_<a>_dps, "
      "table_rate_<a>_dps, earth_rate_<a>_dps)"),

@@ -62,7 +62,9 @@ class ColumnPlan:
         for s in self.sources:
             out[s.name] = data[:, s.column] if s.expr is None else _evaluated(s, raw, path)
             if s.name == "valid" and s.origin:
-                _check_valid(s, out[s.name], path)
+                shown = (f"valid = {s.text}" if s.column is None
+                         else f"valid (the log's {self.raw[s.column]!r})")
+                _check_valid(s, out[s.name], path, shown)
         return out
 
 
@@ -189,17 +191,15 @@ def _evaluated(s: Source, raw: dict[str, np.ndarray], path: str) -> np.ndarray:
                        f"{s.name} = {s.text} ({s.origin}): {e.detail}") from None
 
 
-def _check_valid(s: Source, v: np.ndarray, path: str) -> None:
+def _check_valid(s: Source, v: np.ndarray, path: str, shown: str) -> None:
     """A mapped valid: 0 or 1 on every row, 1 on some."""
     if s.expr is None or not s.expr.is_condition:
         bad = np.flatnonzero((v != 0.0) & (v != 1.0))
         if bad.size:
             i = int(bad[0])
-            shown = f"valid = {s.text}" if s.expr is not None else "valid"
             raise LogError(path, i + 2, "column map",
                            f"{shown} ({s.origin}) is {v[i]:g}: {VALID_HINT}")
     if not (v != 0.0).any():
-        shown = f"valid = {s.text}" if s.expr is not None else "valid"
         raise LogError(path, None, "no row measures",
                        f"{shown} ({s.origin}) is 0 on every row: no row is kept")
 

@@ -39,12 +39,15 @@ class Dialect:
     """How a log file writes the format: delimiter, column names, which gyro column."""
 
     delimiter: str | None = None  # None: sniffed from the header among , ; and tab
-    columns: tuple[tuple[str, str], ...] = ()  # (our name, the log's name)
+    # (our name, the log's column / a number / an expression over the log's columns)
+    columns: tuple[tuple[str, str], ...] = ()
     gyro_column: str | None = None  # the log's column read as gyro_dps
     decimal_comma: bool = False  # cells written 20,5 (then separated by ; or tab)
     columns_from: str = "--columns"  # where `columns` came from, for messages
     sample_rate_hz: float | None = None  # stated (--sample-rate-hz); None: from time_s
-    axis: str | None = None  # --axis A: gyro_A_dps read as gyro_dps
+    # --axis A: gyro_A_dps read as gyro_dps, table_rate_A_dps and earth_rate_A_dps (when
+    # the log or the map has them) as table_rate_dps and earth_rate_dps
+    axis: str | None = None
 
     @property
     def gyro_name(self) -> str | None:

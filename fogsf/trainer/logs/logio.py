@@ -6,9 +6,12 @@ median step of time_s, or `--sample-rate-hz` when given; every step must lie wit
 DT_TOLERANCE (20 %) of it. Reading never fixes or drops anything: a bad file is refused
 with one `LogError` that names the file, the line, the rule and, where one exists, the
 option that fixes it. How the file writes the format (delimiter, column names, quotes,
-decimal commas) is its `Dialect` (logs/dialect.py); the log in memory is a `ChamberLog`
-(logs/chamber_log.py). The fast path parses a plain file with numpy straight from disk;
-anything unusual takes the general path, which names the offending line.
+decimal commas) is its `Dialect` (logs/dialect.py); every column of the file is parsed as
+numbers, then ours are built from them by the column map (logs/column_map.py: renames,
+numbers, expressions of logs/expressions.py; --gyro-column / --axis); the log in memory is
+a `ChamberLog` (logs/chamber_log.py). The fast path parses a plain file with numpy straight
+from disk; anything unusual takes the general path, which names the offending line. Both
+apply the same column map.
 """
 
 from __future__ import annotations
