@@ -124,13 +124,15 @@ def test_conditions(text: str, want: list[float]) -> None:
     ("temp C", "backquotes"),
     ("`a * 2", "without its pair"),
     ("sqrt(a, b)", "takes one argument"),
+    ("a + " * 150 + "a", "nested more than 100 deep"),
+    ("a + " * 20000 + "a", "nested too deeply"),
+    ("1" * 400, "beyond float64's range"),
+    ("1" * 400 + ".0", "beyond float64's range"),
 ])
 def test_forbidden_says_what_is_allowed(text: str, needle: str) -> None:
     with pytest.raises(ExpressionError) as e:
         parse_expression(text)
     assert needle in str(e.value)
-    assert "syntax error" in str(e.value) or "allowed" in str(e.value) or "one argument" \
-        in str(e.value) or "pair" in str(e.value)
 
 
 @pytest.mark.parametrize(("text", "row", "needle"), [

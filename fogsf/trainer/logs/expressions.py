@@ -11,6 +11,7 @@ or gives NaN/Inf is refused with the first row where it does (`EvaluationError`)
 from __future__ import annotations
 
 import ast
+import math
 import re
 import unicodedata
 from collections.abc import Callable, Collection, Mapping
@@ -28,6 +29,7 @@ ALLOWED = ("numbers, column names (`in backquotes` when not an identifier), + - 
            "unary -, parentheses, abs() sqrt() sin() cos()")
 ALLOWED_CONDITION = f"{ALLOWED}, == != < <= > >=, and, or, not"
 BACKQUOTED = re.compile(r"`([^`]*)`")
+MAX_DEPTH = 100  # operators nested deeper than this are refused (no map needs them)
 
 Value = np.ndarray | float
 
@@ -166,13 +168,18 @@ _OP_TEXT = {ast.FloorDiv: "//", ast.Mod: "%", ast.MatMult: "@", ast.BitAnd: "&",
             ast.Invert: "~", ast.Not: "not"}
 
 
-def _check(node: ast.expr, condition: bool, names: list[str], aliases: dict[str, str]
-           ) -> None:
+def _check(node: ast.expr, condition: bool, names: list[str], aliases: dict[str, str],
+           depth: int = 0) -> None:
     """Raise ExpressionError at the first node outside the whitelist; collect the names."""
+    if depth > MAX_DEPTH:
+        raise ExpressionError(f"nested more than {MAX_DEPTH} deep")
     if isinstance(node, ast.Constant):
         if isinstance(node.value, bool) or not isinstance(node.value, int | float):
             raise ExpressionError(f"{node.value!r} is not a number; allowed: "
                                   f"{ALLOWED_CONDITION if condition else ALLOWED}")
+        if (abs(node.value) > 1e300 if isinstance(node.value, int)
+                else not math.isfinite(node.value)):
+            raise ExpressionError("a number beyond float64's range")
         return
     if isinstance(node, ast.Name):
         names.append(aliases.get(node.id, node.id))
@@ -196,7 +203,7 @@ def _check(node: ast.expr, condition: bool, names: list[str], aliases: dict[str,
     else:
         raise _forbidden(node, condition)
     for kid in kids:
-        _check(kid, condition, names, aliases)
+        _check(kid, condition, names, aliases, depth + 1)
 
 
 class _Evaluator:
