@@ -40,6 +40,11 @@ class Source:
     origin: str = ""  # the map (--columns or its file), --axis, --gyro-column; "": the header
 
     @property
+    def reads(self) -> tuple[str, ...]:
+        """The log's columns an expression reads (none for a column as it is)."""
+        return self.expr.names if self.expr is not None else ()
+
+    @property
     def text(self) -> str:
         return self.expr.text.strip() if self.expr is not None else ""
 
@@ -88,7 +93,7 @@ def plan_map(raw: list[str], columns: tuple[tuple[str, str], ...], origin: str, 
     for i, name in enumerate(raw):
         if i in renamed:
             out.append(renamed[i])
-        elif name in computed and name in computed[name].expr.names:  # type: ignore[union-attr]
+        elif name in computed and name in computed[name].reads:
             out.append(computed.pop(name))
         else:
             out.append(Source(name, column=i))
