@@ -398,3 +398,25 @@ def test_a_mapping_file_takes_text_and_finite_numbers(value: str, tmp_path: Path
     with pytest.raises(UserError, match="map.toml: (expected a mapping|earth_rate_dps is "
                                         "mapped to nothing)"):
         Dialect.mapping_file(f)
+
+
+def test_a_map_beside_a_log_in_the_formats_names(plain: Path, tmp_path: Path) -> None:
+    """The ROS map does not apply to a plain log beside it (it reads none of its columns);
+    a map of numbers alone applies to every log."""
+    p = tmp_path / "plain.csv"
+    p.write_text(_without_earth(plain.read_text()))
+    f = tmp_path / "fogsf-columns.toml"
+    f.write_text(toml_of(ros_map(0.00234)))
+    log = read_log(p)
+    assert log.earth_rate_dps is None and log.valid is None
+    assert log.read_notes == (f"{f} not applied: the header has the format's names",)
+    f.write_text('earth_rate_dps = "0.00234"\n')
+    log = read_log(p)
+    assert log.earth_rate_dps is not None and (log.earth_rate_dps == 0.00234).all()
+    assert log.read_notes == (f"columns earth_rate_dps = 0.00234 ({f})",)
+
+
+def _without_earth(text: str) -> str:
+    rows = [line.split(",") for line in text.splitlines()]
+    k = rows[0].index("earth_rate_dps")
+    return "\n".join(",".join(r[:k] + r[k + 1:]) for r in rows) + "\n"
