@@ -89,7 +89,9 @@ def with_mapping_beside(path: str | Path, dialect: Dialect) -> Dialect:
 def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
     """The axes A of a log (what `--axis all` runs over): its gyro_A_dps columns and those
     its column map gives (--columns, or the mapping file beside it), in header order, then
-    the map's. Reads the header line only; --gyro-column and --axis are ignored."""
+    the map's; [] for a log of one gyro (gyro_dps). Reads the header line only (a bad
+    header or map is refused as read_log refuses it); --gyro-column and --axis are
+    ignored."""
     p = str(path)
     dialect = with_mapping_beside(path, dialect)
     try:
