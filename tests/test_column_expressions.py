@@ -420,3 +420,19 @@ def _without_earth(text: str) -> str:
     rows = [line.split(",") for line in text.splitlines()]
     k = rows[0].index("earth_rate_dps")
     return "\n".join(",".join(r[:k] + r[k + 1:]) for r in rows) + "\n"
+
+
+def test_axis_reads_its_own_thermometer(tmp_path: Path) -> None:
+    """--axis A reads temp_A_c (one thermometer per gyro) as temp_c; without one, the
+    common temp_c."""
+    from fogsf.trainer.logs.dialect import Dialect
+    from fogsf.trainer.logs.logio import read_log
+
+    rows = [f"{0.1 * i:.1f},{20 + 0.01 * i:.2f},{30 + 0.01 * i:.2f},10,10,10" for i in range(6)]
+    p = tmp_path / "imu.csv"
+    p.write_text("time_s,temp_c,temp_x_c,table_rate_dps,gyro_x_dps,gyro_y_dps\n"
+                 + "\n".join(rows) + "\n")
+    x = read_log(p, Dialect(axis="x"))
+    y = read_log(p, Dialect(axis="y"))
+    assert x.temp_c[0] == 30.0 and y.temp_c[0] == 20.0
+    assert "temp_x_c" in y.extra

@@ -24,8 +24,10 @@ from fogsf.trainer.logs.expressions import (
 )
 
 # the names --axis A reads as the common ones: (per-axis pattern, common name)
+# an axis' own names and the common ones they replace with --axis A (a 3-axis IMU with a
+# thermometer per gyro writes temp_A_c)
 AXIS_NAMES = (("gyro_{}_dps", "gyro_dps"), ("table_rate_{}_dps", "table_rate_dps"),
-              ("earth_rate_{}_dps", "earth_rate_dps"))
+              ("earth_rate_{}_dps", "earth_rate_dps"), ("temp_{}_c", "temp_c"))
 VALID_HINT = ("valid takes a condition (rig_enabled == 1 and rig_stalled == 0, with == != < "
               "<= > >= and/or/not) or a column of 0 and 1")
 
@@ -118,8 +120,8 @@ def map_reads(raw: list[str], columns: tuple[tuple[str, str], ...]) -> set[str]:
 def pick_axis(plan: ColumnPlan, gyro: str | None, axis: str | None, option: str, path: str,
               notes: list[str]) -> ColumnPlan:
     """`gyro` (--gyro-column, or gyro_A_dps for --axis A) read as gyro_dps; for --axis A also
-    table_rate_A_dps and earth_rate_A_dps, when there are such names, as the common ones
-    (which they replace). What moved is said in `notes`."""
+    table_rate_A_dps, earth_rate_A_dps and temp_A_c, when there are such names, as the
+    common ones (which they replace). What moved is said in `notes`."""
     if gyro is None:
         return plan
     names = plan.names
