@@ -30,17 +30,75 @@ def positive_int(text: str) -> int:
     return v
 
 
-def add_metric_options(parser: argparse.ArgumentParser) -> None:
-    """--window-s and --latitude-deg, as every command that measures SF error takes them."""
-    parser.add_argument("--window-s", type=float, default=100.0,
-                        help="SF window length in seconds for the metrics (default 100)")
+VERTICAL_NOTE = ("the earth rate from it assumes a vertical sensitive axis: give "
+                 "--axis-cosine for any other")
+
+
+def add_metric_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup,
+                       window_s: float = 100.0) -> None:
+    """--window-s, --latitude-deg and --axis-cosine, as every command that measures SF
+    error takes them."""
+    parser.add_argument("--window-s", type=float, default=window_s,
+                        help=f"SF window length in seconds for the metrics (default "
+                             f"{window_s:g})")
     parser.add_argument("--latitude-deg", type=float, default=None,
-                        help="latitude for the earth rate when a log has no earth_rate_dps")
+                        help="latitude for the earth rate when a log has no earth_rate_dps; "
+                             + VERTICAL_NOTE)
+    parser.add_argument("--axis-cosine", type=axis_cosines, default=None,
+                        metavar="C|x=C,y=C,...",
+                        help="cosine between the sensitive axis and the local vertical (up), "
+                             "-1 .. 1 (default 1): the earth rate from --latitude-deg is "
+                             "EARTH_RATE * sin(latitude) * C; per axis for --axis all, e.g. "
+                             "x=0.577,y=0.577,z=0.577; an earth_rate_dps column (or the "
+                             "axis' earth_rate_A_dps) takes precedence")
 
 
-def add_log_options(parser: argparse.ArgumentParser) -> None:
+def _cosine(text: str, where: str) -> float:
+    try:
+        c = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number -1 .. 1{where}, got {text!r}"
+                                         ) from None
+    if not -1.0 <= c <= 1.0:
+        raise argparse.ArgumentTypeError(f"a cosine lies in -1 .. 1{where}, got {text!r}")
+    return c
+
+
+def axis_cosines(text: str) -> float | dict[str, float]:
+    """An argparse type: `C` (every axis) or `x=C,y=C,...` (per axis), each C in -1 .. 1."""
+    if "=" not in text:
+        return _cosine(text.strip(), "")
+    out: dict[str, float] = {}
+    for part in (p for p in text.split(",") if p.strip()):
+        axis, eq, value = (x.strip() for x in part.partition("="))
+        if not eq or not axis or axis in out:
+            raise argparse.ArgumentTypeError(
+                f"expected C or AXIS=C pairs like x=0.577,y=0.577, got {part!r}")
+        out[axis] = _cosine(value, f" for axis {axis}")
+    return out
+
+
+def cosine_for(cosines: float | dict[str, float] | None, axis: str | None) -> float:
+    """The axis' cosine to the vertical from --axis-cosine (1.0 when not given)."""
+    from fogsf.trainer.errors import UserError
+
+    if cosines is None:
+        return 1.0
+    if isinstance(cosines, float):
+        return cosines
+    if axis is None:
+        raise UserError("--axis-cosine AXIS=C,...: per-axis cosines need --axis (or a "
+                        "single value for the one axis)")
+    if axis not in cosines:
+        raise UserError(f"--axis-cosine gives no cosine for axis {axis} (it has "
+                        f"{', '.join(cosines)})")
+    return cosines[axis]
+
+
+def add_log_options(parser: argparse.ArgumentParser, per_axis: bool = False) -> None:
     """--delimiter, --decimal-comma, --columns, --gyro-column and --axis, as every command
-    that reads chamber logs takes them (docs/logs.md)."""
+    that reads chamber logs takes them (docs/logs.md); `per_axis`: the command takes
+    `--axis all` (commands/axes.py)."""
     g = parser.add_argument_group("log format (docs/logs.md)")
     g.add_argument("--delimiter", choices=(",", ";", "tab"), default=None, metavar=",|;|tab",
                    help="cell delimiter (default: the one of , ; tab the header uses; a "
@@ -55,8 +113,10 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--gyro-column", metavar="NAME", default=None,
                    help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
                         "gyro_x_dps)")
-    g.add_argument("--axis", metavar="X", default=None,
-                   help="shorthand for --gyro-column gyro_X_dps")
+    g.add_argument("--axis", metavar="X|all" if per_axis else "X", default=None,
+                   help="shorthand for --gyro-column gyro_X_dps"
+                        + ("; `all`: every axis of the log in one run (one output per axis, "
+                           "docs/train.md)" if per_axis else ""))
     g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                    help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
                         "of time_s); every step must lie within 20 %% of 1/HZ")
@@ -71,6 +131,9 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.
     axis = getattr(args, "axis", None)
     if axis is not None and gyro is not None:
         raise UserError("give --axis or --gyro-column, not both")
+    if axis == "all":
+        raise UserError("--axis all runs train, inspect, replay and export once per axis; "
+                        "here give one axis, e.g. --axis x")
     cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
@@ -97,7 +160,13 @@ def read_logs(args: argparse.Namespace, paths: list[str]) -> list:
 
     dialect = dialect_from_args(args)
     logs = [read_log(p, dialect) for p in paths]
+    given = getattr(args, "axis_cosine", None)
+    cosine = cosine_for(given, dialect.axis)
     for lg in logs:
+        lg.axis_cosine = cosine
+        if given is not None and lg.earth_rate_dps is not None:
+            lg.read_notes = (*lg.read_notes, "--axis-cosine not used: the log has its earth "
+                             "rate (earth_rate_dps)")
         if lg.read_notes:
             print(f"fogsf: read {lg.path}: {'; '.join(lg.read_notes)}", file=sys.stderr)
     return logs

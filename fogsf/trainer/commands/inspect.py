@@ -17,6 +17,7 @@ import argparse
 import json
 
 from fogsf.trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
+from fogsf.trainer.commands.axes import run_all, wants_all
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 from fogsf.trainer.logs.metrics import (
     log_metrics,
@@ -34,7 +35,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="print the summary as JSON (samples, duration_s, sample_rate_hz, "
                              "temp_range_c, table_rates_dps, metrics)")
     add_metric_options(parser)
-    add_log_options(parser)
+    add_log_options(parser, per_axis=True)
     parser.add_argument("--ref-sf", type=positive_float, default=None,
                         help="reference SF ratio (vs nominal) instead of the log's own at 20 C "
                              "(needed when the log never passes 20 C: take ref_sf_ratio from "
@@ -61,8 +62,11 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
 
 
 def run(args: argparse.Namespace) -> int:
+    if wants_all(args):  # --plot NAME_A.png per axis, then one summary
+        return run_all(args, run, "inspect")
     log = read_logs(args, [args.log])[0]
     s = summary(log, args.window_s, args.latitude_deg, args.ref_sf)
+    args.axis_result = s
     if args.json:
         print(json.dumps(s, indent=2))
     else:
