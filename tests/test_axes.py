@@ -106,6 +106,17 @@ def test_all_on_a_one_axis_log_is_refused_in_one_line(
     assert not (tmp_path / "m").exists()
 
 
+def test_all_refusals_name_the_axis_or_come_before_any_work(
+        imu_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "afile").write_text("")
+    assert fogsf("train", "--train", imu_log, "--axis", "all", "--model", "poly",
+                 "--out", tmp_path / "afile") == 2
+    assert "afile is a file" in capsys.readouterr().err
+    assert fogsf("inspect", imu_log, "--axis", "all", "--window-s", "5000") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("fogsf inspect: error: axis x: ")
+
+
 def test_all_is_refused_by_commands_that_do_not_take_it(
         imu_log: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert fogsf("diagnose", imu_log, "--axis", "all") == 2

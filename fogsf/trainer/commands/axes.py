@@ -198,6 +198,24 @@ def _check_models(args: argparse.Namespace, axes: list[str]) -> None:
                         "--axis all --out` writes)")
 
 
+def _check_folders(args: argparse.Namespace, spec: Spec) -> None:
+    """A folder argument (OUT of OUT/A) that exists as a file is refused before any work."""
+    for attr, kind in spec.per_axis.items():
+        value = getattr(args, attr, None)
+        if kind == "dir" and value is not None and Path(value).exists() \
+                and not Path(value).is_dir():
+            raise UserError(f"--axis all: {value} is a file; it takes a folder of one "
+                            "folder per axis (A/)")
+
+
+def _run_axis(run: Callable[[argparse.Namespace], int], args: argparse.Namespace) -> int:
+    """`run` for one axis; its refusal names the axis."""
+    try:
+        return run(args)
+    except UserError as e:
+        raise UserError(f"axis {args.axis}: {e}") from None
+
+
 def run_all(args: argparse.Namespace, run: Callable[[argparse.Namespace], int],
             command: str) -> int:
     """`run` once per axis (module docstring), then the summary table; the first axis that
@@ -211,6 +229,7 @@ def run_all(args: argparse.Namespace, run: Callable[[argparse.Namespace], int],
         _check_models(args, axes)
     for a in axes:  # a per-axis --axis-cosine without this axis: refused before any work
         cosine_for(getattr(args, "axis_cosine", None), a)
+    _check_folders(args, spec)
     as_json = spec.json_stdout and getattr(args, "json", False)
     rows, docs = {}, {}
     for a in axes:
@@ -218,11 +237,11 @@ def run_all(args: argparse.Namespace, run: Callable[[argparse.Namespace], int],
         if as_json:
             buf = io.StringIO()
             with contextlib.redirect_stdout(buf):
-                status = run(one)
+                status = _run_axis(run, one)
             docs[a] = json.loads(buf.getvalue())
         else:
             print(f"axis {a}:")
-            status = run(one)
+            status = _run_axis(run, one)
         if status:
             return status
         rows[a] = spec.row(one.axis_result)
