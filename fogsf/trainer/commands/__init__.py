@@ -30,17 +30,20 @@ def positive_int(text: str) -> int:
     return v
 
 
+def add_metric_options(parser: argparse.ArgumentParser) -> None:
+    """--window-s and --latitude-deg, as every command that measures SF error takes them."""
+    parser.add_argument("--window-s", type=float, default=100.0,
+                        help="SF window length in seconds for the metrics (default 100)")
+    add_earth_options(parser)
+
+
 VERTICAL_NOTE = ("the earth rate from it assumes a vertical sensitive axis: give "
                  "--axis-cosine for any other")
 
 
-def add_metric_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup,
-                       window_s: float = 100.0) -> None:
-    """--window-s, --latitude-deg and --axis-cosine, as every command that measures SF
-    error takes them."""
-    parser.add_argument("--window-s", type=float, default=window_s,
-                        help=f"SF window length in seconds for the metrics (default "
-                             f"{window_s:g})")
+def add_earth_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """--latitude-deg and --axis-cosine: the earth rate on the sensitive axis of a log without
+    an earth_rate_dps column (`read_logs` gives each log its cosine)."""
     parser.add_argument("--latitude-deg", type=float, default=None,
                         help="latitude for the earth rate when a log has no earth_rate_dps; "
                              + VERTICAL_NOTE)

@@ -39,7 +39,7 @@ import json
 import sys
 from pathlib import Path
 
-from fogsf.trainer.commands import add_log_options, add_metric_options, read_logs
+from fogsf.trainer.commands import add_earth_options, add_log_options, read_logs
 from fogsf.trainer.errors import UserError
 
 
@@ -54,7 +54,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="simulator configuration of the extended model (default: next "
                              "to --json as NAME.sim.json; one per log, NAME.runK.sim.json, "
                              "for the second and later logs)")
-    add_metric_options(parser, window_s=60.0)
+    parser.add_argument("--window-s", type=float, default=60.0,
+                        help="SF window length, s (default 60)")
+    add_earth_options(parser)
     parser.add_argument("--cv", choices=["blocks", "runs"], default="blocks",
                         help="held-out scoring: contiguous blocks of windows (default) or "
                              "leave one log out")

@@ -31,8 +31,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from fogsf.trainer.commands import (
+    add_earth_options,
     add_log_options,
-    add_metric_options,
     positive_int,
     read_logs,
 )
@@ -83,9 +83,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--top", type=positive_int, default=10,
                    help="programs printed (default 10)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
-    g = parser.add_argument_group("--from-logs: how the logs are measured (as `fogsf train`; "
-                                  "windows as `fogsf diagnose` fits)")
-    add_metric_options(g, window_s=60.0)
+    g = parser.add_argument_group("--from-logs: how each log is fitted (as `fogsf diagnose`)")
+    g.add_argument("--window-s", type=float, default=60.0,
+                   help="SF window length, s (default 60)")
+    add_earth_options(g)
     add_log_options(parser)
     add_executor_options(parser, "the candidate programs' fits")
 
