@@ -243,11 +243,15 @@ def test_bad_axis_cosines_are_refused_in_one_line(
     assert len(err) == 1 and says in err[0], err
 
 
-@pytest.mark.parametrize("command", ["train", "inspect", "replay", "diagnose", "plan"])
+@pytest.mark.parametrize("command", ["train", "inspect", "replay", "diagnose", "plan",
+                                     "simulate"])
 def test_latitude_help_states_the_vertical_assumption(command: str) -> None:
     parser = cli.build_parser()._subparsers._group_actions[0].choices[command]
     text = " ".join(parser.format_help().split())
-    assert "assumes a vertical sensitive axis" in text and "--axis-cosine" in text
+    if command == "simulate":  # what it writes: a vertical axis' earth rate
+        assert "sensitive axis is vertical" in text
+    else:
+        assert "assumes a vertical sensitive axis" in text and "--axis-cosine" in text
 
 
 def test_plan_from_logs_takes_latitude_to_the_fit(
