@@ -66,7 +66,6 @@ def run(args: argparse.Namespace) -> int:
         return run_all(args, run, "inspect")
     log = read_logs(args, [args.log])[0]
     s = summary(log, args.window_s, args.latitude_deg, args.ref_sf)
-    args.axis_result = s
     if args.json:
         print(json.dumps(s, indent=2))
     else:
@@ -90,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
         plot(log, args.window_s, args.latitude_deg, args.ref_sf, args.plot)
         if not args.json:
             print(f"  plot: {args.plot}")
+    args.axis_result = s  # the summary row of --axis all
     return 0
 
 
