@@ -98,10 +98,9 @@ def cosine_for(cosines: float | dict[str, float] | None, axis: str | None) -> fl
     return cosines[axis]
 
 
-def add_log_options(parser: argparse.ArgumentParser, per_axis: bool = False) -> None:
+def add_log_options(parser: argparse.ArgumentParser) -> None:
     """--delimiter, --decimal-comma, --columns, --gyro-column and --axis, as every command
-    that reads chamber logs takes them (docs/logs.md); `per_axis`: the command takes
-    `--axis all` (commands/axes.py)."""
+    that reads chamber logs takes them (docs/logs.md)."""
     g = parser.add_argument_group("log format (docs/logs.md)")
     g.add_argument("--delimiter", choices=(",", ";", "tab"), default=None, metavar=",|;|tab",
                    help="cell delimiter (default: the one of , ; tab the header uses; a "
@@ -116,10 +115,9 @@ def add_log_options(parser: argparse.ArgumentParser, per_axis: bool = False) -> 
     g.add_argument("--gyro-column", metavar="NAME", default=None,
                    help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
                         "gyro_x_dps)")
-    g.add_argument("--axis", metavar="X|all" if per_axis else "X", default=None,
-                   help="shorthand for --gyro-column gyro_X_dps"
-                        + ("; `all`: every axis of the log in one run (one output per axis, "
-                           "docs/train.md)" if per_axis else ""))
+    g.add_argument("--axis", metavar="X", default=None,
+                   help="shorthand for --gyro-column gyro_X_dps; `--axis all` on train, inspect, "
+                        "replay and export: every axis of the log in one run (docs/train.md)")
     g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                    help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
                         "of time_s); every step must lie within 20 %% of 1/HZ")

@@ -35,7 +35,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="print the summary as JSON (samples, duration_s, sample_rate_hz, "
                              "temp_range_c, table_rates_dps, metrics)")
     add_metric_options(parser)
-    add_log_options(parser, per_axis=True)
+    add_log_options(parser)
     parser.add_argument("--ref-sf", type=positive_float, default=None,
                         help="reference SF ratio (vs nominal) instead of the log's own at 20 C "
                              "(needed when the log never passes 20 C: take ref_sf_ratio from "

@@ -38,7 +38,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="before/after plot of the SF error (windows vs temperature, time)")
     add_metric_options(parser)
-    add_log_options(parser, per_axis=True)
+    add_log_options(parser)
     parser.add_argument("--json", metavar="PATH", default=None,
                         help="also write the before/after metrics and flag counts as JSON")
     parser.add_argument("--ref-sf", type=positive_float, default=None, metavar="RATIO",

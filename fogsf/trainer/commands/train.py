@@ -73,7 +73,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "of the training logs' SF at 20 C (needed when they never pass "
                              "20 C: take ref_sf_ratio from `fogsf inspect --json` of a run of "
                              "the same gyro that does)")
-    add_log_options(parser, per_axis=True)
+    add_log_options(parser)
     parser.add_argument("--rate-tau-s", type=float, default=120.0,
                         help="time constant of the dT/dt filter (default 120 s)")
     parser.add_argument("--structure", choices=("bank", "node"), default=None,
