@@ -34,19 +34,24 @@ def add_metric_options(parser: argparse.ArgumentParser) -> None:
     """--window-s and --latitude-deg, as every command that measures SF error takes them."""
     parser.add_argument("--window-s", type=float, default=100.0,
                         help="SF window length in seconds for the metrics (default 100)")
-    add_earth_options(parser)
+    parser.add_argument("--latitude-deg", type=float, default=None,
+                        help=LATITUDE_HELP)
+    add_axis_cosine(parser)
 
 
-VERTICAL_NOTE = ("the earth rate from it assumes a vertical sensitive axis: give "
-                 "--axis-cosine for any other")
+LATITUDE_HELP = ("latitude for the earth rate when a log has no earth_rate_dps; the earth rate "
+                 "from it assumes a vertical sensitive axis: give --axis-cosine for any other")
 
 
 def add_earth_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """--latitude-deg and --axis-cosine: the earth rate on the sensitive axis of a log without
-    an earth_rate_dps column (`read_logs` gives each log its cosine)."""
-    parser.add_argument("--latitude-deg", type=float, default=None,
-                        help="latitude for the earth rate when a log has no earth_rate_dps; "
-                             + VERTICAL_NOTE)
+    """--latitude-deg and --axis-cosine, for commands with their own --window-s."""
+    parser.add_argument("--latitude-deg", type=float, default=None, help=LATITUDE_HELP)
+    add_axis_cosine(parser)
+
+
+def add_axis_cosine(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """--axis-cosine: the earth rate from --latitude-deg on an axis that is not vertical
+    (`read_logs` gives each log its cosine)."""
     parser.add_argument("--axis-cosine", type=axis_cosines, default=None,
                         metavar="C|x=C,y=C,...",
                         help="cosine between the sensitive axis and the local vertical (up), "
