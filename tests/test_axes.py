@@ -270,3 +270,36 @@ def test_plan_from_logs_takes_latitude_to_the_fit(
                  "--axis-cosine", "0.5", "--out", tmp_path / "p") == 130
     assert seen["latitude_deg"] == 45.0 and seen["window_s"] == 60.0
     assert seen["earth"] == pytest.approx(EARTH_RATE_DPS * np.sin(np.radians(45)) * 0.5)
+
+
+def _has_expressions() -> bool:
+    from fogsf.trainer.logs import logio
+
+    return hasattr(logio, "log_axes_of")  # the column map's per-axis names and expressions
+
+
+@pytest.mark.skipif(not _has_expressions(), reason="needs the column map's expressions")
+def test_a_skew_mounted_imu_reads_as_three_vertical_gyros(
+        imu_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Each axis at its own cosine to a vertical table: the table rate per axis from the map,
+    the earth rate by --axis-cosine; every axis' SF as the same gyro's on a vertical axis."""
+    cos = {"x": 0.8, "y": 0.36, "z": 0.48}
+    rows = [line.split(",") for line in imu_log.read_text().splitlines()]
+    head = rows[0]
+    data = np.array(rows[1:], dtype=np.float64)
+    col = {h: data[:, i] for i, h in enumerate(head)}
+    skew = write_csv(tmp_path / "skew.csv", {
+        "time_s": col["time_s"], "temp_c": col["temp_c"], "table": col["table_rate_dps"],
+        **{f"g{a}": col[f"gyro_{a}_dps"] * c for a, c in cos.items()}})
+    (tmp_path / "fogsf-columns.toml").write_text("".join(
+        f'gyro_{a}_dps = "g{a}"\ntable_rate_{a}_dps = "table * {c}"\n' for a, c in cos.items()))
+    lat = 34.26  # the simulator's, whose earth column the vertical log holds
+    assert fogsf("inspect", skew, "--axis", "all", "--latitude-deg", lat, "--axis-cosine",
+                 ",".join(f"{a}={c}" for a, c in cos.items()), "--json") == 0
+    got = json.loads(capsys.readouterr().out)
+    assert fogsf("inspect", imu_log, "--axis", "all", "--json") == 0
+    want = json.loads(capsys.readouterr().out)
+    for a in AXES:
+        assert got[a]["ref_sf_ratio"] == pytest.approx(want[a]["ref_sf_ratio"], abs=1e-9)
+        assert got[a]["metrics"]["rms_ppm"] == pytest.approx(want[a]["metrics"]["rms_ppm"],
+                                                             abs=0.01)
