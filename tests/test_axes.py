@@ -117,6 +117,18 @@ def test_all_refusals_name_the_axis_or_come_before_any_work(
     assert err[-1].startswith("fogsf inspect: error: axis x: ")
 
 
+def test_all_needs_the_same_axes_in_every_log(
+        imu_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    rows = [line.split(",") for line in imu_log.read_text().splitlines()]
+    xy = tmp_path / "xy.csv"  # without gyro_z_dps, the last column
+    xy.write_text("\n".join(",".join(r[:-1]) for r in rows) + "\n")
+    assert fogsf("train", "--train", imu_log, "--test", xy, "--axis", "all", "--model", "poly",
+                 "--out", tmp_path / "m") == 2
+    err = capsys.readouterr().err
+    assert "has axes x, y" in err and "give logs of the same axes" in err
+    assert not (tmp_path / "m").exists()
+
+
 def test_all_is_refused_by_commands_that_do_not_take_it(
         imu_log: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert fogsf("diagnose", imu_log, "--axis", "all") == 2
