@@ -113,10 +113,12 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--decimal-comma", action="store_true",
                    help="numbers are written 20,5 (cells then separated by ; or tab)")
     g.add_argument("--columns", metavar="OURS=THEIRS,...|MAP.json", default=None,
-                   help="map the log's column names to the format's, e.g. "
-                        "time_s=t,temp_c=temperature,table_rate_dps=table,gyro_dps=omega, or "
-                        'a JSON/TOML file {"time_s": "t", ...}; default: fogsf-columns.json '
-                        "(or .toml) beside each log, when there is one")
+                   help="map the log's columns to the format's names, e.g. "
+                        "time_s=t,temp_c=temperature,table_rate_dps=table,gyro_dps=omega; "
+                        "each name takes a column, a number or an expression over the "
+                        "log's columns (time_s=sec + nanosec * 1e-9, valid=rig_ok == 1); "
+                        'or a JSON/TOML file {"time_s": "t", ...}; default: '
+                        "fogsf-columns.json (or .toml) beside each log, when there is one")
     g.add_argument("--gyro-column", metavar="NAME", default=None,
                    help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
                         "gyro_x_dps)")

@@ -23,6 +23,9 @@ DT_TOLERANCE = 0.2
 GAP_STEPS = 1.5  # a step this many nominal steps long or longer is a gap (a missed sample)
 RATE_SLACK = 0.01  # a median step up to 1 % beyond RATE_RANGE_HZ is a clock a little off
 TEMP_RANGE_C = (-60.0, 100.0)
+# time_s this large is a clock's epoch (ROS, Unix: 1.7e9 s), not seconds since power-on:
+# messages show such times from the first sample
+EPOCH_S = 1e6
 
 
 class LogError(UserError):
@@ -138,8 +141,27 @@ def nominal_step_s(time_s: np.ndarray) -> float:
     t = np.asarray(time_s, dtype=np.float64)
     if t.shape[0] < 2:
         return NOMINAL_DT_S
-    step = float(np.median(np.diff(t)))
+    dt = np.diff(t)
+    step = float(np.median(dt))
+    if step > 0 and np.spacing(np.abs(t).max()) > 1e-7 * step:
+        # an epoch time base: each stamp is rounded to float64's spacing (0.24 us at 1.7e9
+        # s), which the median step keeps; the mean of the steps near it averages that out
+        step = float(dt[np.abs(dt - step) <= DT_TOLERANCE * step].mean())
     return 1.0 / float(f"{1.0 / step:.6g}") if step > 0 else step
+
+
+def time_text(time_s: np.ndarray, i: int) -> str:
+    """time_s[i] as a message shows it: as it is, or `t0+12.3` for an epoch time base."""
+    if abs(float(time_s[0])) < EPOCH_S:
+        return f"{time_s[i]:g}"
+    return f"t0+{time_s[i] - time_s[0]:.6g}"
+
+
+def epoch_text(time_s: np.ndarray) -> str:
+    """What `t0` is in `time_text`, when it is used ('' otherwise)."""
+    if abs(float(time_s[0])) < EPOCH_S:
+        return ""
+    return f" (t0 = {time_s[0]:.6f} s, the first sample)"
 
 
 def check_rate_hz(rate_hz: float, option: str = "--sample-rate-hz") -> float:
