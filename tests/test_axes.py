@@ -284,13 +284,6 @@ def test_plan_from_logs_takes_latitude_to_the_fit(
     assert seen["earth"] == pytest.approx(EARTH_RATE_DPS * np.sin(np.radians(45)) * 0.5)
 
 
-def _has_expressions() -> bool:
-    from fogsf.trainer.logs import logio
-
-    return hasattr(logio, "log_axes_of")  # the column map's per-axis names and expressions
-
-
-@pytest.mark.skipif(not _has_expressions(), reason="needs the column map's expressions")
 def test_a_skew_mounted_imu_reads_as_three_vertical_gyros(
         imu_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Each axis at its own cosine to a vertical table: the table rate per axis from the map,

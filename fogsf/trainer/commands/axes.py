@@ -1,9 +1,10 @@
 """`--axis all`: a command run once per axis of a multi-axis log, then one summary table.
 
 Each command that takes it calls `run_all(args, run, COMMAND)` at the top of its own `run`
-when `wants_all(args)`. For each axis A present (the log's gyro_A_dps columns; for export,
-MODEL_DIR's folders A/ holding a model) the command's `run` is called again on a copy of the
-arguments with `args.axis = A` and its per-axis arguments moved aside:
+when `wants_all(args)`. For each axis A present (the log's gyro_A_dps columns and its column
+map's, `logio.log_axes_of`; for export, MODEL_DIR's folders A/ holding a model) the
+command's `run` is called again on a copy of the arguments with `args.axis = A` and its
+per-axis arguments moved aside:
 
   - a model folder given (replay, export MODEL_DIR) or written (train --out, export --out):
     OUT/A, the folder `--axis A --out OUT/A` would write;
@@ -33,37 +34,6 @@ ALL = "all"
 
 def wants_all(args: argparse.Namespace) -> bool:
     return getattr(args, "axis", None) == ALL
-
-
-def log_axes_of(path: str, dialect) -> list[str]:  # noqa: ANN001 - logs.dialect.Dialect
-    """The axes A of a log's gyro_A_dps columns, in header order.
-
-    Until fogsf.trainer.logs.logio.log_axes_of lands (the column map's per-axis names), the
-    header's own names after the plain --columns renames; switch here when it does."""
-    try:
-        from fogsf.trainer.logs.logio import log_axes_of as from_logio  # type: ignore[attr-defined]
-    except ImportError:
-        return _header_axes(path, dialect)
-    return from_logio(path, dialect)
-
-
-def _header_axes(path: str, dialect) -> list[str]:  # noqa: ANN001 - logs.dialect.Dialect
-    from dataclasses import replace
-
-    from fogsf.trainer.logs.chamber_log import LogError
-    from fogsf.trainer.logs.dialect import Dialect, find_delimiter, log_axes, mapping_beside
-
-    try:
-        with open(path, encoding="utf-8-sig") as f:
-            first = f.readline()
-    except (OSError, UnicodeDecodeError) as e:
-        raise LogError(path, None, "cannot read", str(e)) from None
-    if not dialect.columns and (beside := mapping_beside(path)) is not None:
-        dialect = replace(dialect, columns=Dialect.mapping_file(beside))
-    ours = {theirs: our for our, theirs in dialect.columns}
-    delim = find_delimiter(first, path, dialect, [])
-    header = [ours.get(h, h) for h in (c.strip().strip('"') for c in first.split(delim))]
-    return log_axes(header)
 
 
 # per-axis arguments: "dir" (OUT/A), "file" (NAME_A.EXT), "name" (NAME_A)
@@ -150,11 +120,12 @@ def axes_of_logs(args: argparse.Namespace, paths: list[str]) -> list[str]:
     """The axes every log has (the first log's order); a log without any, or with other
     axes than the first, is refused in one line."""
     from fogsf.trainer.commands import dialect_from_args
+    from fogsf.trainer.logs.logio import log_axes_of
 
     if getattr(args, "gyro_column", None) is not None:
         raise UserError("give --axis all or --gyro-column, not both")
     dialect = dialect_from_args(argparse.Namespace(**{**vars(args), "axis": None}))
-    found = [(p, log_axes_of(p, dialect)) for p in paths]
+    found = [(p, log_axes_of(p, dialect)) for p in paths]  # the header (and map) only
     for p, axes in found:
         if not axes:
             raise UserError(f"--axis all: {p} has no per-axis gyro columns (gyro_A_dps, e.g. "
