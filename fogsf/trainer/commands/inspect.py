@@ -17,6 +17,7 @@ import argparse
 import json
 
 from fogsf.trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
+from fogsf.trainer.commands.axes import run_all, wants_all
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 from fogsf.trainer.logs.metrics import (
     log_metrics,
@@ -61,6 +62,8 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
 
 
 def run(args: argparse.Namespace) -> int:
+    if wants_all(args):  # --plot NAME_A.png per axis, then one summary
+        return run_all(args, run, "inspect")
     log = read_logs(args, [args.log])[0]
     s = summary(log, args.window_s, args.latitude_deg, args.ref_sf)
     if args.json:
@@ -86,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
         plot(log, args.window_s, args.latitude_deg, args.ref_sf, args.plot)
         if not args.json:
             print(f"  plot: {args.plot}")
+    args.axis_result = s  # the summary row of --axis all
     return 0
 
 

@@ -105,7 +105,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     n = parser.add_argument_group("site and noise")
     n.add_argument("--sample-rate-hz", type=float, metavar="HZ",
                    help="samples per second, 1 .. 4000 (default 10)")
-    n.add_argument("--latitude-deg", type=float, help="latitude for the earth rate")
+    n.add_argument("--latitude-deg", type=float,
+                   help="latitude for the earth rate; the simulated gyro's sensitive axis "
+                        "is vertical (earth_rate_dps = EARTH_RATE * sin(latitude))")
     n.add_argument("--arw", type=float, metavar="DEG_PER_SQRT_H",
                    help="angle random walk (default 0.05 deg/sqrt(h))")
     n.add_argument("--pulse-arcsec", type=float, help="output pulse weight (0: no quantization)")

@@ -60,6 +60,9 @@ class ChamberLog:
     # row. Rows that do not measure stay in the log (the model runs over them as firmware
     # would) but give no SF, no training target and no metric; see `measures`.
     valid: np.ndarray | None = None
+    # the cosine between the sensitive axis and the local vertical (up): the earth rate from
+    # a latitude is scaled by it (`--axis-cosine`); an earth_rate_dps column is used as given
+    axis_cosine: float = 1.0
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])
@@ -87,7 +90,8 @@ class ChamberLog:
         return m if self.valid is None else m & self.valid
 
     def earth(self, latitude_deg: float | None = None) -> np.ndarray:
-        """Earth rate on the sensitive axis: the log's column, else from a latitude.
+        """Earth rate on the sensitive axis: the log's column, else from a latitude, times
+        `axis_cosine` (1: a vertical axis).
 
         With neither, nothing is assumed: the refusal asks for --latitude-deg.
         """
@@ -96,7 +100,7 @@ class ChamberLog:
         if latitude_deg is None:
             raise LogError(self.path, None, "no earth rate",
                            "the log has no earth_rate_dps column; pass --latitude-deg")
-        return np.full(len(self), earth_rate_vertical_dps(latitude_deg))
+        return np.full(len(self), earth_rate_vertical_dps(latitude_deg) * self.axis_cosine)
 
     def columns(self) -> dict[str, np.ndarray]:
         cols = {
@@ -126,6 +130,7 @@ class ChamberLog:
             path=self.path,
             read_notes=self.read_notes,
             nominal_dt_s=self.sample_dt_s,
+            axis_cosine=self.axis_cosine,
         )
 
 
@@ -177,7 +182,8 @@ EARTH_RATE_DPS = 360.0 / 86164.0905  # sidereal day
 
 
 def earth_rate_vertical_dps(latitude_deg: float) -> float:
-    """Earth rate projected on a vertical (up) sensitive axis at a latitude, in deg/s."""
+    """Earth rate projected on a vertical (up) sensitive axis at a latitude, in deg/s (an
+    axis at an angle to the vertical sees it times the cosine of that angle)."""
     return EARTH_RATE_DPS * math.sin(math.radians(latitude_deg))
 
 
