@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan bench-rate bench-gsa bench-sim paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan bench-rate bench-gsa bench-sim bench-rigs paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -24,6 +24,7 @@ help:
 	@echo "make bench-rate  one model at 10/100/1000 Hz; a 24 h 100 Hz replay, time and memory -> out/bench-sample-rate.json"
 	@echo "make bench-gsa   GSA against Rashedi et al. (2009) Table 4 -> out/bench-gsa.json"
 	@echo "make bench-sim   simulator speed and its calibration to the paper -> out/bench-sim.json"
+	@echo "make bench-rigs  rig logs (ROS, staircase, reversals, skew IMU) trained and scored against the truth -> out/bench-rigs.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
@@ -94,6 +95,12 @@ bench-gsa: $(STAMP)
 # a 3 h paper run's simulate and write time; the paper scenario's metrics over seeds 0-9
 bench-sim: $(STAMP)
 	$(PY) -m benchmarks.sim_paper --out $(OUT)/bench-sim.json
+
+# --- rig logs end to end on evaluation gyros 20000-: train through the column map, score
+# against the generator's truth; RIGS_N gyros a case
+RIGS_N ?= 2
+bench-rigs: $(STAMP)
+	$(PY) -m benchmarks.rigs --seeds eval --n $(RIGS_N) --out $(OUT)/bench-rigs.json
 
 clean:
 	rm -rf build out models

@@ -1,6 +1,7 @@
 """CMake integration: the `fogsf` library target, fogsf_add_model(), and the three-axis example
-firmware/examples/imu3 built for Cortex-M4F and run under QEMU, every output of every axis
-compared bit for bit with the numpy reference (fogsf/trainer/models/reference.py)."""
+firmware/examples/imu3 built for Cortex-M4F (its models re-rated by SAMPLE_RATE_HZ) and run
+under QEMU, every output of every axis compared bit for bit with the numpy reference
+(fogsf/trainer/models/reference.py)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ TOOLCHAIN = ROOT / "firmware" / "cmake" / "cortex-m4f.cmake"
 FOGSF = Path(sys.executable).parent / "fogsf"
 SAMPLES = 1500  # IMU3_SAMPLES of main.c
 AXES = "xyz"
+IMU3_RATE_HZ = 20  # the models are trained at 10 Hz (D 10): re-rated to D 20 at configure
 
 
 def imu3_models() -> list[st.StreamModel]:
@@ -62,13 +64,14 @@ def imu3_build(tmp_path_factory):
     root = tmp_path_factory.mktemp("imu3")
     models = imu3_models()
     for axis, model in zip(AXES, models, strict=True):
-        model.save(root / "models" / f"imu_{axis}")
+        model.save(root / "models" / axis)  # as `fogsf train --axis all --out models` writes
     build = root / "build"
     run_cmd(["cmake", "-S", str(EXAMPLE), "-B", str(build), f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
              f"-DIMU3_MODELS={root / 'models'}", f"-DFOGSF_EXECUTABLE={FOGSF}",
-             "-DCMAKE_BUILD_TYPE=Release"], "cmake configure (imu3)")
+             f"-DIMU3_SAMPLE_RATE_HZ={IMU3_RATE_HZ}", "-DCMAKE_BUILD_TYPE=Release"],
+            "cmake configure (imu3)")
     run_cmd(["cmake", "--build", str(build)], "cmake build (imu3)")
-    return models, build
+    return [m.at_rate(1.0 / IMU3_RATE_HZ) for m in models], build
 
 
 @need_tools
@@ -88,6 +91,7 @@ def test_imu3_under_qemu_is_bit_exact_per_axis(imu3_build) -> None:
                                       err_msg=axis)
         np.testing.assert_array_equal(got[axis][:, 2], ref.flags, err_msg=axis)
         assert (ref.flags & st.FLAG_TEMP_INVALID).any()  # the planted NaNs were seen
+        assert model.decimation == 20, "SAMPLE_RATE_HZ re-rated the model"
     # three different models: the axes must not all give the same SF
     assert len({got[a][-1, 0] for a in AXES}) == 3
 
@@ -140,3 +144,40 @@ def test_three_small_models_in_one_image_meet_the_size_target(filters, tmp_path)
     assert three["ram_bytes"] <= IMAGE_TARGET["ram_bytes"], three
     assert three["flash_bytes"] > one["flash_bytes"] and three["ram_bytes"] > one["ram_bytes"]
     assert three["instructions_per_sample_worst"] > 2 * one["instructions_per_sample_worst"]
+
+
+@pytest.mark.skipif(shutil.which("cmake") is None or shutil.which("gcc") is None,
+                    reason="needs cmake and gcc")
+def test_fogsf_add_model_sample_rate_is_passed_to_export(tmp_path) -> None:
+    """MODEL with SAMPLE_RATE_HZ: the model exported at that rate (D = step * rate); with
+    DIR (already exported) it is refused, as an unknown argument is."""
+    model = samples.random_model(1, 1, 1, 4, decimation=10, seed=3)  # 10 Hz, 1 s step
+    model.save(tmp_path / "app" / "m")
+    (tmp_path / "app" / "main.c").write_text("int main(void)\n{\n    return 0;\n}\n")
+    lists = tmp_path / "app" / "CMakeLists.txt"
+    head = ("cmake_minimum_required(VERSION 3.13)\nproject(app C)\n"
+            "add_subdirectory(${FOGSF_DIR} fogsf)\nadd_executable(app main.c)\n")
+    fogsf_dir = ROOT / "firmware" / "c"
+
+    def configure(call: str, build: str) -> subprocess.CompletedProcess:
+        lists.write_text(head + call + "\n")
+        return subprocess.run(["cmake", "-S", str(lists.parent), "-B", str(tmp_path / build),
+                               f"-DFOGSF_DIR={fogsf_dir}", f"-DFOGSF_EXECUTABLE={FOGSF}"],
+                              capture_output=True, text=True)
+
+    proc = configure("fogsf_add_model(app NAME imu_x MODEL m SAMPLE_RATE_HZ 100)", "b")
+    assert proc.returncode == 0, proc.stderr
+    header = (tmp_path / "b" / "fogsf_models" / "imu_x" / "imu_x.h").read_text()
+    assert "#define IMU_X_DECIMATION 100\n" in header  # 1 s at 100 Hz
+    proc = configure("fogsf_add_model(app NAME imu_x MODEL m)", "c")
+    assert proc.returncode == 0, proc.stderr
+    assert "#define IMU_X_DECIMATION 10\n" in \
+        (tmp_path / "c" / "fogsf_models" / "imu_x" / "imu_x.h").read_text()
+    for call, says in (("fogsf_add_model(app NAME imu_x DIR gen SAMPLE_RATE_HZ 100)",
+                        "SAMPLE_RATE_HZ re-rates a MODEL"),
+                       ("fogsf_add_model(app NAME imu_x MODEL m SAMPLE_RATE 100)",
+                        "unknown arguments"),
+                       ("fogsf_add_model(app NAME imu_x MODEL m SAMPLE_RATE_HZ 9000)",
+                        "fogsf export failed")):
+        proc = configure(call, "d")
+        assert proc.returncode != 0 and says in proc.stderr, (call, proc.stderr)

@@ -166,3 +166,25 @@ def test_no_gyro_like_column_gets_the_column_map_hint(name: str) -> None:
     with pytest.raises(LogError, match="--columns") as e:
         parse_log(text, "x.csv")
     assert "--gyro-column" not in str(e.value)
+
+
+@pytest.mark.parametrize("step_c", [1.0, 0.25, 0.0625])
+def test_a_quantised_thermometer_reads_as_written(step_c: float, tmp_path: Path) -> None:
+    """A board thermometer in 1 C, 0.25 C or 0.0625 C (a 12-bit sensor's) steps: long runs
+    of one reading are a quantised ramp, not a stuck sensor; read as written on both paths."""
+    n = 36_000  # 1 h at 10 Hz, a ramp of 1 C/min from -10 C
+    t = np.arange(n) * 0.1
+    true_c = -10.0 + t / 60.0
+    log = ChamberLog(time_s=t, temp_c=np.round(true_c / step_c) * step_c,
+                     table_rate_dps=np.full(n, 10.0), gyro_dps=np.full(n, 10.001),
+                     earth_rate_dps=np.full(n, 0.0023),
+                     extra={"temp_coil_c": np.floor(true_c / step_c) * step_c})
+    p = tmp_path / "q.csv"
+    write_log(p, log)
+    for back in (read_log(p), parse_log(p.read_text(), str(p))):
+        assert np.array_equal(back.temp_c, log.temp_c)
+        assert np.array_equal(back.extra["temp_coil_c"], log.extra["temp_coil_c"])
+        assert back.read_notes == () and back.measures.all()
+        held = np.diff(back.temp_c) == 0
+        assert held.mean() > 0.97  # nearly every step repeats the reading
+        assert set(np.unique(np.diff(back.temp_c))) <= {0.0, step_c}

@@ -57,7 +57,72 @@ def add_metric_options(parser: argparse.ArgumentParser, skip: bool = False) -> N
                                  "model still runs over them): for a log that starts while "
                                  "the temperature moves")
     parser.add_argument("--latitude-deg", type=float, default=None,
-                        help="latitude for the earth rate when a log has no earth_rate_dps")
+                        help=LATITUDE_HELP)
+    add_axis_cosine(parser)
+
+
+LATITUDE_HELP = ("latitude for the earth rate when a log has no earth_rate_dps; the earth rate "
+                 "from it assumes a vertical sensitive axis: give --axis-cosine for any other")
+
+
+def add_earth_options(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """--latitude-deg and --axis-cosine, for commands with their own --window-s."""
+    parser.add_argument("--latitude-deg", type=float, default=None, help=LATITUDE_HELP)
+    add_axis_cosine(parser)
+
+
+def add_axis_cosine(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """--axis-cosine: the earth rate from --latitude-deg on an axis that is not vertical
+    (`read_logs` gives each log its cosine)."""
+    parser.add_argument("--axis-cosine", type=axis_cosines, default=None,
+                        metavar="C|x=C,y=C,...",
+                        help="cosine between the sensitive axis and the local vertical (up), "
+                             "-1 .. 1 (default 1): the earth rate from --latitude-deg is "
+                             "EARTH_RATE * sin(latitude) * C; per axis for --axis all, e.g. "
+                             "x=0.577,y=0.577,z=0.577; an earth_rate_dps column (or the "
+                             "axis' earth_rate_A_dps) takes precedence")
+
+
+def _cosine(text: str, where: str) -> float:
+    try:
+        c = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number -1 .. 1{where}, got {text!r}"
+                                         ) from None
+    if not -1.0 <= c <= 1.0:
+        raise argparse.ArgumentTypeError(f"a cosine lies in -1 .. 1{where}, got {text!r}")
+    return c
+
+
+def axis_cosines(text: str) -> float | dict[str, float]:
+    """An argparse type: `C` (every axis) or `x=C,y=C,...` (per axis), each C in -1 .. 1."""
+    if "=" not in text:
+        return _cosine(text.strip(), "")
+    out: dict[str, float] = {}
+    for part in (p for p in text.split(",") if p.strip()):
+        axis, eq, value = (x.strip() for x in part.partition("="))
+        if not eq or not axis or axis in out:
+            raise argparse.ArgumentTypeError(
+                f"expected C or AXIS=C pairs like x=0.577,y=0.577, got {part!r}")
+        out[axis] = _cosine(value, f" for axis {axis}")
+    return out
+
+
+def cosine_for(cosines: float | dict[str, float] | None, axis: str | None) -> float:
+    """The axis' cosine to the vertical from --axis-cosine (1.0 when not given)."""
+    from fogsf.trainer.errors import UserError
+
+    if cosines is None:
+        return 1.0
+    if isinstance(cosines, float):
+        return cosines
+    if axis is None:
+        raise UserError("--axis-cosine AXIS=C,...: per-axis cosines need --axis (or a "
+                        "single value for the one axis)")
+    if axis not in cosines:
+        raise UserError(f"--axis-cosine gives no cosine for axis {axis} (it has "
+                        f"{', '.join(cosines)})")
+    return cosines[axis]
 
 
 def add_log_options(parser: argparse.ArgumentParser) -> None:
@@ -70,15 +135,18 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--decimal-comma", action="store_true",
                    help="numbers are written 20,5 (cells then separated by ; or tab)")
     g.add_argument("--columns", metavar="OURS=THEIRS,...|MAP.json", default=None,
-                   help="map the log's column names to the format's, e.g. "
-                        "time_s=t,temp_c=temperature,table_rate_dps=table,gyro_dps=omega, or "
-                        'a JSON/TOML file {"time_s": "t", ...}; default: fogsf-columns.json '
-                        "(or .toml) beside each log, when there is one")
+                   help="map the log's columns to the format's names, e.g. "
+                        "time_s=t,temp_c=temperature,table_rate_dps=table,gyro_dps=omega; "
+                        "each name takes a column, a number or an expression over the "
+                        "log's columns (time_s=sec + nanosec * 1e-9, valid=rig_ok == 1); "
+                        'or a JSON/TOML file {"time_s": "t", ...}; default: '
+                        "fogsf-columns.json (or .toml) beside each log, when there is one")
     g.add_argument("--gyro-column", metavar="NAME", default=None,
                    help="the column read as gyro_dps (one axis of a multi-axis log, e.g. "
                         "gyro_x_dps)")
     g.add_argument("--axis", metavar="X", default=None,
-                   help="shorthand for --gyro-column gyro_X_dps")
+                   help="shorthand for --gyro-column gyro_X_dps; `--axis all` on train, inspect, "
+                        "replay and export: every axis of the log in one run (docs/train.md)")
     g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                    help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
                         "of time_s); every step must lie within 20 %% of 1/HZ")
@@ -93,6 +161,9 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.
     axis = getattr(args, "axis", None)
     if axis is not None and gyro is not None:
         raise UserError("give --axis or --gyro-column, not both")
+    if axis == "all":
+        raise UserError("--axis all runs train, inspect, replay and export once per axis; "
+                        "here give one axis, e.g. --axis x")
     cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
@@ -119,7 +190,13 @@ def read_logs(args: argparse.Namespace, paths: list[str]) -> list:
 
     dialect = dialect_from_args(args)
     logs = [read_log(p, dialect) for p in paths]
+    given = getattr(args, "axis_cosine", None)
+    cosine = cosine_for(given, dialect.axis)
     for lg in logs:
+        lg.axis_cosine = cosine
+        if given is not None and lg.earth_rate_dps is not None:
+            lg.read_notes = (*lg.read_notes, "--axis-cosine not used: the log has its earth "
+                             "rate (earth_rate_dps)")
         if lg.read_notes:
             print(f"fogsf: read {lg.path}: {'; '.join(lg.read_notes)}", file=sys.stderr)
     return logs

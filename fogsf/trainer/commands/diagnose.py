@@ -39,7 +39,7 @@ import json
 import sys
 from pathlib import Path
 
-from fogsf.trainer.commands import add_log_options, read_logs
+from fogsf.trainer.commands import add_earth_options, add_log_options, read_logs
 from fogsf.trainer.errors import UserError
 
 
@@ -56,8 +56,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "for the second and later logs)")
     parser.add_argument("--window-s", type=float, default=60.0,
                         help="SF window length, s (default 60)")
-    parser.add_argument("--latitude-deg", type=float,
-                        help="latitude for the earth rate when a log has no earth_rate_dps")
+    add_earth_options(parser)
     parser.add_argument("--cv", choices=["blocks", "runs"], default="blocks",
                         help="held-out scoring: contiguous blocks of windows (default) or "
                              "leave one log out")

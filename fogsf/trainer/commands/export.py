@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 
 from fogsf.trainer.commands import positive_float, rated
+from fogsf.trainer.commands.axes import run_all, wants_all
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -31,6 +32,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                         help="the firmware's sample rate (default: the training logs'); "
                              "the model step must be a whole number of samples at it")
+    parser.add_argument("--axis", choices=("all",), default=None,
+                        help="all: MODEL_DIR holds one model folder per axis (A/, as `fogsf "
+                             "train --axis all` writes): each is exported into OUT/A as "
+                             "NAME_A (--name imu: imu_x, imu_y, imu_z)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
     from fogsf.trainer.errors import UserError
     from fogsf.trainer.models.stream import StreamModel
 
+    if wants_all(args):
+        return run_all(args, run, "export")
     try:
         check_name(args.name)
     except ValueError as e:
@@ -50,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
         model = rated(model, 1.0 / check_rate_hz(args.sample_rate_hz),
                       f"{args.sample_rate_hz:g} Hz")
     paths = export_model(model, args.out, args.name)
+    args.axis_result = {"name": args.name, "model_id": model.model_id, "out": args.out,
+                        "sample_rate_hz": 1.0 / model.sample_dt_s,
+                        "decimation": model.decimation}
     print(f"model {model.model_id} ({model.model}): {model.summary}")
     for kind, path in paths.items():
         print(f"wrote {path} ({path.stat().st_size} bytes, {kind})")

@@ -22,6 +22,7 @@ import json
 import sys
 
 from fogsf.trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
+from fogsf.trainer.commands.axes import run_all, wants_all
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 from fogsf.trainer.logs.metrics import (
     DPS_TO_DPH,
@@ -117,6 +118,8 @@ def print_plateau_figures(s: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if wants_all(args):  # --plot NAME_A.png per axis, then one summary
+        return run_all(args, run, "inspect")
     log = read_logs(args, [args.log])[0]
     note = start_note(log, args.skip_s)
     if note:
@@ -148,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
              args.skip_s)
         if not args.json:
             print(f"  plot: {args.plot}")
+    args.axis_result = s  # the summary row of --axis all
     return 0
 
 

@@ -30,7 +30,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fogsf.trainer.commands import add_log_options, positive_int, read_logs
+from fogsf.trainer.commands import (
+    add_earth_options,
+    add_log_options,
+    positive_int,
+    read_logs,
+)
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.gsa.executors import add_executor_options
 
@@ -78,6 +83,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--top", type=positive_int, default=10,
                    help="programs printed (default 10)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
+    g = parser.add_argument_group("--from-logs: how each log is fitted (as `fogsf diagnose`)")
+    g.add_argument("--window-s", type=float, default=60.0,
+                   help="SF window length, s (default 60)")
+    add_earth_options(g)
     add_log_options(parser)
     add_executor_options(parser, "the candidate programs' fits")
 
@@ -104,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
     what = (f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})" if len(seeds) > 1
             else f"development gyro {seeds[0]}")
     if args.from_logs:
-        fitted = fitted_gyros(read_logs(args, [str(p) for p in args.from_logs]))
+        fitted = fitted_gyros(read_logs(args, [str(p) for p in args.from_logs]),
+                              args.window_s, args.latitude_deg)
         gyros = [(i + 1, g) for i, g in enumerate(fitted)]
         what = f"{len(gyros)} gyros fitted to " + ", ".join(p.name for p in args.from_logs)
     if len(gyros) % args.axes:
@@ -144,15 +154,17 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def fitted_gyros(logs: list[ChamberLog]) -> list:
+def fitted_gyros(logs: list[ChamberLog], window_s: float = 60.0,
+                 latitude_deg: float | None = None) -> list:
     """One simulator gyro per log: diagnose's base model fitted to it (thermal network,
-    SF terms, bias, noise), for the planner to simulate programs on."""
+    SF terms, bias, noise; SF in `window_s` windows, the earth rate from the log or
+    `latitude_deg`), for the planner to simulate programs on."""
     from fogsf.trainer.diagnose import extend, verdict
     from fogsf.trainer.sim.config import SimConfig
 
     out = []
     for log in logs:
-        d = verdict.diagnose([log], effects=[])
+        d = verdict.diagnose([log], window_s=window_s, latitude_deg=latitude_deg, effects=[])
         out.append(SimConfig.from_dict(extend.sim_config(d, d.base, 0)))
         print(f"fitted a gyro to {log.path}: nodes at "
               + ", ".join(f"{n.tau_s:.0f} s" for n in out[-1].thermal.nodes[2:]))

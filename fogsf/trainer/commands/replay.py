@@ -31,6 +31,7 @@ from fogsf.trainer.commands import (
     rated,
     read_logs,
 )
+from fogsf.trainer.commands.axes import run_all, wants_all
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -78,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
     from fogsf.trainer.logs.metrics import log_metrics, start_note
     from fogsf.trainer.models.stream import StreamModel
 
+    if wants_all(args):  # MODEL_DIR/A, --out NAME_A.csv (--json, --plot) per axis
+        return run_all(args, run, "replay")
     model = StreamModel.load(args.model)
     log = read_logs(args, [args.log])[0]
     note = start_note(log, args.skip_s)
@@ -113,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
         print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
+    args.axis_result = {"model_id": model.model_id, "out": args.out, "before": before,
+                        "after": after, "flags": counts}
     if args.json:
         Path(args.json).write_text(json.dumps({"model_id": model.model_id,
                                                "rated_from": model.extra.get("rated_from"),

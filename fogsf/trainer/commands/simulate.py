@@ -22,6 +22,8 @@ examples:
   fogsf simulate --program chamber.csv --table levels --rates-dps 10,100,-10,-100 --out p.csv
   fogsf simulate --scenario paper --plot sim_paper.png
   fogsf simulate --list-effects
+  fogsf simulate --rig ros --protocol staircase --random-gyro 17 --out rig/ros.csv
+  fogsf simulate --rig imu3 --protocol reversals --gyro-seeds 1,2,3 --out imu/imu.csv
 """
 
 from __future__ import annotations
@@ -45,6 +47,14 @@ def _floats(text: str) -> list[float]:
         return [float(x) for x in text.split(",") if x.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected numbers like 10,50, got {text!r}") from None
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected whole numbers like 1,2,3, got {text!r}"
+                                         ) from None
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -95,13 +105,38 @@ def configure(parser: argparse.ArgumentParser) -> None:
     n = parser.add_argument_group("site and noise")
     n.add_argument("--sample-rate-hz", type=float, metavar="HZ",
                    help="samples per second, 1 .. 4000 (default 10)")
-    n.add_argument("--latitude-deg", type=float, help="latitude for the earth rate")
+    n.add_argument("--latitude-deg", type=float,
+                   help="latitude for the earth rate; the simulated gyro's sensitive axis "
+                        "is vertical (earth_rate_dps = EARTH_RATE * sin(latitude))")
     n.add_argument("--arw", type=float, metavar="DEG_PER_SQRT_H",
                    help="angle random walk (default 0.05 deg/sqrt(h))")
     n.add_argument("--pulse-arcsec", type=float, help="output pulse weight (0: no quantization)")
     n.add_argument("--temp-noise-c", type=float, help="thermometer noise, 1 sigma, C")
     n.add_argument("--no-noise", action="store_true",
                    help="no gyro noise, no quantization, ideal thermometers")
+
+    r = parser.add_argument_group(
+        "calibration rig (docs/simulate.md, 'Rig protocols'): a protocol written the way a "
+        "rig writes its log, with the column map (fogsf-columns.toml) beside it")
+    r.add_argument("--rig", choices=["ros", "plain", "imu3"],
+                   help="ros: sec,nanosec,gyro_raw (rad/s),...,rig_rate (steps/s), flags; "
+                        "plain: epoch time_s, gyro in rad/s; imu3: three skew-mounted gyros")
+    r.add_argument("--protocol", choices=["reversals", "staircase"], default="reversals",
+                   help="reversals: +/- --rate-dps (100) every --dwell-s (60) over a 1 C/min "
+                        "ramp; staircase: 0, 4 ... --rate-dps (100) deg/s both ways, "
+                        "--dwell-s (16) a step, at 5 bang-bang set points")
+    r.add_argument("--gyro-seeds", type=_ints, metavar="A,B,C",
+                   help="the population's gyros for --rig imu3 (default: --random-gyro "
+                        "and the next two)")
+    r.add_argument("--accel-dps2", type=float, help="table acceleration (default 300)")
+    r.add_argument("--stalls-per-h", type=float, help="table stalls an hour (default 0)")
+    r.add_argument("--stamp-jitter-s", type=float,
+                   help="time stamps off the sample times by up to this, s (default 0; at "
+                        "most 5 %% of a sample)")
+    r.add_argument("--temp-lsb-c", type=float,
+                   help="thermometer step, C (1, 0.25, default 0.0625)")
+    r.add_argument("--truth", metavar="TRUTH.CSV",
+                   help="also write the truth per sample (one file per axis for imu3)")
 
     o = parser.add_argument_group("output")
     o.add_argument("--out", metavar="LOG.CSV", help="write the chamber log here")
@@ -211,6 +246,8 @@ def run(args: argparse.Namespace) -> int:
 
         print(describe())
         return 0
+    if args.rig:
+        return run_rig(args)
     if not (args.out or args.summary or args.plot or args.write_config):
         raise UserError("nothing to do: give --out LOG.CSV, --summary, --plot FILE.png or "
                         "--write-config SIM.JSON")
@@ -238,4 +275,74 @@ def run(args: argparse.Namespace) -> int:
 
         plot_runs(runs_for_plot(cfg, result), args.plot, args.window_s)
         print(f"figure -> {args.plot}", file=sys.stderr)
+    return 0
+
+
+# options of the chamber-program and table groups that a rig protocol replaces
+RIG_REFUSES = ("scenario", "config", "ramp_rate", "profile", "start_c", "stop_c",
+               "soak_before_min", "soak_after_min", "soak_min", "duration_min", "cycles",
+               "levels_c", "program", "start", "table", "rates_dps", "pulse_arcsec",
+               "temp_noise_c", "plot", "write_config", "summary")
+
+
+def _rig_protocol(args: argparse.Namespace) -> Any:
+    from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim.effects import parse_effect
+
+    kw: dict[str, Any] = {"effects": [parse_effect(text) for text in args.effect]}
+    if args.sample_rate_hz is not None:
+        kw["rate_hz"] = check_rate_hz(args.sample_rate_hz)
+    for opt, key in (("accel_dps2", "accel_dps2"), ("stalls_per_h", "stalls_per_h"),
+                     ("temp_lsb_c", "temp_lsb_c"), ("latitude_deg", "latitude_deg"),
+                     ("stamp_jitter_s", "stamp_jitter_s"),
+                     ("arw", "arw_deg_per_sqrt_h")):
+        v = getattr(args, opt)
+        if v is not None:
+            if v < 0 or (opt == "latitude_deg" and abs(v) > 90):
+                raise UserError(f"--{opt.replace('_', '-')} {v:g}: out of range")
+            kw[key] = v
+    for opt in ("rate_dps", "dwell_s"):
+        v = getattr(args, opt)
+        if v is not None and v <= 0:
+            raise UserError(f"--{opt.replace('_', '-')} must be > 0, got {v:g}")
+    if args.protocol == "reversals":
+        return rigs.reversal_protocol(args.rate_dps or 100.0, args.dwell_s or 60.0, **kw)
+    step = 4.0
+    top = args.rate_dps or 100.0
+    if top < step:
+        raise UserError(f"--rate-dps {top:g}: the staircase goes up in {step:g} deg/s steps")
+    return rigs.staircase_protocol(step, top, args.dwell_s or 16.0, **kw)
+
+
+def run_rig(args: argparse.Namespace) -> int:
+    """--rig: a calibration rig's protocol written in its convention (sim/rigs.py)."""
+    from pathlib import Path
+
+    from fogsf.trainer.sim import rigs
+
+    given = [f"--{o.replace('_', '-')}" for o in RIG_REFUSES if getattr(args, o, None)]
+    if given:
+        raise UserError(f"--rig runs its own protocol: {', '.join(given)} does not apply "
+                        "(see --protocol)")
+    if not args.out:
+        raise UserError("--rig needs --out LOG.CSV (the column map is written beside it)")
+    base = args.random_gyro if args.random_gyro is not None else 0
+    seeds = args.gyro_seeds or ([base, base + 1, base + 2] if args.rig == "imu3" else [base])
+    if any(s < 0 for s in seeds):
+        raise UserError(f"gyro seeds must be >= 0, got {seeds}")
+    want = 3 if args.rig == "imu3" else 1
+    if len(seeds) != want:
+        raise UserError(f"--rig {args.rig} takes {want} gyro seed(s), got {len(seeds)}")
+    seed = args.seed if args.seed is not None else seeds[0]
+    log = rigs.rig_log(args.rig, args.out, _rig_protocol(args), seeds, seed)
+    rows = len(next(iter(log.truth.values())).time_s)
+    print(f"{rows} samples -> {log.path}"
+          + (f", column map -> {log.mapping_path}" if log.mapping_path else ""),
+          file=sys.stderr)
+    if args.truth:
+        for axis, truth in log.truth.items():
+            p = Path(args.truth)
+            out = p.with_name(f"{p.stem}_{axis}{p.suffix}") if axis else p
+            rigs.write_truth(out, truth)
+            print(f"truth -> {out}", file=sys.stderr)
     return 0

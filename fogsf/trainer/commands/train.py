@@ -36,6 +36,7 @@ from fogsf.trainer.commands import (
     positive_int,
     read_logs,
 )
+from fogsf.trainer.commands.axes import run_all, wants_all
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, bank_spec
 from fogsf.trainer.training.transfer import RateTransfer, spans_ramp_rates
@@ -119,6 +120,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from fogsf.trainer.training.train import TrainOptions, run_training
 
+    if wants_all(args):  # OUT/A per axis, then one summary
+        return run_all(args, run, "train")
     train_logs = read_logs(args, args.train)
     test_log = read_logs(args, [args.test])[0] if args.test else None
     opts = TrainOptions(
@@ -141,6 +144,7 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
     m, _ = run_training(opts, train_logs, test_log, out)
+    args.axis_result = m
     print(format_metrics(m))
     print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
                                          f"{out} --out build/...)" if m["exportable"] else ""))

@@ -23,6 +23,9 @@ DT_TOLERANCE = 0.2
 GAP_STEPS = 1.5  # a step this many nominal steps long or longer is a gap (a missed sample)
 RATE_SLACK = 0.01  # a median step up to 1 % beyond RATE_RANGE_HZ is a clock a little off
 TEMP_RANGE_C = (-60.0, 100.0)
+# time_s this large is a clock's epoch (ROS, Unix: 1.7e9 s), not seconds since power-on:
+# messages show such times from the first sample
+EPOCH_S = 1e6
 
 
 class LogError(UserError):
@@ -57,6 +60,9 @@ class ChamberLog:
     # row. Rows that do not measure stay in the log (the model runs over them as firmware
     # would) but give no SF, no training target and no metric; see `measures`.
     valid: np.ndarray | None = None
+    # the cosine between the sensitive axis and the local vertical (up): the earth rate from
+    # a latitude is scaled by it (`--axis-cosine`); an earth_rate_dps column is used as given
+    axis_cosine: float = 1.0
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])
@@ -84,7 +90,8 @@ class ChamberLog:
         return m if self.valid is None else m & self.valid
 
     def earth(self, latitude_deg: float | None = None) -> np.ndarray:
-        """Earth rate on the sensitive axis: the log's column, else from a latitude.
+        """Earth rate on the sensitive axis: the log's column, else from a latitude, times
+        `axis_cosine` (1: a vertical axis).
 
         With neither, nothing is assumed: the refusal asks for --latitude-deg.
         """
@@ -93,7 +100,7 @@ class ChamberLog:
         if latitude_deg is None:
             raise LogError(self.path, None, "no earth rate",
                            "the log has no earth_rate_dps column; pass --latitude-deg")
-        return np.full(len(self), earth_rate_vertical_dps(latitude_deg))
+        return np.full(len(self), earth_rate_vertical_dps(latitude_deg) * self.axis_cosine)
 
     def columns(self) -> dict[str, np.ndarray]:
         cols = {
@@ -123,6 +130,7 @@ class ChamberLog:
             path=self.path,
             read_notes=self.read_notes,
             nominal_dt_s=self.sample_dt_s,
+            axis_cosine=self.axis_cosine,
         )
 
 
@@ -133,8 +141,27 @@ def nominal_step_s(time_s: np.ndarray) -> float:
     t = np.asarray(time_s, dtype=np.float64)
     if t.shape[0] < 2:
         return NOMINAL_DT_S
-    step = float(np.median(np.diff(t)))
+    dt = np.diff(t)
+    step = float(np.median(dt))
+    if step > 0 and np.spacing(np.abs(t).max()) > 1e-7 * step:
+        # an epoch time base: each stamp is rounded to float64's spacing (0.24 us at 1.7e9
+        # s), which the median step keeps; the mean of the steps near it averages that out
+        step = float(dt[np.abs(dt - step) <= DT_TOLERANCE * step].mean())
     return 1.0 / float(f"{1.0 / step:.6g}") if step > 0 else step
+
+
+def time_text(time_s: np.ndarray, i: int) -> str:
+    """time_s[i] as a message shows it: as it is, or `t0+12.3` for an epoch time base."""
+    if abs(float(time_s[0])) < EPOCH_S:
+        return f"{time_s[i]:g}"
+    return f"t0+{time_s[i] - time_s[0]:.6g}"
+
+
+def epoch_text(time_s: np.ndarray) -> str:
+    """What `t0` is in `time_text`, when it is used ('' otherwise)."""
+    if abs(float(time_s[0])) < EPOCH_S:
+        return ""
+    return f" (t0 = {time_s[0]:.6f} s, the first sample)"
 
 
 def check_rate_hz(rate_hz: float, option: str = "--sample-rate-hz") -> float:
@@ -155,7 +182,8 @@ EARTH_RATE_DPS = 360.0 / 86164.0905  # sidereal day
 
 
 def earth_rate_vertical_dps(latitude_deg: float) -> float:
-    """Earth rate projected on a vertical (up) sensitive axis at a latitude, in deg/s."""
+    """Earth rate projected on a vertical (up) sensitive axis at a latitude, in deg/s (an
+    axis at an angle to the vertical sees it times the cosine of that angle)."""
     return EARTH_RATE_DPS * math.sin(math.radians(latitude_deg))
 
 

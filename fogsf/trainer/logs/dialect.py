@@ -6,14 +6,24 @@ column is missing."""
 from __future__ import annotations
 
 import json
+import math
 import re
 import shlex
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import OPTIONAL, REQUIRED, LogError, is_temperature
+from fogsf.trainer.logs.column_map import (
+    ColumnPlan,
+    map_reads,
+    missing_required,
+    moved_notes,
+    pick_axis,
+    plan_map,
+)
+from fogsf.trainer.logs.expressions import ExpressionError, parse_expression, split_top_level
 
 DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
 DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
@@ -29,12 +39,15 @@ class Dialect:
     """How a log file writes the format: delimiter, column names, which gyro column."""
 
     delimiter: str | None = None  # None: sniffed from the header among , ; and tab
-    columns: tuple[tuple[str, str], ...] = ()  # (our name, the log's name)
+    # (our name, the log's column / a number / an expression over the log's columns)
+    columns: tuple[tuple[str, str], ...] = ()
     gyro_column: str | None = None  # the log's column read as gyro_dps
     decimal_comma: bool = False  # cells written 20,5 (then separated by ; or tab)
     columns_from: str = "--columns"  # where `columns` came from, for messages
     sample_rate_hz: float | None = None  # stated (--sample-rate-hz); None: from time_s
-    axis: str | None = None  # --axis A: gyro_A_dps read as gyro_dps
+    # --axis A: gyro_A_dps read as gyro_dps, table_rate_A_dps and earth_rate_A_dps (when
+    # the log or the map has them) as table_rate_dps and earth_rate_dps
+    axis: str | None = None
 
     @property
     def gyro_name(self) -> str | None:
@@ -43,25 +56,28 @@ class Dialect:
 
     @staticmethod
     def mapping_file(path: str | Path) -> tuple[tuple[str, str], ...]:
-        """A JSON object or TOML table {"time_s": "t", ...} (our name: the log's name)."""
+        """A JSON object or TOML table {"time_s": "t", ...}: our name to the log's column, a
+        number, or an expression over the log's columns."""
         p = Path(path)
         try:
             text = p.read_text(encoding="utf-8-sig")
             m = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
         except (OSError, ValueError) as e:  # TOMLDecodeError is a ValueError
             raise UserError(f"{p}: cannot read the column mapping ({e})") from None
-        if not isinstance(m, dict) or not m or not all(isinstance(v, str) for v in m.values()):
-            raise UserError(f"{p}: expected a mapping of our names to the log's, e.g. "
-                            '{"time_s": "t", "temp_c": "temperature"} (TOML: time_s = "t")')
-        return Dialect._checked(list(m.items()), str(p))
+        if not isinstance(m, dict) or not m or not all(_is_value(v) for v in m.values()):
+            raise UserError(f"{p}: expected a mapping of our names to the log's columns, "
+                            'numbers or expressions, e.g. {"time_s": "t", "earth_rate_dps": '
+                            '0.00234} (TOML: time_s = "t")')
+        return Dialect._checked([(k, _text(v)) for k, v in m.items()], str(p))
 
     @staticmethod
     def parse_columns(text: str) -> tuple[tuple[str, str], ...]:
-        """`time_s=t,temp_c=temperature` or a JSON/TOML file {"time_s": "t", ...}."""
+        """`time_s=t,temp_c=temperature` or a JSON/TOML file {"time_s": "t", ...}. Pairs are
+        split at the commas outside parentheses and backquotes; each at its first '='."""
         if text.lower().endswith((".json", ".toml")) and "=" not in text:
             return Dialect.mapping_file(text)
         pairs = []
-        for part in (p for p in text.split(",") if p.strip()):
+        for part in (p for p in split_top_level(text) if p.strip()):
             ours, eq, theirs = part.partition("=")
             if not eq or not ours.strip() or not theirs.strip():
                 raise UserError(f"--columns: expected OURS=THEIRS pairs like "
@@ -71,20 +87,52 @@ class Dialect:
 
     @staticmethod
     def _checked(pairs: list[tuple[str, str]], source: str) -> tuple[tuple[str, str], ...]:
-        known = (*REQUIRED, *OPTIONAL)
         ours_seen: set[str] = set()
-        for ours, _ in pairs:
-            if ours not in known and not is_temperature(ours):
+        for ours, theirs in pairs:
+            if not is_our_name(ours):
                 raise UserError(f"{source}: {ours!r} is not a column of the format "
-                                f"({', '.join(known)}, temp_<name>_c)")
+                                f"({', '.join(OUR_NAMES)})")
             if ours in ours_seen:
                 raise UserError(f"{source}: {ours} is mapped twice")
+            if not theirs.strip():
+                raise UserError(f"{source}: {ours} is mapped to nothing")
             ours_seen.add(ours)
-        theirs = [t for _, t in pairs]
-        twice = sorted({t for t in theirs if theirs.count(t) > 1})
+        plain = [t for _, t in pairs if _plain_name(t)]
+        twice = sorted({t for t in plain if plain.count(t) > 1})
         if twice:
             raise UserError(f"{source}: the log's column {twice[0]!r} is mapped to two names")
         return tuple(pairs)
+
+
+OUR_NAMES = (*REQUIRED, *OPTIONAL, "temp_<name>_c", "gyro_<a>_dps", "table_rate_<a>_dps",
+             "earth_rate_<a>_dps")
+# a per-axis name of the map: the axis is letters and digits (x, y, z, 1, ...)
+PER_AXIS = re.compile(r"(gyro|table_rate|earth_rate)_[A-Za-z0-9]+_dps")
+
+
+def is_our_name(name: str) -> bool:
+    """A name the column map may give: the format's, a thermometer's, a per-axis one."""
+    return (name in REQUIRED or name in OPTIONAL or is_temperature(name)
+            or PER_AXIS.fullmatch(name) is not None)
+
+
+def _is_value(v: object) -> bool:
+    """A map value a file may hold: text, or a finite number (not true/false)."""
+    if isinstance(v, bool):
+        return False
+    return isinstance(v, str) or isinstance(v, int | float) and math.isfinite(v)
+
+
+def _text(v: str | float) -> str:
+    return v if isinstance(v, str) else repr(v)
+
+
+def _plain_name(text: str) -> bool:
+    """A map value that is a column name, not an expression or a number."""
+    try:
+        return parse_expression(text, condition=True).is_name
+    except ExpressionError:
+        return True
 
 
 def mapping_beside(log_path: str | Path) -> Path | None:
@@ -135,24 +183,6 @@ def unquote_lines(lines: list[str], delim: str, path: str) -> list[str]:
     return out
 
 
-def _rename(header: list[str], dialect: Dialect, path: str) -> list[str]:
-    """The header in our names: --columns mapped, --gyro-column read as gyro_dps."""
-    out = list(header)
-    pairs = list(dialect.columns)
-    gyro = dialect.gyro_name
-    if gyro is not None:
-        pairs.append(("gyro_dps", gyro))
-    for ours, theirs in pairs:
-        opt = ("--gyro-column" if dialect.gyro_column else "--axis") \
-            if (ours, theirs) == ("gyro_dps", gyro) else dialect.columns_from
-        if theirs not in header:
-            raise LogError(path, 1, "no such column",
-                           f"{opt} names {theirs!r} for {ours}; header has: "
-                           f"{', '.join(header)}")
-        out[header.index(theirs)] = ours
-    return out
-
-
 # A column that looks like a gyro's rate: gx, gx[dps], gyro_x, wx, omega_z, ...; not a
 # thermometer (gyro_temp, gyro_temp_c, gx_degc)
 GYRO_LIKE = re.compile(r"(?i)gyro|^(gyr|g|w|omega)[_ -]?[xyz](?![a-z0-9])")
@@ -198,33 +228,50 @@ def find_delimiter(first: str, path: str, dialect: Dialect, notes: list[str]) ->
     return delim
 
 
-def read_header(first: str, delim: str, path: str, dialect: Dialect, notes: list[str]
-            ) -> list[str]:
-    """The header row in our names, checked: no empty or repeated name, every required one."""
+def raw_header(first: str, delim: str, path: str) -> list[str]:
+    """The header row's names as the log writes them; an empty or repeated one is refused."""
     raw = [h.strip() for h in first.split(delim)]
+    seen: set[str] = set()
     for h in raw:
         if not h:
             raise LogError(path, 1, "bad header", "an empty column name")
-    if (dialect.columns and dialect.columns_from != "--columns"
+        if h in seen:
+            raise LogError(path, 1, "bad header", f"column {h!r} appears twice")
+        seen.add(h)
+    return raw
+
+
+def map_plan(raw: list[str], dialect: Dialect, path: str, notes: list[str]) -> ColumnPlan:
+    """The column map applied to a header, before --gyro-column / --axis. A mapping file
+    beside the logs is not applied to a log already in the format's names that holds none
+    of the columns the map reads."""
+    columns = dialect.columns
+    if (columns and dialect.columns_from != "--columns"
             and all(r in raw for r in REQUIRED)
-            and not any(theirs in raw for _, theirs in dialect.columns)):
-        # a mapping file beside the logs, and this log is already in the format's names
+            and (reads := map_reads(raw, columns)) and not reads & set(raw)):
         notes.append(f"{dialect.columns_from} not applied: the header has the format's names")
-        dialect = replace(dialect, columns=())
-    header = _rename(raw, dialect, path)
-    moved = [f"{h} -> {n}" for h, n in zip(raw, header, strict=True) if h != n]
-    if moved:
-        src = dialect.columns_from if dialect.columns else "--gyro-column"
-        notes.append(f"columns {', '.join(moved)} ({src})")
+        columns = ()
+    return plan_map(raw, columns, dialect.columns_from, path)
+
+
+def read_header(first: str, delim: str, path: str, dialect: Dialect, notes: list[str]
+            ) -> ColumnPlan:
+    """The header row read through the column map and --gyro-column / --axis, checked: no
+    empty or repeated name, every required one."""
+    raw = raw_header(first, delim, path)
+    mapped = map_plan(raw, dialect, path, notes)
+    notes.extend(moved_notes(mapped))
+    option = "--gyro-column" if dialect.gyro_column else "--axis"
+    plan = pick_axis(mapped, dialect.gyro_name, dialect.axis, option, path, notes)
     seen: set[str] = set()
-    for h in header:
+    for h in plan.names:
         if h in seen:
             raise LogError(path, 1, "bad header", f"column {h!r} appears twice"
-                           + (" (after --columns / --gyro-column)" if header != raw else ""))
+                           " (after --columns / --gyro-column)")
         seen.add(h)
-    missing = [c for c in REQUIRED if c not in seen]
+    missing = missing_required(plan)
     if missing:
         raise LogError(path, 1, "missing required column",
                        f"{', '.join(missing)} (header has: {', '.join(raw)})"
-                       + _missing_hint(missing, raw))
-    return header
+                       + _missing_hint(missing, mapped.names))
+    return plan

@@ -6,9 +6,12 @@ median step of time_s, or `--sample-rate-hz` when given; every step must lie wit
 DT_TOLERANCE (20 %) of it. Reading never fixes or drops anything: a bad file is refused
 with one `LogError` that names the file, the line, the rule and, where one exists, the
 option that fixes it. How the file writes the format (delimiter, column names, quotes,
-decimal commas) is its `Dialect` (logs/dialect.py); the log in memory is a `ChamberLog`
-(logs/chamber_log.py). The fast path parses a plain file with numpy straight from disk;
-anything unusual takes the general path, which names the offending line.
+decimal commas) is its `Dialect` (logs/dialect.py); every column of the file is parsed as
+numbers, then ours are built from them by the column map (logs/column_map.py: renames,
+numbers, expressions of logs/expressions.py; --gyro-column / --axis); the log in memory is
+a `ChamberLog` (logs/chamber_log.py). The fast path parses a plain file with numpy straight
+from disk; anything unusual takes the general path, which names the offending line. Both
+apply the same column map.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import numpy as np
 
 from fogsf.trainer.logs.chamber_log import (
     DT_TOLERANCE,
+    EPOCH_S,
     GAP_STEPS,
     NOMINAL_DT_S,
     RATE_RANGE_HZ,
@@ -31,15 +35,21 @@ from fogsf.trainer.logs.chamber_log import (
     ChamberLog,
     LogError,
     check_rate_hz,
+    epoch_text,
     is_temperature,
     nominal_step_s,
     rate_text,
+    time_text,
 )
+from fogsf.trainer.logs.column_map import ColumnPlan
 from fogsf.trainer.logs.dialect import (
     DECIMAL_COMMA,
     Dialect,
     find_delimiter,
+    log_axes,
+    map_plan,
     mapping_beside,
+    raw_header,
     read_header,
     unquote_lines,
 )
@@ -49,12 +59,7 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     """Read and validate a chamber log; raise LogError on the first broken rule. Without
     --columns in `dialect`, a mapping file beside the log (MAPPING_FILES) applies."""
     p = str(path)
-    dialect = dialect or Dialect()
-    if not dialect.columns:
-        beside = mapping_beside(path)
-        if beside is not None:
-            dialect = replace(dialect, columns=Dialect.mapping_file(beside),
-                              columns_from=str(beside))
+    dialect = with_mapping_beside(path, dialect or Dialect())
     fast = _read_plain(path, dialect)
     if fast is not None:
         return fast
@@ -68,6 +73,43 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     except OSError as e:
         raise LogError(p, None, "cannot read", e.strerror or str(e)) from None
     return parse_log(text, p, dialect)
+
+
+def with_mapping_beside(path: str | Path, dialect: Dialect) -> Dialect:
+    """`dialect`, with the mapping file beside the log (MAPPING_FILES) when it has no
+    --columns."""
+    if dialect.columns:
+        return dialect
+    beside = mapping_beside(path)
+    if beside is None:
+        return dialect
+    return replace(dialect, columns=Dialect.mapping_file(beside), columns_from=str(beside))
+
+
+def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
+    """The axes A of a log (what `--axis all` runs over): its gyro_A_dps columns and those
+    its column map gives (--columns, or the mapping file beside it), in header order, then
+    the map's; [] for a log of one gyro (gyro_dps). Reads the header line only (a bad
+    header or map is refused as read_log refuses it); --gyro-column and --axis are
+    ignored."""
+    p = str(path)
+    dialect = with_mapping_beside(path, dialect)
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            first = f.readline().rstrip("\r\n")
+    except FileNotFoundError:
+        raise LogError(p, None, "cannot read", "no such file") from None
+    except UnicodeDecodeError as e:
+        raise LogError(p, None, "cannot read", f"not UTF-8 text ({e.reason})") from None
+    except OSError as e:
+        raise LogError(p, None, "cannot read", e.strerror or str(e)) from None
+    if not first.strip():
+        raise LogError(p, 1, "empty file", "no header row")
+    notes: list[str] = []
+    delim = find_delimiter(first, p, dialect, notes)
+    if '"' in first:
+        first = unquote_lines([first], delim, p)[0]
+    return log_axes(map_plan(raw_header(first, delim, p), dialect, p, notes).names)
 
 
 def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
@@ -87,13 +129,13 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
     if '"' in text:
         lines = unquote_lines(lines, delim, path)
         notes.append('quoted cells read as CSV ("...")')
-    header = read_header(lines[0], delim, path, dialect, notes)
+    plan = read_header(lines[0], delim, path, dialect, notes)
     if len(lines) < 2:
         raise LogError(path, 1, "empty file", "a header but no data rows")
     if dialect.decimal_comma:
         lines = [lines[0], *(line.replace(",", ".") for line in lines[1:])]
-    data = _parse_numbers(lines, header, path, delim)
-    return _log_of(data, header, path, dialect, notes)
+    data = _parse_numbers(lines, list(plan.raw), path, delim)
+    return _log_of(data, plan, path, dialect, notes)
 
 
 def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
@@ -110,16 +152,16 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
                 return None
             notes: list[str] = []
             delim = find_delimiter(first, p, dialect, notes)
-            header = read_header(first, delim, p, dialect, notes)
+            plan = read_header(first, delim, p, dialect, notes)
             with warnings.catch_warnings():  # a header-only file is refused below, not warned
                 warnings.filterwarnings("ignore", "loadtxt: input contained no data")
                 data = np.loadtxt(f, delimiter=delim, dtype=np.float64, ndmin=2, comments=None)
     except (OSError, UnicodeDecodeError, ValueError):
         return None
-    if (data.shape[0] != _data_lines(path) or data.shape[1] != len(header)
+    if (data.shape[0] != _data_lines(path) or data.shape[1] != len(plan.raw)
             or not np.isfinite(data).all()):
         return None  # e.g. a blank line inside (numpy skips it; the general path refuses it)
-    return _log_of(data, header, p, dialect, notes)
+    return _log_of(data, plan, p, dialect, notes)
 
 
 def _data_lines(path: str | Path) -> int:
@@ -134,10 +176,11 @@ def _data_lines(path: str | Path) -> int:
     return n - 1 - blank_end.count(b"\n") + 1
 
 
-def _log_of(data: np.ndarray, header: list[str], path: str, dialect: Dialect,
+def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
             notes: list[str]) -> ChamberLog:
-    """The parsed cells as a validated ChamberLog."""
-    cols = {name: data[:, i] for i, name in enumerate(header)}
+    """The parsed cells (every column of the log) as a validated ChamberLog: our columns
+    built by the plan, then checked."""
+    cols = plan.apply(data, path)
     dt = _validate(cols, path, dialect.sample_rate_hz)
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
         notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
@@ -211,7 +254,8 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
         if nonincr.size:
             i = int(nonincr[0])
             raise LogError(path, i + 3, "time not increasing",
-                           f"time_s {t[i + 1]:g} after {t[i]:g}")
+                           f"time_s {time_text(t, i + 1)} after {time_text(t, i)}"
+                           f"{epoch_text(t)}")
         slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
         if rate_hz is None and not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
             raise LogError(path, None, "sample rate out of range",
@@ -225,9 +269,9 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
             given = ("--sample-rate-hz" if rate_hz is not None
                      else "the median step of time_s")
             raise LogError(path, i + 3, kind,
-                           f"step {dt[i]:.4g} s from time_s {t[i]:g}; allowed "
+                           f"step {dt[i]:.4g} s from time_s {time_text(t, i)}; allowed "
                            f"{nominal:.4g} s +/- {DT_TOLERANCE:.0%} ({rate_text(nominal)}, "
-                           f"{given})")
+                           f"{given}){epoch_text(t)}")
     measures = cols["table_rate_dps"] != 0.0
     if "valid" in cols:
         measures = measures & (cols["valid"] != 0.0)
@@ -256,8 +300,10 @@ def write_log(path: str | Path, log: ChamberLog) -> None:
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(",".join(names) + "\n")
-        # time_s with 12 digits: a 4 kHz step (0.25 ms) stays exact past 10^5 s
-        write_rows(f, data, ["%.12g" if n == "time_s" else "%d" if n == "valid" else "%.10g"
+        # time_s with 12 digits: a 4 kHz step (0.25 ms) stays exact past 10^5 s; an epoch
+        # time base (1.7e9 s) with 17, float64's every digit
+        t_fmt = "%.17g" if len(log) and np.abs(log.time_s).max() >= EPOCH_S else "%.12g"
+        write_rows(f, data, [t_fmt if n == "time_s" else "%d" if n == "valid" else "%.10g"
                              for n in names])
 
 

@@ -10,6 +10,8 @@ Stages, each a pure numpy function that works on whole arrays (so `diagnose` can
 - `gyro`: bias, angle random walk, output pulse quantization, thermometers; `simulate()`.
 - `config`: the dataclass configuration that round-trips through JSON.
 - `scenarios`: named configurations, e.g. the paper's protocol.
+- `rigs`: calibration rigs' protocols (reversals, staircases, slewing and stalling tables,
+  bang-bang set points, skew-mounted IMUs) written in their log conventions, with the truth.
 """
 
 from fogsf.trainer.sim.config import SimConfig

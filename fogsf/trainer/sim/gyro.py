@@ -60,12 +60,21 @@ class SimResult:
     ideal_dps: np.ndarray  # noiseless, unquantised gyro output
 
 
-def simulate(cfg: SimConfig) -> SimResult:
-    """Run the whole chain for one configuration."""
+def simulate(cfg: SimConfig, table_dps: np.ndarray | None = None,
+             earth_dps: np.ndarray | float | None = None) -> SimResult:
+    """Run the whole chain for one configuration.
+
+    table_dps: the rate the gyro's axis actually turns at, per sample (deg/s; any values,
+    zero included), instead of `cfg.table`'s schedule: a slewing or stalling table, or a
+    skew axis' share of it (sim/rigs.py). earth_dps: the earth rate on the axis (per sample
+    or one number) instead of the vertical axis' at `cfg.latitude_deg`. Without them the
+    output is exactly the configuration's.
+    """
     validate(cfg)
     dt = cfg.dt_s
     t, chamber = profiles.chamber_series(cfg.profile, dt)
-    table = profiles.table_series(cfg.table, t)
+    table = profiles.table_series(cfg.table, t) if table_dps is None \
+        else _per_sample(table_dps, t, "table_dps")
     nodes = thermal.network(chamber, cfg.thermal, dt)
     sf = sf_error_ppm(nodes, cfg.sf)
     bias = bias_dps(nodes, cfg.bias)
@@ -73,7 +82,8 @@ def simulate(cfg: SimConfig) -> SimResult:
     sf_fx, bias_fx = apply_effects(ctx, cfg.effects)
     sf = sf + sf_fx
     bias = bias + bias_fx
-    earth = np.full(t.shape, earth_rate_vertical_dps(cfg.latitude_deg))
+    earth = np.full(t.shape, earth_rate_vertical_dps(cfg.latitude_deg)) if earth_dps is None \
+        else _per_sample(earth_dps, t, "earth_dps")
     ideal = (table + earth) * (1.0 + sf * 1e-6) + bias
 
     gyro_ss, temp_ss = np.random.SeedSequence(cfg.seed).spawn(2)
@@ -94,3 +104,15 @@ def simulate(cfg: SimConfig) -> SimResult:
                      earth_rate_dps=earth, extra=extra, path="<simulated>",
                      nominal_dt_s=cfg.dt_s)
     return SimResult(cfg, log, nodes, sf, bias, ideal)
+
+
+def _per_sample(values: np.ndarray | float, t_s: np.ndarray, name: str) -> np.ndarray:
+    """A number or an array of one value per sample, as a float64 array of t_s's length."""
+    arr = np.array(values, dtype=np.float64)
+    if arr.ndim == 0:
+        return np.full(t_s.shape, float(arr))
+    if arr.shape != t_s.shape:
+        raise ValueError(f"{name}: {arr.shape} values for {t_s.shape[0]} samples")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: values must be finite")
+    return arr

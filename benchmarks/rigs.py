@@ -1,0 +1,142 @@
+"""Logs the way calibration rigs write them, end to end (`make bench-rigs`).
+
+For each rig case of `fogsf.trainer.sim.rigs.bench_cases` (a ROS-logged staircase with a
+slewing, stalling table; +/-100 deg/s reversals in a plain rad/s log with an epoch time base;
+a skew-mounted 3-axis IMU; quantised thermometers; ...) and each gyro drawn from the
+population, the case's training and held-out test logs are written with their column map
+beside them, `fogsf train --axis all` (or one axis) runs on the training log through that
+map as a user would run it, and the trained model (numpy reference, bit-exact with the
+kernel) predicts the test log's SF error. Scored against the generator's truth, per axis:
+
+  sf_std_ppm    std over the test log's measuring samples of (predicted - true SF error)
+  sf_target_ppm max(3 ppm, 2 % of the true SF error's std there): the issue's target
+  bias_err_dph  per +/- pair of the test log (`metrics.find_pairs`): measured bias minus the
+                true bias at the pair's centre; median |err| and the largest |err|
+
+Gyros: evaluation seeds 20000-29999 by default (`--seeds dev` for 0-9999, to tune on).
+
+    python -m benchmarks.rigs --n 2 --out out/bench-rigs.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+SEED_BASE = {"dev": 0, "eval": 20000}
+SF_FLOOR_PPM = 3.0
+SF_SHARE = 0.02
+BIAS_TARGET_DPH = 0.1
+
+
+def score_axis(model_dir: Path, test_path: Path, axis: str, truth, model: str) -> dict:  # noqa: ANN001 - rigs.Truth
+    """The trained model of one axis on its test log, against the truth."""
+    from fogsf.trainer.logs.dialect import Dialect
+    from fogsf.trainer.logs.logio import read_log
+    from fogsf.trainer.logs.metrics import find_pairs
+    from fogsf.trainer.models.reference import replay
+    from fogsf.trainer.models.stream import StreamModel
+
+    log = read_log(test_path, Dialect(axis=axis or None))
+    sm = StreamModel.load(model_dir).at_rate(log.sample_dt_s)
+    pred = replay(sm, log.temp_c, log.gyro_dps).sf_ppm.astype(np.float64)
+    m = truth.measures & log.measures
+    diff = pred[m] - truth.sf_ppm[m]
+    true_std = float(np.std(truth.sf_ppm[m]))
+    out = {"axis": axis or "-", "model": model,
+           "sf_std_ppm": float(np.std(diff)),
+           "true_sf_std_ppm": true_std,
+           "sf_target_ppm": max(SF_FLOOR_PPM, SF_SHARE * true_std)}
+    pairs = find_pairs(log)
+    if pairs is not None:
+        true_bias = np.interp(pairs.t_s, truth.time_s, truth.bias_dph)
+        err = pairs.bias_dps * 3600.0 - true_bias
+        out.update(pairs=len(pairs), bias_err_median_dph=float(np.median(np.abs(err))),
+                   bias_err_max_dph=float(np.max(np.abs(err))),
+                   bias_within_target=float(np.mean(np.abs(err) <= BIAS_TARGET_DPH)))
+    return out
+
+
+def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> list[dict]:
+    """Write the case's logs for one gyro (three for an IMU), train, score every axis."""
+    from fogsf.trainer.sim import rigs
+
+    case = rigs.bench_cases()[name]
+    seeds = (gyro, gyro + 1, gyro + 2) if case.kind == "imu3" else (gyro,)
+    folder = work / f"{name}-{gyro}"
+    train, test = rigs.write_case(folder, case, seeds, seed)
+    axes = [a for a in train.truth if a]
+    out_dir = folder / "model"
+    cmd = [sys.executable, "-m", "fogsf", "train", str(train.path), "--out", str(out_dir),
+           "--seed", str(seed)]
+    if axes:
+        cmd += ["--axis", "all"]
+    if model:
+        cmd += ["--model", model]
+    t0 = time.perf_counter()
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{name} gyro {gyro}: fogsf train failed: {r.stderr.strip()[-400:]}")
+    took = time.perf_counter() - t0
+    rows = []
+    for a in axes or [""]:
+        row = score_axis(out_dir / a if a else out_dir, test.path, a, test.truth[a],
+                         model or "default")
+        row.update(case=name, gyro=gyro, train_s=took)
+        rows.append(row)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    from fogsf.trainer.sim import rigs
+
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="example: python -m benchmarks.rigs --n 1 --cases "
+                                       "plain-reversals")
+    p.add_argument("--seeds", choices=tuple(SEED_BASE), default="eval")
+    p.add_argument("--first", type=int, default=0, help="first gyro after the range's base")
+    p.add_argument("--n", type=int, default=2, help="gyros per case (IMU cases: 3 each)")
+    p.add_argument("--cases", default=",".join(rigs.bench_cases()),
+                   help="comma-separated case names (default: all)")
+    p.add_argument("--model", default=None, help="fogsf train --model (default: its default)")
+    p.add_argument("--out", default="out/bench-rigs.json")
+    args = p.parse_args(argv)
+    names = [c for c in args.cases.split(",") if c]
+    unknown = set(names) - set(rigs.bench_cases())
+    if unknown:
+        p.error(f"unknown case {sorted(unknown)[0]}; cases: {', '.join(rigs.bench_cases())}")
+    rows: list[dict] = []
+    base = SEED_BASE[args.seeds] + args.first
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            for k in range(args.n):
+                gyro = base + 3 * k
+                for row in run_case(name, gyro, gyro, args.model, Path(tmp)):
+                    rows.append(row)
+                    bias = (f"bias |err| median {row['bias_err_median_dph']:.3f} max "
+                            f"{row['bias_err_max_dph']:.3f} deg/h ({row['pairs']} pairs)"
+                            if "pairs" in row else "no pairs")
+                    ok = "ok" if row["sf_std_ppm"] <= row["sf_target_ppm"] else "MISS"
+                    print(f"{name:18s} gyro {gyro} axis {row['axis']}: std(pred - true) "
+                          f"{row['sf_std_ppm']:6.2f} ppm (target {row['sf_target_ppm']:.2f}, "
+                          f"{ok}); {bias}; train {row['train_s']:.0f} s", flush=True)
+    met = sum(r["sf_std_ppm"] <= r["sf_target_ppm"] for r in rows)
+    print(f"SF target met on {met} of {len(rows)} axes ({args.seeds} gyros from {base})")
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"seeds": args.seeds, "first_gyro": base, "rows": rows},
+                              indent=1))
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
