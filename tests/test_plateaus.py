@@ -169,6 +169,20 @@ def test_staircase_at_bang_bang_set_points() -> None:
     assert np.max(np.abs(st.sf_pos_ppm - want)) < 4.0
 
 
+def test_a_log_that_starts_with_its_table_command_settles_its_first_plateau() -> None:
+    """A rig that starts logging with the table command spins up from rest (docs/simulate.md);
+    a table already turning when the log starts reads the same from the first sample."""
+    n, dt = 3000, 0.1
+    cmd = np.full(n, 10.0)
+    spin = np.minimum(np.arange(n) * dt * 15.0, 10.0)  # 15 deg/s^2: 0.67 s to 10 deg/s
+    for actual, first in ((spin, 20), (cmd, 0)):
+        gyro = actual * (1 + 100e-6) + EARTH_DPS
+        log = ChamberLog(np.arange(n) * dt, np.full(n, 20.0), cmd, gyro, np.full(n, EARTH_DPS))
+        w = sf_windows(log)
+        assert w.start[0] == first and list(w.stop) == [1000, 2000, 3000]
+        np.testing.assert_allclose(w.sf_ratio, 1 + 100e-6, atol=1e-9)
+
+
 def test_windows_on_model_steps_and_their_rms() -> None:
     res = reversal_run(7)
     log = res.log

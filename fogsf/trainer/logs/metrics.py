@@ -3,8 +3,10 @@
 Plateaus. The table column gives the commanded rate; a plateau is a run of rows at one
 commanded rate that measure (`ChamberLog.measures`). A table takes a moment to reach a newly
 commanded rate, so the first `settle_s` seconds of every plateau but the log's first are
-left out (SETTLE_S covers a table slewing about 1 s); with `skip_s`, the log's first seconds
-too. What is left counts from MIN_PLATEAU_S up.
+left out (SETTLE_S covers a table slewing about 1 s), and of the log's first plateau too
+when its gyro shows the table spinning up there (`_spins_up`: a log that starts with its
+table command); with `skip_s`, the log's first seconds too. What is left counts from
+MIN_PLATEAU_S up.
 
 Windows. A plateau at least `window_s` long is cut into whole non-overlapping windows from
 its commanded start (its tail shorter than a window is not a window), and the settle margin
@@ -113,8 +115,24 @@ def _plateau_starts(log: ChamberLog, settle_s: float, skip_s: float
     first = 0
     if skip_s > 0 and len(log):
         first = int(np.searchsorted(log.time_s, log.time_s[0] + skip_s - 1e-9))
-    return [(a, max(a + settle if a > 0 else a, first), b)
+    return [(a, max(a + settle if a > 0 or _spins_up(log, b, settle) else a, first), b)
             for a, b in plateaus(log.table_rate_dps, log.measures)]
+
+
+SPIN_UP_TOL = 1e-3  # the log's first seconds read the table this far (0.1 %) off: a spin-up
+
+
+def _spins_up(log: ChamberLog, stop: int, settle: int) -> bool:
+    """Whether the log's first plateau [0, stop) begins with the table still spinning up (a
+    log that starts with its table command): the gyro's mean over the first `settle`
+    samples differs from the next ten margins' by more than SPIN_UP_TOL of the rate. A table
+    already turning when the log starts reads the same there (noise and thermal SF change
+    are ppm), so such a log keeps its first samples, as it always did."""
+    if settle == 0 or stop < 2 * settle:
+        return settle > 0
+    head = float(log.gyro_dps[:settle].mean())
+    rest = float(log.gyro_dps[settle:min(stop, 11 * settle)].mean())
+    return abs(head - rest) > SPIN_UP_TOL * abs(float(log.table_rate_dps[0]))
 
 
 def settled_plateaus(log: ChamberLog, settle_s: float = SETTLE_S, skip_s: float = 0.0
