@@ -372,8 +372,9 @@ def _is_pair(p: _Plateau, q: _Plateau) -> bool:
 def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float]:
     """(SF ratio, bias) at time `tc` from a pair and its +/- neighbours: a least-squares fit
     of m = r (s0 + s1 tau) + b0 + b1 tau (tau = t - tc; with three plateaus no b1, with two
-    neither s1 nor b1). With both neighbours at +/-r this is the bias (m0 + 3 m1 + 3 m2 +
-    m3) / 8 (signs alternating), which cancels an SF that drifts linearly, even
+    neither s1 nor b1), each plateau weighted by its length (a stall shortens one). With
+    both neighbours at +/-r and equal lengths this is the bias (m0 + 3 m1 + 3 m2 + m3) / 8
+    (signs alternating), which cancels an SF that drifts linearly, even
     quadratically, in time (the SF moving between the two plateaus of a pair on a ramp
     would otherwise read as bias: 5 ppm at 100 deg/s is 0.9 deg/h) and a linear bias drift."""
     r = np.array([p.rate for p in group])
@@ -384,7 +385,8 @@ def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float]:
         cols.append(r * tau)
     if len(group) >= 4:
         cols.append(tau)
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), m, rcond=None)
+    w = np.sqrt([p.stop - p.start for p in group])  # a plateau's noise goes as 1/sqrt(n)
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols) * w[:, None], m * w, rcond=None)
     return float(coef[0]), float(coef[1])
 
 
