@@ -583,14 +583,18 @@ def step_windows(log: ChamberLog, decimation: int, window_s: float = 100.0,
 
 def windows_rms(err: np.ndarray, windows: np.ndarray, mask: np.ndarray | None = None) -> float:
     """RMS over `windows` ([k, 2] step ranges) of the mean of `err` over each window's
-    (masked, finite) steps; windows without such a step are left out; NaN without any."""
+    (masked, finite) steps. A window the mask cuts (e.g. at the edge of the validation part)
+    counts when it keeps at least half its steps (all that keep any, when none does); NaN
+    without any."""
     e = np.asarray(err, dtype=np.float64)
     ok = np.isfinite(e) if mask is None else np.isfinite(e) & mask
     c = np.concatenate([[0.0], np.cumsum(np.where(ok, e, 0.0))])
     n = np.concatenate([[0], np.cumsum(ok)])
     a, b = windows[:, 0], windows[:, 1]
     cnt = n[b] - n[a]
-    sel = cnt > 0
+    sel = 2 * cnt >= b - a
+    if not sel.any():
+        sel = cnt > 0
     if not sel.any():
         return float("nan")
     means = (c[b][sel] - c[a][sel]) / cnt[sel]
