@@ -74,8 +74,8 @@ def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> 
     train, test = rigs.write_case(folder, case, seeds, seed)
     axes = [a for a in train.truth if a]
     out_dir = folder / "model"
-    cmd = [sys.executable, "-m", "fogsf", "train", "--train", str(train.path), "--out", str(out_dir),
-           "--seed", str(seed)]
+    cmd = [sys.executable, "-m", "fogsf", "train", "--train", str(train.path),
+           "--out", str(out_dir), "--seed", str(seed)]
     if axes:
         cmd += ["--axis", "all"]
     if model:
