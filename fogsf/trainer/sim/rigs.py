@@ -713,7 +713,8 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
     plain-reversals: plain rad/s log, +/-100 deg/s 60 s over a -20 -> 50 -> -20 C loop at
     1 C/min up, 0.7 C/min down (20 min soaks); test the loop at 0.8 up, 0.9 down (rates
     inside the training range: the rig is scored, not the rate transfer of docs/train.md).
-    imu3-reversals: the same on a skew IMU; imu3-earth: with the horizontal earth rate turning with the table. ros-bias: the
+    imu3-reversals: the same on a skew IMU; imu3-earth: with the horizontal earth rate
+    turning with the table. ros-bias: the
     reversals in the ROS convention with stalls and a quiet gyro (QUIET_ARW: the population's
     0.03-0.08 deg/sqrt(h) alone puts 0.16-0.44 deg/h (1 sigma) on a 60 s + 60 s pair).
     thermometer-1c / -0.25c: the plain reversals with a thermometer of 1 C / 0.25 C steps.
