@@ -125,3 +125,17 @@ def test_short_log_refused() -> None:
     # 50 s, shorter than a 100 s window: one SF sample, with its noise from sub-windows
     w = sf_windows(ramp_log(500, np.zeros(500), noise_dps=1e-3))
     assert len(w) == 1 and w.stop[0] - w.start[0] == 500 and np.isfinite(w.noise_ppm[0])
+
+
+def test_reference_between_set_points() -> None:
+    """A log held at set points on both sides of 20 C (none within 5 C) gives the SF at
+    20 C by interpolation; set points further than 15 C away do not."""
+    n = 4000
+    temp = np.where(np.arange(n) < n // 2, 8.0, 31.0)
+    sf = 3.0 * (temp - 20.0)  # ppm, 0 at 20 C
+    log = ramp_log(n, sf, temp=temp)
+    w = sf_windows(log, 20.0)
+    assert abs(reference_sf(w) - 1.0) < 1e-9
+    far = ramp_log(n, sf, temp=np.where(np.arange(n) < n // 2, 2.0, 31.0))
+    with pytest.raises(UserError, match="both sides"):
+        reference_sf(sf_windows(far, 20.0))

@@ -59,6 +59,7 @@ SUB_WINDOWS = 10
 MIN_SUB_WINDOWS = 3  # a line and a spread need three
 T_REF_C = 20.0
 REF_BAND_C = 5.0  # windows within this of T_REF_C are fitted to find the SF at T_REF_C
+REF_BRACKET_C = 15.0  # set points this far each side of T_REF_C still give its SF
 SETTLE_S = 2.0  # left out after each change of commanded rate (covers a ~1 s table slew)
 MIN_PLATEAU_S = 5.0  # a settled plateau shorter than this measures nothing
 PAIR_RATE_TOL = 0.01  # |r1| and |r2| within 1 % (and 1e-6 deg/s) make a +/- pair
@@ -252,18 +253,36 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
 
 def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
     """The apparent SF ratio at `t_ref_c` board temperature: a quadratic in temperature
-    fitted to the windows within REF_BAND_C of it (a line where they are few)."""
+    fitted to the windows within REF_BAND_C of it (a line where they are few). A log held at
+    set points (none within the band) takes the nearest set points on both sides of
+    `t_ref_c`, up to REF_BRACKET_C away, and interpolates."""
     near = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C
+    deg = 2 if near.sum() >= 6 else 1
     if near.sum() < 2 or np.ptp(w.temp_c[near]) < 0.5:
+        near, deg = _bracket(w.temp_c, t_ref_c), 1  # a line between two set points
+    if near is None:
         raise UserError(
             f"the board temperature never spans {t_ref_c:g} +/- {REF_BAND_C:g} C (range "
-            f"{w.temp_c.min():.1f}..{w.temp_c.max():.1f} C): the SF at {t_ref_c:g} C, the "
-            "reference of the SF error, cannot be measured on this log: give it with --ref-sf "
-            "RATIO (ref_sf_ratio of `fogsf inspect --json` on a run of the same gyro that "
-            "spans 20 C), or use logs whose board temperature spans it")
-    deg = 2 if near.sum() >= 6 else 1
+            f"{w.temp_c.min():.1f}..{w.temp_c.max():.1f} C), nor lies on both sides of it "
+            f"within {REF_BRACKET_C:g} C: the SF at {t_ref_c:g} C, the reference of the SF "
+            "error, cannot be measured on this log: give it with --ref-sf RATIO "
+            "(ref_sf_ratio of `fogsf inspect --json` on a run of the same gyro that spans "
+            "20 C), or use logs whose board temperature spans it")
     coef = np.polyfit(w.temp_c[near] - t_ref_c, w.sf_ratio[near], deg)
     return float(coef[-1])
+
+
+def _bracket(temp_c: np.ndarray, t_ref_c: float) -> np.ndarray | None:
+    """The windows within REF_BAND_C of the nearest window below `t_ref_c` and of the nearest
+    above it (a set point each side), when both lie within REF_BRACKET_C; else None."""
+    below, above = temp_c[temp_c < t_ref_c], temp_c[temp_c > t_ref_c]
+    if not below.size or not above.size:
+        return None
+    lo, hi = float(below.max()), float(above.min())
+    if t_ref_c - lo > REF_BRACKET_C or hi - t_ref_c > REF_BRACKET_C:
+        return None
+    near = (np.abs(temp_c - lo) <= REF_BAND_C) | (np.abs(temp_c - hi) <= REF_BAND_C)
+    return near if near.sum() >= 2 else None
 
 
 def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
