@@ -188,3 +188,14 @@ def test_a_quantised_thermometer_reads_as_written(step_c: float, tmp_path: Path)
         held = np.diff(back.temp_c) == 0
         assert held.mean() > 0.97  # nearly every step repeats the reading
         assert set(np.unique(np.diff(back.temp_c))) <= {0.0, step_c}
+
+
+def test_replay_csv_keeps_an_epoch_time_base(tmp_path: Path) -> None:
+    """At 1 kHz on a 1.7e9 s epoch the replay CSV keeps every step (12 digits would not)."""
+    from fogsf.trainer.commands.replay import write_corrected
+
+    t = 1.7e9 + np.arange(5) * 1e-3
+    z = np.zeros(5)
+    write_corrected(tmp_path / "c.csv", t, z, z, z.astype(np.float32))
+    back = np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=1)[:, 0]
+    np.testing.assert_array_equal(back, t)

@@ -59,12 +59,12 @@ def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
     """The replay CSV; doubles with 17 significant digits, sf_ppm (float32) with 9."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    from fogsf.trainer.logs.logio import write_rows
+    from fogsf.trainer.logs.logio import time_format, write_rows
 
     rows = np.column_stack([time_s, gyro, corrected, sf_ppm.astype(np.float64)])
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write("time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm\n")
-        write_rows(f, rows, ["%.12g", "%.17g", "%.17g", "%.9g"])
+        write_rows(f, rows, [time_format(time_s), "%.17g", "%.17g", "%.9g"])
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:

@@ -300,11 +300,15 @@ def write_log(path: str | Path, log: ChamberLog) -> None:
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", encoding="utf-8", newline="\n") as f:
         f.write(",".join(names) + "\n")
-        # time_s with 12 digits: a 4 kHz step (0.25 ms) stays exact past 10^5 s; an epoch
-        # time base (1.7e9 s) with 17, float64's every digit
-        t_fmt = "%.17g" if len(log) and np.abs(log.time_s).max() >= EPOCH_S else "%.12g"
+        t_fmt = time_format(log.time_s)
         write_rows(f, data, [t_fmt if n == "time_s" else "%d" if n == "valid" else "%.10g"
                              for n in names])
+
+
+def time_format(time_s: np.ndarray) -> str:
+    """The printf format of a time column: 12 digits keep a 4 kHz step (0.25 ms) exact past
+    10^5 s; an epoch time base (1.7e9 s) takes 17, float64's every digit."""
+    return "%.17g" if time_s.size and np.abs(time_s).max() >= EPOCH_S else "%.12g"
 
 
 def write_rows(f: io.TextIOBase, data: np.ndarray, fmts: list[str], chunk: int = 50_000
