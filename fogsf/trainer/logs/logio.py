@@ -9,20 +9,21 @@ option that fixes it. How the file writes the format (delimiter, column names, q
 decimal commas) is its `Dialect` (logs/dialect.py); every column of the file is parsed as
 numbers, then ours are built from them by the column map (logs/column_map.py: renames,
 numbers, expressions of logs/expressions.py; --gyro-column / --axis); the log in memory is
-a `ChamberLog` (logs/chamber_log.py). The fast path parses a plain file with numpy straight
-from disk; anything unusual takes the general path, which names the offending line. Both
+a `ChamberLog` (logs/chamber_log.py). The fast path parses a file with pyarrow's CSV reader
+straight from disk (logs/arrow_csv.py: any delimiter, quoted cells, decimal commas); a file
+it cannot read as numbers takes the general path, which names the offending line. Both
 apply the same column map.
 """
 
 from __future__ import annotations
 
 import io
-import warnings
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from fogsf.trainer.logs.arrow_csv import NotFast, read_numbers
 from fogsf.trainer.logs.chamber_log import (
     DT_TOLERANCE,
     EPOCH_S,
@@ -139,28 +140,43 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
 
 
 def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
-    """The fast path for large logs: the header line, then numpy's parser straight from the
-    file (no copy of the text). None when the file needs the general path (a byte-order
-    mark, quotes, decimal commas, a cell that does not parse: that path names the line)."""
-    if dialect.decimal_comma:
-        return None
+    """The fast path for large logs: the header line, then pyarrow's CSV reader straight from
+    the file, block by block (logs/arrow_csv.py). None when the file needs the general path,
+    which names the line: a cell that is not a finite number, a row of another length, a
+    blank line inside (blank lines at the end are dropped, as every reader does), quotes in
+    the data rows of a file whose header has none, a quoted file whose header is refused
+    (the general path checks the quoting of every line first)."""
     p = str(path)
     try:
         with open(path, encoding="utf-8") as f:
             first = f.readline()
-            if not first.strip() or first.startswith("\ufeff") or '"' in first:
-                return None
-            notes: list[str] = []
-            delim = find_delimiter(first, p, dialect, notes)
-            plan = read_header(first, delim, p, dialect, notes)
-            with warnings.catch_warnings():  # a header-only file is refused below, not warned
-                warnings.filterwarnings("ignore", "loadtxt: input contained no data")
-                data = np.loadtxt(f, delimiter=delim, dtype=np.float64, ndmin=2, comments=None)
-    except (OSError, UnicodeDecodeError, ValueError):
+    except (OSError, UnicodeDecodeError):
         return None
-    if (data.shape[0] != _data_lines(path) or data.shape[1] != len(plan.raw)
-            or not np.isfinite(data).all()):
-        return None  # e.g. a blank line inside (numpy skips it; the general path refuses it)
+    notes: list[str] = []
+    if first.startswith("\ufeff"):  # a UTF-8 byte-order mark: encoding, not data
+        first = first[1:]
+        notes.append("UTF-8 byte-order mark skipped")
+    first = first.rstrip("\r\n")
+    if not first.strip():
+        return None
+    delim = find_delimiter(first, p, dialect, notes)
+    quoted = '"' in first
+    if quoted:
+        try:
+            first = unquote_lines([first], delim, p)[0]
+            notes.append('quoted cells read as CSV ("...")')
+            plan = read_header(first, delim, p, dialect, notes)
+        except LogError:
+            return None
+    else:
+        plan = read_header(first, delim, p, dialect, notes)
+    rows = _data_lines(path)
+    if rows < 1:
+        return None
+    try:
+        data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma)
+    except NotFast:
+        return None
     return _log_of(data, plan, p, dialect, notes)
 
 
