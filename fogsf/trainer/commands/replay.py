@@ -4,7 +4,9 @@ The model directory (from `fogsf train`) is exported to its C header and the ker
 firmware/c is compiled for it (cached in build/kernels/<model id>-..., or $FOGSF_BUILD_DIR).
 Every sample of the log (board temperature, raw gyro) goes through fogsf_step; the
 output CSV holds time_s, gyro_dps, gyro_corrected_dps and sf_error_ppm (the kernel's
-predicted SF error vs the nominal SF, held between model steps). The SF-error metrics of
+predicted SF error vs the nominal SF, held between model steps); `--out X.parquet` writes
+it as Parquet. The kernel runs over the log in blocks, each written as it is produced, its
+state carried between them (the output of one run). The SF-error metrics of
 the log before and after the correction are printed (max|e|, p-p, RMS, STD, noise floor).
 A log at another sample rate than the model's training logs runs the model re-rated to it
 (the same model step in seconds; `fogsf export --sample-rate-hz` gives that firmware).
@@ -36,9 +38,11 @@ from fogsf.trainer.commands.axes import run_all, wants_all
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL_DIR", help="model directory from `fogsf train`")
-    parser.add_argument("log", metavar="LOG.csv", help="chamber log (format: docs/logs.md)")
-    parser.add_argument("--out", required=True, metavar="CSV",
-                        help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm")
+    parser.add_argument("log", metavar="LOG", help="chamber log, CSV or Parquet (format: "
+                                                    "docs/logs.md)")
+    parser.add_argument("--out", required=True, metavar="CSV|PARQUET",
+                        help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm; "
+                             "Parquet when it ends in .parquet")
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="before/after plot of the SF error (windows vs temperature, time)")
     add_metric_options(parser, skip=True)
@@ -54,17 +58,42 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "build/kernels in a checkout, else ~/.cache/fogsf/kernels)")
 
 
+REPLAY_BLOCK = 1 << 17  # samples the kernel runs (and replay writes) at a time
+
+
 def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
                     corrected: np.ndarray, sf_ppm: np.ndarray) -> None:
-    """The replay CSV; doubles with 17 significant digits, sf_ppm (float32) with 9."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    from fogsf.trainer.logs.logio import time_format, write_rows
+    """The replay CSV (or Parquet, for a path ending in .parquet; logs/corrected_out.py);
+    doubles with 17 significant digits, sf_ppm (float32) with 9."""
+    from fogsf.trainer.logs.corrected_out import CorrectedWriter
+    from fogsf.trainer.logs.logio import time_format
 
-    rows = np.column_stack([time_s, gyro, corrected, sf_ppm.astype(np.float64)])
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write("time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm\n")
-        write_rows(f, rows, [time_format(time_s), "%.17g", "%.17g", "%.9g"])
+    with CorrectedWriter(path, time_format(time_s)) as w:
+        for a in range(0, time_s.shape[0], REPLAY_BLOCK):
+            b = a + REPLAY_BLOCK
+            w.write(time_s[a:b], gyro[a:b], corrected[a:b], sf_ppm[a:b])
+
+
+def replay_blocks(kernel, log, path: str | Path  # noqa: ANN001 - Kernel, ChamberLog
+                  ) -> tuple[np.ndarray, dict[str, int]]:
+    """The kernel over the log from reset, REPLAY_BLOCK samples at a time (its state carried
+    from block to block: the output of one run over the whole log), each block written to
+    `path` as it is produced: (sf_ppm per sample, the flag counts)."""
+    from fogsf.trainer.logs.corrected_out import CorrectedWriter
+    from fogsf.trainer.logs.logio import time_format
+
+    n = len(log)
+    sf = np.empty(n, np.float32)
+    counts: dict[str, int] = {}
+    st = kernel.new_state()
+    with CorrectedWriter(path, time_format(log.time_s)) as w:
+        for a in range(0, n, REPLAY_BLOCK):
+            b = min(n, a + REPLAY_BLOCK)
+            corrected, sf[a:b], flags = kernel.run(log.temp_c[a:b], log.gyro_dps[a:b], st)
+            w.write(log.time_s[a:b], log.gyro_dps[a:b], corrected, sf[a:b])
+            for name, c in flag_counts(flags).items():
+                counts[name] = counts.get(name, 0) + c
+    return sf, counts
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -89,12 +118,10 @@ def run(args: argparse.Namespace) -> int:
     model = rated(model, log.sample_dt_s, f"the log's {log.sample_rate_hz:.6g} Hz")
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
-    corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)
-    write_corrected(args.out, log.time_s, log.gyro_dps, corrected, sf)
+    sf, counts = replay_blocks(kernel, log, args.out)
     print(f"kernel {build.shared} (model {model.model_id}, {model.layers}x{model.hidden} "
           f"LSTM, D={model.decimation})")
     print(f"replayed {len(log)} samples of {log.path}; wrote {args.out}")
-    counts = flag_counts(flags)
     flagged = {k: v for k, v in counts.items() if v}
     print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
                        else "none"))

@@ -230,7 +230,12 @@ def find_delimiter(first: str, path: str, dialect: Dialect, notes: list[str]) ->
 
 def raw_header(first: str, delim: str, path: str) -> list[str]:
     """The header row's names as the log writes them; an empty or repeated one is refused."""
-    raw = [h.strip() for h in first.split(delim)]
+    return checked_names([h.strip() for h in first.split(delim)], path)
+
+
+def checked_names(raw: list[str], path: str) -> list[str]:
+    """A log's column names (a header row's, a Parquet schema's); an empty or repeated one is
+    refused."""
     seen: set[str] = set()
     for h in raw:
         if not h:
@@ -258,7 +263,12 @@ def read_header(first: str, delim: str, path: str, dialect: Dialect, notes: list
             ) -> ColumnPlan:
     """The header row read through the column map and --gyro-column / --axis, checked: no
     empty or repeated name, every required one."""
-    raw = raw_header(first, delim, path)
+    return names_plan(raw_header(first, delim, path), path, dialect, notes)
+
+
+def names_plan(raw: list[str], path: str, dialect: Dialect, notes: list[str]) -> ColumnPlan:
+    """A log's column names (checked by `checked_names`) read through the column map and
+    --gyro-column / --axis, checked: no repeated name after them, every required one."""
     mapped = map_plan(raw, dialect, path, notes)
     notes.extend(moved_notes(mapped))
     option = "--gyro-column" if dialect.gyro_column else "--axis"

@@ -54,6 +54,12 @@ from fogsf.trainer.logs.dialect import (
     read_header,
     unquote_lines,
 )
+from fogsf.trainer.logs.parquet_log import (
+    is_parquet,
+    parquet_names,
+    read_parquet_log,
+    write_columns,
+)
 
 
 def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
@@ -61,6 +67,8 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     --columns in `dialect`, a mapping file beside the log (MAPPING_FILES) applies."""
     p = str(path)
     dialect = with_mapping_beside(path, dialect or Dialect())
+    if is_parquet(path):
+        return read_parquet_log(path, dialect, _log_of)
     fast = _read_plain(path, dialect)
     if fast is not None:
         return fast
@@ -95,6 +103,8 @@ def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
     ignored."""
     p = str(path)
     dialect = with_mapping_beside(path, dialect)
+    if is_parquet(path):
+        return log_axes(map_plan(parquet_names(path), dialect, p, []).names)
     try:
         with open(path, encoding="utf-8-sig") as f:
             first = f.readline().rstrip("\r\n")
@@ -309,8 +319,12 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
 
 
 def write_log(path: str | Path, log: ChamberLog) -> None:
-    """Write a log as CSV; the same log gives the same bytes."""
+    """Write a log as CSV, or as Parquet when `path` ends in .parquet (every column float64);
+    the same log gives the same bytes."""
     cols = log.columns()
+    if is_parquet(path):
+        write_columns(path, {k: np.asarray(v, dtype=np.float64) for k, v in cols.items()})
+        return
     names = list(cols)
     data = np.column_stack([np.asarray(cols[n], dtype=np.float64) for n in names])
     Path(path).parent.mkdir(parents=True, exist_ok=True)
