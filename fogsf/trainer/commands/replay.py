@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
         before = log_metrics(log, args.window_s, ref=args.ref_sf,
                              latitude_deg=args.latitude_deg, **span)
         after = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg,
-                            correction_ppm=sf.astype(np.float64), **span)
+                            correction_ppm=sf, **span)
     except UserError as e:  # e.g. a log that never passes 20 C has no reference SF
         print(f"no before/after metrics: {e}")
         before = after = None

@@ -141,11 +141,11 @@ def nominal_step_s(time_s: np.ndarray) -> float:
     t = np.asarray(time_s, dtype=np.float64)
     if t.shape[0] < 2:
         return NOMINAL_DT_S
-    dt = np.diff(t)
-    step = float(np.median(dt))
+    step = float(np.median(np.diff(t), overwrite_input=True))  # no second log-long copy
     if step > 0 and np.spacing(np.abs(t).max()) > 1e-7 * step:
         # an epoch time base: each stamp is rounded to float64's spacing (0.24 us at 1.7e9
         # s), which the median step keeps; the mean of the steps near it averages that out
+        dt = np.diff(t)
         step = float(dt[np.abs(dt - step) <= DT_TOLERANCE * step].mean())
     return 1.0 / float(f"{1.0 / step:.6g}") if step > 0 else step
 

@@ -67,6 +67,9 @@ MIN_RATE_LEVELS = 2  # |rates| (each in both directions) that nonlinearity and a
 DPS_TO_DPH = 3600.0
 START_SPAN_S = 300.0  # the start of a log: its first 5 minutes
 START_MOVING_C_PER_MIN = 0.05  # faster than this at the start is "moving" (a soak is slower)
+# per-sample work is done this many samples at a time (8 MB a float64 column): memory beyond
+# the log's own columns does not grow with its length; every result is the same bits
+BLOCK_SAMPLES = 1 << 20
 
 
 @dataclass
@@ -93,10 +96,15 @@ def plateaus(table_rate_dps: np.ndarray, measures: np.ndarray | None = None
     r = np.asarray(table_rate_dps)
     if r.size == 0:
         return []
-    change = np.abs(np.diff(r)) > 1e-9 * np.maximum(np.abs(r[1:]), 1.0)
-    if measures is not None:
-        change |= measures[1:] != measures[:-1]
-    edges = np.concatenate([[0], np.flatnonzero(change) + 1, [r.size]])
+    found = [np.zeros(1, dtype=np.int64)]
+    for a in range(0, r.size - 1, BLOCK_SAMPLES):  # no log-long temporaries
+        x = r[a:a + BLOCK_SAMPLES + 1]
+        change = np.abs(np.diff(x)) > 1e-9 * np.maximum(np.abs(x[1:]), 1.0)
+        if measures is not None:
+            m = measures[a:a + BLOCK_SAMPLES + 1]
+            change |= m[1:] != m[:-1]
+        found.append(a + np.flatnonzero(change) + 1)
+    edges = np.concatenate([*found, [r.size]])
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)
             if measures is None or measures[a]]
 
@@ -215,18 +223,22 @@ def sf_signal(log: ChamberLog, latitude_deg: float | None = None,
     """Per sample, what the SF multiplies: gyro - bias - earth; with `correction_ppm` (per
     sample, vs nominal SF), (gyro - bias) / (1 + correction * 1e-6) - earth. The bias is the
     +/- pairs' (`bias_track`), none without pairs."""
-    gyro = log.gyro_dps
-    if remove_bias:
-        b = bias_track(log, latitude_deg, settle_s)
-        if b is not None:
-            gyro = gyro - b
+    b = bias_track(log, latitude_deg, settle_s) if remove_bias else None
+    corr = None
     if correction_ppm is not None:
-        corr = np.asarray(correction_ppm, dtype=np.float64)
+        corr = np.asarray(correction_ppm)  # float64 block by block below (float32 from a kernel)
         if corr.shape != log.gyro_dps.shape:
             raise UserError(f"correction has {corr.shape[0]} samples, log has "
                             f"{log.gyro_dps.shape[0]}")
-        gyro = gyro / (1.0 + corr * 1e-6)
-    return gyro - log.earth(latitude_deg)
+    earth = log.earth(latitude_deg)
+    out = np.empty(len(log))
+    for a in range(0, len(log), BLOCK_SAMPLES):  # no log-long temporaries
+        s = slice(a, a + BLOCK_SAMPLES)
+        gyro = log.gyro_dps[s] if b is None else log.gyro_dps[s] - b[s]
+        if corr is not None:
+            gyro = gyro / (1.0 + corr[s].astype(np.float64) * 1e-6)
+        out[s] = gyro - earth[s]
+    return out
 
 
 def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,
@@ -240,13 +252,16 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
     out = {f: np.empty(k) for f in ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm")}
     lengths = spans[:, 1] - spans[:, 0]
     for n in np.unique(lengths):  # windows of one length at a time (most are window_s)
-        sel = np.flatnonzero(lengths == n)
-        ratio, noise, idx = _span_stats(signal, log.table_rate_dps, spans[sel, 0], int(n))
-        out["sf_ratio"][sel] = ratio
-        out["noise_ppm"][sel] = noise
-        out["t_s"][sel] = log.time_s[idx].mean(axis=1)
-        out["temp_c"][sel] = log.temp_c[idx].mean(axis=1)
-        out["rate_dps"][sel] = log.table_rate_dps[idx].mean(axis=1)
+        same = np.flatnonzero(lengths == n)
+        per = max(1, BLOCK_SAMPLES // int(n))  # about BLOCK_SAMPLES samples gathered at once
+        for j in range(0, same.size, per):
+            sel = same[j:j + per]
+            ratio, noise, idx = _span_stats(signal, log.table_rate_dps, spans[sel, 0], int(n))
+            out["sf_ratio"][sel] = ratio
+            out["noise_ppm"][sel] = noise
+            out["t_s"][sel] = log.time_s[idx].mean(axis=1)
+            out["temp_c"][sel] = log.temp_c[idx].mean(axis=1)
+            out["rate_dps"][sel] = log.table_rate_dps[idx].mean(axis=1)
     return SFWindows(start=spans[:, 0].copy(), stop=spans[:, 1].copy(),
                      window_s=float(window_s), **out)
 
@@ -375,8 +390,9 @@ class _Plateau:
 
 def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
                    ) -> list[_Plateau]:
-    signal = log.gyro_dps - log.earth(latitude_deg)
-    return [_Plateau(a, b, float(log.table_rate_dps[a:b].mean()), float(signal[a:b].mean()),
+    earth = log.earth(latitude_deg)
+    return [_Plateau(a, b, float(log.table_rate_dps[a:b].mean()),
+                     float((log.gyro_dps[a:b] - earth[a:b]).mean()),
                      float(log.time_s[a:b].mean()), float(log.temp_c[a:b].mean()))
             for a, b in settled_plateaus(log, settle_s)]
 
@@ -460,11 +476,12 @@ def bias_track(log: ChamberLog, latitude_deg: float | None = None,
     if pp is None:
         return None
     out = np.zeros(len(log))
-    mag = np.abs(log.table_rate_dps)
     for r in np.unique(pp.rate_dps):
         at = np.abs(pp.rate_dps - r) <= PAIR_RATE_TOL * r + 1e-6
-        here = np.abs(mag - r) <= PAIR_RATE_TOL * r + 1e-6
-        out[here] = np.interp(log.time_s[here], pp.t_s[at], pp.bias_dps[at])
+        for a in range(0, len(log), BLOCK_SAMPLES):  # no log-long temporaries
+            s = slice(a, a + BLOCK_SAMPLES)
+            here = np.abs(np.abs(log.table_rate_dps[s]) - r) <= PAIR_RATE_TOL * r + 1e-6
+            out[s][here] = np.interp(log.time_s[s][here], pp.t_s[at], pp.bias_dps[at])
     return out
 
 
