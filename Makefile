@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan bench-rate bench-gsa bench-sim bench-rigs paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -22,6 +22,7 @@ help:
 	@echo "make bench-population  compensation on evaluation gyros of the population -> out/bench-population.json"
 	@echo "make bench-plan  the planned chamber program vs the paper's on evaluation gyros -> out/bench-plan.json"
 	@echo "make bench-rate  one model at 10/100/1000 Hz; a 24 h 100 Hz replay, time and memory -> out/bench-sample-rate.json"
+	@echo "make bench-scale  replay and inspect on 2.4 h and 24 h logs at 100 Hz, CSV and Parquet: wall, peak memory -> out/bench-scale.json"
 	@echo "make bench-gsa   GSA against Rashedi et al. (2009) Table 4 -> out/bench-gsa.json"
 	@echo "make bench-sim   simulator speed and its calibration to the paper -> out/bench-sim.json"
 	@echo "make bench-rigs  rig logs (ROS, staircase, reversals, skew IMU) trained and scored against the truth -> out/bench-rigs.json"
@@ -87,6 +88,10 @@ bench-diagnose: $(STAMP)
 # `fogsf replay` for time and memory, ~2 min
 bench-rate: $(STAMP)
 	$(PY) -m benchmarks.sample_rate --out $(OUT)/bench-sample-rate.json
+
+# replay and inspect on 2.4 h and 24 h logs at 100 Hz, CSV and Parquet: wall and peak memory
+bench-scale: $(STAMP)
+	$(PY) -m benchmarks.log_scale --out $(OUT)/bench-scale.json
 
 # GSA on Rashedi's F1-F7 (N = 50, n = 30, T = 1000, 30 runs), ~1 min
 bench-gsa: $(STAMP)

@@ -51,7 +51,9 @@ def number_blocks(path: str | Path, delim: str, ncol: int, quoted: bool = False,
 
     read, parse, convert = _options(delim, ncol, quoted, decimal_comma)
     try:
-        for batch in csv.open_csv(str(path), read, parse, convert):
+        # the system's allocator: blocks freed go back to it (pyarrow's own pool keeps them)
+        pool = pa.system_memory_pool()
+        for batch in csv.open_csv(str(path), read, parse, convert, memory_pool=pool):
             cols = [c.to_numpy(zero_copy_only=False) for c in batch.columns]
             if not all(np.isfinite(c).all() for c in cols):
                 raise NotFast

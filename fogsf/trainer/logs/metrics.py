@@ -67,9 +67,9 @@ MIN_RATE_LEVELS = 2  # |rates| (each in both directions) that nonlinearity and a
 DPS_TO_DPH = 3600.0
 START_SPAN_S = 300.0  # the start of a log: its first 5 minutes
 START_MOVING_C_PER_MIN = 0.05  # faster than this at the start is "moving" (a soak is slower)
-# per-sample work is done this many samples at a time (8 MB a float64 column): memory beyond
+# per-sample work is done this many samples at a time (2 MB a float64 column): memory beyond
 # the log's own columns does not grow with its length; every result is the same bits
-BLOCK_SAMPLES = 1 << 20
+BLOCK_SAMPLES = 1 << 18
 
 
 @dataclass
