@@ -114,7 +114,23 @@ BAD = {  # name -> (file text, dialect, the refusal's start)
     "missing-column": (text(rows(), "time_s,temp_c,table_rate_dps,gyro"), Dialect(),
                        "line 1: missing required column"),
     "header-only": (text([]), Dialect(), "line 1: empty file"),
+    "underscore-then-letter": (_with(40, "3.8,20.38,10,x").replace(",10,10.0000", ",10,1_0.0",
+                                                                   1), Dialect(),
+                               "line 40: non-numeric cell"),
+    "underscore": (_with(9, "0.7,20.07,10,1_000"), Dialect(), "unreadable"),
+    "nan-then-letter": (_with(40, "3.8,20.38,10,x").replace("0.6,20.0600,10,", "0.6,nan,10,"),
+                        Dialect(), "line 40: non-numeric cell"),
+    "blank-then-nan": (_with(11, "1.0,20.1,10,nan").replace("\n0.5,", "\n\n0.5,"),
+                       Dialect(), "line 7: wrong number of cells"),
+    "blank-lines-at-end-and-nan": (_with(11, "1.0,20.1,10,nan") + "\n \n\n", Dialect(),
+                                   "line 11: non-finite cell"),
 }
+
+# the refusals the line scan gives (unquoted files whose header is good; a cell that float()
+# reads and numpy does not, 1_000, leaves the file to the general path)
+SCANNED = [k for k in BAD if BAD[k][2] and BAD[k][2].startswith("line ")
+           and not BAD[k][2].startswith("line 1:") and '"' not in BAD[k][0]
+           and "_0" not in BAD[k][0]]
 
 
 @pytest.mark.parametrize("name", list(BAD))
@@ -153,3 +169,31 @@ def test_fast_path_reads_across_blocks(tmp_path: Path, monkeypatch: pytest.Monke
     lines[2500] = lines[2500].replace(",10,", ",x,")
     fast, general = _both(tmp_path, "\n".join(lines), Dialect())
     assert fast == general and "line 2501: non-numeric cell" in fast
+
+
+@pytest.mark.parametrize("name", SCANNED)
+def test_a_bad_row_is_named_without_the_general_path(name: str, tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """The line scan names the bad row reading line by line: the general path (which holds
+    the whole text) is not needed, and the refusal is the general path's."""
+    from fogsf.trainer.logs import logio
+
+    body, dialect, start = BAD[name]
+    _, general = _both(tmp_path, body, dialect)
+
+    def no_general(*_: object, **__: object) -> None:
+        raise AssertionError("the general path was used")
+
+    monkeypatch.setattr(logio, "parse_log", no_general)
+    with pytest.raises(LogError) as ei:
+        read_log(tmp_path / "log.csv", dialect)
+    assert str(ei.value) == general
+
+
+def test_not_utf8_is_refused_as_such_whatever_comes_first(tmp_path: Path) -> None:
+    p = tmp_path / "log.csv"
+    lines = text(rows()).split("\n")
+    lines[5] = lines[5].replace(",10,", ",x,")  # a bad cell first, then a byte not UTF-8
+    p.write_bytes("\n".join(lines).encode() + b"0.9,20,10,\xff\n")
+    with pytest.raises(LogError, match=r"log.csv: cannot read: not UTF-8 text"):
+        read_log(p)

@@ -54,6 +54,7 @@ from fogsf.trainer.logs.dialect import (
     read_header,
     unquote_lines,
 )
+from fogsf.trainer.logs.line_scan import first_bad_line
 from fogsf.trainer.logs.parquet_log import (
     is_parquet,
     parquet_names,
@@ -186,6 +187,11 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
     try:
         data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma)
     except NotFast:
+        # a bad row is named reading line by line (no copy of the text); else the general path
+        bad = None if quoted else first_bad_line(path, list(plan.raw), delim,
+                                                 dialect.decimal_comma)
+        if bad is not None:
+            raise bad from None
         return None
     return _log_of(data, plan, p, dialect, notes)
 
@@ -250,21 +256,31 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
                    ) -> None:
     """The slow path: walk rows to name the first one that does not parse."""
     for i, line in enumerate(lines[1:], start=2):
-        cells = line.split(delim)
-        if len(cells) != len(header):
-            hint = (" (decimal commas? then separate cells by ';' or tab and give "
-                    "--decimal-comma)" if delim == "," and len(cells) > len(header) else "")
-            raise LogError(path, i, "wrong number of cells",
-                           f"{len(cells)} cells, header has {len(header)}{hint}")
-        for name, cell in zip(header, cells, strict=True):
-            try:
-                float(cell)
-            except ValueError:
-                shown = cell.strip() or "(empty)"
-                hint = (" (a decimal comma: give --decimal-comma)"
-                        if DECIMAL_COMMA.match(cell) and delim != "," else "")
-                raise LogError(path, i, "non-numeric cell",
-                               f"column {name!r} is {shown!r}{hint}") from None
+        err = bad_cell_in(line, i, header, path, delim)
+        if err is not None:
+            raise err
+
+
+def bad_cell_in(line: str, i: int, header: list[str], path: str, delim: str = ","
+                ) -> LogError | None:
+    """The refusal of data line `i` (`line`) when it has another number of cells than the
+    header or a cell that is not a number; None when it parses."""
+    cells = line.split(delim)
+    if len(cells) != len(header):
+        hint = (" (decimal commas? then separate cells by ';' or tab and give "
+                "--decimal-comma)" if delim == "," and len(cells) > len(header) else "")
+        return LogError(path, i, "wrong number of cells",
+                        f"{len(cells)} cells, header has {len(header)}{hint}")
+    for name, cell in zip(header, cells, strict=True):
+        try:
+            float(cell)
+        except ValueError:
+            shown = cell.strip() or "(empty)"
+            hint = (" (a decimal comma: give --decimal-comma)"
+                    if DECIMAL_COMMA.match(cell) and delim != "," else "")
+            return LogError(path, i, "non-numeric cell",
+                            f"column {name!r} is {shown!r}{hint}")
+    return None
 
 
 def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:
