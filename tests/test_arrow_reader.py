@@ -197,3 +197,35 @@ def test_not_utf8_is_refused_as_such_whatever_comes_first(tmp_path: Path) -> Non
     p.write_bytes("\n".join(lines).encode() + b"0.9,20,10,\xff\n")
     with pytest.raises(LogError, match=r"log.csv: cannot read: not UTF-8 text"):
         read_log(p)
+
+
+def test_rows_read_before_a_bad_block_are_not_parsed_again(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The scan skips the rows pyarrow read (its blank lines still count): a late bad cell
+    is named parsing only the rows from the failed block on; a blank line in an early block
+    is named before it."""
+    import fogsf.trainer.logs.arrow_csv as arrow_csv
+    from fogsf.trainer.logs import logio
+
+    monkeypatch.setattr(arrow_csv, "BLOCK_BYTES", 512)
+    lines = text(rows(3000)).split("\n")
+    lines[2800] = lines[2800].replace(",10,", ",x,")
+    _, general = _both(tmp_path, "\n".join(lines), Dialect())
+    parsed: list[str] = []
+    real = logio.bad_cell_in
+
+    def counted(line: str, *a: object, **k: object) -> LogError | None:
+        parsed.append(line)
+        return real(line, *a, **k)
+
+    monkeypatch.setattr(logio, "bad_cell_in", counted)
+    monkeypatch.setattr(logio, "parse_log", None)  # the general path is not used
+    with pytest.raises(LogError) as ei:
+        read_log(tmp_path / "log.csv")
+    assert str(ei.value) == general and "line 2801: non-numeric cell" in general
+    assert 0 < len(parsed) < 100  # the rows of the blocks pyarrow read are skipped
+    monkeypatch.undo()
+    monkeypatch.setattr(arrow_csv, "BLOCK_BYTES", 512)
+    lines.insert(99, "")
+    fast, general = _both(tmp_path, "\n".join(lines), Dialect())
+    assert fast == general and "line 100: wrong number of cells" in fast

@@ -21,7 +21,13 @@ BLOCK_BYTES = 1 << 20  # pyarrow parses blocks of 1 MB (about 23 k rows of a 5-c
 
 
 class NotFast(Exception):  # noqa: N818 - a signal to the caller, not an error
-    """pyarrow could not read the cells as finite numbers: the general path reads the file."""
+    """pyarrow could not read the cells as finite numbers: the general path reads the file.
+    `rows_ok`: the first rows (blank lines not counted) that were read as finite numbers
+    of the header's length before the failure."""
+
+    def __init__(self, rows_ok: int = 0) -> None:
+        super().__init__(rows_ok)
+        self.rows_ok = rows_ok
 
 
 def _options(delim: str, ncol: int, quoted: bool, decimal_comma: bool):  # noqa: ANN202
@@ -69,13 +75,16 @@ def read_numbers(path: str | Path, rows: int, delim: str, ncol: int, quoted: boo
     `rows` data rows of finite numbers."""
     out = np.empty((rows, ncol), dtype=np.float64, order="F")
     at = 0
-    for cols in number_blocks(path, delim, ncol, quoted, decimal_comma):
-        k = cols[0].shape[0]
-        if at + k > rows:
-            raise NotFast
-        for i, c in enumerate(cols):
-            out[at:at + k, i] = c
-        at += k
+    try:
+        for cols in number_blocks(path, delim, ncol, quoted, decimal_comma):
+            k = cols[0].shape[0]
+            if at + k > rows:
+                raise NotFast
+            for i, c in enumerate(cols):
+                out[at:at + k, i] = c
+            at += k
+    except NotFast:
+        raise NotFast(at) from None
     if at != rows:
-        raise NotFast
+        raise NotFast(at)
     return out

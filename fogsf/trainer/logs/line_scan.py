@@ -23,10 +23,12 @@ def _ascii_number(cell: str) -> bool:
     return cell.isascii() and "_" not in cell
 
 
-def first_bad_line(path: str | Path, header: list[str], delim: str, decimal_comma: bool
-                   ) -> LogError | None:
+def first_bad_line(path: str | Path, header: list[str], delim: str, decimal_comma: bool,
+                   rows_ok: int = 0) -> LogError | None:
     """The refusal the general path gives for the data lines of an unquoted file whose
-    header is `header`, or None (no bad cell found, or not sure: see the module)."""
+    header is `header`, or None (no bad cell found, or not sure: see the module). The first
+    `rows_ok` lines that are not blank are known to hold finite numbers of the header's
+    length (the fast reader read them): only blank lines among them are looked for."""
     from fogsf.trainer.logs.logio import bad_cell_in
 
     p = str(path)
@@ -50,6 +52,9 @@ def first_bad_line(path: str | Path, header: list[str], delim: str, decimal_comm
                     if first_bad is not None:
                         continue
                     blank_run = []
+                if rows_ok > 0:
+                    rows_ok -= 1
+                    continue
                 if decimal_comma:
                     line = line.replace(",", ".")
                 first_bad = bad_cell_in(line, i, header, p, delim)

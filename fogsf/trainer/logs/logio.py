@@ -186,10 +186,10 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
         return None
     try:
         data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma)
-    except NotFast:
+    except NotFast as e:
         # a bad row is named reading line by line (no copy of the text); else the general path
         bad = None if quoted else first_bad_line(path, list(plan.raw), delim,
-                                                 dialect.decimal_comma)
+                                                 dialect.decimal_comma, e.rows_ok)
         if bad is not None:
             raise bad from None
         return None
