@@ -41,7 +41,7 @@ from fogsf.trainer.logs.metrics import (
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("log", help="chamber log CSV (format: docs/logs.md)")
+    parser.add_argument("log", help="chamber log, CSV or Parquet (format: docs/logs.md)")
     parser.add_argument("--json", action="store_true",
                         help="print the summary as JSON (samples, duration_s, sample_rate_hz, "
                              "temp_range_c, table_rates_dps, metrics, settle_s, skip_s, "

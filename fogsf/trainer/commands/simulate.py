@@ -139,7 +139,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="also write the truth per sample (one file per axis for imu3)")
 
     o = parser.add_argument_group("output")
-    o.add_argument("--out", metavar="LOG.CSV", help="write the chamber log here")
+    o.add_argument("--out", metavar="LOG.CSV", help="write the chamber log here (Parquet when "
+                   "it ends in .parquet)")
     o.add_argument("--summary", action="store_true",
                    help="print the log's summary and SF-error metrics block")
     o.add_argument("--window-s", type=float, default=100.0, help="SF window for --summary/--plot")
