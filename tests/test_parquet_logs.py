@@ -161,3 +161,13 @@ def test_replay_writes_parquet_as_its_csv(tmp_path: Path, capsys, monkeypatch) -
     text = np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=1)
     assert np.array_equal(text[:, 2], corrected)
     assert np.array_equal(text[:, 3].astype(np.float32), sf)
+
+
+def test_simulate_writes_a_parquet_log(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "run.parquet"
+    assert main(["simulate", "--scenario", "paper", "--ramp-rate", "1.0", "--profile", "soak",
+                 "--start-c", "20", "--duration-min", "10", "--out", str(out)]) == 0
+    assert out.read_bytes()[:4] == b"PAR1"
+    capsys.readouterr()
+    assert main(["inspect", str(out), "--json", "--ref-sf", "1.0"]) == 0
+    assert json.loads(capsys.readouterr().out)["samples"] == 6001

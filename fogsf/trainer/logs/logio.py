@@ -56,6 +56,7 @@ from fogsf.trainer.logs.dialect import (
 )
 from fogsf.trainer.logs.line_scan import first_bad_line
 from fogsf.trainer.logs.parquet_log import (
+    in_rows,
     is_parquet,
     parquet_names,
     read_parquet_log,
@@ -105,7 +106,7 @@ def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
     p = str(path)
     dialect = with_mapping_beside(path, dialect)
     if is_parquet(path):
-        return log_axes(map_plan(parquet_names(path), dialect, p, []).names)
+        return log_axes(in_rows(p, lambda: map_plan(parquet_names(path), dialect, p, [])).names)
     try:
         with open(path, encoding="utf-8-sig") as f:
             first = f.readline().rstrip("\r\n")

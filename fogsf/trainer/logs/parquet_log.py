@@ -47,11 +47,11 @@ def _open(path: str | Path):  # noqa: ANN202 - pyarrow.parquet.ParquetFile
 
 def parquet_names(path: str | Path) -> list[str]:
     """The column names of a Parquet log (its schema), checked as a header row is."""
-    return _in_rows(str(path), lambda: checked_names(list(_open(path).schema_arrow.names),
+    return in_rows(str(path), lambda: checked_names(list(_open(path).schema_arrow.names),
                                                      str(path)))
 
 
-def _in_rows(path: str, f: Callable[[], T]) -> T:
+def in_rows(path: str, f: Callable[[], T]) -> T:
     """f(), its LogError told in a Parquet log's terms: line 1 is its column names, line L
     its data row L - 1."""
     try:
@@ -82,7 +82,7 @@ def read_parquet_numbers(path: str | Path) -> tuple[list[str], np.ndarray]:
         raise LogError(p, None, "empty file", "column names but no data rows")
     out = np.empty((rows, len(names)), dtype=np.float64, order="F")
     at = 0
-    for batch in pf.iter_batches(batch_size=BATCH_ROWS):
+    for batch in pf.iter_batches(batch_size=BATCH_ROWS, use_threads=True):
         k = batch.num_rows
         for i, col in enumerate(batch.columns):
             if col.null_count:
@@ -111,9 +111,9 @@ def read_parquet_log(path: str | Path, dialect: Dialect,
     if given:
         notes.append(f"{' and '.join(given)} not used: a Parquet log")
     names = parquet_names(path)
-    plan = _in_rows(p, lambda: names_plan(names, p, dialect, notes))
+    plan = in_rows(p, lambda: names_plan(names, p, dialect, notes))
     _, data = read_parquet_numbers(path)
-    return _in_rows(p, lambda: log_of(data, plan, p, dialect, notes))
+    return in_rows(p, lambda: log_of(data, plan, p, dialect, notes))
 
 
 def write_columns(path: str | Path, columns: dict[str, np.ndarray],
