@@ -121,10 +121,10 @@ def run(args: argparse.Namespace) -> int:
     if wants_all(args):  # --plot NAME_A.png per axis, then one summary
         return run_all(args, run, "inspect")
     log = read_logs(args, [args.log])[0]
-    note = start_note(log, args.skip_s)
+    s = summary(log, args.window_s, args.latitude_deg, args.ref_sf, args.settle_s, args.skip_s)
+    note = start_note(log, args.skip_s)  # after the summary: a refused log is one line
     if note:
         print(f"fogsf: {note}", file=sys.stderr)
-    s = summary(log, args.window_s, args.latitude_deg, args.ref_sf, args.settle_s, args.skip_s)
     if args.json:
         print(json.dumps(s, indent=2))
     else:

@@ -386,15 +386,33 @@ class _Plateau:
     mean: float  # mean of gyro - earth
     t_s: float
     temp_c: float
+    n: int  # samples averaged (a plateau cut by a stall: both pieces)
 
 
 def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
                    ) -> list[_Plateau]:
+    """The settled plateaus' means; the pieces of one commanded plateau that rows measuring
+    nothing (a stall, a disabled row) cut apart are one plateau again: a pair's fit needs
+    its +/- neighbours at the usual distance, and two pieces close in time would read the SF
+    drift from noise. gyro - earth is taken plateau by plateau (no log-long temporary)."""
     earth = log.earth(latitude_deg)
-    return [_Plateau(a, b, float(log.table_rate_dps[a:b].mean()),
-                     float((log.gyro_dps[a:b] - earth[a:b]).mean()),
-                     float(log.time_s[a:b].mean()), float(log.temp_c[a:b].mean()))
-            for a, b in settled_plateaus(log, settle_s)]
+    out: list[_Plateau] = []
+    for a, b in settled_plateaus(log, settle_s):
+        rate = log.table_rate_dps[a:b]
+        signal = log.gyro_dps[a:b] - earth[a:b]
+        if out and np.all(log.table_rate_dps[out[-1].stop - 1:a + 1] == rate[0]):
+            prev, n = out[-1], b - a  # same command all through the gap: merge
+            tot = prev.n + n
+            out[-1] = _Plateau(
+                prev.start, b, prev.rate,
+                (prev.mean * prev.n + float(signal.sum())) / tot,
+                (prev.t_s * prev.n + float(log.time_s[a:b].sum())) / tot,
+                (prev.temp_c * prev.n + float(log.temp_c[a:b].sum())) / tot, tot)
+            continue
+        out.append(_Plateau(a, b, float(rate.mean()), float(signal.mean()),
+                            float(log.time_s[a:b].mean()), float(log.temp_c[a:b].mean()),
+                            b - a))
+    return out
 
 
 def _is_pair(p: _Plateau, q: _Plateau) -> bool:
@@ -420,7 +438,7 @@ def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float]:
         cols.append(r * tau)
     if len(group) >= 4:
         cols.append(tau)
-    w = np.sqrt([p.stop - p.start for p in group])  # a plateau's noise goes as 1/sqrt(n)
+    w = np.sqrt([p.n for p in group])  # a plateau's noise goes as 1/sqrt(n)
     coef, *_ = np.linalg.lstsq(np.column_stack(cols) * w[:, None], m * w, rcond=None)
     return float(coef[0]), float(coef[1])
 
