@@ -14,13 +14,17 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from pyarrow import csv as pa_csv
 
 BLOCK_BYTES = 1 << 20  # pyarrow parses blocks of 1 MB (about 23 k rows of a 5-column log)
 
 
-class NotFast(Exception):  # noqa: N818 - a signal to the caller, not an error
+class NotFast(Exception):  # a signal to the caller, not an error
     """pyarrow could not read the cells as finite numbers: the general path reads the file.
     `rows_ok`: the first rows (blank lines not counted) that were read as finite numbers
     of the header's length before the failure."""
@@ -30,7 +34,8 @@ class NotFast(Exception):  # noqa: N818 - a signal to the caller, not an error
         self.rows_ok = rows_ok
 
 
-def _options(delim: str, ncol: int, quoted: bool, decimal_comma: bool):  # noqa: ANN202
+def _options(delim: str, ncol: int, quoted: bool, decimal_comma: bool
+             ) -> tuple[pa_csv.ReadOptions, pa_csv.ParseOptions, pa_csv.ConvertOptions]:
     import pyarrow as pa
     from pyarrow import csv
 

@@ -32,7 +32,7 @@ class CorrectedWriter:
             self._parquet = ParquetColumns(self.path, dict(zip(NAMES, map(np.dtype, DTYPES),
                                                                strict=True)))
         else:
-            self._csv = open(self.path, "w", encoding="utf-8", newline="\n")  # noqa: SIM115
+            self._csv = open(self.path, "w", encoding="utf-8", newline="\n")
             self._csv.write(",".join(NAMES) + "\n")
         self._fmts = [time_fmt, "%.17g", "%.17g", "%.9g"]
 

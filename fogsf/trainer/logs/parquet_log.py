@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -24,6 +24,9 @@ PARQUET_SUFFIXES = (".parquet", ".pq")
 BATCH_ROWS = 1 << 17  # rows read (and written) per batch
 COMPRESSION = "zstd"
 
+if TYPE_CHECKING:
+    import pyarrow.parquet as pq
+
 T = TypeVar("T")
 
 
@@ -32,7 +35,7 @@ def is_parquet(path: str | Path) -> bool:
     return Path(path).suffix.lower() in PARQUET_SUFFIXES
 
 
-def _open(path: str | Path):  # noqa: ANN202 - pyarrow.parquet.ParquetFile
+def _open(path: str | Path) -> pq.ParquetFile:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
