@@ -197,24 +197,49 @@ def sf_spans(log: ChamberLog, window_s: float = 100.0, settle_s: float = SETTLE_
     return np.asarray(spans, dtype=np.int64).reshape(-1, 2)
 
 
-def _span_stats(signal: np.ndarray, table: np.ndarray, starts: np.ndarray, n: int
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(ratio, noise ppm, row index matrix) of windows of one length `n`."""
-    idx = starts[:, None] + np.arange(n)[None, :]
-    sig = signal[idx]
-    tab = table[idx]
+def _span_stats(sig: np.ndarray, tab: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ratio, noise ppm) of windows of one length: `sig` and `tab` [windows, samples]."""
     ratio = sig.mean(axis=1) / tab.mean(axis=1)
+    rows, n = sig.shape
     k = min(SUB_WINDOWS, n)
     if k < MIN_SUB_WINDOWS:
-        return ratio, np.full(starts.size, np.nan), idx
+        return ratio, np.full(rows, np.nan)
     m = n // k
-    sub = (sig[:, : m * k].reshape(starts.size, k, m).mean(axis=2)
-           / tab[:, : m * k].reshape(starts.size, k, m).mean(axis=2))
+    sub = (sig[:, : m * k].reshape(rows, k, m).mean(axis=2)
+           / tab[:, : m * k].reshape(rows, k, m).mean(axis=2))
     x = np.arange(k) - (k - 1) / 2.0
     slope = (sub * x).sum(axis=1) / (x * x).sum()
     resid = sub - sub.mean(axis=1, keepdims=True) - slope[:, None] * x[None, :]
     noise = np.sqrt((resid**2).sum(axis=1) / (k - 2) / k)
-    return ratio, noise * 1e6, idx
+    return ratio, noise * 1e6
+
+
+SignalParts = tuple[np.ndarray | None, np.ndarray | None, np.ndarray]
+
+
+def _signal_parts(log: ChamberLog, latitude_deg: float | None,
+                  correction_ppm: np.ndarray | None, settle_s: float, remove_bias: bool
+                  ) -> SignalParts:
+    """(the pairs' bias or None, the correction (ppm) or None, the earth rate): what
+    `sf_signal` is made of, per sample."""
+    b = bias_track(log, latitude_deg, settle_s) if remove_bias else None
+    corr = None
+    if correction_ppm is not None:
+        corr = np.asarray(correction_ppm)  # float64 where it is used (float32 from a kernel)
+        if corr.shape != log.gyro_dps.shape:
+            raise UserError(f"correction has {corr.shape[0]} samples, log has "
+                            f"{log.gyro_dps.shape[0]}")
+    return b, corr, log.earth(latitude_deg)
+
+
+def _signal_at(log: ChamberLog, parts: SignalParts, at: slice | np.ndarray) -> np.ndarray:
+    """`sf_signal` at the samples `at` (a slice, or an index array of any shape): the same
+    arithmetic sample by sample, so the same bits however the samples are taken."""
+    b, corr, earth = parts
+    gyro = log.gyro_dps[at] if b is None else log.gyro_dps[at] - b[at]
+    if corr is not None:
+        gyro = gyro / (1.0 + corr[at].astype(np.float64) * 1e-6)
+    return gyro - earth[at]
 
 
 def sf_signal(log: ChamberLog, latitude_deg: float | None = None,
@@ -223,21 +248,11 @@ def sf_signal(log: ChamberLog, latitude_deg: float | None = None,
     """Per sample, what the SF multiplies: gyro - bias - earth; with `correction_ppm` (per
     sample, vs nominal SF), (gyro - bias) / (1 + correction * 1e-6) - earth. The bias is the
     +/- pairs' (`bias_track`), none without pairs."""
-    b = bias_track(log, latitude_deg, settle_s) if remove_bias else None
-    corr = None
-    if correction_ppm is not None:
-        corr = np.asarray(correction_ppm)  # float64 block by block below (float32 from a kernel)
-        if corr.shape != log.gyro_dps.shape:
-            raise UserError(f"correction has {corr.shape[0]} samples, log has "
-                            f"{log.gyro_dps.shape[0]}")
-    earth = log.earth(latitude_deg)
+    parts = _signal_parts(log, latitude_deg, correction_ppm, settle_s, remove_bias)
     out = np.empty(len(log))
     for a in range(0, len(log), BLOCK_SAMPLES):  # no log-long temporaries
         s = slice(a, a + BLOCK_SAMPLES)
-        gyro = log.gyro_dps[s] if b is None else log.gyro_dps[s] - b[s]
-        if corr is not None:
-            gyro = gyro / (1.0 + corr[s].astype(np.float64) * 1e-6)
-        out[s] = gyro - earth[s]
+        out[s] = _signal_at(log, parts, s)
     return out
 
 
@@ -245,9 +260,10 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
                correction_ppm: np.ndarray | None = None, settle_s: float = SETTLE_S,
                skip_s: float = 0.0, remove_bias: bool = True) -> SFWindows:
     """Apparent SF per window; with `correction_ppm` (per sample, vs nominal SF), of the
-    corrected output (`sf_signal`; `remove_bias` False: the pairs' bias is left in)."""
+    corrected output (`sf_signal`; `remove_bias` False: the pairs' bias is left in). The
+    signal is made window by window (no log-long copy of it)."""
     spans = sf_spans(log, window_s, settle_s, skip_s)
-    signal = sf_signal(log, latitude_deg, correction_ppm, settle_s, remove_bias)
+    parts = _signal_parts(log, latitude_deg, correction_ppm, settle_s, remove_bias)
     k = spans.shape[0]
     out = {f: np.empty(k) for f in ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm")}
     lengths = spans[:, 1] - spans[:, 0]
@@ -256,12 +272,13 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
         per = max(1, BLOCK_SAMPLES // int(n))  # about BLOCK_SAMPLES samples gathered at once
         for j in range(0, same.size, per):
             sel = same[j:j + per]
-            ratio, noise, idx = _span_stats(signal, log.table_rate_dps, spans[sel, 0], int(n))
-            out["sf_ratio"][sel] = ratio
-            out["noise_ppm"][sel] = noise
+            idx = spans[sel, 0][:, None] + np.arange(int(n))[None, :]
+            tab = log.table_rate_dps[idx]
+            out["sf_ratio"][sel], out["noise_ppm"][sel] = _span_stats(
+                _signal_at(log, parts, idx), tab)
             out["t_s"][sel] = log.time_s[idx].mean(axis=1)
             out["temp_c"][sel] = log.temp_c[idx].mean(axis=1)
-            out["rate_dps"][sel] = log.table_rate_dps[idx].mean(axis=1)
+            out["rate_dps"][sel] = tab.mean(axis=1)
     return SFWindows(start=spans[:, 0].copy(), stop=spans[:, 1].copy(),
                      window_s=float(window_s), **out)
 
