@@ -1,0 +1,201 @@
+"""The bias model: the gyro's bias (deg/h) as a polynomial of the SF model's own features z.
+
+The same machinery as the lag bank: z are the front end's features (T and its lags for the
+default model), the bias is intercept + lin.z + quad.z^2 + cube.z^3 fitted by the bank's
+ridge (`lag_bank.fit_bank`, its fixed prior, squares and cubes of T and the lags up to
+CURVED_MAX_TAU_S only). The Shupe term, a bias proportional to the rate of change of the
+coil's temperature, is T - lag(T, tau) over a lag time: a linear combination of z that the
+bank carries. Targets are the bias each training log measures (`logs.bias`): a stationary
+log's model steps (mean of output - earth rate over each step), a +/- pair's bias at the
+step under its centre.
+
+`fit_bias(...)` fits; `score_bias(...)` gives the before/after metrics over a log's bias
+windows; `train_bias_only(...)` is `fogsf train` on stationary logs alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.bias import BiasWindows, bias_metrics, bias_windows, is_stationary
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.metrics import DPS_TO_DPH, SETTLE_S, step_means
+from fogsf.trainer.models.lag_bank import BankFit, fit_bank, n_curved
+from fogsf.trainer.models.reference import expand, frontend
+from fogsf.trainer.models.reference import features as ref_features
+from fogsf.trainer.models.stream import FrontEnd, StreamModel
+
+MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
+
+
+@dataclass(frozen=True)
+class FeatureMap:
+    """What gives z for a log: the front end and z = feat_w s + feat_b (float32, the
+    kernel's order)."""
+
+    fe: FrontEnd
+    feat_w: np.ndarray  # [F, 1+K] float32
+    feat_b: np.ndarray  # [F] float32
+    curved: int  # features (from the first) that carry squares and cubes
+
+    @property
+    def weights(self) -> dict[str, np.ndarray]:  # what reference.features reads
+        return {"feat_w": self.feat_w, "feat_b": self.feat_b}
+
+    def z(self, log: ChamberLog) -> np.ndarray:
+        """[n_steps, F] float32: the features of every model step of the log from reset."""
+        out = frontend(log.temp_c, self.fe.at_rate(log.sample_dt_s))
+        return ref_features(self, out.s)  # type: ignore[arg-type]
+
+
+def bank_curved(n_features: int) -> int:
+    """Curved features for z of `n_features`: the bank's rule for the lag bank, all else."""
+    from fogsf.trainer.models.lag_bank import bank_spec
+
+    return n_curved() if n_features == bank_spec().n_features else n_features
+
+
+@dataclass
+class BiasModel:
+    """bias (deg/h) = fit.predict(z); `fm` gives z."""
+
+    fm: FeatureMap
+    fit: BankFit
+    n_targets: int
+    sources: list[str]
+
+    def predict_steps(self, z: np.ndarray) -> np.ndarray:
+        return self.fit.predict(z)
+
+    def predict(self, log: ChamberLog) -> np.ndarray:
+        """Per sample (deg/h), held over each model step as the kernel holds it."""
+        fe = self.fm.fe.at_rate(log.sample_dt_s)
+        return expand(self.predict_steps(self.fm.z(log)), len(log), fe.decimation)
+
+    def as_dict(self) -> dict:
+        return {"intercept_dph": self.fit.intercept, "lin": self.fit.lin.tolist(),
+                "quad": self.fit.quad.tolist(), "cube": self.fit.cube.tolist(),
+                "ridge_lambda": self.fit.lam, "dof": self.fit.dof,
+                "targets": self.n_targets, "sources": self.sources}
+
+
+def step_targets(log: ChamberLog, w: BiasWindows, decimation: int,
+                 latitude_deg: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """(step index, bias deg/h) the log gives: every step of a stationary log's valid
+    samples, or each +/- pair at the step under its centre."""
+    if w.source == "stationary":
+        keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid
+        y = step_means((log.gyro_dps - log.earth(latitude_deg)) * DPS_TO_DPH, decimation, keep)
+        idx = np.flatnonzero(np.isfinite(y))
+        return idx, y[idx]
+    return w.step_index(decimation), w.bias_dph
+
+
+def fit_bias(fm: FeatureMap, logs: list[ChamberLog], window_s: float = 100.0,
+             latitude_deg: float | None = None, settle_s: float = SETTLE_S
+             ) -> BiasModel | None:
+    """The bias model on the logs that measure the bias; None when none does."""
+    zs, ys, sources = [], [], []
+    for lg in logs:
+        w = bias_windows(lg, window_s, latitude_deg, settle_s)
+        if w is None:
+            continue
+        z = fm.z(lg)
+        idx, y = step_targets(lg, w, fm.fe.at_rate(lg.sample_dt_s).decimation, latitude_deg)
+        ok = idx < z.shape[0]
+        zs.append(z[idx[ok]])
+        ys.append(y[ok])
+        sources.append(w.source)
+    if not zs:
+        return None
+    z, y = np.concatenate(zs), np.concatenate(ys)
+    if y.size < MIN_TARGETS:
+        raise UserError(f"the training logs measure the bias {y.size} time(s): too few for "
+                        f"a bias model (at least {MIN_TARGETS})")
+    return BiasModel(fm, fit_bank(z, y, curved=fm.curved), int(y.size), sources)
+
+
+def score_bias(model: BiasModel, log: ChamberLog, window_s: float = 100.0,
+               latitude_deg: float | None = None, settle_s: float = SETTLE_S
+               ) -> dict | None:
+    """Before (the measured bias, nothing taken off) and after (measured - predicted, the
+    prediction averaged over each window's samples) over the log's bias windows, deg/h;
+    None for a log that measures no bias."""
+    w = bias_windows(log, window_s, latitude_deg, settle_s)
+    if w is None:
+        return None
+    pred = model.predict(log)
+    c = np.concatenate([[0.0], np.cumsum(pred)])
+    p = (c[w.stop] - c[w.start]) / (w.stop - w.start)
+    return {"source": w.source, "windows": len(w),
+            "before": bias_metrics(w.bias_dph, w.noise_floor_dph),
+            "after": bias_metrics(w.bias_dph - p, w.noise_floor_dph)}
+
+
+def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: ChamberLog | None,
+               window_s: float, latitude_deg: float | None, settle_s: float) -> dict:
+    """metrics.json's "bias" block: the fit, then test and train scores (one per log)."""
+    out: dict = {"model": model.as_dict()}
+    if test_log is not None:
+        out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s)
+    out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s)
+                    for i, lg in enumerate(train_logs)}
+    return out
+
+
+def check_mixed(logs: list[ChamberLog]) -> bool:
+    """True when every training log is stationary (a bias-only model); refused when some
+    are and some are not."""
+    flags = [is_stationary(lg) for lg in logs]
+    if any(flags) and not all(flags):
+        still = ", ".join(lg.path for lg, f in zip(logs, flags, strict=True) if f)
+        raise UserError(f"{still}: stationary (the table stopped throughout): such logs "
+                        "train a bias-only model, given alone; the SF model with its bias "
+                        "head trains on logs with the table turning (+/- pairs give the bias)")
+    return all(flags)
+
+
+def bank_feature_map(logs: list[ChamberLog], step_s: float) -> FeatureMap:
+    """The lag bank's z (T and its lags, one physical unit) with its own front end: the
+    bias-only model's features, and the bias's for SF models without a firmware form."""
+    from fogsf.trainer.models.features import front_end_for, physical_normaliser
+    from fogsf.trainer.models.lag_bank import bank_spec
+
+    spec = bank_spec()
+    norm = physical_normaliser(spec)
+    return FeatureMap(front_end_for(logs, step_s, spec.taus_s), norm.feat_w, norm.feat_b,
+                      n_curved())
+
+
+def feature_map_of(stream_model: StreamModel | None, logs: list[ChamberLog],
+                   step_s: float) -> FeatureMap:
+    """The SF model's own z when it has a firmware form (the bias head reads the same
+    state), else the lag bank's."""
+    if stream_model is None:
+        return bank_feature_map(logs, step_s)
+    w = stream_model.weights
+    return FeatureMap(stream_model.front_end, w["feat_w"], w["feat_b"],
+                      bank_curved(stream_model.n_features))
+
+
+def bias_lines(b: dict) -> list[str]:
+    """`fogsf train`'s bias table (deg/h) from metrics.json's "bias" block."""
+    row = "  {:<16} {:>9} {:>9} {:>9} {:>9} {:>9}"
+    lines = [row.format("bias, deg/h", "max|e|", "p-p", "RMS", "STD", "floor")]
+    blocks = ([("test", b["test"])] if b.get("test") else []) + [
+        (f"train {k[3:]}" if len(b["train"]) > 1 else "train", v)
+        for k, v in b["train"].items() if v is not None]
+    for name, block in blocks:
+        for when in ("before", "after"):
+            m = block[when]
+            lines.append(row.format(f"{name} {when}", f"{m['max_abs_dph']:.4f}",
+                                    f"{m['pp_dph']:.4f}", f"{m['rms_dph']:.4f}",
+                                    f"{m['std_dph']:.4f}", f"{m['noise_floor_dph']:.4f}"))
+    src = ", ".join(sorted(set(b["model"]["sources"])))
+    lines.append(f"  bias model: {b['model']['targets']} targets ({src}) on the features z; "
+                 "before = the measured bias, after = measured - predicted (floor: 1 sigma "
+                 "of one window)")
+    return lines
