@@ -117,3 +117,72 @@ def test_train_on_stationary_logs_is_a_bias_only_model(tmp_path: Path,
     after = m["bias"]["test"]["after"]
     assert after["std_dph"] < 1.5 * after["noise_floor_dph"]
     assert m["bias"]["test"]["before"]["std_dph"] > 4.0 * after["std_dph"]
+
+
+def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
+    """train -> stream model (SF exactly 0, the bias head) -> replay through the C kernel:
+    the kernel's float32 bias is the fit's to 1e-3 deg/h, the CSV has bias_dph, and the
+    corrected rate is the raw one minus the bias."""
+    import csv
+
+    from fogsf.trainer.logs.logio import read_log
+    from fogsf.trainer.models import reference
+    from fogsf.trainer.models.stream import StreamModel
+    from fogsf.trainer.training.bias_model import FeatureMap, fit_bias
+
+    write_log(tmp_path / "a.csv", soak_log(TRAIN, 9)[0])
+    test, _ = soak_log(TEST, 10)
+    write_log(tmp_path / "b.csv", test)
+    out = tmp_path / "m"
+    assert cli.main(["train", "--train", str(tmp_path / "a.csv"), "--out", str(out)]) == 0
+    sm = StreamModel.load(out)
+    m = json.loads((out / "metrics.json").read_text())
+    assert sm.bias_head and sm.model == "bias" and m["model_id"] == sm.model_id
+    assert m["params"] == sm.params
+    ref = reference.replay(sm, test.temp_c, test.gyro_dps)
+    assert not ref.sf_ppm.any()
+    fm = FeatureMap(sm.front_end, sm.weights["feat_w"], sm.weights["feat_b"], 9)
+    fit = fit_bias(fm, [read_log(tmp_path / "a.csv")])
+    assert np.max(np.abs(ref.bias_dph - fit.predict(test))) < 1e-3
+    capsys.readouterr()
+    assert cli.main(["replay", str(out), str(tmp_path / "b.csv"), "--out",
+                     str(tmp_path / "r.csv")]) == 0
+    text = capsys.readouterr().out
+    assert "measures the bias, not the SF" in text and "bias, " in text
+    with open(tmp_path / "r.csv") as f:
+        rows = list(csv.reader(f))
+    assert rows[0][-1] == "bias_dph"
+    got = np.array(rows[1:], dtype=np.float64)
+    assert np.array_equal(got[:, 4].astype(np.float32), ref.bias_dph)
+    bias = got[:, 4].astype(np.float32).astype(np.float64)  # %.9g: the float32's digits
+    assert np.array_equal(got[:, 2], got[:, 1] - bias / 3600.0)
+
+
+def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
+    from fogsf.trainer.models.stream import StreamModel
+    from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim.config import BiasConfig
+
+    bias = BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05, quad_dph_per_c2=0.002)
+    logs = []
+    for name, seed in (("train", 21), ("test", 22)):
+        (tmp_path / name).mkdir()
+        p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(10.0, 40.0, 1.0, 0.7, 300.0),
+                                   bias=bias, arw_deg_per_sqrt_h=rigs.QUIET_ARW)
+        logs.append(rigs.rig_log("plain", tmp_path / name / "log.csv", p, (20002,),
+                                 seed=seed).path)
+    out = tmp_path / "m"
+    assert cli.main(["train", "--train", str(logs[0]), "--test", str(logs[1]), "--out",
+                     str(out), "--iters", "20", "--no-progress"]) == 0
+    assert "bias, deg/h" in capsys.readouterr().out
+    sm = StreamModel.load(out)
+    m = json.loads((out / "metrics.json").read_text())
+    assert sm.bias_head and sm.model == "lag-lstm" and m["model_id"] == sm.model_id
+    assert m["params"] == sm.params
+    b = m["bias"]["test"]
+    assert b["source"] == "pairs" and b["before"]["std_dph"] > 3.0 * b["after"]["std_dph"]
+    assert b["after"]["std_dph"] < 2.0 * b["after"]["noise_floor_dph"]

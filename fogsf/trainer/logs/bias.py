@@ -153,6 +153,16 @@ def bias_metrics(err_dph: np.ndarray, noise_floor_dph: float) -> dict[str, float
             "noise_floor_dph": float(noise_floor_dph)}
 
 
+def before_after(w: BiasWindows, predicted_dph: np.ndarray) -> dict:
+    """Before (the measured bias, nothing taken off) and after (measured - predicted, the
+    per-sample prediction averaged over each window's samples) over the bias windows."""
+    c = np.concatenate([[0.0], np.cumsum(np.asarray(predicted_dph, dtype=np.float64))])
+    p = (c[w.stop] - c[w.start]) / (w.stop - w.start)
+    return {"source": w.source, "windows": len(w),
+            "before": bias_metrics(w.bias_dph, w.noise_floor_dph),
+            "after": bias_metrics(w.bias_dph - p, w.noise_floor_dph)}
+
+
 def bias_summary(w: BiasWindows, rows: int = 8) -> dict:
     """inspect's bias block: the series' figures and up to `rows` windows spread over the
     log (time from the log's first sample, board temperature, bias)."""

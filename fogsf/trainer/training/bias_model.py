@@ -15,12 +15,12 @@ windows; `train_bias_only(...)` is `fogsf train` on stationary logs alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.bias import BiasWindows, bias_metrics, bias_windows, is_stationary
+from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows, is_stationary
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import DPS_TO_DPH, SETTLE_S, step_means
 from fogsf.trainer.models.lag_bank import BankFit, fit_bank, n_curved
@@ -125,14 +125,7 @@ def score_bias(model: BiasModel, log: ChamberLog, window_s: float = 100.0,
     prediction averaged over each window's samples) over the log's bias windows, deg/h;
     None for a log that measures no bias."""
     w = bias_windows(log, window_s, latitude_deg, settle_s)
-    if w is None:
-        return None
-    pred = model.predict(log)
-    c = np.concatenate([[0.0], np.cumsum(pred)])
-    p = (c[w.stop] - c[w.start]) / (w.stop - w.start)
-    return {"source": w.source, "windows": len(w),
-            "before": bias_metrics(w.bias_dph, w.noise_floor_dph),
-            "after": bias_metrics(w.bias_dph - p, w.noise_floor_dph)}
+    return None if w is None else before_after(w, model.predict(log))
 
 
 def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: ChamberLog | None,
@@ -199,3 +192,38 @@ def bias_lines(b: dict) -> list[str]:
                  "before = the measured bias, after = measured - predicted (floor: 1 sigma "
                  "of one window)")
     return lines
+
+
+def with_bias_head(sm: StreamModel, model: BiasModel) -> StreamModel:
+    """The artifact with the bias model as its bias head (float32, deg/h); the bias model
+    must read the artifact's own z (`feature_map_of(sm, ...)`)."""
+    if model.fm.feat_w.tobytes() != sm.weights["feat_w"].tobytes():
+        raise ValueError("the bias model reads other features than the artifact")
+    f = model.fit
+    weights = dict(sm.weights)
+    weights.update({"bias_b": np.array([f.intercept], np.float32),
+                    "bias_w": f.lin.astype(np.float32),
+                    "bias_quad_w": f.quad.astype(np.float32),
+                    "bias_cube_w": f.cube.astype(np.float32)})
+    out = replace(sm, weights=weights, bias_head=True, extra=dict(sm.extra))
+    out.validate()
+    return out
+
+
+def bias_only_stream_model(model: BiasModel) -> StreamModel:
+    """A bias-only artifact: the bias head on the bank's z, and an SF part that is exactly
+    zero (a 1 x 1 LSTM reading z[0:1] with zero weights, zero head: sf_ppm = 0)."""
+    fm, f = model.fm, model.fm.feat_w.shape[0]
+    zeros = {"lstm0_w": (4, 1), "lstm0_r": (4, 1), "lstm0_b": (8,), "head_w": (1,),
+             "head_b": (1,), "skip_w": (f,), "out_offset": (1,)}
+    weights = {k: np.zeros(s, np.float32) for k, s in zeros.items()}
+    weights.update({"filter_alpha": np.asarray(fm.fe.filter_alpha, np.float32),
+                    "feat_w": fm.feat_w, "feat_b": fm.feat_b,
+                    "out_scale": np.ones(1, np.float32)})
+    sm = StreamModel(model="bias", decimation=fm.fe.decimation, t_ref_c=fm.fe.t_ref_c,
+                     t_min_c=fm.fe.t_min_c, t_max_c=fm.fe.t_max_c,
+                     stuck_samples=fm.fe.stuck_samples,
+                     filter_tau_s=list(fm.fe.filter_tau_s), n_features=f, layers=1, hidden=1,
+                     weights=weights, sample_dt_s=fm.fe.sample_dt_s, lstm_inputs=1,
+                     extra={"structure": "bias-only"})
+    return with_bias_head(sm, model)

@@ -414,6 +414,10 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     fitted = fit_model(opts, train_logs)
     bias = bm.fit_bias(bm.feature_map_of(fitted.stream_model, train_logs, opts.model_step_s),
                        train_logs, opts.window_s, opts.latitude_deg, opts.settle_s)
+    if bias is not None and fitted.stream_model is not None:  # one step corrects both
+        fitted.stream_model = bm.with_bias_head(fitted.stream_model, bias)
+        fitted.params, fitted.weights_bytes = (fitted.stream_model.params,
+                                               4 * fitted.stream_model.params)
     train_s = time.perf_counter() - t0
     ref = opts.ref_sf if opts.ref_sf is not None else reference_sf_of_logs(
         train_logs, opts.window_s, opts.latitude_deg, settle_s=opts.settle_s)
