@@ -78,6 +78,7 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
     st->t_last_good = m != NULL ? m->t_ref_c : 0.0f;
     st->sf_ppm = 0.0f;
     st->bias_dph = 0.0f;
+    st->bias_dps = 0.0;
     st->sf_flags = 0u;
     st->raw_prev_bits = 0u;
     st->stuck_run = 0u;
@@ -119,6 +120,7 @@ static void bias_step(const fogsf_model *m, fogsf_state *st)
         st->sf_flags |= FOGSF_FLAG_BIAS_CLAMPED;
     }
     st->bias_dph = y;
+    st->bias_dps = (double)y / 3600.0; /* once per model step, not per sample */
 }
 
 /* Contract step 4: one model step on the block-mean temperature tm. */
@@ -248,9 +250,11 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
         }
     }
 
-    /* 5. the held bias and SF error correct this sample, in double (a bias of 0 leaves the
-     * gyro's bits: without a bias head this is gyro / (1 + sf * 1e-6) as before) */
-    corrected = (gyro_dps - (double)st->bias_dph / 3600.0) / (1.0 + (double)st->sf_ppm * 1e-6);
+    /* 5. the held bias and SF error correct this sample, in double; a bias of 0 (always,
+     * without a bias head) is not subtracted: gyro / (1 + sf * 1e-6) as before, and no
+     * soft-double work on a Cortex-M4F */
+    corrected = st->bias_dph != 0.0f ? gyro_dps - st->bias_dps : gyro_dps;
+    corrected = corrected / (1.0 + (double)st->sf_ppm * 1e-6);
     if (!double_finite(gyro_dps) || !double_finite(corrected)) {
         corrected = 0.0;
         flags |= FOGSF_FLAG_GYRO_INVALID;

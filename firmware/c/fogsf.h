@@ -105,6 +105,7 @@ typedef struct fogsf_bias_model {
 
 /* Caller-owned state, sized for the largest model (FOGSF_MAX_*). Treat as opaque. */
 typedef struct fogsf_state {
+    double bias_dps;                             /* bias_dph / 3600 (double), held */
     float h[FOGSF_MAX_LAYERS][FOGSF_MAX_HIDDEN]; /* LSTM hidden state per layer */
     float c[FOGSF_MAX_LAYERS][FOGSF_MAX_HIDDEN]; /* LSTM cell state per layer */
     float h_prev[FOGSF_MAX_HIDDEN];              /* scratch of one LSTM layer update */

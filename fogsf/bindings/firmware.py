@@ -255,14 +255,15 @@ def arm_size(arm: ArmBuild, models: StreamModel | list[StreamModel]) -> ArmSize:
 
 
 def state_bytes(models: StreamModel | list[StreamModel]) -> int:
-    """sizeof(fogsf_state) for the largest of the models (FOGSF_MAX_* = their maxima): all
-    members are 4-byte floats/uint32 (no padding)."""
+    """sizeof(fogsf_state) for the largest of the models (FOGSF_MAX_* = their maxima): a
+    double first, then 4-byte floats/uint32, the whole padded to a multiple of 8."""
     models = models if isinstance(models, list) else [models]
     lay = max(m.layers for m in models)
     h = max(m.hidden for m in models)
     f = max(m.n_features for m in models)
     k = max(max(m.n_filters, 1) for m in models)
-    return 4 * (2 * lay * h + h + f + k + 9)  # 9 scalars: acc .. started, bias_dph
+    words = 2 * lay * h + h + f + k + 9  # 9 scalars: acc .. started, bias_dph
+    return 8 + 4 * (words + words % 2)  # bias_dps (double), then the words, padded to 8
 
 
 # --- make firmware -------------------------------------------------------------------------

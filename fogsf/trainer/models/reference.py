@@ -256,12 +256,13 @@ def expand(step_values: np.ndarray, n_samples: int, decimation: int) -> np.ndarr
 
 def correct(gyro_dps: np.ndarray, sf_ppm: np.ndarray, bias_dph: np.ndarray | None = None
             ) -> tuple[np.ndarray, np.ndarray]:
-    """corrected = (g - bias/3600) / (1 + sf*1e-6) in double (bias: float32 deg/h, none: g
-    as it is, the same bits as a bias of 0); non-finite -> 0.0 and GYRO_INVALID."""
+    """corrected = (g - bias/3600) / (1 + sf*1e-6) in double (bias: float32 deg/h; where it
+    is 0, or none is given, g as it is, as the kernel); non-finite -> 0.0 and GYRO_INVALID."""
     g = np.asarray(gyro_dps, dtype=np.float64)
     with np.errstate(all="ignore"):
         if bias_dph is not None:
-            g = g - np.asarray(bias_dph, dtype=np.float32).astype(np.float64) / 3600.0
+            b = np.asarray(bias_dph, dtype=np.float32)
+            g = np.where(b != 0, g - b.astype(np.float64) / 3600.0, g)
         out = g / (1.0 + np.asarray(sf_ppm, dtype=np.float32).astype(np.float64) * 1e-6)
     bad = ~np.isfinite(out)
     out[bad] = 0.0
