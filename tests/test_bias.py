@@ -105,3 +105,22 @@ def test_inspect_shows_the_pairs_bias_series(reversals: rigs.RigLog,
     s = json.loads(capsys.readouterr().out)
     assert s["stationary"] is False and s["metrics"] is not None
     assert s["bias"]["source"] == "pairs" and s["bias"]["count"] == s["pairs"]["count"]
+
+
+def test_the_simulated_bias_has_a_coil_polynomial_and_a_shupe_term() -> None:
+    from fogsf.trainer.sim.gyro import simulate
+    from fogsf.trainer.sim.scenarios import paper
+
+    cfg = paper(1.0, seed=3)
+    cfg.bias = BiasConfig(bias_dph=0.5, lin_dph_per_c=0.03, quad_dph_per_c2=0.001,
+                          cube_dph_per_c3=2e-5, node="coil_inner",
+                          shupe_dph_per_c_per_min=2.0)
+    r = simulate(cfg)
+    coil = r.nodes["coil_inner"]
+    d = coil - 20.0
+    rate = np.gradient(coil, cfg.dt_s) * 60.0
+    want = 0.5 + 0.03 * d + 0.001 * d**2 + 2e-5 * d**3 + 2.0 * rate
+    assert np.allclose(r.bias_dps * 3600.0, want, rtol=0, atol=1e-9)
+    assert np.ptp(2.0 * rate) > 0.5  # the Shupe term moves the bias while the coil ramps
+    cfg.bias.shupe_dph_per_c_per_min = 0.0
+    assert np.allclose(simulate(cfg).bias_dps * 3600.0, want - 2.0 * rate, rtol=0, atol=1e-9)
