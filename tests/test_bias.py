@@ -124,3 +124,17 @@ def test_the_simulated_bias_has_a_coil_polynomial_and_a_shupe_term() -> None:
     assert np.ptp(2.0 * rate) > 0.5  # the Shupe term moves the bias while the coil ramps
     cfg.bias.shupe_dph_per_c_per_min = 0.0
     assert np.allclose(simulate(cfg).bias_dps * 3600.0, want - 2.0 * rate, rtol=0, atol=1e-9)
+
+
+def test_simulate_writes_a_stationary_rig_log(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "s" / "log.csv"
+    assert cli.main(["simulate", "--rig", "plain", "--protocol", "stationary",
+                     "--random-gyro", "20003", "--out", str(out)]) == 0
+    log = read_log(out, with_mapping_beside(out, Dialect()))
+    assert is_stationary(log) and log.duration_s > 13000
+    capsys.readouterr()
+    assert cli.main(["simulate", "--rig", "plain", "--protocol", "stationary", "--rate-dps",
+                     "10", "--out", str(out)]) != 0
+    assert "keeps the table stopped: --rate-dps and --dwell-s do not apply" in \
+        capsys.readouterr().err
