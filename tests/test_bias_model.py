@@ -186,3 +186,19 @@ def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
     b = m["bias"]["test"]
     assert b["source"] == "pairs" and b["before"]["std_dph"] > 3.0 * b["after"]["std_dph"]
     assert b["after"]["std_dph"] < 2.0 * b["after"]["noise_floor_dph"]
+
+
+def test_same_logs_same_bias_model_bytes(tmp_path: Path) -> None:
+    from fogsf.export.onnx_step import build_step_onnx
+    from fogsf.trainer.models.stream import StreamModel
+
+    write_log(tmp_path / "a.csv", soak_log(TRAIN, 13)[0])
+    for out in ("m1", "m2"):
+        assert cli.main(["train", "--train", str(tmp_path / "a.csv"), "--out",
+                         str(tmp_path / out)]) == 0
+    a, b = (tmp_path / "m1" / "stream_weights.npz"), (tmp_path / "m2" / "stream_weights.npz")
+    assert a.read_bytes() == b.read_bytes()
+    model = StreamModel.load(tmp_path / "m1")
+    assert model.model_id == StreamModel.load(tmp_path / "m2").model_id
+    outputs = [o.name for o in build_step_onnx(model).graph.output]
+    assert outputs[0] == "sf_ppm" and outputs[-1] == "bias_dph"
