@@ -122,8 +122,10 @@ def fit_bias(fm: FeatureMap, logs: list[ChamberLog], window_s: float = 100.0,
 # generalised cross-validation. Unlike the SF's fixed prior (lag_bank.BANK_LAMBDA, 1e-3):
 # a bias target is white noise about the law (the gyro's angle random walk over a model
 # step or a pair), which GCV is made for, and a Shupe term needs large coefficients of
-# opposite sign on neighbouring lags (T - lag is a rate of change) that 1e-3 shrinks away
-# (evaluation gyros 20000-20007, coil Shupe term: test error 0.69 -> 0.36 deg/h at 1e-5).
+# opposite sign on neighbouring lags (T - lag is a rate of change) that 1e-3 shrinks away.
+# Development gyros 1-8 (`benchmarks.bias_eval`), median std(predicted - true): coil Shupe
+# term 0.375 -> 0.186 deg/h (reversals), 0.376 -> 0.208 (stationary); without it 0.094 ->
+# 0.136 (reversals: few pairs) and 0.085 -> 0.071 (stationary); docs/decisions.md.
 BIAS_LAMBDAS = tuple(10.0 ** e for e in range(-8, 0))
 
 
