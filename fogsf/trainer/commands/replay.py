@@ -4,8 +4,11 @@ The model directory (from `fogsf train`) is exported to its C header and the ker
 firmware/c is compiled for it (cached in build/kernels/<model id>-..., or $FOGSF_BUILD_DIR).
 Every sample of the log (board temperature, raw gyro) goes through fogsf_step; the
 output CSV holds time_s, gyro_dps, gyro_corrected_dps and sf_error_ppm (the kernel's
-predicted SF error vs the nominal SF, held between model steps). The SF-error metrics of
-the log before and after the correction are printed (max|e|, p-p, RMS, STD, noise floor).
+predicted SF error vs the nominal SF, held between model steps); with a model that has a
+bias head, also bias_dph (its predicted bias, deg/h, held), and the corrected rate is
+(gyro - bias) / (1 + SF error). The SF-error metrics of the log before and after the
+correction are printed (max|e|, p-p, RMS, STD, noise floor), and the bias's (deg/h) when
+the model has a bias head and the log measures the bias (+/- pairs, or a stationary log).
 A log at another sample rate than the model's training logs runs the model re-rated to it
 (the same model step in seconds; `fogsf export --sample-rate-hz` gives that firmware).
 The kernel starts from reset at the log's first sample, its lag states at that sample's
@@ -38,7 +41,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("model", metavar="MODEL_DIR", help="model directory from `fogsf train`")
     parser.add_argument("log", metavar="LOG.csv", help="chamber log (format: docs/logs.md)")
     parser.add_argument("--out", required=True, metavar="CSV",
-                        help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm")
+                        help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm "
+                             "(and bias_dph with a bias head)")
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="before/after plot of the SF error (windows vs temperature, time)")
     add_metric_options(parser, skip=True)
@@ -55,16 +59,23 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
-                    corrected: np.ndarray, sf_ppm: np.ndarray) -> None:
-    """The replay CSV; doubles with 17 significant digits, sf_ppm (float32) with 9."""
+                    corrected: np.ndarray, sf_ppm: np.ndarray,
+                    bias_dph: np.ndarray | None = None) -> None:
+    """The replay CSV; doubles with 17 significant digits, sf_ppm and bias_dph (float32,
+    the latter only for a model with a bias head) with 9."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     from fogsf.trainer.logs.logio import time_format, write_rows
 
-    rows = np.column_stack([time_s, gyro, corrected, sf_ppm.astype(np.float64)])
+    cols = [time_s, gyro, corrected, sf_ppm.astype(np.float64)]
+    head, fmts = "time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm", [time_format(time_s),
+                                                                     "%.17g", "%.17g", "%.9g"]
+    if bias_dph is not None:
+        cols.append(bias_dph.astype(np.float64))
+        head, fmts = head + ",bias_dph", [*fmts, "%.9g"]
     with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write("time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm\n")
-        write_rows(f, rows, [time_format(time_s), "%.17g", "%.17g", "%.9g"])
+        f.write(head + "\n")
+        write_rows(f, np.column_stack(cols), fmts)
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -89,8 +100,9 @@ def run(args: argparse.Namespace) -> int:
     model = rated(model, log.sample_dt_s, f"the log's {log.sample_rate_hz:.6g} Hz")
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
-    corrected, sf, flags = kernel.run(log.temp_c, log.gyro_dps)
-    write_corrected(args.out, log.time_s, log.gyro_dps, corrected, sf)
+    corrected, sf, bias, flags = kernel.run_bias(log.temp_c, log.gyro_dps)
+    write_corrected(args.out, log.time_s, log.gyro_dps, corrected, sf,
+                    bias if model.bias_head else None)
     print(f"kernel {build.shared} (model {model.model_id}, {model.layers}x{model.hidden} "
           f"LSTM, D={model.decimation})")
     print(f"replayed {len(log)} samples of {log.path}; wrote {args.out}")
@@ -116,8 +128,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
         print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
+    bias_block = replay_bias(model, log, bias, args) if model.bias_head else None
     args.axis_result = {"model_id": model.model_id, "out": args.out, "before": before,
-                        "after": after, "flags": counts}
+                        "after": after, "flags": counts, "bias": bias_block}
     if args.json:
         Path(args.json).write_text(json.dumps({"model_id": model.model_id,
                                                "rated_from": model.extra.get("rated_from"),
@@ -128,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
                                                "settle_s": args.settle_s,
                                                "skip_s": args.skip_s,
                                                "before": before, "after": after,
+                                               "bias": bias_block,
                                                "flags": counts}, indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.plot and before is not None:
@@ -135,6 +149,27 @@ def run(args: argparse.Namespace) -> int:
              args.ref_sf, args.settle_s, args.skip_s)
         print(f"plot: {args.plot}")
     return 0
+
+
+def replay_bias(model, log, bias: np.ndarray,  # noqa: ANN001 - StreamModel, ChamberLog
+                args: argparse.Namespace) -> dict | None:
+    """The bias before/after (deg/h) over the log's bias windows, printed; None when the log
+    measures no bias."""
+    from fogsf.trainer.logs.bias import before_after, bias_windows
+
+    w = bias_windows(log, args.window_s, args.latitude_deg, args.settle_s, args.skip_s)
+    if w is None:
+        print("bias: the log measures no bias (no +/- pairs, the table turning)")
+        return None
+    b = before_after(w, bias.astype(np.float64))
+    print(f"bias, {len(w)} windows ({w.source}; before: the measured bias; after: measured - "
+          "predicted):")
+    for name in ("before", "after"):
+        m = b[name]
+        print(f"  {name:6s} max|e| {m['max_abs_dph']:8.4f}  p-p {m['pp_dph']:8.4f}  "
+              f"RMS {m['rms_dph']:8.4f}  STD {m['std_dph']:8.4f} deg/h")
+    print(f"  noise floor {w.noise_floor_dph:.4f} deg/h")
+    return b
 
 
 def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # noqa: ANN001
