@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -26,6 +26,7 @@ help:
 	@echo "make bench-gsa   GSA against Rashedi et al. (2009) Table 4 -> out/bench-gsa.json"
 	@echo "make bench-sim   simulator speed and its calibration to the paper -> out/bench-sim.json"
 	@echo "make bench-rigs  rig logs (ROS, staircase, reversals, skew IMU) trained and scored against the truth -> out/bench-rigs.json"
+	@echo "make bench-bias  the bias model on evaluation gyros (reversals, stationary; with and without a Shupe term) vs a PX4-style cubic -> out/bench-bias.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
@@ -106,6 +107,10 @@ bench-sim: $(STAMP)
 RIGS_N ?= 2
 bench-rigs: $(STAMP)
 	$(PY) -m benchmarks.rigs --seeds eval --n $(RIGS_N) --out $(OUT)/bench-rigs.json
+
+BIAS_GYROS ?= 20000:20008
+bench-bias: $(STAMP)
+	$(PY) -m benchmarks.bias_eval --gyros $(BIAS_GYROS) --out $(OUT)/bench-bias.json
 
 clean:
 	rm -rf build out models

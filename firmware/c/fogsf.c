@@ -29,8 +29,16 @@ static int double_finite(double v)
     return v - v == 0.0; /* Inf - Inf and NaN - NaN are NaN */
 }
 
+/* The bias head of m: its fogsf_bias_model when m is the sf member of one, else NULL. */
+static const fogsf_bias_model *bias_of(const fogsf_model *m)
+{
+    return m->format_version == FOGSF_FORMAT_BIAS ? (const fogsf_bias_model *)(const void *)m
+                                                  : NULL;
+}
+
 uint32_t fogsf_model_check(const fogsf_model *m)
 {
+    const fogsf_bias_model *b;
     if (m == NULL || m->n_filters > FOGSF_MAX_FILTERS || m->n_features > FOGSF_MAX_FEATURES ||
         m->n_features < 1u || m->layers > FOGSF_MAX_LAYERS || m->layers < 1u ||
         m->hidden > FOGSF_MAX_HIDDEN || m->hidden < 1u || m->decimation < 1u ||
@@ -39,6 +47,10 @@ uint32_t fogsf_model_check(const fogsf_model *m)
         m->head_w == NULL || m->skip_w == NULL || (m->quad_w == NULL) != (m->cube_w == NULL) ||
         m->lstm_inputs > m->n_features || m->quad_diag > 1u ||
         (m->quad_diag != 0u && m->quad_w == NULL)) {
+        return FOGSF_FLAG_MODEL_INVALID;
+    }
+    b = bias_of(m);
+    if (b != NULL && (b->bias_w == NULL || b->bias_quad_w == NULL || b->bias_cube_w == NULL)) {
         return FOGSF_FLAG_MODEL_INVALID;
     }
     return 0u;
@@ -65,6 +77,8 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
     st->acc = 0.0f;
     st->t_last_good = m != NULL ? m->t_ref_c : 0.0f;
     st->sf_ppm = 0.0f;
+    st->bias_dph = 0.0f;
+    st->bias_dps = 0.0;
     st->sf_flags = 0u;
     st->raw_prev_bits = 0u;
     st->stuck_run = 0u;
@@ -76,6 +90,37 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
 uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st)
 {
     return fogsf_reset(m, st);
+}
+
+/* The bias head on the features z of this step (deg/h): the bias, then the squares, then
+ * the cubes, index order; NaN or beyond +-FOGSF_BIAS_LIMIT_DPH is clamped and flagged. */
+static void bias_step(const fogsf_model *m, fogsf_state *st)
+{
+    const fogsf_bias_model *b = bias_of(m);
+    const uint32_t nf = m->n_features;
+    float y, mag;
+    uint32_t i;
+
+    if (b == NULL) {
+        return; /* bias_dph stays 0 */
+    }
+    y = b->bias_b;
+    for (i = 0; i < nf; ++i) {
+        y = y + b->bias_w[i] * st->z[i];
+    }
+    for (i = 0; i < nf; ++i) {
+        y = y + b->bias_quad_w[i] * (st->z[i] * st->z[i]);
+    }
+    for (i = 0; i < nf; ++i) {
+        y = y + b->bias_cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
+    }
+    mag = y < 0.0f ? -y : y;
+    if (!(mag <= FOGSF_BIAS_LIMIT_DPH)) {
+        y = y > 0.0f ? FOGSF_BIAS_LIMIT_DPH : (y < 0.0f ? -FOGSF_BIAS_LIMIT_DPH : 0.0f);
+        st->sf_flags |= FOGSF_FLAG_BIAS_CLAMPED;
+    }
+    st->bias_dph = y;
+    st->bias_dps = (double)y / 3600.0; /* once per model step, not per sample */
 }
 
 /* Contract step 4: one model step on the block-mean temperature tm. */
@@ -140,6 +185,7 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
         st->sf_flags = FOGSF_FLAG_SF_CLAMPED;
     }
     st->sf_ppm = sf;
+    bias_step(m, st);
 }
 
 void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
@@ -153,6 +199,7 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
     if (fogsf_model_check(m) != 0u) { /* never index past the state or through NULL */
         out->corrected_dps = 0.0;
         out->sf_ppm = 0.0f;
+        out->bias_dph = 0.0f;
         out->flags = FOGSF_FLAG_MODEL_INVALID;
         return;
     }
@@ -203,20 +250,31 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
         }
     }
 
-    /* 5. the held SF error corrects this sample, in double */
-    corrected = gyro_dps / (1.0 + (double)st->sf_ppm * 1e-6);
+    /* 5. the held bias and SF error correct this sample, in double; a bias of 0 (always,
+     * without a bias head) is not subtracted: gyro / (1 + sf * 1e-6) as before, and no
+     * soft-double work on a Cortex-M4F */
+    corrected = st->bias_dph != 0.0f ? gyro_dps - st->bias_dps : gyro_dps;
+    corrected = corrected / (1.0 + (double)st->sf_ppm * 1e-6);
     if (!double_finite(gyro_dps) || !double_finite(corrected)) {
         corrected = 0.0;
         flags |= FOGSF_FLAG_GYRO_INVALID;
     }
     out->corrected_dps = corrected;
     out->sf_ppm = st->sf_ppm;
+    out->bias_dph = st->bias_dph;
     out->flags = flags | st->sf_flags;
 }
 
 uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
                    const double *gyro_dps, size_t n, double *corrected_dps, float *sf_ppm,
                    uint32_t *flags)
+{
+    return fogsf_run_bias(m, st, temp_c, gyro_dps, n, corrected_dps, sf_ppm, NULL, flags);
+}
+
+uint32_t fogsf_run_bias(const fogsf_model *m, fogsf_state *st, const float *temp_c,
+                        const double *gyro_dps, size_t n, double *corrected_dps,
+                        float *sf_ppm, float *bias_dph, uint32_t *flags)
 {
     uint32_t all = 0u;
     size_t i;
@@ -229,6 +287,9 @@ uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
         }
         if (sf_ppm != NULL) {
             sf_ppm[i] = out.sf_ppm;
+        }
+        if (bias_dph != NULL) {
+            bias_dph[i] = out.bias_dph;
         }
         if (flags != NULL) {
             flags[i] = out.flags;

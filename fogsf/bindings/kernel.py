@@ -171,6 +171,8 @@ def cdef(model: StreamModel) -> str:
     if unknown:
         raise RuntimeError(f"fogsf.h declarations use macros cdef() does not know: {unknown}")
     body = re.sub(r"\bFOGSF_[A-Z_0-9]+\b", lambda m: str(sizes[m.group(0)]), body)
+    if model.bias_head:  # the model is the sf member of NAME_with_bias (NAME.h's macro)
+        return body + f"\nextern fogsf_bias_model {BOUND_NAME}_with_bias;\n"
     return body + f"\nextern fogsf_model {BOUND_NAME};\n"  # cffi: a const is a constant
 
 
@@ -185,7 +187,9 @@ class Kernel:
         self.ffi = cffi.FFI()
         self.ffi.cdef(cdef(model))
         self.lib = self.ffi.dlopen(str(self.build.shared))
-        self.m = self.ffi.addressof(self.lib, BOUND_NAME)
+        self.m = (self.ffi.addressof(self.ffi.addressof(self.lib, f"{BOUND_NAME}_with_bias")
+                                     [0], "sf")
+                  if model.bias_head else self.ffi.addressof(self.lib, BOUND_NAME))
         got = self.ffi.string(self.m.model_id).decode()
         if got != model.model_id:
             raise UserError(f"{self.build.shared}: kernel of model {got}, expected "
@@ -226,6 +230,20 @@ class Kernel:
         self.lib.fogsf_run(self.m, st, fb("float[]", t), fb("double[]", g), n,
                            fb("double[]", corrected), fb("float[]", sf), fb("uint32_t[]", flags))
         return corrected, sf, flags
+
+    def run_bias(self, temp_c: np.ndarray, gyro_dps: np.ndarray, st=None  # noqa: ANN001
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """fogsf_run_bias from reset (or from `st`): corrected, sf, bias_dph, flags."""
+        t, g = self._inputs(temp_c, gyro_dps)
+        n = t.shape[0]
+        corrected, sf, flags = _outputs(n)
+        bias = np.empty(n, np.float32)
+        fb = self.ffi.from_buffer
+        st = st if st is not None else self.new_state()
+        self.lib.fogsf_run_bias(self.m, st, fb("float[]", t), fb("double[]", g),
+                                n, fb("double[]", corrected), fb("float[]", sf),
+                                fb("float[]", bias), fb("uint32_t[]", flags))
+        return corrected, sf, bias, flags
 
     def stream(self, temp_c: np.ndarray, gyro_dps: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

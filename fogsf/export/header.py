@@ -15,8 +15,10 @@ import numpy as np
 from fogsf.trainer.models.stream import FORMAT, StreamModel
 
 # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
-# also holds lstm_inputs and quad_diag (docs/stream-contract.md)
+# also holds lstm_inputs and quad_diag; 4: a model with a bias head, the sf member of a
+# fogsf_bias_model (docs/stream-contract.md). A model without a bias head is format 3.
 FORMAT_VERSION = 3
+FORMAT_VERSION_BIAS = 4
 DEFAULT_NAME = "gyro_model"
 NAME_RULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
 PER_LINE = 6
@@ -60,7 +62,8 @@ def _context(model: StreamModel, name: str) -> dict:
     check_name(name)
     return {
         "name": name, "upper": name.upper(), "guard": f"{name.upper()}_FOGSF_MODEL_H",
-        "format": FORMAT, "format_version": FORMAT_VERSION, "model_id": model.model_id,
+        "format": FORMAT, "model_id": model.model_id,
+        "format_version": FORMAT_VERSION_BIAS if model.bias_head else FORMAT_VERSION,
         "kind": model.model.replace('"', "'").replace("*/", "* /"), "params": model.params,
         "k": model.n_filters, "k_alloc": max(model.n_filters, 1), "f": model.n_features,
         "layers": model.layers, "hidden": model.hidden, "decimation": model.decimation,
@@ -82,6 +85,10 @@ def _context(model: StreamModel, name: str) -> dict:
         "out_offset": c_float(w["out_offset"][0]), "poly_head": model.poly_head,
         "quad_w": c_array(w["quad_w"]) if model.poly_head else "",
         "cube_w": c_array(w["cube_w"]) if model.poly_head else "",
+        "bias_head": model.bias_head,
+        **({"bias_b": c_float(w["bias_b"][0]), "bias_w": c_array(w["bias_w"]),
+            "bias_quad_w": c_array(w["bias_quad_w"]),
+            "bias_cube_w": c_array(w["bias_cube_w"])} if model.bias_head else {}),
     }
 
 

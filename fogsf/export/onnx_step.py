@@ -6,7 +6,9 @@ ONNX LSTM node over a sequence of length 1, so onnxruntime steps exactly like fi
 A model with the polynomial head gets a few more nodes (z quad_w z^T + (z*z*z) cube_w;
 (z*z) quad_w with the diagonal quadratic); without it the graph is what it was before the
 head existed. A model whose first LSTM layer reads z[0:N] only (`lstm_inputs`) slices z
-before it; without the key the graph is unchanged.
+before it; without the key the graph is unchanged. A model with a bias head has one more
+output, `bias_dph` [1, 1] (bias_b + z bias_w + (z*z) bias_quad_w + (z*z*z) bias_cube_w);
+without it the graph is unchanged.
 """
 
 from __future__ import annotations
@@ -86,6 +88,10 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
         helper.make_node("Mul", ["y", "out_scale"], ["y_scaled"]),
         helper.make_node("Add", ["y_scaled", "out_offset"], ["sf_ppm"]),
     ]
+    if model.bias_head:
+        inits += bias_initializers(model)
+        nodes += bias_nodes()
+        outputs.append(helper.make_tensor_value_info("bias_dph", TensorProto.FLOAT, [1, 1]))
     graph = helper.make_graph(nodes, "fogsf_step", inputs, outputs, inits)
     proto = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
                               producer_name="fogsf", ir_version=IR_VERSION,
@@ -95,6 +101,28 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
                                    "decimation": str(model.decimation)})
     onnx.checker.check_model(proto, full_check=True)
     return proto
+
+
+def bias_initializers(model: StreamModel) -> list[onnx.TensorProto]:
+    """The bias head: bias_b [1], bias_w, bias_quad_w, bias_cube_w [F, 1]."""
+    f, w = model.n_features, model.weights
+    return [numpy_helper.from_array(w["bias_b"].reshape(1), "bias_b"),
+            *(numpy_helper.from_array(w[n].reshape(f, 1), n)
+              for n in ("bias_w", "bias_quad_w", "bias_cube_w"))]
+
+
+def bias_nodes() -> list[onnx.NodeProto]:
+    """bias_dph = bias_b + z bias_w + (z*z) bias_quad_w + (z*z*z) bias_cube_w, [1, 1]."""
+    return [
+        helper.make_node("Mul", ["z", "z"], ["bias_z_sq"]),
+        helper.make_node("Mul", ["bias_z_sq", "z"], ["bias_z_cube"]),
+        helper.make_node("MatMul", ["z", "bias_w"], ["bias_lin"]),
+        helper.make_node("MatMul", ["bias_z_sq", "bias_quad_w"], ["bias_quad"]),
+        helper.make_node("MatMul", ["bias_z_cube", "bias_cube_w"], ["bias_cube"]),
+        helper.make_node("Add", ["bias_b", "bias_lin"], ["bias_1"]),
+        helper.make_node("Add", ["bias_1", "bias_quad"], ["bias_2"]),
+        helper.make_node("Add", ["bias_2", "bias_cube"], ["bias_dph"]),
+    ]
 
 
 def poly_initializers(model: StreamModel) -> list[onnx.TensorProto]:
@@ -145,6 +173,9 @@ class OrtStepper:
                                             providers=["CPUExecutionProvider"])
         self.layers, self.hidden = layers, hidden
         self.in_names, self.out_names = state_names(layers)
+        self.has_bias = any(o.name == "bias_dph" for o in proto.graph.output)
+        self.bias_dph = 0.0  # the bias head's output of the latest step (0 without one)
+        self.bias_seq = np.zeros(0, np.float32)  # of the latest `run`
         self.reset()
 
     def reset(self) -> None:
@@ -154,7 +185,10 @@ class OrtStepper:
         """One step: (sf_ppm, last layer's new h [H])."""
         feeds = {"z": np.asarray(z, np.float32).reshape(1, -1)}
         feeds.update(zip(self.in_names, self.state, strict=True))
-        outs = self.session.run(["sf_ppm", *self.out_names], feeds)
+        names = ["sf_ppm", *self.out_names, *(["bias_dph"] if self.has_bias else [])]
+        outs = self.session.run(names, feeds)
+        if self.has_bias:
+            self.bias_dph = float(outs.pop()[0, 0])
         self.state = outs[1:]
         return float(outs[0][0, 0]), self.state[-2][0]
 
@@ -164,6 +198,8 @@ class OrtStepper:
         n = z_seq.shape[0]
         sf = np.empty(n, np.float32)
         hl = np.empty((n, self.hidden), np.float32)
+        self.bias_seq = np.zeros(n, np.float32)
         for m in range(n):
             sf[m], hl[m] = self.step(z_seq[m])
+            self.bias_seq[m] = self.bias_dph
         return sf, hl

@@ -7,10 +7,10 @@
  *           samples: (temperature bits, gyro bits, repeats) records, so NaN, Inf, denormals,
  *           huge values and stuck thermometers (a record repeated up to 255 times) all occur;
  *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state),
- *           lstm_inputs and quad_diag (sometimes invalid) and every weight from the fuzz
- *           data (NaN, Inf, huge).
- * After every step the totality contract is checked (corrected finite, |sf| <= limit, flags
- * known, an invalid model gives 0); a violation aborts, which libFuzzer reports as a crash.
+ *           lstm_inputs and quad_diag (sometimes invalid), sometimes a bias head (format 4,
+ *           sometimes with a NULL array) and every weight from the fuzz data (NaN, Inf, huge).
+ * After every step the totality contract is checked (corrected finite, |sf| and |bias| <=
+ * their limits, flags known, an invalid model gives 0); a violation aborts, which libFuzzer reports as a crash.
  * The number of fogsf_step calls is printed at exit ("fuzz steps: N") for make fuzz.
  */
 #include <stdio.h>
@@ -88,9 +88,10 @@ static double next_f64(reader *r)
 static void check(const fogsf_model *m, const fogsf_output *out)
 {
     const float sf = out->sf_ppm < 0.0f ? -out->sf_ppm : out->sf_ppm;
+    const float b = out->bias_dph < 0.0f ? -out->bias_dph : out->bias_dph;
     ++steps;
     if (!finite_d(out->corrected_dps) || !finite_f(out->sf_ppm) || !(sf <= FOGSF_SF_LIMIT_PPM) ||
-        (out->flags & ~63u) != 0u) {
+        !(b <= FOGSF_BIAS_LIMIT_DPH) || (out->flags & ~127u) != 0u) {
         fprintf(stderr, "totality violated: corrected %g sf %g flags %u\n", out->corrected_dps,
                 (double)out->sf_ppm, (unsigned)out->flags);
         abort();
@@ -172,9 +173,13 @@ static void fuzz_cell(reader *r)
 #define ADV_FLOATS 4096
 static float adv[ADV_FLOATS];
 
+static fogsf_bias_model adv_bias; /* the adversarial model with a bias head */
+
 static void fuzz_model_data(reader *r)
 {
     fogsf_model m;
+    uint8_t stuck_byte;
+    uint32_t bias_mode;
     const float *lw[FOGSF_MAX_LAYERS + 1], *lr[FOGSF_MAX_LAYERS + 1], *lb[FOGSF_MAX_LAYERS + 1];
     size_t i;
     int l;
@@ -186,7 +191,9 @@ static void fuzz_model_data(reader *r)
     m.layers = next_u8(r) % (FOGSF_MAX_LAYERS + 2u);
     m.hidden = next_u8(r) % (FOGSF_MAX_HIDDEN + 2u);
     m.decimation = next_u8(r) % 5u;
-    m.stuck_samples = next_u8(r) % 8u;
+    stuck_byte = next_u8(r);
+    m.stuck_samples = stuck_byte % 8u;
+    bias_mode = (uint32_t)(stuck_byte >> 3) % 3u; /* 0 none, 1 a bias head, 2 one NULL array */
     m.sample_dt_s = next_f32(r);
     m.t_ref_c = next_f32(r);
     m.t_min_c = next_f32(r);
@@ -223,6 +230,16 @@ static void fuzz_model_data(reader *r)
        (bits 4-7; 2 is invalid, so is 1 without the head) */
     m.lstm_inputs = ((uint32_t)(opts >> 1) & 7u) % (FOGSF_MAX_FEATURES + 2u);
     m.quad_diag = (uint32_t)(opts >> 4) % 3u;
+    if (bias_mode != 0u) {
+        adv_bias.sf = m;
+        adv_bias.sf.format_version = FOGSF_FORMAT_BIAS;
+        adv_bias.bias_w = adv + 10;
+        adv_bias.bias_quad_w = bias_mode == 2u ? NULL : adv + 11;
+        adv_bias.bias_cube_w = adv + 12;
+        adv_bias.bias_b = adv[13];
+        run_samples(&adv_bias.sf, r);
+        return;
+    }
     run_samples(&m, r);
 }
 

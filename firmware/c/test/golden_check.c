@@ -119,6 +119,24 @@ unsigned long fogsf_golden_check(fogsf_puts_fn out)
     for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
         fogsf_step(FOGSF_GOLDEN_MODEL, &state, temps[i], gyros[i], &o);
         bad = compare(out, "step", i, o.sf_ppm, o.corrected_dps, o.flags, bad);
+#ifdef FOGSF_GOLDEN_BIAS /* a model with a bias head: its bias bit for bit too */
+        {
+            f32_bits b;
+            b.f = o.bias_dph;
+            if (b.u != golden_bias_bits[i]) {
+                if (bad < 10u) {
+                    out("mismatch step sample ");
+                    put_uint(out, i);
+                    out(": bias 0x");
+                    put_hex(out, b.u, 8);
+                    out(" want 0x");
+                    put_hex(out, golden_bias_bits[i], 8);
+                    out("\n");
+                }
+                bad += 1u;
+            }
+        }
+#endif
     }
     (void)fogsf_reset(FOGSF_GOLDEN_MODEL, &state);
     (void)fogsf_run(FOGSF_GOLDEN_MODEL, &state, temps, gyros, FOGSF_GOLDEN_N, run_corrected, run_sf, run_flags);

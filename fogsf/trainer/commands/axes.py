@@ -67,7 +67,22 @@ def _rms(values: list[float]) -> float:
     return math.sqrt(sum(v * v for v in values) / len(values))
 
 
+def _bias_cells(b: dict | None, block: str = "test") -> dict[str, object]:
+    """The bias columns of a summary row (deg/h; none when nothing measures the bias)."""
+    if b is None:
+        return {}
+    if "std_dph" in b:  # inspect's bias block
+        return {"bias std deg/h": f"{b['std_dph']:.4f}"}
+    part = b.get(block) or next((v for v in b.get("train", {}).values() if v), None)
+    if not part:
+        return {}
+    return {"bias before deg/h": f"{part['before']['std_dph']:.4f}",
+            "bias after deg/h": f"{part['after']['std_dph']:.4f}"}
+
+
 def _train_row(m: dict) -> dict[str, object]:
+    if m.get("bias_only"):  # stationary logs: no SF figures
+        return {"model": m["model"], **_bias_cells(m["bias"])}
     train = m["train"]
     blocks = [train] if "before" in train else list(train.values())
     row: dict[str, object] = {
@@ -79,11 +94,15 @@ def _train_row(m: dict) -> dict[str, object]:
     if "test" in m:
         row.update({"test before": m["test"]["before"]["rms_ppm"],
                     "test after": m["test"]["after"]["rms_ppm"]})
-    return row
+    return {**row, **_bias_cells(m.get("bias"))}
 
 
 def _inspect_row(s: dict) -> dict[str, object]:
     m = s["metrics"]
+    if m is None:  # a stationary log: its bias only
+        return {"samples": s["samples"],
+                "temp C": "{:.1f} .. {:.1f}".format(*s["temp_range_c"]),
+                **_bias_cells(s.get("bias"))}
     return {"samples": s["samples"], "temp C": "{:.1f} .. {:.1f}".format(*s["temp_range_c"]),
             "RMS": m["rms_ppm"], "p-p": m["pp_ppm"], "noise floor": m["noise_floor_ppm"],
             "ref SF ratio": f"{s['ref_sf_ratio']:.9f}"}

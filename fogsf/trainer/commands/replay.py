@@ -4,10 +4,13 @@ The model directory (from `fogsf train`) is exported to its C header and the ker
 firmware/c is compiled for it (cached in build/kernels/<model id>-..., or $FOGSF_BUILD_DIR).
 Every sample of the log (board temperature, raw gyro) goes through fogsf_step; the
 output CSV holds time_s, gyro_dps, gyro_corrected_dps and sf_error_ppm (the kernel's
-predicted SF error vs the nominal SF, held between model steps); `--out X.parquet` writes
-it as Parquet. The kernel runs over the log in blocks, each written as it is produced, its
-state carried between them (the output of one run). The SF-error metrics of
-the log before and after the correction are printed (max|e|, p-p, RMS, STD, noise floor).
+predicted SF error vs the nominal SF, held between model steps); with a model that has a
+bias head, also bias_dph (its predicted bias, deg/h, held), and the corrected rate is
+(gyro - bias) / (1 + SF error); `--out X.parquet` writes it as Parquet. The kernel runs over
+the log in blocks, each written as it is produced, its state carried between them (the
+output of one run). The SF-error metrics of the log before and after the
+correction are printed (max|e|, p-p, RMS, STD, noise floor), and the bias's (deg/h) when
+the model has a bias head and the log measures the bias (+/- pairs, or a stationary log).
 A log at another sample rate than the model's training logs runs the model re-rated to it
 (the same model step in seconds; `fogsf export --sample-rate-hz` gives that firmware).
 The kernel starts from reset at the log's first sample, its lag states at that sample's
@@ -41,8 +44,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG", help="chamber log, CSV or Parquet (format: "
                                                     "docs/logs.md)")
     parser.add_argument("--out", required=True, metavar="CSV|PARQUET",
-                        help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm; "
-                             "Parquet when it ends in .parquet")
+                        help="corrected log: time_s,gyro_dps,gyro_corrected_dps,sf_error_ppm "
+                             "(and bias_dph with a bias head); Parquet when it ends in .parquet")
     parser.add_argument("--plot", metavar="PNG", default=None,
                         help="before/after plot of the SF error (windows vs temperature, time)")
     add_metric_options(parser, skip=True)
@@ -62,38 +65,45 @@ REPLAY_BLOCK = 1 << 17  # samples the kernel runs (and replay writes) at a time
 
 
 def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
-                    corrected: np.ndarray, sf_ppm: np.ndarray) -> None:
+                    corrected: np.ndarray, sf_ppm: np.ndarray,
+                    bias_dph: np.ndarray | None = None) -> None:
     """The replay CSV (or Parquet, for a path ending in .parquet; logs/corrected_out.py);
-    doubles with 17 significant digits, sf_ppm (float32) with 9."""
+    doubles with 17 significant digits, sf_ppm and bias_dph (float32, the latter only for a
+    model with a bias head) with 9."""
     from fogsf.trainer.logs.corrected_out import CorrectedWriter
     from fogsf.trainer.logs.logio import time_format
 
-    with CorrectedWriter(path, time_format(time_s)) as w:
+    with CorrectedWriter(path, time_format(time_s), bias=bias_dph is not None) as w:
         for a in range(0, time_s.shape[0], REPLAY_BLOCK):
             b = a + REPLAY_BLOCK
-            w.write(time_s[a:b], gyro[a:b], corrected[a:b], sf_ppm[a:b])
+            w.write(time_s[a:b], gyro[a:b], corrected[a:b], sf_ppm[a:b],
+                    None if bias_dph is None else bias_dph[a:b])
 
 
-def replay_blocks(kernel, log, path: str | Path  # noqa: ANN001 - Kernel, ChamberLog
-                  ) -> tuple[np.ndarray, dict[str, int]]:
-    """The kernel over the log from reset, REPLAY_BLOCK samples at a time (its state carried
-    from block to block: the output of one run over the whole log), each block written to
-    `path` as it is produced: (sf_ppm per sample, the flag counts)."""
+def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
+                  ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """The kernel (a `Kernel`) over the log (a `ChamberLog`) from reset, REPLAY_BLOCK samples
+    at a time (its state carried from block to block: the output of one run over the whole
+    log), each block written to `path` as it is produced (bias_dph too with `bias_head`):
+    (sf_ppm and bias_dph per sample, the flag counts)."""
     from fogsf.trainer.logs.corrected_out import CorrectedWriter
     from fogsf.trainer.logs.logio import time_format
 
     n = len(log)
     sf = np.empty(n, np.float32)
+    bias = np.empty(n, np.float32)
     counts: dict[str, int] = {}
     st = kernel.new_state()
-    with CorrectedWriter(path, time_format(log.time_s)) as w:
+    with CorrectedWriter(path, time_format(log.time_s), bias=bias_head) as w:
         for a in range(0, n, REPLAY_BLOCK):
             b = min(n, a + REPLAY_BLOCK)
-            corrected, sf[a:b], flags = kernel.run(log.temp_c[a:b], log.gyro_dps[a:b], st)
-            w.write(log.time_s[a:b], log.gyro_dps[a:b], corrected, sf[a:b])
+            corrected, sf[a:b], bias[a:b], flags = kernel.run_bias(
+                log.temp_c[a:b], log.gyro_dps[a:b], st)
+            w.write(log.time_s[a:b], log.gyro_dps[a:b], corrected, sf[a:b],
+                    bias[a:b] if bias_head else None)
             for name, c in flag_counts(flags).items():
                 counts[name] = counts.get(name, 0) + c
-    return sf, counts
+    return sf, bias, counts
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -118,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
     model = rated(model, log.sample_dt_s, f"the log's {log.sample_rate_hz:.6g} Hz")
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     kernel = Kernel(model, build)
-    sf, counts = replay_blocks(kernel, log, args.out)
+    sf, bias, counts = replay_blocks(kernel, log, args.out, model.bias_head)
     print(f"kernel {build.shared} (model {model.model_id}, {model.layers}x{model.hidden} "
           f"LSTM, D={model.decimation})")
     print(f"replayed {len(log)} samples of {log.path}; wrote {args.out}")
@@ -143,8 +153,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
         print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
+    bias_block = replay_bias(model, log, bias, args) if model.bias_head else None
     args.axis_result = {"model_id": model.model_id, "out": args.out, "before": before,
-                        "after": after, "flags": counts}
+                        "after": after, "flags": counts, "bias": bias_block}
     if args.json:
         Path(args.json).write_text(json.dumps({"model_id": model.model_id,
                                                "rated_from": model.extra.get("rated_from"),
@@ -155,6 +166,7 @@ def run(args: argparse.Namespace) -> int:
                                                "settle_s": args.settle_s,
                                                "skip_s": args.skip_s,
                                                "before": before, "after": after,
+                                               "bias": bias_block,
                                                "flags": counts}, indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.plot and before is not None:
@@ -162,6 +174,27 @@ def run(args: argparse.Namespace) -> int:
              args.ref_sf, args.settle_s, args.skip_s)
         print(f"plot: {args.plot}")
     return 0
+
+
+def replay_bias(model, log, bias: np.ndarray,  # noqa: ANN001 - StreamModel, ChamberLog
+                args: argparse.Namespace) -> dict | None:
+    """The bias before/after (deg/h) over the log's bias windows, printed; None when the log
+    measures no bias."""
+    from fogsf.trainer.logs.bias import before_after, bias_windows
+
+    w = bias_windows(log, args.window_s, args.latitude_deg, args.settle_s, args.skip_s)
+    if w is None:
+        print("bias: the log measures no bias (no +/- pairs, the table turning)")
+        return None
+    b = before_after(w, bias.astype(np.float64))
+    print(f"bias, {len(w)} windows ({w.source}; before: the measured bias; after: measured - "
+          "predicted):")
+    for name in ("before", "after"):
+        m = b[name]
+        print(f"  {name:6s} max|e| {m['max_abs_dph']:8.4f}  p-p {m['pp_dph']:8.4f}  "
+              f"RMS {m['rms_dph']:8.4f}  STD {m['std_dph']:8.4f} deg/h")
+    print(f"  noise floor {w.noise_floor_dph:.4f} deg/h")
+    return b
 
 
 def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # noqa: ANN001

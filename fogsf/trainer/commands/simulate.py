@@ -121,10 +121,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     r.add_argument("--rig", choices=["ros", "plain", "imu3"],
                    help="ros: sec,nanosec,gyro_raw (rad/s),...,rig_rate (steps/s), flags; "
                         "plain: epoch time_s, gyro in rad/s; imu3: three skew-mounted gyros")
-    r.add_argument("--protocol", choices=["reversals", "staircase"], default="reversals",
+    r.add_argument("--protocol", choices=["reversals", "staircase", "stationary"],
+                   default="reversals",
                    help="reversals: +/- --rate-dps (100) every --dwell-s (60) over a 1 C/min "
                         "ramp; staircase: 0, 4 ... --rate-dps (100) deg/s both ways, "
-                        "--dwell-s (16) a step, at 5 bang-bang set points")
+                        "--dwell-s (16) a step, at 5 bang-bang set points; stationary: the "
+                        "table stopped through a -20 -> 50 -> -20 C loop (the bias alone)")
     r.add_argument("--gyro-seeds", type=_ints, metavar="A,B,C",
                    help="the population's gyros for --rig imu3 (default: --random-gyro "
                         "and the next two)")
@@ -308,6 +310,11 @@ def _rig_protocol(args: argparse.Namespace) -> Any:
             raise UserError(f"--{opt.replace('_', '-')} must be > 0, got {v:g}")
     if args.protocol == "reversals":
         return rigs.reversal_protocol(args.rate_dps or 100.0, args.dwell_s or 60.0, **kw)
+    if args.protocol == "stationary":
+        if args.rate_dps is not None or args.dwell_s is not None:
+            raise UserError("--protocol stationary keeps the table stopped: --rate-dps and "
+                            "--dwell-s do not apply")
+        return rigs.stationary_protocol(**kw)
     step = 4.0
     top = args.rate_dps or 100.0
     if top < step:

@@ -152,6 +152,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def format_metrics(m: dict) -> str:
+    from fogsf.trainer.training.bias_model import bias_lines
+
+    if m.get("bias_only"):
+        return "\n".join([f"model {m['model']} (bias only: the logs are stationary, they "
+                          f"measure no SF): {m['params']} parameters, features "
+                          f"{', '.join(m['features'])}, trained in "
+                          f"{m['train_seconds']:.1f} s", *bias_lines(m["bias"])])
     lines = [f"model {m['model']}: {m['params']} parameters ({m['weights_bytes']} bytes), "
              f"features {', '.join(m['features'])}, trained in {m['train_seconds']:.1f} s"]
     row = "  {:<16} {:>9} {:>9} {:>9} {:>9}"
@@ -171,6 +178,8 @@ def format_metrics(m: dict) -> str:
                                     f"{b['pp_ppm']:.2f}", f"{b['rms_ppm']:.2f}",
                                     f"{b['std_ppm']:.2f}"))
     lines.append(f"  noise floor {m['noise_floor_ppm']:.2f} ppm ({m['window_s']:g} s windows)")
+    if "bias" in m:
+        lines += bias_lines(m["bias"])
     if "rate_transfer" in m:
         lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))
     elif not spans_ramp_rates(m["train_ramp_rates_c_per_min"]):

@@ -320,14 +320,17 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
                            f"step {step:.4g} s from time_s {time_text(t, i)}; allowed "
                            f"{nominal:.4g} s +/- {DT_TOLERANCE:.0%} ({rate_text(nominal)}, "
                            f"{given}){epoch_text(t)}")
-    measures = cols["table_rate_dps"] != 0.0
-    if "valid" in cols:
-        measures = measures & (cols["valid"] != 0.0)
-    if not measures.any():
+    # a log with the table stopped on every row is stationary: it measures the bias (the
+    # SF figures refuse it, logs.bias); a log whose every row is invalid measures nothing
+    turning = cols["table_rate_dps"] != 0.0
+    kept = cols["valid"] != 0.0 if "valid" in cols else np.ones(turning.shape[0], dtype=bool)
+    measures = turning & kept
+    stationary = kept.any() and not turning.any()
+    if not measures.any() and not stationary:
         raise LogError(path, None, "no row measures",
-                       "every row has a zero table rate" + (" or valid = 0" if "valid" in cols
-                                                            else "")
-                       + ": the SF is measured while the table turns")
+                       "every row has a zero table rate or valid = 0: the SF is measured "
+                       "while the table turns, the bias on a log with the table stopped "
+                       "throughout")
     lo, hi = TEMP_RANGE_C
     for name, v in cols.items():
         if not is_temperature(name):

@@ -189,6 +189,10 @@ def sf_spans(log: ChamberLog, window_s: float = 100.0, settle_s: float = SETTLE_
             grid = [(max(s, a), s + n) for s in range(a0, b - n + 1, n)]
         spans.extend((x, y) for x, y in grid if y - x >= shortest)
     if not spans:
+        from fogsf.trainer.logs.bias import is_stationary, stationary_refusal
+
+        if is_stationary(log):
+            raise stationary_refusal(log)
         raise UserError(
             f"{log.path}: no complete SF window: no table-rate plateau of {MIN_PLATEAU_S:g} s "
             f"or more after the {settle_s:g} s settle margin (--settle-s)"

@@ -7,6 +7,7 @@ step and the C kernel are checked against, bit for bit (docs/stream-contract.md)
   samples take well under a second.
 - `features`, `lstm_step`, `run_steps`: the model step (z, LSTM layers, head) with dot
   products accumulated sequentially from the bias, as in C.
+- `bias`: the optional bias head (deg/h) on the same z.
 - `expand`, `correct`, `replay`: per-sample held outputs, the corrected gyro rate and flags.
 """
 
@@ -19,6 +20,8 @@ import numpy as np
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.models.f32 import F32, _f32, sigmoid_f32, tanh_f32
 from fogsf.trainer.models.stream import (
+    BIAS_LIMIT_DPH,
+    FLAG_BIAS_CLAMPED,
     FLAG_GYRO_INVALID,
     FLAG_SF_CLAMPED,
     FLAG_TEMP_CLAMPED,
@@ -179,6 +182,27 @@ def clamp_sf(sf: F32) -> tuple[F32, int]:
     return (lim if sf > 0 else (-lim if sf < 0 else F32(0))), FLAG_SF_CLAMPED
 
 
+def bias(model: StreamModel, z: np.ndarray) -> tuple[F32, int]:
+    """(bias_dph, flags) of one step's z: bias_b, + bias_w[i] * z_i, + bias_quad_w[i] *
+    (z_i * z_i), + bias_cube_w[i] * ((z_i * z_i) * z_i), i ascending in each sum, one
+    float32 op at a time as the kernel; NaN -> 0 and beyond +-BIAS_LIMIT_DPH -> the limit,
+    flagged BIAS_CLAMPED. (0, 0) without a bias head."""
+    if not model.bias_head:
+        return F32(0), 0
+    w = model.weights
+    y = w["bias_b"][0]
+    for i in range(z.shape[0]):
+        y = y + w["bias_w"][i] * z[i]
+    for i in range(z.shape[0]):
+        y = y + w["bias_quad_w"][i] * (z[i] * z[i])
+    for i in range(z.shape[0]):
+        y = y + w["bias_cube_w"][i] * ((z[i] * z[i]) * z[i])
+    lim = F32(BIAS_LIMIT_DPH)
+    if abs(y) <= lim:
+        return F32(y), 0
+    return (lim if y > 0 else (-lim if y < 0 else F32(0))), FLAG_BIAS_CLAMPED
+
+
 def initial_state(model: StreamModel) -> tuple[np.ndarray, np.ndarray]:
     shape = (model.layers, model.hidden)
     return np.zeros(shape, np.float32), np.zeros(shape, np.float32)
@@ -201,8 +225,9 @@ def lstm_step(model: StreamModel, z: np.ndarray, h: np.ndarray, c: np.ndarray
 class StepsOut(NamedTuple):
     y: np.ndarray  # [n_steps] float32 head output before scaling
     sf_ppm: np.ndarray  # [n_steps] float32
-    flags: np.ndarray  # [n_steps] uint32 (SF_CLAMPED)
+    flags: np.ndarray  # [n_steps] uint32 (SF_CLAMPED, BIAS_CLAMPED)
     h_last: np.ndarray  # [n_steps, H] float32 last layer's hidden state
+    bias_dph: np.ndarray | None = None  # [n_steps] float32 (0 without a bias head)
 
 
 def run_steps(model: StreamModel, s: np.ndarray) -> StepsOut:
@@ -214,10 +239,14 @@ def run_steps(model: StreamModel, s: np.ndarray) -> StepsOut:
     sfs = np.empty(n, np.float32)
     fl = np.zeros(n, np.uint32)
     hl = np.empty((n, model.hidden), np.float32)
+    bs = np.zeros(n, np.float32)
     for m in range(n):
         ys[m], sfs[m], fl[m], h, c = lstm_step(model, z[m], h, c)
         hl[m] = h[-1]
-    return StepsOut(ys, sfs, fl, hl)
+        if model.bias_head:
+            bs[m], bflag = bias(model, z[m])
+            fl[m] |= bflag
+    return StepsOut(ys, sfs, fl, hl, bs)
 
 
 def expand(step_values: np.ndarray, n_samples: int, decimation: int) -> np.ndarray:
@@ -225,10 +254,15 @@ def expand(step_values: np.ndarray, n_samples: int, decimation: int) -> np.ndarr
     return np.asarray(step_values)[np.arange(n_samples) // decimation]
 
 
-def correct(gyro_dps: np.ndarray, sf_ppm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """corrected = g / (1 + sf*1e-6) in double; non-finite -> 0.0 and GYRO_INVALID."""
+def correct(gyro_dps: np.ndarray, sf_ppm: np.ndarray, bias_dph: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """corrected = (g - bias/3600) / (1 + sf*1e-6) in double (bias: float32 deg/h; where it
+    is 0, or none is given, g as it is, as the kernel); non-finite -> 0.0 and GYRO_INVALID."""
     g = np.asarray(gyro_dps, dtype=np.float64)
     with np.errstate(all="ignore"):
+        if bias_dph is not None:
+            b = np.asarray(bias_dph, dtype=np.float32)
+            g = np.where(b != 0, g - b.astype(np.float64) / 3600.0, g)
         out = g / (1.0 + np.asarray(sf_ppm, dtype=np.float32).astype(np.float64) * 1e-6)
     bad = ~np.isfinite(out)
     out[bad] = 0.0
@@ -239,6 +273,7 @@ class ReplayOut(NamedTuple):
     corrected_dps: np.ndarray  # [N] float64
     sf_ppm: np.ndarray  # [N] float32, held between model steps
     flags: np.ndarray  # [N] uint32
+    bias_dph: np.ndarray | None = None  # [N] float32, held (0 without a bias head)
 
 
 def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray) -> ReplayOut:
@@ -247,6 +282,7 @@ def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray) -> Repl
     steps = run_steps(model, fe.s)
     n = fe.flags.shape[0]
     sf = expand(steps.sf_ppm, n, model.decimation)
-    corrected, gflags = correct(gyro_dps, sf)
+    b = expand(steps.bias_dph, n, model.decimation)
+    corrected, gflags = correct(gyro_dps, sf, b if model.bias_head else None)
     flags = fe.flags | gflags | expand(steps.flags, n, model.decimation)
-    return ReplayOut(corrected, sf, flags.astype(np.uint32))
+    return ReplayOut(corrected, sf, flags.astype(np.uint32), b)

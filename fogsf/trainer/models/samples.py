@@ -15,7 +15,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                  t_ref_c: float = 20.0, t_min_c: float = -45.0, t_max_c: float = 55.0,
                  stuck_samples: int = 600, gain: float = 0.8, out_scale: float = 300.0,
                  out_offset: float = 40.0, poly_head: bool = False,
-                 lstm_inputs: int | None = None, quad_diag: bool = False) -> StreamModel:
+                 lstm_inputs: int | None = None, quad_diag: bool = False,
+                 bias_head: bool = False, bias_dph: float = 2.0) -> StreamModel:
     """A seeded random model in the artifact format.
 
     Scaled so nothing saturates on chamber temperatures: z is O(1) over -45..55 C, every gate's
@@ -26,6 +27,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     and cubic terms are O(0.3) each, like the skip term. `lstm_inputs` N: the first LSTM
     layer reads z[0:N] (its W is [4H, N], so the draws after it differ); `quad_diag`: quad_w
     is the diagonal [F] only (drawn from the head's generator, at the scale of a row).
+    With `bias_head`, the bias head's arrays come from a third generator (the others stay
+    put): bias_b about `bias_dph` and each term O(bias_dph / 3) in deg/h.
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
@@ -59,11 +62,17 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
         weights["quad_w"] = (u((f,), 0.3 * math.sqrt(3.0 / f), poly_rng) if quad_diag
                              else u((f, f), 0.3 * math.sqrt(3.0) / f, poly_rng))
         weights["cube_w"] = u((f,), 0.3 * math.sqrt(3.0 / f), poly_rng)
+    if bias_head:
+        bias_rng = np.random.default_rng([seed, 2])
+        scale = bias_dph / 3.0 * math.sqrt(3.0 / f)
+        weights["bias_b"] = np.array([bias_dph], np.float32) + u((1,), 0.1 * bias_dph, bias_rng)
+        for name in ("bias_w", "bias_quad_w", "bias_cube_w"):
+            weights[name] = u((f,), scale, bias_rng)
     model = StreamModel(model="random-lstm", decimation=decimation, t_ref_c=t_ref_c,
                         t_min_c=t_min_c, t_max_c=t_max_c, stuck_samples=stuck_samples,
                         filter_tau_s=list(taus_s), n_features=f, layers=layers, hidden=h,
                         weights=weights, extra={"random_seed": seed}, poly_head=poly_head,
-                        lstm_inputs=lstm_inputs, quad_diag=quad_diag)
+                        lstm_inputs=lstm_inputs, quad_diag=quad_diag, bias_head=bias_head)
     model.validate()
     return model
 

@@ -34,10 +34,12 @@ FLAG_TEMP_CLAMPED = 2  # temperature outside [t_min, t_max]: clamped
 FLAG_TEMP_STUCK = 4  # raw temperature bitwise unchanged for >= stuck_samples samples
 FLAG_GYRO_INVALID = 8  # gyro input (or corrected output) not finite: corrected = 0.0
 FLAG_SF_CLAMPED = 16  # model output not finite or beyond +-SF_LIMIT_PPM: clamped
+FLAG_BIAS_CLAMPED = 64  # bias head output not finite or beyond +-BIAS_LIMIT_DPH: clamped
 FLAG_NAMES = {FLAG_TEMP_INVALID: "TEMP_INVALID", FLAG_TEMP_CLAMPED: "TEMP_CLAMPED",
               FLAG_TEMP_STUCK: "TEMP_STUCK", FLAG_GYRO_INVALID: "GYRO_INVALID",
-              FLAG_SF_CLAMPED: "SF_CLAMPED"}
+              FLAG_SF_CLAMPED: "SF_CLAMPED", FLAG_BIAS_CLAMPED: "BIAS_CLAMPED"}
 SF_LIMIT_PPM = 1.0e5  # |predicted SF error| beyond 10 % is a broken model, never a gyro
+BIAS_LIMIT_DPH = 3.6e4  # |predicted bias| beyond 10 deg/s is a broken model
 
 
 
@@ -120,6 +122,10 @@ LSTM_INPUTS_KEY = "lstm_inputs"
 # optional stream.json key (absent = false; needs the polynomial head): quad_w is [F], the
 # diagonal only (y += quad_w[i] * (z_i * z_i))
 QUAD_DIAG_KEY = "quad_diag"
+# optional stream.json key (absent = false): the bias head over the same z, in deg/h:
+# bias = bias_b + bias_w.z + bias_quad_w.z^2 + bias_cube_w.z^3 (each [F], bias_b [1])
+BIAS_KEY = "bias_head"
+BIAS_ARRAYS = ("bias_b", "bias_w", "bias_quad_w", "bias_cube_w")
 
 
 @dataclass
@@ -142,9 +148,12 @@ class StreamModel:
     poly_head: bool = False  # y also carries sum quad_w[i,j] z_i z_j + sum cube_w[i] z_i^3
     lstm_inputs: int | None = None  # the first LSTM layer reads z[0:N]; None: all F
     quad_diag: bool = False  # with poly_head: quad_w [F] is the diagonal of the quadratic
+    bias_head: bool = False  # the bias (deg/h) from z too: bias_b, bias_w, bias_quad_w, ...
 
     def __post_init__(self) -> None:
         extra = dict(self.extra)
+        if BIAS_KEY in extra:
+            self.bias_head = self.bias_head or extra.pop(BIAS_KEY)
         if POLY_KEY in extra:  # given as a stream.json key: it is the field
             self.poly_head = self.poly_head or extra.pop(POLY_KEY)
         if QUAD_DIAG_KEY in extra:
@@ -180,6 +189,9 @@ class StreamModel:
         if self.poly_head:
             shapes["quad_w"] = (f,) if self.quad_diag else (f, f)
             shapes["cube_w"] = (f,)
+        if self.bias_head:
+            shapes.update({"bias_b": (1,), "bias_w": (f,), "bias_quad_w": (f,),
+                           "bias_cube_w": (f,)})
         for layer in range(self.layers):
             n_in = self.n_lstm_inputs if layer == 0 else h
             shapes[f"lstm{layer}_w"] = (4 * h, n_in)
@@ -198,6 +210,7 @@ class StreamModel:
         poly = ((" + polynomial head (diagonal quadratic)" if self.quad_diag
                  else " + polynomial head") if self.poly_head else "")
         reads = (f" on z[0:{self.n_lstm_inputs}]" if self.lstm_inputs_narrowed else "")
+        poly += " + bias head" if self.bias_head else ""
         return (f"K={self.n_filters} filters, F={self.n_features} features, "
                 f"{self.layers}x{self.hidden} LSTM{reads}{poly}, D={self.decimation}, "
                 f"{self.params} parameters")
@@ -248,16 +261,19 @@ class StreamModel:
             cfg[LSTM_INPUTS_KEY] = self.n_lstm_inputs
         if self.quad_diag:
             cfg[QUAD_DIAG_KEY] = True
+        if self.bias_head:
+            cfg[BIAS_KEY] = True
         return cfg
 
     @property
     def model_id(self) -> str:
         """16 hex digits of SHA-256 over the contract config and the float32 weight bytes.
 
-        `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag` only
-        when true, so models without them keep the ids they had before the keys existed."""
+        `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag` and
+        `bias_head` only when true, so models without them keep the ids they had before the
+        keys existed."""
         optional = {POLY_KEY: self.poly_head, LSTM_INPUTS_KEY: self.lstm_inputs_narrowed,
-                    QUAD_DIAG_KEY: self.quad_diag}
+                    QUAD_DIAG_KEY: self.quad_diag, BIAS_KEY: self.bias_head}
         cfg = {k: v for k, v in self.config().items()
                if k in _CONFIG_KEYS or optional.get(k, False)}
         digest = hashlib.sha256(json.dumps(cfg, sort_keys=True, separators=(",", ":")).encode())
@@ -293,6 +309,8 @@ class StreamModel:
             raise bad(f"'{POLY_KEY}' must be true or false, got {self.poly_head!r}")
         if not isinstance(self.quad_diag, bool):
             raise bad(f"'{QUAD_DIAG_KEY}' must be true or false, got {self.quad_diag!r}")
+        if not isinstance(self.bias_head, bool):
+            raise bad(f"'{BIAS_KEY}' must be true or false, got {self.bias_head!r}")
         if self.quad_diag and not self.poly_head:
             raise bad(f"'{QUAD_DIAG_KEY}' is true but '{POLY_KEY}' is false: a diagonal "
                       f"quadratic needs the polynomial head")
@@ -315,11 +333,17 @@ class StreamModel:
             quad = "[F]" if self.quad_diag else "[F, F]"
             why = (f" ({POLY_KEY} is true: the polynomial head needs quad_w {quad} and cube_w "
                    f"[F])" if self.poly_head and set(missing) & set(POLY_ARRAYS) else "")
+            why += (f" ({BIAS_KEY} is true: the bias head needs {', '.join(BIAS_ARRAYS)})"
+                    if self.bias_head and set(missing) & set(BIAS_ARRAYS) else "")
             raise bad(f"{WEIGHTS_FILE} lacks array(s) {', '.join(missing)}{why}")
         stray = sorted(set(POLY_ARRAYS) & set(self.weights) - set(expected))
         if stray:
             raise bad(f"{WEIGHTS_FILE} holds {', '.join(stray)} but {POLY_KEY} is false: set "
                       f"\"{POLY_KEY}\": true in {CONFIG_FILE} or drop the array(s)")
+        stray = sorted(set(BIAS_ARRAYS) & set(self.weights) - set(expected))
+        if stray:
+            raise bad(f"{WEIGHTS_FILE} holds {', '.join(stray)} but {BIAS_KEY} is false: set "
+                      f"\"{BIAS_KEY}\": true in {CONFIG_FILE} or drop the array(s)")
         for name, shape in expected.items():
             arr = self.weights[name]
             if arr.dtype != np.float32:
@@ -388,7 +412,7 @@ class StreamModel:
                 weights = {k: npz[k] for k in npz.files}
         except (OSError, ValueError) as e:
             raise UserError(f"{w_path}: cannot read the weights: {e}") from None
-        for key in (POLY_KEY, QUAD_DIAG_KEY):
+        for key in (POLY_KEY, QUAD_DIAG_KEY, BIAS_KEY):
             if not isinstance(cfg.get(key, False), bool):
                 raise UserError(f"{cfg_path}: key '{key}' must be true or false, got "
                                 f"{cfg[key]!r}")
@@ -406,9 +430,9 @@ class StreamModel:
             weights=weights, sample_dt_s=float(cfg["sample_dt_s"]),
             extra={k: v for k, v in cfg.items()
                    if k not in _CONFIG_KEYS and k not in (POLY_KEY, LSTM_INPUTS_KEY,
-                                                          QUAD_DIAG_KEY)},
+                                                          QUAD_DIAG_KEY, BIAS_KEY)},
             poly_head=cfg.get(POLY_KEY, False), lstm_inputs=n_in,
-            quad_diag=cfg.get(QUAD_DIAG_KEY, False),
+            quad_diag=cfg.get(QUAD_DIAG_KEY, False), bias_head=cfg.get(BIAS_KEY, False),
         )
         model.validate(where=str(d))
         return model

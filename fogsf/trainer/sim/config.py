@@ -104,13 +104,18 @@ class ScaleFactorConfig:
 
 @dataclass
 class BiasConfig:
-    """Bias in deg/h: bias_dph + lin*(T-ref) + quad*(T-ref)^2, T the temperature of `node`."""
+    """Bias in deg/h: bias_dph + lin*(T-ref) + quad*(T-ref)^2 + cube*(T-ref)^3 + shupe *
+    dT/dt (C/min), T the temperature of `node` (the coil's, for a FOG's thermal bias): the
+    Shupe term is the bias a temperature gradient along the fibre gives while the coil's
+    temperature changes."""
 
     bias_dph: float = 0.3
     lin_dph_per_c: float = 0.002
     quad_dph_per_c2: float = 0.0
     node: str = "board"
     ref_c: float = 20.0
+    cube_dph_per_c3: float = 0.0
+    shupe_dph_per_c_per_min: float = 0.0
 
 
 @dataclass

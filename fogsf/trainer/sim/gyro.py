@@ -77,7 +77,7 @@ def simulate(cfg: SimConfig, table_dps: np.ndarray | None = None,
         else _per_sample(table_dps, t, "table_dps")
     nodes = thermal.network(chamber, cfg.thermal, dt)
     sf = sf_error_ppm(nodes, cfg.sf)
-    bias = bias_dps(nodes, cfg.bias)
+    bias = bias_dps(nodes, cfg.bias, dt)
     ctx = EffectContext(t, dt, table, nodes, cfg.thermal.board_node)
     sf_fx, bias_fx = apply_effects(ctx, cfg.effects)
     sf = sf + sf_fx

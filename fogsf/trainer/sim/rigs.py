@@ -287,6 +287,14 @@ def staircase_protocol(step_dps: float = 4.0, max_dps: float = 100.0, dwell_s: f
     return RigProtocol(chamber, steps, **kw)
 
 
+def stationary_protocol(chamber: Chamber | None = None, **kw: Any) -> RigProtocol:
+    """The table stopped throughout (the autopilots' cold soak and warm-up): a chamber
+    program (default: a loop -20 -> 50 -> -20 C) with the gyro at rest, so the output is
+    bias + earth rate; bias 1 deg/h drifting 0.05 deg/h/C unless `bias` is given."""
+    kw.setdefault("bias", BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05))
+    return RigProtocol(chamber or loop(), [Step(0.0, 60.0)], **kw)
+
+
 @dataclass
 class Truth:
     """The truth behind one axis of a rig log, per sample (time_s as the log writes it)."""
@@ -664,7 +672,8 @@ def pairs(plats: Sequence[Plateau]) -> list[PairTruth]:
 
 # --- one call: a protocol's log in a rig's convention ------------------------------------
 
-PROTOCOLS = {"reversals": reversal_protocol, "staircase": staircase_protocol}
+PROTOCOLS = {"reversals": reversal_protocol, "staircase": staircase_protocol,
+             "stationary": stationary_protocol}
 RIG_KINDS = ("ros", "plain", "imu3")
 
 

@@ -49,7 +49,14 @@ def sf_contributions_ppm(nodes: Mapping[str, np.ndarray], cfg: ScaleFactorConfig
             for t in cfg.terms}
 
 
-def bias_dps(nodes: Mapping[str, np.ndarray], cfg: BiasConfig) -> np.ndarray:
-    """Bias (deg/s) from the temperature of cfg.node."""
-    d = np.asarray(nodes[cfg.node], dtype=np.float64) - cfg.ref_c
-    return (cfg.bias_dph + cfg.lin_dph_per_c * d + cfg.quad_dph_per_c2 * d * d) / 3600.0
+def bias_dps(nodes: Mapping[str, np.ndarray], cfg: BiasConfig, dt_s: float = 0.1
+             ) -> np.ndarray:
+    """Bias (deg/s) from the temperature of cfg.node: its polynomial and the Shupe term
+    (the node's rate of change, C/min, samples dt_s apart; none without it)."""
+    t = np.asarray(nodes[cfg.node], dtype=np.float64)
+    d = t - cfg.ref_c
+    dph = (cfg.bias_dph + cfg.lin_dph_per_c * d + cfg.quad_dph_per_c2 * d * d
+           + cfg.cube_dph_per_c3 * d * d * d)
+    if cfg.shupe_dph_per_c_per_min and t.size > 1:
+        dph = dph + cfg.shupe_dph_per_c_per_min * np.gradient(t, dt_s) * 60.0
+    return dph / 3600.0

@@ -402,10 +402,22 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
                  test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, Fitted]:
     """Train, score, and write the model directory; returns metrics.json's content and the
     fitted model."""
+    from fogsf.trainer.training import bias_model as bm
+
     for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
         decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
+    if bm.check_mixed(train_logs):  # stationary logs alone: a bias-only model
+        from fogsf.trainer.training.bias_only import train_bias_only
+
+        return train_bias_only(opts, train_logs, test_log, out_dir)  # type: ignore[return-value]
     t0 = time.perf_counter()
     fitted = fit_model(opts, train_logs)
+    bias = bm.fit_bias(bm.feature_map_of(fitted.stream_model, train_logs, opts.model_step_s),
+                       train_logs, opts.window_s, opts.latitude_deg, opts.settle_s)
+    if bias is not None and fitted.stream_model is not None:  # one step corrects both
+        fitted.stream_model = bm.with_bias_head(fitted.stream_model, bias)
+        fitted.params, fitted.weights_bytes = (fitted.stream_model.params,
+                                               4 * fitted.stream_model.params)
     train_s = time.perf_counter() - t0
     ref = opts.ref_sf if opts.ref_sf is not None else reference_sf_of_logs(
         train_logs, opts.window_s, opts.latitude_deg, settle_s=opts.settle_s)
@@ -426,6 +438,9 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     metrics["train_ramp_rates_c_per_min"] = training_ramp_rates(train_logs)
     metrics["train_ramp_segments"] = [[asdict(sg) for sg in ramp_segments(lg)]
                                       for lg in train_logs]
+    if bias is not None:  # the logs measure the bias: its model and before/after (deg/h)
+        metrics["bias"] = bm.score_logs(bias, train_logs, test_log, opts.window_s,
+                                        opts.latitude_deg, opts.settle_s)
     if "noise_floor_ppm" not in metrics:
         first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
         metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]

@@ -1,0 +1,131 @@
+"""The bias model on evaluation gyros of the population: trained on one chamber loop, scored
+on another (another path, another noise seed) against the simulator's true bias.
+
+For each gyro: its own bias law from the population (offset, slope), on its coil's
+temperature, with a quadratic and, in the "shupe" case, a Shupe term (deg/h per C/min of the
+coil's temperature change) added. Two protocols on the same chamber loops: +/-100 deg/s
+reversals every 60 s (the bias from the pairs) and a stationary soak-and-ramp (the table
+stopped: the bias is the output minus the earth rate). Scored per test window (a pair, or
+100 s): std(predicted - true) beside std(true) and a PX4-style cubic in board temperature
+fitted to the same training windows.
+
+  python -m benchmarks.bias_eval --gyros 20000:20008 --out out/bench-bias.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import numpy as np
+
+from fogsf.trainer.logs.bias import bias_windows
+from fogsf.trainer.logs.dialect import Dialect
+from fogsf.trainer.logs.logio import read_log, with_mapping_beside
+from fogsf.trainer.sim import rigs
+from fogsf.trainer.sim.config import BiasConfig
+from fogsf.trainer.sim.population import gyro_for_seed
+from fogsf.trainer.training.bias_model import bank_feature_map, fit_bias
+
+TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)  # lo, hi C, up, down C/min, soak s
+TEST_LOOP = (0.0, 40.0, 0.5, 1.5, 900.0)
+SHUPE = {"no-shupe": 0.0, "shupe": 2.0}  # deg/h per C/min
+
+
+def bias_law(gyro: int, shupe: float) -> BiasConfig:
+    """The gyro's own bias (offset, slope) with a quadratic and the Shupe term, on its coil
+    (the first node named coil*, else the population's bias node)."""
+    cfg = gyro_for_seed(gyro)
+    coils = [n.name for n in cfg.thermal.nodes if n.name.startswith("coil")]
+    return BiasConfig(**{**asdict(cfg.bias), "quad_dph_per_c2": 0.001,
+                         "node": coils[0] if coils else cfg.bias.node,
+                         "shupe_dph_per_c_per_min": shupe})
+
+
+def protocol(kind: str, loop: tuple, bias: BiasConfig) -> rigs.RigProtocol:
+    chamber = rigs.loop(*loop)
+    if kind == "reversals":
+        return rigs.reversal_protocol(100.0, 60.0, chamber=chamber, bias=bias)
+    return rigs.stationary_protocol(chamber, bias=bias)
+
+
+def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
+    bias = bias_law(gyro, shupe)
+    logs, truth = [], []
+    for name, loop, seed in (("train", TRAIN_LOOP, 1), ("test", TEST_LOOP, 2)):
+        rl = rigs.rig_log("plain", work / f"{gyro}-{kind}-{name}" / "log.csv",
+                          protocol(kind, loop, replace(bias)), (gyro,), seed=seed)
+        logs.append(read_log(rl.path, with_mapping_beside(rl.path, Dialect())))
+        truth.append(rl.truth[""].bias_dph)
+    model = fit_bias(bank_feature_map([logs[0]], 5.0), [logs[0]])
+    wt, ws = bias_windows(logs[0], 100.0), bias_windows(logs[1], 100.0)
+    assert model is not None and wt is not None and ws is not None
+
+    def window_mean(x: np.ndarray, w) -> np.ndarray:  # noqa: ANN001
+        c = np.concatenate([[0.0], np.cumsum(x)])
+        return (c[w.stop] - c[w.start]) / (w.stop - w.start)
+
+    true = window_mean(truth[1], ws)
+    pred = window_mean(model.predict(logs[1]), ws)
+    cubic = np.polyval(np.polyfit(wt.temp_c, wt.bias_dph, 3), ws.temp_c)
+    err, err_cubic = float(np.std(pred - true)), float(np.std(cubic - true))
+    rel = 0.05 if kind == "reversals" else 0.10
+    floor = 0.1 if kind == "reversals" else 0.2
+    return {"gyro": gyro, "protocol": kind, "shupe_dph_per_c_per_min": shupe,
+            "bias_node": bias.node, "windows": len(ws), "true_std_dph": float(np.std(true)),
+            "err_std_dph": err, "px4_cubic_err_std_dph": err_cubic,
+            "measured_noise_floor_dph": ws.noise_floor_dph,
+            "target_dph": max(floor, rel * float(np.std(true))),
+            "meets_target": err <= max(floor, rel * float(np.std(true))),
+            "beats_cubic_2x": err_cubic >= 2.0 * err}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.bias_eval", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--gyros", default="20000:20008", help="population seeds LO:HI")
+    p.add_argument("--out", type=Path, default=Path("out/bench-bias.json"))
+    args = p.parse_args(argv)
+    lo, hi = (int(x) for x in args.gyros.split(":"))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for gyro in range(lo, hi):
+            for kind in ("reversals", "stationary"):
+                for case, shupe in SHUPE.items():
+                    r = one(gyro, kind, shupe, Path(tmp))
+                    r["case"] = case
+                    rows.append(r)
+                    print(f"gyro {gyro} {kind:10s} {case:8s} true std {r['true_std_dph']:6.3f}"
+                          f"  err {r['err_std_dph']:6.3f}  cubic {r['px4_cubic_err_std_dph']:6.3f}"
+                          f"  floor {r['measured_noise_floor_dph']:6.3f}  target "
+                          f"{r['target_dph']:5.3f} {'ok' if r['meets_target'] else 'MISS'}",
+                          flush=True)
+    summary = {}
+    for kind in ("reversals", "stationary"):
+        for case in SHUPE:
+            sel = [r for r in rows if r["protocol"] == kind and r["case"] == case]
+            e = np.array([r["err_std_dph"] for r in sel])
+            c = np.array([r["px4_cubic_err_std_dph"] for r in sel])
+            summary[f"{kind}/{case}"] = {
+                "gyros": len(sel), "err_median_dph": float(np.median(e)),
+                "err_max_dph": float(e.max()), "cubic_median_dph": float(np.median(c)),
+                "meets_target": int(sum(r["meets_target"] for r in sel)),
+                "beats_cubic_2x": int(sum(r["beats_cubic_2x"] for r in sel))}
+    for k, v in summary.items():
+        print(f"{k:24s} median err {v['err_median_dph']:.3f} (max {v['err_max_dph']:.3f}) "
+              f"deg/h, PX4 cubic {v['cubic_median_dph']:.3f}; target met {v['meets_target']}/"
+              f"{v['gyros']}, cubic beaten 2x {v['beats_cubic_2x']}/{v['gyros']}")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps({"gyros": [lo, hi], "train_loop": TRAIN_LOOP,
+                                    "test_loop": TEST_LOOP, "rows": rows,
+                                    "summary": summary}, indent=2) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

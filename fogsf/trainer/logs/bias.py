@@ -1,0 +1,176 @@
+"""The gyro's bias as a log measures it (deg/h), beside the SF.
+
+Two ways a log measures the bias:
+
+- `+/- pairs` (`metrics.find_pairs`): adjacent plateaus of opposite sign and equal |rate|;
+  each pair's bias comes with its SF (the pair fit cancels a linear drift of both).
+- `stationary`: the table stopped for the whole log (the autopilots' cold soak and warm-up):
+  the output is bias + earth rate, so the bias of a window is mean(gyro - earth). Such a log
+  measures no SF: every SF figure refuses it with `stationary_refusal`.
+
+`bias_windows(log)` gives either as one series (`BiasWindows`): per window its time, board
+temperature, bias and the model steps it spans, and the noise floor (1 sigma of one window).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.metrics import (
+    DPS_TO_DPH,
+    MIN_SUB_WINDOWS,
+    SETTLE_S,
+    SUB_WINDOWS,
+    find_pairs,
+    window_samples,
+)
+
+SOURCES = ("pairs", "stationary")
+
+
+def is_stationary(log: ChamberLog) -> bool:
+    """True when the table is stopped on every row (and the log has rows to keep)."""
+    keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid
+    return bool(len(log)) and not np.any(log.table_rate_dps != 0.0) and bool(keep.any())
+
+
+def stationary_refusal(log: ChamberLog) -> UserError:
+    """What an SF figure says of a stationary log: what the log can give instead."""
+    return UserError(f"{log.path}: the table is stopped for the whole log, so it measures "
+                     "the bias, not the SF: `fogsf inspect` shows its bias and `fogsf train` "
+                     "fits a bias-only model on it; the SF needs a log with the table turning")
+
+
+@dataclass
+class BiasWindows:
+    """The bias a log measures, one entry per window (a +/- pair, or a window of a
+    stationary log)."""
+
+    source: str  # one of SOURCES
+    t_s: np.ndarray  # window centre, s
+    temp_c: np.ndarray  # mean board temperature
+    bias_dph: np.ndarray  # measured bias, deg/h
+    start: np.ndarray  # first sample of the window
+    stop: np.ndarray  # one past its last sample
+    noise_floor_dph: float  # 1 sigma of one window's bias (NaN: too few windows)
+    window_s: float  # the window length (stationary) or the mean pair span (pairs)
+    t0_s: float = 0.0  # the log's first time stamp (times are shown from it)
+
+    def __len__(self) -> int:
+        return int(self.t_s.shape[0])
+
+    def step_index(self, decimation: int) -> np.ndarray:
+        """The model step whose held output covers each window's middle sample."""
+        return ((self.start + self.stop - 1) // 2) // decimation
+
+    def drift_dph_per_c(self) -> float | None:
+        """Slope of the bias over board temperature; None under 1 C of span or 3 windows."""
+        if len(self) < 3 or np.ptp(self.temp_c) < 1.0:
+            return None
+        return float(np.polyfit(self.temp_c, self.bias_dph, 1)[0])
+
+
+def stationary_windows(log: ChamberLog, window_s: float = 100.0,
+                       latitude_deg: float | None = None, skip_s: float = 0.0
+                       ) -> BiasWindows:
+    """Windows of `window_s` of a stationary log (the valid rows; from `skip_s` on): bias =
+    mean(gyro - earth). The noise floor is the RMS over windows of the spread of ten
+    sub-window means about a line (as the SF windows' noise), i.e. what the gyro's noise
+    leaves in one window."""
+    n = window_samples(window_s, log.sample_dt_s)
+    signal = (log.gyro_dps - log.earth(latitude_deg)) * DPS_TO_DPH
+    keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid.copy()
+    if skip_s > 0:
+        keep &= log.time_s >= log.time_s[0] + skip_s - 1e-9
+    starts = np.arange(0, len(log) - n + 1, n)
+    starts = np.array([s for s in starts if keep[s:s + n].all()], dtype=np.int64)
+    if starts.size == 0:
+        raise UserError(f"{log.path}: no complete {window_s:g} s bias window of valid rows "
+                        "(--window-s, --skip-s)")
+    idx = starts[:, None] + np.arange(n)[None, :]
+    sig = signal[idx]
+    k = SUB_WINDOWS
+    m = n // k
+    sub = sig[:, :m * k].reshape(starts.size, k, m).mean(axis=2)
+    x = np.arange(k) - (k - 1) / 2.0
+    slope = (sub * x).sum(axis=1) / (x * x).sum()
+    resid = sub - sub.mean(axis=1, keepdims=True) - slope[:, None] * x[None, :]
+    noise = np.sqrt((resid**2).sum(axis=1) / (k - 2) / k)
+    return BiasWindows("stationary", log.time_s[idx].mean(axis=1),
+                       log.temp_c[idx].mean(axis=1), sig.mean(axis=1), starts, starts + n,
+                       float(np.sqrt(np.mean(noise**2))), float(window_s),
+                       float(log.time_s[0]))
+
+
+def pair_windows(log: ChamberLog, latitude_deg: float | None = None,
+                 settle_s: float = SETTLE_S) -> BiasWindows | None:
+    """The +/- pairs' bias (`find_pairs`) as windows; None without pairs. A pair's window is
+    its centre +/- one plateau; the noise floor is the spread of second differences of
+    successive pairs' bias (std / sqrt(6): a linear drift cancels, what is left is noise,
+    an upper bound where the bias curves fast)."""
+    pp = find_pairs(log, latitude_deg, settle_s)
+    if pp is None:
+        return None
+    centre = np.clip(np.searchsorted(log.time_s, pp.t_s), 0, len(log) - 1)
+    span_s = float(np.median(np.diff(pp.t_s))) if len(pp) > 1 else 0.0
+    half = max(1, int(round(0.5 * span_s / log.sample_dt_s)))
+    start = np.clip(centre - half, 0, len(log) - 1)
+    stop = np.clip(centre + half, 1, len(log))
+    bias = pp.bias_dps * DPS_TO_DPH
+    if len(pp) >= MIN_SUB_WINDOWS:
+        d2 = bias[:-2] - 2.0 * bias[1:-1] + bias[2:]
+        floor = float(np.std(d2) / np.sqrt(6.0))
+    else:
+        floor = float("nan")
+    return BiasWindows("pairs", pp.t_s.copy(), pp.temp_c.copy(), bias, start, stop, floor,
+                       span_s, float(log.time_s[0]))
+
+
+def bias_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,
+                 settle_s: float = SETTLE_S, skip_s: float = 0.0) -> BiasWindows | None:
+    """The bias the log measures: a stationary log's windows, else its +/- pairs; None when
+    it measures no bias (no pairs, the table turning)."""
+    if is_stationary(log):
+        return stationary_windows(log, window_s, latitude_deg, skip_s)
+    w = pair_windows(log, latitude_deg, settle_s)
+    if w is not None and skip_s > 0:
+        keep = w.t_s >= log.time_s[0] + skip_s
+        w = BiasWindows(w.source, w.t_s[keep], w.temp_c[keep], w.bias_dph[keep],
+                        w.start[keep], w.stop[keep], w.noise_floor_dph, w.window_s, w.t0_s)
+    return w if w is not None and len(w) else None
+
+
+def bias_metrics(err_dph: np.ndarray, noise_floor_dph: float) -> dict[str, float]:
+    """The bias metrics block (deg/h): max|e|, peak-to-peak, RMS about zero, STD about the
+    mean, and the noise floor of one window."""
+    e = np.asarray(err_dph, dtype=np.float64)
+    return {"max_abs_dph": float(np.max(np.abs(e))), "pp_dph": float(np.ptp(e)),
+            "rms_dph": float(np.sqrt(np.mean(e**2))), "std_dph": float(np.std(e)),
+            "noise_floor_dph": float(noise_floor_dph)}
+
+
+def before_after(w: BiasWindows, predicted_dph: np.ndarray) -> dict:
+    """Before (the measured bias, nothing taken off) and after (measured - predicted, the
+    per-sample prediction averaged over each window's samples) over the bias windows."""
+    c = np.concatenate([[0.0], np.cumsum(np.asarray(predicted_dph, dtype=np.float64))])
+    p = (c[w.stop] - c[w.start]) / (w.stop - w.start)
+    return {"source": w.source, "windows": len(w),
+            "before": bias_metrics(w.bias_dph, w.noise_floor_dph),
+            "after": bias_metrics(w.bias_dph - p, w.noise_floor_dph)}
+
+
+def bias_summary(w: BiasWindows, rows: int = 8) -> dict:
+    """inspect's bias block: the series' figures and up to `rows` windows spread over the
+    log (time from the log's first sample, board temperature, bias)."""
+    pick = np.unique(np.linspace(0, len(w) - 1, min(rows, len(w))).round().astype(int))
+    return {"source": w.source, "count": len(w), "window_s": w.window_s,
+            "bias_dph": float(w.bias_dph.mean()), "std_dph": float(w.bias_dph.std()),
+            "range_dph": [float(w.bias_dph.min()), float(w.bias_dph.max())],
+            "drift_dph_per_c": w.drift_dph_per_c(), "noise_floor_dph": w.noise_floor_dph,
+            "temp_range_c": [float(w.temp_c.min()), float(w.temp_c.max())],
+            "series": [{"t_s": float(w.t_s[i] - w.t0_s), "temp_c": float(w.temp_c[i]),
+                        "bias_dph": float(w.bias_dph[i])} for i in pick]}

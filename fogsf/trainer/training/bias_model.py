@@ -1,0 +1,255 @@
+"""The bias model: the gyro's bias (deg/h) as a polynomial of the SF model's own features z.
+
+The same machinery as the lag bank: z are the front end's features (T and its lags for the
+default model), the bias is intercept + lin.z + quad.z^2 + cube.z^3 fitted by the bank's
+ridge (`lag_bank.fit_bank`, squares and cubes of T and the lags up to CURVED_MAX_TAU_S
+only), its penalty chosen by GCV (`fit_gcv`). The Shupe term, a bias proportional to the
+rate of change of the coil's temperature, is T - lag(T, tau) over a lag time: a linear
+combination of z that the bank carries. Targets are the bias each training log measures
+(`logs.bias`): a stationary log's model steps (mean of output - earth rate over each step),
+a +/- pair's bias at the step under its centre.
+
+`fit_bias(...)` fits; `score_bias(...)` gives the before/after metrics over a log's bias
+windows; `with_bias_head` and `bias_only_stream_model` make the artifacts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows, is_stationary
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.metrics import DPS_TO_DPH, SETTLE_S, step_means
+from fogsf.trainer.models.lag_bank import BankFit, fit_bank, n_curved
+from fogsf.trainer.models.reference import expand, frontend
+from fogsf.trainer.models.reference import features as ref_features
+from fogsf.trainer.models.stream import FrontEnd, StreamModel
+
+MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
+
+
+@dataclass(frozen=True)
+class FeatureMap:
+    """What gives z for a log: the front end and z = feat_w s + feat_b (float32, the
+    kernel's order)."""
+
+    fe: FrontEnd
+    feat_w: np.ndarray  # [F, 1+K] float32
+    feat_b: np.ndarray  # [F] float32
+    curved: int  # features (from the first) that carry squares and cubes
+
+    @property
+    def weights(self) -> dict[str, np.ndarray]:  # what reference.features reads
+        return {"feat_w": self.feat_w, "feat_b": self.feat_b}
+
+    def z(self, log: ChamberLog) -> np.ndarray:
+        """[n_steps, F] float32: the features of every model step of the log from reset."""
+        out = frontend(log.temp_c, self.fe.at_rate(log.sample_dt_s))
+        return ref_features(self, out.s)  # type: ignore[arg-type]
+
+
+def bank_curved(n_features: int) -> int:
+    """Curved features for z of `n_features`: the bank's rule for the lag bank, all else."""
+    from fogsf.trainer.models.lag_bank import bank_spec
+
+    return n_curved() if n_features == bank_spec().n_features else n_features
+
+
+@dataclass
+class BiasModel:
+    """bias (deg/h) = fit.predict(z); `fm` gives z."""
+
+    fm: FeatureMap
+    fit: BankFit
+    n_targets: int
+    sources: list[str]
+
+    def predict_steps(self, z: np.ndarray) -> np.ndarray:
+        return self.fit.predict(z)
+
+    def predict(self, log: ChamberLog) -> np.ndarray:
+        """Per sample (deg/h), held over each model step as the kernel holds it."""
+        fe = self.fm.fe.at_rate(log.sample_dt_s)
+        return expand(self.predict_steps(self.fm.z(log)), len(log), fe.decimation)
+
+    def as_dict(self) -> dict:
+        return {"intercept_dph": self.fit.intercept, "lin": self.fit.lin.tolist(),
+                "quad": self.fit.quad.tolist(), "cube": self.fit.cube.tolist(),
+                "ridge_lambda": self.fit.lam, "dof": self.fit.dof,
+                "targets": self.n_targets, "sources": self.sources}
+
+
+def step_targets(log: ChamberLog, w: BiasWindows, decimation: int,
+                 latitude_deg: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """(step index, bias deg/h) the log gives: every step of a stationary log's valid
+    samples, or each +/- pair at the step under its centre."""
+    if w.source == "stationary":
+        keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid
+        y = step_means((log.gyro_dps - log.earth(latitude_deg)) * DPS_TO_DPH, decimation, keep)
+        idx = np.flatnonzero(np.isfinite(y))
+        return idx, y[idx]
+    return w.step_index(decimation), w.bias_dph
+
+
+def fit_bias(fm: FeatureMap, logs: list[ChamberLog], window_s: float = 100.0,
+             latitude_deg: float | None = None, settle_s: float = SETTLE_S
+             ) -> BiasModel | None:
+    """The bias model on the logs that measure the bias; None when none does."""
+    zs, ys, sources = [], [], []
+    for lg in logs:
+        w = bias_windows(lg, window_s, latitude_deg, settle_s)
+        if w is None:
+            continue
+        z = fm.z(lg)
+        idx, y = step_targets(lg, w, fm.fe.at_rate(lg.sample_dt_s).decimation, latitude_deg)
+        ok = idx < z.shape[0]
+        zs.append(z[idx[ok]])
+        ys.append(y[ok])
+        sources.append(w.source)
+    if not zs:
+        return None
+    z, y = np.concatenate(zs), np.concatenate(ys)
+    if y.size < MIN_TARGETS:
+        raise UserError(f"the training logs measure the bias {y.size} time(s): too few for "
+                        f"a bias model (at least {MIN_TARGETS})")
+    return BiasModel(fm, fit_gcv(z, y, fm.curved), int(y.size), sources)
+
+
+# The bias's ridge penalties (multiples of the design's mean diagonal), chosen per fit by
+# generalised cross-validation. Unlike the SF's fixed prior (lag_bank.BANK_LAMBDA, 1e-3):
+# a bias target is white noise about the law (the gyro's angle random walk over a model
+# step or a pair), which GCV is made for, and a Shupe term needs large coefficients of
+# opposite sign on neighbouring lags (T - lag is a rate of change) that 1e-3 shrinks away.
+# Development gyros 1-8 (`benchmarks.bias_eval`), median std(predicted - true): coil Shupe
+# term 0.375 -> 0.186 deg/h (reversals), 0.376 -> 0.208 (stationary); without it 0.094 ->
+# 0.136 (reversals: few pairs) and 0.085 -> 0.071 (stationary); docs/decisions.md.
+BIAS_LAMBDAS = tuple(10.0 ** e for e in range(-8, 0))
+
+
+def fit_gcv(z: np.ndarray, y: np.ndarray, curved: int) -> BankFit:
+    """`fit_bank` at the penalty of BIAS_LAMBDAS with the least GCV score n RSS / (n - dof)^2."""
+    best: tuple[float, BankFit] | None = None
+    n = y.size
+    for lam in BIAS_LAMBDAS:
+        fit = fit_bank(z, y, lam=lam, curved=curved)
+        if n - fit.dof <= 0:
+            continue
+        r = y - fit.predict(z)
+        score = n * float(r @ r) / (n - fit.dof) ** 2
+        if best is None or score < best[0]:
+            best = (score, fit)
+    return best[1] if best is not None else fit_bank(z, y, curved=curved)
+
+
+def score_bias(model: BiasModel, log: ChamberLog, window_s: float = 100.0,
+               latitude_deg: float | None = None, settle_s: float = SETTLE_S
+               ) -> dict | None:
+    """Before (the measured bias, nothing taken off) and after (measured - predicted, the
+    prediction averaged over each window's samples) over the log's bias windows, deg/h;
+    None for a log that measures no bias."""
+    w = bias_windows(log, window_s, latitude_deg, settle_s)
+    return None if w is None else before_after(w, model.predict(log))
+
+
+def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: ChamberLog | None,
+               window_s: float, latitude_deg: float | None, settle_s: float) -> dict:
+    """metrics.json's "bias" block: the fit, then test and train scores (one per log)."""
+    out: dict = {"model": model.as_dict()}
+    if test_log is not None:
+        out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s)
+    out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s)
+                    for i, lg in enumerate(train_logs)}
+    return out
+
+
+def check_mixed(logs: list[ChamberLog]) -> bool:
+    """True when every training log is stationary (a bias-only model); refused when some
+    are and some are not."""
+    flags = [is_stationary(lg) for lg in logs]
+    if any(flags) and not all(flags):
+        still = ", ".join(lg.path for lg, f in zip(logs, flags, strict=True) if f)
+        raise UserError(f"{still}: stationary (the table stopped throughout): such logs "
+                        "train a bias-only model, given alone; the SF model with its bias "
+                        "head trains on logs with the table turning (+/- pairs give the bias)")
+    return all(flags)
+
+
+def bank_feature_map(logs: list[ChamberLog], step_s: float) -> FeatureMap:
+    """The lag bank's z (T and its lags, one physical unit) with its own front end: the
+    bias-only model's features, and the bias's for SF models without a firmware form."""
+    from fogsf.trainer.models.features import front_end_for, physical_normaliser
+    from fogsf.trainer.models.lag_bank import bank_spec
+
+    spec = bank_spec()
+    norm = physical_normaliser(spec)
+    return FeatureMap(front_end_for(logs, step_s, spec.taus_s), norm.feat_w, norm.feat_b,
+                      n_curved())
+
+
+def feature_map_of(stream_model: StreamModel | None, logs: list[ChamberLog],
+                   step_s: float) -> FeatureMap:
+    """The SF model's own z when it has a firmware form (the bias head reads the same
+    state), else the lag bank's."""
+    if stream_model is None:
+        return bank_feature_map(logs, step_s)
+    w = stream_model.weights
+    return FeatureMap(stream_model.front_end, w["feat_w"], w["feat_b"],
+                      bank_curved(stream_model.n_features))
+
+
+def bias_lines(b: dict) -> list[str]:
+    """`fogsf train`'s bias table (deg/h) from metrics.json's "bias" block."""
+    row = "  {:<16} {:>9} {:>9} {:>9} {:>9} {:>9}"
+    lines = [row.format("bias, deg/h", "max|e|", "p-p", "RMS", "STD", "floor")]
+    blocks = ([("test", b["test"])] if b.get("test") else []) + [
+        (f"train {k[3:]}" if len(b["train"]) > 1 else "train", v)
+        for k, v in b["train"].items() if v is not None]
+    for name, block in blocks:
+        for when in ("before", "after"):
+            m = block[when]
+            lines.append(row.format(f"{name} {when}", f"{m['max_abs_dph']:.4f}",
+                                    f"{m['pp_dph']:.4f}", f"{m['rms_dph']:.4f}",
+                                    f"{m['std_dph']:.4f}", f"{m['noise_floor_dph']:.4f}"))
+    src = ", ".join(sorted(set(b["model"]["sources"])))
+    lines.append(f"  bias model: {b['model']['targets']} targets ({src}) on the features z; "
+                 "before = the measured bias, after = measured - predicted (floor: 1 sigma "
+                 "of one window)")
+    return lines
+
+
+def with_bias_head(sm: StreamModel, model: BiasModel) -> StreamModel:
+    """The artifact with the bias model as its bias head (float32, deg/h); the bias model
+    must read the artifact's own z (`feature_map_of(sm, ...)`)."""
+    if model.fm.feat_w.tobytes() != sm.weights["feat_w"].tobytes():
+        raise ValueError("the bias model reads other features than the artifact")
+    f = model.fit
+    weights = dict(sm.weights)
+    weights.update({"bias_b": np.array([f.intercept], np.float32),
+                    "bias_w": f.lin.astype(np.float32),
+                    "bias_quad_w": f.quad.astype(np.float32),
+                    "bias_cube_w": f.cube.astype(np.float32)})
+    out = replace(sm, weights=weights, bias_head=True, extra=dict(sm.extra))
+    out.validate()
+    return out
+
+
+def bias_only_stream_model(model: BiasModel) -> StreamModel:
+    """A bias-only artifact: the bias head on the bank's z, and an SF part that is exactly
+    zero (a 1 x 1 LSTM reading z[0:1] with zero weights, zero head: sf_ppm = 0)."""
+    fm, f = model.fm, model.fm.feat_w.shape[0]
+    zeros = {"lstm0_w": (4, 1), "lstm0_r": (4, 1), "lstm0_b": (8,), "head_w": (1,),
+             "head_b": (1,), "skip_w": (f,), "out_offset": (1,)}
+    weights = {k: np.zeros(s, np.float32) for k, s in zeros.items()}
+    weights.update({"filter_alpha": np.asarray(fm.fe.filter_alpha, np.float32),
+                    "feat_w": fm.feat_w, "feat_b": fm.feat_b,
+                    "out_scale": np.ones(1, np.float32)})
+    sm = StreamModel(model="bias", decimation=fm.fe.decimation, t_ref_c=fm.fe.t_ref_c,
+                     t_min_c=fm.fe.t_min_c, t_max_c=fm.fe.t_max_c,
+                     stuck_samples=fm.fe.stuck_samples,
+                     filter_tau_s=list(fm.fe.filter_tau_s), n_features=f, layers=1, hidden=1,
+                     weights=weights, sample_dt_s=fm.fe.sample_dt_s, lstm_inputs=1,
+                     extra={"structure": "bias-only"})
+    return with_bias_head(sm, model)

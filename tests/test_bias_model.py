@@ -1,0 +1,204 @@
+"""The bias model (training/bias_model.py): the lag bank's polynomial of z fitted to the
+measured bias; a Shupe term (bias ~ dT/dt of the coil) that a cubic in T cannot carry; the
+bias-only model of `fogsf train` on stationary logs; mixed logs refused."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fogsf.trainer import cli
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.bias import bias_windows
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.logio import write_log
+from fogsf.trainer.training.bias_model import bank_feature_map, check_mixed, fit_bias, score_bias
+
+EARTH_DPS = 0.0025
+SHUPE_DPH_PER_C_PER_MIN = 3.0  # bias per C/min of the coil's temperature change
+COIL_TAU_S = 400.0
+
+
+def soak_log(points: list[tuple[float, float]], seed: int, path: str = "<memory>",
+             shupe: float = SHUPE_DPH_PER_C_PER_MIN, arw_dps: float = 0.002
+             ) -> tuple[ChamberLog, np.ndarray]:
+    """A stationary log at 10 Hz through chamber (time s, C) points (white noise arw_dps a
+    sample: 0.04 deg/sqrt(h) by default); the coil lags the board
+    by COIL_TAU_S; bias (deg/h) = 0.5 + 0.04 (Tc - 20) + 0.001 (Tc - 20)^2 + shupe dTc/dt
+    (C/min). Returns (log, true bias per sample)."""
+    dt = 0.1
+    t = np.arange(0.0, points[-1][0], dt)
+    board = np.interp(t, *zip(*points, strict=True))
+    coil = np.empty_like(board)
+    a = dt / COIL_TAU_S
+    coil[0] = board[0]
+    for i in range(1, t.size):
+        coil[i] = coil[i - 1] + a * (board[i] - coil[i - 1])
+    rate = np.gradient(coil, dt) * 60.0
+    d = coil - 20.0
+    bias = 0.5 + 0.04 * d + 0.001 * d * d + shupe * rate
+    rng = np.random.default_rng(seed)
+    gyro = EARTH_DPS + bias / 3600.0 + rng.normal(0.0, arw_dps, t.size)
+    log = ChamberLog(t, board, np.zeros_like(t), gyro, np.full_like(t, EARTH_DPS), path=path)
+    return log, bias
+
+
+TRAIN = [(0, 10), (1200, 10), (3000, 40), (4200, 40), (6000, 10), (7200, 10)]  # 1, 1 C/min
+TEST = [(0, 15), (900, 15), (2700, 35), (3900, 35), (4700, 20), (6000, 20)]  # other path
+
+
+def truth_in_windows(log: ChamberLog, bias: np.ndarray) -> tuple[np.ndarray, object]:
+    w = bias_windows(log, 100.0)
+    assert w is not None
+    return np.array([bias[a:b].mean() for a, b in zip(w.start, w.stop, strict=True)]), w
+
+
+def test_the_bank_carries_a_shupe_bias_a_cubic_in_t_does_not() -> None:
+    train, _ = soak_log(TRAIN, 1)
+    test, true_bias = soak_log(TEST, 2)
+    model = fit_bias(bank_feature_map([train], 5.0), [train])
+    assert model is not None and model.sources == ["stationary"]
+    truth, w = truth_in_windows(test, true_bias)
+    pred = model.predict(test)
+    p = np.array([pred[a:b].mean() for a, b in zip(w.start, w.stop, strict=True)])
+    err = np.std(p - truth)
+    # the PX4 way: a cubic in board temperature fitted to the same training windows
+    tw, ww = truth_in_windows(train, soak_log(TRAIN, 1)[1])
+    cubic = np.polyfit(ww.temp_c, ww.bias_dph, 3)
+    err_cubic = np.std(np.polyval(cubic, w.temp_c) - truth)
+    assert err < max(0.1, 0.05 * np.std(truth)), (err, np.std(truth))
+    assert err_cubic > 2.0 * err, (err_cubic, err)
+
+
+def test_before_after_metrics_and_the_noise_floor() -> None:
+    train, _ = soak_log(TRAIN, 3)
+    test, _ = soak_log(TEST, 4)
+    model = fit_bias(bank_feature_map([train], 5.0), [train])
+    s = score_bias(model, test)
+    assert s is not None and s["source"] == "stationary"
+    before, after = s["before"], s["after"]
+    assert before["std_dph"] > 4.0 * after["std_dph"]
+    # what is left is the noise: within 1.5 x the floor the windows show
+    assert after["std_dph"] < 1.5 * after["noise_floor_dph"]
+    assert set(after) == {"max_abs_dph", "pp_dph", "rms_dph", "std_dph", "noise_floor_dph"}
+
+
+def test_a_log_without_bias_gives_no_model() -> None:
+    log, _ = soak_log(TRAIN, 5)
+    turning = ChamberLog(log.time_s, log.temp_c, np.full_like(log.time_s, 10.0),
+                         log.gyro_dps + 10.0, log.earth_rate_dps)
+    assert fit_bias(bank_feature_map([turning], 5.0), [turning]) is None
+
+
+def test_mixed_stationary_and_turning_logs_are_refused() -> None:
+    log, _ = soak_log(TRAIN[:3], 6, path="soak.csv")
+    turning = ChamberLog(log.time_s, log.temp_c, np.full_like(log.time_s, 10.0),
+                         log.gyro_dps, log.earth_rate_dps, path="ramp.csv")
+    assert check_mixed([log]) is True and check_mixed([turning]) is False
+    with pytest.raises(UserError, match="soak.csv: stationary.*bias-only"):
+        check_mixed([log, turning])
+
+
+def test_train_on_stationary_logs_is_a_bias_only_model(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture[str]
+                                                       ) -> None:
+    for name, pts, seed in (("a.csv", TRAIN, 7), ("b.csv", TEST, 8)):
+        write_log(tmp_path / name, soak_log(pts, seed)[0])
+    out = tmp_path / "m"
+    assert cli.main(["train", "--train", str(tmp_path / "a.csv"), "--test",
+                     str(tmp_path / "b.csv"), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "bias only" in text and "test after" in text
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["model"] == "bias" and m["bias_only"] is True
+    after = m["bias"]["test"]["after"]
+    assert after["std_dph"] < 1.5 * after["noise_floor_dph"]
+    assert m["bias"]["test"]["before"]["std_dph"] > 4.0 * after["std_dph"]
+
+
+def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
+    """train -> stream model (SF exactly 0, the bias head) -> replay through the C kernel:
+    the kernel's float32 bias is the fit's to 1e-3 deg/h, the CSV has bias_dph, and the
+    corrected rate is the raw one minus the bias."""
+    import csv
+
+    from fogsf.trainer.logs.logio import read_log
+    from fogsf.trainer.models import reference
+    from fogsf.trainer.models.stream import StreamModel
+    from fogsf.trainer.training.bias_model import FeatureMap, fit_bias
+
+    write_log(tmp_path / "a.csv", soak_log(TRAIN, 9)[0])
+    test, _ = soak_log(TEST, 10)
+    write_log(tmp_path / "b.csv", test)
+    out = tmp_path / "m"
+    assert cli.main(["train", "--train", str(tmp_path / "a.csv"), "--out", str(out)]) == 0
+    sm = StreamModel.load(out)
+    m = json.loads((out / "metrics.json").read_text())
+    assert sm.bias_head and sm.model == "bias" and m["model_id"] == sm.model_id
+    assert m["params"] == sm.params
+    ref = reference.replay(sm, test.temp_c, test.gyro_dps)
+    assert not ref.sf_ppm.any()
+    fm = FeatureMap(sm.front_end, sm.weights["feat_w"], sm.weights["feat_b"], 9)
+    fit = fit_bias(fm, [read_log(tmp_path / "a.csv")])
+    assert np.max(np.abs(ref.bias_dph - fit.predict(test))) < 1e-3
+    capsys.readouterr()
+    assert cli.main(["replay", str(out), str(tmp_path / "b.csv"), "--out",
+                     str(tmp_path / "r.csv")]) == 0
+    text = capsys.readouterr().out
+    assert "measures the bias, not the SF" in text and "bias, " in text
+    with open(tmp_path / "r.csv") as f:
+        rows = list(csv.reader(f))
+    assert rows[0][-1] == "bias_dph"
+    got = np.array(rows[1:], dtype=np.float64)
+    assert np.array_equal(got[:, 4].astype(np.float32), ref.bias_dph)
+    bias = got[:, 4].astype(np.float32).astype(np.float64)  # %.9g: the float32's digits
+    assert np.array_equal(got[:, 2], got[:, 1] - bias / 3600.0)
+
+
+def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
+    from fogsf.trainer.models.stream import StreamModel
+    from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim.config import BiasConfig
+
+    bias = BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05, quad_dph_per_c2=0.002)
+    logs = []
+    for name, seed in (("train", 21), ("test", 22)):
+        (tmp_path / name).mkdir()
+        p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(10.0, 40.0, 1.0, 0.7, 300.0),
+                                   bias=bias, arw_deg_per_sqrt_h=rigs.QUIET_ARW)
+        logs.append(rigs.rig_log("plain", tmp_path / name / "log.csv", p, (20002,),
+                                 seed=seed).path)
+    out = tmp_path / "m"
+    assert cli.main(["train", "--train", str(logs[0]), "--test", str(logs[1]), "--out",
+                     str(out), "--iters", "20", "--no-progress"]) == 0
+    assert "bias, deg/h" in capsys.readouterr().out
+    sm = StreamModel.load(out)
+    m = json.loads((out / "metrics.json").read_text())
+    assert sm.bias_head and sm.model == "lag-lstm" and m["model_id"] == sm.model_id
+    assert m["params"] == sm.params
+    b = m["bias"]["test"]
+    assert b["source"] == "pairs" and b["before"]["std_dph"] > 3.0 * b["after"]["std_dph"]
+    assert b["after"]["std_dph"] < 2.0 * b["after"]["noise_floor_dph"]
+
+
+def test_same_logs_same_bias_model_bytes(tmp_path: Path) -> None:
+    from fogsf.export.onnx_step import build_step_onnx
+    from fogsf.trainer.models.stream import StreamModel
+
+    write_log(tmp_path / "a.csv", soak_log(TRAIN, 13)[0])
+    for out in ("m1", "m2"):
+        assert cli.main(["train", "--train", str(tmp_path / "a.csv"), "--out",
+                         str(tmp_path / out)]) == 0
+    a, b = (tmp_path / "m1" / "stream_weights.npz"), (tmp_path / "m2" / "stream_weights.npz")
+    assert a.read_bytes() == b.read_bytes()
+    model = StreamModel.load(tmp_path / "m1")
+    assert model.model_id == StreamModel.load(tmp_path / "m2").model_id
+    outputs = [o.name for o in build_step_onnx(model).graph.output]
+    assert outputs[0] == "sf_ppm" and outputs[-1] == "bias_dph"
