@@ -171,3 +171,32 @@ def test_simulate_writes_a_parquet_log(tmp_path: Path, capsys) -> None:
     capsys.readouterr()
     assert main(["inspect", str(out), "--json", "--ref-sf", "1.0"]) == 0
     assert json.loads(capsys.readouterr().out)["samples"] == 6001
+
+
+def test_replay_of_a_bias_head_model_in_blocks(tmp_path: Path, monkeypatch) -> None:
+    """A model with a bias head: bias_dph written block by block (the kernel's state carried)
+    to CSV and Parquet, every sample that of one run from reset."""
+    import fogsf.trainer.commands.replay as replay
+    from fogsf.bindings.kernel import Kernel
+
+    monkeypatch.setenv("FOGSF_BUILD_DIR", str(tmp_path / "kernels"))
+    monkeypatch.setattr(replay, "REPLAY_BLOCK", 1000)
+    model = samples.random_model(3, 4, 1, 8, decimation=10, seed=6, bias_head=True)
+    model.save(tmp_path / "m")
+    temp, _ = samples.chamber_ramp(hours=0.3, seed=3)
+    n = temp.shape[0]
+    log = ChamberLog(np.arange(n) * 0.1, temp, np.full(n, 10.0),
+                     10.0 + np.random.default_rng(3).normal(0, 0.002, n), np.zeros(n))
+    write_log(tmp_path / "run.csv", log)
+    log = read_log(tmp_path / "run.csv")
+    for out in ("c.csv", "c.parquet"):
+        assert main(["replay", str(tmp_path / "m"), str(tmp_path / "run.csv"), "--out",
+                     str(tmp_path / out), "--ref-sf", "1.0"]) == 0
+    corrected, sf, bias, _ = Kernel(model).run_bias(log.temp_c, log.gyro_dps)
+    table = pq.read_table(tmp_path / "c.parquet")
+    assert table.column_names[-1] == "bias_dph"
+    assert np.array_equal(table.column("bias_dph").to_numpy(), bias)
+    assert np.array_equal(table.column("gyro_corrected_dps").to_numpy(), corrected)
+    text = np.loadtxt(tmp_path / "c.csv", delimiter=",", skiprows=1)
+    assert text.shape[1] == 5 and np.array_equal(text[:, 4].astype(np.float32), bias)
+    assert np.array_equal(text[:, 3].astype(np.float32), sf)
