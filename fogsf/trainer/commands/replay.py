@@ -81,26 +81,28 @@ def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
 
 
 def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
-                  ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+                  ) -> tuple[np.ndarray, np.ndarray | None, dict[str, int]]:
     """The kernel (a `Kernel`) over the log (a `ChamberLog`) from reset, REPLAY_BLOCK samples
     at a time (its state carried from block to block: the output of one run over the whole
     log), each block written to `path` as it is produced (bias_dph too with `bias_head`):
-    (sf_ppm and bias_dph per sample, the flag counts)."""
+    (sf_ppm per sample, bias_dph per sample or None without a bias head, the flag counts)."""
     from fogsf.trainer.logs.corrected_out import CorrectedWriter
     from fogsf.trainer.logs.logio import time_format
 
     n = len(log)
     sf = np.empty(n, np.float32)
-    bias = np.empty(n, np.float32)
+    bias = np.empty(n, np.float32) if bias_head else None
     counts: dict[str, int] = {}
     st = kernel.new_state()
     with CorrectedWriter(path, time_format(log.time_s), bias=bias_head) as w:
         for a in range(0, n, REPLAY_BLOCK):
             b = min(n, a + REPLAY_BLOCK)
-            corrected, sf[a:b], bias[a:b], flags = kernel.run_bias(
+            corrected, sf[a:b], block_bias, flags = kernel.run_bias(
                 log.temp_c[a:b], log.gyro_dps[a:b], st)
+            if bias is not None:
+                bias[a:b] = block_bias
             w.write(log.time_s[a:b], log.gyro_dps[a:b], corrected, sf[a:b],
-                    bias[a:b] if bias_head else None)
+                    block_bias if bias_head else None)
             for name, c in flag_counts(flags).items():
                 counts[name] = counts.get(name, 0) + c
     return sf, bias, counts
