@@ -57,7 +57,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--paper", action="store_true", help="the default gyro's paper protocol")
     ap.add_argument("--out", default=None)
     ap.add_argument("--lam", type=float, default=None, help="NODE_LAMBDA for this run")
-    ap.add_argument("--split", default=None, help="SPLIT_MODE of a single segment")
     ap.add_argument("--no-cube", action="store_true", help="no cube of T in the node law")
     ap.add_argument("--candidates", default=None, help="comma list (default CANDIDATES)")
     args = ap.parse_args(argv)
@@ -65,9 +64,6 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.lam is not None:
         physics_nodes.NODE_LAMBDA = args.lam
-    if args.split:
-        from fogsf.trainer.training import structure_choice
-        structure_choice.SPLIT_MODE = args.split
     if args.no_cube:
         physics_nodes.CUBE_T = False
     global CANDS

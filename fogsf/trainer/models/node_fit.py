@@ -155,8 +155,9 @@ def varpro(design: Callable[[np.ndarray], np.ndarray], y: np.ndarray, theta0: np
     r, fit = resid(theta)
     sse = float(r @ r)
     mu = 1e-2
-    it = 0
-    for it in range(1, max_iter + 1):
+    iters = 0
+    while iters < max_iter:
+        iters += 1
         jac = np.empty((r.size, theta.size))
         for j in range(theta.size):
             t = theta.copy()
@@ -180,4 +181,4 @@ def varpro(design: Callable[[np.ndarray], np.ndarray], y: np.ndarray, theta0: np
             mu *= 4.0
         if not improved or gain < rtol:
             break
-    return VarProFit(theta, fit, it)
+    return VarProFit(theta, fit, iters)
