@@ -85,8 +85,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "and the bank; docs/train.md), physics (--nodes first-order lags "
                              "of T with identified time constants, a quadratic with cross "
                              "terms), bank (T and its lags at 11 time constants from 60 s to "
-                             "2 h, ridge with one fixed prior) or node (one or two effective "
-                             "nodes with a cubic, --nodes)")
+                             "2 h, cubic up to 2000 s and linear beyond, ridge with one fixed "
+                             "prior) or node (one or two effective nodes with a cubic, "
+                             "--nodes)")
     parser.add_argument("--nodes", type=int, choices=(1, 2, 3), default=None,
                         help="nodes of --structure physics (1-3, default 1) or node (1-2)")
     parser.add_argument("--poly-degree", type=int, default=3, help="poly/polyrate degree")
