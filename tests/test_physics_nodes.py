@@ -19,7 +19,13 @@ from fogsf.trainer.models.physics_nodes import (
     node_design,
 )
 from fogsf.trainer.models.stream import StreamModel
-from fogsf.trainer.training.structure_choice import StepData, choose, heldout_score
+from fogsf.trainer.training.structure_choice import (
+    CANDIDATES,
+    MULTI_SEGMENT_ORDER,
+    StepData,
+    choose,
+    heldout_score,
+)
 from fogsf.trainer.training.train import TrainOptions, per_sample_prediction, run_training
 
 FAST = {"iters": 20, "hidden": 8, "layers": 1, "batch_size": 8}
@@ -127,15 +133,20 @@ def test_physics_model_exports_and_the_reference_matches(tmp_path: Path) -> None
     assert "quad_w[9]" in text and "IMU_Z_QUAD_DIAG" in (tmp_path / "b" / "imu_z.h").read_text()
 
 
-def test_choice_is_the_smallest_within_tolerance() -> None:
-    """The rule on the training logs alone: every candidate scored, the smallest within the
-    tolerance of the best chosen, and a tolerance of 0 takes the best."""
+def test_choice_is_the_first_within_tolerance() -> None:
+    """The rule on the training logs alone: every candidate scored, the first in the rule's
+    order within the tolerance of the best chosen (several ramps: the bank first; one ramp:
+    the smaller physics structures first), and a tolerance of 0 takes the best."""
     logs = [short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)]
     c = choose(logs)
     best = min(c.scores.values())
     order = list(c.scores)
+    assert order == list(MULTI_SEGMENT_ORDER) and not c.one_segment  # two ramps
     first = next(k for k in order if c.scores[k] <= (1 + c.tolerance) * best)
     assert c.name == first and c.folds >= 2  # a segment per ramp (or rate within one)
     exact = choose(logs, tolerance=0.0)
     assert exact.scores == c.scores and exact.scores[exact.name] == best
     assert f"structure {c.name}" in c.message()
+    one = choose(logs[1:])  # one ramp: in parts, the smaller structures first
+    assert one.one_segment and one.folds == 3 and list(one.scores) == list(CANDIDATES)
+    assert "one ramp, in 3 parts" in one.message()

@@ -42,7 +42,7 @@ def case(train: list, test) -> dict:  # noqa: ANN001
     out["allmean"] = ratio(test, np.mean(list(preds.values()), axis=0))
     if "bank" in preds and phys:
         out["bank+pmean"] = ratio(test, 0.5 * preds["bank"] + 0.5 * np.mean(phys, axis=0))
-    choice = choose(train, candidates=CANDS)
+    choice = choose(train, candidates=None if CANDS == CANDIDATES else CANDS)
     out["scores"] = choice.scores
     out["chosen"] = choice.name
     out["default"] = out[choice.name]
@@ -57,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--paper", action="store_true", help="the default gyro's paper protocol")
     ap.add_argument("--out", default=None)
     ap.add_argument("--lam", type=float, default=None, help="NODE_LAMBDA for this run")
+    ap.add_argument("--curved-max", type=float, default=None,
+                    help="CURVED_MAX_TAU_S: slower nodes enter linearly")
     ap.add_argument("--no-cube", action="store_true", help="no cube of T in the node law")
     ap.add_argument("--candidates", default=None, help="comma list (default CANDIDATES)")
     args = ap.parse_args(argv)
@@ -64,6 +66,8 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.lam is not None:
         physics_nodes.NODE_LAMBDA = args.lam
+    if args.curved_max is not None:
+        physics_nodes.CURVED_MAX_TAU_S = args.curved_max
     if args.no_cube:
         physics_nodes.CUBE_T = False
     global CANDS

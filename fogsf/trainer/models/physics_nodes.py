@@ -56,10 +56,31 @@ def pairs(f: int) -> list[tuple[int, int]]:
 CUBE_T = True  # the cube of T in the law (the static law's curvature)
 
 
-def node_design(z: np.ndarray, cube_t: bool | None = None) -> np.ndarray:
-    """Columns z, every product z_i z_j (i <= j), then z_0^3 (z_0 = T) with `cube_t`."""
+# Nodes slower than this enter linearly only (no squares, no cross terms), as in the lag
+# bank (`lag_bank.CURVED_MAX_TAU_S`): a down-ramp after up-ramp training takes slow node
+# temperatures far beyond their training range, where their curvature extrapolates worst.
+# None: every node curved.
+CURVED_MAX_TAU_S: float | None = None
+
+
+def curved(taus_s: tuple[float, ...] | np.ndarray) -> list[int]:
+    """The features (0 = T, then the nodes) that enter the products."""
+    return [0] + [1 + k for k, t in enumerate(taus_s)
+                  if CURVED_MAX_TAU_S is None or t <= CURVED_MAX_TAU_S]
+
+
+def product_pairs(taus_s: tuple[float, ...] | np.ndarray) -> list[tuple[int, int]]:
+    c = curved(taus_s)
+    return [(i, j) for a, i in enumerate(c) for j in c[a:]]
+
+
+def node_design(z: np.ndarray, taus_s: tuple[float, ...] | np.ndarray | None = None,
+                cube_t: bool | None = None) -> np.ndarray:
+    """Columns z, the products z_i z_j (i <= j) of T and the curved nodes (every node when
+    taus_s is None), then z_0^3 (z_0 = T) with `cube_t`."""
     x = np.asarray(z, dtype=np.float64)
-    cols = [x] + [(x[:, i] * x[:, j])[:, None] for i, j in pairs(x.shape[1])]
+    pr = pairs(x.shape[1]) if taus_s is None else product_pairs(taus_s)
+    cols = [x] + [(x[:, i] * x[:, j])[:, None] for i, j in pr]
     if CUBE_T if cube_t is None else cube_t:
         cols.append((x[:, 0] ** 3)[:, None])
     return np.hstack(cols)
@@ -88,7 +109,7 @@ def head_from_ridge(f: RidgeFit, n_features: int, taus_s: tuple[float, ...],
                     lam: float) -> NodeFit:
     lin = f.coef[:n_features]
     quad = np.zeros((n_features, n_features))
-    pr = pairs(n_features)
+    pr = product_pairs(taus_s)
     for k, (i, j) in enumerate(pr):
         quad[i, j] = f.coef[n_features + k]
     cube = np.zeros(n_features)
@@ -101,7 +122,8 @@ def fit_coefficients(z: np.ndarray, y: np.ndarray, taus_s: tuple[float, ...],
                      lam: float | None = None) -> NodeFit:
     """The coefficients for fixed time constants: ridge on node_design(z)."""
     lam = NODE_LAMBDA if lam is None else lam
-    return head_from_ridge(ridge_fit(node_design(z), y, lam), z.shape[1], taus_s, lam)
+    return head_from_ridge(ridge_fit(node_design(z, taus_s), y, lam), z.shape[1], taus_s,
+                           lam)
 
 
 class NodeTemperatures:
@@ -140,7 +162,8 @@ def identify_taus(nodes: NodeTemperatures, y: np.ndarray, n_nodes: int,
     ys = np.asarray(y, dtype=np.float64)[sel]
 
     def design(log_tau: np.ndarray) -> np.ndarray:
-        return node_design(nodes.z(np.exp(log_tau))[sel])
+        taus = np.exp(log_tau)
+        return node_design(nodes.z(taus)[sel], taus)
 
     best: tuple[float, tuple[float, ...]] | None = None
     for combo in itertools.combinations(START_GRID_S, n_nodes):

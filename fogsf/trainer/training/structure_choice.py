@@ -10,9 +10,18 @@ predicts that segment, and scores the RMS of its error over 100 s windows; a can
 score is the RMS over every held-out segment. Predicting a ramp at a rate or in a direction
 the rest of the logs hold is what compensation at an untrained rate asks of a model.
 
-The rule: the first candidate (in the order above) whose score is within CHOICE_TOLERANCE of
-the best: where the held-out segments cannot tell structures apart, the smaller one.
-A training set with a single segment (one ramp) is split into SPLIT_PARTS contiguous parts.
+The rule: the first candidate, in an order that depends on what the logs hold, whose score
+is within CHOICE_TOLERANCE of the best:
+- one segment (one ramp; split into SPLIT_PARTS contiguous parts): its held-out parts test
+  extrapolation in temperature, not in rate, so the data cannot tell the structures'
+  rate dependence apart: the smaller, more physical structure first (physics nodes with
+  1, 2, 3 nodes, then the bank);
+- several segments (ramps at several rates or directions): the lag bank first, which
+  carries every lag and extrapolates its slow lags linearly (the most robust structure on
+  development gyros where a test takes the lags beyond the training range), then the
+  physics nodes: a physics structure is chosen when it predicts the held-out segments more
+  than CHOICE_TOLERANCE better than the bank.
+The orders and the tolerance were chosen on development gyros (docs/decisions.md).
 """
 
 from __future__ import annotations
@@ -35,7 +44,8 @@ from fogsf.trainer.models.reference import expand
 from fogsf.trainer.models.stream import FrontEnd
 from fogsf.trainer.training.transfer import ramp_segments
 
-CANDIDATES = ("physics1", "physics2", "physics3", "bank")
+CANDIDATES = ("physics1", "physics2", "physics3", "bank")  # the order with one segment
+MULTI_SEGMENT_ORDER = ("bank", "physics1", "physics2", "physics3")
 # A candidate within this fraction of the best held-out score counts as as good: the first
 # such in CANDIDATES is chosen. Chosen on development gyros (docs/decisions.md).
 CHOICE_TOLERANCE = 0.20
@@ -52,6 +62,7 @@ class StepData:
     t_rel: list[np.ndarray]
     y: np.ndarray
     fold: np.ndarray
+    one_segment: bool = False  # the logs hold one segment, split into parts
     nodes: NodeTemperatures = field(init=False)
 
     def __post_init__(self) -> None:
@@ -84,7 +95,7 @@ def step_data(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
     fold = np.concatenate(folds)
     if base == 1:  # one segment: contiguous parts
         fold = np.minimum(np.arange(fold.size) * SPLIT_PARTS // fold.size, SPLIT_PARTS - 1)
-    return StepData(fe, t_rel, np.concatenate(ys), fold)
+    return StepData(fe, t_rel, np.concatenate(ys), fold, base == 1)
 
 
 Predictor = Callable[[NodeTemperatures], np.ndarray]  # steps' prediction (ppm) of any logs
@@ -132,8 +143,9 @@ def heldout_score(name: str, sd: StepData) -> float:
 @dataclass
 class StructureChoice:
     name: str
-    scores: dict[str, float]  # held-out RMS (ppm) per candidate
+    scores: dict[str, float]  # held-out RMS (ppm) per candidate, in the rule's order
     folds: int
+    one_segment: bool
     tolerance: float = CHOICE_TOLERANCE
 
     def message(self) -> str:
@@ -147,7 +159,7 @@ class StructureChoice:
 
     def as_dict(self) -> dict:
         return {"chosen": self.name, "heldout_rms_ppm": self.scores, "segments": self.folds,
-                "tolerance": self.tolerance}
+                "one_segment": self.one_segment, "tolerance": self.tolerance}
 
 
 def choice_message(d: dict) -> str:
@@ -155,21 +167,31 @@ def choice_message(d: dict) -> str:
     scores: dict[str, float] = d["heldout_rms_ppm"]
     best = min(scores.values())
     cells = ", ".join(f"{k} {v:.1f}" for k, v in scores.items())
-    why = ("the best" if scores[d["chosen"]] == best else
-           f"the smallest within {100 * d['tolerance']:.0f} % of the best")
+    tol = f"{100 * d['tolerance']:.0f} %"
+    if d["one_segment"]:
+        parts = f"one ramp, in {d['segments']} parts"
+        why = ("the best" if scores[d["chosen"]] == best else
+               f"the smallest within {tol} of the best (one ramp cannot tell the structures' "
+               "rate dependence apart)")
+    else:
+        parts = f"{d['segments']} segments"
+        why = (f"the lag bank within {tol} of the best" if d["chosen"] == "bank" else
+               f"better than the lag bank by more than {tol}")
     return (f"structure {d['chosen']}, chosen by leave-one-segment-out on the training logs "
-            f"({d['segments']} segments; held-out RMS, ppm: {cells}): {why}")
+            f"({parts}; held-out RMS, ppm: {cells}): {why}")
 
 
 def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
            latitude_deg: float | None = None,
-           candidates: tuple[str, ...] = CANDIDATES,
+           candidates: tuple[str, ...] | None = None,
            tolerance: float = CHOICE_TOLERANCE) -> StructureChoice:
+    """The rule (module docstring); `candidates` in order replaces the rule's order."""
     sd = step_data(logs, step_s, latitude_deg)
-    scores = {c: heldout_score(c, sd) for c in candidates}
+    order = candidates or (CANDIDATES if sd.one_segment else MULTI_SEGMENT_ORDER)
+    scores = {c: heldout_score(c, sd) for c in order}
     best = min(scores.values())
-    name = next(c for c in candidates if scores[c] <= (1.0 + tolerance) * best)
-    return StructureChoice(name, scores, sd.n_folds, tolerance)
+    name = next(c for c in order if scores[c] <= (1.0 + tolerance) * best)
+    return StructureChoice(name, scores, sd.n_folds, sd.one_segment, tolerance)
 
 
 def candidate_compensation(name: str, logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
