@@ -1,11 +1,15 @@
-"""Physics nodes against the lag bank and one node, least squares only, per protocol.
+"""Physics nodes against the lag bank, least squares only, per protocol, and the default's
+choice among them.
 
 For each gyro and protocol of `benchmarks.population` (and the default gyro's paper
-protocol with `--paper`), prints the test RMS / noise floor of: the lag bank, one effective
-node (`--structure node`), physics nodes with 1-3 nodes, and the leave-one-segment-out
-scores the default's rule reads (`training.structure_choice`).
+protocol with `--paper`, noise seeds FIRST..), prints the test RMS / noise floor of every
+candidate of `training.structure_choice` (physics nodes with 1-3 nodes, the lag bank; with
+`--candidates`, others such as `node`), of the one the rule chooses ("default"), of plain
+averages of candidates' predictions, and the leave-one-segment-out scores the rule reads.
+Run it on development gyros (the rule is tuned there):
 
-    python -m benchmarks.probes.physics_nodes --first 1 --n 8 --protocols a,b,e
+    python -m benchmarks.probes.physics_nodes --first 1 --n 24 --protocols a,b,c,d,e
+    python -m benchmarks.probes.physics_nodes --paper --first 0 --n 8
 """
 
 from __future__ import annotations
@@ -102,8 +106,9 @@ def main(argv: list[str] | None = None) -> int:
     for p in sorted({r["p"] for r in rows}):
         sub = [r for r in rows if r["p"] == p]
         cells = " ".join(f"{n}:{np.median([r[n] for r in sub]):.2f}/"
+                         f"{np.percentile([r[n] for r in sub], 90):.2f}/"
                          f"{np.max([r[n] for r in sub]):.2f}" for n in names)
-        print(f"({p}) median/worst {cells}")
+        print(f"({p}) median/p90/worst {cells}")
     if args.out:
         with open(args.out, "w") as fh:
             json.dump(rows, fh, indent=1)
