@@ -102,9 +102,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--lr", type=float)
     g.add_argument("--iters", type=int, help="training iterations (batches)")
     g.add_argument("--lstm-inputs", type=positive_int, metavar="N",
-                   help="lag-lstm on the lag bank: the LSTM reads the first N bank features "
-                        f"(T, then the fastest lags; default {BANK_LSTM_INPUTS}, "
-                        f"{bank_spec().n_features} = all): "
+                   help="lag-lstm (bank or physics nodes): the LSTM reads the first N "
+                        f"features (T, then the fastest lags; default {BANK_LSTM_INPUTS}, "
+                        f"{bank_spec().n_features} = all of the bank's): "
                         "4 x hidden input weights per feature in the firmware's flash")
     g.add_argument("--lstm-window", type=positive_int, metavar="STEPS",
                    help="model steps per LSTM training window (default 256, 21 min at "
