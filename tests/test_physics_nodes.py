@@ -134,19 +134,23 @@ def test_physics_model_exports_and_the_reference_matches(tmp_path: Path) -> None
 
 
 def test_choice_is_the_first_within_tolerance() -> None:
-    """The rule on the training logs alone: every candidate scored, the first in the rule's
-    order within the tolerance of the best chosen (several ramps: the bank first; one ramp:
-    the smaller physics structures first), and a tolerance of 0 takes the best."""
+    """The rule on the training logs alone: several ramps keep the bank; one ramp scores
+    every candidate and takes the first in the rule's order within the tolerance of the best
+    (the smaller physics structures first), and a tolerance of 0 takes the best."""
     logs = [short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)]
     c = choose(logs)
-    best = min(c.scores.values())
-    order = list(c.scores)
-    assert order == list(MULTI_SEGMENT_ORDER) and not c.one_segment  # two ramps
-    first = next(k for k in order if c.scores[k] <= (1 + c.tolerance) * best)
-    assert c.name == first and c.folds >= 2  # a segment per ramp (or rate within one)
-    exact = choose(logs, tolerance=0.0)
-    assert exact.scores == c.scores and exact.scores[exact.name] == best
-    assert f"structure {c.name}" in c.message()
+    assert c.name == "bank" and not c.one_segment and c.folds >= 2 and not c.scores
+    assert "keep the lag bank" in c.message()
+    tuned = choose(logs, candidates=MULTI_SEGMENT_ORDER)  # the development-gyro rule
+    assert list(tuned.scores) == list(MULTI_SEGMENT_ORDER)
+    best = min(tuned.scores.values())
+    first = next(k for k in tuned.scores if tuned.scores[k] <= (1 + tuned.tolerance) * best)
+    assert tuned.name == first
+    exact = choose(logs, candidates=MULTI_SEGMENT_ORDER, tolerance=0.0)
+    assert exact.scores == tuned.scores and exact.scores[exact.name] == best
     one = choose(logs[1:])  # one ramp: in parts, the smaller structures first
     assert one.one_segment and one.folds == 3 and list(one.scores) == list(CANDIDATES)
     assert "one ramp, in 3 parts" in one.message()
+    assert f"structure {one.name}" in one.message()
+    assert one.name == next(k for k in CANDIDATES
+                            if one.scores[k] <= (1 + one.tolerance) * min(one.scores.values()))
