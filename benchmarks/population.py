@@ -48,7 +48,9 @@ PROTOCOLS = {
     "d": (("up05", "up20"), "slowcycle"),
     "e": (("loop_train",), "loop_test"),
 }
-MODELS = ("poly", "polyrate", "default", "gsa-lstm")
+# default: what `fogsf train` fits without --model (lag-lstm, its structure chosen by the
+# training logs); bank: lag-lstm on the lag bank (`--structure bank`, the previous default)
+MODELS = ("poly", "polyrate", "default", "bank", "gsa-lstm")
 # GSA's search space reaches 3 x 256 LSTMs: even this budget takes minutes a protocol on
 # 2 cores, so gsa-lstm runs on the paper's protocol (a) only
 GSA_SMALL = {"gsa_agents": 3, "gsa_iters": 2, "gsa_fitness_iters": 20, "iters": 100}
@@ -111,8 +113,10 @@ def protocol_logs(gyro: SimConfig, gyro_seed: int, protocol: str) -> tuple[list,
 def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, imported late
     from fogsf.trainer.training.train import DEFAULT_MODEL, TrainOptions
 
-    kind = DEFAULT_MODEL if model == "default" else model
-    extra = GSA_SMALL if kind == "gsa-lstm" else {}
+    kind = DEFAULT_MODEL if model in ("default", "bank") else model
+    extra: dict = GSA_SMALL if kind == "gsa-lstm" else {}
+    if model == "bank":
+        extra = {"structure": "bank"}
     # the rate-transfer interval is the default model's; the others skip that check
     return TrainOptions(model=kind, seed=seed, progress=False, workers=1,
                         transfer_check=model == "default", **extra)
@@ -147,6 +151,8 @@ def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ..
                        "ratio": after["rms_ppm"] / floor, "std_ratio": after["std_ppm"] / floor,
                        "before_rms_ppm": m["test"]["before"]["rms_ppm"],
                        "train_seconds": m["train_seconds"]}
+                if "structure_choice" in m:
+                    row["structure"] = m["structure_choice"]["chosen"]
                 if model == "default":
                     rt = m["rate_transfer"]
                     lo, hi = rt["rms_interval_ppm"]
@@ -305,8 +311,10 @@ def main(argv: list[str] | None = None) -> int:
                        unit="gyro")
     rows.sort(key=lambda r: r["gyro_seed"])
     for g in rows:
-        cells = " ".join(f"{p}:{g['cases'][p][m]['ratio']:.2f}" for p in protocols
-                         for m in models if m == "default")
+        cells = " ".join(f"{p}:{g['cases'][p][m]['ratio']:.2f}"
+                         + (f"({g['cases'][p][m]['structure']})"
+                            if "structure" in g["cases"][p][m] else "")
+                         for p in protocols for m in models if m == "default")
         print(f"gyro {g['gyro_seed']:>5} {g['gyro']:<28} default {cells}")
     summary = summarise(rows, models, protocols)
     print(f"test RMS / noise floor over {len(rows)} {args.seeds} gyros "

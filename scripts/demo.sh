@@ -2,8 +2,8 @@
 # make demo: the main job on simulated data, from chamber logs to the firmware kernel.
 #   1. simulate chamber runs at 0.5, 1 and 2 C/min (-40 -> 50 C, 10 deg/s)
 #   2. inspect the test run (its SF error before compensation)
-#   3. train the default model (lag-lstm on the lag bank) on 0.5 and 2 C/min, test on
-#      1 C/min (two training rates: one rate leaves the lags undetermined, see
+#   3. train the default model (lag-lstm, its structure chosen by the logs) on 0.5 and
+#      2 C/min, test on 1 C/min (two training rates: one rate leaves the lags undetermined, see
 #      docs/population.md; `make paper` runs the paper's one-rate protocol)
 #   4. export it to ONNX and the generated C header
 #   5. build the C kernel and replay the 1 C/min log through it, sample by sample

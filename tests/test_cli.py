@@ -40,12 +40,15 @@ def test_train_help_describes_the_bank_the_code_fits() -> None:
     from fogsf.trainer.cli import build_parser
     from fogsf.trainer.models.lag_bank import CURVED_MAX_TAU_S
     from fogsf.trainer.models.least_squares import TAU_GRID_S
+    from fogsf.trainer.training.structure_choice import CANDIDATES
 
     train = build_parser()._subparsers._group_actions[0].choices["train"]
     text = " ".join(train.format_help().split())
     assert "GCV" not in text
     assert f"lags at {len(TAU_GRID_S)} time constants" in text
     assert f"cubic up to {CURVED_MAX_TAU_S:.0f} s" in text and "one fixed prior" in text
+    assert "among physics nodes with 1-3 nodes and the bank" in text
+    assert CANDIDATES == ("physics1", "physics2", "physics3", "bank")
     lo, hi = min(TAU_GRID_S), max(TAU_GRID_S)
     assert lo == 60.0 and hi == 7200.0, "the help says 60 s to 2 h"
 

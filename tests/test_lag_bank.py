@@ -59,7 +59,7 @@ def test_bank_transfers_between_two_rates_where_one_node_does_not(two_rates_gyro
 
 def test_bank_artifact_carries_the_fixed_bank(two_rates_gyro, tmp_path: Path) -> None:
     logs = two_rates_gyro
-    opts = TrainOptions(model="lag-lstm", progress=False, **FAST)
+    opts = TrainOptions(model="lag-lstm", structure="bank", progress=False, **FAST)
     m, fitted = run_training(opts, [logs["slow"], logs["fast"]], logs["mid"], tmp_path / "b")
     sm = StreamModel.load(tmp_path / "b")
     f = 1 + len(TAU_GRID_S)
@@ -89,15 +89,17 @@ def test_lstm_inputs_option(two_rates_gyro, tmp_path: Path) -> None:
     logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
     f = 1 + len(TAU_GRID_S)
     for n_in in (3, f):
-        opts = TrainOptions(model="lag-lstm", progress=False, lstm_inputs=n_in, **FAST)
+        opts = TrainOptions(model="lag-lstm", structure="bank", progress=False,
+                            lstm_inputs=n_in, **FAST)
         run_training(opts, logs, None, tmp_path / str(n_in))
         sm = StreamModel.load(tmp_path / str(n_in))
         assert sm.n_lstm_inputs == n_in and sm.weights["lstm0_w"].shape[1] == n_in
         assert sm.lstm_inputs_narrowed == (n_in < f) and sm.quad_diag
     for bad in (0, f + 1):
         with pytest.raises(UserError, match="--lstm-inputs must lie in 1..12"):
-            fit_model(TrainOptions(model="lag-lstm", lstm_inputs=bad, **FAST), logs)
-    with pytest.raises(UserError, match="--lstm-inputs narrows the lag bank"):
+            fit_model(TrainOptions(model="lag-lstm", structure="bank", lstm_inputs=bad, **FAST),
+                      logs)
+    with pytest.raises(UserError, match="--lstm-inputs narrows the LSTM"):
         fit_model(TrainOptions(model="lag-lstm", structure="node", lstm_inputs=1), logs)
 
 
@@ -134,10 +136,22 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
         write_log(paths[k], lg)
     common = ["train", "--train", str(paths["slow"]), "--train", str(paths["fast"]),
               "--test", str(paths["mid"]), "--iters", "5", "--hidden", "4", "--no-progress"]
-    assert main([*common, "--out", str(tmp_path / "bank")]) == 0
+    assert main([*common, "--structure", "bank", "--out", str(tmp_path / "bank")]) == 0
     assert main([*common, "--structure", "node", "--out", str(tmp_path / "node")]) == 0
-    out = capsys.readouterr().out
-    assert "Expected RMS error on the target" in " ".join(out.split())
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Expected RMS error on the target" in out
+    assert "leave-one-segment-out" not in out  # a structure given is not chosen
+    assert main([*common, "--out", str(tmp_path / "auto")]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    auto = json.loads((tmp_path / "auto" / "metrics.json").read_text())
+    choice = auto["structure_choice"]
+    # the default says which structure it chose and every candidate's held-out score
+    assert f"structure {choice['chosen']}, chosen by leave-one-segment-out" in out
+    assert set(choice["heldout_rms_ppm"]) == {"physics1", "physics2", "physics3", "bank"}
+    assert choice["segments"] == 2  # one ramp a log
+    n_feat = 1 + (len(TAU_GRID_S) if choice["chosen"] == "bank"
+                  else int(choice["chosen"].removeprefix("physics")))
+    assert len(auto["features"]) == n_feat
     bank = json.loads((tmp_path / "bank" / "metrics.json").read_text())
     node = json.loads((tmp_path / "node" / "metrics.json").read_text())
     assert bank["features"][0] == "T" and len(bank["features"]) == 1 + len(TAU_GRID_S)
@@ -149,8 +163,9 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
 
 
 def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Path) -> None:
-    """The default model in its narrowed form: the same seed gives the same artifact and the
-    same generated C, byte for byte; another seed another model."""
+    """The default model (its structure chosen by the logs, its LSTM narrowed): the same seed
+    gives the same artifact and the same generated C, byte for byte; another seed another
+    model."""
     from fogsf.export.header import render_model
 
     logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
@@ -159,7 +174,7 @@ def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Pat
         run_training(TrainOptions(model="lag-lstm", progress=False, seed=seed, **FAST), logs,
                      None, tmp_path / run)
         sm = StreamModel.load(tmp_path / run)
-        assert sm.lstm_inputs_narrowed and sm.quad_diag
+        assert sm.lstm_inputs_narrowed
         texts.append(render_model(sm, "imu_x"))
         ids.append(sm.model_id)
     assert texts[0] == texts[1] and ids[0] == ids[1]

@@ -1,13 +1,16 @@
 """fogsf train: fit a scale-factor compensation model on chamber logs.
 
 Models: poly (polynomial in T), polyrate (T and a filtered dT/dt), mlp (the paper's MLP),
-lstm (the paper's LSTM, Table 1: 2 x 200, batch 32, lr 0.02), lag-lstm (the default: the
-lag bank, T and its lags at 11 time constants from 60 s to 2 h fitted by ridge with a fixed
-prior, plus a 1 x 16 LSTM on what it leaves; `--structure node` for one or two effective
-nodes T_eff = w T + (1 - w) lag(T, tau)), gsa-lstm (GSA tunes batch size, layers, hidden
+lstm (the paper's LSTM, Table 1: 2 x 200, batch 32, lr 0.02), lag-lstm (the default: a
+physics part fitted by least squares, plus a 1 x 16 LSTM on what it leaves; the physics part
+is chosen by the training logs, leave one segment out, among physics nodes with 1-3 nodes
+(first-order lags of T with identified time constants, a quadratic with cross terms) and
+the lag bank (T and its lags at 11 time constants from 60 s to 2 h, ridge with a fixed
+prior); `--structure` to give it, `node` for one or two effective nodes
+T_eff = w T + (1 - w) lag(T, tau)), gsa-lstm (GSA tunes batch size, layers, hidden
 units, learning rate and (tau, w) of T_eff on the validation part of the training logs).
-The default's structure was chosen on development gyros of the population
-(docs/population.md); train on two or more ramp rates (or one log with up- and down-ramps
+The rule's tolerance was chosen on development gyros of the population
+(docs/decisions.md); train on two or more ramp rates (or one log with up- and down-ramps
 at different rates and soaks): one rate leaves the lags undetermined, and with --test the
 rate-transfer check says how far (an interval for the RMS error on the test log).
 
@@ -39,6 +42,7 @@ from fogsf.trainer.commands import (
 from fogsf.trainer.commands.axes import run_all, wants_all
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, bank_spec
+from fogsf.trainer.training.structure_choice import choice_message
 from fogsf.trainer.training.transfer import RateTransfer, spans_ramp_rates
 
 
@@ -52,7 +56,7 @@ def _chunk(text: str) -> tuple[float, float]:
 
 def configure(parser: argparse.ArgumentParser) -> None:
     from fogsf.trainer.gsa.executors import add_executor_options
-    from fogsf.trainer.training.train import DEFAULT_MODEL, MODELS
+    from fogsf.trainer.training.train import DEFAULT_MODEL, MODELS, STRUCTURES
 
     parser.add_argument("--train", action="append", required=True, metavar="LOG.csv",
                         help="training log (repeat for several)")
@@ -76,14 +80,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_log_options(parser)
     parser.add_argument("--rate-tau-s", type=float, default=120.0,
                         help="time constant of the dT/dt filter (default 120 s)")
-    parser.add_argument("--structure", choices=("bank", "node"), default=None,
-                        help="lag-lstm's physics part: bank (default: T and its lags at 11 "
-                             "time constants from 60 s to 2 h, cubic up to 2000 s and linear "
-                             "beyond, ridge with one fixed prior; docs/decisions.md) or node "
-                             "(one or two effective nodes with a cubic, --nodes)")
-    parser.add_argument("--nodes", type=int, choices=(1, 2), default=None,
-                        help="effective sensing nodes of lag-lstm with --structure node "
-                             "(default 1; 2 needs training logs at two or more ramp rates)")
+    parser.add_argument("--structure", choices=STRUCTURES, default=None,
+                        help="lag-lstm's physics part: auto (default: chosen by the training "
+                             "logs, leave one segment out, among physics nodes with 1-3 nodes "
+                             "and the bank; docs/train.md), physics (--nodes first-order lags "
+                             "of T with identified time constants, a quadratic with cross "
+                             "terms), bank (T and its lags at 11 time constants from 60 s to "
+                             "2 h, cubic up to 2000 s and linear beyond, ridge with one fixed "
+                             "prior) or node (one or two effective nodes with a cubic, "
+                             "--nodes)")
+    parser.add_argument("--nodes", type=int, choices=(1, 2, 3), default=None,
+                        help="nodes of --structure physics (1-3, default 1) or node (1-2)")
     parser.add_argument("--poly-degree", type=int, default=3, help="poly/polyrate degree")
     parser.add_argument("--node", type=float, nargs=2, default=None,
                         metavar=("TAU_S", "W"),
@@ -96,9 +103,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--lr", type=float)
     g.add_argument("--iters", type=int, help="training iterations (batches)")
     g.add_argument("--lstm-inputs", type=positive_int, metavar="N",
-                   help="lag-lstm on the lag bank: the LSTM reads the first N bank features "
-                        f"(T, then the fastest lags; default {BANK_LSTM_INPUTS}, "
-                        f"{bank_spec().n_features} = all): "
+                   help="lag-lstm (bank or physics nodes): the LSTM reads the first N "
+                        f"features (T, then the fastest lags; default {BANK_LSTM_INPUTS}, "
+                        f"{bank_spec().n_features} = all of the bank's): "
                         "4 x hidden input weights per feature in the firmware's flash")
     g.add_argument("--lstm-window", type=positive_int, metavar="STEPS",
                    help="model steps per LSTM training window (default 256, 21 min at "
@@ -130,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
         settle_s=args.settle_s,
         rate_tau_s=args.rate_tau_s, poly_degree=args.poly_degree,
         node=tuple(args.node) if args.node else None, nodes=args.nodes or 1,
-        structure=args.structure or ("node" if args.nodes or args.node else "bank"),
+        structure=args.structure or ("node" if args.nodes or args.node else "auto"),
         layers=args.layers, hidden=args.hidden, batch_size=args.batch_size, lr=args.lr,
         iters=args.iters, lstm_window=args.lstm_window, lstm_inputs=args.lstm_inputs,
         gsa_agents=args.gsa_agents,
@@ -180,6 +187,8 @@ def format_metrics(m: dict) -> str:
     lines.append(f"  noise floor {m['noise_floor_ppm']:.2f} ppm ({m['window_s']:g} s windows)")
     if "bias" in m:
         lines += bias_lines(m["bias"])
+    if "structure_choice" in m:
+        lines.append(textwrap.fill(choice_message(m["structure_choice"]), 96))
     if "rate_transfer" in m:
         lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))
     elif not spans_ramp_rates(m["train_ramp_rates_c_per_min"]):

@@ -4,7 +4,8 @@ A model is the base columns (which depend on the base time constants) plus, opti
 candidate column (which may depend on its own grid parameter). Every admissible combination
 of grid values gives one design matrix; all are stacked into one (G, n, p) array and solved
 at once (batched normal equations on scaled columns, a whisker of ridge for columns that
-are collinear on a given set of logs), and the combination with the least weighted squared
+are collinear on a given set of logs; `models.node_fit`, the fit the trainer's physics-node
+model uses too), and the combination with the least weighted squared
 error wins. The same stack serves every cross-validation fold (only the rows change).
 """
 
@@ -17,8 +18,9 @@ import numpy as np
 from fogsf.trainer.diagnose import design
 from fogsf.trainer.diagnose.catalogue import Candidate, GridValue
 from fogsf.trainer.diagnose.design import RunContext
+from fogsf.trainer.models.node_fit import PROFILE_RIDGE, ProfileFit, profile_solve
 
-RIDGE = 1e-5  # on scaled columns: keeps nearly collinear node terms from cancelling wildly
+RIDGE = PROFILE_RIDGE  # on scaled columns: keeps nearly collinear node terms from cancelling
 
 
 @dataclass
@@ -61,34 +63,13 @@ def build(ctxs: list[RunContext], cand: Candidate | None,
     return Stack(combos, np.stack(mats), names, cand)
 
 
-@dataclass
-class Fit:
-    index: int  # best combination
-    beta: np.ndarray  # (p,) coefficients of the best combination
-    sse: np.ndarray  # (G,) weighted SSE of every combination on the fitting rows
-    cov: np.ndarray  # (p, p) coefficient covariance (unit weights = 1/sigma^2)
+Fit = ProfileFit  # one profile over the grid (the shared physics fit's record)
 
 
 def solve(stack: Stack, y: np.ndarray, w: np.ndarray, rows: np.ndarray) -> Fit:
-    """Fit on `rows` (index array) with weights w (1/sigma^2)."""
-    x = stack.x[:, rows, :]
-    sw = np.sqrt(w[rows])
-    xw = x * sw[None, :, None]
-    yw = y[rows] * sw
-    scale = np.sqrt(np.mean(xw * xw, axis=1))  # (G, p)
-    scale = np.where(scale > 0, scale, 1.0)  # an all-zero column (e.g. warmup, no power-on)
-    xs = xw / scale[:, None, :]
-    a = np.einsum("gnp,gnq->gpq", xs, xs)
-    p = a.shape[-1]
-    a = a + RIDGE * rows.shape[0] * np.eye(p)[None]
-    rhs = np.einsum("gnp,n->gp", xs, yw)
-    bs = np.linalg.solve(a, rhs[..., None])[..., 0]
-    resid = yw[None, :] - np.einsum("gnp,gp->gn", xs, bs)
-    sse = np.sum(resid * resid, axis=1)
-    k = int(np.argmin(sse))
-    beta = bs[k] / scale[k]
-    cov = np.linalg.inv(a[k]) / np.outer(scale[k], scale[k])
-    return Fit(k, beta, sse, cov)
+    """Fit on `rows` (index array) with weights w (1/sigma^2): the shared physics fit's
+    profile over every stacked combination (`models.node_fit.profile_solve`)."""
+    return profile_solve(stack.x, y, w, rows, RIDGE)
 
 
 def predict(stack: Stack, fit: Fit, rows: np.ndarray | None = None) -> np.ndarray:

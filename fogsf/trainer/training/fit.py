@@ -24,6 +24,7 @@ from fogsf.trainer.logs.metrics import windows_rms
 from fogsf.trainer.models.features import SeqData
 from fogsf.trainer.models.lag_bank import BankFit
 from fogsf.trainer.models.nets import MLP, StreamNet
+from fogsf.trainer.models.physics_nodes import NodeFit
 
 
 @dataclass
@@ -149,13 +150,13 @@ def torch_threads(n: int) -> Iterator[None]:
         torch.set_num_threads(before)
 
 
-def _init_fixed_head(net: StreamNet, head: BankFit) -> None:
-    """Start from a fitted lag bank (linear terms in the skip, squares on quad's diagonal,
-    cubes in cube, intercept in the head's bias) and hold the bank fixed: the LSTM learns
-    only what it leaves."""
+def _init_fixed_head(net: StreamNet, head: BankFit | NodeFit) -> None:
+    """Start from a fitted lag bank or physics-node model (linear terms in the skip, squares
+    on quad's diagonal, or the full quadratic of the nodes, cubes in cube, intercept in the
+    head's bias) and hold it fixed: the LSTM learns only what it leaves."""
     with torch.no_grad():
         net.skip.weight.copy_(torch.from_numpy(head.lin[None, :].astype(np.float32)))
-        quad = head.quad if net.quad_diag else np.diag(head.quad)
+        quad = head.quad if net.quad_diag or head.quad.ndim == 2 else np.diag(head.quad)
         net.quad.copy_(torch.from_numpy(quad.astype(np.float32)))
         net.cube.copy_(torch.from_numpy(head.cube.astype(np.float32)))
         net.head.bias.fill_(float(head.intercept))
@@ -166,7 +167,7 @@ def _init_fixed_head(net: StreamNet, head: BankFit) -> None:
 
 def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
                  out_offset: float, out_scale: float, progress: bool = True,
-                 head: BankFit | None = None) -> tuple[StreamNet, History]:
+                 head: BankFit | NodeFit | None = None) -> tuple[StreamNet, History]:
     """Train a StreamNet on the training steps of `data` (features `z`, one per log); with
     `head`, on top of that fixed lag bank (else from the least-squares start)."""
     small = cfg.layers * cfg.hidden <= SMALL_NET_UNITS
@@ -176,7 +177,7 @@ def train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
 
 def _train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
                   out_offset: float, out_scale: float, progress: bool,
-                  head: BankFit | None = None) -> tuple[StreamNet, History]:
+                  head: BankFit | NodeFit | None = None) -> tuple[StreamNet, History]:
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     net = StreamNet(z[0].shape[1], cfg.layers, cfg.hidden, poly=cfg.poly_head or head is not None,

@@ -7,11 +7,15 @@ Models (all causal, all from the board thermometer and time only):
 - `lstm`: the paper's LSTM on (T, filtered dT/dt), Table 1 defaults (2 x 200, batch 32,
   lr 0.02, Adam);
 - `lag-lstm` (the default): the physics part fitted by least squares and carried exactly in
-  the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is the lag bank
-  (`models.lag_bank`: T and its lags at 11 time constants, ridge with a fixed prior; in the
-  head's diagonal quadratic, the LSTM reading the first BANK_LSTM_INPUTS features) or,
-  with `structure="node"`, one or two effective sensing temperatures
-  T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid;
+  the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is chosen by
+  the training logs (`structure="auto"`, `training.structure_choice`: leave one segment
+  out among physics nodes with 1-3 nodes and the lag bank), or given: physics nodes
+  (`models.physics_nodes`: T and N first-order lags of it with identified time constants,
+  a quadratic with cross terms), the lag bank (`models.lag_bank`: T and its lags at 11 time
+  constants, ridge with a fixed prior; in the head's diagonal quadratic) or, with
+  `structure="node"`, one or two effective sensing temperatures
+  T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid; the LSTM reads the
+  first BANK_LSTM_INPUTS features (T);
 - `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
   four) and (tau, w) of T_eff; fitness is the error on the validation part of the training
   logs, never the test log.
@@ -50,6 +54,7 @@ from fogsf.trainer.models.features import (
     step_targets,
 )
 from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, BankFit, bank_spec, fit_bank, n_curved
+from fogsf.trainer.models.physics_nodes import NodeFit
 from fogsf.trainer.models.reference import expand
 from fogsf.trainer.models.stream import FrontEnd, StreamModel, decimation_for
 from fogsf.trainer.training.transfer import ramp_segments, rate_transfer, training_ramp_rates
@@ -59,7 +64,8 @@ if TYPE_CHECKING:  # training.fit imports torch; commands import this module at 
 
 MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
 DEFAULT_MODEL = "lag-lstm"  # what `fogsf train` fits without --model
-STRUCTURES = ("bank", "node")  # lag-lstm: the lag bank, or one / two effective nodes
+# lag-lstm: chosen by the training logs, physics nodes, the lag bank, one / two effective nodes
+STRUCTURES = ("auto", "physics", "bank", "node")
 EXPORTABLE = ("lstm", "lag-lstm", "gsa-lstm")
 
 
@@ -75,8 +81,8 @@ class TrainOptions:
     rate_tau_s: float = 120.0
     poly_degree: int = 3
     node: tuple[float, float] | None = None  # (tau_s, w) of T_eff; None: identified
-    nodes: int = 1  # effective nodes of lag-lstm (2 needs logs at two or more ramp rates)
-    structure: str = "bank"  # lag-lstm: "bank" (the lag bank) or "node" (1 or 2 effective nodes)
+    nodes: int = 1  # nodes of lag-lstm's node (1-2) or physics (1-3) structure
+    structure: str = "auto"  # lag-lstm: "auto" (chosen by the logs), "physics", "bank", "node"
     layers: int | None = None
     hidden: int | None = None
     batch_size: int | None = None
@@ -127,16 +133,16 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError(f"unknown model {opts.model!r}; choose one of {', '.join(MODELS)}")
     if not train_logs:
         raise UserError("give at least one training log (--train)")
-    if opts.nodes not in (1, 2):
-        raise UserError("--nodes must be 1 or 2")
+    if opts.nodes not in ((1, 2, 3) if opts.structure == "physics" else (1, 2)):
+        raise UserError("--nodes must be 1 or 2 (1-3 with --structure physics)")
     if opts.structure not in STRUCTURES:
         raise UserError(f"--structure must be one of {', '.join(STRUCTURES)}")
     if opts.node is not None and opts.nodes != 1:
         raise UserError("--node gives one effective node; drop it or use --nodes 1")
     if opts.lstm_inputs is not None and not (opts.model == "lag-lstm"
-                                             and opts.structure == "bank"):
-        raise UserError("--lstm-inputs narrows the lag bank's LSTM: it needs --model "
-                        "lag-lstm with --structure bank")
+                                             and opts.structure != "node"):
+        raise UserError("--lstm-inputs narrows the LSTM of the lag bank or the physics "
+                        "nodes: it needs --model lag-lstm without --structure node")
     if not (math.isfinite(opts.model_step_s) and opts.model_step_s > 0):
         raise UserError(f"--model-step-s must be > 0, got {opts.model_step_s!r}")
     lo, hi = opts.val_chunk
@@ -166,23 +172,64 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts) if kind == "lstm"
                               else None)
     if kind == "lag-lstm":
-        if opts.structure == "bank" and opts.node is None and opts.nodes == 1:
+        choice = None
+        if opts.structure == "auto" and opts.node is None and opts.nodes == 1:
+            from fogsf.trainer.training.structure_choice import choose
+
+            choice = choose(train_logs, opts.model_step_s, opts.latitude_deg)
+            structure, nodes = choice.structure()
+            opts = TrainOptions(**{**asdict(opts), "structure": structure, "nodes": nodes})
+        if opts.structure == "physics":
+            fitted = _fit_physics(opts, train_logs)
+        elif opts.structure in ("bank", "auto") and opts.node is None and opts.nodes == 1:
             spec = bank_spec()
-            n_in = BANK_LSTM_INPUTS if opts.lstm_inputs is None else opts.lstm_inputs
-            if not 1 <= n_in <= spec.n_features:
-                raise UserError(f"--lstm-inputs must lie in 1..{spec.n_features} (the lag "
-                                f"bank's features), got {n_in}")
             # the bank's quadratic is diagonal: the head carries quad_w [F], not [F, F]
-            return _fit_with_spec(opts, train_logs, spec,
-                                  _lstm_config(opts, lstm_inputs=n_in, quad_diag=True),
-                                  head_fn=_fit_bank_head)
-        if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
-            spec = effective_node_features(*_identify_two_nodes(opts, train_logs))
-            return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts, cubes=False))
-        tau, w = opts.node or _identify_node(opts, train_logs)
-        spec = effective_node_features((tau, w))
-        return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts))
+            fitted = _fit_with_spec(opts, train_logs, spec,
+                                    _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec),
+                                                 quad_diag=True),
+                                    head_fn=_fit_bank_head)
+        else:
+            return _fit_node(opts, train_logs)
+        if choice is not None:
+            fitted.info["structure_choice"] = choice.as_dict()
+        return fitted
     return _fit_gsa(opts, train_logs)
+
+
+def _lstm_inputs(opts: TrainOptions, spec: FeatureSpec) -> int:
+    n_in = BANK_LSTM_INPUTS if opts.lstm_inputs is None else opts.lstm_inputs
+    if not 1 <= n_in <= spec.n_features:
+        raise UserError(f"--lstm-inputs must lie in 1..{spec.n_features} (the model's "
+                        f"features), got {n_in}")
+    return n_in
+
+
+def _fit_physics(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
+    """Physics nodes: time constants identified by variable projection on every step of the
+    training logs, the quadratic (with cross terms) held fixed in the head, the LSTM on what
+    it leaves."""
+    from fogsf.trainer.models.physics_nodes import fit_coefficients, identify_taus, node_spec
+    from fogsf.trainer.training.structure_choice import step_data
+
+    sd = step_data(logs, opts.model_step_s, opts.latitude_deg)
+    taus = identify_taus(sd.nodes, sd.y, opts.nodes)
+    spec = node_spec(taus)
+
+    def head_fn(ti: TrainingInputs) -> NodeFit:
+        return fit_coefficients(*bank_data(ti), taus)
+
+    return _fit_with_spec(opts, logs, spec,
+                          _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec)),
+                          head_fn=head_fn)
+
+
+def _fit_node(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
+    if opts.nodes == 2:  # a quadratic form of two nodes, as the physics has it
+        spec = effective_node_features(*_identify_two_nodes(opts, train_logs))
+        return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts, cubes=False))
+    tau, w = opts.node or _identify_node(opts, train_logs)
+    spec = effective_node_features((tau, w))
+    return _fit_with_spec(opts, train_logs, spec, _lstm_config(opts))
 
 
 def _identify_node(opts: TrainOptions, logs: list[ChamberLog]) -> tuple[float, float]:
@@ -262,7 +309,8 @@ def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
 
 def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec,
                    lstm_cfg: LSTMConfig | None,
-                   head_fn: Callable[[TrainingInputs], BankFit] | None = None) -> Fitted:
+                   head_fn: Callable[[TrainingInputs], BankFit | NodeFit] | None = None
+                   ) -> Fitted:
     ti = training_inputs(opts, logs, spec, physical=head_fn is not None)
     fe, data, norm, z, offset, scale = ti.fe, ti.data, ti.norm, ti.z, ti.offset, ti.scale
     kind = opts.model
@@ -295,11 +343,17 @@ def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec
     head = head_fn(ti) if head_fn is not None else None
     net, hist = train_stream(data, z, lstm_cfg, offset, scale, opts.progress, head)
     info: dict = {"history": hist.as_dict(), "hyper": asdict(lstm_cfg)}
-    if head is not None:
+    structure = None
+    if isinstance(head, NodeFit):
+        structure = "physics-nodes"
+        info["physics_nodes"] = {"taus_s": list(head.taus_s), "ridge_lambda": head.lam,
+                                 "dof": head.dof}
+    elif head is not None:
+        structure = "lag-bank"
         info["lag_bank"] = {"ridge_lambda": head.lam, "dof": head.dof}
     sm = to_stream_model(net, kind, spec, norm, fe, offset, scale,
-                         extra={"hyper": asdict(lstm_cfg), **({"structure": "lag-bank"}
-                                                               if head is not None else {})})
+                         extra={"hyper": asdict(lstm_cfg),
+                                **({"structure": structure} if structure else {})})
     n = sm.params  # the artifact's count, as `fogsf export` prints it (filter alphas and the
     # polynomial head included; the torch net holds the LSTM and linear head only)
     return Fitted(kind, spec, fe, lambda d: predict_stream(net, norm.apply(d.s)) * scale
@@ -458,6 +512,8 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         "seed": opts.seed,
         "val_chunk": list(opts.val_chunk),
     })
+    if "structure_choice" in fitted.info:
+        metrics["structure_choice"] = fitted.info["structure_choice"]
     if fitted.stream_model is not None:
         metrics["model_id"] = fitted.stream_model.model_id
         hist = fitted.info.get("history", {})

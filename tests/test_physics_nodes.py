@@ -1,0 +1,156 @@
+"""Physics nodes: the shared physics fit (variable projection), the node model, its export,
+and the default's structure choice."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ramp_logs import short_ramp
+
+from fogsf.trainer.models import reference
+from fogsf.trainer.models.node_fit import discrete_lag, lag_alpha, ridge_fit
+from fogsf.trainer.models.physics_nodes import (
+    NodeTemperatures,
+    fit_coefficients,
+    identify_taus,
+    node_design,
+)
+from fogsf.trainer.models.stream import StreamModel
+from fogsf.trainer.training.structure_choice import (
+    CANDIDATES,
+    MULTI_SEGMENT_ORDER,
+    StepData,
+    choose,
+    heldout_score,
+)
+from fogsf.trainer.training.train import TrainOptions, per_sample_prediction, run_training
+
+FAST = {"iters": 20, "hidden": 8, "layers": 1, "batch_size": 8}
+STEP_S = 5.0
+
+
+def _program(n: int = 4000, seed: int = 0) -> np.ndarray:
+    """A board temperature (C - 20) per 5 s step: soaks and ramps at 0.5, 2 and 1 C/min
+    up and down, with a little thermometer noise."""
+    pts = [(0, -60.0), (400, -60.0), (1480, 30.0), (1840, 30.0), (2110, -60.0),
+           (2300, -60.0), (2840, 30.0), (3400, 30.0), (n, -10.0)]
+    t = np.arange(n)
+    base = np.interp(t, [p[0] for p in pts], [p[1] for p in pts])
+    return base + np.random.default_rng(seed).normal(0.0, 0.01, n)
+
+
+def test_discrete_lag_is_the_firmware_filter() -> None:
+    """The fit's float64 lag is the contract's y += alpha (x - y), primed with x[0]."""
+    x = _program(3000)
+    for tau in (60.0, 700.0, 7200.0):
+        a = lag_alpha(tau, STEP_S)
+        ref = reference.lag_filters(x.astype(np.float32), np.array([a], np.float32))[:, 0]
+        y = discrete_lag(x, a)
+        assert y[0] == x[0]
+        assert np.max(np.abs(y - ref)) < 1e-3, tau  # float32 rounding over 3000 steps
+    loop = np.empty_like(x)
+    acc = x[0]
+    for i, v in enumerate(x):
+        acc += lag_alpha(700.0, STEP_S) * (v - acc)
+        loop[i] = acc
+    assert np.allclose(discrete_lag(x, lag_alpha(700.0, STEP_S)), loop, atol=1e-9)
+
+
+def test_ridge_fit_is_least_squares_without_penalty() -> None:
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(500, 4))
+    y = 3.0 + x @ [1.0, -2.0, 0.5, 0.0] + rng.normal(0, 0.01, 500)
+    f = ridge_fit(x, y, 0.0)
+    ls, *_ = np.linalg.lstsq(np.column_stack([np.ones(500), x]), y, rcond=None)
+    assert f.intercept == pytest.approx(ls[0]) and np.allclose(f.coef, ls[1:])
+    assert f.dof == pytest.approx(5.0)
+    shrunk = ridge_fit(x, y, 1.0)
+    assert np.linalg.norm(shrunk.coef) < np.linalg.norm(f.coef) and shrunk.dof < f.dof
+
+
+def test_variable_projection_finds_the_time_constants() -> None:
+    """SF error from two nodes (300 s and 2400 s behind the board) through a quadratic law
+    with a cross term: the fit finds both time constants off the start grid and leaves the
+    noise."""
+    t = _program()
+    nodes = NodeTemperatures([t], STEP_S)
+    z = nodes.z((300.0, 2400.0))
+    truth = 40.0 + 300.0 * z[:, 1] - 150.0 * z[:, 2] + 80.0 * z[:, 1] * z[:, 2] \
+        + 60.0 * z[:, 2] ** 2
+    y = truth + np.random.default_rng(2).normal(0.0, 0.5, t.size)
+    taus = identify_taus(nodes, y, 2, lam=1e-8)
+    assert taus[0] == pytest.approx(300.0, rel=0.05) and taus[1] == pytest.approx(2400.0,
+                                                                                    rel=0.05)
+    fit = fit_coefficients(nodes.z(taus), y, taus, lam=1e-8)
+    assert math.sqrt(np.mean((fit.predict(nodes.z(taus)) - truth) ** 2)) < 0.3
+    assert node_design(nodes.z(taus)).shape[1] == 3 + 6 + 1  # linear, products, T^3
+
+
+def test_heldout_score_prefers_the_true_structure() -> None:
+    """Leave one segment out on a log with ramps at three rates: two nodes (the truth)
+    predict held-out ramps better than one; a log with one segment is split in three."""
+    t = _program()
+    nodes = NodeTemperatures([t], STEP_S)
+    z = nodes.z((200.0, 3000.0))
+    y = 300.0 * z[:, 1] - 250.0 * z[:, 2] + 100.0 * z[:, 1] ** 2 \
+        + np.random.default_rng(3).normal(0.0, 0.5, t.size)
+    fold = np.searchsorted([1480, 2110, 2840], np.arange(t.size), side="right")
+    from fogsf.trainer.models.features import front_end_for
+
+    fe = front_end_for([short_ramp(1.0, 1)], STEP_S, ())
+    sd = StepData(fe, [t], y, fold)
+    one, two = heldout_score("physics1", sd), heldout_score("physics2", sd)
+    assert two < 0.1 * one, (one, two)
+
+
+def test_physics_model_exports_and_the_reference_matches(tmp_path: Path) -> None:
+    """A physics-node model goes through the existing artifact (feature rows and the full
+    polynomial head): what torch trained is what the numpy reference (the kernel's bits)
+    computes, and `fogsf export` writes it with its cross terms."""
+    from fogsf.export import export_model
+
+    train = [short_ramp(0.6, 41, gyro_seed=3), short_ramp(2.4, 42, gyro_seed=3)]
+    test = short_ramp(1.2, 43, gyro_seed=3)
+    opts = TrainOptions(model="lag-lstm", structure="physics", nodes=2, progress=False,
+                        **FAST)
+    m, fitted = run_training(opts, train, test, tmp_path / "m")
+    sm = StreamModel.load(tmp_path / "m")
+    assert sm.poly_head and not sm.quad_diag and sm.n_features == 3
+    assert len(sm.filter_tau_s) == 2 and m["features"][0] == "T"
+    assert fitted.info["physics_nodes"]["taus_s"] == sm.filter_tau_s
+    quad = sm.weights["quad_w"]
+    assert quad.shape == (3, 3) and quad[0, 1] != 0 and quad[1, 2] != 0  # cross terms
+    assert np.allclose(sm.weights["feat_w"], np.eye(3) / 50.0)
+    want = per_sample_prediction(fitted, test, None)
+    got = reference.replay(sm, test.temp_c, test.gyro_dps).sf_ppm.astype(np.float64)
+    assert np.max(np.abs(got - want)) < 0.01
+    assert m["test"]["after"]["rms_ppm"] < 0.1 * m["test"]["before"]["rms_ppm"]
+    export_model(sm, tmp_path / "b", "imu_z")
+    text = (tmp_path / "b" / "imu_z.c").read_text()
+    assert "quad_w[9]" in text and "IMU_Z_QUAD_DIAG" in (tmp_path / "b" / "imu_z.h").read_text()
+
+
+def test_choice_is_the_first_within_tolerance() -> None:
+    """The rule on the training logs alone: several ramps keep the bank; one ramp scores
+    every candidate and takes the first in the rule's order within the tolerance of the best
+    (the smaller physics structures first), and a tolerance of 0 takes the best."""
+    logs = [short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)]
+    c = choose(logs)
+    assert c.name == "bank" and not c.one_segment and c.folds >= 2 and not c.scores
+    assert "keep the lag bank" in c.message()
+    tuned = choose(logs, candidates=MULTI_SEGMENT_ORDER)  # the development-gyro rule
+    assert list(tuned.scores) == list(MULTI_SEGMENT_ORDER)
+    best = min(tuned.scores.values())
+    first = next(k for k in tuned.scores if tuned.scores[k] <= (1 + tuned.tolerance) * best)
+    assert tuned.name == first
+    exact = choose(logs, candidates=MULTI_SEGMENT_ORDER, tolerance=0.0)
+    assert exact.scores == tuned.scores and exact.scores[exact.name] == best
+    one = choose(logs[1:])  # one ramp: in parts, the smaller structures first
+    assert one.one_segment and one.folds == 3 and list(one.scores) == list(CANDIDATES)
+    assert "one ramp, in 3 parts" in one.message()
+    assert f"structure {one.name}" in one.message()
+    assert one.name == next(k for k in CANDIDATES
+                            if one.scores[k] <= (1 + one.tolerance) * min(one.scores.values()))
