@@ -77,13 +77,18 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     try:
         with open(path, encoding="utf-8") as f:
             text = f.read()
-    except FileNotFoundError:
-        raise LogError(p, None, "cannot read", "no such file") from None
-    except UnicodeDecodeError as e:
-        raise LogError(p, None, "cannot read", f"not UTF-8 text ({e.reason})") from None
-    except OSError as e:
-        raise LogError(p, None, "cannot read", e.strerror or str(e)) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise cannot_read(p, e) from None
     return parse_log(text, p, dialect)
+
+
+def cannot_read(path: str, e: OSError | UnicodeDecodeError) -> LogError:
+    """The one-line refusal of a log file that cannot be opened or decoded."""
+    if isinstance(e, FileNotFoundError):
+        return LogError(path, None, "cannot read", "no such file")
+    if isinstance(e, UnicodeDecodeError):
+        return LogError(path, None, "cannot read", f"not UTF-8 text ({e.reason})")
+    return LogError(path, None, "cannot read", e.strerror or str(e))
 
 
 def with_mapping_beside(path: str | Path, dialect: Dialect) -> Dialect:
@@ -110,12 +115,8 @@ def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
     try:
         with open(path, encoding="utf-8-sig") as f:
             first = f.readline().rstrip("\r\n")
-    except FileNotFoundError:
-        raise LogError(p, None, "cannot read", "no such file") from None
-    except UnicodeDecodeError as e:
-        raise LogError(p, None, "cannot read", f"not UTF-8 text ({e.reason})") from None
-    except OSError as e:
-        raise LogError(p, None, "cannot read", e.strerror or str(e)) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise cannot_read(p, e) from None
     if not first.strip():
         raise LogError(p, 1, "empty file", "no header row")
     notes: list[str] = []
