@@ -145,13 +145,17 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
     out = " ".join(capsys.readouterr().out.split())
     auto = json.loads((tmp_path / "auto" / "metrics.json").read_text())
     choice = auto["structure_choice"]
-    # the default says which structure it chose and every candidate's held-out score
-    assert f"structure {choice['chosen']}, chosen by leave-one-segment-out" in out
-    assert set(choice["heldout_rms_ppm"]) == {"physics1", "physics2", "physics3", "bank"}
-    assert choice["segments"] == 2  # one ramp a log
-    n_feat = 1 + (len(TAU_GRID_S) if choice["chosen"] == "bank"
-                  else int(choice["chosen"].removeprefix("physics")))
-    assert len(auto["features"]) == n_feat
+    # two ramps: the default keeps the bank and says why; from one ramp it scores every
+    # candidate on held-out parts and says which it chose
+    assert choice["chosen"] == "bank" and choice["segments"] == 2 and not choice["heldout_rms_ppm"]
+    assert "structure bank: the training logs hold 2 ramps" in out
+    assert len(auto["features"]) == 1 + len(TAU_GRID_S)
+    assert main([*common[:3], *common[5:], "--out", str(tmp_path / "one")]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    one = json.loads((tmp_path / "one" / "metrics.json").read_text())["structure_choice"]
+    assert f"structure {one['chosen']}, chosen by leave-one-segment-out" in out
+    assert set(one["heldout_rms_ppm"]) == {"physics1", "physics2", "physics3", "bank"}
+    assert one["segments"] == 3 and one["one_segment"]
     bank = json.loads((tmp_path / "bank" / "metrics.json").read_text())
     node = json.loads((tmp_path / "node" / "metrics.json").read_text())
     assert bank["features"][0] == "T" and len(bank["features"]) == 1 + len(TAU_GRID_S)
