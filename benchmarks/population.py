@@ -111,7 +111,8 @@ def protocol_logs(gyro: SimConfig, gyro_seed: int, protocol: str) -> tuple[list,
 
 
 def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, imported late
-    from fogsf.trainer.training.train import DEFAULT_MODEL, TrainOptions
+    from fogsf.trainer.training.options import TrainOptions
+    from fogsf.trainer.training.train import DEFAULT_MODEL
 
     kind = DEFAULT_MODEL if model in ("default", "bank") else model
     extra: dict = GSA_SMALL if kind == "gsa-lstm" else {}

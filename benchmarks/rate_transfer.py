@@ -33,7 +33,8 @@ from fogsf.trainer.logs.metrics import log_metrics
 from fogsf.trainer.models.features import step_targets
 from fogsf.trainer.sim.gyro import SimResult, simulate
 from fogsf.trainer.sim.scenarios import paper
-from fogsf.trainer.training.train import TrainOptions, run_training
+from fogsf.trainer.training.options import TrainOptions
+from fogsf.trainer.training.train import run_training
 
 
 def true_structure(r: SimResult) -> np.ndarray:

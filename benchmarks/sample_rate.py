@@ -37,7 +37,8 @@ from fogsf.trainer.logs.metrics import log_metrics
 from fogsf.trainer.models.stream import StreamModel
 from fogsf.trainer.sim.gyro import simulate
 from fogsf.trainer.sim.scenarios import paper
-from fogsf.trainer.training.train import TrainOptions, run_training
+from fogsf.trainer.training.options import TrainOptions
+from fogsf.trainer.training.train import run_training
 
 RATES_HZ = (10.0, 100.0, 1000.0)
 TRAIN_SEED, TEST_SEED, DAY_SEED = 1, 2, 3

@@ -205,20 +205,20 @@ def test_rows_read_before_a_bad_block_are_not_parsed_again(
     is named parsing only the rows from the failed block on; a blank line in an early block
     is named before it."""
     import fogsf.trainer.logs.arrow_csv as arrow_csv
-    from fogsf.trainer.logs import logio
+    from fogsf.trainer.logs import line_scan, logio
 
     monkeypatch.setattr(arrow_csv, "BLOCK_BYTES", 512)
     lines = text(rows(3000)).split("\n")
     lines[2800] = lines[2800].replace(",10,", ",x,")
     _, general = _both(tmp_path, "\n".join(lines), Dialect())
     parsed: list[str] = []
-    real = logio.bad_cell_in
+    real = line_scan.bad_cell_in
 
     def counted(line: str, *a: object, **k: object) -> LogError | None:
         parsed.append(line)
         return real(line, *a, **k)
 
-    monkeypatch.setattr(logio, "bad_cell_in", counted)
+    monkeypatch.setattr(line_scan, "bad_cell_in", counted)
     monkeypatch.setattr(logio, "parse_log", None)  # the general path is not used
     with pytest.raises(LogError) as ei:
         read_log(tmp_path / "log.csv")

@@ -13,7 +13,8 @@ from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, ba
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.stream import StreamModel
 from fogsf.trainer.sim.profiles import breakpoints
-from fogsf.trainer.training.train import TrainOptions, run_training
+from fogsf.trainer.training.options import TrainOptions
+from fogsf.trainer.training.train import run_training
 
 FAST = {"iters": 30, "hidden": 8, "layers": 1, "batch_size": 8}
 

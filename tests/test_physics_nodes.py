@@ -19,6 +19,7 @@ from fogsf.trainer.models.physics_nodes import (
     node_design,
 )
 from fogsf.trainer.models.stream import StreamModel
+from fogsf.trainer.training.options import TrainOptions
 from fogsf.trainer.training.structure_choice import (
     CANDIDATES,
     MULTI_SEGMENT_ORDER,
@@ -26,7 +27,7 @@ from fogsf.trainer.training.structure_choice import (
     choose,
     heldout_score,
 )
-from fogsf.trainer.training.train import TrainOptions, per_sample_prediction, run_training
+from fogsf.trainer.training.train import per_sample_prediction, run_training
 
 FAST = {"iters": 20, "hidden": 8, "layers": 1, "batch_size": 8}
 STEP_S = 5.0

@@ -242,7 +242,8 @@ def test_train_at_100hz_runs_at_10_and_1000hz(tmp_path: Path) -> None:
 def test_model_step_and_test_log_at_a_rate_5s_does_not_divide(tmp_path: Path) -> None:
     """At 7.5 Hz a 5 s step is 37.5 samples: refused before any fitting, naming the log;
     --model-step-s 4 (30 samples) trains and checks the rate transfer at that step."""
-    from fogsf.trainer.training.train import TrainOptions, run_training
+    from fogsf.trainer.training.options import TrainOptions
+    from fogsf.trainer.training.train import run_training
 
     train = short_ramp(2.0, 31, sample_rate_hz=7.5)
     test = short_ramp(3.0, 32, sample_rate_hz=7.5)

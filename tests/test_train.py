@@ -14,7 +14,8 @@ from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.models.reference import replay
 from fogsf.trainer.models.stream import StreamModel
-from fogsf.trainer.training.train import TrainOptions, per_sample_prediction, run_training
+from fogsf.trainer.training.options import TrainOptions
+from fogsf.trainer.training.train import per_sample_prediction, run_training
 
 
 @pytest.fixture(scope="module")

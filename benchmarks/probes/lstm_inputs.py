@@ -38,7 +38,8 @@ def bench_gyro(gyro_seed: int, variants: tuple[str, ...], protocols: tuple[str, 
     import torch
 
     from fogsf.trainer.sim.population import gyro_for_seed
-    from fogsf.trainer.training.train import TrainOptions, run_training
+    from fogsf.trainer.training.options import TrainOptions
+    from fogsf.trainer.training.train import run_training
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()

@@ -33,7 +33,8 @@ def one_gyro(seed: int, protocols: tuple[str, ...]) -> dict:
     import torch
 
     from fogsf.trainer.sim.population import gyro_for_seed
-    from fogsf.trainer.training.train import TrainOptions, run_training
+    from fogsf.trainer.training.options import TrainOptions
+    from fogsf.trainer.training.train import run_training
 
     torch.set_num_threads(1)
     gyro = gyro_for_seed(seed)

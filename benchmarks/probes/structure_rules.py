@@ -42,7 +42,8 @@ from fogsf.trainer.models.least_squares import (
 )
 from fogsf.trainer.models.reference import expand
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.trainer.training.train import TrainOptions, bank_data, training_inputs
+from fogsf.trainer.training.options import TrainOptions
+from fogsf.trainer.training.train import bank_data, training_inputs
 from fogsf.trainer.training.transfer import CHI2_ALLOWANCE, long_run_ratio
 
 BANK_LAMBDAS = (1e-4, 1e-3, 1e-2)

@@ -25,8 +25,8 @@ import sys
 
 from fogsf.trainer.commands import add_log_options, add_metric_options, positive_float, read_logs
 from fogsf.trainer.commands.axes import run_all, wants_all
-from fogsf.trainer.logs.bias import BiasWindows, bias_summary, bias_windows, is_stationary
-from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
+from fogsf.trainer.logs.bias import BiasWindows, bias_summary, bias_windows
+from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary, rate_text
 from fogsf.trainer.logs.metrics import (
     DPS_TO_DPH,
     SETTLE_S,

@@ -125,7 +125,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.trainer.training.train import TrainOptions, run_training
+    from fogsf.trainer.training.options import TrainOptions
+    from fogsf.trainer.training.train import run_training
 
     if wants_all(args):  # OUT/A per axis, then one summary
         return run_all(args, run, "train")

@@ -189,3 +189,16 @@ def earth_rate_vertical_dps(latitude_deg: float) -> float:
 
 def is_temperature(name: str) -> bool:
     return name in ("temp_c", "chamber_c") or (name.startswith("temp_") and name.endswith("_c"))
+
+
+def is_stationary(log: ChamberLog) -> bool:
+    """True when the table is stopped on every row (and the log has rows to keep)."""
+    keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid
+    return bool(len(log)) and not np.any(log.table_rate_dps != 0.0) and bool(keep.any())
+
+
+def stationary_refusal(log: ChamberLog) -> UserError:
+    """What an SF figure says of a stationary log: what the log can give instead."""
+    return UserError(f"{log.path}: the table is stopped for the whole log, so it measures "
+                     "the bias, not the SF: `fogsf inspect` shows its bias and `fogsf train` "
+                     "fits a bias-only model on it; the SF needs a log with the table turning")

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 from fogsf.trainer.logs.chamber_log import LogError
+from fogsf.trainer.logs.dialect import DECIMAL_COMMA
 
 
 def _ascii_number(cell: str) -> bool:
@@ -29,7 +30,6 @@ def first_bad_line(path: str | Path, header: list[str], delim: str, decimal_comm
     header is `header`, or None (no bad cell found, or not sure: see the module). The first
     `rows_ok` lines that are not blank are known to hold finite numbers of the header's
     length (the fast reader read them): only blank lines among them are looked for."""
-    from fogsf.trainer.logs.logio import bad_cell_in
 
     p = str(path)
     first_bad: LogError | None = None
@@ -69,3 +69,25 @@ def first_bad_line(path: str | Path, header: list[str], delim: str, decimal_comm
     except (OSError, UnicodeDecodeError):
         return None
     return first_bad or non_finite
+
+
+def bad_cell_in(line: str, i: int, header: list[str], path: str, delim: str = ","
+                ) -> LogError | None:
+    """The refusal of data line `i` (`line`) when it has another number of cells than the
+    header or a cell that is not a number; None when it parses."""
+    cells = line.split(delim)
+    if len(cells) != len(header):
+        hint = (" (decimal commas? then separate cells by ';' or tab and give "
+                "--decimal-comma)" if delim == "," and len(cells) > len(header) else "")
+        return LogError(path, i, "wrong number of cells",
+                        f"{len(cells)} cells, header has {len(header)}{hint}")
+    for name, cell in zip(header, cells, strict=True):
+        try:
+            float(cell)
+        except ValueError:
+            shown = cell.strip() or "(empty)"
+            hint = (" (a decimal comma: give --decimal-comma)"
+                    if DECIMAL_COMMA.match(cell) and delim != "," else "")
+            return LogError(path, i, "non-numeric cell",
+                            f"column {name!r} is {shown!r}{hint}")
+    return None

@@ -44,7 +44,6 @@ from fogsf.trainer.logs.chamber_log import (
 )
 from fogsf.trainer.logs.column_map import ColumnPlan
 from fogsf.trainer.logs.dialect import (
-    DECIMAL_COMMA,
     Dialect,
     find_delimiter,
     log_axes,
@@ -54,7 +53,7 @@ from fogsf.trainer.logs.dialect import (
     read_header,
     unquote_lines,
 )
-from fogsf.trainer.logs.line_scan import first_bad_line
+from fogsf.trainer.logs.line_scan import bad_cell_in, first_bad_line
 from fogsf.trainer.logs.parquet_log import (
     in_rows,
     is_parquet,
@@ -261,28 +260,6 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
         err = bad_cell_in(line, i, header, path, delim)
         if err is not None:
             raise err
-
-
-def bad_cell_in(line: str, i: int, header: list[str], path: str, delim: str = ","
-                ) -> LogError | None:
-    """The refusal of data line `i` (`line`) when it has another number of cells than the
-    header or a cell that is not a number; None when it parses."""
-    cells = line.split(delim)
-    if len(cells) != len(header):
-        hint = (" (decimal commas? then separate cells by ';' or tab and give "
-                "--decimal-comma)" if delim == "," and len(cells) > len(header) else "")
-        return LogError(path, i, "wrong number of cells",
-                        f"{len(cells)} cells, header has {len(header)}{hint}")
-    for name, cell in zip(header, cells, strict=True):
-        try:
-            float(cell)
-        except ValueError:
-            shown = cell.strip() or "(empty)"
-            hint = (" (a decimal comma: give --decimal-comma)"
-                    if DECIMAL_COMMA.match(cell) and delim != "," else "")
-            return LogError(path, i, "non-numeric cell",
-                            f"column {name!r} is {shown!r}{hint}")
-    return None
 
 
 def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:

@@ -189,7 +189,7 @@ def sf_spans(log: ChamberLog, window_s: float = 100.0, settle_s: float = SETTLE_
             grid = [(max(s, a), s + n) for s in range(a0, b - n + 1, n)]
         spans.extend((x, y) for x, y in grid if y - x >= shortest)
     if not spans:
-        from fogsf.trainer.logs.bias import is_stationary, stationary_refusal
+        from fogsf.trainer.logs.chamber_log import is_stationary, stationary_refusal
 
         if is_stationary(log):
             raise stationary_refusal(log)

@@ -20,8 +20,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows, is_stationary
-from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows
+from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
 from fogsf.trainer.logs.metrics import DPS_TO_DPH, SETTLE_S, step_means
 from fogsf.trainer.models.lag_bank import BankFit, fit_bank, n_curved
 from fogsf.trainer.models.reference import expand, frontend

@@ -21,7 +21,7 @@ from fogsf.trainer.training.bias_model import (
 )
 
 if TYPE_CHECKING:
-    from fogsf.trainer.training.train import TrainOptions
+    from fogsf.trainer.training.options import TrainOptions
 
 KIND = "bias"  # metrics.json's "model" of a bias-only model
 
