@@ -26,7 +26,7 @@ import numpy as np
 from fogsf.trainer.logs.bias import bias_windows
 from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log, with_mapping_beside
-from fogsf.trainer.sim import rigs
+from fogsf.trainer.sim import rig_logs, rigs
 from fogsf.trainer.sim.config import BiasConfig
 from fogsf.trainer.sim.population import gyro_for_seed
 from fogsf.trainer.training.bias_model import bank_feature_map, fit_bias
@@ -57,7 +57,7 @@ def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
     bias = bias_law(gyro, shupe)
     logs, truth = [], []
     for name, loop, seed in (("train", TRAIN_LOOP, 1), ("test", TEST_LOOP, 2)):
-        rl = rigs.rig_log("plain", work / f"{gyro}-{kind}-{name}" / "log.csv",
+        rl = rig_logs.rig_log("plain", work / f"{gyro}-{kind}-{name}" / "log.csv",
                           protocol(kind, loop, replace(bias)), (gyro,), seed=seed)
         logs.append(read_log(rl.path, with_mapping_beside(rl.path, Dialect())))
         truth.append(rl.truth[""].bias_dph)

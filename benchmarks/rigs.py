@@ -1,6 +1,6 @@
 """Logs the way calibration rigs write them, end to end (`make bench-rigs`).
 
-For each rig case of `fogsf.trainer.sim.rigs.bench_cases` (a ROS-logged staircase with a
+For each rig case of `fogsf.trainer.sim.rig_logs.bench_cases` (a ROS-logged staircase with a
 slewing, stalling table; +/-100 deg/s reversals in a plain rad/s log with an epoch time base;
 a skew-mounted 3-axis IMU; quantised thermometers; ...) and each gyro drawn from the
 population, the case's training and held-out test logs are written with their column map
@@ -66,12 +66,12 @@ def score_axis(model_dir: Path, test_path: Path, axis: str, truth, model: str) -
 
 def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> list[dict]:
     """Write the case's logs for one gyro (three for an IMU), train, score every axis."""
-    from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim import rig_logs
 
-    case = rigs.bench_cases()[name]
+    case = rig_logs.bench_cases()[name]
     seeds = (gyro, gyro + 1, gyro + 2) if case.kind == "imu3" else (gyro,)
     folder = work / f"{name}-{gyro}"
-    train, test = rigs.write_case(folder, case, seeds, seed)
+    train, test = rig_logs.write_case(folder, case, seeds, seed)
     axes = [a for a in train.truth if a]
     out_dir = folder / "model"
     cmd = [sys.executable, "-m", "fogsf", "train", "--train", str(train.path),
@@ -95,7 +95,7 @@ def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim import rig_logs
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -104,15 +104,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", choices=tuple(SEED_BASE), default="eval")
     p.add_argument("--first", type=int, default=0, help="first gyro after the range's base")
     p.add_argument("--n", type=int, default=2, help="gyros per case (IMU cases: 3 each)")
-    p.add_argument("--cases", default=",".join(rigs.bench_cases()),
+    p.add_argument("--cases", default=",".join(rig_logs.bench_cases()),
                    help="comma-separated case names (default: all)")
     p.add_argument("--model", default=None, help="fogsf train --model (default: its default)")
     p.add_argument("--out", default="out/bench-rigs.json")
     args = p.parse_args(argv)
     names = [c for c in args.cases.split(",") if c]
-    unknown = set(names) - set(rigs.bench_cases())
+    unknown = set(names) - set(rig_logs.bench_cases())
     if unknown:
-        p.error(f"unknown case {sorted(unknown)[0]}; cases: {', '.join(rigs.bench_cases())}")
+        p.error(f"unknown case {sorted(unknown)[0]}; cases: {', '.join(rig_logs.bench_cases())}")
     rows: list[dict] = []
     base = SEED_BASE[args.seeds] + args.first
     with tempfile.TemporaryDirectory() as tmp:

@@ -15,40 +15,40 @@ from fogsf.trainer.logs.bias import bias_windows, is_stationary
 from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log, with_mapping_beside
 from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.sim import rigs
+from fogsf.trainer.sim import rig_logs, rigs
 from fogsf.trainer.sim.config import BiasConfig
 
 BIAS = BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05, quad_dph_per_c2=0.002)
 CHAMBER = (10.0, 40.0, 1.0, 0.7, 300.0)  # loop: lo, hi, up, down C/min, soak s
 
 
-def write(folder: Path, protocol: rigs.RigProtocol, gyro: int, seed: int) -> rigs.RigLog:
+def write(folder: Path, protocol: rigs.RigProtocol, gyro: int, seed: int) -> rig_logs.RigLog:
     folder.mkdir(parents=True, exist_ok=True)
-    return rigs.rig_log("plain", folder / "log.csv", protocol, (gyro,), seed=seed)
+    return rig_logs.rig_log("plain", folder / "log.csv", protocol, (gyro,), seed=seed)
 
 
 @pytest.fixture(scope="module")
-def stationary(tmp_path_factory: pytest.TempPathFactory) -> rigs.RigLog:
+def stationary(tmp_path_factory: pytest.TempPathFactory) -> rig_logs.RigLog:
     p = rigs.stationary_protocol(rigs.loop(*CHAMBER), bias=BIAS)
     return write(tmp_path_factory.mktemp("stat"), p, 20001, 1)
 
 
 @pytest.fixture(scope="module")
-def reversals(tmp_path_factory: pytest.TempPathFactory) -> rigs.RigLog:
+def reversals(tmp_path_factory: pytest.TempPathFactory) -> rig_logs.RigLog:
     p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(*CHAMBER), bias=BIAS)
     return write(tmp_path_factory.mktemp("rev"), p, 20001, 2)
 
 
-def read(rl: rigs.RigLog):  # noqa: ANN201 - a ChamberLog
+def read(rl: rig_logs.RigLog):  # noqa: ANN201 - a ChamberLog
     return read_log(rl.path, with_mapping_beside(rl.path, Dialect()))
 
 
-def window_truth(rl: rigs.RigLog, w) -> np.ndarray:  # noqa: ANN001
+def window_truth(rl: rig_logs.RigLog, w) -> np.ndarray:  # noqa: ANN001
     truth = rl.truth[""].bias_dph
     return np.array([truth[a:b].mean() for a, b in zip(w.start, w.stop, strict=True)])
 
 
-def test_a_stationary_log_is_read_and_gives_the_bias(stationary: rigs.RigLog) -> None:
+def test_a_stationary_log_is_read_and_gives_the_bias(stationary: rig_logs.RigLog) -> None:
     log = read(stationary)
     assert is_stationary(log) and not log.measures.any()
     w = bias_windows(log, 100.0)
@@ -60,7 +60,7 @@ def test_a_stationary_log_is_read_and_gives_the_bias(stationary: rigs.RigLog) ->
     assert np.ptp(w.bias_dph) > 2.0  # the thermal drift is there, well above the noise
 
 
-def test_pairs_give_the_bias_beside_the_sf(reversals: rigs.RigLog) -> None:
+def test_pairs_give_the_bias_beside_the_sf(reversals: rig_logs.RigLog) -> None:
     log = read(reversals)
     assert not is_stationary(log)
     w = bias_windows(log, 100.0)
@@ -70,7 +70,7 @@ def test_pairs_give_the_bias_beside_the_sf(reversals: rigs.RigLog) -> None:
 
 
 def test_sf_figures_refuse_a_stationary_log_naming_what_it_gives(
-        stationary: rigs.RigLog) -> None:
+        stationary: rig_logs.RigLog) -> None:
     with pytest.raises(UserError, match="measures the bias, not the SF.*bias-only"):
         log_metrics(read(stationary))
 
@@ -83,7 +83,7 @@ def test_all_rows_invalid_is_still_refused(tmp_path: Path) -> None:
         read_log(p)
 
 
-def test_inspect_shows_the_stationary_bias(stationary: rigs.RigLog,
+def test_inspect_shows_the_stationary_bias(stationary: rig_logs.RigLog,
                                            capsys: pytest.CaptureFixture[str]) -> None:
     png = stationary.path.parent / "b.png"
     assert cli.main(["inspect", str(stationary.path), "--plot", str(png)]) == 0
@@ -99,7 +99,7 @@ def test_inspect_shows_the_stationary_bias(stationary: rigs.RigLog,
     assert 0.04 < b["drift_dph_per_c"] < 0.15
 
 
-def test_inspect_shows_the_pairs_bias_series(reversals: rigs.RigLog,
+def test_inspect_shows_the_pairs_bias_series(reversals: rig_logs.RigLog,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     assert cli.main(["inspect", str(reversals.path), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)

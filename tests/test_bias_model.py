@@ -164,7 +164,7 @@ def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]
                                                            ) -> None:
     from fogsf.trainer.models.stream import StreamModel
-    from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim import rig_logs, rigs
     from fogsf.trainer.sim.config import BiasConfig
 
     bias = BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05, quad_dph_per_c2=0.002)
@@ -172,8 +172,8 @@ def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
     for name, seed in (("train", 21), ("test", 22)):
         (tmp_path / name).mkdir()
         p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(10.0, 40.0, 1.0, 0.7, 300.0),
-                                   bias=bias, arw_deg_per_sqrt_h=rigs.QUIET_ARW)
-        logs.append(rigs.rig_log("plain", tmp_path / name / "log.csv", p, (20002,),
+                                   bias=bias, arw_deg_per_sqrt_h=rig_logs.QUIET_ARW)
+        logs.append(rig_logs.rig_log("plain", tmp_path / name / "log.csv", p, (20002,),
                                  seed=seed).path)
     out = tmp_path / "m"
     assert cli.main(["train", "--train", str(logs[0]), "--test", str(logs[1]), "--out",

@@ -14,7 +14,7 @@ import pytest
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log
-from fogsf.trainer.sim import rigs
+from fogsf.trainer.sim import rig_logs, rigs
 from fogsf.trainer.sim.config import BiasConfig, SimConfig
 from fogsf.trainer.sim.gyro import simulate
 from fogsf.trainer.sim.profiles import chamber_series, table_series
@@ -172,7 +172,7 @@ def test_earth_rate_per_axis() -> None:
 
 def test_ros_log_columns_and_mapping(tmp_path: Path) -> None:
     run = rigs.run_rig(small_staircase(stalls_per_h=60.0), gyro_seed=4, seed=5)
-    lg = rigs.write_ros(tmp_path / "ros.csv", run)
+    lg = rig_logs.write_ros(tmp_path / "ros.csv", run)
     header = lg.path.read_text().split("\n", 1)[0]
     assert header == "sec,nanosec,gyro_raw,gyro_temp,rig_rate,rig_heating,rig_enabled,rig_stalled"
     raw = np.loadtxt(lg.path, delimiter=",", skiprows=1, dtype=np.float64)
@@ -198,7 +198,7 @@ def test_ros_log_columns_and_mapping(tmp_path: Path) -> None:
 
 def test_ros_log_through_the_reader(tmp_path: Path) -> None:
     run = rigs.run_rig(small_staircase(stalls_per_h=60.0), gyro_seed=4, seed=5)
-    lg = rigs.write_ros(tmp_path / "ros.csv", run)
+    lg = rig_logs.write_ros(tmp_path / "ros.csv", run)
     try:
         log = read_log(lg.path)
     except UserError as e:
@@ -215,7 +215,7 @@ def test_ros_log_through_the_reader(tmp_path: Path) -> None:
 def test_plain_log_reads_back_with_quantised_thermometer(tmp_path: Path, lsb: float) -> None:
     run = rigs.run_rig(small_staircase(temp_lsb_c=lsb, stalls_per_h=30.0), gyro_seed=3,
                        seed=0)
-    lg = rigs.write_plain(tmp_path / "plain.csv", run, gyro_unit="deg/s")
+    lg = rig_logs.write_plain(tmp_path / "plain.csv", run, gyro_unit="deg/s")
     assert lg.columns == {}
     log = read_log(lg.path)
     assert log.time_s[0] == pytest.approx(rigs.EPOCH_S) and log.sample_rate_hz == 10.0
@@ -233,7 +233,7 @@ def test_plain_log_at_sample_rates(tmp_path: Path, hz: float) -> None:
     p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.ramp(20.0, 22.0, 2.0, 60.0),
                                rate_hz=hz)
     run = rigs.run_rig(p, gyro_seed=9, seed=0)
-    log = read_log(rigs.write_plain(tmp_path / "plain.csv", run, gyro_unit="deg/s").path)
+    log = read_log(rig_logs.write_plain(tmp_path / "plain.csv", run, gyro_unit="deg/s").path)
     assert log.sample_rate_hz == pytest.approx(hz) and len(log) == run.time_s.shape[0]
     np.testing.assert_allclose(np.diff(log.time_s), 1.0 / hz, atol=2e-6)
     np.testing.assert_allclose(log.gyro_dps, run.axes[""].gyro_dps, rtol=1e-11, atol=1e-12)
@@ -243,7 +243,7 @@ def test_plain_log_in_rad_s(tmp_path: Path) -> None:
     p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.ramp(20.0, 22.0, 2.0, 60.0),
                                rate_hz=50.0)
     run = rigs.run_rig(p, gyro_seed=9, seed=0)
-    lg = rigs.write_plain(tmp_path / "plain.csv", run, mapping=True)
+    lg = rig_logs.write_plain(tmp_path / "plain.csv", run, mapping=True)
     header = lg.path.read_text().split("\n", 1)[0]
     assert header == "time_s,temp_c,table_rate_dps,gyro_rad_s,earth_rate_dps,valid"
     assert lg.columns == {"gyro_dps": "gyro_rad_s * 57.29577951308232"}
@@ -261,7 +261,7 @@ def test_plain_log_in_rad_s(tmp_path: Path) -> None:
 
 def test_imu3_log(tmp_path: Path) -> None:
     run = rigs.run_imu3(small_reversals(), gyro_seeds=(1, 2, 3), seed=4)
-    lg = rigs.write_imu3(tmp_path / "imu.csv", run)
+    lg = rig_logs.write_imu3(tmp_path / "imu.csv", run)
     header = lg.path.read_text().split("\n", 1)[0].split(",")
     assert header == ["time_s", "temp_c", "table_rate_dps", "gyro_x_dps", "gyro_y_dps",
                       "gyro_z_dps", "temp_x_c", "temp_y_c", "temp_z_c", "valid"]
@@ -276,7 +276,7 @@ def test_imu3_log(tmp_path: Path) -> None:
         expect = (tr.axis_rate_dps + tr.earth_dps) * (1 + tr.sf_ppm * 1e-6) \
             + tr.bias_dph / 3600
         np.testing.assert_allclose(tr.ideal_dps, expect, atol=1e-12)
-    bare = rigs.write_imu3(tmp_path / "bare" / "imu.csv", run, mapping=False)
+    bare = rig_logs.write_imu3(tmp_path / "bare" / "imu.csv", run, mapping=False)
     log = read_log(bare.path, Dialect(axis="z"))  # no map: no per-axis table
     np.testing.assert_allclose(log.gyro_dps, run.axes["z"].gyro_dps, rtol=1e-11)
     np.testing.assert_allclose(log.temp_c, run.axes["z"].temp_c, atol=1e-9)  # temp_z_c
@@ -292,7 +292,7 @@ def test_imu3_log(tmp_path: Path) -> None:
 def test_same_seed_same_bytes(tmp_path: Path) -> None:
     def ros(folder: str, seed: int) -> bytes:
         p = small_staircase(stalls_per_h=60.0)
-        lg = rigs.write_ros(tmp_path / folder / "ros.csv", rigs.run_rig(p, 4, seed))
+        lg = rig_logs.write_ros(tmp_path / folder / "ros.csv", rigs.run_rig(p, 4, seed))
         return lg.path.read_bytes()
 
     assert ros("a", 5) == ros("b", 5)
@@ -314,9 +314,9 @@ def test_simulate_with_the_schedule_given_as_a_series_is_unchanged() -> None:
 
 def test_plateaus_and_pairs_carry_the_truth() -> None:
     run = rigs.run_rig(small_staircase(arw_deg_per_sqrt_h=0.0), gyro_seed=2, seed=0)
-    plats = rigs.plateaus(run, settle_s=2.0)
+    plats = rig_logs.plateaus(run, settle_s=2.0)
     assert len(plats) == 20 and all(p.stop - p.start == 140 for p in plats)
-    prs = rigs.pairs(plats)
+    prs = rig_logs.pairs(plats)
     assert [q.rate_dps for q in prs] == [4.0, 8.0, 12.0, 16.0, 20.0] * 2
     r = run.axes[""].result
     for q in prs:
@@ -325,20 +325,20 @@ def test_plateaus_and_pairs_carry_the_truth() -> None:
         assert ((gp - gm) / (2 * q.rate_dps) - 1) * 1e6 == pytest.approx(q.sf_ppm, abs=0.5)
         assert q.plus.rate_dps > 0 > q.minus.rate_dps
     stalled = rigs.run_rig(small_staircase(stalls_per_h=120.0), gyro_seed=2, seed=0)
-    for p in rigs.plateaus(stalled):
+    for p in rig_logs.plateaus(stalled):
         assert stalled.measures[p.start:p.stop].all()
 
 
-@pytest.mark.parametrize("kind", rigs.RIG_KINDS)
+@pytest.mark.parametrize("kind", rig_logs.RIG_KINDS)
 def test_rig_log_in_one_call(tmp_path: Path, kind: str) -> None:
     seeds = (20001, 20002, 20003) if kind == "imu3" else (20001,)
     chamber = rigs.ramp(20.0, 21.0, 1.0, 30.0)
-    lg = rigs.rig_log(kind, tmp_path / f"{kind}.csv", "reversals", seeds, seed=1,
+    lg = rig_logs.rig_log(kind, tmp_path / f"{kind}.csv", "reversals", seeds, seed=1,
                       chamber=chamber, rate_hz=20.0)
     assert lg.path.is_file() and lg.mapping_path is not None
     assert set(lg.truth) == ({"x", "y", "z"} if kind == "imu3" else {""})
     with pytest.raises(UserError, match="gyro seed"):
-        rigs.rig_log(kind, tmp_path / "no.csv", "reversals", (1, 2), chamber=chamber)
+        rig_logs.rig_log(kind, tmp_path / "no.csv", "reversals", (1, 2), chamber=chamber)
 
 
 def test_simulate_rig_cli(tmp_path: Path) -> None:
@@ -374,14 +374,14 @@ def test_rate_effects_see_the_axis_rate() -> None:
 
 
 def test_bench_cases_write_train_and_test(tmp_path: Path) -> None:
-    cases = rigs.bench_cases()
+    cases = rig_logs.bench_cases()
     assert set(cases) >= {"ros-staircase", "ros-bias", "plain-reversals", "imu3-reversals",
                           "thermometer-1c", "thermometer-0.25c"}
     short = rigs.ramp(20.0, 21.0, 1.0, 30.0)
     case = replace(cases["thermometer-1c"], train=replace(cases["thermometer-1c"].train,
                                                           chamber=short),
                    test=replace(cases["thermometer-1c"].test, chamber=short))
-    train, test = rigs.write_case(tmp_path, case, (20005,), seed=3)
+    train, test = rig_logs.write_case(tmp_path, case, (20005,), seed=3)
     assert train.path.parent.name == "train" and test.path.parent.name == "test"
     assert (tmp_path / "test" / "fogsf-columns.toml").is_file()
     assert train.path.read_bytes() != test.path.read_bytes()  # another noise seed
@@ -416,12 +416,12 @@ def test_stamp_jitter(tmp_path: Path) -> None:
     run = rigs.run_rig(p, gyro_seed=1, seed=2)
     jitter = run.stamp_s - run.time_s
     assert 0.0003 < np.abs(jitter).max() <= 0.0005 and abs(jitter.mean()) < 2e-5
-    lg = rigs.write_ros(tmp_path / "ros.csv", run)
+    lg = rig_logs.write_ros(tmp_path / "ros.csv", run)
     raw = np.loadtxt(lg.path, delimiter=",", skiprows=1, dtype=np.int64, usecols=(0, 1))
     ns = (raw[:, 0] - raw[0, 0]) * 1_000_000_000 + raw[:, 1]
     np.testing.assert_allclose(ns * 1e-9, run.stamp_s, atol=1e-9)
     np.testing.assert_allclose(lg.truth[""].time_s - rigs.EPOCH_S, run.stamp_s, atol=1e-6)
-    log = read_log(rigs.write_plain(tmp_path / "p" / "plain.csv", run, gyro_unit="deg/s").path)
+    log = read_log(rig_logs.write_plain(tmp_path / "p" / "plain.csv", run, gyro_unit="deg/s").path)
     assert log.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
     with pytest.raises(UserError, match="stamp_jitter_s"):
         rigs.run_rig(replace(p, stamp_jitter_s=0.001))

@@ -326,7 +326,7 @@ def run_rig(args: argparse.Namespace) -> int:
     """--rig: a calibration rig's protocol written in its convention (sim/rigs.py)."""
     from pathlib import Path
 
-    from fogsf.trainer.sim import rigs
+    from fogsf.trainer.sim import rig_logs
 
     given = [f"--{o.replace('_', '-')}" for o in RIG_REFUSES if getattr(args, o, None)]
     if given:
@@ -342,7 +342,7 @@ def run_rig(args: argparse.Namespace) -> int:
     if len(seeds) != want:
         raise UserError(f"--rig {args.rig} takes {want} gyro seed(s), got {len(seeds)}")
     seed = args.seed if args.seed is not None else seeds[0]
-    log = rigs.rig_log(args.rig, args.out, _rig_protocol(args), seeds, seed)
+    log = rig_logs.rig_log(args.rig, args.out, _rig_protocol(args), seeds, seed)
     rows = len(next(iter(log.truth.values())).time_s)
     print(f"{rows} samples -> {log.path}"
           + (f", column map -> {log.mapping_path}" if log.mapping_path else ""),
@@ -351,6 +351,6 @@ def run_rig(args: argparse.Namespace) -> int:
         for axis, truth in log.truth.items():
             p = Path(args.truth)
             out = p.with_name(f"{p.stem}_{axis}{p.suffix}") if axis else p
-            rigs.write_truth(out, truth)
+            rig_logs.write_truth(out, truth)
             print(f"truth -> {out}", file=sys.stderr)
     return 0
