@@ -10,7 +10,7 @@ kernel) predicts the test log's SF error. Scored against the generator's truth, 
 
   sf_std_ppm    std over the test log's measuring samples of (predicted - true SF error)
   sf_target_ppm max(3 ppm, 2 % of the true SF error's std there): the issue's target
-  bias_err_dph  per +/- pair of the test log (`metrics.find_pairs`): measured bias minus the
+  bias_err_dph  per +/- pair of the test log (`pairs.find_pairs`): measured bias minus the
                 true bias at the pair's centre; median |err| and the largest |err|
 
 Gyros: evaluation seeds 20000-29999 by default (`--seeds dev` for 0-9999, to tune on).
@@ -40,7 +40,7 @@ def score_axis(model_dir: Path, test_path: Path, axis: str, truth, model: str) -
     """The trained model of one axis on its test log, against the truth."""
     from fogsf.trainer.logs.dialect import Dialect
     from fogsf.trainer.logs.logio import read_log
-    from fogsf.trainer.logs.metrics import find_pairs
+    from fogsf.trainer.logs.pairs import find_pairs
     from fogsf.trainer.models.reference import replay
     from fogsf.trainer.models.stream import StreamModel
 

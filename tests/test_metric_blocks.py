@@ -1,4 +1,4 @@
-"""Per-sample work in blocks (metrics.BLOCK_SAMPLES, logio.VALIDATE_BLOCK): the same bits as
+"""Per-sample work in blocks (plateaus.BLOCK_SAMPLES, logio.VALIDATE_BLOCK): the same bits as
 one block over the whole log, and the same refusals, on a log with +/- pairs."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs import logio, metrics
+from fogsf.trainer.logs import logio, metrics, pairs, plateaus
 from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
 from fogsf.trainer.logs.logio import parse_log
 from fogsf.trainer.sim.config import TableConfig
@@ -28,15 +28,15 @@ def reversals() -> ChamberLog:
 def figures(log: ChamberLog) -> dict:
     corr = np.linspace(-50.0, 50.0, len(log)).astype(np.float32)
     w = metrics.sf_windows(log, 100.0)
-    pairs = metrics.find_pairs(log)
-    assert pairs is not None
+    pp = pairs.find_pairs(log)
+    assert pp is not None
     return {
-        "plateaus": np.asarray(metrics.plateaus(log.table_rate_dps, log.measures)),
-        "bias": metrics.bias_track(log),
+        "plateaus": np.asarray(plateaus.plateaus(log.table_rate_dps, log.measures)),
+        "bias": pairs.bias_track(log),
         "signal": metrics.sf_signal(log, correction_ppm=corr),
         **{f"w_{k}": v for k, v in dataclasses.asdict(w).items()},
-        "pairs_sf": pairs.sf_ratio,
-        "pairs_bias": pairs.bias_dps,
+        "pairs_sf": pp.sf_ratio,
+        "pairs_bias": pp.bias_dps,
         "before": np.array(list(metrics.log_metrics(log, 100.0).values())),
         "after": np.array(list(metrics.log_metrics(log, 100.0, correction_ppm=corr).values())),
     }
@@ -46,7 +46,8 @@ def test_metrics_in_blocks_are_the_same_bits(monkeypatch: pytest.MonkeyPatch) ->
     log = reversals()
     whole = figures(log)
     for block in (1, 997, 4096):
-        monkeypatch.setattr(metrics, "BLOCK_SAMPLES", block)
+        for module in (metrics, pairs, plateaus):  # each reads its own binding
+            monkeypatch.setattr(module, "BLOCK_SAMPLES", block)
         got = figures(log)
         for k, v in whole.items():
             assert np.array_equal(np.asarray(got[k]), np.asarray(v), equal_nan=True), (block, k)

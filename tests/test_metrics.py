@@ -11,12 +11,12 @@ from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import (
     log_metrics,
     metrics_block,
-    plateau_pairs,
-    plateaus,
     reference_sf,
     sf_error_ppm,
     sf_windows,
 )
+from fogsf.trainer.logs.pairs import plateau_pairs
+from fogsf.trainer.logs.plateaus import plateaus
 
 
 def ramp_log(n: int, sf_ppm: np.ndarray, rate: np.ndarray | float = 10.0, noise_dps: float = 0.0,

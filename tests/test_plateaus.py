@@ -17,10 +17,7 @@ import pytest
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.logio import write_log
 from fogsf.trainer.logs.metrics import (
-    find_pairs,
     log_metrics,
-    plateau_pairs,
-    rate_steps,
     sf_spans,
     sf_windows,
     start_note,
@@ -28,6 +25,7 @@ from fogsf.trainer.logs.metrics import (
     step_windows,
     windows_rms,
 )
+from fogsf.trainer.logs.pairs import find_pairs, plateau_pairs, rate_steps
 from fogsf.trainer.models.features import step_targets
 from fogsf.trainer.sim.config import TableConfig
 from fogsf.trainer.sim.gyro import SimResult, simulate

@@ -13,7 +13,8 @@ import copy
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.metrics import plateau_pairs, rate_steps, sf_windows
+from fogsf.trainer.logs.metrics import sf_windows
+from fogsf.trainer.logs.pairs import plateau_pairs, rate_steps
 from fogsf.trainer.sim import SimConfig, simulate
 from fogsf.trainer.sim.config import ProfileConfig, TableConfig
 from fogsf.trainer.sim.effects import EFFECTS, EffectConfig, describe, parse_effect

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.metrics import plateaus
+from fogsf.trainer.logs.plateaus import plateaus
 from fogsf.trainer.sim.config import ProfileConfig, TableConfig
 from fogsf.trainer.sim.profiles import breakpoints, chamber_series, read_program, table_series
 

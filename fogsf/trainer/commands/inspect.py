@@ -28,19 +28,16 @@ from fogsf.trainer.commands.axes import run_all, wants_all
 from fogsf.trainer.logs.bias import BiasWindows, bias_summary, bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary, rate_text
 from fogsf.trainer.logs.metrics import (
-    DPS_TO_DPH,
-    SETTLE_S,
-    find_pairs,
     log_metrics,
     noise_floor_ppm,
-    plateaus,
-    rate_steps,
     reference_sf,
     sf_error_ppm,
     sf_windows,
     start_note,
     start_ramp_c_per_min,
 )
+from fogsf.trainer.logs.pairs import find_pairs, rate_steps
+from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S, plateaus
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

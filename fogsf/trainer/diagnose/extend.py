@@ -30,7 +30,8 @@ from fogsf.trainer.diagnose import catalogue, design
 from fogsf.trainer.diagnose.design import RunContext
 from fogsf.trainer.diagnose.fits import Diagnosis, ModelFit
 from fogsf.trainer.logs.chamber_log import EARTH_RATE_DPS
-from fogsf.trainer.logs.metrics import plateaus, sf_windows
+from fogsf.trainer.logs.metrics import sf_windows
+from fogsf.trainer.logs.plateaus import plateaus
 
 PROGRAM_STEP_S = 10.0
 

@@ -2,7 +2,7 @@
 
 Two ways a log measures the bias:
 
-- `+/- pairs` (`metrics.find_pairs`): adjacent plateaus of opposite sign and equal |rate|;
+- `+/- pairs` (`pairs.find_pairs`): adjacent plateaus of opposite sign and equal |rate|;
   each pair's bias comes with its SF (the pair fit cancels a linear drift of both).
 - `stationary`: the table stopped for the whole log (the autopilots' cold soak and warm-up):
   the output is bias + earth rate, so the bias of a window is mean(gyro - earth). Such a log
@@ -20,14 +20,9 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
-from fogsf.trainer.logs.metrics import (
-    DPS_TO_DPH,
-    MIN_SUB_WINDOWS,
-    SETTLE_S,
-    SUB_WINDOWS,
-    find_pairs,
-    window_samples,
-)
+from fogsf.trainer.logs.metrics import MIN_SUB_WINDOWS, SUB_WINDOWS, window_samples
+from fogsf.trainer.logs.pairs import find_pairs
+from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
 
 SOURCES = ("pairs", "stationary")
 

@@ -54,22 +54,24 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
+from fogsf.trainer.logs.pairs import (
+    bias_track,
+)
+from fogsf.trainer.logs.plateaus import (
+    BLOCK_SAMPLES,
+    MIN_PLATEAU_S,
+    SETTLE_S,
+    T_REF_C,
+    _plateau_starts,
+    _samples,
+)
 
 SUB_WINDOWS = 10
 MIN_SUB_WINDOWS = 3  # a line and a spread need three
-T_REF_C = 20.0
 REF_BAND_C = 5.0  # windows within this of T_REF_C are fitted to find the SF at T_REF_C
 REF_BRACKET_C = 15.0  # set points this far each side of T_REF_C still give its SF
-SETTLE_S = 2.0  # left out after each change of commanded rate (covers a ~1 s table slew)
-MIN_PLATEAU_S = 5.0  # a settled plateau shorter than this measures nothing
-PAIR_RATE_TOL = 0.01  # |r1| and |r2| within 1 % (and 1e-6 deg/s) make a +/- pair
-MIN_RATE_LEVELS = 2  # |rates| (each in both directions) that nonlinearity and asymmetry need
-DPS_TO_DPH = 3600.0
 START_SPAN_S = 300.0  # the start of a log: its first 5 minutes
 START_MOVING_C_PER_MIN = 0.05  # faster than this at the start is "moving" (a soak is slower)
-# per-sample work is done this many samples at a time (2 MB a float64 column): memory beyond
-# the log's own columns does not grow with its length; every result is the same bits
-BLOCK_SAMPLES = 1 << 18
 
 
 @dataclass
@@ -87,79 +89,6 @@ class SFWindows:
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
-
-
-def plateaus(table_rate_dps: np.ndarray, measures: np.ndarray | None = None
-             ) -> list[tuple[int, int]]:
-    """[start, stop) index ranges over which the table rate does not change; with `measures`
-    (`ChamberLog.measures`), only the measuring runs inside them."""
-    r = np.asarray(table_rate_dps)
-    if r.size == 0:
-        return []
-    found = [np.zeros(1, dtype=np.int64)]
-    for a in range(0, r.size - 1, BLOCK_SAMPLES):  # no log-long temporaries
-        x = r[a:a + BLOCK_SAMPLES + 1]
-        change = np.abs(np.diff(x)) > 1e-9 * np.maximum(np.abs(x[1:]), 1.0)
-        if measures is not None:
-            m = measures[a:a + BLOCK_SAMPLES + 1]
-            change |= m[1:] != m[:-1]
-        found.append(a + np.flatnonzero(change) + 1)
-    edges = np.concatenate([*found, [r.size]])
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)
-            if measures is None or measures[a]]
-
-
-def _samples(seconds: float, dt: float) -> int:
-    return int(np.ceil(seconds / dt - 1e-6)) if seconds > 0 else 0
-
-
-def _plateau_starts(log: ChamberLog, settle_s: float, skip_s: float
-                    ) -> list[tuple[int, int, int]]:
-    """(commanded start, first counted sample, stop) of every measuring plateau: the first
-    counted sample is `settle_s` after the start (but on the log's first plateau, which
-    follows no change) and not before the log's first `skip_s` seconds."""
-    if settle_s < 0 or skip_s < 0:
-        raise UserError("--settle-s and --skip-s must be >= 0")
-    settle = _samples(settle_s, log.sample_dt_s)
-    first = 0
-    if skip_s > 0 and len(log):
-        first = int(np.searchsorted(log.time_s, log.time_s[0] + skip_s - 1e-9))
-    return [(a, max(a + settle if a > 0 or _spins_up(log, b, settle) else a, first), b)
-            for a, b in plateaus(log.table_rate_dps, log.measures)]
-
-
-SPIN_UP_TOL = 1e-3  # the log's first seconds read the table this far (0.1 %) off: a spin-up
-
-
-def _spins_up(log: ChamberLog, stop: int, settle: int) -> bool:
-    """Whether the log's first plateau [0, stop) begins with the table still spinning up (a
-    log that starts with its table command): the gyro's mean over the first `settle`
-    samples differs from the next ten margins' by more than SPIN_UP_TOL of the rate. A table
-    already turning when the log starts reads the same there (noise and thermal SF change
-    are ppm), so such a log keeps its first samples, as it always did."""
-    if settle == 0 or stop < 2 * settle:
-        return settle > 0
-    head = float(log.gyro_dps[:settle].mean())
-    rest = float(log.gyro_dps[settle:min(stop, 11 * settle)].mean())
-    return abs(head - rest) > SPIN_UP_TOL * abs(float(log.table_rate_dps[0]))
-
-
-def settled_plateaus(log: ChamberLog, settle_s: float = SETTLE_S, skip_s: float = 0.0
-                     ) -> list[tuple[int, int]]:
-    """The measuring plateaus without their first `settle_s` seconds (but the log's first
-    plateau, which follows no change), without the log's first `skip_s` seconds, and at least
-    MIN_PLATEAU_S long."""
-    shortest = max(1, _samples(MIN_PLATEAU_S, log.sample_dt_s))
-    return [(a, b) for _, a, b in _plateau_starts(log, settle_s, skip_s) if b - a >= shortest]
-
-
-def measuring_mask(log: ChamberLog, settle_s: float = SETTLE_S, skip_s: float = 0.0
-                   ) -> np.ndarray:
-    """Per sample, True inside a settled plateau: the samples SF and targets come from."""
-    m = np.zeros(len(log), dtype=bool)
-    for a, b in settled_plateaus(log, settle_s, skip_s):
-        m[a:b] = True
-    return m
 
 
 def window_samples(window_s: float, dt: float) -> int:
@@ -374,257 +303,6 @@ def log_metrics(log: ChamberLog, window_s: float = 100.0, ref: float | None = No
     elif ref is None:
         ref = reference_sf(w)
     return metrics_block(sf_error_ppm(w, ref), window_s, noise_floor_ppm(w))
-
-
-# --- +/- pairs and rate steps ---------------------------------------------------------------
-
-@dataclass
-class PlateauPairs:
-    """SF and bias separated by adjacent +/- rate plateaus (one entry per pair)."""
-
-    t_s: np.ndarray
-    temp_c: np.ndarray
-    sf_ratio: np.ndarray
-    bias_dps: np.ndarray
-    rate_dps: np.ndarray  # |rate| of the pair
-
-    def __len__(self) -> int:
-        return int(self.t_s.shape[0])
-
-    def bias_drift_dph_per_c(self) -> float | None:
-        """Slope of the pairs' bias over their board temperature (deg/h per C); None when
-        the temperature spans less than 1 C or there are fewer than 3 pairs."""
-        if len(self) < 3 or np.ptp(self.temp_c) < 1.0:
-            return None
-        return float(np.polyfit(self.temp_c, self.bias_dps * DPS_TO_DPH, 1)[0])
-
-
-@dataclass
-class _Plateau:
-    start: int
-    stop: int
-    rate: float  # mean commanded rate
-    mean: float  # mean of gyro - earth
-    t_s: float
-    temp_c: float
-    n: int  # samples averaged (a plateau cut by a stall: both pieces)
-
-
-def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
-                   ) -> list[_Plateau]:
-    """The settled plateaus' means; the pieces of one commanded plateau that rows measuring
-    nothing (a stall, a disabled row) cut apart are one plateau again: a pair's fit needs
-    its +/- neighbours at the usual distance, and two pieces close in time would read the SF
-    drift from noise. gyro - earth is taken plateau by plateau (no log-long temporary)."""
-    earth = log.earth(latitude_deg)
-    out: list[_Plateau] = []
-    for a, b in settled_plateaus(log, settle_s):
-        rate = log.table_rate_dps[a:b]
-        signal = log.gyro_dps[a:b] - earth[a:b]
-        if out and np.all(log.table_rate_dps[out[-1].stop - 1:a + 1] == rate[0]):
-            prev, n = out[-1], b - a  # same command all through the gap: merge
-            tot = prev.n + n
-            out[-1] = _Plateau(
-                prev.start, b, prev.rate,
-                (prev.mean * prev.n + float(signal.sum())) / tot,
-                (prev.t_s * prev.n + float(log.time_s[a:b].sum())) / tot,
-                (prev.temp_c * prev.n + float(log.temp_c[a:b].sum())) / tot, tot)
-            continue
-        out.append(_Plateau(a, b, float(rate.mean()), float(signal.mean()),
-                            float(log.time_s[a:b].mean()), float(log.temp_c[a:b].mean()),
-                            b - a))
-    return out
-
-
-def _is_pair(p: _Plateau, q: _Plateau) -> bool:
-    if np.sign(p.rate) == np.sign(q.rate) or p.rate == 0 or q.rate == 0:
-        return False
-    big = max(abs(p.rate), abs(q.rate))
-    return abs(abs(p.rate) - abs(q.rate)) <= PAIR_RATE_TOL * big + 1e-6
-
-
-def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float]:
-    """(SF ratio, bias) at time `tc` from a pair and its +/- neighbours: a least-squares fit
-    of m = r (s0 + s1 tau) + b0 + b1 tau (tau = t - tc; with three plateaus no b1, with two
-    neither s1 nor b1), each plateau weighted by its length (a stall shortens one). With
-    both neighbours at +/-r and equal lengths this is the bias (m0 + 3 m1 + 3 m2 + m3) / 8
-    (signs alternating), which cancels an SF that drifts linearly, even
-    quadratically, in time (the SF moving between the two plateaus of a pair on a ramp
-    would otherwise read as bias: 5 ppm at 100 deg/s is 0.9 deg/h) and a linear bias drift."""
-    r = np.array([p.rate for p in group])
-    m = np.array([p.mean for p in group])
-    tau = np.array([p.t_s for p in group]) - tc
-    cols = [r, np.ones_like(r)]
-    if len(group) >= 3:
-        cols.append(r * tau)
-    if len(group) >= 4:
-        cols.append(tau)
-    w = np.sqrt([p.n for p in group])  # a plateau's noise goes as 1/sqrt(n)
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols) * w[:, None], m * w, rcond=None)
-    return float(coef[0]), float(coef[1])
-
-
-def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
-               settle_s: float = SETTLE_S) -> PlateauPairs | None:
-    """The log's +/- pairs: adjacent settled plateaus of opposite sign and equal |rate|
-    (PAIR_RATE_TOL), no plateau in two pairs; None without any. Each pair's SF and bias are
-    at its centre time, from the pair and the +/- plateaus next to it (`_pair_fit`)."""
-    pl = _plateau_means(log, latitude_deg, settle_s)
-    out: list[tuple[float, float, float, float, float]] = []
-    i = 0
-    while i + 1 < len(pl):
-        p, q = pl[i], pl[i + 1]
-        if not _is_pair(p, q):
-            i += 1
-            continue
-        group = [p, q]
-        if i > 0 and _is_pair(pl[i - 1], p):
-            group.insert(0, pl[i - 1])
-        if i + 2 < len(pl) and _is_pair(q, pl[i + 2]):
-            group.append(pl[i + 2])
-        i += 2
-        tc = 0.5 * (p.t_s + q.t_s)
-        sf, bias = _pair_fit(group, tc)
-        out.append((tc, 0.5 * (p.temp_c + q.temp_c), sf, bias,
-                    0.5 * (abs(p.rate) + abs(q.rate))))
-    if not out:
-        return None
-    a = np.asarray(out)
-    return PlateauPairs(t_s=a[:, 0], temp_c=a[:, 1], sf_ratio=a[:, 2], bias_dps=a[:, 3],
-                        rate_dps=a[:, 4])
-
-
-def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,
-                  settle_s: float = SETTLE_S) -> PlateauPairs:
-    """`find_pairs`, refused when the log has none."""
-    pp = find_pairs(log, latitude_deg, settle_s)
-    if pp is None:
-        raise UserError(f"{log.path}: no adjacent +/- table-rate plateaus of equal |rate| "
-                        f"to pair (each at least {MIN_PLATEAU_S:g} s after the {settle_s:g} s "
-                        "settle margin, --settle-s)")
-    return pp
-
-
-def bias_track(log: ChamberLog, latitude_deg: float | None = None,
-               settle_s: float = SETTLE_S) -> np.ndarray | None:
-    """Per sample, the bias (deg/s) of the pairs at the sample's |table rate|, interpolated
-    in time between their centres (held before the first and after the last); 0 at a |rate|
-    without pairs (a pair's bias holds asymmetry x rate / 2: it is not moved to another
-    rate). None for a log without pairs."""
-    pp = find_pairs(log, latitude_deg, settle_s)
-    if pp is None:
-        return None
-    out = np.zeros(len(log))
-    for r in np.unique(pp.rate_dps):
-        at = np.abs(pp.rate_dps - r) <= PAIR_RATE_TOL * r + 1e-6
-        for a in range(0, len(log), BLOCK_SAMPLES):  # no log-long temporaries
-            s = slice(a, a + BLOCK_SAMPLES)
-            here = np.abs(np.abs(log.table_rate_dps[s]) - r) <= PAIR_RATE_TOL * r + 1e-6
-            out[s][here] = np.interp(log.time_s[s][here], pp.t_s[at], pp.bias_dps[at])
-    return out
-
-
-@dataclass
-class RateSteps:
-    """SF per rate step of a staircase and IEEE Std 952's nonlinearity and asymmetry.
-
-    A least-squares fit over every settled plateau's mean output m = (SF + a(T)) r + b + c(T)
-    gives the line: a(T) and c(T), the SF's and the bias's thermal change, are polynomials
-    in the plateau's board temperature T about `temp_c` (20 C when the plateaus span it,
-    else their mean) of a degree the span allows (none under 1 C, a line under 5 C, a
-    quadratic under 20 C, a cubic beyond: a staircase at several heater set points). SF+
-    and SF- come from the same fit with a slope for each sign; the SF per step is at
-    `temp_c`."""
-
-    rates_dps: np.ndarray  # |rate| levels
-    sf_pos_ppm: np.ndarray  # SF at +rate vs nominal, ppm (NaN: no plateau there)
-    sf_neg_ppm: np.ndarray
-    sf_ppm: float  # the line's slope vs nominal, ppm (at the log's mean temperature)
-    bias_dps: float  # the separate-slope fit's intercept (the line's holds asymmetry too)
-    nonlinearity_ppm: float  # max |level mean - line| / full-scale output, ppm
-    asymmetry_ppm: float  # (SF+ - SF-) / mean SF, ppm (the separate-slope fit)
-    temp_c: float = T_REF_C  # the board temperature the SF per step is at
-
-    def as_dict(self) -> dict:
-        return {"rates_dps": self.rates_dps.tolist(),
-                "sf_pos_ppm": _nan_none(self.sf_pos_ppm), "sf_neg_ppm": _nan_none(self.sf_neg_ppm),
-                "sf_ppm": self.sf_ppm, "bias_dph": self.bias_dps * DPS_TO_DPH,
-                "sf_nonlinearity_ppm_fs": self.nonlinearity_ppm,
-                "sf_asymmetry_ppm": self.asymmetry_ppm, "temp_c": self.temp_c}
-
-
-def _nan_none(a: np.ndarray) -> list[float | None]:
-    return [None if not np.isfinite(x) else float(x) for x in a]
-
-
-def _rate_levels(rates: np.ndarray) -> np.ndarray:
-    """Per plateau, the index of its |rate| level (levels within PAIR_RATE_TOL merged)."""
-    mag = np.abs(rates)
-    order = np.argsort(mag)
-    level = np.empty(mag.size, dtype=int)
-    k, base = -1, -np.inf
-    for i in order:
-        if mag[i] > base * (1 + PAIR_RATE_TOL) + 1e-6:
-            k, base = k + 1, mag[i]
-        level[i] = k
-    return level
-
-
-def rate_steps(log: ChamberLog, latitude_deg: float | None = None,
-               settle_s: float = SETTLE_S) -> RateSteps | None:
-    """The staircase figures (`RateSteps`); None for a log with fewer than MIN_RATE_LEVELS
-    |rates| or without both signs."""
-    pl = _plateau_means(log, latitude_deg, settle_s)
-    if not pl:
-        return None
-    r = np.array([p.rate for p in pl])
-    m = np.array([p.mean for p in pl])
-    temp = np.array([p.temp_c for p in pl])
-    level = _rate_levels(r)
-    if level.max() + 1 < MIN_RATE_LEVELS or not ((r > 0).any() and (r < 0).any()):
-        return None
-    t0, thermal = _thermal_columns(r, temp)
-    one = np.ones_like(r)
-    line_x = np.column_stack([r, one, *thermal])
-    line, *_ = np.linalg.lstsq(line_x, m, rcond=None)
-    split_x = np.column_stack([np.where(r > 0, r, 0.0), np.where(r < 0, r, 0.0), one, *thermal])
-    split, *_ = np.linalg.lstsq(split_x, m, rcond=None)
-    resid = m - line_x @ line
-    sign = np.sign(r)
-    groups = [(level == k) & (sign == s) for k in range(level.max() + 1) for s in (-1, 1)]
-    dev = max(abs(float(resid[g].mean())) for g in groups if g.any())
-    # per plateau: SF with the split fit's bias and thermal terms taken off (the split fit's
-    # intercept is the bias whatever the asymmetry; the line's holds asymmetry x rate / 2)
-    bias = float(split[2])
-    per = m - bias - (np.column_stack(thermal) @ split[3:] if thermal else 0.0)
-    per_sf = (per / r - 1.0) * 1e6
-    levels = range(level.max() + 1)
-    rates = np.array([np.abs(r[level == k]).mean() for k in levels])
-
-    def side(k: int, positive: bool) -> float:
-        sel = (level == k) & ((r > 0) if positive else (r < 0))
-        return float(per_sf[sel].mean()) if sel.any() else float("nan")
-
-    pos = np.array([side(k, True) for k in levels])
-    neg = np.array([side(k, False) for k in levels])
-    sf = float(line[0])
-    full_scale = abs(sf) * float(np.abs(r).max())
-    asym = float((split[0] - split[1]) / (0.5 * (split[0] + split[1]))) * 1e6
-    return RateSteps(rates, pos, neg, (sf - 1.0) * 1e6, bias, dev / full_scale * 1e6, asym, t0)
-
-
-def _thermal_columns(r: np.ndarray, temp: np.ndarray) -> tuple[float, list[np.ndarray]]:
-    """(T0, columns r u^k and u^k for k = 1..degree), u = (T - T0) / the largest |T - T0|:
-    the SF's and the bias's change with board temperature in `rate_steps` (degree by span:
-    0 under 1 C, 1 under 5 C, 2 under 20 C, else 3)."""
-    span = float(np.ptp(temp))
-    t0 = T_REF_C if temp.min() <= T_REF_C <= temp.max() else float(temp.mean())
-    degree = 0 if span < 1.0 else 1 if span < 5.0 else 2 if span < 20.0 else 3
-    if degree == 0:
-        return t0, []
-    u = (temp - t0) / max(float(np.max(np.abs(temp - t0))), 1e-9)
-    powers = [u**k for k in range(1, degree + 1)]
-    return t0, [r * p for p in powers] + powers
 
 
 # --- model steps ------------------------------------------------------------------------------

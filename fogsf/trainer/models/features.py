@@ -9,8 +9,8 @@ is exactly what the C kernel computes.
 
 The target of step j is the measured SF error (ppm vs nominal) over the samples that step's
 prediction is applied to: [jD, (j+1)D), i.e. the mean of (gyro - bias - earth) / table over
-those of them that measure SF (`logs.metrics.measuring_mask`: settled table-rate plateaus;
-the bias is the +/- pairs' when the log has pairs, `logs.metrics.bias_track`).
+those of them that measure SF (`logs.plateaus.measuring_mask`: settled table-rate plateaus;
+the bias is the +/- pairs' when the log has pairs, `logs.pairs.bias_track`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import DT_TOLERANCE, ChamberLog, rate_text
-from fogsf.trainer.logs.metrics import SETTLE_S, measuring_mask, sf_signal, step_means, step_windows
+from fogsf.trainer.logs.metrics import sf_signal, step_means, step_windows
+from fogsf.trainer.logs.plateaus import SETTLE_S, measuring_mask
 from fogsf.trainer.models.reference import frontend
 from fogsf.trainer.models.stream import FrontEnd, decimation_for, filter_alpha
 

@@ -22,7 +22,8 @@ import numpy as np
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
-from fogsf.trainer.logs.metrics import DPS_TO_DPH, SETTLE_S, step_means
+from fogsf.trainer.logs.metrics import step_means
+from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
 from fogsf.trainer.models.lag_bank import BankFit, fit_bank, n_curved
 from fogsf.trainer.models.reference import expand, frontend
 from fogsf.trainer.models.reference import features as ref_features

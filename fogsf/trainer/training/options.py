@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from fogsf.trainer.logs.metrics import SETTLE_S
+from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.features import MODEL_STEP_S
 
 

@@ -39,7 +39,8 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.metrics import SETTLE_S, log_metrics, reference_sf_of_logs
+from fogsf.trainer.logs.metrics import log_metrics, reference_sf_of_logs
+from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.features import (
     FeatureSpec,
     Normaliser,

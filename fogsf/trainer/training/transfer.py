@@ -36,13 +36,13 @@ import numpy as np
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import (
-    SETTLE_S,
     noise_floor_ppm,
     sf_windows,
     step_means,
     step_windows,
     windows_rms,
 )
+from fogsf.trainer.logs.plateaus import SETTLE_S
 
 SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows
 MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
