@@ -20,7 +20,12 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
-from fogsf.trainer.logs.metrics import MIN_SUB_WINDOWS, SUB_WINDOWS, window_samples
+from fogsf.trainer.logs.metrics import (
+    MIN_SUB_WINDOWS,
+    SUB_WINDOWS,
+    sub_window_noise,
+    window_samples,
+)
 from fogsf.trainer.logs.pairs import find_pairs
 from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
 
@@ -77,11 +82,7 @@ def stationary_windows(log: ChamberLog, window_s: float = 100.0,
     sig = signal[idx]
     k = SUB_WINDOWS
     m = n // k
-    sub = sig[:, :m * k].reshape(starts.size, k, m).mean(axis=2)
-    x = np.arange(k) - (k - 1) / 2.0
-    slope = (sub * x).sum(axis=1) / (x * x).sum()
-    resid = sub - sub.mean(axis=1, keepdims=True) - slope[:, None] * x[None, :]
-    noise = np.sqrt((resid**2).sum(axis=1) / (k - 2) / k)
+    noise = sub_window_noise(sig[:, :m * k].reshape(starts.size, k, m).mean(axis=2))
     return BiasWindows("stationary", log.time_s[idx].mean(axis=1),
                        log.temp_c[idx].mean(axis=1), sig.mean(axis=1), starts, starts + n,
                        float(np.sqrt(np.mean(noise**2))), float(window_s),

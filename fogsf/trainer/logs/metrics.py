@@ -140,11 +140,18 @@ def _span_stats(sig: np.ndarray, tab: np.ndarray) -> tuple[np.ndarray, np.ndarra
     m = n // k
     sub = (sig[:, : m * k].reshape(rows, k, m).mean(axis=2)
            / tab[:, : m * k].reshape(rows, k, m).mean(axis=2))
+    return ratio, sub_window_noise(sub) * 1e6
+
+
+def sub_window_noise(sub: np.ndarray) -> np.ndarray:
+    """Per window, the noise of its mean from its k sub-window values `sub` [windows, k]:
+    the spread about a fitted straight line (thermal drift inside a window is not noise)
+    over sqrt(k), in the units of `sub`."""
+    k = sub.shape[1]
     x = np.arange(k) - (k - 1) / 2.0
     slope = (sub * x).sum(axis=1) / (x * x).sum()
     resid = sub - sub.mean(axis=1, keepdims=True) - slope[:, None] * x[None, :]
-    noise = np.sqrt((resid**2).sum(axis=1) / (k - 2) / k)
-    return ratio, noise * 1e6
+    return np.sqrt((resid**2).sum(axis=1) / (k - 2) / k)
 
 
 SignalParts = tuple[np.ndarray | None, np.ndarray | None, np.ndarray]
