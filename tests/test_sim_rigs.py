@@ -39,12 +39,6 @@ def plateau_runs(x: np.ndarray) -> list[tuple[int, int, float]]:
     return [(int(a), int(b), float(x[a])) for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
 
-def maps_unsupported(e: UserError) -> bool:
-    """The reader refuses a map with expressions or numbers (until it learns them)."""
-    text = str(e)
-    return "no such column" in text or "expected a mapping of our names" in text
-
-
 # --- schedules -------------------------------------------------------------------------------
 
 def test_staircase_both_directions_adjacent() -> None:
@@ -199,12 +193,7 @@ def test_ros_log_columns_and_mapping(tmp_path: Path) -> None:
 def test_ros_log_through_the_reader(tmp_path: Path) -> None:
     run = rigs.run_rig(small_staircase(stalls_per_h=60.0), gyro_seed=4, seed=5)
     lg = rig_logs.write_ros(tmp_path / "ros.csv", run)
-    try:
-        log = read_log(lg.path)
-    except UserError as e:
-        if maps_unsupported(e):
-            pytest.skip(f"the reader has no expressions in column maps yet: {e}")
-        raise
+    log = read_log(lg.path)
     np.testing.assert_allclose(log.time_s, lg.truth[""].time_s, atol=1e-6)
     np.testing.assert_allclose(log.table_rate_dps, run.command_dps, atol=1e-9)
     np.testing.assert_allclose(log.gyro_dps, run.axes[""].gyro_dps, rtol=1e-10, atol=1e-12)
@@ -250,12 +239,7 @@ def test_plain_log_in_rad_s(tmp_path: Path) -> None:
     raw = np.loadtxt(lg.path, delimiter=",", skiprows=1)
     np.testing.assert_allclose(raw[:, 3] * 57.29577951308232, run.axes[""].gyro_dps,
                                rtol=1e-10, atol=1e-12)
-    try:
-        log = read_log(lg.path)
-    except UserError as e:
-        if maps_unsupported(e):
-            pytest.skip(f"the reader has no expressions in column maps yet: {e}")
-        raise
+    log = read_log(lg.path)
     np.testing.assert_allclose(log.gyro_dps, run.axes[""].gyro_dps, rtol=1e-10, atol=1e-12)
 
 
@@ -280,12 +264,7 @@ def test_imu3_log(tmp_path: Path) -> None:
     log = read_log(bare.path, Dialect(axis="z"))  # no map: no per-axis table
     np.testing.assert_allclose(log.gyro_dps, run.axes["z"].gyro_dps, rtol=1e-11)
     np.testing.assert_allclose(log.temp_c, run.axes["z"].temp_c, atol=1e-9)  # temp_z_c
-    try:
-        log = read_log(lg.path, Dialect(axis="y"))
-    except UserError as e:
-        if maps_unsupported(e):
-            pytest.skip(f"the reader has no per-axis names in column maps yet: {e}")
-        raise
+    log = read_log(lg.path, Dialect(axis="y"))
     np.testing.assert_allclose(log.gyro_dps, run.axes["y"].gyro_dps, rtol=1e-11)
 
 
