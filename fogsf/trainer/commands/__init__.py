@@ -8,12 +8,17 @@ from __future__ import annotations
 import argparse
 
 
-def positive_float(text: str) -> float:
-    """An argparse type: a finite number > 0 (an SF ratio, a time)."""
+def _number(text: str) -> float:
+    """`text` as a float, or argparse's refusal."""
     try:
-        v = float(text)
+        return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0 (an SF ratio, a time)."""
+    v = _number(text)
     if not (v > 0 and v != float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return v
@@ -32,10 +37,7 @@ def positive_int(text: str) -> int:
 
 def non_negative_float(text: str) -> float:
     """An argparse type: a finite number >= 0 (a margin in seconds)."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    v = _number(text)
     if not (v >= 0 and v != float("inf")):
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
     return v
