@@ -5,11 +5,23 @@ range, the earth rate."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs.columns import (
+    READ_SAMPLES,
+    LazyColumn,
+    any_true,
+    blocks,
+    col_max,
+    col_min,
+    derived,
+    is_lazy,
+)
+from fogsf.trainer.logs.exact_stats import mean_in_order, median
 
 REQUIRED = ("time_s", "temp_c", "table_rate_dps", "gyro_dps")
 OPTIONAL = ("earth_rate_dps", "chamber_c", "valid")
@@ -86,6 +98,10 @@ class ChamberLog:
     def measures(self) -> np.ndarray:
         """Per sample, True where the row measures the SF: `valid` and a non-zero table rate
         (at rest the SF is undefined)."""
+        if is_lazy(self.table_rate_dps):  # a log on disk: computed where it is read
+            tab, valid = self.table_rate_dps, self.valid
+            return derived(len(self), np.dtype(bool), lambda s: (tab[s] != 0.0) if valid is None
+                           else (tab[s] != 0.0) & valid[s])
         m = self.table_rate_dps != 0.0
         return m if self.valid is None else m & self.valid
 
@@ -100,7 +116,10 @@ class ChamberLog:
         if latitude_deg is None:
             raise LogError(self.path, None, "no earth rate",
                            "the log has no earth_rate_dps column; pass --latitude-deg")
-        return np.full(len(self), earth_rate_vertical_dps(latitude_deg) * self.axis_cosine)
+        value = earth_rate_vertical_dps(latitude_deg) * self.axis_cosine
+        if is_lazy(self.time_s):  # a log on disk: the constant, not a copy per sample
+            return np.broadcast_to(np.float64(value), (len(self),))
+        return np.full(len(self), value)
 
     def columns(self) -> dict[str, np.ndarray]:
         cols = {
@@ -138,6 +157,8 @@ def nominal_step_s(time_s: np.ndarray) -> float:
     """The median step of time_s, as 1 / (a rate of 6 significant digits) so that time
     stamps printed in decimal give 0.1 s, not 0.09999999999990905 (NOMINAL_DT_S for fewer
     than two samples)."""
+    if is_lazy(time_s):
+        return _nominal_step_on_disk(time_s)
     t = np.asarray(time_s, dtype=np.float64)
     if t.shape[0] < 2:
         return NOMINAL_DT_S
@@ -147,6 +168,30 @@ def nominal_step_s(time_s: np.ndarray) -> float:
         # s), which the median step keeps; the mean of the steps near it averages that out
         dt = np.diff(t)
         step = float(dt[np.abs(dt - step) <= DT_TOLERANCE * step].mean())
+    return 1.0 / float(f"{1.0 / step:.6g}") if step > 0 else step
+
+
+def _nominal_step_on_disk(t: LazyColumn) -> float:
+    """`nominal_step_s` of a time column on disk, a block at a time: the same bits."""
+    n = len(t)
+    if n < 2:
+        return NOMINAL_DT_S
+
+    def steps() -> Iterator[np.ndarray]:
+        for a in range(0, n - 1, READ_SAMPLES):
+            yield np.diff(t[a:a + READ_SAMPLES + 1])
+
+    step = median(steps, n - 1)
+    if step > 0 and np.spacing(max(abs(col_min(t)), abs(col_max(t)))) > 1e-7 * step:
+        near = 0
+        for dt in steps():
+            near += int(np.count_nonzero(np.abs(dt - step) <= DT_TOLERANCE * step))
+
+        def kept() -> Iterator[np.ndarray]:
+            for dt in steps():
+                yield dt[np.abs(dt - step) <= DT_TOLERANCE * step]
+
+        step = mean_in_order(kept, near)
     return 1.0 / float(f"{1.0 / step:.6g}") if step > 0 else step
 
 
@@ -193,8 +238,13 @@ def is_temperature(name: str) -> bool:
 
 def is_stationary(log: ChamberLog) -> bool:
     """True when the table is stopped on every row (and the log has rows to keep)."""
+    if not len(log):
+        return False
+    if is_lazy(log.table_rate_dps):  # a log on disk: a block at a time
+        return (not any(bool((x != 0.0).any()) for _, x in blocks(log.table_rate_dps))
+                and (log.valid is None or any_true(log.valid)))
     keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid
-    return bool(len(log)) and not np.any(log.table_rate_dps != 0.0) and bool(keep.any())
+    return not np.any(log.table_rate_dps != 0.0) and bool(keep.any())
 
 
 def stationary_refusal(log: ChamberLog) -> UserError:

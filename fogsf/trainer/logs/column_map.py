@@ -64,15 +64,36 @@ class ColumnPlan:
 
     def apply(self, data: np.ndarray, path: str) -> dict[str, np.ndarray]:
         """Our columns from the parsed cells (one column per name of `raw`)."""
-        raw = {name: data[:, i] for i, name in enumerate(self.raw)}
+        raw = self.raw_columns(data)
         out = {}
         for s in self.sources:
-            out[s.name] = data[:, s.column] if s.expr is None else _evaluated(s, raw, path)
-            if s.name == "valid" and s.origin:
-                shown = (f"valid = {s.text}" if s.column is None
-                         else f"valid (the log's {self.raw[s.column]!r})")
-                _check_valid(s, out[s.name], path, shown)
+            out[s.name] = self.values(s, data, raw, path)
+            if s.name == "valid" and s.origin and not (out[s.name] != 0.0).any():
+                raise self.none_kept(s)(path)
         return out
+
+    def raw_columns(self, data: np.ndarray) -> dict[str, np.ndarray]:
+        return {name: data[:, i] for i, name in enumerate(self.raw)}
+
+    def values(self, s: Source, data: np.ndarray, raw: dict[str, np.ndarray], path: str,
+               row0: int = 0) -> np.ndarray:
+        """Source `s` over the rows of `data` (`raw`: its columns by name), the first of
+        which is data row `row0` of the log; a refusal names the log's line."""
+        v = data[:, s.column] if s.expr is None else _evaluated(s, raw, path, row0)
+        if s.name == "valid" and s.origin:
+            _check_valid(s, v, path, self.valid_shown(s), row0)
+        return v
+
+    def valid_shown(self, s: Source) -> str:
+        return (f"valid = {s.text}" if s.column is None
+                else f"valid (the log's {self.raw[s.column]!r})")
+
+    def none_kept(self, s: Source):  # noqa: ANN201 - a refusal of a path
+        """The refusal of a mapped valid that is 0 on every row (given the path)."""
+        shown = self.valid_shown(s)
+        return lambda path: LogError(path, None, "no row measures",
+                                     f"{shown} ({s.origin}) is 0 on every row: no row is "
+                                     "kept")
 
 
 def plan_map(raw: list[str], columns: tuple[tuple[str, str], ...], origin: str, path: str
@@ -188,25 +209,22 @@ def _defined(plan: ColumnPlan) -> str:
     return f"; the column map gives {', '.join(computed)}" if computed else ""
 
 
-def _evaluated(s: Source, raw: dict[str, np.ndarray], path: str) -> np.ndarray:
+def _evaluated(s: Source, raw: dict[str, np.ndarray], path: str, row0: int = 0
+               ) -> np.ndarray:
     assert s.expr is not None
     n = next(iter(raw.values())).shape[0] if raw else 0
     try:
         return s.expr.evaluate(raw, n)
     except EvaluationError as e:
-        raise LogError(path, e.row + 2, "column map",
+        raise LogError(path, row0 + e.row + 2, "column map",
                        f"{s.name} = {s.text} ({s.origin}): {e.detail}") from None
 
 
-def _check_valid(s: Source, v: np.ndarray, path: str, shown: str) -> None:
-    """A mapped valid: 0 or 1 on every row, 1 on some."""
+def _check_valid(s: Source, v: np.ndarray, path: str, shown: str, row0: int = 0) -> None:
+    """A mapped valid: 0 or 1 on every row (the caller checks it is 1 on some)."""
     if s.expr is None or not s.expr.is_condition:
         bad = np.flatnonzero((v != 0.0) & (v != 1.0))
         if bad.size:
             i = int(bad[0])
-            raise LogError(path, i + 2, "column map",
+            raise LogError(path, row0 + i + 2, "column map",
                            f"{shown} ({s.origin}) is {v[i]:g}: {VALID_HINT}")
-    if not (v != 0.0).any():
-        raise LogError(path, None, "no row measures",
-                       f"{shown} ({s.origin}) is 0 on every row: no row is kept")
-

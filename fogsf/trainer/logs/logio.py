@@ -43,6 +43,7 @@ from fogsf.trainer.logs.chamber_log import (
     time_text,
 )
 from fogsf.trainer.logs.column_map import ColumnPlan
+from fogsf.trainer.logs.columns import Column, blocks, derived, is_lazy
 from fogsf.trainer.logs.dialect import (
     Dialect,
     find_delimiter,
@@ -159,6 +160,29 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
     the data rows of a file whose header has none, a quoted file whose header is refused
     (the general path checks the quoting of every line first)."""
     p = str(path)
+    head = plain_header(path, dialect)
+    if head is None:
+        return None
+    delim, quoted, plan, notes = head
+    rows = _data_lines(path)
+    if rows < 1:
+        return None
+    try:
+        data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma)
+    except NotFast as e:
+        refuse_bad_line(path, head, dialect, e.rows_ok)
+        return None
+    return _log_of(data, plan, p, dialect, notes)
+
+
+PlainHeader = tuple[str, bool, ColumnPlan, list[str]]
+
+
+def plain_header(path: str | Path, dialect: Dialect) -> PlainHeader | None:
+    """(delimiter, quoted, plan, notes) from the header line of a log the fast path may
+    read; None when the general path must read it (not UTF-8, no header, a quoted header it
+    refuses)."""
+    p = str(path)
     try:
         with open(path, encoding="utf-8") as f:
             first = f.readline()
@@ -182,19 +206,18 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
             return None
     else:
         plan = read_header(first, delim, p, dialect, notes)
-    rows = _data_lines(path)
-    if rows < 1:
-        return None
-    try:
-        data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma)
-    except NotFast as e:
-        # a bad row is named reading line by line (no copy of the text); else the general path
-        bad = None if quoted else first_bad_line(path, list(plan.raw), delim,
-                                                 dialect.decimal_comma, e.rows_ok)
-        if bad is not None:
-            raise bad from None
-        return None
-    return _log_of(data, plan, p, dialect, notes)
+    return delim, quoted, plan, notes
+
+
+def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_ok: int
+                    ) -> None:
+    """After the fast reader failed: the refusal of the first bad row, named reading line by
+    line (no copy of the text); returns when the general path must decide."""
+    delim, quoted, plan, _ = head
+    bad = None if quoted else first_bad_line(path, list(plan.raw), delim,
+                                             dialect.decimal_comma, rows_ok)
+    if bad is not None:
+        raise bad from None
 
 
 def _data_lines(path: str | Path) -> int:
@@ -213,20 +236,30 @@ def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
             notes: list[str]) -> ChamberLog:
     """The parsed cells (every column of the log) as a validated ChamberLog: our columns
     built by the plan, then checked."""
-    cols = plan.apply(data, path)
-    dt = _validate(cols, path, dialect.sample_rate_hz)
+    return log_from_columns(plan.apply(data, path), path, dialect, notes)
+
+
+def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes: list[str]
+                     ) -> ChamberLog:
+    """Our columns (in memory or on disk) as a validated ChamberLog."""
+    dt = validate(cols, path, dialect.sample_rate_hz)
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
         notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
                      f"{'--sample-rate-hz' if dialect.sample_rate_hz else 'from time_s'})")
     extra = {k: v for k, v in cols.items()
              if k not in REQUIRED and k not in ("earth_rate_dps", "valid")}
+    valid = cols.get("valid")
+    if valid is not None:
+        v = valid
+        valid = derived(len(v), np.dtype(bool), lambda s: v[s] != 0.0) if is_lazy(v) \
+            else v != 0.0
     return ChamberLog(
         time_s=cols["time_s"],
         temp_c=cols["temp_c"],
         table_rate_dps=cols["table_rate_dps"],
         gyro_dps=cols["gyro_dps"],
         earth_rate_dps=cols.get("earth_rate_dps"),
-        valid=cols["valid"] != 0.0 if "valid" in cols else None,
+        valid=valid,
         extra=extra,
         path=path,
         read_notes=tuple(notes),
@@ -262,7 +295,7 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
             raise err
 
 
-def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:
+def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:
     """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s)."""
     t = cols["time_s"]
     lo_hz, hi_hz = RATE_RANGE_HZ
@@ -300,11 +333,16 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
                            f"{given}){epoch_text(t)}")
     # a log with the table stopped on every row is stationary: it measures the bias (the
     # SF figures refuse it, logs.bias); a log whose every row is invalid measures nothing
-    turning = cols["table_rate_dps"] != 0.0
-    kept = cols["valid"] != 0.0 if "valid" in cols else np.ones(turning.shape[0], dtype=bool)
-    measures = turning & kept
-    stationary = kept.any() and not turning.any()
-    if not measures.any() and not stationary:
+    turning = kept = measures = False
+    valid = cols.get("valid")
+    for a, tab in blocks(cols["table_rate_dps"], size=VALIDATE_BLOCK):  # no log-long copies
+        turn = tab != 0.0
+        keep = np.ones(turn.shape[0], dtype=bool) if valid is None else \
+            np.asarray(valid[a:a + turn.shape[0]]) != 0.0
+        turning, kept = turning or bool(turn.any()), kept or bool(keep.any())
+        measures = measures or bool((turn & keep).any())
+    stationary = kept and not turning
+    if not measures and not stationary:
         raise LogError(path, None, "no row measures",
                        "every row has a zero table rate or valid = 0: the SF is measured "
                        "while the table turns, the bias on a log with the table stopped "
@@ -313,11 +351,12 @@ def _validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = No
     for name, v in cols.items():
         if not is_temperature(name):
             continue
-        out = np.flatnonzero((v < lo) | (v > hi))
-        if out.size:
-            i = int(out[0])
-            raise LogError(path, i + 2, "temperature out of range",
-                           f"{name} = {v[i]:g} C, allowed {lo:g}..{hi:g} C")
+        for a, x in blocks(v, size=VALIDATE_BLOCK):
+            out = np.flatnonzero((x < lo) | (x > hi))
+            if out.size:
+                i = int(out[0])
+                raise LogError(path, a + i + 2, "temperature out of range",
+                               f"{name} = {x[i]:g} C, allowed {lo:g}..{hi:g} C")
     return nominal
 
 

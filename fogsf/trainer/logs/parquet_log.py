@@ -11,7 +11,7 @@ same columns giving the same bytes.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
@@ -70,6 +70,19 @@ def read_parquet_numbers(path: str | Path) -> tuple[list[str], np.ndarray]:
     """(column names, every column as float64 [rows, columns], each column contiguous),
     batch by batch; a column that is not numeric, an empty (null) or non-finite cell is
     refused with its row."""
+    names, rows, batches = parquet_blocks(path)
+    out = np.empty((rows, len(names)), dtype=np.float64, order="F")
+    at = 0
+    for block in batches:
+        out[at:at + block.shape[0]] = block
+        at += block.shape[0]
+    return names, out
+
+
+def parquet_blocks(path: str | Path) -> tuple[list[str], int, Iterator[np.ndarray]]:
+    """(column names, rows, the rows in blocks of BATCH_ROWS as float64 [rows, columns]); a
+    column that is not numeric or an empty file is refused here, an empty (null) or
+    non-finite cell with its row when its block is read."""
     import pyarrow as pa
 
     p = str(path)
@@ -83,24 +96,28 @@ def read_parquet_numbers(path: str | Path) -> tuple[list[str], np.ndarray]:
     rows = pf.metadata.num_rows
     if rows == 0:
         raise LogError(p, None, "empty file", "column names but no data rows")
-    out = np.empty((rows, len(names)), dtype=np.float64, order="F")
-    at = 0
-    for batch in pf.iter_batches(batch_size=BATCH_ROWS, use_threads=True):
-        k = batch.num_rows
-        for i, col in enumerate(batch.columns):
-            if col.null_count:
-                r = at + int(np.flatnonzero(col.is_null().to_numpy(zero_copy_only=False))[0])
-                raise LogError(p, None, "empty cell", f"row {r + 1}: column {names[i]!r} has "
-                                                      "no value (null)")
-            v = col.to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
-            bad = np.flatnonzero(~np.isfinite(v))
-            if bad.size:
-                r = int(bad[0])
-                raise LogError(p, None, "non-finite cell",
-                               f"row {at + r + 1}: column {names[i]!r} is {v[r]:g}")
-            out[at:at + k, i] = v
-        at += k
-    return names, out
+
+    def batches() -> Iterator[np.ndarray]:
+        at = 0
+        for batch in pf.iter_batches(batch_size=BATCH_ROWS, use_threads=True):
+            k = batch.num_rows
+            out = np.empty((k, len(names)), dtype=np.float64, order="F")
+            for i, col in enumerate(batch.columns):
+                if col.null_count:
+                    r = at + int(np.flatnonzero(col.is_null().to_numpy(zero_copy_only=False))[0])
+                    raise LogError(p, None, "empty cell", f"row {r + 1}: column {names[i]!r} "
+                                                          "has no value (null)")
+                v = col.to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
+                bad = np.flatnonzero(~np.isfinite(v))
+                if bad.size:
+                    r = int(bad[0])
+                    raise LogError(p, None, "non-finite cell",
+                                   f"row {at + r + 1}: column {names[i]!r} is {v[r]:g}")
+                out[:, i] = v
+            at += k
+            yield out
+
+    return names, rows, batches()
 
 
 def read_parquet_log(path: str | Path, dialect: Dialect,

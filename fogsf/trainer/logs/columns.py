@@ -1,0 +1,219 @@
+"""Columns of a log that are not held in memory: read from a spill file on disk, or computed
+from other columns, a block at a time.
+
+`replay` and `inspect` read a log of any length in bounded memory (logs/stream_read.py): the
+log's columns are written to a temporary directory as raw float64 (a `Spill`, deleted when
+the command ends) and a `ChamberLog` holds `DiskColumn`s over them. A `LazyColumn` answers
+what the code asks of a column (`len`, `col[i]`, `col[a:b]`, `col[index array]`) by reading
+only those samples; `np.asarray(col)` still reads the whole column (what a plot needs).
+Whole-column results are made block by block (`blocks`, `col_min`, `col_max`,
+`searchsorted`) and give the same bits as numpy over the whole array (`exact_sum` follows
+numpy's pairwise summation; logs/exact_stats.py has the median).
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import shutil
+import tempfile
+from bisect import bisect_left
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import numpy as np
+
+READ_SAMPLES = 1 << 18  # samples read at a time by the block helpers (2 MB of float64)
+STRICT = False  # tests: refuse to read a whole column (np.asarray) where a block would do
+
+
+class LazyColumn:
+    """A read-only 1-D column of `n` samples of `dtype`, read on demand by `take(a, b)`
+    (samples [a, b) as a new array)."""
+
+    def __init__(self, n: int, dtype: np.dtype, take: Callable[[int, int], np.ndarray]) -> None:
+        self.n = int(n)
+        self.dtype = np.dtype(dtype)
+        self._take = take
+
+    @property
+    def shape(self) -> tuple[int]:
+        return (self.n,)
+
+    @property
+    def size(self) -> int:
+        return self.n
+
+    ndim = 1
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, at: int | slice | np.ndarray) -> np.ndarray:
+        if isinstance(at, (int, np.integer)):
+            i = int(at) + (self.n if at < 0 else 0)
+            if not 0 <= i < self.n:
+                raise IndexError(f"index {int(at)} out of range for {self.n} samples")
+            return self._take(i, i + 1)[0]
+        if isinstance(at, slice):
+            a, b, step = at.indices(self.n)
+            if step != 1:
+                return self._take(a, b)[::step] if b > a else np.empty(0, self.dtype)
+            return self._take(a, b) if b > a else np.empty(0, self.dtype)
+        idx = np.asarray(at)
+        if idx.dtype == bool:
+            raise TypeError("a lazy column takes slices and index arrays, not masks")
+        idx = np.where(idx < 0, idx + self.n, idx)
+        if idx.size == 0:
+            return np.empty(idx.shape, self.dtype)
+        if idx.ndim == 2:  # windows: one row per window, each a run of samples
+            return np.stack([self._gather(row) for row in idx]) if idx.shape[0] else \
+                np.empty(idx.shape, self.dtype)
+        return self._gather(idx)
+
+    def _gather(self, idx: np.ndarray) -> np.ndarray:
+        lo, hi = int(idx.min()), int(idx.max()) + 1
+        return self._take(lo, hi)[idx - lo]
+
+    def __array__(self, dtype: np.dtype | None = None, copy: bool | None = None) -> np.ndarray:
+        if STRICT:
+            raise AssertionError("a whole lazy column was read")
+        out = self._take(0, self.n) if self.n else np.empty(0, self.dtype)
+        return out if dtype is None else out.astype(dtype)
+
+    def astype(self, dtype: np.dtype) -> LazyColumn:
+        return LazyColumn(self.n, dtype, lambda a, b: self._take(a, b).astype(dtype))
+
+
+def derived(n: int, dtype: np.dtype, f: Callable[[slice], np.ndarray]) -> LazyColumn:
+    """A column computed sample by sample from others: f(slice) gives its samples there."""
+    return LazyColumn(n, dtype, lambda a, b: np.asarray(f(slice(a, b)), dtype=dtype))
+
+
+class Spill:
+    """A temporary directory of raw columns (deleted by `close`, and at exit)."""
+
+    def __init__(self, where: str | None = None) -> None:
+        self.dir = Path(tempfile.mkdtemp(prefix="fogsf-spill-", dir=where))
+        atexit.register(self.close)
+        self._files: list[SpillFile] = []
+
+    def file(self, name: str, dtype: np.dtype) -> SpillFile:
+        f = SpillFile(self.dir / f"{len(self._files)}-{name}.bin", np.dtype(dtype))
+        self._files.append(f)
+        return f
+
+    def close(self) -> None:
+        for f in self._files:
+            f.close()
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+
+class SpillFile:
+    """One column written block by block (`append`), then read as a `DiskColumn`."""
+
+    def __init__(self, path: Path, dtype: np.dtype) -> None:
+        self.path = path
+        self.dtype = dtype
+        self.n = 0
+        self._fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
+
+    def append(self, block: np.ndarray) -> None:
+        b = np.ascontiguousarray(block, dtype=self.dtype)
+        view = memoryview(b).cast("B")
+        done = 0
+        while done < len(view):
+            done += os.pwrite(self._fd, view[done:], (self.n * self.dtype.itemsize) + done)
+        self.n += b.shape[0]
+
+    def column(self) -> LazyColumn:
+        size = self.dtype.itemsize
+
+        def take(a: int, b: int) -> np.ndarray:
+            out = np.empty(b - a, self.dtype)
+            view = memoryview(out).cast("B")
+            done = 0
+            while done < len(view):
+                got = os.preadv(self._fd, [view[done:]], a * size + done)
+                if got <= 0:
+                    raise OSError(f"{self.path}: spill file shorter than expected")
+                done += got
+            return out
+
+        return LazyColumn(self.n, self.dtype, take)
+
+    def close(self) -> None:
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+
+Column = np.ndarray | LazyColumn
+
+
+def is_lazy(col: object) -> bool:
+    return isinstance(col, LazyColumn)
+
+
+def blocks(col: Column, a: int = 0, b: int | None = None, size: int = READ_SAMPLES
+           ) -> Iterator[tuple[int, np.ndarray]]:
+    """(start, samples) of col[a:b] in blocks of `size`."""
+    b = len(col) if b is None else min(b, len(col))
+    for s in range(a, b, size):
+        yield s, np.asarray(col[s:min(b, s + size)])
+
+
+def col_min(col: Column) -> float:
+    if not is_lazy(col):
+        return float(np.min(col))
+    return float(min(x.min() for _, x in blocks(col)))
+
+
+def col_max(col: Column) -> float:
+    if not is_lazy(col):
+        return float(np.max(col))
+    return float(max(x.max() for _, x in blocks(col)))
+
+
+def any_true(col: Column) -> bool:
+    if not is_lazy(col):
+        return bool(np.any(col))
+    return any(bool(x.any()) for _, x in blocks(col))
+
+
+def searchsorted(col: Column, v: float) -> int:
+    """np.searchsorted(col, v) (side 'left') on an increasing column."""
+    if not is_lazy(col):
+        return int(np.searchsorted(col, v))
+    return bisect_left(range(len(col)), v, key=lambda i: float(col[i]))
+
+
+def all_equal(col: Column, a: int, b: int, v: float) -> bool:
+    """np.all(col[a:b] == v)."""
+    return all(bool(np.all(x == v)) for _, x in blocks(col, a, b))
+
+
+def _pairwise(take: Callable[[int, int], np.ndarray], lo: int, n: int) -> float:
+    """numpy's pairwise sum of samples [lo, lo + n), read in pieces of up to READ_SAMPLES:
+    numpy halves a long run at a multiple of 8 until the pieces fit its unrolled loop, so a
+    piece that is a node of that tree summed by numpy is that node's value (up to the sign
+    of a zero, which the final 0.0 + removes)."""
+    if n <= READ_SAMPLES:
+        return float(np.add.reduce(take(lo, lo + n)))
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise(take, lo, n2) + _pairwise(take, lo + n2, n - n2)
+
+
+def exact_sum(take: Callable[[int, int], np.ndarray], lo: int, hi: int) -> float:
+    """The bits of np.sum(x[lo:hi]) where take(a, b) gives x[a:b] (float64)."""
+    if hi - lo <= READ_SAMPLES:
+        return float(np.add.reduce(take(lo, hi)))
+    return 0.0 + _pairwise(take, lo, hi - lo)
+
+
+def exact_mean(col: Column, a: int, b: int) -> float:
+    """The bits of col[a:b].mean()."""
+    if not is_lazy(col) or b - a <= READ_SAMPLES:
+        return float(np.asarray(col[a:b]).mean())
+    return exact_sum(lambda x, y: np.asarray(col[x:y], dtype=np.float64), a, b) / (b - a)
