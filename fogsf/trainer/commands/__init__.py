@@ -183,15 +183,23 @@ def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - Strea
     return out
 
 
-def read_logs(args: argparse.Namespace, paths: list[str]) -> list:
+def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False) -> list:
     """Read logs with the options of `add_log_options`; how a log was read when it is not
-    in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr."""
+    in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr. With
+    `on_disk`, each log's columns stay in a spill on disk (logs/stream_read.py: bounded
+    memory whatever the log's length), read with a progress bar on a terminal."""
     import sys
 
     from fogsf.trainer.logs.logio import read_log
 
     dialect = dialect_from_args(args)
-    logs = [read_log(p, dialect) for p in paths]
+    if on_disk:
+        from fogsf.trainer.logs.stream_read import read_log_on_disk
+
+        logs = [read_log_on_disk(p, dialect, progress=progress_bar(f"reading {p}", "rows"))
+                for p in paths]
+    else:
+        logs = [read_log(p, dialect) for p in paths]
     given = getattr(args, "axis_cosine", None)
     cosine = cosine_for(given, dialect.axis)
     for lg in logs:
@@ -202,3 +210,25 @@ def read_logs(args: argparse.Namespace, paths: list[str]) -> list:
         if lg.read_notes:
             print(f"fogsf: read {lg.path}: {'; '.join(lg.read_notes)}", file=sys.stderr)
     return logs
+
+
+def progress_bar(desc: str, unit: str):  # noqa: ANN201 - a callable (done, total) or None
+    """A progress bar on stderr told (done, total) as work advances; None (no bar) when
+    stderr is not a terminal."""
+    import sys
+
+    if not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    bar = None
+
+    def tell(done: int, total: int) -> None:
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, desc=desc, unit=unit, unit_scale=True, leave=False)
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+
+    return tell

@@ -27,6 +27,7 @@ from fogsf.trainer.commands import add_log_options, add_metric_options, positive
 from fogsf.trainer.commands.axes import run_all, wants_all
 from fogsf.trainer.logs.bias import BiasWindows, bias_summary, bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary, rate_text
+from fogsf.trainer.logs.columns import col_max, col_min
 from fogsf.trainer.logs.metrics import (
     log_metrics,
     noise_floor_ppm,
@@ -79,7 +80,7 @@ def stationary_summary(log: ChamberLog, window_s: float, latitude_deg: float | N
     return {
         "samples": len(log), "duration_s": log.duration_s,
         "sample_rate_hz": log.sample_rate_hz,
-        "temp_range_c": [float(log.temp_c.min()), float(log.temp_c.max())],
+        "temp_range_c": [col_min(log.temp_c), col_max(log.temp_c)],
         "table_rates_dps": [], "metrics": None, "ref_sf_ratio": None, "settle_s": None,
         "skip_s": skip_s, "start_ramp_c_per_min": start_ramp_c_per_min(log), "pairs": None,
         "rate_steps": None, "stationary": True, "bias": bias_summary(w),
@@ -101,7 +102,7 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
         "samples": len(log),
         "duration_s": log.duration_s,
         "sample_rate_hz": log.sample_rate_hz,
-        "temp_range_c": [float(log.temp_c.min()), float(log.temp_c.max())],
+        "temp_range_c": [col_min(log.temp_c), col_max(log.temp_c)],
         "table_rates_dps": rates,
         "metrics": log_metrics(log, window_s, ref=ref, latitude_deg=latitude_deg,
                                settle_s=settle_s, skip_s=skip_s),
@@ -165,7 +166,7 @@ def print_stationary(log: ChamberLog, s: dict) -> None:
 def run(args: argparse.Namespace) -> int:
     if wants_all(args):  # --plot NAME_A.png per axis, then one summary
         return run_all(args, run, "inspect")
-    log = read_logs(args, [args.log])[0]
+    log = read_logs(args, [args.log], on_disk=True)[0]
     s = summary(log, args.window_s, args.latitude_deg, args.ref_sf, args.settle_s, args.skip_s)
     note = start_note(log, args.skip_s)  # after the summary: a refused log is one line
     if note:

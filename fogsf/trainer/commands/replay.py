@@ -86,26 +86,55 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     at a time (its state carried from block to block: the output of one run over the whole
     log), each block written to `path` as it is produced (bias_dph too with `bias_head`):
     (sf_ppm per sample, bias_dph per sample or None without a bias head, the flag counts)."""
+    from fogsf.trainer.commands import progress_bar
+    from fogsf.trainer.logs.columns import Spill, is_lazy
     from fogsf.trainer.logs.corrected_out import CorrectedWriter
-    from fogsf.trainer.logs.logio import time_format
 
     n = len(log)
-    sf = np.empty(n, np.float32)
-    bias = np.empty(n, np.float32) if bias_head else None
+    on_disk = is_lazy(log.time_s)  # a log on disk: its outputs go to disk too
+    spill = Spill() if on_disk else None
+    sf_out = spill.file("sf_ppm", np.float32) if spill else None
+    bias_out = spill.file("bias_dph", np.float32) if spill and bias_head else None
+    sf = None if on_disk else np.empty(n, np.float32)
+    bias = None if on_disk or not bias_head else np.empty(n, np.float32)
     counts: dict[str, int] = {}
     st = kernel.new_state()
-    with CorrectedWriter(path, time_format(log.time_s), bias=bias_head) as w:
+    tell = progress_bar("replay", "samples") if on_disk else None
+    with CorrectedWriter(path, _time_format(log.time_s), bias=bias_head) as w:
         for a in range(0, n, REPLAY_BLOCK):
             b = min(n, a + REPLAY_BLOCK)
-            corrected, sf[a:b], block_bias, flags = kernel.run_bias(
-                log.temp_c[a:b], log.gyro_dps[a:b], st)
+            gyro = np.asarray(log.gyro_dps[a:b])
+            corrected, block_sf, block_bias, flags = kernel.run_bias(
+                np.asarray(log.temp_c[a:b]), gyro, st)
+            if sf is not None:
+                sf[a:b] = block_sf
             if bias is not None:
                 bias[a:b] = block_bias
-            w.write(log.time_s[a:b], log.gyro_dps[a:b], corrected, sf[a:b],
+            if sf_out is not None:
+                sf_out.append(block_sf)
+            if bias_out is not None:
+                bias_out.append(block_bias)
+            w.write(np.asarray(log.time_s[a:b]), gyro, corrected, block_sf,
                     block_bias if bias_head else None)
             for name, c in flag_counts(flags).items():
                 counts[name] = counts.get(name, 0) + c
+            if tell is not None:
+                tell(b, n)
+    if sf_out is not None:
+        return (sf_out.column(), None if bias_out is None else bias_out.column(), counts)
     return sf, bias, counts
+
+
+def _time_format(time_s) -> str:  # noqa: ANN001 - an array or a column on disk
+    """logio's `time_format` of the whole time column, a block at a time on disk."""
+    from fogsf.trainer.logs.columns import col_max, col_min, is_lazy
+    from fogsf.trainer.logs.logio import time_format
+
+    if not is_lazy(time_s):
+        return time_format(time_s)
+    if not len(time_s):
+        return time_format(np.empty(0))
+    return time_format(np.array([col_min(time_s), col_max(time_s)]))
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -123,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
     if wants_all(args):  # MODEL_DIR/A, --out NAME_A.csv (--json, --plot) per axis
         return run_all(args, run, "replay")
     model = StreamModel.load(args.model)
-    log = read_logs(args, [args.log])[0]
+    log = read_logs(args, [args.log], on_disk=True)[0]
     note = start_note(log, args.skip_s)
     if note:
         print(f"fogsf: {note}", file=sys.stderr)

@@ -20,6 +20,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
+from fogsf.trainer.logs.columns import cumsum_at, is_lazy, searchsorted
 from fogsf.trainer.logs.metrics import (
     MIN_SUB_WINDOWS,
     SUB_WINDOWS,
@@ -69,24 +70,40 @@ def stationary_windows(log: ChamberLog, window_s: float = 100.0,
     sub-window means about a line (as the SF windows' noise), i.e. what the gyro's noise
     leaves in one window."""
     n = window_samples(window_s, log.sample_dt_s)
-    signal = (log.gyro_dps - log.earth(latitude_deg)) * DPS_TO_DPH
-    keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid.copy()
-    if skip_s > 0:
-        keep &= log.time_s >= log.time_s[0] + skip_s - 1e-9
-    starts = np.arange(0, len(log) - n + 1, n)
-    starts = np.array([s for s in starts if keep[s:s + n].all()], dtype=np.int64)
-    if starts.size == 0:
+    earth = log.earth(latitude_deg)
+    t_skip = log.time_s[0] + skip_s - 1e-9 if skip_s > 0 else None
+    parts: list[tuple[np.ndarray, ...]] = []
+    starts_all = np.arange(0, len(log) - n + 1, n)
+    per = max(1, BLOCK_WINDOWS_SAMPLES // n)  # windows read at a time: memory stays bounded
+    for j in range(0, starts_all.size, per):
+        s0 = starts_all[j:j + per]
+        a, b = int(s0[0]), int(s0[-1]) + n
+        rows = (s0.size, n)
+        keep = np.ones(b - a, dtype=bool) if log.valid is None else np.array(log.valid[a:b])
+        t = np.asarray(log.time_s[a:b])
+        if t_skip is not None:
+            keep &= t >= t_skip
+        ok = keep.reshape(rows).all(axis=1)
+        if not ok.any():
+            continue
+        sig = ((np.asarray(log.gyro_dps[a:b]) - earth[a:b]) * DPS_TO_DPH).reshape(rows)[ok]
+        m = n // SUB_WINDOWS
+        noise = sub_window_noise(sig[:, :m * SUB_WINDOWS].reshape(-1, SUB_WINDOWS, m)
+                                 .mean(axis=2))
+        parts.append((t.reshape(rows)[ok].mean(axis=1),
+                      np.asarray(log.temp_c[a:b]).reshape(rows)[ok].mean(axis=1),
+                      sig.mean(axis=1), s0[ok], noise))
+    if not parts:
         raise UserError(f"{log.path}: no complete {window_s:g} s bias window of valid rows "
                         "(--window-s, --skip-s)")
-    idx = starts[:, None] + np.arange(n)[None, :]
-    sig = signal[idx]
-    k = SUB_WINDOWS
-    m = n // k
-    noise = sub_window_noise(sig[:, :m * k].reshape(starts.size, k, m).mean(axis=2))
-    return BiasWindows("stationary", log.time_s[idx].mean(axis=1),
-                       log.temp_c[idx].mean(axis=1), sig.mean(axis=1), starts, starts + n,
+    t_s, temp_c, bias, starts, noise = (np.concatenate(x) for x in zip(*parts, strict=True))
+    starts = starts.astype(np.int64)
+    return BiasWindows("stationary", t_s, temp_c, bias, starts, starts + n,
                        float(np.sqrt(np.mean(noise**2))), float(window_s),
                        float(log.time_s[0]))
+
+
+BLOCK_WINDOWS_SAMPLES = 1 << 18  # stationary windows are measured about this many samples at once
 
 
 def pair_windows(log: ChamberLog, latitude_deg: float | None = None,
@@ -98,7 +115,7 @@ def pair_windows(log: ChamberLog, latitude_deg: float | None = None,
     pp = find_pairs(log, latitude_deg, settle_s)
     if pp is None:
         return None
-    centre = np.clip(np.searchsorted(log.time_s, pp.t_s), 0, len(log) - 1)
+    centre = np.clip([searchsorted(log.time_s, float(x)) for x in pp.t_s], 0, len(log) - 1)
     span_s = float(np.median(np.diff(pp.t_s))) if len(pp) > 1 else 0.0
     half = max(1, int(round(0.5 * span_s / log.sample_dt_s)))
     start = np.clip(centre - half, 0, len(log) - 1)
@@ -139,8 +156,13 @@ def bias_metrics(err_dph: np.ndarray, noise_floor_dph: float) -> dict[str, float
 def before_after(w: BiasWindows, predicted_dph: np.ndarray) -> dict:
     """Before (the measured bias, nothing taken off) and after (measured - predicted, the
     per-sample prediction averaged over each window's samples) over the bias windows."""
-    c = np.concatenate([[0.0], np.cumsum(np.asarray(predicted_dph, dtype=np.float64))])
-    p = (c[w.stop] - c[w.start]) / (w.stop - w.start)
+    if is_lazy(predicted_dph):  # on disk: the running sum at the windows' ends only
+        ends = np.concatenate([w.start, w.stop])
+        at = cumsum_at(predicted_dph, ends)
+        p = (at[len(w):] - at[:len(w)]) / (w.stop - w.start)
+    else:
+        c = np.concatenate([[0.0], np.cumsum(np.asarray(predicted_dph, dtype=np.float64))])
+        p = (c[w.stop] - c[w.start]) / (w.stop - w.start)
     return {"source": w.source, "windows": len(w),
             "before": bias_metrics(w.bias_dph, w.noise_floor_dph),
             "after": bias_metrics(w.bias_dph - p, w.noise_floor_dph)}

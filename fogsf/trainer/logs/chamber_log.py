@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs import columns
 from fogsf.trainer.logs.columns import (
-    READ_SAMPLES,
     LazyColumn,
     any_true,
     blocks,
@@ -178,8 +178,9 @@ def _nominal_step_on_disk(t: LazyColumn) -> float:
         return NOMINAL_DT_S
 
     def steps() -> Iterator[np.ndarray]:
-        for a in range(0, n - 1, READ_SAMPLES):
-            yield np.diff(t[a:a + READ_SAMPLES + 1])
+        size = columns.READ_SAMPLES
+        for a in range(0, n - 1, size):
+            yield np.diff(t[a:a + size + 1])
 
     step = median(steps, n - 1)
     if step > 0 and np.spacing(max(abs(col_min(t)), abs(col_max(t)))) > 1e-7 * step:

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 READ_SAMPLES = 1 << 18  # samples read at a time by the block helpers (2 MB of float64)
+PAIRWISE_LEAF = 128  # numpy's pairwise summation: runs this long are summed in one loop
 STRICT = False  # tests: refuse to read a whole column (np.asarray) where a block would do
 
 
@@ -155,10 +156,11 @@ def is_lazy(col: object) -> bool:
     return isinstance(col, LazyColumn)
 
 
-def blocks(col: Column, a: int = 0, b: int | None = None, size: int = READ_SAMPLES
+def blocks(col: Column, a: int = 0, b: int | None = None, size: int | None = None
            ) -> Iterator[tuple[int, np.ndarray]]:
-    """(start, samples) of col[a:b] in blocks of `size`."""
+    """(start, samples) of col[a:b] in blocks of `size` (READ_SAMPLES)."""
     b = len(col) if b is None else min(b, len(col))
+    size = size or READ_SAMPLES
     for s in range(a, b, size):
         yield s, np.asarray(col[s:min(b, s + size)])
 
@@ -197,8 +199,8 @@ def _pairwise(take: Callable[[int, int], np.ndarray], lo: int, n: int) -> float:
     """numpy's pairwise sum of samples [lo, lo + n), read in pieces of up to READ_SAMPLES:
     numpy halves a long run at a multiple of 8 until the pieces fit its unrolled loop, so a
     piece that is a node of that tree summed by numpy is that node's value (up to the sign
-    of a zero, which the final 0.0 + removes)."""
-    if n <= READ_SAMPLES:
+    of a zero, which the final 0.0 + removes); numpy sums up to PAIRWISE_LEAF at once."""
+    if n <= max(READ_SAMPLES, PAIRWISE_LEAF):
         return float(np.add.reduce(take(lo, lo + n)))
     n2 = n // 2
     n2 -= n2 % 8
@@ -207,7 +209,7 @@ def _pairwise(take: Callable[[int, int], np.ndarray], lo: int, n: int) -> float:
 
 def exact_sum(take: Callable[[int, int], np.ndarray], lo: int, hi: int) -> float:
     """The bits of np.sum(x[lo:hi]) where take(a, b) gives x[a:b] (float64)."""
-    if hi - lo <= READ_SAMPLES:
+    if hi - lo <= max(READ_SAMPLES, PAIRWISE_LEAF):
         return float(np.add.reduce(take(lo, hi)))
     return 0.0 + _pairwise(take, lo, hi - lo)
 
@@ -217,3 +219,25 @@ def exact_mean(col: Column, a: int, b: int) -> float:
     if not is_lazy(col) or b - a <= READ_SAMPLES:
         return float(np.asarray(col[a:b]).mean())
     return exact_sum(lambda x, y: np.asarray(col[x:y], dtype=np.float64), a, b) / (b - a)
+
+
+def cumsum_at(col: Column, ends: np.ndarray) -> np.ndarray:
+    """c[ends] of c = [0, cumsum(col as float64)], the sum carried from block to block in
+    numpy's order (one add after another)."""
+    order = np.argsort(ends, kind="stable")
+    out = np.empty(ends.shape[0])
+    j, carry = 0, 0.0
+    srt = ends[order]
+    while j < srt.size and srt[j] == 0:
+        out[order[j]] = 0.0
+        j += 1
+    for a, x in blocks(col):
+        y = np.array(x, dtype=np.float64)
+        y[0] += carry
+        c = np.cumsum(y)
+        carry = float(c[-1])
+        hi = a + y.shape[0]
+        while j < srt.size and srt[j] <= hi:
+            out[order[j]] = c[srt[j] - a - 1]
+            j += 1
+    return out

@@ -9,7 +9,8 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from fogsf.trainer.logs.columns import READ_SAMPLES, _pairwise
+from fogsf.trainer.logs import columns
+from fogsf.trainer.logs.columns import _pairwise
 
 Blocks = Callable[[], Iterator[np.ndarray]]  # a fresh pass over the series, block by block
 DIGIT = 16
@@ -73,6 +74,6 @@ def mean_in_order(series: Blocks, n: int) -> float:
         at = b
         return out
 
-    if n <= READ_SAMPLES:
+    if n <= max(columns.READ_SAMPLES, columns.PAIRWISE_LEAF):
         return float(np.concatenate([*series(), np.empty(0)]).mean())
     return (0.0 + _pairwise(take, 0, n)) / n

@@ -54,6 +54,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
+from fogsf.trainer.logs.columns import is_lazy, searchsorted
 from fogsf.trainer.logs.pairs import (
     bias_track,
 )
@@ -165,7 +166,8 @@ def _signal_parts(log: ChamberLog, latitude_deg: float | None,
     b = bias_track(log, latitude_deg, settle_s) if remove_bias else None
     corr = None
     if correction_ppm is not None:
-        corr = np.asarray(correction_ppm)  # float64 where it is used (float32 from a kernel)
+        # float64 where it is used (float32 from a kernel); on disk with a log on disk
+        corr = correction_ppm if is_lazy(correction_ppm) else np.asarray(correction_ppm)
         if corr.shape != log.gyro_dps.shape:
             raise UserError(f"correction has {corr.shape[0]} samples, log has "
                             f"{log.gyro_dps.shape[0]}")
@@ -367,7 +369,7 @@ def start_ramp_c_per_min(log: ChamberLog, span_s: float = START_SPAN_S) -> float
     """|dT/dt| of the board temperature over the log's first `span_s` seconds (a straight
     line fitted; the whole log when shorter), C/min."""
     t = log.time_s
-    k = int(np.searchsorted(t, t[0] + span_s))
+    k = searchsorted(t, t[0] + span_s)
     k = max(k, min(len(log), 3))
     if k < 3 or t[k - 1] <= t[0]:
         return 0.0

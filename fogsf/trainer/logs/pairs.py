@@ -9,7 +9,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs import columns
 from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.columns import all_equal, derived, exact_sum, is_lazy
 from fogsf.trainer.logs.plateaus import (
     BLOCK_SAMPLES,
     DPS_TO_DPH,
@@ -64,9 +66,14 @@ def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
     earth = log.earth(latitude_deg)
     out: list[_Plateau] = []
     for a, b in settled_plateaus(log, settle_s):
+        if is_lazy(log.gyro_dps) and b - a > columns.READ_SAMPLES:  # a long plateau on disk
+            out.append(_long_plateau(log, earth, a, b, out[-1] if out else None))
+            if len(out) > 1 and out[-1].start == out[-2].start:
+                del out[-2]  # merged into the one before
+            continue
         rate = log.table_rate_dps[a:b]
         signal = log.gyro_dps[a:b] - earth[a:b]
-        if out and np.all(log.table_rate_dps[out[-1].stop - 1:a + 1] == rate[0]):
+        if out and all_equal(log.table_rate_dps, out[-1].stop - 1, a + 1, rate[0]):
             prev, n = out[-1], b - a  # same command all through the gap: merge
             tot = prev.n + n
             out[-1] = _Plateau(
@@ -79,6 +86,26 @@ def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
                             float(log.time_s[a:b].mean()), float(log.temp_c[a:b].mean()),
                             b - a))
     return out
+
+
+def _long_plateau(log: ChamberLog, earth: np.ndarray, a: int, b: int,
+                  prev: _Plateau | None) -> _Plateau:
+    """`_plateau_means`' entry for a plateau [a, b) too long to read at once (a log on
+    disk): the same sums, read in pieces (numpy's pairwise order); merged with `prev` when
+    the command holds through the gap (the merged plateau has prev's start)."""
+    def total(col) -> float:  # noqa: ANN001
+        return exact_sum(lambda x, y: np.asarray(col[x:y]), a, b)
+
+    signal = exact_sum(lambda x, y: log.gyro_dps[x:y] - earth[x:y], a, b)
+    first = float(log.table_rate_dps[a])
+    if prev is not None and all_equal(log.table_rate_dps, prev.stop - 1, a + 1, first):
+        tot = prev.n + b - a
+        return _Plateau(prev.start, b, prev.rate, (prev.mean * prev.n + signal) / tot,
+                        (prev.t_s * prev.n + total(log.time_s)) / tot,
+                        (prev.temp_c * prev.n + total(log.temp_c)) / tot, tot)
+    n = b - a
+    return _Plateau(a, b, total(log.table_rate_dps) / n, signal / n, total(log.time_s) / n,
+                    total(log.temp_c) / n, n)
 
 
 def _is_pair(p: _Plateau, q: _Plateau) -> bool:
@@ -159,13 +186,23 @@ def bias_track(log: ChamberLog, latitude_deg: float | None = None,
     pp = find_pairs(log, latitude_deg, settle_s)
     if pp is None:
         return None
+    levels = [(r, np.abs(pp.rate_dps - r) <= PAIR_RATE_TOL * r + 1e-6)
+              for r in np.unique(pp.rate_dps)]
+
+    def track(s: slice) -> np.ndarray:
+        tab, t = np.asarray(log.table_rate_dps[s]), np.asarray(log.time_s[s])
+        out = np.zeros(tab.shape[0])
+        for r, at in levels:
+            here = np.abs(np.abs(tab) - r) <= PAIR_RATE_TOL * r + 1e-6
+            out[here] = np.interp(t[here], pp.t_s[at], pp.bias_dps[at])
+        return out
+
+    if is_lazy(log.time_s):  # a log on disk: computed where it is read
+        return derived(len(log), np.dtype(np.float64), track)
     out = np.zeros(len(log))
-    for r in np.unique(pp.rate_dps):
-        at = np.abs(pp.rate_dps - r) <= PAIR_RATE_TOL * r + 1e-6
-        for a in range(0, len(log), BLOCK_SAMPLES):  # no log-long temporaries
-            s = slice(a, a + BLOCK_SAMPLES)
-            here = np.abs(np.abs(log.table_rate_dps[s]) - r) <= PAIR_RATE_TOL * r + 1e-6
-            out[s][here] = np.interp(log.time_s[s][here], pp.t_s[at], pp.bias_dps[at])
+    for a in range(0, len(log), BLOCK_SAMPLES):  # no log-long temporaries
+        s = slice(a, a + BLOCK_SAMPLES)
+        out[s] = track(s)
     return out
 
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.columns import is_lazy, searchsorted
 
 T_REF_C = 20.0
 SETTLE_S = 2.0  # left out after each change of commanded rate (covers a ~1 s table slew)
@@ -22,18 +23,18 @@ def plateaus(table_rate_dps: np.ndarray, measures: np.ndarray | None = None
              ) -> list[tuple[int, int]]:
     """[start, stop) index ranges over which the table rate does not change; with `measures`
     (`ChamberLog.measures`), only the measuring runs inside them."""
-    r = np.asarray(table_rate_dps)
-    if r.size == 0:
+    r = table_rate_dps if is_lazy(table_rate_dps) else np.asarray(table_rate_dps)
+    if len(r) == 0:
         return []
     found = [np.zeros(1, dtype=np.int64)]
-    for a in range(0, r.size - 1, BLOCK_SAMPLES):  # no log-long temporaries
+    for a in range(0, len(r) - 1, BLOCK_SAMPLES):  # no log-long temporaries
         x = r[a:a + BLOCK_SAMPLES + 1]
         change = np.abs(np.diff(x)) > 1e-9 * np.maximum(np.abs(x[1:]), 1.0)
         if measures is not None:
-            m = measures[a:a + BLOCK_SAMPLES + 1]
+            m = np.asarray(measures[a:a + BLOCK_SAMPLES + 1])
             change |= m[1:] != m[:-1]
         found.append(a + np.flatnonzero(change) + 1)
-    edges = np.concatenate([*found, [r.size]])
+    edges = np.concatenate([*found, [len(r)]])
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)
             if measures is None or measures[a]]
 
@@ -52,7 +53,7 @@ def _plateau_starts(log: ChamberLog, settle_s: float, skip_s: float
     settle = _samples(settle_s, log.sample_dt_s)
     first = 0
     if skip_s > 0 and len(log):
-        first = int(np.searchsorted(log.time_s, log.time_s[0] + skip_s - 1e-9))
+        first = searchsorted(log.time_s, log.time_s[0] + skip_s - 1e-9)
     return [(a, max(a + settle if a > 0 or _spins_up(log, b, settle) else a, first), b)
             for a, b in plateaus(log.table_rate_dps, log.measures)]
 

@@ -36,9 +36,9 @@ from fogsf.trainer.logs.parquet_log import in_rows, is_parquet, parquet_blocks, 
 
 def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
                      spill: Spill | None = None,
-                     progress: Callable[[int], None] | None = None) -> ChamberLog:
+                     progress: Callable[[int, int], None] | None = None) -> ChamberLog:
     """`read_log`, the columns on disk (in `spill`, a new one by default); `progress` is told
-    the rows read after every block."""
+    (rows read, rows) after every block."""
     p = str(path)
     dialect = with_mapping_beside(path, dialect or Dialect())
     spill = spill or Spill()
@@ -50,8 +50,8 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
             notes.append(f"{' and '.join(given)} not used: a Parquet log")
         names = parquet_names(path)
         plan = in_rows(p, lambda: names_plan(names, p, dialect, notes))
-        _, _, batches = parquet_blocks(path)
-        cols, refused = _spilled(batches, plan, p, spill, progress)
+        _, rows, batches = parquet_blocks(path)
+        cols, refused = _spilled(batches, plan, p, spill, _told(progress, rows))
         if refused is not None:
             in_rows(p, lambda: _raise(refused))
         return in_rows(p, lambda: log_from_columns(cols, p, dialect, notes))
@@ -66,7 +66,7 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
                                                         dialect.decimal_comma))
     counted = _Counted(blocks)
     try:
-        cols, refused = _spilled(counted, plan, p, spill, progress)
+        cols, refused = _spilled(counted, plan, p, spill, _told(progress, rows))
         if counted.rows != rows:  # a blank line inside, which pyarrow skips
             raise NotFast
     except NotFast:
@@ -75,6 +75,11 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
     if refused is not None:
         raise refused
     return log_from_columns(cols, p, dialect, notes)
+
+
+def _told(progress: Callable[[int, int], None] | None, rows: int
+          ) -> Callable[[int], None] | None:
+    return None if progress is None else lambda done: progress(done, rows)
 
 
 def _raise(e: LogError) -> None:
