@@ -67,13 +67,12 @@ REPLAY_BLOCK = 1 << 17  # samples the kernel runs (and replay writes) at a time
 def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
                     corrected: np.ndarray, sf_ppm: np.ndarray,
                     bias_dph: np.ndarray | None = None) -> None:
-    """The replay CSV (or Parquet, for a path ending in .parquet; logs/corrected_out.py);
-    doubles with 17 significant digits, sf_ppm and bias_dph (float32, the latter only for a
-    model with a bias head) with 9."""
+    """The replay CSV (or Parquet, for a path ending in .parquet; logs/corrected_out.py):
+    every number in its shortest form that reads back the same (sf_ppm and bias_dph as
+    float32, the latter only for a model with a bias head)."""
     from fogsf.trainer.logs.corrected_out import CorrectedWriter
-    from fogsf.trainer.logs.logio import time_format
 
-    with CorrectedWriter(path, time_format(time_s), bias=bias_dph is not None) as w:
+    with CorrectedWriter(path, bias=bias_dph is not None) as w:
         for a in range(0, time_s.shape[0], REPLAY_BLOCK):
             b = a + REPLAY_BLOCK
             w.write(time_s[a:b], gyro[a:b], corrected[a:b], sf_ppm[a:b],
@@ -100,7 +99,7 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     counts: dict[str, int] = {}
     st = kernel.new_state()
     tell = progress_bar("replay", "samples") if on_disk else None
-    with CorrectedWriter(path, _time_format(log.time_s), bias=bias_head) as w:
+    with CorrectedWriter(path, bias=bias_head) as w:
         for a in range(0, n, REPLAY_BLOCK):
             b = min(n, a + REPLAY_BLOCK)
             gyro = np.asarray(log.gyro_dps[a:b])
@@ -123,18 +122,6 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     if sf_out is not None:
         return (sf_out.column(), None if bias_out is None else bias_out.column(), counts)
     return sf, bias, counts
-
-
-def _time_format(time_s) -> str:  # noqa: ANN001 - an array or a column on disk
-    """logio's `time_format` of the whole time column, a block at a time on disk."""
-    from fogsf.trainer.logs.columns import col_max, col_min, is_lazy
-    from fogsf.trainer.logs.logio import time_format
-
-    if not is_lazy(time_s):
-        return time_format(time_s)
-    if not len(time_s):
-        return time_format(np.empty(0))
-    return time_format(np.array([col_min(time_s), col_max(time_s)]))
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -238,6 +225,7 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
 
     from fogsf.trainer.logs.metrics import reference_sf, sf_error_ppm, sf_windows
 
+    sf = np.asarray(sf)  # the plot draws every sample (a log on disk is read whole here)
     w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
     ref = ref if ref is not None else reference_sf(w)
     before = sf_error_ppm(w, ref)
@@ -246,7 +234,7 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
     predicted = ((1.0 + sf.astype(np.float64) * 1e-6) / ref - 1.0) * 1e6
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5))
     ax1.plot(w.temp_c, before, ".", ms=4, label="measured SF error (before)")
-    ax1.plot(log.temp_c, predicted, "-", lw=0.8, label="C kernel prediction (every sample)")
+    ax1.plot(np.asarray(log.temp_c), predicted, "-", lw=0.8, label="C kernel prediction (every sample)")
     ax1.plot(w.temp_c, after, ".", ms=4, label="residual after correction")
     ax1.set_xlabel("board temperature [C]")
     ax1.set_ylabel("SF error [ppm] (about the SF at 20 C)")
