@@ -60,7 +60,7 @@ def test_replay_writes_the_kernel_output_and_prints_metrics(tmp_path, capsys, mo
     data = np.array(rows[1:], dtype=np.float64)
     assert data.shape == (len(log), 4)
     corrected, sf, _ = Kernel(model).run(log.temp_c, log.gyro_dps)
-    np.testing.assert_array_equal(data[:, 2], corrected)  # the shortest form reads back the same double
+    np.testing.assert_array_equal(data[:, 2], corrected)  # shortest form: the same double
     np.testing.assert_array_equal(data[:, 3].astype(np.float32), sf)
     np.testing.assert_array_equal(data[:, 1], log.gyro_dps)
     report = json.loads((tmp_path / "replay.json").read_text())

@@ -234,7 +234,8 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
     predicted = ((1.0 + sf.astype(np.float64) * 1e-6) / ref - 1.0) * 1e6
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7.5))
     ax1.plot(w.temp_c, before, ".", ms=4, label="measured SF error (before)")
-    ax1.plot(np.asarray(log.temp_c), predicted, "-", lw=0.8, label="C kernel prediction (every sample)")
+    ax1.plot(np.asarray(log.temp_c), predicted, "-", lw=0.8,
+             label="C kernel prediction (every sample)")
     ax1.plot(w.temp_c, after, ".", ms=4, label="residual after correction")
     ax1.set_xlabel("board temperature [C]")
     ax1.set_ylabel("SF error [ppm] (about the SF at 20 C)")
