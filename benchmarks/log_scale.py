@@ -1,13 +1,16 @@
 """Logs of any length: wall time and peak memory of `fogsf replay` and `fogsf inspect` on
-logs of 2.4 h and 24 h at 100 Hz, CSV and Parquet, and how they grow with the log.
+logs of 2.4 h, 24 h and 7 days at 100 Hz, CSV and Parquet, and how they grow with the log;
+`fogsf train --model poly` on the logs of a day or less.
 
 Each log cycles -40..50 C at 1 C/min with 60 min soaks (the rig's columns: time, board
 temperature, table rate, gyro, earth rate), written as CSV, then read back and written as
-Parquet (the same numbers). Each command runs in its own process: wall time, and its peak
-resident memory (the kernel is compiled beforehand, so the build is not counted). The model
-is a seeded random 1x16 LSTM at D = 10 (replay's cost does not depend on its weights).
-`--hours` takes other lengths (168: a week, 60 million rows, about 2.4 GB of CSV and as
-much memory to simulate it).
+Parquet (the same numbers). Logs longer than TILE_H are written in chunks: a simulated
+TILE_H stretch (seed SEED) repeated with its time carried on (sample index / rate), so
+that no more than the stretch is ever in memory (the 7-day log: 60 million rows, 2.2 GB of
+CSV, on disk only while the bench runs). Each command runs in its own process: wall time,
+and its peak resident memory (the kernel is compiled beforehand, so the build is not
+counted). The model is a seeded random 1x16 LSTM at D = 10 (replay's cost does not depend
+on its weights).
 
     python -m benchmarks.log_scale --out out/bench-scale.json      (make bench-scale)
 """
@@ -17,14 +20,19 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 RATE_HZ = 100.0
 SEED = 3
+TILE_H = 10.0  # longer logs repeat a simulated stretch of two whole cycles
+TRAIN_MAX_H = 24.0  # train runs on the logs up to this long
 
 
 def measured(cmd: list[str]) -> tuple[float, float]:
@@ -53,15 +61,44 @@ def prepare(work: Path, hours: float) -> None:
     model.save(work / "model")
     build_kernel(model.at_rate(1.0 / RATE_HZ))  # cached: replay does not compile
     csv = work / f"log-{hours:g}h.csv"
-    write_log(csv, day_log(RATE_HZ, hours, SEED))
-    write_log(csv.with_suffix(".parquet"), read_log(csv))
+    if hours <= TRAIN_MAX_H:
+        write_log(csv, day_log(RATE_HZ, hours, SEED))
+        write_log(csv.with_suffix(".parquet"), read_log(csv))
+    else:
+        write_tiled(csv, hours)
+
+
+def write_tiled(csv: Path, hours: float) -> None:
+    """A log of `hours` as CSV, then Parquet (the numbers the CSV holds), written in chunks:
+    a TILE_H stretch repeated, time_s = sample index / RATE_HZ."""
+    from benchmarks.sample_rate import day_log
+    from fogsf.trainer.logs.arrow_csv import number_blocks
+    from fogsf.trainer.logs.logio import write_rows
+    from fogsf.trainer.logs.parquet_log import ParquetColumns
+
+    tile = day_log(RATE_HZ, TILE_H, SEED).columns()
+    names = list(tile)
+    data = np.column_stack([np.asarray(tile[k], dtype=np.float64) for k in names])
+    del tile
+    per, total = data.shape[0], int(round(hours * 3600.0 * RATE_HZ)) + 1
+    fmts = ["%.12g" if k == "time_s" else "%.10g" for k in names]
+    with open(csv, "w", encoding="utf-8", newline="\n") as f:
+        f.write(",".join(names) + "\n")
+        for a in range(0, total, per):
+            rows = data[: min(per, total - a)].copy()
+            rows[:, names.index("time_s")] = (a + np.arange(rows.shape[0])) / RATE_HZ
+            write_rows(f, rows, fmts)
+    with ParquetColumns(csv.with_suffix(".parquet"), dict.fromkeys(names, np.float64)) as w:
+        for cols in number_blocks(csv, ",", len(names)):
+            w.write(dict(zip(names, cols, strict=True)))
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=Path("out/bench-scale.json"))
-    ap.add_argument("--hours", default="2.4,24", help="log lengths in hours (2.4,24)")
+    ap.add_argument("--hours", default="2.4,24,168",
+                    help="log lengths in hours (2.4,24,168)")
     ap.add_argument("--work", type=Path, default=None,
                     help="folder for the logs and outputs (default: a temporary one)")
     ap.add_argument("--prepare", action="store_true", help=argparse.SUPPRESS)
@@ -87,6 +124,9 @@ def main(argv: list[str] | None = None) -> int:
                                str(work / f"corrected.{fmt}"), "--ref-sf", "1.0"],
                     "inspect": [*fogsf, "inspect", str(log), "--json"],
                 }
+                if h <= TRAIN_MAX_H:
+                    runs["train"] = [*fogsf, "train", "--train", str(log), "--model", "poly",
+                                     "--out", str(work / f"poly-{fmt}"), "--no-progress"]
                 for command, cmd in runs.items():
                     wall, peak = measured(cmd)
                     rows.append({"hours": h, "format": fmt, "command": command,
@@ -94,21 +134,26 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"{h:6g} h {fmt:8s} ({size_mb:7.1f} MB) {command:8s} "
                           f"{wall:6.2f} s  peak {peak:7.0f} MB", flush=True)
                 (work / f"corrected.{fmt}").unlink(missing_ok=True)
+                shutil.rmtree(work / f"poly-{fmt}", ignore_errors=True)
             for p in logs.values():
                 p.unlink()
     growth = []
-    if len(hours) >= 2:
-        a, b = hours[0], hours[-1]
+    for a, b in zip(hours[:-1], hours[1:], strict=True):
         for fmt in ("csv", "parquet"):
-            for command in ("replay", "inspect"):
-                r0, r1 = (next(r for r in rows if r["hours"] == h and r["format"] == fmt
-                               and r["command"] == command) for h in (a, b))
-                g = {"format": fmt, "command": command, "rows_ratio": b / a,
-                     "wall_ratio": r1["wall_s"] / r0["wall_s"],
+            for command in ("replay", "inspect", "train"):
+                pair = [next((r for r in rows if r["hours"] == h and r["format"] == fmt
+                              and r["command"] == command), None) for h in (a, b)]
+                if pair[0] is None or pair[1] is None:
+                    continue
+                r0, r1 = pair
+                g = {"from_hours": a, "to_hours": b, "format": fmt, "command": command,
+                     "rows_ratio": b / a, "wall_ratio": r1["wall_s"] / r0["wall_s"],
+                     "wall_vs_linear": r1["wall_s"] / r0["wall_s"] / (b / a),
                      "peak_ratio": r1["peak_mb"] / r0["peak_mb"]}
                 growth.append(g)
-                print(f"{b:g} h / {a:g} h, {fmt:8s} {command:8s}: wall x{g['wall_ratio']:.2f}, "
-                      f"peak x{g['peak_ratio']:.2f} (rows x{b / a:g})")
+                print(f"{b:g} h / {a:g} h, {fmt:8s} {command:8s}: wall x{g['wall_ratio']:.2f} "
+                      f"({g['wall_vs_linear']:.2f} x linear), peak x{g['peak_ratio']:.2f} "
+                      f"(rows x{b / a:g})")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"rate_hz": RATE_HZ, "runs": rows, "growth": growth},
                                    indent=2) + "\n")
