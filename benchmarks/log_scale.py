@@ -4,7 +4,7 @@ logs of 2.4 h, 24 h and 7 days at 100 Hz, CSV and Parquet, and how they grow wit
 
 Each log cycles -40..50 C at 1 C/min with 60 min soaks (the rig's columns: time, board
 temperature, table rate, gyro, earth rate), written as CSV, then read back and written as
-Parquet (the same numbers). Logs longer than TILE_H are written in chunks: a simulated
+Parquet (the same numbers). Logs longer than a day are written in chunks: a simulated
 TILE_H stretch (seed SEED) repeated with its time carried on (sample index / rate), so
 that no more than the stretch is ever in memory (the 7-day log: 60 million rows, 2.2 GB of
 CSV, on disk only while the bench runs). Each command runs in its own process: wall time,

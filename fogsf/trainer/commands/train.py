@@ -130,8 +130,8 @@ def run(args: argparse.Namespace) -> int:
 
     if wants_all(args):  # OUT/A per axis, then one summary
         return run_all(args, run, "train")
-    train_logs = read_logs(args, args.train)
-    test_log = read_logs(args, [args.test])[0] if args.test else None
+    train_logs = read_logs(args, args.train, on_disk=True)
+    test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
     opts = TrainOptions(
         model=args.model, model_step_s=args.model_step_s, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,

@@ -82,6 +82,12 @@ class LazyColumn:
         out = self._take(0, self.n) if self.n else np.empty(0, self.dtype)
         return out if dtype is None else out.astype(dtype)
 
+    def min(self) -> np.generic:
+        return min(x.min() for _, x in blocks(self))
+
+    def max(self) -> np.generic:
+        return max(x.max() for _, x in blocks(self))
+
     def astype(self, dtype: np.dtype) -> LazyColumn:
         return LazyColumn(self.n, dtype, lambda a, b: self._take(a, b).astype(dtype))
 

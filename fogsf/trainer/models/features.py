@@ -21,9 +21,9 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import DT_TOLERANCE, ChamberLog, rate_text
-from fogsf.trainer.logs.metrics import sf_signal, step_means, step_windows
-from fogsf.trainer.logs.plateaus import SETTLE_S, measuring_mask
-from fogsf.trainer.models.reference import frontend
+from fogsf.trainer.logs.columns import col_max, col_min
+from fogsf.trainer.logs.metrics import step_windows
+from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.stream import FrontEnd, decimation_for, filter_alpha
 
 T_REF_C = 20.0
@@ -119,8 +119,8 @@ def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ..
                   sample_dt_s: float | None = None) -> FrontEnd:
     """The front end's constants for models trained on `logs`, one model step per `step_s`
     seconds at the logs' one sample rate (or at `sample_dt_s`)."""
-    lo = min(float(lg.temp_c.min()) for lg in logs) - RANGE_MARGIN_C
-    hi = max(float(lg.temp_c.max()) for lg in logs) + RANGE_MARGIN_C
+    lo = min(col_min(lg.temp_c) for lg in logs) - RANGE_MARGIN_C
+    hi = max(col_max(lg.temp_c) for lg in logs) + RANGE_MARGIN_C
     dt = common_sample_dt(logs) if sample_dt_s is None else sample_dt_s
     d = decimation_for(step_s, dt)
     return FrontEnd(t_ref_c=T_REF_C, t_min_c=min(lo, T_REF_C - 1.0),
@@ -134,11 +134,10 @@ def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = 
                  settle_s: float = SETTLE_S) -> np.ndarray:
     """Mean SF error (ppm vs nominal) over the measuring samples (settled plateaus,
     `measuring_mask`) each model step's output is held for, the +/- pairs' bias taken off;
-    NaN for a step without one."""
-    m = measuring_mask(log, settle_s)
-    table = np.where(m, log.table_rate_dps, 1.0)
-    ratio = np.where(m, sf_signal(log, latitude_deg, settle_s=settle_s) / table, 0.0)
-    return (step_means(ratio, decimation, m) - 1.0) * 1e6
+    NaN for a step without one. Made a block of steps at a time (models/step_inputs.py)."""
+    from fogsf.trainer.models.step_inputs import step_targets as in_blocks
+
+    return in_blocks(log, decimation, latitude_deg, settle_s)
 
 
 def val_mask_for(n_steps: int, val_chunk: tuple[float, float]) -> np.ndarray:
@@ -153,17 +152,19 @@ def prepare(log: ChamberLog, fe: FrontEnd, val_chunk: tuple[float, float] | None
     """Front end and targets of one log; `val_chunk` (fractions of the run) is held out.
     A log at another sample rate than `fe`'s goes through `fe.at_rate` (the same model
     step in seconds). The SF windows (`window_s`, `settle_s`) are those of every metric."""
+    from fogsf.trainer.models.step_inputs import frontend_s
+
     fe = fe.at_rate(log.sample_dt_s)
-    out = frontend(log.temp_c, fe)
+    s = frontend_s(log.temp_c, fe)  # frontend(...).s, a block of samples at a time
     t = step_targets(log, fe.decimation, latitude_deg, settle_s) if targets is None else targets
-    n = out.s.shape[0]
+    n = s.shape[0]
     val = val_mask_for(n, val_chunk) if val_chunk else np.zeros(n, dtype=bool)
     measured = np.isfinite(t)
     try:
         windows = step_windows(log, fe.decimation, window_s, settle_s)
     except UserError:  # no SF window: a log that only trains (its steps still give targets)
         windows = np.zeros((0, 2), dtype=np.int64)
-    return SeqData(log, out.s, np.where(measured, t, 0.0), ~val & measured, fe.decimation,
+    return SeqData(log, s, np.where(measured, t, 0.0), ~val & measured, fe.decimation,
                    fe.step_s, measured, windows)
 
 
