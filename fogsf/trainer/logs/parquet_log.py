@@ -41,7 +41,8 @@ def _open(path: str | Path) -> pq.ParquetFile:
 
     p = str(path)
     try:
-        return pq.ParquetFile(p)
+        # no pre-buffering: it holds column chunks read ahead, memory that grows with the file
+        return pq.ParquetFile(p, pre_buffer=False)
     except FileNotFoundError:
         raise LogError(p, None, "cannot read", "no such file") from None
     except (pa.ArrowException, OSError) as e:
