@@ -104,3 +104,14 @@ def test_parquet_on_disk_as_in_memory(tmp_path: Path, small_blocks: int) -> None
     bad.temp_c[201] = 130.0
     write_log(pq, bad)
     assert _read(lambda: read_log_on_disk(pq)) == _read(lambda: read_log(pq))
+
+
+def test_a_log_read_in_blocks_then_held_is_read_logs(tmp_path: Path) -> None:
+    from fogsf.trainer.logs.stream_read import in_memory
+
+    p = tmp_path / "log.csv"
+    p.write_text(text(rows(300)).replace("time_s,", "time_s,").replace(",10,", ",10,", 1))
+    held = in_memory(read_log_on_disk(p, Dialect(columns=(("valid", "temp_c > 20.5"),))))
+    whole = read_log(p, Dialect(columns=(("valid", "temp_c > 20.5"),)))
+    assert all(isinstance(v, np.ndarray) for v in held.columns().values())
+    same_log(held, whole)

@@ -185,21 +185,24 @@ def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - Strea
 
 def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False) -> list:
     """Read logs with the options of `add_log_options`; how a log was read when it is not
-    in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr. With
-    `on_disk`, each log's columns stay in a spill on disk (logs/stream_read.py: bounded
-    memory whatever the log's length), read with a progress bar on a terminal."""
+    in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr. Each log
+    is read a block at a time with a progress bar on a terminal (logs/stream_read.py); with
+    `on_disk` its columns stay in a spill on disk (bounded memory whatever the log's length),
+    else they are then held in memory."""
     import sys
 
-    from fogsf.trainer.logs.logio import read_log
+    from fogsf.trainer.logs.columns import Spill
+    from fogsf.trainer.logs.stream_read import in_memory, read_log_on_disk
 
     dialect = dialect_from_args(args)
-    if on_disk:
-        from fogsf.trainer.logs.stream_read import read_log_on_disk
-
-        logs = [read_log_on_disk(p, dialect, progress=progress_bar(f"reading {p}", "rows"))
-                for p in paths]
-    else:
-        logs = [read_log(p, dialect) for p in paths]
+    logs = []
+    for p in paths:
+        spill = Spill()
+        log = read_log_on_disk(p, dialect, spill, progress=progress_bar(f"reading {p}", "rows"))
+        if not on_disk:
+            log = in_memory(log)
+            spill.close()
+        logs.append(log)
     given = getattr(args, "axis_cosine", None)
     cosine = cosine_for(given, dialect.axis)
     for lg in logs:

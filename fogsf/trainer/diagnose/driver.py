@@ -25,8 +25,15 @@ from fogsf.trainer.sim.lag import first_order_lag
 
 TAU_GRID_S = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.0, 240.0, 300.0, 360.0, 480.0,
               600.0, 800.0, 1000.0, 1300.0, 1800.0)
-DECIMATE = 20  # fit on 2 s samples
+DECIMATE_S = 2.0  # the fits take a sample every 2 s, whatever the log's sample rate
 POWER_ON_MIN_C = 0.5  # a self-heating rise above this (C) marks a power-on start
+
+
+def every(time_s: np.ndarray) -> int:
+    """The decimation that takes a sample every DECIMATE_S (20 at 10 Hz, 200 at 100 Hz)."""
+    if len(time_s) < 2:
+        return 1
+    return max(1, int(round(DECIMATE_S / float(np.median(np.diff(time_s))))))
 
 
 @dataclass
@@ -63,10 +70,11 @@ def board_power_on(time_s: np.ndarray, board_c: np.ndarray) -> float:
     t = np.asarray(time_s, dtype=np.float64)
     t = t - t[0]
     sel = t <= ONSET_FIT_S
-    if np.count_nonzero(sel) < 10 * DECIMATE:
+    k = every(t[sel])
+    if np.count_nonzero(sel) < 10 * k:
         return 0.0
-    tt = t[sel][::DECIMATE]
-    bb = np.asarray(board_c, dtype=np.float64)[sel][::DECIMATE]
+    tt = t[sel][::k]
+    bb = np.asarray(board_c, dtype=np.float64)[sel][::k]
     best: tuple[float, float, np.ndarray] | None = None
     for tau in ONSET_TAU_S:
         xm = np.column_stack([np.ones_like(tt), tt, 1.0 - np.exp(-tt / tau)])
@@ -98,10 +106,11 @@ def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | No
         power_on = start == "power-on" or onset > POWER_ON_MIN_C
         return Driver(np.asarray(board_c, dtype=np.float64), "board", 0.0, 0.0, 0.0, 0.0,
                       0.0, power_on, 0.0)
-    dt10 = float(np.median(np.diff(time_s)))
-    dt = dt10 * DECIMATE
-    c = np.asarray(chamber_c, dtype=np.float64)[::DECIMATE]
-    b = np.asarray(board_c, dtype=np.float64)[::DECIMATE]
+    dt10 = float(np.median(np.diff(time_s)))  # the log's sample period
+    k = every(time_s)
+    dt = dt10 * k
+    c = np.asarray(chamber_c, dtype=np.float64)[::k]
+    b = np.asarray(board_c, dtype=np.float64)[::k]
     step = np.ones_like(c)
     step[0] = 0.0
     with_steps = start != "warm"

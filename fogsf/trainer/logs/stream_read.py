@@ -14,6 +14,7 @@ general path reads) is read by `read_log` in memory.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ import numpy as np
 from fogsf.trainer.logs.arrow_csv import NotFast, number_blocks
 from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
 from fogsf.trainer.logs.column_map import ColumnPlan
-from fogsf.trainer.logs.columns import LazyColumn, Spill
+from fogsf.trainer.logs.columns import LazyColumn, Spill, is_lazy
 from fogsf.trainer.logs.dialect import Dialect, names_plan
 from fogsf.trainer.logs.logio import (
     _data_lines,
@@ -131,3 +132,14 @@ def _spilled(blocks: Iterator[np.ndarray] | _Counted, plan: ColumnPlan, path: st
         if i in kept and not kept[i]:
             return cols, plan.none_kept(s)(path)
     return cols, None
+
+
+def in_memory(log: ChamberLog) -> ChamberLog:
+    """A log on disk with its columns read into memory (the log `read_log` gives)."""
+    def held(col):  # noqa: ANN001, ANN202 - a column on disk or in memory, an array
+        return None if col is None else col[:] if is_lazy(col) else col
+
+    return replace(log, time_s=held(log.time_s), temp_c=held(log.temp_c),
+                   table_rate_dps=held(log.table_rate_dps), gyro_dps=held(log.gyro_dps),
+                   earth_rate_dps=held(log.earth_rate_dps), valid=held(log.valid),
+                   extra={k: held(v) for k, v in log.extra.items()})
