@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_arrow_reader import BAD, GOOD, rows, text
+from test_arrow_reader import BAD, GOOD, SCANNED, _both, _quoted, rows, text
 
 from fogsf.trainer.logs import arrow_csv, columns, parquet_log
 from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
@@ -115,3 +115,29 @@ def test_a_log_read_in_blocks_then_held_is_read_logs(tmp_path: Path) -> None:
     whole = read_log(p, Dialect(columns=(("valid", "temp_c > 20.5"),)))
     assert all(isinstance(v, np.ndarray) for v in held.columns().values())
     same_log(held, whole)
+
+
+QUOTED = {f"quoted-{k}": _quoted(BAD[k][0]) for k in SCANNED if ";" not in BAD[k][0]}
+QUOTED["delimiter-in-quotes"] = BAD["delimiter-in-quotes"][0]
+QUOTED["bad-quoting"] = BAD["bad-quoting"][0]
+QUOTED["bad-quoting-after-a-bad-cell"] = _quoted(BAD["letter"][0]).replace('"10"\n', '"10"x\n', 30)
+
+
+@pytest.mark.parametrize("name", list(QUOTED))
+def test_a_quoted_file_is_refused_without_the_general_path(name: str, tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    """Quoted cells: the scan checks every row's quoting, then the cells, row by row (the
+    general path, which holds the whole text, is not used), and names the general path's
+    line."""
+    from fogsf.trainer.logs import logio
+
+    _, general = _both(tmp_path, QUOTED[name], Dialect())
+    assert isinstance(general, str), general
+
+    def no_general(*_: object, **__: object) -> None:
+        raise AssertionError("the general path was used")
+
+    monkeypatch.setattr(logio, "parse_log", no_general)
+    assert _read(lambda: read_log_on_disk(tmp_path / "log.csv")) == general
+    assert _read(lambda: read_log(tmp_path / "log.csv")) == general

@@ -173,14 +173,22 @@ def unquote_lines(lines: list[str], delim: str, path: str) -> list[str]:
     except csv.Error as e:
         raise LogError(path, reader.line_num, "bad quoting", str(e)) from None
     for i, row in enumerate(rows, start=1):
-        for cell in row:
-            if delim in cell:
-                raise LogError(path, i, "delimiter inside a quoted cell",
-                               f"{cell!r} holds {DELIMITER_NAMES[delim]}: write numbers "
-                               "without thousands separators (or use --decimal-comma with "
-                               "';' or tab cells)")
+        bad = delimiter_in_cell(row, i, delim, path)
+        if bad is not None:
+            raise bad
         out.append(delim.join(row))
     return out
+
+
+def delimiter_in_cell(row: list[str], i: int, delim: str, path: str) -> LogError | None:
+    """The refusal of row `i` (from 1) when a quoted cell of it holds the delimiter."""
+    for cell in row:
+        if delim in cell:
+            return LogError(path, i, "delimiter inside a quoted cell",
+                            f"{cell!r} holds {DELIMITER_NAMES[delim]}: write numbers "
+                            "without thousands separators (or use --decimal-comma with "
+                            "';' or tab cells)")
+    return None
 
 
 # A column that looks like a gyro's rate: gx, gx[dps], gyro_x, wx, omega_z, ...; not a

@@ -214,8 +214,7 @@ def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_
     """After the fast reader failed: the refusal of the first bad row, named reading line by
     line (no copy of the text); returns when the general path must decide."""
     delim, quoted, plan, _ = head
-    bad = None if quoted else first_bad_line(path, list(plan.raw), delim,
-                                             dialect.decimal_comma, rows_ok)
+    bad = first_bad_line(path, list(plan.raw), delim, dialect.decimal_comma, rows_ok, quoted)
     if bad is not None:
         raise bad from None
 
