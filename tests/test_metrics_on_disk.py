@@ -100,7 +100,7 @@ def test_replay_on_disk_is_the_replay_in_memory(tmp_path: Path, monkeypatch: pyt
     for how in ("disk", "memory"):
         if how == "memory":
             monkeypatch.setattr(stream_read, "read_log_on_disk",
-                                lambda p, d, progress=None: read_log(p, d))
+                                lambda p, d, spill=None, progress=None: read_log(p, d))
         for fmt in ("csv", "parquet"):
             out = tmp_path / f"{how}.{fmt}"
             assert main(["replay", str(tmp_path / "m"), str(log), "--out", str(out),

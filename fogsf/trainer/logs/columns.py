@@ -14,12 +14,12 @@ numpy's pairwise summation; logs/exact_stats.py has the median).
 from __future__ import annotations
 
 import atexit
-import os
 import shutil
 import tempfile
 from bisect import bisect_left
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
@@ -82,6 +82,79 @@ class LazyColumn:
         out = self._take(0, self.n) if self.n else np.empty(0, self.dtype)
         return out if dtype is None else out.astype(dtype)
 
+    def __iter__(self) -> Iterator[np.generic]:
+        for _, x in blocks(self):
+            yield from x
+
+    # arithmetic and comparisons read the whole column (code that works a block at a time
+    # does not use them; with STRICT, tests see where they are used)
+    def _whole(self, other: object) -> tuple[np.ndarray, object]:
+        return np.asarray(self), np.asarray(other) if isinstance(other, LazyColumn) else other
+
+    def __add__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a + b
+
+    def __radd__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return b + a
+
+    def __sub__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a - b
+
+    def __rsub__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return b - a
+
+    def __mul__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a * b
+
+    def __rmul__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return b * a
+
+    def __truediv__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a / b
+
+    def __rtruediv__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return b / a
+
+    def __neg__(self) -> np.ndarray:
+        return -np.asarray(self)
+
+    def __abs__(self) -> np.ndarray:
+        return np.abs(np.asarray(self))
+
+    def __eq__(self, o: object) -> np.ndarray:  # type: ignore[override]
+        a, b = self._whole(o)
+        return a == b
+
+    def __ne__(self, o: object) -> np.ndarray:  # type: ignore[override]
+        a, b = self._whole(o)
+        return a != b
+
+    def __lt__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a < b
+
+    def __le__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a <= b
+
+    def __gt__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a > b
+
+    def __ge__(self, o: object) -> np.ndarray:
+        a, b = self._whole(o)
+        return a >= b
+
+    __hash__ = None  # type: ignore[assignment]
+
     def min(self) -> np.generic:
         return min(x.min() for _, x in blocks(self))
 
@@ -123,36 +196,32 @@ class SpillFile:
         self.path = path
         self.dtype = dtype
         self.n = 0
-        self._fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
+        self._file: BinaryIO | None = open(path, "w+b")  # noqa: SIM115 - closed by close()
 
     def append(self, block: np.ndarray) -> None:
+        assert self._file is not None
         b = np.ascontiguousarray(block, dtype=self.dtype)
-        view = memoryview(b).cast("B")
-        done = 0
-        while done < len(view):
-            done += os.pwrite(self._fd, view[done:], (self.n * self.dtype.itemsize) + done)
+        self._file.seek(self.n * self.dtype.itemsize)
+        self._file.write(memoryview(b).cast("B"))
         self.n += b.shape[0]
 
     def column(self) -> LazyColumn:
         size = self.dtype.itemsize
 
         def take(a: int, b: int) -> np.ndarray:
+            assert self._file is not None
             out = np.empty(b - a, self.dtype)
-            view = memoryview(out).cast("B")
-            done = 0
-            while done < len(view):
-                got = os.preadv(self._fd, [view[done:]], a * size + done)
-                if got <= 0:
-                    raise OSError(f"{self.path}: spill file shorter than expected")
-                done += got
+            self._file.seek(a * size)
+            if self._file.readinto(memoryview(out).cast("B")) != (b - a) * size:
+                raise OSError(f"{self.path}: spill file shorter than expected")
             return out
 
         return LazyColumn(self.n, self.dtype, take)
 
     def close(self) -> None:
-        if self._fd >= 0:
-            os.close(self._fd)
-            self._fd = -1
+        if self._file is not None:
+            self._file.close()
+            self._file = None
 
 
 Column = np.ndarray | LazyColumn
