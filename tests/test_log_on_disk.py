@@ -141,3 +141,28 @@ def test_a_quoted_file_is_refused_without_the_general_path(name: str, tmp_path: 
     monkeypatch.setattr(logio, "parse_log", no_general)
     assert _read(lambda: read_log_on_disk(tmp_path / "log.csv")) == general
     assert _read(lambda: read_log(tmp_path / "log.csv")) == general
+
+
+def test_a_full_disk_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    from fogsf.trainer.errors import UserError
+
+    p = tmp_path / "log.csv"
+    p.write_text(text(rows(300)))
+    spill = columns.Spill(str(tmp_path))
+    f = spill.file("x", np.float64)
+
+    class Full:
+        def seek(self, *_: object) -> None:
+            pass
+
+        def write(self, *_: object) -> None:
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(f, "_file", Full())
+    with pytest.raises(UserError, match=r"No space left on device; .*set TMPDIR"):
+        f.append(np.zeros(3))
+    monkeypatch.undo()
+    spill.close()
+    assert not spill.dir.exists()

@@ -201,8 +201,15 @@ class SpillFile:
     def append(self, block: np.ndarray) -> None:
         assert self._file is not None
         b = np.ascontiguousarray(block, dtype=self.dtype)
-        self._file.seek(self.n * self.dtype.itemsize)
-        self._file.write(memoryview(b).cast("B"))
+        try:
+            self._file.seek(self.n * self.dtype.itemsize)
+            self._file.write(memoryview(b).cast("B"))
+        except OSError as e:  # a full disk: one line, and what to do
+            from fogsf.trainer.errors import UserError
+
+            raise UserError(f"cannot write the log's columns to {self.path.parent}: "
+                            f"{e.strerror or e}; they need 8 bytes a sample a column on disk "
+                            "(set TMPDIR to a directory with room)") from None
         self.n += b.shape[0]
 
     def column(self) -> LazyColumn:
