@@ -19,18 +19,20 @@ from fogsf.trainer.sim.config import ProfileConfig
 
 @dataclass(frozen=True)
 class PartialCycle:
-    """A program: start at turns_c[0] and soak, then ramp to each turn at rate, soaking."""
+    """A program: start at turns_c[0] and soak, then ramp to each turn, soaking there; the
+    legs take the rates of `rates_c_per_min` in turn."""
 
     name: str
     turns_c: tuple[float, ...]
-    rate_c_per_min: float
+    rates_c_per_min: tuple[float, ...]
     soak_s: float
     first_soak_s: float = 1800.0
 
     def points(self) -> list[list[float]]:
         pts = [[0.0, self.turns_c[0]], [self.first_soak_s, self.turns_c[0]]]
-        for temp in self.turns_c[1:]:
-            t = pts[-1][0] + abs(temp - pts[-1][1]) / self.rate_c_per_min * 60.0
+        for i, temp in enumerate(self.turns_c[1:]):
+            rate = self.rates_c_per_min[i % len(self.rates_c_per_min)]
+            t = pts[-1][0] + abs(temp - pts[-1][1]) / rate * 60.0
             pts.append([t, temp])
             pts.append([t + self.soak_s, temp])
         return pts
@@ -43,10 +45,11 @@ class PartialCycle:
         return self.points()[-1][0] / 3600.0
 
 
-# training: 1.5 C/min, 15 min soaks at each turn (5.1 h)
+# training: legs at 2 and 0.75 C/min in turn (two rates pin the thermal lags), 15 min soaks
+# at each turn (6.3 h)
 PARTIAL_TRAIN = PartialCycle("partial_train", (-40.0, 15.0, -10.0, 50.0, 5.0, 30.0, -40.0),
-                             1.5, 900.0)
+                             (2.0, 0.75), 900.0)
 # testing: 1 C/min, 20 min soaks, other turns (5.8 h)
 PARTIAL_TEST = PartialCycle("partial_test", (-30.0, 25.0, -5.0, 45.0, 10.0, -40.0),
-                            1.0, 1200.0)
+                            (1.0,), 1200.0)
 PROGRAMS = {p.name: p for p in (PARTIAL_TRAIN, PARTIAL_TEST)}

@@ -22,7 +22,8 @@ soak
     +6 C in ~20 min, source still warming after an hour) and the noise floor.
 partial, partial-test
     Partial cycles (`partial_cycles.py`): reversals inside -40..50 C with a soak at every
-    turn, warm start, 10 deg/s; `partial` (5.1 h at 1.5 C/min) to train on, `partial-test`
+    turn, warm start, 10 deg/s; `partial` (6.3 h, legs at 2 and 0.75 C/min in turn) to
+    train on, `partial-test`
     (5.8 h at 1 C/min, other turns) to test on: what SF hysteresis (`--effect hysteresis`)
     needs to be seen.
 """
@@ -78,7 +79,7 @@ def soak(ramp_rate_c_per_min: float = 1.0, seed: int = 0) -> SimConfig:
 def _partial(program: PartialCycle, ramp_rate_c_per_min: float | None, seed: int
              ) -> SimConfig:
     if ramp_rate_c_per_min is not None:
-        program = replace(program, rate_c_per_min=ramp_rate_c_per_min)
+        program = replace(program, rates_c_per_min=(ramp_rate_c_per_min,))
     cfg = SimConfig(scenario=program.name.replace("_", "-"), seed=seed)
     cfg.profile = program.profile()
     cfg.table = TableConfig(kind="constant", rate_dps=10.0)
