@@ -231,7 +231,7 @@ def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpe
                     targets: list[np.ndarray] | None = None,
                     physical: bool = False) -> TrainingInputs:
     """physical: features in one physical unit (`physical_normaliser`), not standardised."""
-    fe = front_end_for(logs, opts.model_step_s, spec.taus_s)
+    fe = front_end_for(logs, opts.model_step_s, spec.taus_s, plays=spec.plays)
     ts = targets if targets is not None else [None] * len(logs)
     data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t, opts.window_s, opts.settle_s)
             for lg, t in zip(logs, ts, strict=True)]
