@@ -16,9 +16,10 @@ from fogsf.trainer.errors import UserError
 from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st
 
-# (K filters, F features, D decimation, seed, plays ((source, width_c), ...), poly)
-PLAY_SIZES = [(3, 4, 10, 20, ((0, 6.0),), True), (2, 5, 7, 21, ((2, 3.5), (0, 9.25)), False),
-              (1, 2, 1, 22, ((1, 0.0),), True), (0, 2, 50, 23, ((0, 12.0),), False)]
+# (K filters, F features, D decimation, seed, plays ((source weights, width_c), ...), poly)
+PLAY_SIZES = [(3, 4, 10, 20, (((1.0, 0.0, 0.0, 0.0), 6.0),), True),
+              (2, 5, 7, 21, (((0.0, 0.0, 1.0), 3.5), ((0.3, 0.45, 0.25), 9.25)), False),
+              (1, 2, 1, 22, (((0.0, 1.0), 0.0),), True), (0, 2, 50, 23, (((1.0,), 12.0),), False)]
 
 
 @pytest.fixture(scope="session")
@@ -67,21 +68,22 @@ def test_plays_enter_config_and_id_only_when_present(tmp_path) -> None:
     played = model_of(PLAY_SIZES[1])
     assert st.PLAY_WIDTH_KEY not in plain.config()
     assert played.config()[st.PLAY_WIDTH_KEY] == [3.5, 9.25]
-    assert played.config()[st.PLAY_SOURCE_KEY] == [2, 0]
+    assert played.config()[st.PLAY_SOURCE_KEY] == [[0.0, 0.0, 1.0], [0.3, 0.45, 0.25]]
     played.save(tmp_path / "m")
     back = st.StreamModel.load(tmp_path / "m")
-    assert back.model_id == played.model_id and back.play_source == [2, 0]
+    assert back.model_id == played.model_id and back.play_source_w == played.play_source_w
     files = render_model(played, "imu_p")
     assert "#define IMU_P_N_PLAYS 2" in files["imu_p.h"]
-    assert "play_half_c, play_source" in files["imu_p.c"]
+    assert "play_half_c, play_source_w" in files["imu_p.c"]
     plain_files = render_model(plain, "imu_q")
     assert "PLAYS" not in plain_files["imu_q.h"] and "play" not in plain_files["imu_q.c"]
     assert state_bytes(played) == state_bytes([plain, played])
 
 
-@pytest.mark.parametrize("bad", [{"play_width_c": [-1.0], "play_source": [0]},
-                                 {"play_width_c": [2.0], "play_source": [3]},
-                                 {"play_width_c": [2.0, 3.0], "play_source": [0]}])
+@pytest.mark.parametrize("bad", [{"play_width_c": [-1.0], "play_source_w": [[1, 0, 0]]},
+                                 {"play_width_c": [2.0], "play_source_w": [[1, 0]]},
+                                 {"play_width_c": [2.0], "play_source_w": [[1, "x", 0]]},
+                                 {"play_width_c": [2.0, 3.0], "play_source_w": [[1, 0, 0]]}])
 def test_bad_plays_are_refused(tmp_path, bad) -> None:
     model = samples.random_model(2, 3, 1, 8, 10, seed=5)
     model.save(tmp_path / "m")
@@ -94,7 +96,7 @@ def test_bad_plays_are_refused(tmp_path, bad) -> None:
 
 def test_plays_with_a_bias_head_bit_for_bit(kroot) -> None:
     model = samples.random_model(2, 3, 1, 8, 10, seed=24, poly_head=True, bias_head=True,
-                                 plays=((1, 5.0),))
+                                 plays=(((0.5, 0.5, 0.0), 5.0),))
     kernel = kernel_for(model, kroot)
     temp, gyro = golden_inputs(model, n=3000, seed=24)
     temp = temp + 15.0 * np.abs(((np.arange(temp.size) / 400.0) % 2.0) - 1.0)

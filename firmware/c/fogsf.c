@@ -72,14 +72,19 @@ uint32_t fogsf_model_check(const fogsf_model *m)
     p = plays_of(m);
     if (p != NULL) {
         if (p->n_plays < 1u || p->n_plays > FOGSF_MAX_PLAYS || p->play_half_c == NULL ||
-            p->play_source == NULL || (p->base.bias_w == NULL) != (p->base.bias_quad_w == NULL) ||
+            p->play_source_w == NULL || (p->base.bias_w == NULL) != (p->base.bias_quad_w == NULL) ||
             (p->base.bias_w == NULL) != (p->base.bias_cube_w == NULL)) {
             return FOGSF_FLAG_MODEL_INVALID;
         }
         for (j = 0; j < p->n_plays; ++j) {
-            if (p->play_source[j] > m->n_filters || !(p->play_half_c[j] >= 0.0f) ||
-                !float_finite(p->play_half_c[j])) {
+            uint32_t i;
+            if (!(p->play_half_c[j] >= 0.0f) || !float_finite(p->play_half_c[j])) {
                 return FOGSF_FLAG_MODEL_INVALID;
+            }
+            for (i = 0; i <= m->n_filters; ++i) {
+                if (!float_finite(p->play_source_w[j * (m->n_filters + 1u) + i])) {
+                    return FOGSF_FLAG_MODEL_INVALID;
+                }
             }
         }
     }
@@ -180,8 +185,14 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
         s[1 + k] = st->y[k] - m->t_ref_c;
     }
     for (k = 0; k < np; ++k) { /* the play operators, after the filters */
-        const float xin = pm->play_source[k] == 0u ? tm : st->y[pm->play_source[k] - 1u];
-        const float lo = xin - pm->play_half_c[k], hi = xin + pm->play_half_c[k];
+        const float *v = pm->play_source_w + k * (nk + 1u);
+        float xin = 0.0f, lo, hi;
+        xin = xin + v[0] * tm;
+        for (j = 0; j < nk; ++j) {
+            xin = xin + v[1u + j] * st->y[j];
+        }
+        lo = xin - pm->play_half_c[k];
+        hi = xin + pm->play_half_c[k];
         st->p[k] = st->p[k] < lo ? lo : (st->p[k] > hi ? hi : st->p[k]);
         s[1 + nk + k] = st->p[k] - m->t_ref_c;
     }

@@ -109,15 +109,16 @@ typedef struct fogsf_bias_model {
 /* A model with play (backlash) operators in its front end (format 5): a fogsf_bias_model
  * as its first member, whose sf.format_version is 5 (its bias arrays all NULL without a
  * bias head, all set with one), then P plays run after the lag filters at every model step:
+ * x_j = 0 + v_j0 Tm + v_j1 y_1 + ... + v_jK y_K (float32, index order), then
  * p_j = min(max(p_j, x_j - h_j), x_j + h_j) (x - h and x + h in float32, then the two
- * compares), x_j the block mean Tm (source 0) or lag filter k's y_k (source k), p_j primed
- * with the first sample's temperature; s gains p_j - t_ref after the filters, so feat_w is
- * [F][1+K+P]. The kernel takes &model.base.sf (NAME.h defines NAME as that member). */
+ * compares), p_j primed with the first sample's temperature; s gains p_j - t_ref after the
+ * filters, so feat_w is [F][1+K+P]. The kernel takes &model.base.sf (NAME.h defines NAME as
+ * that member). */
 typedef struct fogsf_play_model {
     fogsf_bias_model base;        /* base.sf.format_version = 5 */
     uint32_t n_plays;             /* P >= 1 */
     const float *play_half_c;     /* [P] half widths h_j (C), finite, >= 0 */
-    const uint32_t *play_source;  /* [P] 0: the block mean Tm, k in 1..K: lag filter k */
+    const float *play_source_w;   /* [P][1+K] source weights v over [Tm, y_1..y_K], finite */
 } fogsf_play_model;
 
 #define FOGSF_FORMAT_PLAYS 5u /* format_version of the sf member of a fogsf_play_model */

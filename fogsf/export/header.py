@@ -12,7 +12,7 @@ from pathlib import Path
 import jinja2
 import numpy as np
 
-from fogsf.trainer.models.stream import FORMAT, StreamModel, play_half_c
+from fogsf.trainer.models.stream import FORMAT, StreamModel, play_half_c, play_source_w
 
 # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
 # also holds lstm_inputs and quad_diag; 4: a model with a bias head, the sf member of a
@@ -79,7 +79,8 @@ def _context(model: StreamModel, name: str) -> dict:
         "n_plays": model.n_plays,
         "play_width_c": ", ".join(f"{w:g}" for w in model.play_width_c),
         "play_half_c": c_array(play_half_c(model.play_width_c)) if model.n_plays else "",
-        "play_source": ", ".join(f"{int(k)}u" for k in model.play_source),
+        "play_source_w": (c_array(play_source_w(model.play_source_w, model.n_filters))
+                          if model.n_plays else ""),
         "lstm": [{"n_in": model.n_lstm_inputs if layer == 0 else model.hidden,
                   "w": c_array(w[f"lstm{layer}_w"]), "r": c_array(w[f"lstm{layer}_r"]),
                   "b": c_array(w[f"lstm{layer}_b"])} for layer in names],

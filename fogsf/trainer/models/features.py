@@ -36,13 +36,13 @@ SEC_PER_MIN = 60.0
 @dataclass(frozen=True)
 class FeatureSpec:
     """Features as rows of A over s: z_raw = A s, with A [F, 1+K+P] for filters `taus_s`
-    and play operators `plays` ((source, width_c): source 0 the block mean T, k the k-th
-    filter; `models.stream.FrontEnd`)."""
+    and play operators `plays` ((source weights over [T, lag_1..lag_K], width_c) each;
+    `models.stream.FrontEnd`)."""
 
     taus_s: tuple[float, ...]
     rows: tuple[tuple[float, ...], ...]
     names: tuple[str, ...]
-    plays: tuple[tuple[int, float], ...] = ()
+    plays: tuple[tuple[tuple[float, ...], float], ...] = ()
 
     @property
     def n_features(self) -> int:
@@ -54,8 +54,7 @@ class FeatureSpec:
 
     def describe(self) -> str:
         taus = ", ".join(f"{t:g}" for t in self.taus_s)
-        plays = ", ".join(f"play({'T' if k == 0 else f'lag{k}'}, {w:g} C)"
-                          for k, w in self.plays)
+        plays = ", ".join(f"play(x{j + 1}, {w:g} C)" for j, (_, w) in enumerate(self.plays))
         parts = [f"filters tau = {taus} s"] if taus else []
         parts += [f"plays {plays}"] if plays else []
         return f"[{', '.join(self.names)}]" + (f" ({'; '.join(parts)})" if parts else "")
@@ -123,10 +122,10 @@ def common_sample_dt(logs: list[ChamberLog]) -> float:
 
 def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ...],
                   sample_dt_s: float | None = None,
-                  plays: tuple[tuple[int, float], ...] = ()) -> FrontEnd:
+                  plays: tuple[tuple[tuple[float, ...], float], ...] = ()) -> FrontEnd:
     """The front end's constants for models trained on `logs`, one model step per `step_s`
     seconds at the logs' one sample rate (or at `sample_dt_s`), with play operators
-    `plays` ((source, width_c), `FeatureSpec.plays`)."""
+    `plays` ((source weights, width_c), `FeatureSpec.plays`)."""
     lo = min(float(lg.temp_c.min()) for lg in logs) - RANGE_MARGIN_C
     hi = max(float(lg.temp_c.max()) for lg in logs) + RANGE_MARGIN_C
     dt = common_sample_dt(logs) if sample_dt_s is None else sample_dt_s
@@ -137,7 +136,7 @@ def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ..
                     filter_alpha=filter_alpha(list(taus_s), d, dt), sample_dt_s=dt,
                     filter_tau_s=tuple(float(t) for t in taus_s),
                     play_width_c=tuple(float(w) for _, w in plays),
-                    play_source=tuple(int(k) for k, _ in plays))
+                    play_source_w=tuple(tuple(float(v) for v in src) for src, _ in plays))
 
 
 def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = None,

@@ -30,6 +30,7 @@ from fogsf.trainer.models.stream import (
     SF_LIMIT_PPM,
     FrontEnd,
     StreamModel,
+    play_source_w,
 )
 
 # --- the front end -------------------------------------------------------------------------
@@ -98,15 +99,21 @@ def lag_filters(tm: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return y_out
 
 
-def plays(tm: np.ndarray, y: np.ndarray, half_c: np.ndarray, source: tuple[int, ...]
+def plays(tm: np.ndarray, y: np.ndarray, half_c: np.ndarray, source_w: np.ndarray
           ) -> np.ndarray:
     """p_j per model step [n_steps, P]: p = Tm[0] primed, then per step, after the lag
-    filters, x = Tm (source 0) or y_k (source k), lo = x - h, hi = x + h (float32),
-    p = lo if p < lo, else hi if p > hi, else p (the play or backlash operator)."""
+    filters, x = 0 + v_0 Tm + v_1 y_1 + ... + v_K y_K (float32, index order), lo = x - h,
+    hi = x + h, p = lo if p < lo, else hi if p > hi, else p (the play or backlash
+    operator)."""
     n_steps = tm.shape[0]
-    out = np.empty((n_steps, len(source)), dtype=np.float32)
-    for j, k in enumerate(source):
-        x_col = tm if k == 0 else y[:, k - 1]
+    src = np.asarray(source_w, dtype=np.float32)
+    v = np.column_stack([tm, y]).astype(np.float32) if n_steps else np.zeros((0, 1 + y.shape[1]),
+                                                                             np.float32)
+    out = np.empty((n_steps, src.shape[0]), dtype=np.float32)
+    for j in range(src.shape[0]):
+        x_col = np.zeros(n_steps, dtype=np.float32)
+        for i in range(src.shape[1]):
+            x_col = x_col + src[j, i] * v[:, i]  # float32 per op, index order, as C
         h = F32(half_c[j])
         p = F32(tm[0]) if n_steps else F32(0)
         col = np.empty(n_steps, dtype=np.float32)
@@ -130,7 +137,8 @@ def frontend(temp_c: np.ndarray, fe: FrontEnd) -> FrontEndOut:
     s[:, 0] = tm - t_ref
     s[:, 1:1 + k] = y - t_ref
     if fe.n_plays:
-        s[:, 1 + k:] = plays(tm, y, fe.play_half_c(), fe.play_source) - t_ref
+        s[:, 1 + k:] = plays(tm, y, fe.play_half_c(),
+                             play_source_w(fe.play_source_w, k)) - t_ref
     step_index = np.arange(tm.shape[0], dtype=np.int64) * fe.decimation
     return FrontEndOut(step_index, s, flags)
 

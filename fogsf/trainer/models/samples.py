@@ -17,7 +17,7 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                  out_offset: float = 40.0, poly_head: bool = False,
                  lstm_inputs: int | None = None, quad_diag: bool = False,
                  bias_head: bool = False, bias_dph: float = 2.0,
-                 plays: tuple[tuple[int, float], ...] = ()) -> StreamModel:
+                 plays: tuple[tuple[tuple[float, ...], float], ...] = ()) -> StreamModel:
     """A seeded random model in the artifact format.
 
     Scaled so nothing saturates on chamber temperatures: z is O(1) over -45..55 C, every gate's
@@ -30,8 +30,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     is the diagonal [F] only (drawn from the head's generator, at the scale of a row).
     With `bias_head`, the bias head's arrays come from a third generator (the others stay
     put): bias_b about `bias_dph` and each term O(bias_dph / 3) in deg/h. `plays`
-    ((source, width_c) each): play operators in the front end; feat_w is then [F, 1+K+P]
-    (so the draws after it differ).
+    ((source weights over [Tm, y_1..y_K], width_c) each): play operators in the front end;
+    feat_w is then [F, 1+K+P] (so the draws after it differ).
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
@@ -78,7 +78,7 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                         weights=weights, extra={"random_seed": seed}, poly_head=poly_head,
                         lstm_inputs=lstm_inputs, quad_diag=quad_diag, bias_head=bias_head,
                         play_width_c=[float(w) for _, w in plays],
-                        play_source=[int(k) for k, _ in plays])
+                        play_source_w=[[float(v) for v in src] for src, _ in plays])
     model.validate()
     return model
 

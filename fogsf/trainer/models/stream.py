@@ -51,6 +51,11 @@ def play_half_c(widths_c: tuple[float, ...] | list[float]) -> np.ndarray:
     return (np.asarray(widths_c, dtype=np.float64).reshape(-1) * 0.5).astype(np.float32)
 
 
+def play_source_w(weights: tuple | list, n_filters: int) -> np.ndarray:
+    """The plays' source weights as float32 [P, 1+K] (what the header prints)."""
+    return np.asarray(weights, dtype=np.float64).reshape(-1, 1 + n_filters).astype(np.float32)
+
+
 def filter_alpha(filter_tau_s: list[float], decimation: int, sample_dt_s: float = 0.1
                  ) -> np.ndarray:
     """alpha_k = 1 - exp(-D*dt/tau_k), computed in float64, stored as float32."""
@@ -86,10 +91,11 @@ class FrontEnd:
     filter_alpha: np.ndarray  # [K] float32
     sample_dt_s: float = 0.1
     filter_tau_s: tuple[float, ...] = ()  # () : unknown (the alphas are then rescaled)
-    # play (backlash) operators after the lag filters: width (C) and source (0: Tm, k: the
-    # k-th lag filter); rate-independent, so the same at any sample rate
+    # play (backlash) operators after the lag filters: width (C) and source weights over
+    # [Tm, y_1..y_K] (the play's input x = w . [Tm, y]); rate-independent, so the same at any
+    # sample rate
     play_width_c: tuple[float, ...] = ()
-    play_source: tuple[int, ...] = ()
+    play_source_w: tuple[tuple[float, ...], ...] = ()
 
     @property
     def n_plays(self) -> int:
@@ -145,10 +151,11 @@ QUAD_DIAG_KEY = "quad_diag"
 BIAS_KEY = "bias_head"
 BIAS_ARRAYS = ("bias_b", "bias_w", "bias_quad_w", "bias_cube_w")
 # optional stream.json keys (absent = no plays): play (backlash) operators in the front end,
-# p_j = min(max(p_j, x_j - w_j/2), x_j + w_j/2), x_j = Tm (source 0) or lag filter k's y
-# (source k); s gains p_j - t_ref after the filters, so feat_w is [F, 1+K+P]
+# p_j = min(max(p_j, x_j - w_j/2), x_j + w_j/2), x_j = v_j . [Tm, y_1, ..., y_K] (the
+# source weights v_j, float32, summed in index order); s gains p_j - t_ref after the
+# filters, so feat_w is [F, 1+K+P]
 PLAY_WIDTH_KEY = "play_width_c"
-PLAY_SOURCE_KEY = "play_source"
+PLAY_SOURCE_KEY = "play_source_w"
 MAX_PLAY_WIDTH_C = 200.0
 
 
@@ -174,14 +181,14 @@ class StreamModel:
     quad_diag: bool = False  # with poly_head: quad_w [F] is the diagonal of the quadratic
     bias_head: bool = False  # the bias (deg/h) from z too: bias_b, bias_w, bias_quad_w, ...
     play_width_c: list[float] = field(default_factory=list)  # P plays' widths (C)
-    play_source: list[int] = field(default_factory=list)  # their sources (0: Tm, k: y_k)
+    play_source_w: list[list[float]] = field(default_factory=list)  # [P][1+K] sources
 
     def __post_init__(self) -> None:
         extra = dict(self.extra)
         if PLAY_WIDTH_KEY in extra:
             self.play_width_c = self.play_width_c or extra.pop(PLAY_WIDTH_KEY)
         if PLAY_SOURCE_KEY in extra:
-            self.play_source = self.play_source or extra.pop(PLAY_SOURCE_KEY)
+            self.play_source_w = self.play_source_w or extra.pop(PLAY_SOURCE_KEY)
         if BIAS_KEY in extra:
             self.bias_head = self.bias_head or extra.pop(BIAS_KEY)
         if POLY_KEY in extra:  # given as a stream.json key: it is the field
@@ -259,7 +266,8 @@ class StreamModel:
                         sample_dt_s=self.sample_dt_s,
                         filter_tau_s=tuple(float(t) for t in self.filter_tau_s),
                         play_width_c=tuple(float(w) for w in self.play_width_c),
-                        play_source=tuple(int(k) for k in self.play_source))
+                        play_source_w=tuple(tuple(float(v) for v in r)
+                                            for r in self.play_source_w))
 
     @property
     def step_s(self) -> float:
@@ -303,7 +311,7 @@ class StreamModel:
             cfg[BIAS_KEY] = True
         if self.n_plays:
             cfg[PLAY_WIDTH_KEY] = [float(w) for w in self.play_width_c]
-            cfg[PLAY_SOURCE_KEY] = [int(k) for k in self.play_source]
+            cfg[PLAY_SOURCE_KEY] = [[float(v) for v in r] for r in self.play_source_w]
         return cfg
 
     @property
@@ -409,7 +417,7 @@ class StreamModel:
                       f"{want.tolist()} for filter_tau_s={self.filter_tau_s}, D={self.decimation}")
 
     def _validate_plays(self, bad: Callable[[str], UserError]) -> None:
-        widths, sources = self.play_width_c, self.play_source
+        widths, sources = self.play_width_c, self.play_source_w
         if not isinstance(widths, list) or not isinstance(sources, list) \
                 or len(widths) != len(sources):
             raise bad(f"'{PLAY_WIDTH_KEY}' and '{PLAY_SOURCE_KEY}' must be lists of one "
@@ -419,11 +427,13 @@ class StreamModel:
                     and math.isfinite(w) and 0 <= w <= MAX_PLAY_WIDTH_C):
                 raise bad(f"'{PLAY_WIDTH_KEY}' must hold widths in [0, {MAX_PLAY_WIDTH_C:g}] "
                           f"C, got {w!r}")
-        for k in sources:
-            if not (isinstance(k, int) and not isinstance(k, bool)
-                    and 0 <= k <= self.n_filters):
-                raise bad(f"'{PLAY_SOURCE_KEY}' must hold 0 (the block mean) or a lag filter "
-                          f"1..K = {self.n_filters}, got {k!r}")
+        for r in sources:
+            if not (isinstance(r, list) and len(r) == 1 + self.n_filters
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                            and math.isfinite(v) and abs(v) <= 1e3 for v in r)):
+                raise bad(f"'{PLAY_SOURCE_KEY}' must hold one row of 1+K = "
+                          f"{1 + self.n_filters} finite weights (|w| <= 1000) per play over "
+                          f"[Tm, y_1..y_K], got {r!r}")
 
     # -- I/O
     def save(self, directory: str | Path) -> Path:
