@@ -22,9 +22,9 @@ from fogsf.trainer.models.hysteresis import (
     HYST_GAIN,
     HystTerm,
     choose_term,
-    column,
     ridge_fit_free,
     sources,
+    term_column,
 )
 from fogsf.trainer.models.lag_bank import BANK_LAMBDA, BankFit, bank_design, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S
@@ -105,14 +105,34 @@ def fit_with_term(name: str, sd: StepData, rows: np.ndarray,
         term, fit = choose_term(lambda h: st.design(sd.nodes, h), y, rows, src_x, st.lam,
                                 st.free)
     else:
-        x = st.design(sd.nodes, column(src_x[term.source_tau_s], term.width_c))
+        x = st.design(sd.nodes, term_column(src_x, term))
         fit = ridge_fit_free(x[rows], y[rows], st.lam, [st.free])
+    chosen = term
 
     def predict(nt: NodeTemperatures) -> np.ndarray:
-        xs = source_temperatures(nt, st.taus_s)[term.source_tau_s]
-        return fit.predict(st.design(nt, column(xs, term.width_c))) * st.scale
+        xs = source_temperatures(nt, st.taus_s)
+        return fit.predict(st.design(nt, term_column(xs, chosen))) * st.scale
 
     return predict, term, fit
+
+
+def final_term(name: str, sd: StepData, taus_s: tuple[float, ...]) -> HystTerm:
+    """The term (source mix over T and the structure's lags `taus_s`, width) of structure
+    `name` fitted on every step of `sd`."""
+    rows = np.arange(sd.y.size)
+    if name == "bank":
+        st = structure("bank", sd, rows)
+    else:
+        n_nodes = len(taus_s)
+
+        def nodes(nt: NodeTemperatures, h: np.ndarray) -> np.ndarray:
+            return node_design(np.column_stack([nt.z(taus_s), h]), taus_s)
+
+        st = Structure(tuple(taus_s), NODE_LAMBDA, 1 + n_nodes, 1.0, nodes)
+    src_x = source_temperatures(sd.nodes, st.taus_s)
+    term, _ = choose_term(lambda h: st.design(sd.nodes, h), sd.y / st.scale, rows, src_x,
+                          st.lam, st.free)
+    return term
 
 
 def decide(logs: list[ChamberLog], base: str, step_s: float,
@@ -139,7 +159,7 @@ def decide(logs: list[ChamberLog], base: str, step_s: float,
 
 def choice_line(d: dict) -> str:
     """What `fogsf train` prints about the hysteresis term."""
-    term = f" {d['term']}" if d.get("term") else ""
+    term = f" {d['term']['form']}" if d.get("term") else ""
     if d["mode"] != "auto":
         return f"hysteresis term{term}: {'on' if d['used'] else 'off'} (--hysteresis {d['mode']})"
     return (f"hysteresis term{term}: {'used' if d['used'] else 'not used'} "
