@@ -39,7 +39,7 @@ MIX_FRACTIONS = (0.25, 0.5, 0.75)
 MIX_BATCH = 16  # mixes whose plays run at once (memory: steps x 16 x widths columns)
 # the term is kept when it lowers the held-out RMS by more than this fraction (development
 # gyros, docs/decisions.md)
-HYST_GAIN = 0.05
+HYST_GAIN = 0.10
 
 
 @dataclass(frozen=True)

@@ -222,7 +222,8 @@ def gyro_for_seed(seed: int, hysteresis: bool = True) -> SimConfig:
 
 def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:
     """`run`'s chamber program, table, seed and effects on `gyro`'s physics (a new config):
-    its thermal network, SF law and SF hysteresis (GYRO_EFFECTS), bias and noise."""
+    its thermal network, SF law, bias, noise and SF hysteresis (GYRO_EFFECTS, unless the
+    run plants its own)."""
     import copy
 
     out = copy.deepcopy(run)
@@ -230,8 +231,9 @@ def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:
     out.thermal.start = run.thermal.start
     out.sf, out.bias, out.noise = (copy.deepcopy(gyro.sf), copy.deepcopy(gyro.bias),
                                    copy.deepcopy(gyro.noise))
-    out.effects = [e for e in out.effects if e.name not in GYRO_EFFECTS] + [
-        copy.deepcopy(e) for e in gyro.effects if e.name in GYRO_EFFECTS]
+    named = {e.name for e in out.effects}  # a run's own (planted) hysteresis stays
+    out.effects += [copy.deepcopy(e) for e in gyro.effects
+                    if e.name in GYRO_EFFECTS and e.name not in named]
     return out
 
 

@@ -1,13 +1,17 @@
 """Whether the default's structure gets a hysteresis term, chosen by the training logs.
 
-The term (`models.hysteresis`: the play of T or of one of the structure's lags, its
+The term (`models.hysteresis`: the play of T or of a mix of the structure's lags, its
 coefficient free) is tried only when the training logs turn back in temperature (a play
 needs a reversal to show: on a monotonic ramp it is an offset). Then the structure is
-scored with and without it by leave-one-segment-out on the training logs
-(`training.structure_choice.heldout_score`; the term's source and width chosen on the
-fitted segments only), and the term is kept when it lowers the held-out RMS by more than
-HYST_GAIN. Gyros without hysteresis keep their structure unless their own logs say
-otherwise.
+scored with and without it on held-out blocks of the training logs: HOLDOUT_BLOCK_S blocks
+dealt in turn to HOLDOUT_FOLDS folds, each fold predicted by the structure fitted on the
+others (`training.structure_choice.heldout_score`; the term's source and width chosen on
+the fitted blocks only), and the term is kept when it lowers the held-out RMS by more than
+HYST_GAIN. Interleaved blocks test what the term adds where the rest of the log holds the
+same temperatures; holding out whole ramp segments (the structure choice's folds) tests
+extrapolation instead, whose errors drowned the term's gain on development gyros
+(docs/decisions.md). Gyros without hysteresis keep their structure unless their own logs
+say otherwise.
 """
 
 from __future__ import annotations
@@ -46,6 +50,8 @@ from fogsf.trainer.training.structure_choice import (
 )
 
 REVERSAL_C = 2.0  # a turn back by more than this (C, block means) makes the check run
+HOLDOUT_BLOCK_S = 1800.0  # held-out blocks (development gyros, docs/decisions.md)
+HOLDOUT_FOLDS = 3
 MODES = ("auto", "on", "off")
 
 
@@ -147,10 +153,12 @@ def decide(logs: list[ChamberLog], base: str, step_s: float,
     if not has_reversal(sd.t_rel):
         out["reason"] = "no reversal in the training logs"
         return out
+    block = max(1, int(round(HOLDOUT_BLOCK_S / sd.fe.step_s)))
+    sd.fold = (np.arange(sd.y.size) // block) % HOLDOUT_FOLDS
     without = heldout_score(base, sd)
     with_term = heldout_score(base, sd, fit=lambda s, r: fit_with_term(base, s, r)[0])
     out["heldout_rms_ppm"] = {"without": without, "with": with_term}
-    out["segments"] = sd.n_folds
+    out["folds"] = f"{HOLDOUT_FOLDS} folds of {HOLDOUT_BLOCK_S / 60:g} min blocks"
     out["used"] = bool(with_term < (1.0 - HYST_GAIN) * without)
     out["reason"] = (f"held-out RMS {with_term:.2f} ppm with the term, {without:.2f} without: "
                      + ("kept" if out["used"] else f"not {100 * HYST_GAIN:.0f} % better"))
