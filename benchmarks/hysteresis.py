@@ -13,10 +13,12 @@ the test RMS after compensation over the noise floor. Three groups of gyros:
   flat       the first N gyros from --first that draw none (the term must not hurt them)
 
 Models: `default` (what `fogsf train` fits: lag-lstm, the structure chosen by the logs, the
-hysteresis term when the logs' held-out segments say so) and `no-term` (the same with
-`--hysteresis off`: the default before the term existed). With --kernel, the first hyst
-gyro's default model is also replayed through the C kernel (its SF output must equal the
-numpy reference bit for bit, and the ratio is reported from the kernel's output).
+hysteresis term when the logs' held-out blocks say so), `no-term` (the same with
+`--hysteresis off`: the default before the term existed) and `term-on` (`--hysteresis on`:
+the term always, what it can capture when the check does not hold it back). With --kernel,
+the first hyst gyro's default model is also replayed through the C kernel (its SF output
+must equal the numpy reference bit for bit, and the ratio is reported from the kernel's
+output).
 
 Tune on development gyros (--seeds dev), report on evaluation gyros (--seeds eval):
 
@@ -36,7 +38,7 @@ import numpy as np
 
 from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
 
-MODELS = {"default": "auto", "no-term": "off"}
+MODELS = {"default": "auto", "no-term": "off", "term-on": "on"}
 GROUPS = ("hyst", "same-flat", "flat")
 TRAIN_OFFSET, TEST_OFFSET = 8, 9  # run seeds gyro_seed * 16 + offset (population's: 1-7)
 

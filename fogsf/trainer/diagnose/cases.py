@@ -20,10 +20,11 @@ The lag / dT/dt cases of kind `effect` use 4.5 h logs with 70-80 min soaks (up a
 extra_lag time constants 5000-9000 s. The hysteresis cases (`hysteresis`: a play of the coil
 temperature) are planted at the population's physics, not at a multiple of the floor:
 width over HYST_WIDTH_C (4-10 C), strength over HYST_PPM_PER_C (3-8 ppm/C), on partial
-cycles (`_partial`: up 25-40 C, back 10-20 C, up 10-20 C, back to the start, 1-2 C/min,
-15-25 min soaks at each turn, about 3 h: a play shows only where the temperature turns
-back). One whose visible part stays under 3x the floor may go unnamed (never misnamed);
-a named one is held to its loop's height (strength x width) within 30 %.
+cycles (`_partial`: up 25-40 C, back 10-20 C, up 10-20 C, back 15-25 C, up 10-20 C, back
+to the start, 1-2 C/min, 15-25 min soaks at each turn, 3.5-5 h: a play shows only where
+the temperature turns back). One whose visible part stays under 3x the floor may go
+unnamed (never misnamed); a named one is held to its loop's height (strength x width)
+within 50 %.
 
 Strength is set as a multiple (drawn in [3, 20]) of the noise floor of the part of the
 effect the base model cannot absorb: the RMS over windows of the base model's residual on
@@ -93,7 +94,7 @@ PARAM_CHECK: dict[str, tuple[str, str, float]] = {
     "aging": ("strength_ppm_per_h", "strength", 0.3),
     # the loop's height (strength x width): the play of one lagged node stands for the
     # coil's layers, which trades the width against the strength
-    "hysteresis": ("height_ppm", "height_ppm", 0.3),
+    "hysteresis": ("height_ppm", "height_ppm", 0.5),
 }
 
 
@@ -147,15 +148,15 @@ def _long_soaks(rng: np.random.Generator) -> ProfileConfig:
 
 
 def _partial(rng: np.random.Generator) -> ProfileConfig:
-    """Partial cycles: up 25-40 C, back 10-20 C, up 10-20 C, back to the start (either
-    direction first), 1-2 C/min, 15-25 min soaks at each turn."""
+    """Partial cycles: up 25-40 C, back 10-20 C, up 10-20 C, back 15-25 C, up 10-20 C, back
+    to the start (either direction first), 1-2 C/min, 15-25 min soaks at each turn."""
     t0 = float(rng.uniform(-20.0, 10.0))
     sign = float(rng.choice([-1.0, 1.0]))
-    a, b, c = (float(rng.uniform(25.0, 40.0)), float(rng.uniform(10.0, 20.0)),
-               float(rng.uniform(10.0, 20.0)))
+    steps = [float(rng.uniform(*r)) for r in ((25.0, 40.0), (-20.0, -10.0), (10.0, 20.0),
+                                                (-25.0, -15.0), (10.0, 20.0))]
     rate = float(rng.uniform(1.0, 2.0))
     soak = float(rng.uniform(900.0, 1500.0))
-    levels = [t0, t0 + sign * a, t0 + sign * (a - b), t0 + sign * (a - b + c), t0]
+    levels = [t0] + [t0 + sign * float(np.sum(steps[:i + 1])) for i in range(len(steps))] + [t0]
     pts = [[0.0, t0], [soak, t0]]
     for lv in levels[1:]:
         t = pts[-1][0] + abs(lv - pts[-1][1]) / rate * 60.0

@@ -220,7 +220,9 @@ NODE_LIKE = ("temp_rate", "extra_lag")
 # also checked against a third base node: a drift over a log is what a slow node the base
 # lacks looks like (population gyros with 3-6 internal nodes), unless the log returns to
 # a temperature it held before, where a node comes back and a drift does not
-THIRD_NODE_CHECK = (*NODE_LIKE, "aging")
+# a play of a lagged node too: on an up-and-back log its direction-dependent offset is
+# what a node the base lacks looks like, unless the log holds a soak inside a loop
+THIRD_NODE_CHECK = (*NODE_LIKE, "aging", "hysteresis")
 
 
 def _node(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:
