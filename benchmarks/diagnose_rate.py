@@ -45,7 +45,8 @@ def one(job: Job) -> dict[str, Any]:
         return {"kind": kind, "name": name, "seed": seed, "ok": False,
                 "reason": f"error: {e}", "cause": None, "causes": [], "unexplained": False,
                 "ambiguous": [], "case": case.describe(), "multiple": case.multiple,
-                "structure": {}, "seconds": time.time() - t0, "significant": []}
+                "structure": {}, "seconds": time.time() - t0, "significant": [],
+                "params": {}, "truth": dict(case.params), "p_values": {}}
     j = report.to_json(d, {}, None)
     o = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
                     j["ambiguous"], j["causes"])
@@ -104,7 +105,7 @@ def _strength_within(eff: list[dict[str, Any]], name: str, tol: float) -> int:
     housing coupling the bench judges temp_rate on: docs/diagnose.md)."""
     n = 0
     for r in eff:
-        p = r["params"].get(name, {})
+        p = r.get("params", {}).get(name, {})
         if r["name"] == name and r["cause"] == name and "strength" in r["truth"] and p:
             true, est = float(r["truth"]["strength"]), float(p["strength_ppm_per_c_per_min"])
             n += abs(est - true) <= tol * abs(true)

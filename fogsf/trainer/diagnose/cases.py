@@ -157,6 +157,8 @@ def _partial(rng: np.random.Generator) -> ProfileConfig:
     rate = float(rng.uniform(1.0, 2.0))
     soak = float(rng.uniform(900.0, 1500.0))
     levels = [t0] + [t0 + sign * float(np.sum(steps[:i + 1])) for i in range(len(steps))] + [t0]
+    if min(levels) < -50.0 or max(levels) > 60.0:  # the other direction stays in the chamber
+        levels = [2.0 * t0 - v for v in levels]
     pts = [[0.0, t0], [soak, t0]]
     for lv in levels[1:]:
         t = pts[-1][0] + abs(lv - pts[-1][1]) / rate * 60.0
