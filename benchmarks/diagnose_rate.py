@@ -45,7 +45,8 @@ def one(job: Job) -> dict[str, Any]:
         return {"kind": kind, "name": name, "seed": seed, "ok": False,
                 "reason": f"error: {e}", "cause": None, "causes": [], "unexplained": False,
                 "ambiguous": [], "case": case.describe(), "multiple": case.multiple,
-                "structure": {}, "seconds": time.time() - t0, "significant": []}
+                "structure": {}, "seconds": time.time() - t0, "significant": [],
+                "params": {}, "truth": dict(case.params), "p_values": {}}
     j = report.to_json(d, {}, None)
     o = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
                     j["ambiguous"], j["causes"])
@@ -66,7 +67,7 @@ def jobs(seeds: int, first_seed: int) -> list[Job]:
     out: list[Job] = []
     for i in range(seeds):
         s = first_seed + i
-        out += [("effect", e, "", s, False) for e in cases.EFFECTS]
+        out += [("effect", e, "", s, False) for e in cases.CATALOGUE_EFFECTS]
         out += [("null", "", "", 1000 + s, False), ("null", "", "", 2000 + s, False)]
         out += [("ooc", k, "", s, False) for k in cases.OOC_KINDS]
         out += [("ramp_only", k, "", s, False) for k in ("temp_rate", "extra_lag")]
@@ -75,12 +76,13 @@ def jobs(seeds: int, first_seed: int) -> list[Job]:
 
 
 def population_jobs(seeds: range) -> list[Job]:
-    """20 cases per population gyro: 10 form variants, the lag and dT/dt terms, one pair,
-    two nulls, three out-of-catalogue effects, one ramp-only and one short-soak run."""
+    """21 cases per population gyro: 10 form variants, the lag, dT/dt and hysteresis terms,
+    one pair, two nulls, three out-of-catalogue effects, one ramp-only and one short-soak
+    run."""
     out: list[Job] = []
     for s in seeds:
         out += [("effect", e, v, s, True) for e, vs in cases.VARIANTS.items() for v in vs]
-        out += [("effect", e, "", s, True) for e in ("extra_lag", "temp_rate")]
+        out += [("effect", e, "", s, True) for e in ("extra_lag", "temp_rate", "hysteresis")]
         a, b = cases.PAIRS[s % len(cases.PAIRS)]
         out.append(("two", a, b, s, True))
         out += [("null", "", "", s, True), ("null", "mixed", "", s, True)]
@@ -103,7 +105,7 @@ def _strength_within(eff: list[dict[str, Any]], name: str, tol: float) -> int:
     housing coupling the bench judges temp_rate on: docs/diagnose.md)."""
     n = 0
     for r in eff:
-        p = r["params"].get(name, {})
+        p = r.get("params", {}).get(name, {})
         if r["name"] == name and r["cause"] == name and "strength" in r["truth"] and p:
             true, est = float(r["truth"]["strength"]), float(p["strength_ppm_per_c_per_min"])
             n += abs(est - true) <= tol * abs(true)

@@ -29,16 +29,36 @@ static int double_finite(double v)
     return v - v == 0.0; /* Inf - Inf and NaN - NaN are NaN */
 }
 
-/* The bias head of m: its fogsf_bias_model when m is the sf member of one, else NULL. */
+/* The plays of m: its fogsf_play_model when m is the sf member of one's base, else NULL. */
+static const fogsf_play_model *plays_of(const fogsf_model *m)
+{
+    return m->format_version == FOGSF_FORMAT_PLAYS ? (const fogsf_play_model *)(const void *)m
+                                                   : NULL;
+}
+
+/* The bias head of m: its fogsf_bias_model when m is the sf member of one with a bias head
+ * (format 4, or format 5 with the bias arrays set), else NULL. */
 static const fogsf_bias_model *bias_of(const fogsf_model *m)
 {
-    return m->format_version == FOGSF_FORMAT_BIAS ? (const fogsf_bias_model *)(const void *)m
-                                                  : NULL;
+    const fogsf_bias_model *b;
+    if (m->format_version != FOGSF_FORMAT_BIAS && m->format_version != FOGSF_FORMAT_PLAYS) {
+        return NULL;
+    }
+    b = (const fogsf_bias_model *)(const void *)m;
+    return m->format_version == FOGSF_FORMAT_PLAYS && b->bias_w == NULL ? NULL : b;
+}
+
+static uint32_t n_plays_of(const fogsf_model *m)
+{
+    const fogsf_play_model *p = plays_of(m);
+    return p != NULL ? p->n_plays : 0u;
 }
 
 uint32_t fogsf_model_check(const fogsf_model *m)
 {
     const fogsf_bias_model *b;
+    const fogsf_play_model *p;
+    uint32_t j;
     if (m == NULL || m->n_filters > FOGSF_MAX_FILTERS || m->n_features > FOGSF_MAX_FEATURES ||
         m->n_features < 1u || m->layers > FOGSF_MAX_LAYERS || m->layers < 1u ||
         m->hidden > FOGSF_MAX_HIDDEN || m->hidden < 1u || m->decimation < 1u ||
@@ -48,6 +68,25 @@ uint32_t fogsf_model_check(const fogsf_model *m)
         m->lstm_inputs > m->n_features || m->quad_diag > 1u ||
         (m->quad_diag != 0u && m->quad_w == NULL)) {
         return FOGSF_FLAG_MODEL_INVALID;
+    }
+    p = plays_of(m);
+    if (p != NULL) {
+        if (p->n_plays < 1u || p->n_plays > FOGSF_MAX_PLAYS || p->play_half_c == NULL ||
+            p->play_source_w == NULL || (p->base.bias_w == NULL) != (p->base.bias_quad_w == NULL) ||
+            (p->base.bias_w == NULL) != (p->base.bias_cube_w == NULL)) {
+            return FOGSF_FLAG_MODEL_INVALID;
+        }
+        for (j = 0; j < p->n_plays; ++j) {
+            uint32_t i;
+            if (!(p->play_half_c[j] >= 0.0f) || !float_finite(p->play_half_c[j])) {
+                return FOGSF_FLAG_MODEL_INVALID;
+            }
+            for (i = 0; i <= m->n_filters; ++i) {
+                if (!float_finite(p->play_source_w[j * (m->n_filters + 1u) + i])) {
+                    return FOGSF_FLAG_MODEL_INVALID;
+                }
+            }
+        }
     }
     b = bias_of(m);
     if (b != NULL && (b->bias_w == NULL || b->bias_quad_w == NULL || b->bias_cube_w == NULL)) {
@@ -73,6 +112,9 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
     }
     for (j = 0; j < FOGSF_MAX_FILTERS; ++j) {
         st->y[j] = 0.0f;
+    }
+    for (j = 0; j < FOGSF_MAX_PLAYS; ++j) {
+        st->p[j] = 0.0f;
     }
     st->acc = 0.0f;
     st->t_last_good = m != NULL ? m->t_ref_c : 0.0f;
@@ -126,10 +168,12 @@ static void bias_step(const fogsf_model *m, fogsf_state *st)
 /* Contract step 4: one model step on the block-mean temperature tm. */
 static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
 {
-    float s[1 + FOGSF_MAX_FILTERS];
+    float s[1 + FOGSF_MAX_FILTERS + FOGSF_MAX_PLAYS];
     float y, sf, mag;
     const float *x = st->z;
-    const uint32_t nk = m->n_filters, nf = m->n_features, nh = m->hidden, ni = 1u + nk;
+    const fogsf_play_model *pm = plays_of(m);
+    const uint32_t nk = m->n_filters, nf = m->n_features, nh = m->hidden,
+                   np = pm != NULL ? pm->n_plays : 0u, ni = 1u + nk + np;
     size_t n_in = m->lstm_inputs != 0u ? m->lstm_inputs : nf; /* layer 0 reads z[0:n_in] */
     uint32_t k, f, l, j;
 
@@ -139,6 +183,18 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
     s[0] = tm - m->t_ref_c;
     for (k = 0; k < nk; ++k) {
         s[1 + k] = st->y[k] - m->t_ref_c;
+    }
+    for (k = 0; k < np; ++k) { /* the play operators, after the filters */
+        const float *v = pm->play_source_w + k * (nk + 1u);
+        float xin = 0.0f, lo, hi;
+        xin = xin + v[0] * tm;
+        for (j = 0; j < nk; ++j) {
+            xin = xin + v[1u + j] * st->y[j];
+        }
+        lo = xin - pm->play_half_c[k];
+        hi = xin + pm->play_half_c[k];
+        st->p[k] = st->p[k] < lo ? lo : (st->p[k] > hi ? hi : st->p[k]);
+        s[1 + nk + k] = st->p[k] - m->t_ref_c;
     }
     for (f = 0; f < nf; ++f) {
         float acc = m->feat_b[f];
@@ -237,6 +293,9 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
         st->started = 1u;
         for (k = 0; k < m->n_filters; ++k) {
             st->y[k] = tc;
+        }
+        for (k = 0; k < n_plays_of(m); ++k) {
+            st->p[k] = tc;
         }
         model_step(m, st, tc);
     } else {

@@ -10,8 +10,8 @@
  * Statefulness: all state lives in a fogsf_state the caller owns (static, stack or a struct
  * of its own), one per gyro. fogsf_init() or fogsf_reset() starts a log; every fogsf_step()
  * consumes one sample in order, always with the same model. fogsf_state is sized for the
- * largest model of the image by FOGSF_MAX_LAYERS, FOGSF_MAX_HIDDEN, FOGSF_MAX_FEATURES and
- * FOGSF_MAX_FILTERS (defaults below; the CMake function fogsf_add_model raises them to the
+ * largest model of the image by FOGSF_MAX_LAYERS, FOGSF_MAX_HIDDEN, FOGSF_MAX_FEATURES,
+ * FOGSF_MAX_FILTERS and FOGSF_MAX_PLAYS (defaults below; the CMake function fogsf_add_model raises them to the
  * largest model added; NAME.c refuses to compile when its model does not fit).
  * The kernel never allocates, never recurses, holds no state in globals, and calls no libm:
  * its exp/sigmoid/tanh are its own float32 code, so host and Cortex-M4F give the same bits.
@@ -40,6 +40,9 @@
 #endif
 #ifndef FOGSF_MAX_FILTERS
 #define FOGSF_MAX_FILTERS 4
+#endif
+#ifndef FOGSF_MAX_PLAYS
+#define FOGSF_MAX_PLAYS 1
 #endif
 
 #ifdef __cplusplus
@@ -103,6 +106,23 @@ typedef struct fogsf_bias_model {
 
 #define FOGSF_FORMAT_BIAS 4u /* format_version of the sf member of a fogsf_bias_model */
 
+/* A model with play (backlash) operators in its front end (format 5): a fogsf_bias_model
+ * as its first member, whose sf.format_version is 5 (its bias arrays all NULL without a
+ * bias head, all set with one), then P plays run after the lag filters at every model step:
+ * x_j = 0 + v_j0 Tm + v_j1 y_1 + ... + v_jK y_K (float32, index order), then
+ * p_j = min(max(p_j, x_j - h_j), x_j + h_j) (x - h and x + h in float32, then the two
+ * compares), p_j primed with the first sample's temperature; s gains p_j - t_ref after the
+ * filters, so feat_w is [F][1+K+P]. The kernel takes &model.base.sf (NAME.h defines NAME as
+ * that member). */
+typedef struct fogsf_play_model {
+    fogsf_bias_model base;        /* base.sf.format_version = 5 */
+    uint32_t n_plays;             /* P >= 1 */
+    const float *play_half_c;     /* [P] half widths h_j (C), finite, >= 0 */
+    const float *play_source_w;   /* [P][1+K] source weights v over [Tm, y_1..y_K], finite */
+} fogsf_play_model;
+
+#define FOGSF_FORMAT_PLAYS 5u /* format_version of the sf member of a fogsf_play_model */
+
 /* Caller-owned state, sized for the largest model (FOGSF_MAX_*). Treat as opaque. */
 typedef struct fogsf_state {
     double bias_dps;                             /* bias_dph / 3600 (double), held */
@@ -111,6 +131,7 @@ typedef struct fogsf_state {
     float h_prev[FOGSF_MAX_HIDDEN];              /* scratch of one LSTM layer update */
     float z[FOGSF_MAX_FEATURES];                 /* features of the latest model step */
     float y[FOGSF_MAX_FILTERS];                  /* first-order lag filters of the temperature */
+    float p[FOGSF_MAX_PLAYS];                    /* play operators' outputs */
     float acc;                                   /* sum of Tc since the last model step */
     float t_last_good;                           /* last sanitised finite temperature */
     float sf_ppm;                                /* output of the latest model step, held */

@@ -262,7 +262,8 @@ def state_bytes(models: StreamModel | list[StreamModel]) -> int:
     h = max(m.hidden for m in models)
     f = max(m.n_features for m in models)
     k = max(max(m.n_filters, 1) for m in models)
-    words = 2 * lay * h + h + f + k + 9  # 9 scalars: acc .. started, bias_dph
+    p = max(max(m.n_plays, 1) for m in models)
+    words = 2 * lay * h + h + f + k + p + 9  # 9 scalars: acc .. started, bias_dph
     return 8 + 4 * (words + words % 2)  # bias_dps (double), then the words, padded to 8
 
 

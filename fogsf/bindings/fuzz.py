@@ -27,7 +27,7 @@ FUZZ_DIR = C_DIR / "fuzz"
 CORPUS = FUZZ_DIR / "corpus"
 FUZZ_FLAGS = ("-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all", "-g", "-O1")
 FUZZ_MAX = ("-DFOGSF_MAX_LAYERS=2", "-DFOGSF_MAX_HIDDEN=16", "-DFOGSF_MAX_FEATURES=4",
-            "-DFOGSF_MAX_FILTERS=4")
+            "-DFOGSF_MAX_FILTERS=4", "-DFOGSF_MAX_PLAYS=2")
 STEPS_RE = re.compile(r"fuzz steps: (\d+)")
 
 

@@ -82,7 +82,8 @@ def max_defines(model: StreamModel) -> tuple[str, ...]:
 def state_sizes(model: StreamModel) -> dict[str, int]:
     return {"FOGSF_MAX_LAYERS": model.layers, "FOGSF_MAX_HIDDEN": model.hidden,
             "FOGSF_MAX_FEATURES": model.n_features,
-            "FOGSF_MAX_FILTERS": max(model.n_filters, 1)}
+            "FOGSF_MAX_FILTERS": max(model.n_filters, 1),
+            "FOGSF_MAX_PLAYS": max(model.n_plays, 1)}
 
 
 def _source_hash(header: str, extra: tuple[str, ...]) -> str:
@@ -171,6 +172,8 @@ def cdef(model: StreamModel) -> str:
     if unknown:
         raise RuntimeError(f"fogsf.h declarations use macros cdef() does not know: {unknown}")
     body = re.sub(r"\bFOGSF_[A-Z_0-9]+\b", lambda m: str(sizes[m.group(0)]), body)
+    if model.n_plays:  # the model is the sf member of NAME_with_plays.base
+        return body + f"\nextern fogsf_play_model {BOUND_NAME}_with_plays;\n"
     if model.bias_head:  # the model is the sf member of NAME_with_bias (NAME.h's macro)
         return body + f"\nextern fogsf_bias_model {BOUND_NAME}_with_bias;\n"
     return body + f"\nextern fogsf_model {BOUND_NAME};\n"  # cffi: a const is a constant
@@ -187,9 +190,14 @@ class Kernel:
         self.ffi = cffi.FFI()
         self.ffi.cdef(cdef(model))
         self.lib = self.ffi.dlopen(str(self.build.shared))
-        self.m = (self.ffi.addressof(self.ffi.addressof(self.lib, f"{BOUND_NAME}_with_bias")
-                                     [0], "sf")
-                  if model.bias_head else self.ffi.addressof(self.lib, BOUND_NAME))
+        if model.n_plays:
+            wrapper = self.ffi.addressof(self.lib, f"{BOUND_NAME}_with_plays")[0]
+            self.m = self.ffi.addressof(wrapper.base, "sf")
+        elif model.bias_head:
+            self.m = self.ffi.addressof(self.ffi.addressof(self.lib, f"{BOUND_NAME}_with_bias")
+                                        [0], "sf")
+        else:
+            self.m = self.ffi.addressof(self.lib, BOUND_NAME)
         got = self.ffi.string(self.m.model_id).decode()
         if got != model.model_id:
             raise UserError(f"{self.build.shared}: kernel of model {got}, expected "

@@ -12,13 +12,14 @@ from pathlib import Path
 import jinja2
 import numpy as np
 
-from fogsf.trainer.models.stream import FORMAT, StreamModel
+from fogsf.trainer.models.stream import FORMAT, StreamModel, play_half_c, play_source_w
 
 # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
 # also holds lstm_inputs and quad_diag; 4: a model with a bias head, the sf member of a
 # fogsf_bias_model (docs/stream-contract.md). A model without a bias head is format 3.
 FORMAT_VERSION = 3
 FORMAT_VERSION_BIAS = 4
+FORMAT_VERSION_PLAYS = 5  # play operators in the front end (a fogsf_play_model)
 DEFAULT_NAME = "gyro_model"
 NAME_RULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
 PER_LINE = 6
@@ -63,7 +64,8 @@ def _context(model: StreamModel, name: str) -> dict:
     return {
         "name": name, "upper": name.upper(), "guard": f"{name.upper()}_FOGSF_MODEL_H",
         "format": FORMAT, "model_id": model.model_id,
-        "format_version": FORMAT_VERSION_BIAS if model.bias_head else FORMAT_VERSION,
+        "format_version": (FORMAT_VERSION_PLAYS if model.n_plays else
+                           FORMAT_VERSION_BIAS if model.bias_head else FORMAT_VERSION),
         "kind": model.model.replace('"', "'").replace("*/", "* /"), "params": model.params,
         "k": model.n_filters, "k_alloc": max(model.n_filters, 1), "f": model.n_features,
         "layers": model.layers, "hidden": model.hidden, "decimation": model.decimation,
@@ -74,6 +76,11 @@ def _context(model: StreamModel, name: str) -> dict:
         "filter_alpha": c_array(w["filter_alpha"]), "feat_w": c_array(w["feat_w"]),
         "feat_b": c_array(w["feat_b"]),
         "lstm_inputs": model.n_lstm_inputs, "quad_diag": model.quad_diag,
+        "n_plays": model.n_plays,
+        "play_width_c": ", ".join(f"{w:g}" for w in model.play_width_c),
+        "play_half_c": c_array(play_half_c(model.play_width_c)) if model.n_plays else "",
+        "play_source_w": (c_array(play_source_w(model.play_source_w, model.n_filters))
+                          if model.n_plays else ""),
         "lstm": [{"n_in": model.n_lstm_inputs if layer == 0 else model.hidden,
                   "w": c_array(w[f"lstm{layer}_w"]), "r": c_array(w[f"lstm{layer}_r"]),
                   "b": c_array(w[f"lstm{layer}_b"])} for layer in names],

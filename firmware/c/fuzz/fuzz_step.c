@@ -174,6 +174,8 @@ static void fuzz_cell(reader *r)
 static float adv[ADV_FLOATS];
 
 static fogsf_bias_model adv_bias; /* the adversarial model with a bias head */
+static fogsf_play_model adv_plays; /* the adversarial model with play operators */
+static float adv_play_source_w[(FOGSF_MAX_PLAYS + 1) * (FOGSF_MAX_FILTERS + 2)];
 
 static void fuzz_model_data(reader *r)
 {
@@ -230,6 +232,25 @@ static void fuzz_model_data(reader *r)
        (bits 4-7; 2 is invalid, so is 1 without the head) */
     m.lstm_inputs = ((uint32_t)(opts >> 1) & 7u) % (FOGSF_MAX_FEATURES + 2u);
     m.quad_diag = (uint32_t)(opts >> 4) % 3u;
+    if ((stuck_byte >> 5) >= 6u) { /* play operators (format 5): 0..MAX+1 of them, source
+                                     weights and half widths from the input (any float) */
+        uint32_t j;
+        adv_plays.base.sf = m;
+        adv_plays.base.sf.format_version = FOGSF_FORMAT_PLAYS;
+        adv_plays.base.bias_w = bias_mode == 1u ? adv + 10 : NULL;
+        adv_plays.base.bias_quad_w = bias_mode == 1u ? adv + 11 : NULL;
+        adv_plays.base.bias_cube_w = bias_mode == 2u ? adv + 12 : (bias_mode == 1u ? adv + 12
+                                                                                 : NULL);
+        adv_plays.base.bias_b = adv[13];
+        adv_plays.n_plays = (uint32_t)stuck_byte % (FOGSF_MAX_PLAYS + 2u);
+        for (j = 0; j < (FOGSF_MAX_PLAYS + 1u) * (FOGSF_MAX_FILTERS + 2u); ++j) {
+            adv_play_source_w[j] = next_f32(r); /* any float, NaN and Inf too */
+        }
+        adv_plays.play_half_c = adv + 14;
+        adv_plays.play_source_w = adv_play_source_w;
+        run_samples(&adv_plays.base.sf, r);
+        return;
+    }
     if (bias_mode != 0u) {
         adv_bias.sf = m;
         adv_bias.sf.format_version = FOGSF_FORMAT_BIAS;

@@ -96,6 +96,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         metavar=("TAU_S", "W"),
                         help="effective sensing temperature T_eff = W*T + (1-W)*lag(T, TAU_S) "
                              "for lag-lstm (default: identified from the training logs)")
+    parser.add_argument("--hysteresis", choices=("auto", "on", "off"), default="off",
+                        help="lag-lstm (bank or physics nodes): a play (backlash) term for "
+                             "rate-independent SF hysteresis; auto: when the training logs "
+                             "turn back in temperature and their held-out segments predict "
+                             "better with it; off (default): auto still makes some gyros "
+                             "without hysteresis worse (docs/train.md)")
     g = parser.add_argument_group("LSTM (defaults: lstm = paper Table 1, others 1 x 16)")
     g.add_argument("--layers", type=int)
     g.add_argument("--hidden", type=int)
@@ -139,6 +145,7 @@ def run(args: argparse.Namespace) -> int:
         rate_tau_s=args.rate_tau_s, poly_degree=args.poly_degree,
         node=tuple(args.node) if args.node else None, nodes=args.nodes or 1,
         structure=args.structure or ("node" if args.nodes or args.node else "auto"),
+        hysteresis=args.hysteresis,
         layers=args.layers, hidden=args.hidden, batch_size=args.batch_size, lr=args.lr,
         iters=args.iters, lstm_window=args.lstm_window, lstm_inputs=args.lstm_inputs,
         gsa_agents=args.gsa_agents,
@@ -190,6 +197,10 @@ def format_metrics(m: dict) -> str:
         lines += bias_lines(m["bias"])
     if "structure_choice" in m:
         lines.append(textwrap.fill(choice_message(m["structure_choice"]), 96))
+    if "hysteresis_choice" in m:
+        from fogsf.trainer.training.hysteresis_choice import choice_line
+
+        lines.append(textwrap.fill(choice_line(m["hysteresis_choice"]), 96))
     if "rate_transfer" in m:
         lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))
     elif not spans_ramp_rates(m["train_ramp_rates_c_per_min"]):

@@ -17,7 +17,14 @@ profile, table schedule and start drawn by a seeded generator from the ranges st
   settle: right if named, or reported ambiguous, never the other one.
 
 The lag / dT/dt cases of kind `effect` use 4.5 h logs with 70-80 min soaks (up and back),
-extra_lag time constants 5000-9000 s.
+extra_lag time constants 5000-9000 s. The hysteresis cases (`hysteresis`: a play of the coil
+temperature) are planted at the population's physics, not at a multiple of the floor:
+width over HYST_WIDTH_C (4-10 C), strength over HYST_PPM_PER_C (3-8 ppm/C), on partial
+cycles (`_partial`: up 25-40 C, back 10-20 C, up 10-20 C, back 15-25 C, up 10-20 C, back
+to the start, 1-2 C/min, 15-25 min soaks at each turn, 3.5-5 h: a play shows only where
+the temperature turns back). One whose visible part stays under 3x the floor may go
+unnamed (never misnamed); a named one is held to its loop's height (strength x width)
+within 50 %.
 
 Strength is set as a multiple (drawn in [3, 20]) of the noise floor of the part of the
 effect the base model cannot absorb: the RMS over windows of the base model's residual on
@@ -50,10 +57,15 @@ WINDOW_S = 60.0
 MULTIPLE_RANGE = (3.0, 20.0)
 EFFECTS = ("warmup", "extra_lag", "temp_rate", "rate_nonlinearity", "asymmetry", "bias_drift",
            "aging")
+# the catalogue's forms: EFFECTS (whose setups the nulls draw from, as before) and the
+# hysteresis
+CATALOGUE_EFFECTS = (*EFFECTS, "hysteresis")
+HYST_WIDTH_C = (4.0, 10.0)  # the planted play's width and strength (the population's)
+HYST_PPM_PER_C = (3.0, 8.0)
 OOC_KINDS = ("humidity", "supply_step", "periodic")
 # starting strengths (the simulator's examples; extra_lag: its sensitivity in ppm/C)
 EFFECT_INFO = {name: (4.0 if name == "extra_lag" else SIM_EFFECTS[name].example)
-               for name in EFFECTS}
+               for name in CATALOGUE_EFFECTS}
 # form variants (bench and tests): effect -> variant -> (effect params, table kinds)
 VARIANTS: dict[str, dict[str, str]] = {
     "rate_nonlinearity": {"linear": "exponent 1", "quadratic": "exponent 2"},
@@ -80,6 +92,9 @@ PARAM_CHECK: dict[str, tuple[str, str, float]] = {
     "asymmetry": ("strength_ppm", "strength", 0.3),
     "bias_drift": ("strength_dph_per_c", "strength", 0.3),
     "aging": ("strength_ppm_per_h", "strength", 0.3),
+    # the loop's height (strength x width): the play of one lagged node stands for the
+    # coil's layers, which trades the width against the strength
+    "hysteresis": ("height_ppm", "height_ppm", 0.5),
 }
 
 
@@ -130,6 +145,26 @@ def _long_soaks(rng: np.random.Generator) -> ProfileConfig:
                                                  round(t0, 1)],
                          rate_c_per_min=float(rng.uniform(1.0, 2.0)),
                          soak_s=float(rng.uniform(4200.0, 4800.0)))
+
+
+def _partial(rng: np.random.Generator) -> ProfileConfig:
+    """Partial cycles: up 25-40 C, back 10-20 C, up 10-20 C, back 15-25 C, up 10-20 C, back
+    to the start (either direction first), 1-2 C/min, 15-25 min soaks at each turn."""
+    t0 = float(rng.uniform(-20.0, 10.0))
+    sign = float(rng.choice([-1.0, 1.0]))
+    steps = [float(rng.uniform(*r)) for r in ((25.0, 40.0), (-20.0, -10.0), (10.0, 20.0),
+                                                (-25.0, -15.0), (10.0, 20.0))]
+    rate = float(rng.uniform(1.0, 2.0))
+    soak = float(rng.uniform(900.0, 1500.0))
+    levels = [t0] + [t0 + sign * float(np.sum(steps[:i + 1])) for i in range(len(steps))] + [t0]
+    if min(levels) < -50.0 or max(levels) > 60.0:  # the other direction stays in the chamber
+        levels = [2.0 * t0 - v for v in levels]
+    pts = [[0.0, t0], [soak, t0]]
+    for lv in levels[1:]:
+        t = pts[-1][0] + abs(lv - pts[-1][1]) / rate * 60.0
+        pts += [[t, lv], [t + soak, lv]]
+    return ProfileConfig(kind="program", points=[[round(t, 1), round(v, 2)] for t, v in pts],
+                         rate_c_per_min=rate, levels_c=[round(x, 2) for x in levels])
 
 
 def _cycle(rng: np.random.Generator) -> ProfileConfig:
@@ -196,8 +231,13 @@ def draw(kind: str, name: str, seed: int) -> Case:
             profile = _cycle(rng)
         elif eff == "aging":
             profile = _steps(rng, back=True, minutes=120)
+        elif eff == "hysteresis":
+            params["width_c"] = float(rng.uniform(*HYST_WIDTH_C))
+            profile = _partial(rng)
         if kind == "effect":
             cfg.effects = [EffectConfig(name, 1.0, {k: v for k, v in params.items()})]
+            if name == "hysteresis":
+                cfg.effects[0].strength = float(rng.uniform(*HYST_PPM_PER_C))
             if name == "extra_lag":
                 cfg.effects = [EffectConfig(name, params["tau_s"], {"sens_ppm_per_c": 1.0})]
         else:
@@ -290,7 +330,7 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
         case = draw(kind, name, seed)
     case.variant = variant
     case.gyro_seed = seed
-    gyro = gyro_for_seed(seed)
+    gyro = gyro_for_seed(seed, hysteresis=False)  # nothing but what the case plants
     gyro.bias.lin_dph_per_c = 0.0
     gyro.bias.quad_dph_per_c2 = 0.0
     case.config = with_gyro(case.config, gyro)
@@ -409,8 +449,9 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
         for e, mult in zip(final.effects, multiples, strict=True):
             single = copy.deepcopy(cfg)
             single.effects = [copy.deepcopy(e)]
-            scale, got = _calibrate(single, mult * floor, log0, sigma, r0,
-                                    fixed=case.variant == "one")
+            keep = e.name == "hysteresis"  # planted at the population's strength
+            scale, got = _calibrate(single, e.strength if keep else mult * floor, log0, sigma,
+                                    r0, fixed=case.variant == "one" or keep)
             reached.append(got / floor)
             if e.name == "extra_lag":
                 e.params["sens_ppm_per_c"] = scale
@@ -430,6 +471,8 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
             truth = {"strength": e.strength, **e.params}
         if e.name == "temp_rate":
             truth["housing_ppm_per_c"] = housing_coupling(final, e.strength)
+        if e.name == "hysteresis":
+            truth["height_ppm"] = e.strength * e.params["width_c"]
         case.params = truth
         return [_strip(simulate(final).log, case.chamber)], {"effect": case.name, **truth}
     # out of catalogue
@@ -502,6 +545,10 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
         # internal nodes' temperatures, i.e. part of the gyro's own thermal SF law
         return out(cause is None, "no coil node behind the housing: confounded with the "
                    f"gyro's own nodes, {'not named' if cause is None else f'named {cause}'}")
+    if case.kind == "effect" and case.name == "hysteresis" and cause is None \
+            and case.multiple_reached < MULTIPLE_RANGE[0]:
+        return out(True, f"visible part {case.multiple_reached:.1f} x the floor (under "
+                         f"{MULTIPLE_RANGE[0]:g}): not named, not misnamed")
     if case.kind == "effect" and case.variant == "slow" and cause is None:
         return out(not unexplained, "explained by the base's self-heating" if not unexplained
                    else "unexplained, not named")

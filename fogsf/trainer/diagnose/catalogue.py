@@ -1,4 +1,4 @@
-"""The candidate effects: the simulator's seven (fogsf.trainer.sim.effects), each as one extra
+"""The candidate effects: the simulator's eight (fogsf.trainer.sim.effects), each as one extra
 column of the base model with, where it has one, a nonlinear parameter profiled on a grid.
 
 Every candidate's linear coefficient is the effect's strength in the simulator's unit, so a
@@ -11,6 +11,12 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
     asymmetry          sign(rate) / 2                     coef: ppm, SF(+) - SF(-)
     bias_drift         (T_board - 20) * 1e6/(3600 rate)   coef: deg/h per C
     aging              t / 3600 s                         coef: ppm/h
+    hysteresis         play(coil, w) - coil (C)           coef: ppm/C; width_c (and the
+                                                          coil's lag behind the housing)
+
+The hysteresis form (`diagnose.hysteresis_form`) is the play (backlash) operator of a coil
+node lagging the housing, profiled over its width and the node's time constant: it holds its
+value through a soak and turns with the temperature's reversals, whatever the rate.
 
 The coil of `temp_rate` is wound in layers: its temperature is the mean of an inner and an
 outer layer node, each lagging the housing (the simulator's effect differentiates the mean
@@ -35,7 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsf.trainer.diagnose import design
+from fogsf.trainer.diagnose import design, hysteresis_form
 from fogsf.trainer.diagnose.design import RunContext
 
 BaseTheta = tuple[float, float]
@@ -101,6 +107,9 @@ class Candidate:
             if theta is not None and math.isfinite(first(theta)):
                 p["settle_tau_s"] = first(theta)
             return {"name": self.name, "strength": coef, "params": p}
+        if self.name == "hysteresis":
+            return {"name": "hysteresis", "strength": coef,
+                    "params": {"width_c": first(theta)}}
         if self.name == "warmup":
             return {"name": "warmup", "strength": coef, "params": {"tau_s": theta}}
         if self.name == "extra_lag":
@@ -198,6 +207,9 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
               "board (node_tau_s 0) or a lagged internal node", forms=True),
     Candidate("aging", "strength_ppm_per_h", "settle_tau_s", AGING_SETTLE_S, _aging,
               "SF drift with elapsed time, linear (settle_tau_s inf) or settling", forms=True),
+    Candidate("hysteresis", "strength_ppm_per_c", "width_c", hysteresis_form.GRID,
+              hysteresis_form.column, "rate-independent SF hysteresis: a play (backlash) "
+              "of the coil temperature that holds through a soak"),
 ]}
 
 # Not a cause: the reference that the node-like candidates (NODE_LIKE) must beat. The base's
@@ -208,7 +220,9 @@ NODE_LIKE = ("temp_rate", "extra_lag")
 # also checked against a third base node: a drift over a log is what a slow node the base
 # lacks looks like (population gyros with 3-6 internal nodes), unless the log returns to
 # a temperature it held before, where a node comes back and a drift does not
-THIRD_NODE_CHECK = (*NODE_LIKE, "aging")
+# a play of a lagged node too: on an up-and-back log its direction-dependent offset is
+# what a node the base lacks looks like, unless the log holds a soak inside a loop
+THIRD_NODE_CHECK = (*NODE_LIKE, "aging", "hysteresis")
 
 
 def _node(ctx: RunContext, b: BaseTheta, tau: GridValue) -> np.ndarray:

@@ -241,6 +241,9 @@ def candidate_params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
         if cand.name == "temp_rate":
             out["coil_outer_tau_s_best_fit"] = catalogue.coil_taus(g)[1]
             out.update(_housing_coupling(model, fine, y, w, interval, accepted))
+        if cand.name == "hysteresis":  # the loop's full height, what the logs pin best
+            out["height_ppm"] = coef * gv
+            out["coil_tau_s_best_fit"] = float(g[1]) if isinstance(g, tuple) else None
         return out
     return {cand.coef_name: coef, f"{cand.coef_name}_ci95": ci}
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.trainer.diagnose import catalogue, intervals, stats
+from fogsf.trainer.diagnose import catalogue, hysteresis_form, intervals, stats
 from fogsf.trainer.diagnose.catalogue import Candidate, GridValue
 from fogsf.trainer.diagnose.design import RunContext
 from fogsf.trainer.diagnose.fits import (
@@ -50,6 +50,7 @@ SEPARATING_RUN = {
     "temp_rate": "a temperature step followed by a soak of at least 45 min",
     "extra_lag": "a soak of at least 45 min after a ramp of 5 C or more",
     "warmup": "a log that starts at power-on (or --start power-on if it does)",
+    "hysteresis": hysteresis_form.SEPARATING_RUN,
 }
 # ... and from another candidate
 SEPARATES = {
@@ -294,6 +295,14 @@ def score(cand: Candidate, ctxs: list[RunContext], y: np.ndarray, w: np.ndarray,
                      "self-heating rise of the board after a power-on), so there is no start-up "
                      "transient to see (pass --start power-on if the logs do begin at "
                      "power-on)")
+    if cand.name == "hysteresis" and not any(hysteresis_form.has_minor_loop(c) for c in ctxs):
+        sep = hysteresis_form.SEPARATING_RUN
+        return CandidateResult(
+            cand.name, False, 0.0, heldout_before=before, heldout_after=before,
+            confounded_with=["base"], separating_run=sep,
+            evidence="not identifiable from these logs: no run turns back inside its "
+                     "temperature range, so a play is a direction-dependent offset that the "
+                     "base's misfit takes as well; the run that would separate them: " + sep)
     if cand.name in catalogue.NODE_LIKE and all(c.driver.source == "board" for c in ctxs):
         sep = "the chamber air logged (chamber_c), with " + SEPARATING_RUN[cand.name]
         return CandidateResult(

@@ -35,24 +35,29 @@ SEC_PER_MIN = 60.0
 
 @dataclass(frozen=True)
 class FeatureSpec:
-    """Features as rows of A over s: z_raw = A s, with A [F, 1+K] for filters `taus_s`."""
+    """Features as rows of A over s: z_raw = A s, with A [F, 1+K+P] for filters `taus_s`
+    and play operators `plays` ((source weights over [T, lag_1..lag_K], width_c) each;
+    `models.stream.FrontEnd`)."""
 
     taus_s: tuple[float, ...]
     rows: tuple[tuple[float, ...], ...]
     names: tuple[str, ...]
+    plays: tuple[tuple[tuple[float, ...], float], ...] = ()
 
     @property
     def n_features(self) -> int:
         return len(self.rows)
 
     def matrix(self) -> np.ndarray:
-        return np.asarray(self.rows, dtype=np.float64).reshape(len(self.rows),
-                                                               1 + len(self.taus_s))
+        return np.asarray(self.rows, dtype=np.float64).reshape(
+            len(self.rows), 1 + len(self.taus_s) + len(self.plays))
 
     def describe(self) -> str:
         taus = ", ".join(f"{t:g}" for t in self.taus_s)
-        return f"[{', '.join(self.names)}] (filters tau = {taus} s)" if taus else \
-            f"[{', '.join(self.names)}]"
+        plays = ", ".join(f"play(x{j + 1}, {w:g} C)" for j, (_, w) in enumerate(self.plays))
+        parts = [f"filters tau = {taus} s"] if taus else []
+        parts += [f"plays {plays}"] if plays else []
+        return f"[{', '.join(self.names)}]" + (f" ({'; '.join(parts)})" if parts else "")
 
 
 def make_features(rate_tau_s: float | None = None) -> FeatureSpec:
@@ -83,7 +88,7 @@ class SeqData:
     """One log at the model rate."""
 
     log: ChamberLog
-    s: np.ndarray  # [n_steps, 1+K] float32
+    s: np.ndarray  # [n_steps, 1+K+P] float32
     target_ppm: np.ndarray  # [n_steps] float64: measured SF error vs nominal (0: unmeasured)
     train_mask: np.ndarray  # [n_steps] bool: measured and outside the validation part
     decimation: int
@@ -116,9 +121,11 @@ def common_sample_dt(logs: list[ChamberLog]) -> float:
 
 
 def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ...],
-                  sample_dt_s: float | None = None) -> FrontEnd:
+                  sample_dt_s: float | None = None,
+                  plays: tuple[tuple[tuple[float, ...], float], ...] = ()) -> FrontEnd:
     """The front end's constants for models trained on `logs`, one model step per `step_s`
-    seconds at the logs' one sample rate (or at `sample_dt_s`)."""
+    seconds at the logs' one sample rate (or at `sample_dt_s`), with play operators
+    `plays` ((source weights, width_c), `FeatureSpec.plays`)."""
     lo = min(col_min(lg.temp_c) for lg in logs) - RANGE_MARGIN_C
     hi = max(col_max(lg.temp_c) for lg in logs) + RANGE_MARGIN_C
     dt = common_sample_dt(logs) if sample_dt_s is None else sample_dt_s
@@ -127,7 +134,9 @@ def front_end_for(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ..
                     t_max_c=max(hi, T_REF_C + 1.0), decimation=d,
                     stuck_samples=int(round(STUCK_S / dt)),
                     filter_alpha=filter_alpha(list(taus_s), d, dt), sample_dt_s=dt,
-                    filter_tau_s=tuple(float(t) for t in taus_s))
+                    filter_tau_s=tuple(float(t) for t in taus_s),
+                    play_width_c=tuple(float(w) for _, w in plays),
+                    play_source_w=tuple(tuple(float(v) for v in src) for src, _ in plays))
 
 
 def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = None,

@@ -107,6 +107,8 @@ def to_stream_model(net: StreamNet, kind: str, spec: FeatureSpec, norm: Normalis
                         lstm_inputs=(net.lstm_inputs if net.lstm_inputs != net.n_features
                                      else None),
                         quad_diag=net.quad_diag,
+                        play_width_c=[float(w) for w in fe.play_width_c],
+                        play_source_w=[[float(v) for v in r] for r in fe.play_source_w],
                         extra={"feature_names": list(spec.names),
                                                 **(extra or {})})
     model.validate()

@@ -30,13 +30,14 @@ from fogsf.trainer.models.stream import (
     SF_LIMIT_PPM,
     FrontEnd,
     StreamModel,
+    play_source_w,
 )
 
 # --- the front end -------------------------------------------------------------------------
 
 class FrontEndOut(NamedTuple):
     step_index: np.ndarray  # [n_steps] int64: the sample index at which each model step runs
-    s: np.ndarray  # [n_steps, 1+K] float32: [Tm - t_ref, y_1 - t_ref, ...]
+    s: np.ndarray  # [n_steps, 1+K+P] float32: [Tm - t_ref, y_1 - t_ref, ..., p_1 - t_ref, ...]
     flags: np.ndarray  # [N] uint32: TEMP_* flags per sample
 
 
@@ -98,6 +99,32 @@ def lag_filters(tm: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return y_out
 
 
+def plays(tm: np.ndarray, y: np.ndarray, half_c: np.ndarray, source_w: np.ndarray
+          ) -> np.ndarray:
+    """p_j per model step [n_steps, P]: p = Tm[0] primed, then per step, after the lag
+    filters, x = 0 + v_0 Tm + v_1 y_1 + ... + v_K y_K (float32, index order), lo = x - h,
+    hi = x + h, p = lo if p < lo, else hi if p > hi, else p (the play or backlash
+    operator)."""
+    n_steps = tm.shape[0]
+    src = np.asarray(source_w, dtype=np.float32)
+    v = np.column_stack([tm, y]).astype(np.float32) if n_steps else np.zeros((0, 1 + y.shape[1]),
+                                                                             np.float32)
+    out = np.empty((n_steps, src.shape[0]), dtype=np.float32)
+    for j in range(src.shape[0]):
+        x_col = np.zeros(n_steps, dtype=np.float32)
+        for i in range(src.shape[1]):
+            x_col = x_col + src[j, i] * v[:, i]  # float32 per op, index order, as C
+        h = F32(half_c[j])
+        p = F32(tm[0]) if n_steps else F32(0)
+        col = np.empty(n_steps, dtype=np.float32)
+        for m, x in enumerate(x_col):
+            lo, hi = x - h, x + h
+            p = lo if p < lo else (hi if p > hi else p)
+            col[m] = p
+        out[:, j] = col
+    return out
+
+
 def frontend(temp_c: np.ndarray, fe: FrontEnd) -> FrontEndOut:
     """Contract steps 1-4 up to s, for a whole log from reset, bit for bit as the C kernel."""
     tc, flags = sanitise_temperature(temp_c, fe)
@@ -105,9 +132,13 @@ def frontend(temp_c: np.ndarray, fe: FrontEnd) -> FrontEndOut:
     alpha = np.asarray(fe.filter_alpha, dtype=np.float32)
     y = lag_filters(tm, alpha)
     t_ref = F32(fe.t_ref_c)
-    s = np.empty((tm.shape[0], 1 + alpha.shape[0]), dtype=np.float32)
+    k = alpha.shape[0]
+    s = np.empty((tm.shape[0], 1 + k + fe.n_plays), dtype=np.float32)
     s[:, 0] = tm - t_ref
-    s[:, 1:] = y - t_ref
+    s[:, 1:1 + k] = y - t_ref
+    if fe.n_plays:
+        s[:, 1 + k:] = plays(tm, y, fe.play_half_c(),
+                             play_source_w(fe.play_source_w, k)) - t_ref
     step_index = np.arange(tm.shape[0], dtype=np.int64) * fe.decimation
     return FrontEndOut(step_index, s, flags)
 

@@ -16,7 +16,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                  stuck_samples: int = 600, gain: float = 0.8, out_scale: float = 300.0,
                  out_offset: float = 40.0, poly_head: bool = False,
                  lstm_inputs: int | None = None, quad_diag: bool = False,
-                 bias_head: bool = False, bias_dph: float = 2.0) -> StreamModel:
+                 bias_head: bool = False, bias_dph: float = 2.0,
+                 plays: tuple[tuple[tuple[float, ...], float], ...] = ()) -> StreamModel:
     """A seeded random model in the artifact format.
 
     Scaled so nothing saturates on chamber temperatures: z is O(1) over -45..55 C, every gate's
@@ -28,7 +29,9 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     layer reads z[0:N] (its W is [4H, N], so the draws after it differ); `quad_diag`: quad_w
     is the diagonal [F] only (drawn from the head's generator, at the scale of a row).
     With `bias_head`, the bias head's arrays come from a third generator (the others stay
-    put): bias_b about `bias_dph` and each term O(bias_dph / 3) in deg/h.
+    put): bias_b about `bias_dph` and each term O(bias_dph / 3) in deg/h. `plays`
+    ((source weights over [Tm, y_1..y_K], width_c) each): play operators in the front end;
+    feat_w is then [F, 1+K+P] (so the draws after it differ).
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
@@ -43,7 +46,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
 
     weights: dict[str, np.ndarray] = {
         "filter_alpha": filter_alpha(taus_s, decimation),
-        "feat_w": u((f, 1 + k), math.sqrt(3.0) / (half_span * math.sqrt(1 + k))),
+        "feat_w": u((f, 1 + k + len(plays)),
+                    math.sqrt(3.0) / (half_span * math.sqrt(1 + k + len(plays)))),
         "feat_b": u((f,), 0.2),
     }
     for layer in range(layers):
@@ -72,7 +76,9 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                         t_min_c=t_min_c, t_max_c=t_max_c, stuck_samples=stuck_samples,
                         filter_tau_s=list(taus_s), n_features=f, layers=layers, hidden=h,
                         weights=weights, extra={"random_seed": seed}, poly_head=poly_head,
-                        lstm_inputs=lstm_inputs, quad_diag=quad_diag, bias_head=bias_head)
+                        lstm_inputs=lstm_inputs, quad_diag=quad_diag, bias_head=bias_head,
+                        play_width_c=[float(w) for _, w in plays],
+                        play_source_w=[[float(v) for v in src] for src, _ in plays])
     model.validate()
     return model
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -44,6 +45,16 @@ BIAS_LIMIT_DPH = 3.6e4  # |predicted bias| beyond 10 deg/s is a broken model
 
 
 # --- the artifact --------------------------------------------------------------------------
+
+def play_half_c(widths_c: tuple[float, ...] | list[float]) -> np.ndarray:
+    """float32(width / 2) per play: what the header prints and the reference uses."""
+    return (np.asarray(widths_c, dtype=np.float64).reshape(-1) * 0.5).astype(np.float32)
+
+
+def play_source_w(weights: tuple | list, n_filters: int) -> np.ndarray:
+    """The plays' source weights as float32 [P, 1+K] (what the header prints)."""
+    return np.asarray(weights, dtype=np.float64).reshape(-1, 1 + n_filters).astype(np.float32)
+
 
 def filter_alpha(filter_tau_s: list[float], decimation: int, sample_dt_s: float = 0.1
                  ) -> np.ndarray:
@@ -80,6 +91,19 @@ class FrontEnd:
     filter_alpha: np.ndarray  # [K] float32
     sample_dt_s: float = 0.1
     filter_tau_s: tuple[float, ...] = ()  # () : unknown (the alphas are then rescaled)
+    # play (backlash) operators after the lag filters: width (C) and source weights over
+    # [Tm, y_1..y_K] (the play's input x = w . [Tm, y]); rate-independent, so the same at any
+    # sample rate
+    play_width_c: tuple[float, ...] = ()
+    play_source_w: tuple[tuple[float, ...], ...] = ()
+
+    @property
+    def n_plays(self) -> int:
+        return len(self.play_width_c)
+
+    def play_half_c(self) -> np.ndarray:
+        """The plays' half widths as the kernel holds them (float32 of width / 2)."""
+        return play_half_c(self.play_width_c)
 
     @property
     def step_s(self) -> float:
@@ -126,6 +150,13 @@ QUAD_DIAG_KEY = "quad_diag"
 # bias = bias_b + bias_w.z + bias_quad_w.z^2 + bias_cube_w.z^3 (each [F], bias_b [1])
 BIAS_KEY = "bias_head"
 BIAS_ARRAYS = ("bias_b", "bias_w", "bias_quad_w", "bias_cube_w")
+# optional stream.json keys (absent = no plays): play (backlash) operators in the front end,
+# p_j = min(max(p_j, x_j - w_j/2), x_j + w_j/2), x_j = v_j . [Tm, y_1, ..., y_K] (the
+# source weights v_j, float32, summed in index order); s gains p_j - t_ref after the
+# filters, so feat_w is [F, 1+K+P]
+PLAY_WIDTH_KEY = "play_width_c"
+PLAY_SOURCE_KEY = "play_source_w"
+MAX_PLAY_WIDTH_C = 200.0
 
 
 @dataclass
@@ -149,9 +180,15 @@ class StreamModel:
     lstm_inputs: int | None = None  # the first LSTM layer reads z[0:N]; None: all F
     quad_diag: bool = False  # with poly_head: quad_w [F] is the diagonal of the quadratic
     bias_head: bool = False  # the bias (deg/h) from z too: bias_b, bias_w, bias_quad_w, ...
+    play_width_c: list[float] = field(default_factory=list)  # P plays' widths (C)
+    play_source_w: list[list[float]] = field(default_factory=list)  # [P][1+K] sources
 
     def __post_init__(self) -> None:
         extra = dict(self.extra)
+        if PLAY_WIDTH_KEY in extra:
+            self.play_width_c = self.play_width_c or extra.pop(PLAY_WIDTH_KEY)
+        if PLAY_SOURCE_KEY in extra:
+            self.play_source_w = self.play_source_w or extra.pop(PLAY_SOURCE_KEY)
         if BIAS_KEY in extra:
             self.bias_head = self.bias_head or extra.pop(BIAS_KEY)
         if POLY_KEY in extra:  # given as a stream.json key: it is the field
@@ -179,10 +216,14 @@ class StreamModel:
     def n_filters(self) -> int:
         return len(self.filter_tau_s)
 
+    @property
+    def n_plays(self) -> int:
+        return len(self.play_width_c)
+
     def expected_shapes(self) -> dict[str, tuple[int, ...]]:
         k, f, h = self.n_filters, self.n_features, self.hidden
         shapes: dict[str, tuple[int, ...]] = {
-            "filter_alpha": (k,), "feat_w": (f, 1 + k), "feat_b": (f,),
+            "filter_alpha": (k,), "feat_w": (f, 1 + k + self.n_plays), "feat_b": (f,),
             "head_w": (h,), "head_b": (1,), "skip_w": (f,),
             "out_scale": (1,), "out_offset": (1,),
         }
@@ -211,7 +252,9 @@ class StreamModel:
                  else " + polynomial head") if self.poly_head else "")
         reads = (f" on z[0:{self.n_lstm_inputs}]" if self.lstm_inputs_narrowed else "")
         poly += " + bias head" if self.bias_head else ""
-        return (f"K={self.n_filters} filters, F={self.n_features} features, "
+        plays = (f", {self.n_plays} play(s) of width "
+                 f"{', '.join(f'{w:g}' for w in self.play_width_c)} C" if self.n_plays else "")
+        return (f"K={self.n_filters} filters{plays}, F={self.n_features} features, "
                 f"{self.layers}x{self.hidden} LSTM{reads}{poly}, D={self.decimation}, "
                 f"{self.params} parameters")
 
@@ -221,7 +264,10 @@ class StreamModel:
                         decimation=self.decimation, stuck_samples=self.stuck_samples,
                         filter_alpha=self.weights["filter_alpha"],
                         sample_dt_s=self.sample_dt_s,
-                        filter_tau_s=tuple(float(t) for t in self.filter_tau_s))
+                        filter_tau_s=tuple(float(t) for t in self.filter_tau_s),
+                        play_width_c=tuple(float(w) for w in self.play_width_c),
+                        play_source_w=tuple(tuple(float(v) for v in r)
+                                            for r in self.play_source_w))
 
     @property
     def step_s(self) -> float:
@@ -263,6 +309,9 @@ class StreamModel:
             cfg[QUAD_DIAG_KEY] = True
         if self.bias_head:
             cfg[BIAS_KEY] = True
+        if self.n_plays:
+            cfg[PLAY_WIDTH_KEY] = [float(w) for w in self.play_width_c]
+            cfg[PLAY_SOURCE_KEY] = [[float(v) for v in r] for r in self.play_source_w]
         return cfg
 
     @property
@@ -270,10 +319,11 @@ class StreamModel:
         """16 hex digits of SHA-256 over the contract config and the float32 weight bytes.
 
         `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag` and
-        `bias_head` only when true, so models without them keep the ids they had before the
-        keys existed."""
+        `bias_head` only when true, the plays only when there are some, so models without
+        them keep the ids they had before the keys existed."""
         optional = {POLY_KEY: self.poly_head, LSTM_INPUTS_KEY: self.lstm_inputs_narrowed,
-                    QUAD_DIAG_KEY: self.quad_diag, BIAS_KEY: self.bias_head}
+                    QUAD_DIAG_KEY: self.quad_diag, BIAS_KEY: self.bias_head,
+                    PLAY_WIDTH_KEY: self.n_plays > 0, PLAY_SOURCE_KEY: self.n_plays > 0}
         cfg = {k: v for k, v in self.config().items()
                if k in _CONFIG_KEYS or optional.get(k, False)}
         digest = hashlib.sha256(json.dumps(cfg, sort_keys=True, separators=(",", ":")).encode())
@@ -327,6 +377,7 @@ class StreamModel:
         for tau in self.filter_tau_s:
             if not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0):
                 raise bad(f"'filter_tau_s' must hold positive time constants, got {tau!r}")
+        self._validate_plays(bad)
         expected = self.expected_shapes()
         missing = sorted(set(expected) - set(self.weights))
         if missing:
@@ -364,6 +415,25 @@ class StreamModel:
         if not np.allclose(alpha, want, rtol=1e-5, atol=0):
             raise bad(f"filter_alpha {alpha.tolist()} does not match 1-exp(-D*dt/tau) = "
                       f"{want.tolist()} for filter_tau_s={self.filter_tau_s}, D={self.decimation}")
+
+    def _validate_plays(self, bad: Callable[[str], UserError]) -> None:
+        widths, sources = self.play_width_c, self.play_source_w
+        if not isinstance(widths, list) or not isinstance(sources, list) \
+                or len(widths) != len(sources):
+            raise bad(f"'{PLAY_WIDTH_KEY}' and '{PLAY_SOURCE_KEY}' must be lists of one "
+                      f"length, got {widths!r} and {sources!r}")
+        for w in widths:
+            if not (isinstance(w, (int, float)) and not isinstance(w, bool)
+                    and math.isfinite(w) and 0 <= w <= MAX_PLAY_WIDTH_C):
+                raise bad(f"'{PLAY_WIDTH_KEY}' must hold widths in [0, {MAX_PLAY_WIDTH_C:g}] "
+                          f"C, got {w!r}")
+        for r in sources:
+            if not (isinstance(r, list) and len(r) == 1 + self.n_filters
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                            and math.isfinite(v) and abs(v) <= 1e3 for v in r)):
+                raise bad(f"'{PLAY_SOURCE_KEY}' must hold one row of 1+K = "
+                          f"{1 + self.n_filters} finite weights (|w| <= 1000) per play over "
+                          f"[Tm, y_1..y_K], got {r!r}")
 
     # -- I/O
     def save(self, directory: str | Path) -> Path:

@@ -33,6 +33,14 @@ bias_drift=DPH_PER_C (deg/h per C; param ref_c=20)
 aging=PPM_PER_H (ppm/h)
     Slow SF drift with elapsed time (source ageing, fiber and potting relaxation): SF term =
     STRENGTH * t / 3600, at any temperature.
+hysteresis=PPM_PER_C (ppm/C; params width_c=6, plays=1)
+    Rate-independent hysteresis of the coil's potting stress, which sticks and releases: a
+    play (backlash) operator of the coil temperature T_coil (the mean of the coil nodes),
+    p = min(max(p, T_coil - width_c/2), T_coil + width_c/2), started at T_coil's first
+    value; SF term = STRENGTH * (p - T_coil), within +-STRENGTH * width_c / 2. It holds its
+    value through a soak (no filter of T does) and depends on the reversal points, not the
+    rate. plays=N > 1: a small Preisach (Prandtl-Ishlinskii) sum of N plays of widths
+    width_c * i / N (i = 1..N), each of strength STRENGTH / N.
 """
 
 from __future__ import annotations
@@ -137,6 +145,35 @@ def aging(ctx: EffectContext, strength: float, settle_tau_s: float = 0.0) -> Eff
     return _terms(ctx, sf_ppm=strength * ctx.t_s / 3600.0)
 
 
+def play_operator(x: np.ndarray, width_c: float, p0: float | None = None) -> np.ndarray:
+    """The play (backlash) operator: p = min(max(p, x - width/2), x + width/2) per sample,
+    from p0 (default x[0]). width 0: p = x."""
+    xs = np.asarray(x, dtype=np.float64)
+    out = np.empty_like(xs)
+    if xs.size == 0:
+        return out
+    half = 0.5 * float(width_c)
+    p = float(xs[0]) if p0 is None else float(p0)
+    for i, v in enumerate(xs.tolist()):
+        lo, hi = v - half, v + half
+        p = lo if p < lo else (hi if p > hi else p)
+        out[i] = p
+    return out
+
+
+def preisach_offset(x: np.ndarray, width_c: float, plays: int = 1) -> np.ndarray:
+    """mean over i = 1..N of play(x, width_c * i / N) - x: the hysteresis term per unit
+    strength (C)."""
+    n = max(1, int(round(plays)))
+    xs = np.asarray(x, dtype=np.float64)
+    return sum(play_operator(xs, width_c * (i + 1) / n) - xs for i in range(n)) / n
+
+
+def hysteresis(ctx: EffectContext, strength: float, width_c: float = 6.0,
+               plays: float = 1.0) -> EffectTerms:
+    return _terms(ctx, sf_ppm=strength * preisach_offset(ctx.coil_c(), width_c, int(plays)))
+
+
 @dataclass(frozen=True)
 class EffectInfo:
     name: str
@@ -171,6 +208,10 @@ EFFECTS: dict[str, EffectInfo] = {e.name: e for e in [
                "(source ageing, fiber/potting relaxation); linear, or settling with "
                "settle_tau_s > 0 (initial slope STRENGTH)", aging, {"settle_tau_s": 0.0},
                20.0),
+    EffectInfo("hysteresis", "ppm/C", "rate-independent hysteresis of the coil's potting "
+               "stress: STRENGTH * (play(T_coil, width_c) - T_coil), a backlash that holds "
+               "through a soak; plays > 1: a Preisach sum of plays up to width_c",
+               hysteresis, {"width_c": 6.0, "plays": 1.0}, 5.0),
 ]}
 
 
@@ -195,6 +236,12 @@ def check_effect(e: EffectConfig) -> None:
         raise UserError("effect warmup: tau_s must be > 0")
     if any(e.params.get(k, 0.0) < 0 for k in ("node_tau_s", "settle_tau_s", "exponent")):
         raise UserError(f"effect {e.name}: node_tau_s, settle_tau_s and exponent must be >= 0")
+    if e.name == "hysteresis" and (e.params.get("width_c", 6.0) < 0
+                                   or not 1 <= e.params.get("plays", 1.0) <= 16
+                                   or e.params.get("plays", 1.0) != int(e.params.get("plays",
+                                                                                     1.0))):
+        raise UserError("effect hysteresis: width_c must be >= 0 and plays a whole number "
+                        "in 1..16")
     if e.name == "rate_nonlinearity" and e.params.get("ref_rate_dps", 1.0) <= 0:
         raise UserError("effect rate_nonlinearity: ref_rate_dps must be > 0")
 

@@ -13,7 +13,11 @@ What varies (every range is a constant below; docs/population.md lists them):
   cancels most of their static slope, so the SF error is small but strongly hysteretic;
 - magnitude: the sum of the factors' static swings over -40..+50 C is log-uniform over
   `SWING_PPM` (the default gyro: about 2900 ppm of swings, 835 ppm max|error| at 1 C/min);
-- bias and noise around the default gyro's.
+- bias and noise around the default gyro's;
+- SF hysteresis: a share `HYST_SHARE` of gyros has a play (backlash) operator of the coil
+  temperature in its SF (the simulator's `hysteresis` effect), width `HYST_WIDTH_C`,
+  strength `HYST_PPM_PER_C`, drawn from a stream of its own (`hysteresis_for_seed`), so
+  every other draw, and every gyro without it, is what it was before hysteresis existed.
 
 Seeds: `gyro_for_seed(seed)` is `sample_gyro(default_rng(seed))`, except seed 0, which is the
 default gyro (`SimConfig()`'s). Development seeds (`DEV_SEEDS`) are for tuning; evaluation
@@ -38,6 +42,7 @@ from fogsf.trainer.sim.config import (
     TableConfig,
     ThermalConfig,
 )
+from fogsf.trainer.sim.effects import EffectConfig
 
 DEV_SEEDS = range(0, 10_000)
 EVAL_SEEDS = range(20_000, 30_000)
@@ -62,6 +67,12 @@ BIAS_DPH = (-1.0, 1.0)
 BIAS_LIN_DPH_PER_C = (-0.01, 0.01)
 SPAN_C = (-40.0, 50.0)  # the temperature span the swing is measured over
 REF_C = 20.0
+HYST_SHARE = 0.3
+HYST_WIDTH_C = (4.0, 10.0)
+HYST_PPM_PER_C = (3.0, 8.0)
+HYST_STREAM = 0x4857  # the hysteresis draws' own stream: [seed, HYST_STREAM]
+# effects that are the gyro's own physics (carried by `with_gyro`), not the run's
+GYRO_EFFECTS = ("hysteresis",)
 
 # Internal parts in the order they are added; the first three are always there.
 _ROLES = ("coil_inner", "source", "preamp", "coil_outer", "waveguide", "coil_mid")
@@ -183,15 +194,36 @@ def sample_gyro(rng: np.random.Generator) -> SimConfig:
     return cfg
 
 
-def gyro_for_seed(seed: int) -> SimConfig:
-    """The population's gyro number `seed` (seed 0: the default gyro)."""
+def hysteresis_for_seed(seed: int) -> EffectConfig | None:
+    """Gyro `seed`'s SF hysteresis (a `hysteresis` effect), or None (seed 0, and the gyros
+    outside HYST_SHARE): its own stream, so the other draws do not move."""
+    if seed == 0:
+        return None
+    rng = np.random.default_rng([seed, HYST_STREAM])
+    if rng.random() >= HYST_SHARE:
+        return None
+    width = round(_uniform(rng, HYST_WIDTH_C), 2)
+    strength = round(_uniform(rng, HYST_PPM_PER_C), 3)
+    return EffectConfig("hysteresis", strength, {"width_c": width})
+
+
+def gyro_for_seed(seed: int, hysteresis: bool = True) -> SimConfig:
+    """The population's gyro number `seed` (seed 0: the default gyro). hysteresis=False:
+    the same gyro without its SF hysteresis, if it draws one."""
     if seed == 0:
         return SimConfig(scenario="population:default")
-    return sample_gyro(np.random.default_rng([seed, 0x9F0]))
+    cfg = sample_gyro(np.random.default_rng([seed, 0x9F0]))
+    hyst = hysteresis_for_seed(seed) if hysteresis else None
+    if hyst is not None:
+        cfg.effects.append(hyst)
+        cfg.scenario += ":hyst"
+    return cfg
 
 
 def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:
-    """`run`'s chamber program, table, seed and effects on `gyro`'s physics (a new config)."""
+    """`run`'s chamber program, table, seed and effects on `gyro`'s physics (a new config):
+    its thermal network, SF law, bias, noise and SF hysteresis (GYRO_EFFECTS, unless the
+    run plants its own)."""
     import copy
 
     out = copy.deepcopy(run)
@@ -199,6 +231,9 @@ def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:
     out.thermal.start = run.thermal.start
     out.sf, out.bias, out.noise = (copy.deepcopy(gyro.sf), copy.deepcopy(gyro.bias),
                                    copy.deepcopy(gyro.noise))
+    named = {e.name for e in out.effects}  # a run's own (planted) hysteresis stays
+    out.effects += [copy.deepcopy(e) for e in gyro.effects
+                    if e.name in GYRO_EFFECTS and e.name not in named]
     return out
 
 

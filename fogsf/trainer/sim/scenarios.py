@@ -20,12 +20,21 @@ steps
 soak
     Power-on at 20 C and one hour at constant temperature, 10 deg/s: the warm-up (board
     +6 C in ~20 min, source still warming after an hour) and the noise floor.
+partial, partial-test
+    Partial cycles (`partial_cycles.py`): reversals inside -40..50 C with a soak at every
+    turn, warm start, 10 deg/s; `partial` (6.3 h, legs at 2 and 0.75 C/min in turn) to
+    train on, `partial-test`
+    (5.8 h at 1 C/min, other turns) to test on: what SF hysteresis (`--effect hysteresis`)
+    needs to be seen.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.sim.config import ProfileConfig, SimConfig, TableConfig
+from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN, PartialCycle
 
 PAPER_TARGET_MAX_PPM = 835.1
 PAPER_TARGET_RMS_PPM = 450.24
@@ -67,7 +76,27 @@ def soak(ramp_rate_c_per_min: float = 1.0, seed: int = 0) -> SimConfig:
     return cfg
 
 
-SCENARIOS = {"paper": paper, "cycle": cycle, "steps": steps, "soak": soak}
+def _partial(program: PartialCycle, ramp_rate_c_per_min: float | None, seed: int
+             ) -> SimConfig:
+    if ramp_rate_c_per_min is not None:
+        program = replace(program, rates_c_per_min=(ramp_rate_c_per_min,))
+    cfg = SimConfig(scenario=program.name.replace("_", "-"), seed=seed)
+    cfg.profile = program.profile()
+    cfg.table = TableConfig(kind="constant", rate_dps=10.0)
+    cfg.thermal.start = "warm"
+    return cfg
+
+
+def partial(ramp_rate_c_per_min: float | None = None, seed: int = 0) -> SimConfig:
+    return _partial(PARTIAL_TRAIN, ramp_rate_c_per_min, seed)
+
+
+def partial_test(ramp_rate_c_per_min: float | None = None, seed: int = 0) -> SimConfig:
+    return _partial(PARTIAL_TEST, ramp_rate_c_per_min, seed)
+
+
+SCENARIOS = {"paper": paper, "cycle": cycle, "steps": steps, "soak": soak,
+             "partial": partial, "partial-test": partial_test}
 
 
 def scenario(name: str, ramp_rate_c_per_min: float | None = None, seed: int = 0) -> SimConfig:

@@ -133,13 +133,16 @@ def _windowed_sq(err: np.ndarray, step_s: float) -> list[float]:
     return list(np.mean(err[:n * win].reshape(n, win), axis=1) ** 2)
 
 
-def heldout_score(name: str, sd: StepData) -> float:
+def heldout_score(name: str, sd: StepData,
+                  fit: Callable[[StepData, np.ndarray], Predictor] | None = None) -> float:
     """RMS (ppm, 100 s windows) of the candidate's error on each segment when fitted on the
-    others, over every segment."""
+    others, over every segment; `fit` (steps data, fitted rows) instead of the candidate's
+    own least squares (e.g. with a hysteresis term, `training.hysteresis_choice`)."""
     sq: list[float] = []
     for k in range(sd.n_folds):
         held = sd.fold == k
-        pred = fit_candidate(name, sd, np.flatnonzero(~held))(sd.nodes)
+        fitter = fit or (lambda s, r: fit_candidate(name, s, r))
+        pred = fitter(sd, np.flatnonzero(~held))(sd.nodes)
         sq += _windowed_sq(pred[held] - sd.y[held], sd.fe.step_s)
     return float(np.sqrt(np.mean(sq)))
 

@@ -103,6 +103,8 @@ def _check(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
         raise UserError("--nodes must be 1 or 2 (1-3 with --structure physics)")
     if opts.structure not in STRUCTURES:
         raise UserError(f"--structure must be one of {', '.join(STRUCTURES)}")
+    if opts.hysteresis not in ("auto", "on", "off"):
+        raise UserError("--hysteresis must be one of auto, on, off")
     if opts.node is not None and opts.nodes != 1:
         raise UserError("--node gives one effective node; drop it or use --nodes 1")
     if opts.lstm_inputs is not None and not (opts.model == "lag-lstm"
@@ -145,19 +147,20 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
             choice = choose(train_logs, opts.model_step_s, opts.latitude_deg)
             structure, nodes = choice.structure()
             opts = TrainOptions(**{**asdict(opts), "structure": structure, "nodes": nodes})
-        if opts.structure == "physics":
-            fitted = _fit_physics(opts, train_logs)
-        elif opts.structure in ("bank", "auto") and opts.node is None and opts.nodes == 1:
-            spec = bank_spec()
-            # the bank's quadratic is diagonal: the head carries quad_w [F], not [F, F]
-            fitted = _fit_with_spec(opts, train_logs, spec,
-                                    _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec),
-                                                 quad_diag=True),
-                                    head_fn=_fit_bank_head)
-        else:
+        bank = opts.structure in ("bank", "auto") and opts.node is None and opts.nodes == 1
+        if opts.structure != "physics" and not bank:
             return _fit_node(opts, train_logs)
+        base = "bank" if bank else f"physics{opts.nodes}"
+        hyst = _hysteresis_choice(opts, train_logs, base)
+        if opts.structure == "physics":
+            fitted = _fit_physics(opts, train_logs, hyst["used"])
+        else:
+            fitted = _fit_bank(opts, train_logs, hyst["used"])
         if choice is not None:
             fitted.info["structure_choice"] = choice.as_dict()
+        if "term" in fitted.info:
+            hyst["term"] = fitted.info.pop("term")
+        fitted.info["hysteresis_choice"] = hyst
         return fitted
     return _fit_gsa(opts, train_logs)
 
@@ -170,10 +173,17 @@ def _lstm_inputs(opts: TrainOptions, spec: FeatureSpec) -> int:
     return n_in
 
 
-def _fit_physics(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
+def _hysteresis_choice(opts: TrainOptions, logs: list[ChamberLog], base: str) -> dict:
+    from fogsf.trainer.training.hysteresis_choice import decide
+
+    return decide(logs, base, opts.model_step_s, opts.latitude_deg, opts.hysteresis)
+
+
+def _fit_physics(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False
+                 ) -> Fitted:
     """Physics nodes: time constants identified by variable projection on every step of the
     training logs, the quadratic (with cross terms) held fixed in the head, the LSTM on what
-    it leaves."""
+    it leaves; with `hysteresis`, a play term too (`models.hysteresis`)."""
     from fogsf.trainer.models.physics_nodes import fit_coefficients, identify_taus, node_spec
     from fogsf.trainer.training.structure_choice import step_data
 
@@ -184,9 +194,49 @@ def _fit_physics(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
     def head_fn(ti: TrainingInputs) -> NodeFit:
         return fit_coefficients(*bank_data(ti), taus)
 
+    if hysteresis:
+        return _fit_with_term(opts, logs, f"physics{opts.nodes}", spec, sd)
     return _fit_with_spec(opts, logs, spec,
                           _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec)),
                           head_fn=head_fn)
+
+
+def _fit_bank(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False
+              ) -> Fitted:
+    """The lag bank (ridge, its diagonal quadratic in the head) and the LSTM on what it
+    leaves; with `hysteresis`, a play term too."""
+    spec = bank_spec()
+    if hysteresis:
+        from fogsf.trainer.training.structure_choice import step_data
+
+        sd = step_data(logs, opts.model_step_s, opts.latitude_deg)
+        return _fit_with_term(opts, logs, "bank", spec, sd)
+    # the bank's quadratic is diagonal: the head carries quad_w [F], not [F, F]
+    return _fit_with_spec(opts, logs, spec,
+                          _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec),
+                                       quad_diag=True),
+                          head_fn=_fit_bank_head)
+
+
+def _fit_with_term(opts: TrainOptions, logs: list[ChamberLog], base: str, spec: FeatureSpec,
+                   sd: object) -> Fitted:
+    """`base` (bank or physicsN with `spec`'s lags) with the play term chosen on every step
+    of the training logs, its feature last, its coefficient unpenalised, in the head."""
+    from fogsf.trainer.models.hysteresis import spec_with_play
+    from fogsf.trainer.training.hysteresis_choice import final_term, head_fit
+
+    term = final_term(base, sd, spec.taus_s)
+    full = spec_with_play(spec, term)
+
+    def head_fn(ti: TrainingInputs) -> BankFit | NodeFit:
+        return head_fit(base, *bank_data(ti), spec.taus_s)
+
+    fitted = _fit_with_spec(opts, logs, full,
+                            _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, full),
+                                         quad_diag=base == "bank"),
+                            head_fn=head_fn)
+    fitted.info["term"] = term.as_dict()
+    return fitted
 
 
 def _fit_node(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
@@ -231,7 +281,7 @@ def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpe
                     targets: list[np.ndarray] | None = None,
                     physical: bool = False) -> TrainingInputs:
     """physical: features in one physical unit (`physical_normaliser`), not standardised."""
-    fe = front_end_for(logs, opts.model_step_s, spec.taus_s)
+    fe = front_end_for(logs, opts.model_step_s, spec.taus_s, plays=spec.plays)
     ts = targets if targets is not None else [None] * len(logs)
     data = [prepare(lg, fe, opts.val_chunk, opts.latitude_deg, t, opts.window_s, opts.settle_s)
             for lg, t in zip(logs, ts, strict=True)]
@@ -480,6 +530,8 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     })
     if "structure_choice" in fitted.info:
         metrics["structure_choice"] = fitted.info["structure_choice"]
+    if "hysteresis_choice" in fitted.info:
+        metrics["hysteresis_choice"] = fitted.info["hysteresis_choice"]
     if fitted.stream_model is not None:
         metrics["model_id"] = fitted.stream_model.model_id
         hist = fitted.info.get("history", {})

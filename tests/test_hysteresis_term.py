@@ -1,0 +1,133 @@
+"""The trainer's hysteresis term: the play column, its choice, the held-out check, and a
+trained model with a play carried by the C kernel bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+from kernel_helpers import kernel_for
+
+from fogsf.trainer.models import reference
+from fogsf.trainer.models.features import front_end_for, physical_normaliser
+from fogsf.trainer.models.hysteresis import (
+    HystTerm,
+    _sse_batch,
+    choose_term,
+    column,
+    ridge_fit_free,
+    spec_with_play,
+    term_column,
+)
+from fogsf.trainer.models.lag_bank import bank_spec
+from fogsf.trainer.models.node_fit import discrete_lag, lag_alpha
+from fogsf.trainer.sim import simulate
+from fogsf.trainer.sim.config import EffectConfig
+from fogsf.trainer.sim.effects import play_operator
+from fogsf.trainer.sim.partial_cycles import PartialCycle
+from fogsf.trainer.sim.population import gyro_for_seed, run_on_gyro
+from fogsf.trainer.training.hysteresis_choice import decide, has_reversal
+from fogsf.trainer.training.options import TrainOptions
+from fogsf.trainer.training.train import run_training
+
+STEP_S = 5.0
+
+
+def _path() -> np.ndarray:
+    """A partial-cycle board temperature at 5 s steps (C, relative to 20 C)."""
+    legs = [(-30.0, 0.0), (20.0, 1.5), (0.0, 1.0), (30.0, 2.0), (5.0, 0.75), (-30.0, 1.5)]
+    out = [np.full(120, legs[0][0])]
+    for (a, _), (b, rate) in zip(legs[:-1], legs[1:], strict=True):
+        n = int(abs(b - a) / rate * 60.0 / STEP_S)
+        out += [np.linspace(a, b, n + 1)[1:], np.full(180, b)]
+    return np.concatenate(out)
+
+
+def test_sse_batch_equals_the_single_fits() -> None:
+    rng = np.random.default_rng(0)
+    x, y, hs = rng.normal(size=(400, 7)), rng.normal(size=400), rng.normal(size=(400, 5))
+    got = _sse_batch(x, hs, y, 1e-3, 3)
+    for m in range(5):
+        xx = x.copy()
+        xx[:, 3] = hs[:, m]
+        assert abs(got[m] - ridge_fit_free(xx, y, 1e-3, [3]).sse) < 1e-8 * got[m]
+
+
+def test_choose_term_finds_a_planted_play_of_a_lag() -> None:
+    t = _path()
+    rng = np.random.default_rng(1)
+    taus = (60.0, 600.0, 2000.0)
+    lags = {0.0: [t]} | {tau: [discrete_lag(t, lag_alpha(tau, STEP_S))] for tau in taus}
+    k_true, w_true = 6.0, 7.0
+    x = lags[600.0][0]
+    y = 3.0 * t + 0.02 * t * t + k_true * (play_operator(x, w_true) - x) \
+        + rng.normal(0.0, 2.0, t.size)
+    z = np.column_stack([t] + [lags[tau][0] for tau in taus]) / 50.0
+
+    def design(h: np.ndarray) -> np.ndarray:
+        return np.column_stack([z, z[:, :1] ** 2, h])
+
+    rows = np.arange(t.size)
+    term, fit = choose_term(design, y, rows, lags, 1e-4, 5)
+    assert abs(term.width_c - w_true) <= 1.0, term
+    assert abs(fit.coef[5] / 50.0 - k_true) <= 0.15 * k_true, term
+    # the column of the chosen term is what term_column gives
+    np.testing.assert_allclose(design(term_column(lags, term))[:, 5],
+                               term_column(lags, term))
+
+
+def test_spec_with_play_feature_is_the_play_minus_its_source() -> None:
+    """Through the float32 front end, the appended feature is (play(x) - x) / 50 C."""
+    log = simulate(_partial_run(0)).log
+    term = HystTerm(0.0, 407.0, 0.5, 6.0)
+    spec = spec_with_play(bank_spec(), term)
+    fe = front_end_for([log], STEP_S, spec.taus_s, plays=spec.plays)
+    s = reference.frontend(log.temp_c, fe).s
+    feat = (s.astype(np.float64) @ physical_normaliser(spec).feat_w.T.astype(np.float64))[:, -1]
+    tm = s[:, 0].astype(np.float64)
+    src = 0.5 * tm + 0.5 * s[:, 1 + spec.taus_s.index(407.0)].astype(np.float64)
+    np.testing.assert_allclose(feat, column([src], 6.0), atol=2e-5)
+
+
+def _partial_run(seed: int, hyst: bool = True, gyro_seed: int = 17):  # noqa: ANN202
+    prog = PartialCycle("short", (-30.0, 20.0, 0.0, 35.0, 5.0, -30.0), (2.0, 1.0), 900.0,
+                        900.0)
+    gyro = gyro_for_seed(gyro_seed, hysteresis=False)
+    if hyst:
+        gyro.effects = [EffectConfig("hysteresis", 8.0, {"width_c": 8.0})]
+    cfg = run_on_gyro(gyro, prog.profile(), seed, "short")
+    cfg.dt_s = 1.0
+    return cfg
+
+
+def test_reversals_and_the_check() -> None:
+    t = _path()
+    assert has_reversal([t]) and not has_reversal([np.linspace(-30, 30, 500)])
+    ramp = simulate(run_on_gyro(gyro_for_seed(5), _ramp(), 1, "ramp")).log
+    d = decide([ramp], "bank", STEP_S)
+    assert d["used"] is False and d["reason"] == "no reversal in the training logs"
+    assert decide([ramp], "bank", STEP_S, mode="on")["used"] is True
+
+
+def _ramp():  # noqa: ANN202
+    from fogsf.trainer.sim.config import ProfileConfig
+
+    return ProfileConfig(kind="ramp", start_c=-20.0, stop_c=40.0, rate_c_per_min=2.0)
+
+
+def test_trained_play_model_runs_bit_for_bit_in_c(tmp_path) -> None:
+    train = simulate(_partial_run(1)).log
+    test = simulate(_partial_run(2)).log
+    opts = TrainOptions(model="lag-lstm", seed=0, progress=False, workers=1, iters=5,
+                        transfer_check=False, hysteresis="on")
+    m, fitted = run_training(opts, [train], test, tmp_path / "m")
+    sm = fitted.stream_model
+    assert sm is not None and sm.n_plays == 1 and m["hysteresis_choice"]["used"]
+    assert m["hysteresis_choice"]["term"]["width_c"] > 0
+    kern = kernel_for(sm, tmp_path)
+    _, sf, _ = kern.run(test.temp_c, test.gyro_dps)
+    ref = reference.replay(sm, test.temp_c, test.gyro_dps)
+    assert np.array_equal(sf.view(np.uint32), ref.sf_ppm.view(np.uint32))
+    off = run_training(TrainOptions(model="lag-lstm", seed=0, progress=False, workers=1,
+                                    iters=5, transfer_check=False, hysteresis="off"),
+                       [train], test, tmp_path / "off")[0]
+    # an 8 ppm/C, 8 C play: the term takes most of what the model without it leaves
+    assert m["test"]["after"]["rms_ppm"] < 0.8 * off["test"]["after"]["rms_ppm"]

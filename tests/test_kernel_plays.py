@@ -1,0 +1,107 @@
+"""Play (backlash) operators in the front end: the C kernel equals the numpy reference bit
+for bit, the operator does what the contract says, and a model without plays keeps its
+bytes and id."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from kernel_helpers import kernel_for
+
+from fogsf.bindings.firmware import golden_inputs, state_bytes
+from fogsf.export.header import render_model
+from fogsf.trainer.errors import UserError
+from fogsf.trainer.models import reference, samples
+from fogsf.trainer.models import stream as st
+
+# (K filters, F features, D decimation, seed, plays ((source weights, width_c), ...), poly)
+PLAY_SIZES = [(3, 4, 10, 20, (((1.0, 0.0, 0.0, 0.0), 6.0),), True),
+              (2, 5, 7, 21, (((0.0, 0.0, 1.0), 3.5), ((0.3, 0.45, 0.25), 9.25)), False),
+              (1, 2, 1, 22, (((0.0, 1.0), 0.0),), True), (0, 2, 50, 23, (((1.0,), 12.0),), False)]
+
+
+@pytest.fixture(scope="session")
+def kroot(tmp_path_factory):
+    return tmp_path_factory.mktemp("kernels-plays")
+
+
+def model_of(size: tuple) -> st.StreamModel:
+    k, f, d, seed, plays, poly = size
+    return samples.random_model(k, f, 1, 8, d, seed=seed, poly_head=poly, plays=plays)
+
+
+@pytest.mark.parametrize("size", PLAY_SIZES)
+def test_kernel_with_plays_equals_reference_bit_for_bit(size, kroot) -> None:
+    model = model_of(size)
+    kernel = kernel_for(model, kroot)
+    temp, gyro = golden_inputs(model, n=3000, seed=size[3])
+    # a slow triangle on top, so the plays stick and slide many times
+    temp = temp + 15.0 * np.abs(((np.arange(temp.size) / 400.0) % 2.0) - 1.0)
+    corrected, sf, flags = kernel.run(temp, gyro)
+    ref = reference.replay(model, temp, gyro)
+    bad = np.flatnonzero(sf.view(np.uint32) != ref.sf_ppm.view(np.uint32))
+    assert bad.size == 0, f"seed {size[3]}: sf differs at samples {bad[:20].tolist()}"
+    np.testing.assert_array_equal(corrected.view(np.uint64), ref.corrected_dps.view(np.uint64))
+    np.testing.assert_array_equal(flags, ref.flags)
+
+
+def test_play_column_is_the_backlash_of_its_source() -> None:
+    model = model_of(PLAY_SIZES[0])
+    fe = model.front_end
+    temp = np.concatenate([np.linspace(0, 20, 2001), np.linspace(20, 15, 501)[1:],
+                           np.full(500, 15.0), np.linspace(15, 30, 1501)[1:]])
+    out = reference.frontend(temp, fe)
+    tm = out.s[:, 0].astype(np.float64)
+    p = out.s[:, 1 + model.n_filters].astype(np.float64)
+    assert np.all(np.abs(p - tm) <= 3.0 + 1e-5)  # width 6: within +-3 of its source
+    top = int(np.argmax(tm[:tm.size // 2]))  # the first turn, at 20 C
+    assert abs((tm[top] - p[top]) - 3.0) < 1e-4  # trailing by half the width going up
+    # back down by 5 C (less than the width) and a soak: the play holds its value
+    held = p[top:top + 100]
+    assert held.size == 100 and np.ptp(held) == 0.0 and np.ptp(tm[top:top + 100]) >= 4.9
+
+
+def test_plays_enter_config_and_id_only_when_present(tmp_path) -> None:
+    plain = samples.random_model(2, 3, 1, 8, 10, seed=5)
+    played = model_of(PLAY_SIZES[1])
+    assert st.PLAY_WIDTH_KEY not in plain.config()
+    assert played.config()[st.PLAY_WIDTH_KEY] == [3.5, 9.25]
+    assert played.config()[st.PLAY_SOURCE_KEY] == [[0.0, 0.0, 1.0], [0.3, 0.45, 0.25]]
+    played.save(tmp_path / "m")
+    back = st.StreamModel.load(tmp_path / "m")
+    assert back.model_id == played.model_id and back.play_source_w == played.play_source_w
+    files = render_model(played, "imu_p")
+    assert "#define IMU_P_N_PLAYS 2" in files["imu_p.h"]
+    assert "play_half_c, play_source_w" in files["imu_p.c"]
+    plain_files = render_model(plain, "imu_q")
+    assert "PLAYS" not in plain_files["imu_q.h"] and "play" not in plain_files["imu_q.c"]
+    assert state_bytes(played) == state_bytes([plain, played])
+
+
+@pytest.mark.parametrize("bad", [{"play_width_c": [-1.0], "play_source_w": [[1, 0, 0]]},
+                                 {"play_width_c": [2.0], "play_source_w": [[1, 0]]},
+                                 {"play_width_c": [2.0], "play_source_w": [[1, "x", 0]]},
+                                 {"play_width_c": [2.0, 3.0], "play_source_w": [[1, 0, 0]]}])
+def test_bad_plays_are_refused(tmp_path, bad) -> None:
+    model = samples.random_model(2, 3, 1, 8, 10, seed=5)
+    model.save(tmp_path / "m")
+    cfg = json.loads((tmp_path / "m" / st.CONFIG_FILE).read_text())
+    cfg.update(bad)
+    (tmp_path / "m" / st.CONFIG_FILE).write_text(json.dumps(cfg))
+    with pytest.raises(UserError):
+        st.StreamModel.load(tmp_path / "m")
+
+
+def test_plays_with_a_bias_head_bit_for_bit(kroot) -> None:
+    model = samples.random_model(2, 3, 1, 8, 10, seed=24, poly_head=True, bias_head=True,
+                                 plays=(((0.5, 0.5, 0.0), 5.0),))
+    kernel = kernel_for(model, kroot)
+    temp, gyro = golden_inputs(model, n=3000, seed=24)
+    temp = temp + 15.0 * np.abs(((np.arange(temp.size) / 400.0) % 2.0) - 1.0)
+    out = kernel.run_bias(temp, gyro)
+    ref = reference.replay(model, temp, gyro)
+    np.testing.assert_array_equal(out[0].view(np.uint64), ref.corrected_dps.view(np.uint64))
+    np.testing.assert_array_equal(out[1].view(np.uint32), ref.sf_ppm.view(np.uint32))
+    np.testing.assert_array_equal(out[2].view(np.uint32), ref.bias_dph.view(np.uint32))
