@@ -53,7 +53,8 @@ def protocol(kind: str, loop: tuple, bias: BiasConfig) -> rigs.RigProtocol:
     return rigs.stationary_protocol(chamber, bias=bias)
 
 
-def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
+def one(gyro: int, kind: str, shupe: float, work: Path,
+        candidates: tuple[str, ...] | None = None) -> dict:
     bias = bias_law(gyro, shupe)
     logs, truth = [], []
     for name, loop, seed in (("train", TRAIN_LOOP, 1), ("test", TEST_LOOP, 2)):
@@ -61,7 +62,10 @@ def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
                           protocol(kind, loop, replace(bias)), (gyro,), seed=seed)
         logs.append(read_log(rl.path, with_mapping_beside(rl.path, Dialect())))
         truth.append(rl.truth[""].bias_dph)
-    model = fit_bias(bank_feature_map([logs[0]], 5.0), [logs[0]])
+    # reversals: the bias head on the SF model's z (the lag bank's, for a loop); stationary:
+    # a bias-only model with its own front end
+    fm = bank_feature_map([logs[0]], 5.0) if kind == "reversals" else None
+    model = fit_bias(fm, [logs[0]], candidates=candidates)
     wt, ws = bias_windows(logs[0], 100.0), bias_windows(logs[1], 100.0)
     assert model is not None and wt is not None and ws is not None
 
@@ -76,7 +80,9 @@ def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
     rel = 0.05 if kind == "reversals" else 0.10
     floor = 0.1 if kind == "reversals" else 0.2
     return {"gyro": gyro, "protocol": kind, "shupe_dph_per_c_per_min": shupe,
-            "bias_node": bias.node, "windows": len(ws), "true_std_dph": float(np.std(true)),
+            "bias_node": bias.node, "windows": len(ws),
+            "structure": model.choice.as_dict() if model.choice is not None else None,
+            "true_std_dph": float(np.std(true)),
             "err_std_dph": err, "px4_cubic_err_std_dph": err_cubic,
             "measured_noise_floor_dph": ws.noise_floor_dph,
             "target_dph": max(floor, rel * float(np.std(true))),
@@ -89,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--gyros", default="20000:20008", help="population seeds LO:HI")
     p.add_argument("--out", type=Path, default=Path("out/bench-bias.json"))
+    p.add_argument("--candidates", default=None,
+                   help="bias structures to choose among, comma-separated (default: all)")
     args = p.parse_args(argv)
     lo, hi = (int(x) for x in args.gyros.split(":"))
     rows = []
@@ -96,13 +104,17 @@ def main(argv: list[str] | None = None) -> int:
         for gyro in range(lo, hi):
             for kind in ("reversals", "stationary"):
                 for case, shupe in SHUPE.items():
-                    r = one(gyro, kind, shupe, Path(tmp))
+                    cands = tuple(args.candidates.split(",")) if args.candidates else None
+                    r = one(gyro, kind, shupe, Path(tmp), cands)
                     r["case"] = case
                     rows.append(r)
                     print(f"gyro {gyro} {kind:10s} {case:8s} true std {r['true_std_dph']:6.3f}"
                           f"  err {r['err_std_dph']:6.3f}  cubic {r['px4_cubic_err_std_dph']:6.3f}"
                           f"  floor {r['measured_noise_floor_dph']:6.3f}  target "
-                          f"{r['target_dph']:5.3f} {'ok' if r['meets_target'] else 'MISS'}",
+                          f"{r['target_dph']:5.3f} {'ok' if r['meets_target'] else 'MISS'}"
+                          f"  {r['structure']['chosen']} " + " ".join(
+                              f"{k}={v:.3f}" for k, v in
+                              r['structure']['heldout_rms_dph'].items()),
                           flush=True)
     summary = {}
     for kind in ("reversals", "stationary"):
