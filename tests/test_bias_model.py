@@ -130,7 +130,7 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     from fogsf.trainer.logs.logio import read_log
     from fogsf.trainer.models import reference
     from fogsf.trainer.models.stream import StreamModel
-    from fogsf.trainer.training.bias_model import FeatureMap, fit_bias
+    from fogsf.trainer.training.bias_model import fit_bias
 
     write_log(tmp_path / "a.csv", soak_log(TRAIN, 9)[0])
     test, _ = soak_log(TEST, 10)
@@ -143,8 +143,9 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     assert m["params"] == sm.params
     ref = reference.replay(sm, test.temp_c, test.gyro_dps)
     assert not ref.sf_ppm.any()
-    fm = FeatureMap(sm.front_end, sm.weights["feat_w"], sm.weights["feat_b"], 9)
-    fit = fit_bias(fm, [read_log(tmp_path / "a.csv")])
+    fit = fit_bias(None, [read_log(tmp_path / "a.csv")])  # what train fitted: deterministic
+    assert fit is not None and np.array_equal(fit.fm.feat_w, sm.weights["feat_w"])
+    assert m["bias"]["model"]["structure"]["chosen"] == fit.choice.name
     assert np.max(np.abs(ref.bias_dph - fit.predict(test))) < 1e-3
     capsys.readouterr()
     assert cli.main(["replay", str(out), str(tmp_path / "b.csv"), "--out",

@@ -332,6 +332,13 @@ def bias_lines(b: dict) -> list[str]:
             lines.append(row.format(f"{name} {when}", f"{m['max_abs_dph']:.4f}",
                                     f"{m['pp_dph']:.4f}", f"{m['rms_dph']:.4f}",
                                     f"{m['std_dph']:.4f}", f"{m['noise_floor_dph']:.4f}"))
+    if b["model"].get("structure"):
+        import textwrap
+
+        from fogsf.trainer.training.bias_structure import choice_message
+
+        lines += ["  " + ln for ln in textwrap.wrap(choice_message(b["model"]["structure"]),
+                                                     94)]
     src = ", ".join(sorted(set(b["model"]["sources"])))
     lines.append(f"  bias model: {b['model']['targets']} targets ({src}) on the features z; "
                  "before = the measured bias, after = measured - predicted (floor: 1 sigma "

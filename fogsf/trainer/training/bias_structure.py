@@ -37,7 +37,7 @@ from fogsf.trainer.models.node_fit import ridge_fit, varpro
 from fogsf.trainer.models.physics_nodes import TAU_MAX_S, TAU_MIN_S
 
 CANDIDATES = ("cubic", "shupe", "node", "shupe2", "lead", "bank")
-CHOICE_TOLERANCE = 0.20
+CHOICE_TOLERANCE = 0.10
 SPLIT_PARTS = 3
 SCORE_WINDOW_S = 100.0
 # a whisker of ridge (a multiple of the centred design's mean diagonal) so that nearly
