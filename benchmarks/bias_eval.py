@@ -23,13 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.logs.bias import bias_windows
+from fogsf.trainer.logs.bias import before_after, bias_windows
 from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log, with_mapping_beside
 from fogsf.trainer.sim import rig_logs, rigs
 from fogsf.trainer.sim.config import BiasConfig
 from fogsf.trainer.sim.population import gyro_for_seed
+from fogsf.trainer.training.bias_interval import bias_interval
 from fogsf.trainer.training.bias_model import bank_feature_map, fit_bias
+from fogsf.trainer.training.bias_structure import CANDIDATES
 
 TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)  # lo, hi C, up, down C/min, soak s
 TEST_LOOP = (0.0, 40.0, 0.5, 1.5, 900.0)
@@ -74,7 +76,12 @@ def one(gyro: int, kind: str, shupe: float, work: Path,
         return (c[w.stop] - c[w.start]) / (w.stop - w.start)
 
     true = window_mean(truth[1], ws)
-    pred = window_mean(model.predict(logs[1]), ws)
+    per_sample = model.predict(logs[1])
+    pred = window_mean(per_sample, ws)
+    iv = bias_interval(model.family, logs[1], per_sample)
+    assert iv is not None
+    lo_iv, hi_iv = iv["rms_interval_dph"]
+    after_rms = before_after(ws, per_sample)["after"]["rms_dph"]
     cubic = np.polyval(np.polyfit(wt.temp_c, wt.bias_dph, 3), ws.temp_c)
     err, err_cubic = float(np.std(pred - true)), float(np.std(cubic - true))
     rel = 0.05 if kind == "reversals" else 0.10
@@ -87,7 +94,9 @@ def one(gyro: int, kind: str, shupe: float, work: Path,
             "measured_noise_floor_dph": ws.noise_floor_dph,
             "target_dph": max(floor, rel * float(np.std(true))),
             "meets_target": err <= max(floor, rel * float(np.std(true))),
-            "beats_cubic_2x": err_cubic >= 2.0 * err}
+            "beats_cubic_2x": err_cubic >= 2.0 * err,
+            "after_rms_dph": after_rms, "interval_dph": [lo_iv, hi_iv],
+            "interval_covers": bool(lo_iv <= after_rms <= hi_iv), "interval": iv}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -112,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
                           f"  err {r['err_std_dph']:6.3f}  cubic {r['px4_cubic_err_std_dph']:6.3f}"
                           f"  floor {r['measured_noise_floor_dph']:6.3f}  target "
                           f"{r['target_dph']:5.3f} {'ok' if r['meets_target'] else 'MISS'}"
+                          f"  after RMS {r['after_rms_dph']:.3f} in [{r['interval_dph'][0]:.3f}, "
+                          f"{r['interval_dph'][1]:.3f}]"
                           f"  {r['structure']['chosen']} " + " ".join(
                               f"{k}={v:.3f}" for k, v in
                               r['structure']['heldout_rms_dph'].items()),
@@ -126,11 +137,17 @@ def main(argv: list[str] | None = None) -> int:
                 "gyros": len(sel), "err_median_dph": float(np.median(e)),
                 "err_max_dph": float(e.max()), "cubic_median_dph": float(np.median(c)),
                 "meets_target": int(sum(r["meets_target"] for r in sel)),
-                "beats_cubic_2x": int(sum(r["beats_cubic_2x"] for r in sel))}
+                "beats_cubic_2x": int(sum(r["beats_cubic_2x"] for r in sel)),
+                "interval_covers": int(sum(r["interval_covers"] for r in sel)),
+                "structures": {c: sum(r["structure"]["chosen"] == c for r in sel)
+                               for c in CANDIDATES if any(r["structure"]["chosen"] == c
+                                                          for r in sel)}}
     for k, v in summary.items():
         print(f"{k:24s} median err {v['err_median_dph']:.3f} (max {v['err_max_dph']:.3f}) "
               f"deg/h, PX4 cubic {v['cubic_median_dph']:.3f}; target met {v['meets_target']}/"
-              f"{v['gyros']}, cubic beaten 2x {v['beats_cubic_2x']}/{v['gyros']}")
+              f"{v['gyros']}, cubic beaten 2x {v['beats_cubic_2x']}/{v['gyros']}, interval "
+              f"covers {v['interval_covers']}/{v['gyros']}; chosen "
+              + ", ".join(f"{c} {n}" for c, n in v["structures"].items()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"gyros": [lo, hi], "train_loop": TRAIN_LOOP,
                                     "test_loop": TEST_LOOP, "rows": rows,

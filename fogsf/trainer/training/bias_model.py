@@ -32,7 +32,7 @@ from fogsf.trainer.models.physics_nodes import NodeTemperatures
 from fogsf.trainer.models.reference import expand, frontend
 from fogsf.trainer.models.reference import features as ref_features
 from fogsf.trainer.models.stream import FrontEnd, StreamModel
-from fogsf.trainer.training.structure_choice import log_folds
+from fogsf.trainer.training.bias_interval import bias_interval, family, interval_message
 
 MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
 
@@ -73,6 +73,7 @@ class BiasModel:
     n_targets: int
     sources: list[str]
     choice: Any = None  # bias_structure.BiasChoice: the structure and why
+    family: Any = None  # bias_interval.Family: what the rate-transfer interval needs
 
     def predict_steps(self, z: np.ndarray) -> np.ndarray:
         return self.fit.predict(z)
@@ -114,7 +115,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
 
     fe0 = fm.fe if fm is not None else front_end_for(logs, step_s, ())
     t_rel, zs, rows, ys, folds, groups, sources = [], [], [], [], [], [], []
-    base = fold_base = group_base = 0
+    base = group_base = 0
     for lg in logs:
         w = bias_windows(lg, window_s, latitude_deg, settle_s)
         fe = fe0.at_rate(lg.sample_dt_s)
@@ -126,13 +127,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
             idx, y = idx[ok], y[ok]
             rows.append(base + idx)
             ys.append(y)
-            if bs.FOLD_SCHEME == "blocks":
-                f = bs.block_folds(idx, fe.step_s)
-                folds.append(f)
-            else:
-                f = log_folds(lg, n, fe.step_s)[idx]
-                folds.append(f + fold_base)
-                fold_base += int(f.max(initial=0)) + 1
+            folds.append(bs.block_folds(idx, fe.step_s))
             per = (max(1, int(round(bs.SCORE_WINDOW_S / fe.step_s)))
                    if w.source == "stationary" else 1)
             g = idx // per if per > 1 else np.arange(idx.size)
@@ -150,8 +145,6 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
         raise UserError(f"the training logs measure the bias {y.size} time(s): too few for "
                         f"a bias model (at least {MIN_TARGETS})")
     fold = np.concatenate(folds)
-    if bs.FOLD_SCHEME != "blocks":
-        fold = bs.contiguous_folds(fold)
     group = np.concatenate(groups)
     order = bs.CANDIDATES if candidates is None else candidates
     if fm is not None:
@@ -160,22 +153,38 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
         if i_t is None:
             order = ("bank",)
         choice, fit = bs.choose(cols, y, fold, group, order)
-        return BiasModel(fm, _head(fit, fm, i_t, lags), int(y.size), sources, choice)
+        fam = family(cols, y, tuple(choice.scores), choice.name, group,
+                     lambda lg: _shared_columns(fm, fm.z(lg).astype(np.float64))[0],
+                     lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
+        return BiasModel(fm, _head(fit, fm, i_t, lags), int(y.size), sources, choice, fam)
     nodes = NodeTemperatures(t_rel, fe0.step_s)
     free = bs.Columns(nodes.z(())[row, 0], lambda tau: nodes.lag(tau)[row], None,
                       nodes.z(TAU_GRID_S)[row], n_curved())
     choice, fit = bs.choose(free, y, fold, group, order)
+    fam = family(free, y, tuple(choice.scores), choice.name, group,
+                 lambda lg: _free_columns(lg, fe0),
+                 lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
     taus = fit.taus_s
     if choice.name == "lead":
         own = lead_feature_map(logs, step_s, taus, float(fit.w))
         z = np.concatenate([own.z(lg) for lg in logs]).astype(np.float64)[row]
-        return BiasModel(own, _lead_head(z, y), int(y.size), sources, choice)
+        return BiasModel(own, _lead_head(z, y), int(y.size), sources, choice, fam)
     own = (bank_feature_map(logs, step_s) if choice.name == "bank"
            else node_feature_map(logs, step_s, taus))
     z = np.concatenate([own.z(lg) for lg in logs]).astype(np.float64)[row]
     cols, i_t, lags = _shared_columns(own, z)
     refit = bs.fit_candidate(choice.name, cols, np.arange(y.size), y)
-    return BiasModel(own, _head(refit, own, i_t, lags), int(y.size), sources, choice)
+    return BiasModel(own, _head(refit, own, i_t, lags), int(y.size), sources, choice, fam)
+
+
+def _free_columns(log: ChamberLog, fe0: FrontEnd) -> Any:
+    """A log's columns at every model step on a front end with no filter of its own (the
+    lags computed at any time constant)."""
+    from fogsf.trainer.training import bias_structure as bs
+
+    nodes = NodeTemperatures([frontend(log.temp_c, fe0.at_rate(log.sample_dt_s)).s[:, 0]
+                              .astype(np.float64)], fe0.step_s)
+    return bs.Columns(nodes.z(())[:, 0], nodes.lag, None, nodes.z(TAU_GRID_S), n_curved())
 
 
 def _shared_columns(fm: FeatureMap, z: np.ndarray
@@ -279,6 +288,10 @@ def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: Chamber
     out: dict = {"model": model.as_dict()}
     if test_log is not None:
         out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s)
+        if out["test"] is not None and model.family is not None:
+            out["rate_transfer"] = bias_interval(model.family, test_log,
+                                                 model.predict(test_log), window_s,
+                                                 latitude_deg, settle_s)
     out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s)
                     for i, lg in enumerate(train_logs)}
     return out
@@ -321,6 +334,8 @@ def feature_map_of(stream_model: StreamModel | None, logs: list[ChamberLog],
 
 def bias_lines(b: dict) -> list[str]:
     """`fogsf train`'s bias table (deg/h) from metrics.json's "bias" block."""
+    import textwrap
+
     row = "  {:<16} {:>9} {:>9} {:>9} {:>9} {:>9}"
     lines = [row.format("bias, deg/h", "max|e|", "p-p", "RMS", "STD", "floor")]
     blocks = ([("test", b["test"])] if b.get("test") else []) + [
@@ -332,9 +347,9 @@ def bias_lines(b: dict) -> list[str]:
             lines.append(row.format(f"{name} {when}", f"{m['max_abs_dph']:.4f}",
                                     f"{m['pp_dph']:.4f}", f"{m['rms_dph']:.4f}",
                                     f"{m['std_dph']:.4f}", f"{m['noise_floor_dph']:.4f}"))
+    if b.get("rate_transfer"):
+        lines += ["  " + ln for ln in textwrap.wrap(interval_message(b["rate_transfer"]), 94)]
     if b["model"].get("structure"):
-        import textwrap
-
         from fogsf.trainer.training.bias_structure import choice_message
 
         lines += ["  " + ln for ln in textwrap.wrap(choice_message(b["model"]["structure"]),

@@ -1,4 +1,4 @@
-"""The bias model's structure, chosen by the training log: leave one segment out.
+"""The bias model's structure, chosen by the training log: held-out segments.
 
 The candidates, smallest first (bias in deg/h, T the board temperature, n = lag(T, tau) a
 coil node behind it):
@@ -6,17 +6,22 @@ coil node behind it):
 - `shupe`: the cubic in T plus e n: a Shupe term e' (T - n) / tau, the rate of change of
   the node (d n/dt = (T - n) / tau), carried by the linear terms of T and n;
 - `node`: a + b T + c n + d n^2 + e n^3: the cubic law on the coil node and its Shupe term;
+- `shupe2`: the cubic in T plus two lags linearly (a Shupe term of a node two lags away);
+- `lead`: T and a fast lag linearly (the board's rate of change) and a cubic in the
+  lead-lag node c = w T + (1 - w) lag(T, tau_c): a coil behind the housing seen from a board
+  behind the same housing is exactly such a node (w = the board's time constant over the
+  coil's, > 1 when the coil is the faster), its rate of change w dT/dt + (1 - w)(T -
+  lag)/tau_c; only with a front end of its own (c is a feature of its own);
 - `bank`: the lag bank's polynomial of every feature (T, its lags at 11 time constants,
   cubes up to 2000 s) by ridge with the penalty chosen by GCV (`bias_model.fit_gcv`).
-The node's time constant is identified by variable projection (`models.node_fit.varpro`,
-from the best of the lag grid) when the bias model has its own front end (a bias-only model,
-or an SF model without a firmware form); when the bias head shares the SF model's features
-z, the time constants are those of z's lags (the best by least squares): the firmware's
-bias head reads z and nothing else, so no new filter is needed.
+Time constants (and w) are identified by variable projection (`models.node_fit.varpro`,
+from the best of a grid) when the bias model has its own front end (a bias-only model, or
+an SF model without a firmware form); when the bias head shares the SF model's features z,
+they are z's own lags (the best by least squares): the firmware's bias head reads z and
+nothing else, so no new filter is needed.
 
-Each candidate is fitted to the training targets with one segment held out (a ramp with
-the soak before it; one segment: SPLIT_PARTS contiguous parts), predicts it, and scores
-the RMS of its error over 100 s windows (a pair is a window); the choice is the first
+Each candidate is fitted with one fold of blocks held out (`block_folds`), predicts it, and
+scores the RMS of its error over 100 s windows (a pair is a window); the choice is the first
 candidate, in the order above, within CHOICE_TOLERANCE of the best score: a larger
 structure has to predict held-out segments clearly better. Chosen on development gyros
 (docs/decisions.md).
@@ -38,7 +43,6 @@ from fogsf.trainer.models.physics_nodes import TAU_MAX_S, TAU_MIN_S
 
 CANDIDATES = ("cubic", "shupe", "node", "shupe2", "lead", "bank")
 CHOICE_TOLERANCE = 0.10
-SPLIT_PARTS = 3
 SCORE_WINDOW_S = 100.0
 # a whisker of ridge (a multiple of the centred design's mean diagonal) so that nearly
 # collinear T and node columns do not cancel with huge coefficients
@@ -97,8 +101,16 @@ class CandidateFit:
     def predict(self, cols: Columns, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
         if self.bank is not None:
             return self.bank.predict(cols.z[rows])
+        return self.intercept + self.columns(cols, rows) @ self.coef
+
+    def columns(self, cols: Columns, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """The design (no intercept) at `rows` of `cols`."""
+        if self.bank is not None:
+            from fogsf.trainer.models.lag_bank import bank_design
+
+            return bank_design(cols.z[rows], cols.curved)
         n = [cols.lag(tau)[rows] for tau in self.taus_s]
-        return self.intercept + design(self.name, cols.t[rows], n, self.w) @ self.coef
+        return design(self.name, cols.t[rows], n, self.w)
 
 
 def _fixed_taus(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray,
@@ -223,22 +235,17 @@ def choose(cols: Columns, y: np.ndarray, fold: np.ndarray, group: np.ndarray,
                        cols.taus is None), fit)
 
 
-FOLD_SCHEME = "blocks"
+# Held-out segments: blocks of BLOCK_S dealt to N_FOLDS folds in turn, so that every fold
+# holds parts of every ramp and soak. Holding out whole ramps (the SF's choice) leaves a
+# loop of one up- and one down-ramp two folds, each fitted on one direction of the Shupe
+# term alone (docs/decisions.md).
 BLOCK_S = 1200.0
 N_FOLDS = 5
 
 
 def block_folds(idx: np.ndarray, step_s: float) -> np.ndarray:
-    """Blocks of BLOCK_S, dealt to N_FOLDS folds in turn (steps `idx` of one log)."""
+    """The fold of each target at model steps `idx` of one log."""
     return (idx * step_s // BLOCK_S).astype(np.int64) % N_FOLDS
-
-
-def contiguous_folds(fold: np.ndarray) -> np.ndarray:
-    """One segment: SPLIT_PARTS contiguous parts instead."""
-    if np.unique(fold).size > 1:
-        return fold
-    return np.minimum(np.arange(fold.size) * SPLIT_PARTS // max(fold.size, 1),
-                      SPLIT_PARTS - 1)
 
 
 def as_bank_fit(fit: CandidateFit, i_t: int, i_n: list[int], n_features: int) -> BankFit:
