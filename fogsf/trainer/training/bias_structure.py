@@ -172,21 +172,26 @@ def _window_groups(group: np.ndarray) -> np.ndarray:
     return np.unique(group, return_inverse=True)[1]
 
 
-def heldout_score(name: str, cols: Columns, y: np.ndarray, fold: np.ndarray,
-                  group: np.ndarray) -> float:
-    """RMS (deg/h) of the candidate's error on each held-out segment when fitted on the
-    others, the error averaged over each scoring window (`group`) first."""
-    sq: list[float] = []
+def heldout_errors(name: str, cols: Columns, y: np.ndarray, fold: np.ndarray,
+                   group: np.ndarray) -> np.ndarray:
+    """The candidate's error (deg/h) on every held-out scoring window (`group`: the error
+    averaged over each first), each fold predicted by a fit to the others; the windows in
+    one order for every candidate."""
+    out: list[np.ndarray] = []
     for k in np.unique(fold):
         held = np.flatnonzero(fold == k)
         rest = np.flatnonzero(fold != k)
         fit = fit_candidate(name, cols, rest, y[rest])
         err = fit.predict(cols, held) - y[held]
         g = _window_groups(group[held])
-        sums = np.bincount(g, weights=err)
-        counts = np.bincount(g)
-        sq += list((sums / counts) ** 2)
-    return float(np.sqrt(np.mean(sq)))
+        out.append(np.bincount(g, weights=err) / np.bincount(g))
+    return np.concatenate(out)
+
+
+def heldout_score(name: str, cols: Columns, y: np.ndarray, fold: np.ndarray,
+                  group: np.ndarray) -> float:
+    """RMS (deg/h) of the candidate's held-out window errors (`heldout_errors`)."""
+    return float(np.sqrt(np.mean(heldout_errors(name, cols, y, fold, group) ** 2)))
 
 
 @dataclass
@@ -227,7 +232,8 @@ def choose(cols: Columns, y: np.ndarray, fold: np.ndarray, group: np.ndarray,
     """The rule (module docstring), and the chosen candidate fitted on every target."""
     order = [c for c in candidates if cols.taus is None
              or (c != "lead" and NODES[c] <= len(cols.taus))]
-    scores = {c: heldout_score(c, cols, y, fold, group) for c in order}
+    errs = {c: heldout_errors(c, cols, y, fold, group) for c in order}
+    scores = {c: float(np.sqrt(np.mean(e * e))) for c, e in errs.items()}
     best = min(scores.values())
     name = next(c for c in order if scores[c] <= (1.0 + tolerance) * best)
     fit = fit_candidate(name, cols, np.arange(y.size), y)
