@@ -36,11 +36,17 @@ from fogsf.trainer.training.bias_structure import CANDIDATES
 TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)  # lo, hi C, up, down C/min, soak s
 TEST_LOOP = (0.0, 40.0, 0.5, 1.5, 900.0)
 SHUPE = {"no-shupe": 0.0, "shupe": 2.0}  # deg/h per C/min
+# the population's own thermal bias (`population.with_thermal_bias`): Shupe, quadratic, cubic
+POPULATION = "population"
+CASES = (*SHUPE, POPULATION)
 
 
-def bias_law(gyro: int, shupe: float) -> BiasConfig:
+def bias_law(gyro: int, shupe: float | None) -> BiasConfig:
     """The gyro's own bias (offset, slope) with a quadratic and the Shupe term, on its coil
-    (the first node named coil*, else the population's bias node)."""
+    (the first node named coil*, else the population's bias node); shupe None: the
+    population's thermal bias drawn for the gyro."""
+    if shupe is None:
+        return gyro_for_seed(gyro, thermal_bias=True).bias
     cfg = gyro_for_seed(gyro)
     coils = [n.name for n in cfg.thermal.nodes if n.name.startswith("coil")]
     return BiasConfig(**{**asdict(cfg.bias), "quad_dph_per_c2": 0.001,
@@ -55,7 +61,7 @@ def protocol(kind: str, loop: tuple, bias: BiasConfig) -> rigs.RigProtocol:
     return rigs.stationary_protocol(chamber, bias=bias)
 
 
-def one(gyro: int, kind: str, shupe: float, work: Path,
+def one(gyro: int, kind: str, shupe: float | None, work: Path,
         candidates: tuple[str, ...] | None = None) -> dict:
     bias = bias_law(gyro, shupe)
     logs, truth = [], []
@@ -86,7 +92,8 @@ def one(gyro: int, kind: str, shupe: float, work: Path,
     err, err_cubic = float(np.std(pred - true)), float(np.std(cubic - true))
     rel = 0.05 if kind == "reversals" else 0.10
     floor = 0.1 if kind == "reversals" else 0.2
-    return {"gyro": gyro, "protocol": kind, "shupe_dph_per_c_per_min": shupe,
+    return {"gyro": gyro, "protocol": kind,
+            "shupe_dph_per_c_per_min": bias.shupe_dph_per_c_per_min,
             "bias_node": bias.node, "windows": len(ws),
             "structure": model.choice.as_dict() if model.choice is not None else None,
             "true_std_dph": float(np.std(true)),
@@ -112,7 +119,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for gyro in range(lo, hi):
             for kind in ("reversals", "stationary"):
-                for case, shupe in SHUPE.items():
+                for case in CASES:
+                    shupe = SHUPE.get(case)
                     cands = tuple(args.candidates.split(",")) if args.candidates else None
                     r = one(gyro, kind, shupe, Path(tmp), cands)
                     r["case"] = case
@@ -129,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
                           flush=True)
     summary = {}
     for kind in ("reversals", "stationary"):
-        for case in SHUPE:
+        for case in CASES:
             sel = [r for r in rows if r["protocol"] == kind and r["case"] == case]
             e = np.array([r["err_std_dph"] for r in sel])
             c = np.array([r["px4_cubic_err_std_dph"] for r in sel])
