@@ -66,7 +66,7 @@ def jobs(seeds: int, first_seed: int) -> list[Job]:
     out: list[Job] = []
     for i in range(seeds):
         s = first_seed + i
-        out += [("effect", e, "", s, False) for e in cases.EFFECTS]
+        out += [("effect", e, "", s, False) for e in cases.PLANTED]
         out += [("null", "", "", 1000 + s, False), ("null", "", "", 2000 + s, False)]
         out += [("ooc", k, "", s, False) for k in cases.OOC_KINDS]
         out += [("ramp_only", k, "", s, False) for k in ("temp_rate", "extra_lag")]
@@ -75,7 +75,7 @@ def jobs(seeds: int, first_seed: int) -> list[Job]:
 
 
 def population_jobs(seeds: range) -> list[Job]:
-    """20 cases per population gyro: 10 form variants, the lag and dT/dt terms, one pair,
+    """21 cases per population gyro: 11 form variants, the lag and dT/dt terms, one pair,
     two nulls, three out-of-catalogue effects, one ramp-only and one short-soak run."""
     out: list[Job] = []
     for s in seeds:

@@ -35,7 +35,7 @@ def test_json_has_the_contract(diagnosed: dict) -> None:
     j = diagnosed["json"]
     assert {"base", "candidates", "cause", "unexplained", "extended_model"} <= set(j)
     assert {"rms_ppm", "whiteness_p"} <= set(j["base"])
-    assert {c["effect"] for c in j["candidates"]} == set(cases.EFFECTS)
+    assert {c["effect"] for c in j["candidates"]} == set(cases.PLANTED)
     for c in j["candidates"]:
         assert CONTRACT_CANDIDATE <= set(c)
     assert j["cause"] == "bias_drift"

@@ -1,4 +1,4 @@
-"""The candidate effects: the simulator's seven (fogsf.trainer.sim.effects), each as one extra
+"""The candidate effects: the simulator's eight (fogsf.trainer.sim.effects), each as one extra
 column of the base model with, where it has one, a nonlinear parameter profiled on a grid.
 
 Every candidate's linear coefficient is the effect's strength in the simulator's unit, so a
@@ -11,6 +11,7 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
     asymmetry          sign(rate) / 2                     coef: ppm, SF(+) - SF(-)
     bias_drift         (T_board - 20) * 1e6/(3600 rate)   coef: deg/h per C
     aging              t / 3600 s                         coef: ppm/h
+    bias_shupe         d/dt of the coil * 1e6/(3600 rate) coef: deg/h per C/min; coil_tau_s
 
 The coil of `temp_rate` is wound in layers: its temperature is the mean of an inner and an
 outer layer node, each lagging the housing (the simulator's effect differentiates the mean
@@ -157,6 +158,15 @@ def _bias_drift(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     return temp * design.PPM_PER_DPH / ctx.run.rate
 
 
+def _bias_shupe(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
+    """The Shupe bias: the layered coil's rate of change (C/min, as temp_rate's) as a bias.
+    With one table rate it is temp_rate's column times a constant, an SF term by another
+    name: zero then (not identifiable), as a bias needs a second |rate| or both signs."""
+    if not ctx.bias_on:
+        return np.zeros(ctx.run.rate.shape)
+    return _temp_rate(ctx, b, g) * design.PPM_PER_DPH / ctx.run.rate
+
+
 def _aging(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     """Drift with time: linear (g = inf), or settling as tau (1 - exp(-t/tau)) with time
     constant g; the coefficient is the initial slope in ppm/h either way."""
@@ -198,6 +208,9 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
               "board (node_tau_s 0) or a lagged internal node", forms=True),
     Candidate("aging", "strength_ppm_per_h", "settle_tau_s", AGING_SETTLE_S, _aging,
               "SF drift with elapsed time, linear (settle_tau_s inf) or settling", forms=True),
+    Candidate("bias_shupe", "strength_dph_per_c_per_min", "coil_tau_s", COIL_GRID,
+              _bias_shupe, "Shupe bias: a bias in the coil's rate of temperature change",
+              average=True),
 ]}
 
 # Not a cause: the reference that the node-like candidates (NODE_LIKE) must beat. The base's
