@@ -204,7 +204,7 @@ class BiasChoice:
     free_tau: bool = True  # the time constant by varpro (else one of z's lags)
 
     def as_dict(self) -> dict:
-        return {"chosen": self.name, "heldout_rms_dph": self.scores, "segments": self.folds,
+        return {"chosen": self.name, "heldout_rms_dph": self.scores, "folds": self.folds,
                 "node_taus_s": list(self.taus_s), "tolerance": self.tolerance,
                 "free_tau": self.free_tau}
 
@@ -222,8 +222,9 @@ def choice_message(d: dict) -> str:
         how = "by variable projection" if d["free_tau"] else "the best of the features' lags"
         taus = ", ".join(f"{t:.0f}" for t in d["node_taus_s"])
         tau = f"; node time constants {taus} s ({how})"
-    return (f"bias structure {d['chosen']}, chosen by leave-one-segment-out on the training "
-            f"targets ({d['segments']} segments; held-out RMS, deg/h: {cells}): {why}{tau}")
+    return (f"bias structure {d['chosen']}, chosen on held-out blocks of the training "
+            f"targets ({d['folds']} folds of {BLOCK_S:.0f} s blocks; held-out RMS, deg/h: "
+            f"{cells}): {why}{tau}")
 
 
 def choose(cols: Columns, y: np.ndarray, fold: np.ndarray, group: np.ndarray,
