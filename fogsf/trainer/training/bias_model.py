@@ -1,13 +1,13 @@
 """The bias model: the gyro's bias (deg/h) as a polynomial of the SF model's own features z.
 
-The same machinery as the lag bank: z are the front end's features (T and its lags for the
-default model), the bias is intercept + lin.z + quad.z^2 + cube.z^3 fitted by the bank's
-ridge (`lag_bank.fit_bank`, squares and cubes of T and the lags up to CURVED_MAX_TAU_S
-only), its penalty chosen by GCV (`fit_gcv`). The Shupe term, a bias proportional to the
-rate of change of the coil's temperature, is T - lag(T, tau) over a lag time: a linear
-combination of z that the bank carries. Targets are the bias each training log measures
-(`logs.bias`): a stationary log's model steps (mean of output - earth rate over each step),
-a +/- pair's bias at the step under its centre.
+z are the front end's features (T and its lags for the default model); the bias head is
+intercept + lin.z + quad.z^2 + cube.z^3 (diagonal). Which polynomial, the structure, is
+chosen by the training targets (`bias_structure`: a cubic in T, with a Shupe term, on a coil
+node, ..., or the lag bank's full polynomial by ridge with its penalty chosen by GCV,
+`fit_gcv`). The Shupe term, a bias proportional to the rate of change of the coil's
+temperature, is (T - lag(T, tau)) / tau: a linear combination of z. Targets are the bias
+each training log measures (`logs.bias`): a stationary log's model steps (mean of output -
+earth rate over each step), a +/- pair's bias at the step under its centre.
 
 `fit_bias(...)` fits; `score_bias(...)` gives the before/after metrics over a log's bias
 windows; `with_bias_head` and `bias_only_stream_model` make the artifacts.

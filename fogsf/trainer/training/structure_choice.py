@@ -77,7 +77,7 @@ class StepData:
         return int(self.fold.max()) + 1
 
 
-def log_folds(log: ChamberLog, n_steps: int, step_s: float) -> np.ndarray:
+def _log_folds(log: ChamberLog, n_steps: int, step_s: float) -> np.ndarray:
     """Segment index per model step of one log: a new segment starts at each ramp."""
     t = log.time_s[0] + np.arange(n_steps) * step_s
     starts = [sg.start_s for sg in ramp_segments(log)][1:]
@@ -93,7 +93,7 @@ def step_data(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
         d = prepare(lg, fe, None, latitude_deg)
         t_rel.append(d.s[:, 0].astype(np.float64))
         ys.append(d.target_ppm)
-        f = log_folds(lg, d.n_steps, d.step_s)
+        f = _log_folds(lg, d.n_steps, d.step_s)
         folds.append(f + base)
         base += int(f.max()) + 1
     fold = np.concatenate(folds)
