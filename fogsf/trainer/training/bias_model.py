@@ -26,7 +26,7 @@ from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
 from fogsf.trainer.logs.metrics import step_means
 from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
 from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for
-from fogsf.trainer.models.lag_bank import BankFit, fit_bank, n_curved
+from fogsf.trainer.models.lag_bank import BankFit, bank_design, fit_bank, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.physics_nodes import NodeTemperatures
 from fogsf.trainer.models.reference import expand, frontend
@@ -258,11 +258,24 @@ BIAS_LAMBDAS = tuple(10.0 ** e for e in range(-8, 0))
 
 
 def fit_gcv(z: np.ndarray, y: np.ndarray, curved: int) -> BankFit:
-    """`fit_bank` at the penalty of BIAS_LAMBDAS with the least GCV score n RSS / (n - dof)^2."""
-    best: tuple[float, BankFit] | None = None
+    """`fit_bank` at the penalty of BIAS_LAMBDAS with the least GCV score n RSS / (n - dof)^2;
+    the design's SVD is taken once for every penalty (`fit_bank`'s arithmetic otherwise)."""
+    x = bank_design(z, curved)
+    y = np.asarray(y, dtype=np.float64)
+    mu, ym = x.mean(axis=0), float(np.mean(y))
+    u, sv, vt = np.linalg.svd(x - mu, full_matrices=False)
+    uy = u.T @ (y - ym)
+    scale = float(np.mean(sv**2))
+    k = z.shape[1]
     n = y.size
+    best: tuple[float, BankFit] | None = None
     for lam in BIAS_LAMBDAS:
-        fit = fit_bank(z, y, lam=lam, curved=curved)
+        f = sv**2 / (sv**2 + lam * scale)
+        coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
+        quad, cube = np.zeros(k), np.zeros(k)
+        quad[:curved], cube[:curved] = coef[k:k + curved], coef[k + curved:]
+        fit = BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
+                      lam=lam, dof=float(f.sum()) + 1.0)
         if n - fit.dof <= 0:
             continue
         r = y - fit.predict(z)
