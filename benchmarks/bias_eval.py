@@ -23,22 +23,30 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.logs.bias import bias_windows
+from fogsf.trainer.logs.bias import before_after, bias_windows
 from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log, with_mapping_beside
 from fogsf.trainer.sim import rig_logs, rigs
 from fogsf.trainer.sim.config import BiasConfig
 from fogsf.trainer.sim.population import gyro_for_seed
+from fogsf.trainer.training.bias_interval import bias_interval
 from fogsf.trainer.training.bias_model import bank_feature_map, fit_bias
+from fogsf.trainer.training.bias_structure import CANDIDATES
 
 TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)  # lo, hi C, up, down C/min, soak s
 TEST_LOOP = (0.0, 40.0, 0.5, 1.5, 900.0)
 SHUPE = {"no-shupe": 0.0, "shupe": 2.0}  # deg/h per C/min
+# the population's own thermal bias (`population.with_thermal_bias`): Shupe, quadratic, cubic
+POPULATION = "population"
+CASES = (*SHUPE, POPULATION)
 
 
-def bias_law(gyro: int, shupe: float) -> BiasConfig:
+def bias_law(gyro: int, shupe: float | None) -> BiasConfig:
     """The gyro's own bias (offset, slope) with a quadratic and the Shupe term, on its coil
-    (the first node named coil*, else the population's bias node)."""
+    (the first node named coil*, else the population's bias node); shupe None: the
+    population's thermal bias drawn for the gyro."""
+    if shupe is None:
+        return gyro_for_seed(gyro, thermal_bias=True).bias
     cfg = gyro_for_seed(gyro)
     coils = [n.name for n in cfg.thermal.nodes if n.name.startswith("coil")]
     return BiasConfig(**{**asdict(cfg.bias), "quad_dph_per_c2": 0.001,
@@ -53,7 +61,8 @@ def protocol(kind: str, loop: tuple, bias: BiasConfig) -> rigs.RigProtocol:
     return rigs.stationary_protocol(chamber, bias=bias)
 
 
-def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
+def one(gyro: int, kind: str, shupe: float | None, work: Path,
+        candidates: tuple[str, ...] | None = None) -> dict:
     bias = bias_law(gyro, shupe)
     logs, truth = [], []
     for name, loop, seed in (("train", TRAIN_LOOP, 1), ("test", TEST_LOOP, 2)):
@@ -61,7 +70,10 @@ def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
                           protocol(kind, loop, replace(bias)), (gyro,), seed=seed)
         logs.append(read_log(rl.path, with_mapping_beside(rl.path, Dialect())))
         truth.append(rl.truth[""].bias_dph)
-    model = fit_bias(bank_feature_map([logs[0]], 5.0), [logs[0]])
+    # reversals: the bias head on the SF model's z (the lag bank's, for a loop); stationary:
+    # a bias-only model with its own front end
+    fm = bank_feature_map([logs[0]], 5.0) if kind == "reversals" else None
+    model = fit_bias(fm, [logs[0]], candidates=candidates)
     wt, ws = bias_windows(logs[0], 100.0), bias_windows(logs[1], 100.0)
     assert model is not None and wt is not None and ws is not None
 
@@ -70,18 +82,28 @@ def one(gyro: int, kind: str, shupe: float, work: Path) -> dict:
         return (c[w.stop] - c[w.start]) / (w.stop - w.start)
 
     true = window_mean(truth[1], ws)
-    pred = window_mean(model.predict(logs[1]), ws)
+    per_sample = model.predict(logs[1])
+    pred = window_mean(per_sample, ws)
+    iv = bias_interval(model.family, logs[1], per_sample)
+    assert iv is not None
+    lo_iv, hi_iv = iv["rms_interval_dph"]
+    after_rms = before_after(ws, per_sample)["after"]["rms_dph"]
     cubic = np.polyval(np.polyfit(wt.temp_c, wt.bias_dph, 3), ws.temp_c)
     err, err_cubic = float(np.std(pred - true)), float(np.std(cubic - true))
     rel = 0.05 if kind == "reversals" else 0.10
     floor = 0.1 if kind == "reversals" else 0.2
-    return {"gyro": gyro, "protocol": kind, "shupe_dph_per_c_per_min": shupe,
-            "bias_node": bias.node, "windows": len(ws), "true_std_dph": float(np.std(true)),
+    return {"gyro": gyro, "protocol": kind,
+            "shupe_dph_per_c_per_min": bias.shupe_dph_per_c_per_min,
+            "bias_node": bias.node, "windows": len(ws),
+            "structure": model.choice.as_dict() if model.choice is not None else None,
+            "true_std_dph": float(np.std(true)),
             "err_std_dph": err, "px4_cubic_err_std_dph": err_cubic,
             "measured_noise_floor_dph": ws.noise_floor_dph,
             "target_dph": max(floor, rel * float(np.std(true))),
             "meets_target": err <= max(floor, rel * float(np.std(true))),
-            "beats_cubic_2x": err_cubic >= 2.0 * err}
+            "beats_cubic_2x": err_cubic >= 2.0 * err,
+            "after_rms_dph": after_rms, "interval_dph": [lo_iv, hi_iv],
+            "interval_covers": bool(lo_iv <= after_rms <= hi_iv), "interval": iv}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -89,24 +111,33 @@ def main(argv: list[str] | None = None) -> int:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--gyros", default="20000:20008", help="population seeds LO:HI")
     p.add_argument("--out", type=Path, default=Path("out/bench-bias.json"))
+    p.add_argument("--candidates", default=None,
+                   help="bias structures to choose among, comma-separated (default: all)")
     args = p.parse_args(argv)
     lo, hi = (int(x) for x in args.gyros.split(":"))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for gyro in range(lo, hi):
             for kind in ("reversals", "stationary"):
-                for case, shupe in SHUPE.items():
-                    r = one(gyro, kind, shupe, Path(tmp))
+                for case in CASES:
+                    shupe = SHUPE.get(case)
+                    cands = tuple(args.candidates.split(",")) if args.candidates else None
+                    r = one(gyro, kind, shupe, Path(tmp), cands)
                     r["case"] = case
                     rows.append(r)
                     print(f"gyro {gyro} {kind:10s} {case:8s} true std {r['true_std_dph']:6.3f}"
                           f"  err {r['err_std_dph']:6.3f}  cubic {r['px4_cubic_err_std_dph']:6.3f}"
                           f"  floor {r['measured_noise_floor_dph']:6.3f}  target "
-                          f"{r['target_dph']:5.3f} {'ok' if r['meets_target'] else 'MISS'}",
+                          f"{r['target_dph']:5.3f} {'ok' if r['meets_target'] else 'MISS'}"
+                          f"  after RMS {r['after_rms_dph']:.3f} in [{r['interval_dph'][0]:.3f}, "
+                          f"{r['interval_dph'][1]:.3f}]"
+                          f"  {r['structure']['chosen']} " + " ".join(
+                              f"{k}={v:.3f}" for k, v in
+                              r['structure']['heldout_rms_dph'].items()),
                           flush=True)
     summary = {}
     for kind in ("reversals", "stationary"):
-        for case in SHUPE:
+        for case in CASES:
             sel = [r for r in rows if r["protocol"] == kind and r["case"] == case]
             e = np.array([r["err_std_dph"] for r in sel])
             c = np.array([r["px4_cubic_err_std_dph"] for r in sel])
@@ -114,11 +145,17 @@ def main(argv: list[str] | None = None) -> int:
                 "gyros": len(sel), "err_median_dph": float(np.median(e)),
                 "err_max_dph": float(e.max()), "cubic_median_dph": float(np.median(c)),
                 "meets_target": int(sum(r["meets_target"] for r in sel)),
-                "beats_cubic_2x": int(sum(r["beats_cubic_2x"] for r in sel))}
+                "beats_cubic_2x": int(sum(r["beats_cubic_2x"] for r in sel)),
+                "interval_covers": int(sum(r["interval_covers"] for r in sel)),
+                "structures": {c: sum(r["structure"]["chosen"] == c for r in sel)
+                               for c in CANDIDATES if any(r["structure"]["chosen"] == c
+                                                          for r in sel)}}
     for k, v in summary.items():
         print(f"{k:24s} median err {v['err_median_dph']:.3f} (max {v['err_max_dph']:.3f}) "
               f"deg/h, PX4 cubic {v['cubic_median_dph']:.3f}; target met {v['meets_target']}/"
-              f"{v['gyros']}, cubic beaten 2x {v['beats_cubic_2x']}/{v['gyros']}")
+              f"{v['gyros']}, cubic beaten 2x {v['beats_cubic_2x']}/{v['gyros']}, interval "
+              f"covers {v['interval_covers']}/{v['gyros']}; chosen "
+              + ", ".join(f"{c} {n}" for c, n in v["structures"].items()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"gyros": [lo, hi], "train_loop": TRAIN_LOOP,
                                     "test_loop": TEST_LOOP, "rows": rows,

@@ -76,7 +76,7 @@ def jobs(seeds: int, first_seed: int) -> list[Job]:
 
 
 def population_jobs(seeds: range) -> list[Job]:
-    """21 cases per population gyro: 10 form variants, the lag, dT/dt and hysteresis terms,
+    """22 cases per population gyro: 11 form variants, the lag, dT/dt and hysteresis terms,
     one pair, two nulls, three out-of-catalogue effects, one ramp-only and one short-soak
     run."""
     out: list[Job] = []

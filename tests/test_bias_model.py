@@ -130,7 +130,7 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     from fogsf.trainer.logs.logio import read_log
     from fogsf.trainer.models import reference
     from fogsf.trainer.models.stream import StreamModel
-    from fogsf.trainer.training.bias_model import FeatureMap, fit_bias
+    from fogsf.trainer.training.bias_model import fit_bias
 
     write_log(tmp_path / "a.csv", soak_log(TRAIN, 9)[0])
     test, _ = soak_log(TEST, 10)
@@ -143,8 +143,9 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     assert m["params"] == sm.params
     ref = reference.replay(sm, test.temp_c, test.gyro_dps)
     assert not ref.sf_ppm.any()
-    fm = FeatureMap(sm.front_end, sm.weights["feat_w"], sm.weights["feat_b"], 9)
-    fit = fit_bias(fm, [read_log(tmp_path / "a.csv")])
+    fit = fit_bias(None, [read_log(tmp_path / "a.csv")])  # what train fitted: deterministic
+    assert fit is not None and np.array_equal(fit.fm.feat_w, sm.weights["feat_w"])
+    assert m["bias"]["model"]["structure"]["chosen"] == fit.choice.name
     assert np.max(np.abs(ref.bias_dph - fit.predict(test))) < 1e-3
     capsys.readouterr()
     assert cli.main(["replay", str(out), str(tmp_path / "b.csv"), "--out",
@@ -202,3 +203,28 @@ def test_same_logs_same_bias_model_bytes(tmp_path: Path) -> None:
     assert model.model_id == StreamModel.load(tmp_path / "m2").model_id
     outputs = [o.name for o in build_step_onnx(model).graph.output]
     assert outputs[0] == "sf_ppm" and outputs[-1] == "bias_dph"
+
+
+@pytest.mark.parametrize("structure", ["cubic", "shupe", "node", "shupe2", "lead", "bank"])
+def test_every_bias_structure_goes_through_the_bias_head(structure: str) -> None:
+    """Each structure, forced, as a bias-only artifact: the kernel's reference (float32,
+    the C kernel's order) gives the fit's bias to 1e-3 deg/h on another log; the head's
+    polynomial over z is the structure's own fit, on a front end of its own and on the SF
+    model's z (the lag bank's; not `lead`, which needs a feature of its own)."""
+    from fogsf.trainer.models import reference
+    from fogsf.trainer.training.bias_model import bias_only_stream_model
+
+    train, _ = soak_log(TRAIN, 31)
+    test, _ = soak_log(TEST, 32)
+    shared = [bank_feature_map([train], 5.0)] if structure != "lead" else []
+    for fm in [None, *shared]:
+        model = fit_bias(fm, [train], candidates=(structure,))
+        assert model is not None and model.choice.name == structure
+        sm = bias_only_stream_model(model) if fm is None else None
+        if sm is not None:
+            ref = reference.replay(sm, test.temp_c, test.gyro_dps)
+            assert np.max(np.abs(ref.bias_dph - model.predict(test))) < 1e-3, structure
+        # the head's polynomial over z is the structure's own fit (its columns, float64)
+        own = model.family.fits[structure].predict(model.family.columns_of(test))
+        head = model.predict_steps(model.fm.z(test))
+        assert np.max(np.abs(own - head)) < 0.01, structure

@@ -104,3 +104,27 @@ def test_simulate_random_gyro_cli(tmp_path, capsys) -> None:  # noqa: ANN001
     assert d["thermal"] == json.loads(pop.gyro_for_seed(31).to_json())["thermal"]
     assert main(["simulate", "--random-gyro", "-1", "--summary"]) == 2
     assert "--random-gyro" in capsys.readouterr().err
+
+
+def test_the_thermal_bias_is_drawn_from_its_own_stream_within_its_ranges() -> None:
+    """`thermal_bias` adds a Shupe term, a quadratic and a cubic on the coil and changes
+    nothing else: the thermal network, SF law, noise, bias offset and slope are the gyro's
+    (its other draws do not move), and the default stays without them."""
+    from fogsf.trainer.sim import population as pop
+
+    rng = np.random.default_rng(2022)
+    for seed in [0, *(int(s) for s in rng.integers(1, 10_000, 6))]:
+        plain, drawn = pop.gyro_for_seed(seed), pop.gyro_for_seed(seed, thermal_bias=True)
+        assert plain.bias.shupe_dph_per_c_per_min == 0.0 and plain.bias.cube_dph_per_c3 == 0.0
+        assert drawn.thermal == plain.thermal and drawn.sf == plain.sf, seed
+        assert drawn.noise == plain.noise, seed
+        assert (drawn.bias.bias_dph, drawn.bias.lin_dph_per_c) == (plain.bias.bias_dph,
+                                                                  plain.bias.lin_dph_per_c)
+        lo, hi = pop.SHUPE_DPH_PER_C_PER_MIN
+        assert lo * 0.99 <= abs(drawn.bias.shupe_dph_per_c_per_min) <= hi * 1.01, seed
+        assert pop.BIAS_QUAD_DPH_PER_C2[0] <= drawn.bias.quad_dph_per_c2 \
+            <= pop.BIAS_QUAD_DPH_PER_C2[1]
+        assert pop.BIAS_CUBE_DPH_PER_C3[0] <= drawn.bias.cube_dph_per_c3 \
+            <= pop.BIAS_CUBE_DPH_PER_C3[1]
+        assert drawn.bias.node.startswith("coil"), seed
+        assert pop.gyro_for_seed(seed, thermal_bias=True).bias == drawn.bias  # deterministic

@@ -210,3 +210,33 @@ def test_parse_effect_and_its_refusals() -> None:
                 "warmup=10,tau_s"):
         with pytest.raises(UserError):
             parse_effect(bad)
+
+
+@pytest.mark.parametrize("draw", DRAW_SEEDS)
+def test_bias_shupe_is_a_bias_in_the_coils_rate_that_flips_with_the_ramp(draw: int) -> None:
+    """+/- pairs measure the Shupe bias: strength * dT_coil/dt (deg/h), the sign of the
+    ramp's; the pairs' SF is untouched."""
+    rng = np.random.default_rng([draw, 22])
+    strength = float(rng.uniform(0.5, 5.0) * rng.choice([-1, 1]))  # deg/h per C/min
+    rate = float(rng.uniform(0.5, 1.5))  # C/min
+    seed = int(rng.integers(1000))
+    msg = f"draw seed {draw}: strength {strength:.3f} deg/h/(C/min), rate {rate:.2f}, seed {seed}"
+    table = TableConfig(kind="alternating", rate_dps=10.0, dwell_s=100.0)
+    for a, b in ((-30.0, 50.0), (50.0, -30.0)):
+        cfg = base(seed, ProfileConfig(kind="ramp", start_c=a, stop_c=b, rate_c_per_min=rate),
+                   table)
+        p0 = plateau_pairs(simulate(cfg).log)
+        res = simulate(with_effect(cfg, "bias_shupe", strength))
+        p1 = plateau_pairs(res.log)
+        dbias = (p1.bias_dps - p0.bias_dps) * 3600.0
+        coil = np.mean([v for k, v in res.nodes.items() if k.startswith("coil")], axis=0)
+        truth = strength * np.gradient(coil, cfg.dt_s) * 60.0  # deg/h per sample
+        t = res.log.time_s
+        over_pair = [truth[(t >= c - 100.0) & (t < c + 100.0)].mean() for c in p1.t_s]
+        # (the first and last pair straddle the ramp's bends, where the pair fit's linear
+        # drift does not hold)
+        np.testing.assert_allclose(dbias[1:-1], over_pair[1:-1],
+                                   atol=0.02 * abs(strength) * rate + 1e-3, err_msg=msg)
+        late = p1.t_s > 0.8 * p1.t_s[-1]  # near the ramp's steady rate: the ramp's sign
+        assert np.all(np.sign(dbias[late]) == np.sign(b - a) * np.sign(strength)), msg
+        assert np.max(np.abs(p1.sf_ratio - p0.sf_ratio)[1:-1]) * 1e6 < 1.0, msg

@@ -57,9 +57,12 @@ WINDOW_S = 60.0
 MULTIPLE_RANGE = (3.0, 20.0)
 EFFECTS = ("warmup", "extra_lag", "temp_rate", "rate_nonlinearity", "asymmetry", "bias_drift",
            "aging")
-# the catalogue's forms: EFFECTS (whose setups the nulls draw from, as before) and the
-# hysteresis
-CATALOGUE_EFFECTS = (*EFFECTS, "hysteresis")
+# bias effects planted beside EFFECTS (kept apart: the null cases draw their setup from
+# EFFECTS, and those draws stay as they were)
+BIAS_EFFECTS = ("bias_shupe",)
+PLANTED = EFFECTS + BIAS_EFFECTS
+# the catalogue's forms: the planted ones and the hysteresis (its cases on partial cycles)
+CATALOGUE_EFFECTS = (*PLANTED, "hysteresis")
 HYST_WIDTH_C = (4.0, 10.0)  # the planted play's width and strength (the population's)
 HYST_PPM_PER_C = (3.0, 8.0)
 OOC_KINDS = ("humidity", "supply_step", "periodic")
@@ -76,6 +79,7 @@ VARIANTS: dict[str, dict[str, str]] = {
                "slow": "slow self-heating of internal nodes, tau 900-2400 s"},
     "asymmetry": {"several": "at two or three |rate|, both signs",
                   "one": "at one |rate|, both signs (confounded with a constant bias)"},
+    "bias_shupe": {"coil": "on the coils' rate of change, +/- table at one or two |rate|"},
 }
 # two-effect cases: pairs that one set of logs can show at once
 PAIRS = (("asymmetry", "aging"), ("rate_nonlinearity", "aging"), ("bias_drift", "aging"),
@@ -95,6 +99,8 @@ PARAM_CHECK: dict[str, tuple[str, str, float]] = {
     # the loop's height (strength x width): the play of one lagged node stands for the
     # coil's layers, which trades the width against the strength
     "hysteresis": ("height_ppm", "height_ppm", 0.5),
+    # as temp_rate: the coupling to the housing (deg/h per C), what the logs pin
+    "bias_shupe": ("housing_dph_per_c", "housing_dph_per_c", 0.5),
 }
 
 
@@ -234,6 +240,9 @@ def draw(kind: str, name: str, seed: int) -> Case:
         elif eff == "hysteresis":
             params["width_c"] = float(rng.uniform(*HYST_WIDTH_C))
             profile = _partial(rng)
+        elif eff == "bias_shupe":
+            table_kind = "alternating"
+            profile = _cycle(rng)
         if kind == "effect":
             cfg.effects = [EffectConfig(name, 1.0, {k: v for k, v in params.items()})]
             if name == "hysteresis":
@@ -290,9 +299,9 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
       on a 150 min up-and-back program with a +/- table at three |rate|;
     - kind "null", name "mixed": nothing planted, table +/- 10, 50, 100, 200 deg/s;
     - other kinds as `draw`.
-    Half the cases (a seeded draw) drop `chamber_c`, except ramp-only and short-soak ones and
+    Half the cases (a seeded draw) drop `chamber_c`, except ramp-only and short-soak ones,
     the lag and dT/dt terms (told from the base by the housing running ahead of the board,
-    which needs the chamber air)."""
+    which needs the chamber air) and the Shupe bias (the coil's rate of change, the same)."""
     rng = np.random.default_rng([seed, 0xD1A6])
     if kind == "two":
         case = draw("effect", name, seed)
@@ -325,6 +334,8 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
         elif name == "asymmetry":
             cfg.table = _table(rng, "alternating" if variant == "one" else
                                str(rng.choice(["plusminus", "multi_pm"])))
+        elif name == "bias_shupe":
+            cfg.table = _table(rng, str(rng.choice(["alternating", "plusminus"])))
         case.params = dict(e.params)
     else:
         case = draw(kind, name, seed)
@@ -335,7 +346,8 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
     gyro.bias.quad_dph_per_c2 = 0.0
     case.config = with_gyro(case.config, gyro)
     # the lag and dT/dt terms show as the housing running ahead of the board: with chamber_c
-    case.chamber = (kind in ("ramp_only", "short_soak") or name in ("extra_lag", "temp_rate")
+    case.chamber = (kind in ("ramp_only", "short_soak")
+                    or name in ("extra_lag", "temp_rate", "bias_shupe")
                     or bool(rng.random() < 0.5))
     return case
 
@@ -473,6 +485,10 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
             truth["housing_ppm_per_c"] = housing_coupling(final, e.strength)
         if e.name == "hysteresis":
             truth["height_ppm"] = e.strength * e.params["width_c"]
+        if e.name == "bias_shupe":
+            truth["housing_dph_per_c"] = housing_coupling(final, e.strength)
+            coils = [n for n in final.thermal.nodes if n.name.startswith("coil")]
+            truth["coils_behind_housing"] = float(all(n.parent == "housing" for n in coils))
         case.params = truth
         return [_strip(simulate(final).log, case.chamber)], {"effect": case.name, **truth}
     # out of catalogue
@@ -540,10 +556,13 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
             c.get("separating_run"))
         return out(ok, f"cause {cause!r}; confounded with {c.get('confounded_with')}, "
                        f"separating run: {c.get('separating_run')!r}")
-    if case.kind == "effect" and case.name == "temp_rate" and truth["housing_ppm_per_c"] == 0:
-        # every coil node sits behind another internal node: the term is a combination of
-        # internal nodes' temperatures, i.e. part of the gyro's own thermal SF law
-        return out(cause is None, "no coil node behind the housing: confounded with the "
+    coupling = {"temp_rate": "housing_ppm_per_c", "bias_shupe": "housing_dph_per_c"}
+    if case.kind == "effect" and case.name in coupling and truth[coupling[case.name]] == 0:
+        # every coil node sits behind another internal node: an SF term is a combination of
+        # internal nodes' temperatures, i.e. part of the gyro's own thermal SF law; a bias
+        # term is still a bias (its sign follows the table's), named or not, never another
+        ok = cause is None or (case.name == "bias_shupe" and cause == case.name)
+        return out(ok, "no coil node behind the housing: confounded with the "
                    f"gyro's own nodes, {'not named' if cause is None else f'named {cause}'}")
     if case.kind == "effect" and case.name == "hysteresis" and cause is None \
             and case.multiple_reached < MULTIPLE_RANGE[0]:
@@ -559,6 +578,11 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
         if cause != case.name:
             return out(False, f"cause {cause!r}, planted {case.name}")
         c = next(x for x in candidates if x["effect"] == cause)
+        if case.name == "bias_shupe" and not truth.get("coils_behind_housing", 1.0):
+            # a coil behind another internal node: the catalogue's coil (layers right
+            # behind the housing) holds the term only in effect; named is what is checked
+            return out(bool(c["significant"]), "named (a coil behind another node: its "
+                       "coupling is not the model's parameter)")
         key, tkey, tol = PARAM_CHECK[case.name]
         if case.variant in ("settling", "slow"):
             tol = 0.5

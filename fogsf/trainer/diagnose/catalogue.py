@@ -11,6 +11,7 @@ fitted candidate maps one to one onto `--effect NAME=STRENGTH[,param=value]`:
     asymmetry          sign(rate) / 2                     coef: ppm, SF(+) - SF(-)
     bias_drift         (T_board - 20) * 1e6/(3600 rate)   coef: deg/h per C
     aging              t / 3600 s                         coef: ppm/h
+    bias_shupe         d/dt of the coil * 1e6/(3600 rate) coef: deg/h per C/min; coil_tau_s
     hysteresis         play(coil, w) - coil (C)           coef: ppm/C; width_c (and the
                                                           coil's lag behind the housing)
 
@@ -166,6 +167,15 @@ def _bias_drift(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     return temp * design.PPM_PER_DPH / ctx.run.rate
 
 
+def _bias_shupe(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
+    """The Shupe bias: the layered coil's rate of change (C/min, as temp_rate's) as a bias.
+    With one table rate it is temp_rate's column times a constant, an SF term by another
+    name: zero then (not identifiable), as a bias needs a second |rate| or both signs."""
+    if not ctx.bias_on:
+        return np.zeros(ctx.run.rate.shape)
+    return _temp_rate(ctx, b, g) * design.PPM_PER_DPH / ctx.run.rate
+
+
 def _aging(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
     """Drift with time: linear (g = inf), or settling as tau (1 - exp(-t/tau)) with time
     constant g; the coefficient is the initial slope in ppm/h either way."""
@@ -210,6 +220,9 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
     Candidate("hysteresis", "strength_ppm_per_c", "width_c", hysteresis_form.GRID,
               hysteresis_form.column, "rate-independent SF hysteresis: a play (backlash) "
               "of the coil temperature that holds through a soak"),
+    Candidate("bias_shupe", "strength_dph_per_c_per_min", "coil_tau_s", COIL_GRID,
+              _bias_shupe, "Shupe bias: a bias in the coil's rate of temperature change",
+              average=True),
 ]}
 
 # Not a cause: the reference that the node-like candidates (NODE_LIKE) must beat. The base's

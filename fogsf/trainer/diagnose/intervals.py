@@ -238,9 +238,9 @@ def candidate_params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
             ci = [min(ci[0], coef), max(ci[1], coef)]
         out.update({cand.coef_name: coef, f"{cand.coef_name}_ci95": ci, cand.grid_name: gv,
                     f"{cand.grid_name}_ci95": [min(interval[0], gv), max(interval[1], gv)]})
-        if cand.name == "temp_rate":
+        if cand.name in ("temp_rate", "bias_shupe"):
             out["coil_outer_tau_s_best_fit"] = catalogue.coil_taus(g)[1]
-            out.update(_housing_coupling(model, fine, y, w, interval, accepted))
+            out.update(_housing_coupling(model, fine, y, w, interval, accepted, cand.name))
         if cand.name == "hysteresis":  # the loop's full height, what the logs pin best
             out["height_ppm"] = coef * gv
             out["coil_tau_s_best_fit"] = float(g[1]) if isinstance(g, tuple) else None
@@ -249,14 +249,14 @@ def candidate_params(cand: Candidate, model: ModelFit, fine: ModelFit | None,
 
 
 def _housing_coupling(coarse: ModelFit, fine: ModelFit, y: np.ndarray, w: np.ndarray,
-                      interval: tuple[float, float], accepted: list[GridValue]
-                      ) -> dict[str, object]:
+                      interval: tuple[float, float], accepted: list[GridValue],
+                      effect: str = "temp_rate") -> dict[str, object]:
     """temp_rate's coupling to the housing (catalogue.housing_coupling), at the best fit and
     its 95 % range over the coil time constants the profile accepts: what the logs pin of
     a dT/dt term (the strength in ppm/(C/min) also needs the coil's time constants)."""
-    name = catalogue.CATALOGUE["temp_rate"].coef_name
+    name = catalogue.CATALOGUE[effect].coef_name
     best = catalogue.housing_coupling(fine.coef(name), fine.combo[1])
     lo, hi = _coef_range_over_profile(coarse, name, y, w, interval, accepted,
                                       lambda v: catalogue.housing_coupling(1.0, v))
-    return {"housing_ppm_per_c": best,
-            "housing_ppm_per_c_ci95": [min(lo, best), max(hi, best)]}
+    key = "housing_ppm_per_c" if effect == "temp_rate" else "housing_dph_per_c"  # bias_shupe
+    return {key: best, f"{key}_ci95": [min(lo, best), max(hi, best)]}

@@ -51,6 +51,8 @@ SEPARATING_RUN = {
     "extra_lag": "a soak of at least 45 min after a ramp of 5 C or more",
     "warmup": "a log that starts at power-on (or --start power-on if it does)",
     "hysteresis": hysteresis_form.SEPARATING_RUN,
+    "bias_shupe": "ramps with both signs of the table rate, or a second |table rate| (at one "
+                  "rate a bias is an SF term)",
 }
 # ... and from another candidate
 SEPARATES = {
@@ -60,6 +62,8 @@ SEPARATES = {
     frozenset(("asymmetry", "bias_drift")): "a second |table rate|, each with both signs",
     frozenset(("rate_nonlinearity", "bias_drift")): "a third |table rate|",
     frozenset(("aging", "extra_lag")): "a soak of at least 3 h at constant temperature",
+    frozenset(("temp_rate", "bias_shupe")): "both signs of the table rate, or a second "
+                                            "|table rate|",
 }
 SEPARATES_DEFAULT = ("a longer log with soaks at two temperatures, a power-on start and a "
                      "second |table rate|")

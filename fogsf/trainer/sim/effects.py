@@ -30,6 +30,12 @@ bias_drift=DPH_PER_C (deg/h per C; param ref_c=20)
     Temperature-dependent bias following the board node: bias += STRENGTH * (T_board -
     ref_c). At one table rate it leaks into the apparent SF as bias/rate (1 deg/h at
     10 deg/s is 27.8 ppm), so it scales with 1/rate and cancels in +/- pairs.
+bias_shupe=DPH_PER_C_PER_MIN (deg/h per C/min)
+    The Shupe bias: a temperature gradient along the fibre while the coil's temperature
+    changes gives a bias proportional to its rate of change: bias += STRENGTH * dT_coil/dt,
+    T_coil the mean of the coil nodes, in C/min. Flips sign between up and down ramps; at
+    one table rate it is an apparent SF (bias/rate) of the temp_rate form, +/- pairs show
+    it as a bias.
 aging=PPM_PER_H (ppm/h)
     Slow SF drift with elapsed time (source ageing, fiber and potting relaxation): SF term =
     STRENGTH * t / 3600, at any temperature.
@@ -135,6 +141,12 @@ def bias_drift(ctx: EffectContext, strength: float, ref_c: float = 20.0,
     return _terms(ctx, bias_dps=strength * (temp - ref_c) / 3600.0)
 
 
+def bias_shupe(ctx: EffectContext, strength: float) -> EffectTerms:
+    coil = ctx.coil_c()
+    rate_c_per_min = np.gradient(coil, ctx.dt_s) * 60.0 if coil.shape[0] > 1 else coil * 0
+    return _terms(ctx, bias_dps=strength * rate_c_per_min / 3600.0)
+
+
 def aging(ctx: EffectContext, strength: float, settle_tau_s: float = 0.0) -> EffectTerms:
     """Linear (settle_tau_s 0), or settling: STRENGTH * tau/3600 * (1 - exp(-t/tau)), the
     same initial slope in ppm/h."""
@@ -204,6 +216,9 @@ EFFECTS: dict[str, EffectInfo] = {e.name: e for e in [
                "STRENGTH * (T - ref_c), T the board's or (node_tau_s > 0) an internal node "
                "lagging the housing by node_tau_s; leaks into the apparent SF as bias/rate",
                bias_drift, {"ref_c": 20.0, "node_tau_s": 0.0}, 0.05),
+    EffectInfo("bias_shupe", "deg/h/(C/min)", "Shupe bias: a bias proportional to the "
+               "coil's dT/dt (a gradient along the fibre); flips sign between up and down "
+               "ramps, leaks into the apparent SF as bias/rate", bias_shupe, {}, 2.0),
     EffectInfo("aging", "ppm/h", "SF drift with elapsed time at any temperature "
                "(source ageing, fiber/potting relaxation); linear, or settling with "
                "settle_tau_s > 0 (initial slope STRENGTH)", aging, {"settle_tau_s": 0.0},

@@ -65,6 +65,12 @@ CUBE_SHARE = (-0.4, 0.4)
 ARW_DEG_PER_SQRT_H = (0.03, 0.08)
 BIAS_DPH = (-1.0, 1.0)
 BIAS_LIN_DPH_PER_C = (-0.01, 0.01)
+# The thermal bias's further terms (`thermal_bias`, drawn only when asked for): the Shupe
+# term's magnitude log-uniform (deg/h per C/min of the coil's temperature change, either
+# sign), the quadratic and cubic uniform; on the first coil node.
+SHUPE_DPH_PER_C_PER_MIN = (0.1, 3.0)
+BIAS_QUAD_DPH_PER_C2 = (-5e-4, 5e-4)
+BIAS_CUBE_DPH_PER_C3 = (-1e-5, 1e-5)
 SPAN_C = (-40.0, 50.0)  # the temperature span the swing is measured over
 REF_C = 20.0
 HYST_SHARE = 0.3
@@ -207,17 +213,38 @@ def hysteresis_for_seed(seed: int) -> EffectConfig | None:
     return EffectConfig("hysteresis", strength, {"width_c": width})
 
 
-def gyro_for_seed(seed: int, hysteresis: bool = True) -> SimConfig:
+def gyro_for_seed(seed: int, hysteresis: bool = True, thermal_bias: bool = False) -> SimConfig:
     """The population's gyro number `seed` (seed 0: the default gyro). hysteresis=False:
-    the same gyro without its SF hysteresis, if it draws one."""
+    the same gyro without its SF hysteresis, if it draws one; with `thermal_bias`, its bias
+    on the coil with a Shupe term, a quadratic and a cubic (`with_thermal_bias`)."""
     if seed == 0:
-        return SimConfig(scenario="population:default")
-    cfg = sample_gyro(np.random.default_rng([seed, 0x9F0]))
-    hyst = hysteresis_for_seed(seed) if hysteresis else None
-    if hyst is not None:
-        cfg.effects.append(hyst)
-        cfg.scenario += ":hyst"
-    return cfg
+        cfg = SimConfig(scenario="population:default")
+    else:
+        cfg = sample_gyro(np.random.default_rng([seed, 0x9F0]))
+        hyst = hysteresis_for_seed(seed) if hysteresis else None
+        if hyst is not None:
+            cfg.effects.append(hyst)
+            cfg.scenario += ":hyst"
+    return with_thermal_bias(cfg, seed) if thermal_bias else cfg
+
+
+def with_thermal_bias(cfg: SimConfig, seed: int) -> SimConfig:
+    """`cfg` with its bias (offset and slope kept) moved onto its first coil node and given a
+    Shupe term, a quadratic and a cubic, drawn from a stream of their own (seed, 0xB1A5): the
+    gyro's thermal network, SF law, bias offset and slope and noise are those of
+    `gyro_for_seed(seed)`. Not drawn by default: the SF benches run at a constant table
+    rate, where a bias is an apparent SF (bias / rate), and their figures would move."""
+    import copy
+
+    rng = np.random.default_rng([seed, 0xB1A5])
+    out = copy.deepcopy(cfg)
+    coils = [n.name for n in out.thermal.nodes if n.name.startswith("coil")]
+    shupe = float(rng.choice([-1.0, 1.0])) * _log_uniform(rng, SHUPE_DPH_PER_C_PER_MIN)
+    out.bias.node = coils[0] if coils else out.bias.node
+    out.bias.shupe_dph_per_c_per_min = round(shupe, 3)
+    out.bias.quad_dph_per_c2 = float(f"{_uniform(rng, BIAS_QUAD_DPH_PER_C2):.3g}")
+    out.bias.cube_dph_per_c3 = float(f"{_uniform(rng, BIAS_CUBE_DPH_PER_C3):.3g}")
+    return out
 
 
 def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:

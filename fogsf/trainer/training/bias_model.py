@@ -1,13 +1,13 @@
 """The bias model: the gyro's bias (deg/h) as a polynomial of the SF model's own features z.
 
-The same machinery as the lag bank: z are the front end's features (T and its lags for the
-default model), the bias is intercept + lin.z + quad.z^2 + cube.z^3 fitted by the bank's
-ridge (`lag_bank.fit_bank`, squares and cubes of T and the lags up to CURVED_MAX_TAU_S
-only), its penalty chosen by GCV (`fit_gcv`). The Shupe term, a bias proportional to the
-rate of change of the coil's temperature, is T - lag(T, tau) over a lag time: a linear
-combination of z that the bank carries. Targets are the bias each training log measures
-(`logs.bias`): a stationary log's model steps (mean of output - earth rate over each step),
-a +/- pair's bias at the step under its centre.
+z are the front end's features (T and its lags for the default model); the bias head is
+intercept + lin.z + quad.z^2 + cube.z^3 (diagonal). Which polynomial, the structure, is
+chosen by the training targets (`bias_structure`: a cubic in T, with a Shupe term, on a coil
+node, ..., or the lag bank's full polynomial by ridge with its penalty chosen by GCV,
+`fit_gcv`). The Shupe term, a bias proportional to the rate of change of the coil's
+temperature, is (T - lag(T, tau)) / tau: a linear combination of z. Targets are the bias
+each training log measures (`logs.bias`): a stationary log's model steps (mean of output -
+earth rate over each step), a +/- pair's bias at the step under its centre.
 
 `fit_bias(...)` fits; `score_bias(...)` gives the before/after metrics over a log's bias
 windows; `with_bias_head` and `bias_only_stream_model` make the artifacts.
@@ -16,6 +16,7 @@ windows; `with_bias_head` and `bias_only_stream_model` make the artifacts.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -24,10 +25,14 @@ from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
 from fogsf.trainer.logs.metrics import step_means
 from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
-from fogsf.trainer.models.lag_bank import BankFit, fit_bank, n_curved
+from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for
+from fogsf.trainer.models.lag_bank import BankFit, bank_design, fit_bank, n_curved
+from fogsf.trainer.models.least_squares import TAU_GRID_S
+from fogsf.trainer.models.physics_nodes import NodeTemperatures
 from fogsf.trainer.models.reference import expand, frontend
 from fogsf.trainer.models.reference import features as ref_features
 from fogsf.trainer.models.stream import FrontEnd, StreamModel
+from fogsf.trainer.training.bias_interval import bias_interval, family, interval_message
 
 MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
 
@@ -67,6 +72,8 @@ class BiasModel:
     fit: BankFit
     n_targets: int
     sources: list[str]
+    choice: Any = None  # bias_structure.BiasChoice: the structure and why
+    family: Any = None  # bias_interval.Family: what the rate-transfer interval needs
 
     def predict_steps(self, z: np.ndarray) -> np.ndarray:
         return self.fit.predict(z)
@@ -80,7 +87,8 @@ class BiasModel:
         return {"intercept_dph": self.fit.intercept, "lin": self.fit.lin.tolist(),
                 "quad": self.fit.quad.tolist(), "cube": self.fit.cube.tolist(),
                 "ridge_lambda": self.fit.lam, "dof": self.fit.dof,
-                "targets": self.n_targets, "sources": self.sources}
+                "targets": self.n_targets, "sources": self.sources,
+                "structure": None if self.choice is None else self.choice.as_dict()}
 
 
 def step_targets(log: ChamberLog, w: BiasWindows, decimation: int,
@@ -95,28 +103,147 @@ def step_targets(log: ChamberLog, w: BiasWindows, decimation: int,
     return w.step_index(decimation), w.bias_dph
 
 
-def fit_bias(fm: FeatureMap, logs: list[ChamberLog], window_s: float = 100.0,
-             latitude_deg: float | None = None, settle_s: float = SETTLE_S
+def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 100.0,
+             latitude_deg: float | None = None, settle_s: float = SETTLE_S,
+             step_s: float = MODEL_STEP_S, candidates: tuple[str, ...] | None = None
              ) -> BiasModel | None:
-    """The bias model on the logs that measure the bias; None when none does."""
-    zs, ys, sources = [], [], []
+    """The bias model on the logs that measure the bias; None when none does. Its structure
+    is chosen by the training targets (`bias_structure`): on `fm`'s features z when the
+    bias head shares the SF model's (the node's time constant one of z's lags), on a front
+    end of its own when `fm` is None (the time constant by variable projection)."""
+    from fogsf.trainer.training import bias_structure as bs
+
+    fe0 = fm.fe if fm is not None else front_end_for(logs, step_s, ())
+    t_rel, zs, rows, ys, folds, groups, sources = [], [], [], [], [], [], []
+    base = group_base = 0
     for lg in logs:
         w = bias_windows(lg, window_s, latitude_deg, settle_s)
-        if w is None:
-            continue
-        z = fm.z(lg)
-        idx, y = step_targets(lg, w, fm.fe.at_rate(lg.sample_dt_s).decimation, latitude_deg)
-        ok = idx < z.shape[0]
-        zs.append(z[idx[ok]])
-        ys.append(y[ok])
-        sources.append(w.source)
-    if not zs:
+        fe = fe0.at_rate(lg.sample_dt_s)
+        s = frontend(lg.temp_c, fe).s
+        n = s.shape[0]
+        if w is not None:
+            idx, y = step_targets(lg, w, fe.decimation, latitude_deg)
+            ok = idx < n
+            idx, y = idx[ok], y[ok]
+            rows.append(base + idx)
+            ys.append(y)
+            folds.append(bs.block_folds(idx, fe.step_s))
+            per = (max(1, int(round(bs.SCORE_WINDOW_S / fe.step_s)))
+                   if w.source == "stationary" else 1)
+            g = idx // per if per > 1 else np.arange(idx.size)
+            groups.append(g + group_base)
+            group_base += int(g.max(initial=0)) + 1
+            sources.append(w.source)
+        t_rel.append(s[:, 0].astype(np.float64))
+        if fm is not None:
+            zs.append(ref_features(fm, s))  # type: ignore[arg-type]
+        base += n
+    if not ys:
         return None
-    z, y = np.concatenate(zs), np.concatenate(ys)
+    y, row = np.concatenate(ys), np.concatenate(rows)
     if y.size < MIN_TARGETS:
         raise UserError(f"the training logs measure the bias {y.size} time(s): too few for "
                         f"a bias model (at least {MIN_TARGETS})")
-    return BiasModel(fm, fit_gcv(z, y, fm.curved), int(y.size), sources)
+    fold = np.concatenate(folds)
+    group = np.concatenate(groups)
+    order = bs.CANDIDATES if candidates is None else candidates
+    if fm is not None:
+        z = np.concatenate(zs).astype(np.float64)[row]
+        cols, i_t, lags = _shared_columns(fm, z)
+        if i_t is None:
+            order = ("bank",)
+        choice, fit = bs.choose(cols, y, fold, group, order)
+        fam = family(cols, y, tuple(choice.scores), choice.name, group,
+                     lambda lg: _shared_columns(fm, fm.z(lg).astype(np.float64))[0],
+                     lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
+        return BiasModel(fm, _head(fit, fm, i_t, lags), int(y.size), sources, choice, fam)
+    nodes = NodeTemperatures(t_rel, fe0.step_s)
+    free = bs.Columns(nodes.z(())[row, 0], lambda tau: nodes.lag(tau)[row], None,
+                      nodes.z(TAU_GRID_S)[row], n_curved())
+    choice, fit = bs.choose(free, y, fold, group, order)
+    fam = family(free, y, tuple(choice.scores), choice.name, group,
+                 lambda lg: _free_columns(lg, fe0),
+                 lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
+    taus = fit.taus_s
+    if choice.name == "lead":
+        own = lead_feature_map(logs, step_s, taus, float(fit.w))
+        z = np.concatenate([own.z(lg) for lg in logs]).astype(np.float64)[row]
+        return BiasModel(own, _lead_head(z, y), int(y.size), sources, choice, fam)
+    own = (bank_feature_map(logs, step_s) if choice.name == "bank"
+           else node_feature_map(logs, step_s, taus))
+    z = np.concatenate([own.z(lg) for lg in logs]).astype(np.float64)[row]
+    cols, i_t, lags = _shared_columns(own, z)
+    refit = bs.fit_candidate(choice.name, cols, np.arange(y.size), y)
+    return BiasModel(own, _head(refit, own, i_t, lags), int(y.size), sources, choice, fam)
+
+
+def _free_columns(log: ChamberLog, fe0: FrontEnd) -> Any:
+    """A log's columns at every model step on a front end with no filter of its own (the
+    lags computed at any time constant)."""
+    from fogsf.trainer.training import bias_structure as bs
+
+    nodes = NodeTemperatures([frontend(log.temp_c, fe0.at_rate(log.sample_dt_s)).s[:, 0]
+                              .astype(np.float64)], fe0.step_s)
+    return bs.Columns(nodes.z(())[:, 0], nodes.lag, None, nodes.z(TAU_GRID_S), n_curved())
+
+
+def _shared_columns(fm: FeatureMap, z: np.ndarray
+                    ) -> tuple[Any, int | None, dict[float, int]]:
+    """The candidates' columns on z (targets' rows): T and z's lags by time constant."""
+    from fogsf.trainer.training import bias_structure as bs
+
+    i_t, by_filter = bs.pure_columns(fm.feat_w)
+    lags = {float(fm.fe.filter_tau_s[k]): i for k, i in by_filter.items()}
+    t = z[:, i_t] if i_t is not None else z[:, 0]
+    cols = bs.Columns(t, lambda tau: z[:, lags[tau]], tuple(lags), z, fm.curved)
+    return cols, i_t, lags
+
+
+def _head(fit: Any, fm: FeatureMap, i_t: int | None, lags: dict[float, int]) -> BankFit:
+    from fogsf.trainer.training import bias_structure as bs
+
+    if fit.bank is not None:
+        return fit.bank
+    assert i_t is not None
+    return bs.as_bank_fit(fit, i_t, [lags[t] for t in fit.taus_s], fm.feat_w.shape[0])
+
+
+def _lead_head(z: np.ndarray, y: np.ndarray) -> BankFit:
+    """The lead structure on its own z = [T, fast lag, lead-lag node c]: T and the fast lag
+    linear, c as a cubic."""
+    from fogsf.trainer.models.node_fit import ridge_fit
+    from fogsf.trainer.training import bias_structure as bs
+
+    c = z[:, 2]
+    f = ridge_fit(np.column_stack([z[:, 0], z[:, 1], c, c * c, c * c * c]), y,
+                  bs.SMALL_LAMBDA)
+    return BankFit(f.intercept, f.coef[:3].copy(), np.array([0.0, 0.0, f.coef[3]]),
+                   np.array([0.0, 0.0, f.coef[4]]), bs.SMALL_LAMBDA, 6.0)
+
+
+def lead_feature_map(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ...],
+                     w: float) -> FeatureMap:
+    """z = [T, lag(T, fast), w T + (1 - w) lag(T, coil)] (one physical unit) on a front end
+    of its own: the lead structure's features."""
+    from fogsf.trainer.models.features import FeatureSpec, physical_normaliser
+
+    spec = FeatureSpec(tuple(taus_s), ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (w, 0.0, 1.0 - w)),
+                       ("T", f"lag(T,{taus_s[0]:.0f}s)",
+                        f"node(T,{taus_s[1]:.0f}s,w={w:.3f})"))
+    norm = physical_normaliser(spec)
+    return FeatureMap(front_end_for(logs, step_s, taus_s), norm.feat_w, norm.feat_b, 3)
+
+
+def node_feature_map(logs: list[ChamberLog], step_s: float,
+                     taus_s: tuple[float, ...]) -> FeatureMap:
+    """T and lags of T at `taus_s` (one physical unit) on a front end of their own: a
+    bias-only model's features for the `cubic`, `shupe` and `node` structures."""
+    from fogsf.trainer.models.features import front_end_for, physical_normaliser
+    from fogsf.trainer.models.physics_nodes import node_spec
+
+    norm = physical_normaliser(node_spec(taus_s))
+    return FeatureMap(front_end_for(logs, step_s, taus_s), norm.feat_w, norm.feat_b,
+                      1 + len(taus_s))
 
 
 # The bias's ridge penalties (multiples of the design's mean diagonal), chosen per fit by
@@ -131,11 +258,24 @@ BIAS_LAMBDAS = tuple(10.0 ** e for e in range(-8, 0))
 
 
 def fit_gcv(z: np.ndarray, y: np.ndarray, curved: int) -> BankFit:
-    """`fit_bank` at the penalty of BIAS_LAMBDAS with the least GCV score n RSS / (n - dof)^2."""
-    best: tuple[float, BankFit] | None = None
+    """`fit_bank` at the penalty of BIAS_LAMBDAS with the least GCV score n RSS / (n - dof)^2;
+    the design's SVD is taken once for every penalty (`fit_bank`'s arithmetic otherwise)."""
+    x = bank_design(z, curved)
+    y = np.asarray(y, dtype=np.float64)
+    mu, ym = x.mean(axis=0), float(np.mean(y))
+    u, sv, vt = np.linalg.svd(x - mu, full_matrices=False)
+    uy = u.T @ (y - ym)
+    scale = float(np.mean(sv**2))
+    k = z.shape[1]
     n = y.size
+    best: tuple[float, BankFit] | None = None
     for lam in BIAS_LAMBDAS:
-        fit = fit_bank(z, y, lam=lam, curved=curved)
+        f = sv**2 / (sv**2 + lam * scale)
+        coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
+        quad, cube = np.zeros(k), np.zeros(k)
+        quad[:curved], cube[:curved] = coef[k:k + curved], coef[k + curved:]
+        fit = BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
+                      lam=lam, dof=float(f.sum()) + 1.0)
         if n - fit.dof <= 0:
             continue
         r = y - fit.predict(z)
@@ -161,6 +301,10 @@ def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: Chamber
     out: dict = {"model": model.as_dict()}
     if test_log is not None:
         out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s)
+        if out["test"] is not None and model.family is not None:
+            out["rate_transfer"] = bias_interval(model.family, test_log,
+                                                 model.predict(test_log), window_s,
+                                                 latitude_deg, settle_s)
     out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s)
                     for i, lg in enumerate(train_logs)}
     return out
@@ -203,6 +347,8 @@ def feature_map_of(stream_model: StreamModel | None, logs: list[ChamberLog],
 
 def bias_lines(b: dict) -> list[str]:
     """`fogsf train`'s bias table (deg/h) from metrics.json's "bias" block."""
+    import textwrap
+
     row = "  {:<16} {:>9} {:>9} {:>9} {:>9} {:>9}"
     lines = [row.format("bias, deg/h", "max|e|", "p-p", "RMS", "STD", "floor")]
     blocks = ([("test", b["test"])] if b.get("test") else []) + [
@@ -214,6 +360,13 @@ def bias_lines(b: dict) -> list[str]:
             lines.append(row.format(f"{name} {when}", f"{m['max_abs_dph']:.4f}",
                                     f"{m['pp_dph']:.4f}", f"{m['rms_dph']:.4f}",
                                     f"{m['std_dph']:.4f}", f"{m['noise_floor_dph']:.4f}"))
+    if b.get("rate_transfer"):
+        lines += ["  " + ln for ln in textwrap.wrap(interval_message(b["rate_transfer"]), 94)]
+    if b["model"].get("structure"):
+        from fogsf.trainer.training.bias_structure import choice_message
+
+        lines += ["  " + ln for ln in textwrap.wrap(choice_message(b["model"]["structure"]),
+                                                     94)]
     src = ", ".join(sorted(set(b["model"]["sources"])))
     lines.append(f"  bias model: {b['model']['targets']} targets ({src}) on the features z; "
                  "before = the measured bias, after = measured - predicted (floor: 1 sigma "

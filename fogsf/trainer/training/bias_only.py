@@ -1,7 +1,7 @@
 """`fogsf train` on stationary logs alone: a bias-only model (no SF is measured, none is
-predicted). The bias model is the lag bank's polynomial (`bias_model`) on its own front end;
-the artifact is a stream model whose SF part is exactly zero and whose bias head carries it,
-so `fogsf export` and `fogsf replay` take it as any other."""
+predicted). The bias model (`bias_model`, its structure chosen by the log) has a front end
+of its own; the artifact is a stream model whose SF part is exactly zero and whose bias head
+carries it, so `fogsf export` and `fogsf replay` take it as any other."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.training.bias_model import (
     BiasModel,
-    bank_feature_map,
     bias_only_stream_model,
     fit_bias,
     score_logs,
@@ -30,10 +29,11 @@ def train_bias_only(opts: TrainOptions, train_logs: list[ChamberLog],
                     test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, BiasModel]:
     """Fit, score and write metrics.json and train_info.json; returns (metrics, model)."""
     t0 = time.perf_counter()
-    fm = bank_feature_map(train_logs, opts.model_step_s)
-    model = fit_bias(fm, train_logs, opts.window_s, opts.latitude_deg, opts.settle_s)
+    model = fit_bias(None, train_logs, opts.window_s, opts.latitude_deg, opts.settle_s,
+                     opts.model_step_s)
     if model is None:  # a stationary log always measures the bias; kept for the type
         raise UserError("the training logs measure no bias")
+    fm = model.fm
     train_s = time.perf_counter() - t0
     sm = bias_only_stream_model(model)
     n_params = sm.params

@@ -482,8 +482,10 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         return train_bias_only(opts, train_logs, test_log, out_dir)  # type: ignore[return-value]
     t0 = time.perf_counter()
     fitted = fit_model(opts, train_logs)
-    bias = bm.fit_bias(bm.feature_map_of(fitted.stream_model, train_logs, opts.model_step_s),
-                       train_logs, opts.window_s, opts.latitude_deg, opts.settle_s)
+    shared = (None if fitted.stream_model is None else  # the bias head reads the SF's z
+              bm.feature_map_of(fitted.stream_model, train_logs, opts.model_step_s))
+    bias = bm.fit_bias(shared, train_logs, opts.window_s, opts.latitude_deg, opts.settle_s,
+                       opts.model_step_s)
     if bias is not None and fitted.stream_model is not None:  # one step corrects both
         fitted.stream_model = bm.with_bias_head(fitted.stream_model, bias)
         fitted.params, fitted.weights_bytes = (fitted.stream_model.params,

@@ -1,0 +1,287 @@
+"""The bias model's structure, chosen by the training log: held-out segments.
+
+The candidates, smallest first (bias in deg/h, T the board temperature, n = lag(T, tau) a
+coil node behind it):
+- `cubic`: a + b T + c T^2 + d T^3, the autopilots' law (PX4, ArduPilot);
+- `shupe`: the cubic in T plus e n: a Shupe term e' (T - n) / tau, the rate of change of
+  the node (d n/dt = (T - n) / tau), carried by the linear terms of T and n;
+- `node`: a + b T + c n + d n^2 + e n^3: the cubic law on the coil node and its Shupe term;
+- `shupe2`: the cubic in T plus two lags linearly (a Shupe term of a node two lags away);
+- `lead`: T and a fast lag linearly (the board's rate of change) and a cubic in the
+  lead-lag node c = w T + (1 - w) lag(T, tau_c): a coil behind the housing seen from a board
+  behind the same housing is exactly such a node (w = the board's time constant over the
+  coil's, > 1 when the coil is the faster), its rate of change w dT/dt + (1 - w)(T -
+  lag)/tau_c; only with a front end of its own (c is a feature of its own);
+- `bank`: the lag bank's polynomial of every feature (T, its lags at 11 time constants,
+  cubes up to 2000 s) by ridge with the penalty chosen by GCV (`bias_model.fit_gcv`).
+Time constants (and w) are identified by variable projection (`models.node_fit.varpro`,
+from the best of a grid) when the bias model has its own front end (a bias-only model, or
+an SF model without a firmware form); when the bias head shares the SF model's features z,
+they are z's own lags (the best by least squares): the firmware's bias head reads z and
+nothing else, so no new filter is needed.
+
+Each candidate is fitted with one fold of blocks held out (`block_folds`), predicts it, and
+scores the RMS of its error over 100 s windows (a pair is a window); the choice is the first
+candidate, in the order above, within CHOICE_TOLERANCE of the best score: a larger
+structure has to predict held-out segments clearly better. Chosen on development gyros
+(docs/decisions.md).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsf.trainer.models.lag_bank import BankFit
+from fogsf.trainer.models.least_squares import TAU_GRID_S
+from fogsf.trainer.models.node_fit import ridge_fit, varpro
+from fogsf.trainer.models.physics_nodes import TAU_MAX_S, TAU_MIN_S
+
+CANDIDATES = ("cubic", "shupe", "node", "shupe2", "lead", "bank")
+CHOICE_TOLERANCE = 0.10
+SCORE_WINDOW_S = 100.0
+# a whisker of ridge (a multiple of the centred design's mean diagonal) so that nearly
+# collinear T and node columns do not cancel with huge coefficients
+SMALL_LAMBDA = 1e-8
+
+
+class Columns:
+    """The columns a candidate is built from, at the training targets' steps: `t` (the
+    board temperature, normalised), `lag(tau)` (a lag of it, the same unit) and `z` (every
+    feature of the bank, for `bank`). `taus` is None when any time constant may be used
+    (varpro), else the time constants available."""
+
+    def __init__(self, t: np.ndarray, lag: Callable[[float], np.ndarray],
+                 taus: tuple[float, ...] | None, z: np.ndarray, curved: int) -> None:
+        self.t, self.lag, self.taus, self.z, self.curved = t, lag, taus, z, curved
+
+
+NODES = {"cubic": 0, "shupe": 1, "node": 1, "shupe2": 2, "lead": 2, "bank": 0}
+LEAD_W = (0.0, 0.5, 1.0, 2.0, 3.0)  # the lead-lag weights the variable projection starts from
+LEAD_W_RANGE = (-2.0, 8.0)
+FAST_TAUS_S = (20.0, 60.0)  # the derivative's lag the lead's variable projection starts from
+
+
+def lead_node(t: np.ndarray, lag_c: np.ndarray, w: float) -> np.ndarray:
+    """The coil as a lead-lag node of the board: w T + (1 - w) lag(T, tau_c) (a node behind
+    the housing, seen from a board behind the same housing, is exactly this, w = the
+    board's time constant / the coil's)."""
+    return w * t + (1.0 - w) * lag_c
+
+
+def design(name: str, t: np.ndarray, n: list[np.ndarray], w: float | None = None
+           ) -> np.ndarray:
+    """The candidate's columns (no intercept): T, T^2, T^3 and the lags linearly (cubic,
+    shupe, shupe2), T, n, n^2, n^3 (node), or T, a fast lag (the derivative), the lead-lag
+    node c and its square and cube (lead)."""
+    if name == "node":
+        return np.column_stack([t, n[0], n[0] ** 2, n[0] ** 3])
+    if name == "lead":
+        assert w is not None
+        c = lead_node(t, n[1], w)
+        return np.column_stack([t, n[0], c, c * c, c * c * c])
+    return np.column_stack([t, t * t, t * t * t, *n])
+
+
+@dataclass
+class CandidateFit:
+    """A fitted candidate: predict(cols) on any Columns; `taus_s` its nodes' time constants."""
+
+    name: str
+    taus_s: tuple[float, ...]
+    coef: np.ndarray  # design's coefficients (cubic/shupe/shupe2/node)
+    intercept: float
+    bank: BankFit | None = None
+    w: float | None = None  # the lead-lag node's weight on T (lead)
+
+    def predict(self, cols: Columns, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        if self.bank is not None:
+            return self.bank.predict(cols.z[rows])
+        return self.intercept + self.columns(cols, rows) @ self.coef
+
+    def columns(self, cols: Columns, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """The design (no intercept) at `rows` of `cols`."""
+        if self.bank is not None:
+            from fogsf.trainer.models.lag_bank import bank_design
+
+            return bank_design(cols.z[rows], cols.curved)
+        n = [cols.lag(tau)[rows] for tau in self.taus_s]
+        return design(self.name, cols.t[rows], n, self.w)
+
+
+def _fixed_taus(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray,
+                taus: tuple[float, ...], w: float | None = None) -> CandidateFit:
+    f = ridge_fit(design(name, cols.t[rows], [cols.lag(tau)[rows] for tau in taus], w), y,
+                  SMALL_LAMBDA)
+    return CandidateFit(name, taus, f.coef, f.intercept, None, w)
+
+
+def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
+    """The lead candidate: (fast tau, coil tau, w) from the best of a grid, refined by
+    variable projection on (log tau, log tau, w)."""
+    fits = [_fixed_taus("lead", cols, rows, y, (fast, tc), w) for fast in FAST_TAUS_S
+            for tc in TAU_GRID_S for w in LEAD_W]
+    best = min(fits, key=lambda f: float(np.sum((y - f.predict(cols, rows)) ** 2)))
+    assert best.w is not None
+
+    def columns(theta: np.ndarray) -> np.ndarray:
+        taus = [float(math.exp(v)) for v in theta[:2]]
+        return design("lead", cols.t[rows], [cols.lag(tau)[rows] for tau in taus],
+                      float(theta[2]))
+
+    lo = np.array([math.log(TAU_MIN_S), math.log(TAU_MIN_S), LEAD_W_RANGE[0]])
+    hi = np.array([math.log(TAU_MAX_S), math.log(TAU_MAX_S), LEAD_W_RANGE[1]])
+    th0 = np.array([*np.log(best.taus_s), best.w])
+    vp = varpro(columns, y, th0, lo, hi, SMALL_LAMBDA)
+    taus = (float(math.exp(vp.theta[0])), float(math.exp(vp.theta[1])))
+    return _fixed_taus("lead", cols, rows, y, taus, float(vp.theta[2]))
+
+
+def fit_candidate(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
+    """Candidate `name` fitted to targets y at `rows` of `cols`."""
+    if name == "bank":
+        from fogsf.trainer.training.bias_model import fit_gcv
+
+        return CandidateFit(name, (), np.zeros(0), 0.0, fit_gcv(cols.z[rows], y, cols.curved))
+    if name == "lead":
+        return _fit_lead(cols, rows, y)
+    k = NODES[name]
+    grid = cols.taus if cols.taus is not None else TAU_GRID_S
+    fits = [_fixed_taus(name, cols, rows, y, combo)
+            for combo in itertools.combinations(sorted(grid), k)]
+    sse = [float(np.sum((y - f.predict(cols, rows)) ** 2)) for f in fits]
+    best = fits[int(np.argmin(sse))]
+    if cols.taus is not None or k == 0:
+        return best
+
+    def columns(theta: np.ndarray) -> np.ndarray:
+        return design(name, cols.t[rows], [cols.lag(float(math.exp(v)))[rows] for v in theta])
+
+    vp = varpro(columns, y, np.log(np.asarray(best.taus_s)),
+                np.full(k, math.log(TAU_MIN_S)), np.full(k, math.log(TAU_MAX_S)),
+                SMALL_LAMBDA)
+    return _fixed_taus(name, cols, rows, y, tuple(sorted(float(math.exp(v))
+                                                         for v in vp.theta)))
+
+
+def _window_groups(group: np.ndarray) -> np.ndarray:
+    return np.unique(group, return_inverse=True)[1]
+
+
+def heldout_errors(name: str, cols: Columns, y: np.ndarray, fold: np.ndarray,
+                   group: np.ndarray) -> np.ndarray:
+    """The candidate's error (deg/h) on every held-out scoring window (`group`: the error
+    averaged over each first), each fold predicted by a fit to the others; the windows in
+    one order for every candidate."""
+    out: list[np.ndarray] = []
+    for k in np.unique(fold):
+        held = np.flatnonzero(fold == k)
+        rest = np.flatnonzero(fold != k)
+        fit = fit_candidate(name, cols, rest, y[rest])
+        err = fit.predict(cols, held) - y[held]
+        g = _window_groups(group[held])
+        out.append(np.bincount(g, weights=err) / np.bincount(g))
+    return np.concatenate(out)
+
+
+def heldout_score(name: str, cols: Columns, y: np.ndarray, fold: np.ndarray,
+                  group: np.ndarray) -> float:
+    """RMS (deg/h) of the candidate's held-out window errors (`heldout_errors`)."""
+    return float(np.sqrt(np.mean(heldout_errors(name, cols, y, fold, group) ** 2)))
+
+
+@dataclass
+class BiasChoice:
+    name: str
+    scores: dict[str, float]  # held-out RMS (deg/h) per candidate, in the rule's order
+    folds: int
+    taus_s: tuple[float, ...]  # the chosen candidate's node time constants
+    tolerance: float = CHOICE_TOLERANCE
+    free_tau: bool = True  # the time constant by varpro (else one of z's lags)
+
+    def as_dict(self) -> dict:
+        return {"chosen": self.name, "heldout_rms_dph": self.scores, "folds": self.folds,
+                "node_taus_s": list(self.taus_s), "tolerance": self.tolerance,
+                "free_tau": self.free_tau}
+
+
+def choice_message(d: dict) -> str:
+    """What `fogsf train` prints about the bias structure (`BiasChoice.as_dict`)."""
+    scores: dict[str, float] = d["heldout_rms_dph"]
+    cells = ", ".join(f"{k} {v:.3f}" for k, v in scores.items())
+    best = min(scores.values())
+    tol = f"{100 * d['tolerance']:.0f} %"
+    why = ("the best" if scores[d["chosen"]] == best and d["chosen"] == next(iter(scores))
+           else "the smallest within " + tol + " of the best")
+    tau = ""
+    if d.get("node_taus_s"):
+        how = "by variable projection" if d["free_tau"] else "the best of the features' lags"
+        taus = ", ".join(f"{t:.0f}" for t in d["node_taus_s"])
+        tau = f"; node time constants {taus} s ({how})"
+    return (f"bias structure {d['chosen']}, chosen on held-out blocks of the training "
+            f"targets ({d['folds']} folds of {BLOCK_S:.0f} s blocks; held-out RMS, deg/h: "
+            f"{cells}): {why}{tau}")
+
+
+def choose(cols: Columns, y: np.ndarray, fold: np.ndarray, group: np.ndarray,
+           candidates: tuple[str, ...] = CANDIDATES,
+           tolerance: float = CHOICE_TOLERANCE) -> tuple[BiasChoice, CandidateFit]:
+    """The rule (module docstring), and the chosen candidate fitted on every target."""
+    order = [c for c in candidates if cols.taus is None
+             or (c != "lead" and NODES[c] <= len(cols.taus))]
+    errs = {c: heldout_errors(c, cols, y, fold, group) for c in order}
+    scores = {c: float(np.sqrt(np.mean(e * e))) for c, e in errs.items()}
+    best = min(scores.values())
+    name = next(c for c in order if scores[c] <= (1.0 + tolerance) * best)
+    fit = fit_candidate(name, cols, np.arange(y.size), y)
+    return (BiasChoice(name, scores, int(np.unique(fold).size), fit.taus_s, tolerance,
+                       cols.taus is None), fit)
+
+
+# Held-out segments: blocks of BLOCK_S dealt to N_FOLDS folds in turn, so that every fold
+# holds parts of every ramp and soak. Holding out whole ramps (the SF's choice) leaves a
+# loop of one up- and one down-ramp two folds, each fitted on one direction of the Shupe
+# term alone (docs/decisions.md).
+BLOCK_S = 1200.0
+N_FOLDS = 5
+
+
+def block_folds(idx: np.ndarray, step_s: float) -> np.ndarray:
+    """The fold of each target at model steps `idx` of one log."""
+    return (idx * step_s // BLOCK_S).astype(np.int64) % N_FOLDS
+
+
+def as_bank_fit(fit: CandidateFit, i_t: int, i_n: list[int], n_features: int) -> BankFit:
+    """The candidate as the bias head's diagonal polynomial over z (n_features columns),
+    T at column i_t, the nodes at i_n."""
+    lin, quad, cube = np.zeros(n_features), np.zeros(n_features), np.zeros(n_features)
+    c = fit.coef
+    if fit.name == "node":
+        lin[i_t] += c[0]
+        lin[i_n[0]] += c[1]
+        quad[i_n[0]], cube[i_n[0]] = c[2], c[3]
+    else:
+        lin[i_t], quad[i_t], cube[i_t] = c[0], c[1], c[2]
+        for j, i in enumerate(i_n):
+            lin[i] += c[3 + j]
+    return BankFit(fit.intercept, lin, quad, cube, SMALL_LAMBDA, float(c.size + 1))
+
+
+def pure_columns(feat_w: np.ndarray) -> tuple[int | None, dict[int, int]]:
+    """(the feature that is T alone, {filter k: the feature that is lag k alone})."""
+    i_t: int | None = None
+    lags: dict[int, int] = {}
+    for i, row in enumerate(np.asarray(feat_w, dtype=np.float64)):
+        nz = np.flatnonzero(row)
+        if nz.size != 1:
+            continue
+        if nz[0] == 0 and i_t is None:
+            i_t = i
+        elif nz[0] > 0 and int(nz[0]) - 1 not in lags:
+            lags[int(nz[0]) - 1] = i
+    return i_t, lags
+
