@@ -24,10 +24,16 @@ def whole_targets(log, decimation: int) -> np.ndarray:  # noqa: ANN001 - the cod
     return (metrics.step_means(ratio, decimation, m) - 1.0) * 1e6
 
 
+PLAYS = (((0.5, 0.5, 0.0), 6.0), ((0.0, 0.25, 0.75), 2.5))  # two plays of lag mixes
+
+
+@pytest.mark.parametrize("plays", [(), PLAYS], ids=["lags", "plays"])
 @pytest.mark.parametrize("read", [37, 1 << 18])
-def test_step_inputs_in_blocks_are_the_same_bits(read: int, tmp_path, monkeypatch) -> None:
+def test_step_inputs_in_blocks_are_the_same_bits(read: int, plays, tmp_path,  # noqa: ANN001
+                                                 monkeypatch) -> None:
     log = reversals()
-    fe = front_end_for([log], 5.0, (300.0, 1200.0))
+    fe = front_end_for([log], 5.0, (300.0, 1200.0), plays=plays)
+    assert fe.n_plays == len(plays)
     temp = log.temp_c.copy()
     temp[0:3] = np.nan  # no finite sample yet: t_ref
     temp[500:620] = np.nan  # the last finite one held across borders
