@@ -12,7 +12,7 @@ import copy
 import numpy as np
 import pytest
 
-from fogsf.trainer.diagnose import cases, driver, extend, report, verdict
+from fogsf.trainer.diagnose import case_programs, cases, driver, extend, report, verdict
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.sim.gyro import simulate
 from fogsf.trainer.sim.population import DEV_SEEDS
@@ -66,7 +66,7 @@ def test_mixed_rate_null_stays_clean(noise_seed: int, chamber: bool) -> None:
     case.config.seed = noise_seed
     case.chamber = chamber
     rates = np.abs(case.config.table.rates_dps)
-    assert set(rates) == set(cases.MIXED_RATES_DPS)
+    assert set(rates) == set(case_programs.MIXED_RATES_DPS)
     out, j = _run(case)
     assert j["cause"] is None and j["causes"] == []
     assert not j["unexplained"], j["structure"]

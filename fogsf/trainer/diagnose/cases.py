@@ -20,9 +20,9 @@ The lag / dT/dt cases of kind `effect` use 4.5 h logs with 70-80 min soaks (up a
 extra_lag time constants 5000-9000 s. The hysteresis cases (`hysteresis`: a play of the coil
 temperature) are planted at the population's physics, not at a multiple of the floor:
 width over HYST_WIDTH_C (4-10 C), strength over HYST_PPM_PER_C (3-8 ppm/C), on partial
-cycles (`_partial`: up 25-40 C, back 10-20 C, up 10-20 C, back 15-25 C, up 10-20 C, back
-to the start, 1-2 C/min, 15-25 min soaks at each turn, 3.5-5 h: a play shows only where
-the temperature turns back). One whose visible part stays under 3x the floor may go
+cycles (`case_programs.partial`: up 25-40 C, back 10-20 C, up 10-20 C, back 15-25 C, up
+10-20 C, back to the start, 1-2 C/min, 15-25 min soaks at each turn, 3.5-5 h: a play shows
+only where the temperature turns back). One whose visible part stays under 3x the floor may go
 unnamed (never misnamed); a named one is held to its loop's height (strength x width)
 within 50 %.
 
@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from fogsf.trainer.diagnose import case_programs as programs
 from fogsf.trainer.diagnose import design, driver, profile_ls, runs
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.sim.config import ProfileConfig, SimConfig, TableConfig
@@ -84,7 +85,6 @@ VARIANTS: dict[str, dict[str, str]] = {
 # two-effect cases: pairs that one set of logs can show at once
 PAIRS = (("asymmetry", "aging"), ("rate_nonlinearity", "aging"), ("bias_drift", "aging"),
          ("asymmetry", "rate_nonlinearity"))
-MIXED_RATES_DPS = (10.0, 50.0, 100.0, 200.0)  # the mixed-rate null's |rate| levels
 # the profiled parameter and the tolerance a diagnosis must meet on each effect
 PARAM_CHECK: dict[str, tuple[str, str, float]] = {
     # effect: (param key in the diagnosis, truth key, relative tolerance)
@@ -131,81 +131,6 @@ class Case:
                 f"{prof}, table {tab}, {self.config.thermal.start}, truth {self.params}")
 
 
-def _steps(rng: np.random.Generator, back: bool, minutes: float) -> ProfileConfig:
-    t0 = float(rng.uniform(-10.0, 30.0))
-    delta = float(rng.uniform(25.0, 40.0)) * float(rng.choice([-1.0, 1.0]))
-    rate = float(rng.uniform(1.0, 2.0))
-    levels = [t0, t0 + delta] + ([t0] if back else [])
-    ramps = (len(levels) - 1) * abs(delta) / rate * 60.0
-    soak = max(900.0, (minutes * 60.0 - ramps) / len(levels))
-    return ProfileConfig(kind="steps", levels_c=[round(x, 1) for x in levels],
-                         rate_c_per_min=rate, soak_s=round(soak))
-
-
-def _long_soaks(rng: np.random.Generator) -> ProfileConfig:
-    """Up and back with 70-80 min soaks (4.5 h): a lag keeps settling in the soaks, a dT/dt
-    term dies with the coil's rate; shorter soaks leave the two ambiguous."""
-    t0 = float(rng.uniform(-10.0, 30.0))
-    delta = float(rng.uniform(25.0, 40.0)) * float(rng.choice([-1.0, 1.0]))
-    return ProfileConfig(kind="steps", levels_c=[round(t0, 1), round(t0 + delta, 1),
-                                                 round(t0, 1)],
-                         rate_c_per_min=float(rng.uniform(1.0, 2.0)),
-                         soak_s=float(rng.uniform(4200.0, 4800.0)))
-
-
-def _partial(rng: np.random.Generator) -> ProfileConfig:
-    """Partial cycles: up 25-40 C, back 10-20 C, up 10-20 C, back 15-25 C, up 10-20 C, back
-    to the start (either direction first), 1-2 C/min, 15-25 min soaks at each turn."""
-    t0 = float(rng.uniform(-20.0, 10.0))
-    sign = float(rng.choice([-1.0, 1.0]))
-    steps = [float(rng.uniform(*r)) for r in ((25.0, 40.0), (-20.0, -10.0), (10.0, 20.0),
-                                                (-25.0, -15.0), (10.0, 20.0))]
-    rate = float(rng.uniform(1.0, 2.0))
-    soak = float(rng.uniform(900.0, 1500.0))
-    levels = [t0] + [t0 + sign * float(np.sum(steps[:i + 1])) for i in range(len(steps))] + [t0]
-    if min(levels) < -50.0 or max(levels) > 60.0:  # the other direction stays in the chamber
-        levels = [2.0 * t0 - v for v in levels]
-    pts = [[0.0, t0], [soak, t0]]
-    for lv in levels[1:]:
-        t = pts[-1][0] + abs(lv - pts[-1][1]) / rate * 60.0
-        pts += [[t, lv], [t + soak, lv]]
-    return ProfileConfig(kind="program", points=[[round(t, 1), round(v, 2)] for t, v in pts],
-                         rate_c_per_min=rate, levels_c=[round(x, 2) for x in levels])
-
-
-def _cycle(rng: np.random.Generator) -> ProfileConfig:
-    t0 = float(rng.uniform(-20.0, 10.0))
-    span = float(rng.uniform(30.0, 45.0))
-    return ProfileConfig(kind="cycle", start_c=round(t0, 1), stop_c=round(t0 + span, 1),
-                         rate_c_per_min=float(rng.uniform(1.0, 2.0)),
-                         soak_s=float(rng.uniform(900.0, 1500.0)), cycles=1)
-
-
-def _table(rng: np.random.Generator, kind: str) -> TableConfig:
-    dwell = float(rng.choice([120.0, 180.0, 240.0]))
-    if kind == "mixed":  # the mixed-rate null's table: +/- at every MIXED_RATES_DPS
-        return TableConfig(kind="levels", rates_dps=[s * r for r in MIXED_RATES_DPS
-                                                     for s in (1.0, -1.0)], dwell_s=dwell)
-    if kind == "multi_pm":  # +/- at three |rate|
-        lv = [float(rng.uniform(5.0, 15.0)), float(rng.uniform(20.0, 35.0)),
-              float(rng.uniform(40.0, 100.0))]
-        return TableConfig(kind="levels", rates_dps=[s * r for r in lv for s in (1.0, -1.0)],
-                           dwell_s=dwell)
-    if kind == "constant":
-        return TableConfig(kind="constant", rate_dps=float(rng.choice([10.0, 20.0])))
-    if kind == "alternating":
-        return TableConfig(kind="alternating", rate_dps=float(rng.uniform(5.0, 20.0)),
-                           dwell_s=dwell)
-    if kind == "multi":  # several |rate|, one sign
-        lo = float(rng.uniform(5.0, 15.0))
-        return TableConfig(kind="levels", rates_dps=[lo, float(rng.uniform(40.0, 100.0)),
-                                                     float(rng.uniform(20.0, 35.0))],
-                           dwell_s=dwell)
-    lo = float(rng.uniform(5.0, 15.0))  # +/- at two |rate|
-    hi = float(rng.uniform(40.0, 100.0))
-    return TableConfig(kind="levels", rates_dps=[lo, -lo, hi, -hi], dwell_s=dwell)
-
-
 def draw(kind: str, name: str, seed: int) -> Case:
     """A case drawn from the stated ranges (see the module docstring and the code below)."""
     rng = np.random.default_rng(seed)
@@ -214,35 +139,35 @@ def draw(kind: str, name: str, seed: int) -> Case:
     multiple = float(rng.uniform(*MULTIPLE_RANGE))
     params: dict[str, float] = {}
     table_kind = "constant"
-    profile = _steps(rng, back=False, minutes=100)
+    profile = programs.steps(rng, back=False, minutes=100)
     if kind in ("effect", "null"):
         eff = name if kind == "effect" else str(rng.choice(EFFECTS))  # null: that case's setup
         if eff == "warmup":
             cfg.thermal.start = "power-on"
             params["tau_s"] = float(rng.uniform(120.0, 300.0))  # >= 2 windows of 60 s
-            profile = _steps(rng, back=False, minutes=100)
+            profile = programs.steps(rng, back=False, minutes=100)
         elif eff == "extra_lag":
             params["tau_s"] = float(rng.uniform(5000.0, 9000.0))
-            profile = _long_soaks(rng)
+            profile = programs.long_soaks(rng)
         elif eff == "temp_rate":
-            profile = _long_soaks(rng)
+            profile = programs.long_soaks(rng)
         elif eff == "rate_nonlinearity":
             table_kind = "multi"
-            profile = _cycle(rng)
+            profile = programs.cycle(rng)
         elif eff == "asymmetry":
             table_kind = "plusminus"
-            profile = _cycle(rng)
+            profile = programs.cycle(rng)
         elif eff == "bias_drift":
             table_kind = "alternating"
-            profile = _cycle(rng)
+            profile = programs.cycle(rng)
         elif eff == "aging":
-            profile = _steps(rng, back=True, minutes=120)
+            profile = programs.steps(rng, back=True, minutes=120)
         elif eff == "hysteresis":
             params["width_c"] = float(rng.uniform(*HYST_WIDTH_C))
-            profile = _partial(rng)
+            profile = programs.partial(rng)
         elif eff == "bias_shupe":
             table_kind = "alternating"
-            profile = _cycle(rng)
+            profile = programs.cycle(rng)
         if kind == "effect":
             cfg.effects = [EffectConfig(name, 1.0, {k: v for k, v in params.items()})]
             if name == "hysteresis":
@@ -252,7 +177,8 @@ def draw(kind: str, name: str, seed: int) -> Case:
         else:
             params = {}
     elif kind == "ooc":
-        profile = _steps(rng, back=True, minutes=110) if rng.random() < 0.5 else _cycle(rng)
+        profile = (programs.steps(rng, back=True, minutes=110) if rng.random() < 0.5
+                   else programs.cycle(rng))
         table_kind = str(rng.choice(["constant", "alternating"]))
         if name == "humidity":
             k = int(rng.integers(2, 4))
@@ -267,7 +193,8 @@ def draw(kind: str, name: str, seed: int) -> Case:
         cfg.effects = [EffectConfig("extra_lag", float(rng.uniform(5000.0, 9000.0)),
                                     {"sens_ppm_per_c": 1.0})] if name == "extra_lag" else [
             EffectConfig("temp_rate", 1.0)]
-        cfg = _finish(cfg, _steps(rng, back=True, minutes=110), _table(rng, "constant"))
+        cfg = _finish(cfg, programs.steps(rng, back=True, minutes=110),
+                      programs.table(rng, "constant"))
         return Case(kind, name, seed, cfg, multiple, {})
     elif kind == "ramp_only":
         rate = float(rng.uniform(0.4, 0.5))  # -40..60 C: 200-250 min, 1-1.8 h kept
@@ -281,7 +208,7 @@ def draw(kind: str, name: str, seed: int) -> Case:
             params = {"strength": 30.0}
         crop = 3.0 * 2800.0  # past the network's settling onto the steady ramp
         return Case(kind, name, seed, _finish(cfg, profile, TableConfig()), 0.0, params, crop)
-    cfg = _finish(cfg, profile, _table(rng, table_kind))
+    cfg = _finish(cfg, profile, programs.table(rng, table_kind))
     return Case(kind, name, seed, cfg, multiple if kind != "null" else 0.0, params)
 
 
@@ -307,14 +234,14 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
         case = draw("effect", name, seed)
         cfg = case.config
         cfg.thermal.start = "warm"
-        cfg.profile = _steps(rng, back=True, minutes=150)
-        cfg.table = _table(rng, "multi_pm")
+        cfg.profile = programs.steps(rng, back=True, minutes=150)
+        cfg.table = programs.table(rng, "multi_pm")
         cfg.effects = [EffectConfig(name, 1.0, {}), EffectConfig(variant, 1.0, {})]
         case.kind = "two"
         case.params = {"multiple2": float(rng.uniform(*MULTIPLE_RANGE))}
     elif kind == "null" and name == "mixed":
         case = draw("null", "", seed)
-        case.config.table = _table(rng, "mixed")
+        case.config.table = programs.table(rng, "mixed")
         case.name = ""
     elif kind == "effect":
         case = draw("effect", name, seed)
@@ -322,20 +249,20 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
         e = cfg.effects[0]
         if name == "rate_nonlinearity":
             e.params["exponent"] = 2.0 if variant == "quadratic" else 1.0
-            cfg.table = _table(rng, str(rng.choice(["multi", "multi_pm"])))
+            cfg.table = programs.table(rng, str(rng.choice(["multi", "multi_pm"])))
         elif name == "bias_drift":
             if variant == "node":
                 e.params["node_tau_s"] = float(rng.uniform(600.0, 2400.0))
-            cfg.table = _table(rng, str(rng.choice(["alternating", "plusminus"])))
+            cfg.table = programs.table(rng, str(rng.choice(["alternating", "plusminus"])))
         elif name == "aging" and variant == "settling":
             e.params["settle_tau_s"] = float(rng.uniform(5400.0, 14400.0))
         elif name == "warmup" and variant == "slow":
             e.params["tau_s"] = float(rng.uniform(900.0, 2400.0))
         elif name == "asymmetry":
-            cfg.table = _table(rng, "alternating" if variant == "one" else
+            cfg.table = programs.table(rng, "alternating" if variant == "one" else
                                str(rng.choice(["plusminus", "multi_pm"])))
         elif name == "bias_shupe":
-            cfg.table = _table(rng, str(rng.choice(["alternating", "plusminus"])))
+            cfg.table = programs.table(rng, str(rng.choice(["alternating", "plusminus"])))
         case.params = dict(e.params)
     else:
         case = draw(kind, name, seed)
