@@ -8,6 +8,12 @@ The true regressors are the simulator's truth of the same run with one term of t
 law at a time (bias 0, one coefficient 1): (T_coil - ref), its square and cube, and
 dT_coil/dt in C/min, each averaged over the windows.
 
+A second oracle, `board`, knows the true time constants but not the coil's temperature:
+where the coil and the board sit behind the same node (the housing), the coil is
+reconstructed from the logged board temperature B with the true tau_board and tau_coil
+(housing = B + tau_board dB/dt, dB/dt from a 20 s lag; coil = lag(housing, tau_coil)),
+and the same four regressors' linear coefficients are fitted.
+
   python -m benchmarks.bias_oracle --gyros 1:9
 """
 
@@ -28,7 +34,10 @@ from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log, with_mapping_beside
 from fogsf.trainer.sim import rig_logs
 from fogsf.trainer.sim.config import BiasConfig
+from fogsf.trainer.sim.lag import first_order_lag
+from fogsf.trainer.sim.population import gyro_for_seed
 
+FAST_S = 20.0  # the board derivative's lag (board oracle)
 BASIS = ("lin_dph_per_c", "quad_dph_per_c2", "cube_dph_per_c3", "shupe_dph_per_c_per_min")
 
 
@@ -37,14 +46,35 @@ def _window_mean(x: np.ndarray, w) -> np.ndarray:  # noqa: ANN001
     return (c[w.stop] - c[w.start]) / (w.stop - w.start)
 
 
+def _board_regressors(log, bias: BiasConfig, gyro: int) -> np.ndarray | None:  # noqa: ANN001
+    """(T_coil - ref), its square and cube, dT_coil/dt (C/min) from the logged board
+    temperature and the true time constants; None where the coil is not the board's
+    sibling."""
+    nodes = {n.name: n for n in gyro_for_seed(gyro).thermal.nodes}
+    board, coil = nodes.get("board"), nodes.get(bias.node)
+    if board is None or coil is None or board.parent != coil.parent:
+        return None
+    b = np.asarray(log.temp_c, dtype=np.float64)
+    dt = float(np.median(np.diff(log.time_s)))
+    db = (b - first_order_lag(b, FAST_S, dt, float(b[0]))) / FAST_S
+    h = b + board.tau_s * db
+    c = first_order_lag(h, coil.tau_s, dt, float(h[0]))
+    x = c - bias.ref_c
+    return np.column_stack([x, x * x, x ** 3, (h - c) / coil.tau_s * 60.0])
+
+
 def one(gyro: int, kind: str, shupe: float | None, work: Path) -> dict:
     bias = bias_law(gyro, shupe)
-    x, y, true = [], [], []
+    x, y, true, xb = [], [], [], []
     for name, loop, seed in (("train", TRAIN_LOOP, 1), ("test", TEST_LOOP, 2)):
         rl = rig_logs.rig_log("plain", work / f"{gyro}-{kind}-{name}" / "log.csv",
                               protocol(kind, loop, replace(bias)), (gyro,), seed=seed)
-        ws = bias_windows(read_log(rl.path, with_mapping_beside(rl.path, Dialect())), 100.0)
+        log = read_log(rl.path, with_mapping_beside(rl.path, Dialect()))
+        ws = bias_windows(log, 100.0)
         assert ws is not None
+        br = _board_regressors(log, bias, gyro)
+        xb.append(None if br is None else np.column_stack([_window_mean(br[:, j], ws)
+                                                           for j in range(4)]))
         cols = []
         for term in BASIS:
             b = BiasConfig(**{**bias.__dict__, "bias_dph": 0.0, "lin_dph_per_c": 0.0,
@@ -61,6 +91,12 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path) -> dict:
     coef = np.linalg.lstsq(a, y[0], rcond=None)[0]
     pred = np.column_stack([np.ones(len(y[1])), x[1][:, used]]) @ coef
     err = float(np.std(pred - true[1]))
+    err_board = None
+    if xb[0] is not None and xb[1] is not None:
+        ab = np.column_stack([np.ones(len(y[0])), xb[0][:, used]])
+        cb = np.linalg.lstsq(ab, y[0], rcond=None)[0]
+        pb = np.column_stack([np.ones(len(y[1])), xb[1][:, used]]) @ cb
+        err_board = float(np.std(pb - true[1]))
     # the law itself reproduces the truth (a check of the basis)
     law = np.column_stack([np.ones(len(y[1])), x[1][:, used]]) @ np.array(
         [0.0, *[getattr(bias, BASIS[j]) for j in used]])
@@ -70,7 +106,8 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path) -> dict:
     return {"gyro": gyro, "protocol": kind, "terms": [BASIS[j] for j in used],
             "train_windows": len(y[0]), "train_noise_std_dph": train_noise,
             "law_check_std_dph": float(np.std(law - true[1])),
-            "oracle_err_std_dph": err, "true_std_dph": float(np.std(true[1])),
+            "oracle_err_std_dph": err, "board_oracle_err_std_dph": err_board,
+            "true_std_dph": float(np.std(true[1])),
             "target_dph": target, "oracle_meets": err <= target}
 
 
@@ -92,6 +129,7 @@ def main(argv: list[str] | None = None) -> int:
                     r["case"] = case
                     rows.append(r)
                     print(f"gyro {gyro} {kind:10s} {case:10s} oracle {r['oracle_err_std_dph']:.3f}"
+                          f" board {r['board_oracle_err_std_dph'] or float('nan'):.3f}"
                           f" target {r['target_dph']:.3f} "
                           f"{'ok' if r['oracle_meets'] else 'MISS'}  train noise "
                           f"{r['train_noise_std_dph']:.3f} ({r['train_windows']} windows)  "
@@ -100,6 +138,14 @@ def main(argv: list[str] | None = None) -> int:
         for case in args.cases.split(","):
             sel = [r for r in rows if r["protocol"] == kind and r["case"] == case]
             e = np.array([r["oracle_err_std_dph"] for r in sel])
+            eb = np.array([r["board_oracle_err_std_dph"] for r in sel
+                           if r["board_oracle_err_std_dph"] is not None])
+            tb = np.array([r["target_dph"] for r in sel
+                           if r["board_oracle_err_std_dph"] is not None])
+            if eb.size:
+                print(f"{kind}/{case}: board oracle median {np.median(eb):.3f} (max "
+                      f"{eb.max():.3f}) deg/h on {eb.size} gyros, meets target "
+                      f"{int(np.sum(eb <= tb))}/{eb.size}")
             print(f"{kind}/{case}: oracle median {np.median(e):.3f} (max {e.max():.3f}) deg/h, "
                   f"meets target {sum(r['oracle_meets'] for r in sel)}/{len(sel)}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
