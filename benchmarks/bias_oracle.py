@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.bias_eval import SHUPE, TEST_LOOP, TRAIN_LOOP, bias_law, protocol
+from benchmarks.bias_eval import CASES, SHUPE, TEST_LOOP, TRAIN_LOOP, bias_law, protocol
 from fogsf.trainer.logs.bias import bias_windows
 from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log, with_mapping_beside
@@ -113,12 +113,17 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.bias_oracle", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="example: python -m benchmarks.bias_oracle --gyros 1:17")
     p.add_argument("--gyros", default="1:9", help="population seeds LO:HI (development)")
-    p.add_argument("--cases", default="shupe,population")
+    p.add_argument("--cases", default="shupe,population",
+                   help="comma-separated, of: " + ", ".join(CASES))
     p.add_argument("--out", type=Path, default=Path("out/bias-oracle.json"))
     args = p.parse_args(argv)
     lo, hi = (int(v) for v in args.gyros.split(":"))
+    bad = [c for c in args.cases.split(",") if c not in CASES]
+    if bad:
+        p.error(f"unknown case {bad[0]!r}; cases are {', '.join(CASES)}")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for gyro in range(lo, hi):
