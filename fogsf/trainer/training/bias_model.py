@@ -4,7 +4,7 @@ z are the front end's features (T and its lags for the default model); the bias 
 intercept + lin.z + quad.z^2 + cube.z^3 (diagonal). Which polynomial, the structure, is
 chosen by the training targets (`bias_structure`: a cubic in T, with a Shupe term, on a coil
 node, ..., or the lag bank's full polynomial by ridge with its penalty chosen by GCV,
-`fit_gcv`). The Shupe term, a bias proportional to the rate of change of the coil's
+`bias_structure.fit_gcv`). The Shupe term, a bias proportional to the rate of change of the coil's
 temperature, is (T - lag(T, tau)) / tau: a linear combination of z. Targets are the bias
 each training log measures (`logs.bias`): a stationary log's model steps (mean of output -
 earth rate over each step), a +/- pair's bias at the step under its centre.
@@ -26,7 +26,7 @@ from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
 from fogsf.trainer.logs.metrics import step_means
 from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
 from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for
-from fogsf.trainer.models.lag_bank import BankFit, bank_design, fit_bank, n_curved
+from fogsf.trainer.models.lag_bank import BankFit, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.physics_nodes import NodeTemperatures
 from fogsf.trainer.models.reference import expand, frontend
@@ -244,45 +244,6 @@ def node_feature_map(logs: list[ChamberLog], step_s: float,
     norm = physical_normaliser(node_spec(taus_s))
     return FeatureMap(front_end_for(logs, step_s, taus_s), norm.feat_w, norm.feat_b,
                       1 + len(taus_s))
-
-
-# The bias's ridge penalties (multiples of the design's mean diagonal), chosen per fit by
-# generalised cross-validation. Unlike the SF's fixed prior (lag_bank.BANK_LAMBDA, 1e-3):
-# a bias target is white noise about the law (the gyro's angle random walk over a model
-# step or a pair), which GCV is made for, and a Shupe term needs large coefficients of
-# opposite sign on neighbouring lags (T - lag is a rate of change) that 1e-3 shrinks away.
-# Development gyros 1-8 (`benchmarks.bias_eval`), median std(predicted - true): coil Shupe
-# term 0.375 -> 0.186 deg/h (reversals), 0.376 -> 0.208 (stationary); without it 0.094 ->
-# 0.136 (reversals: few pairs) and 0.085 -> 0.071 (stationary); docs/decisions.md.
-BIAS_LAMBDAS = tuple(10.0 ** e for e in range(-8, 0))
-
-
-def fit_gcv(z: np.ndarray, y: np.ndarray, curved: int) -> BankFit:
-    """`fit_bank` at the penalty of BIAS_LAMBDAS with the least GCV score n RSS / (n - dof)^2;
-    the design's SVD is taken once for every penalty (`fit_bank`'s arithmetic otherwise)."""
-    x = bank_design(z, curved)
-    y = np.asarray(y, dtype=np.float64)
-    mu, ym = x.mean(axis=0), float(np.mean(y))
-    u, sv, vt = np.linalg.svd(x - mu, full_matrices=False)
-    uy = u.T @ (y - ym)
-    scale = float(np.mean(sv**2))
-    k = z.shape[1]
-    n = y.size
-    best: tuple[float, BankFit] | None = None
-    for lam in BIAS_LAMBDAS:
-        f = sv**2 / (sv**2 + lam * scale)
-        coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
-        quad, cube = np.zeros(k), np.zeros(k)
-        quad[:curved], cube[:curved] = coef[k:k + curved], coef[k + curved:]
-        fit = BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
-                      lam=lam, dof=float(f.sum()) + 1.0)
-        if n - fit.dof <= 0:
-            continue
-        r = y - fit.predict(z)
-        score = n * float(r @ r) / (n - fit.dof) ** 2
-        if best is None or score < best[0]:
-            best = (score, fit)
-    return best[1] if best is not None else fit_bank(z, y, curved=curved)
 
 
 def score_bias(model: BiasModel, log: ChamberLog, window_s: float = 100.0,

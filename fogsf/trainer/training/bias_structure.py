@@ -13,7 +13,7 @@ coil node behind it):
   coil's, > 1 when the coil is the faster), its rate of change w dT/dt + (1 - w)(T -
   lag)/tau_c; only with a front end of its own (c is a feature of its own);
 - `bank`: the lag bank's polynomial of every feature (T, its lags at 11 time constants,
-  cubes up to 2000 s) by ridge with the penalty chosen by GCV (`bias_model.fit_gcv`).
+  cubes up to 2000 s) by ridge with the penalty chosen by GCV (`fit_gcv`).
 Time constants (and w) are identified by variable projection (`models.node_fit.varpro`,
 from the best of a grid) when the bias model has its own front end (a bias-only model, or
 an SF model without a firmware form); when the bias head shares the SF model's features z,
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsf.trainer.models.lag_bank import BankFit
+from fogsf.trainer.models.lag_bank import BankFit, bank_design, fit_bank
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.node_fit import ridge_fit, varpro
 from fogsf.trainer.models.physics_nodes import TAU_MAX_S, TAU_MIN_S
@@ -144,7 +144,6 @@ def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
 def fit_candidate(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
     """Candidate `name` fitted to targets y at `rows` of `cols`."""
     if name == "bank":
-        from fogsf.trainer.training.bias_model import fit_gcv
 
         return CandidateFit(name, (), np.zeros(0), 0.0, fit_gcv(cols.z[rows], y, cols.curved))
     if name == "lead":
@@ -285,3 +284,41 @@ def pure_columns(feat_w: np.ndarray) -> tuple[int | None, dict[int, int]]:
             lags[int(nz[0]) - 1] = i
     return i_t, lags
 
+
+# The bias's ridge penalties (multiples of the design's mean diagonal), chosen per fit by
+# generalised cross-validation. Unlike the SF's fixed prior (lag_bank.BANK_LAMBDA, 1e-3):
+# a bias target is white noise about the law (the gyro's angle random walk over a model
+# step or a pair), which GCV is made for, and a Shupe term needs large coefficients of
+# opposite sign on neighbouring lags (T - lag is a rate of change) that 1e-3 shrinks away.
+# Development gyros 1-8 (`benchmarks.bias_eval`), median std(predicted - true): coil Shupe
+# term 0.375 -> 0.186 deg/h (reversals), 0.376 -> 0.208 (stationary); without it 0.094 ->
+# 0.136 (reversals: few pairs) and 0.085 -> 0.071 (stationary); docs/decisions.md.
+BIAS_LAMBDAS = tuple(10.0 ** e for e in range(-8, 0))
+
+
+def fit_gcv(z: np.ndarray, y: np.ndarray, curved: int) -> BankFit:
+    """`fit_bank` at the penalty of BIAS_LAMBDAS with the least GCV score n RSS / (n - dof)^2;
+    the design's SVD is taken once for every penalty (`fit_bank`'s arithmetic otherwise)."""
+    x = bank_design(z, curved)
+    y = np.asarray(y, dtype=np.float64)
+    mu, ym = x.mean(axis=0), float(np.mean(y))
+    u, sv, vt = np.linalg.svd(x - mu, full_matrices=False)
+    uy = u.T @ (y - ym)
+    scale = float(np.mean(sv**2))
+    k = z.shape[1]
+    n = y.size
+    best: tuple[float, BankFit] | None = None
+    for lam in BIAS_LAMBDAS:
+        f = sv**2 / (sv**2 + lam * scale)
+        coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
+        quad, cube = np.zeros(k), np.zeros(k)
+        quad[:curved], cube[:curved] = coef[k:k + curved], coef[k + curved:]
+        fit = BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
+                      lam=lam, dof=float(f.sum()) + 1.0)
+        if n - fit.dof <= 0:
+            continue
+        r = y - fit.predict(z)
+        score = n * float(r @ r) / (n - fit.dof) ** 2
+        if best is None or score < best[0]:
+            best = (score, fit)
+    return best[1] if best is not None else fit_bank(z, y, curved=curved)
