@@ -1,6 +1,7 @@
 """Logs of any length: wall time and peak memory of `fogsf replay` and `fogsf inspect` on
 logs of 2.4 h, 24 h and 7 days at 100 Hz, CSV and Parquet, and how they grow with the log;
-`fogsf train --model poly` on the logs of a day or less.
+`fogsf train --model poly` and `fogsf diagnose` on the logs of a day or less (diagnose's
+memory still grows with the log).
 
 Each log cycles -40..50 C at 1 C/min with 60 min soaks (the rig's columns: time, board
 temperature, table rate, gyro, earth rate), written as CSV, then read back and written as
@@ -127,6 +128,8 @@ def main(argv: list[str] | None = None) -> int:
                 if h <= TRAIN_MAX_H:
                     runs["train"] = [*fogsf, "train", "--train", str(log), "--model", "poly",
                                      "--out", str(work / f"poly-{fmt}"), "--no-progress"]
+                    runs["diagnose"] = [*fogsf, "diagnose", str(log), "--json",
+                                        str(work / f"diag-{fmt}.json")]
                 for command, cmd in runs.items():
                     wall, peak = measured(cmd)
                     rows.append({"hours": h, "format": fmt, "command": command,
@@ -140,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     growth = []
     for a, b in zip(hours[:-1], hours[1:], strict=True):
         for fmt in ("csv", "parquet"):
-            for command in ("replay", "inspect", "train"):
+            for command in ("replay", "inspect", "train", "diagnose"):
                 pair = [next((r for r in rows if r["hours"] == h and r["format"] == fmt
                               and r["command"] == command), None) for h in (a, b)]
                 if pair[0] is None or pair[1] is None:

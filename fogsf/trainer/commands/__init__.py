@@ -187,8 +187,9 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
     """Read logs with the options of `add_log_options`; how a log was read when it is not
     in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr. Each log
     is read a block at a time with a progress bar on a terminal (logs/stream_read.py); with
-    `on_disk` its columns stay in a spill on disk (bounded memory whatever the log's length),
-    else they are then held in memory."""
+    `on_disk` its columns stay in a spill on disk (replay, inspect, train, diagnose, plan
+    --from-logs; what the command itself makes may still grow with the log), else they are
+    then held in memory."""
     import sys
 
     from fogsf.trainer.logs.columns import Spill

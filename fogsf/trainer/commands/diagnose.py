@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.window_s <= 0:
         raise UserError("--window-s must be > 0")
-    logs = read_logs(args, args.logs)
+    logs = read_logs(args, args.logs, on_disk=True)
     effects = [e.strip() for e in args.effects.split(",")] if args.effects else None
     d = verdict.diagnose(logs, window_s=args.window_s, latitude_deg=args.latitude_deg,
                          cv=args.cv, start=args.start, effects=effects,

@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     what = (f"{len(seeds)} development gyros ({seeds[0]}-{seeds[-1]})" if len(seeds) > 1
             else f"development gyro {seeds[0]}")
     if args.from_logs:
-        fitted = fitted_gyros(read_logs(args, [str(p) for p in args.from_logs]),
+        fitted = fitted_gyros(read_logs(args, [str(p) for p in args.from_logs], on_disk=True),
                               args.window_s, args.latitude_deg)
         gyros = [(i + 1, g) for i, g in enumerate(fitted)]
         what = f"{len(gyros)} gyros fitted to " + ", ".join(p.name for p in args.from_logs)

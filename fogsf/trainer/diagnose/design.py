@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.trainer.diagnose.driver import Driver
-from fogsf.trainer.diagnose.runs import Run
+from fogsf.trainer.diagnose.runs import Run, per_sample
 from fogsf.trainer.sim.lag import first_order_lag
 
 T_REF_C = 20.0
@@ -66,14 +66,16 @@ def board(ctx: RunContext) -> np.ndarray:
 def decay(ctx: RunContext, tau_s: float) -> np.ndarray:
     """Window mean of exp(-t/tau), t since power-on (the log's time_s)."""
     return _cached(ctx, ("decay", float(tau_s)),
-                   lambda: ctx.run.window_mean(np.exp(-ctx.run.log.time_s / tau_s)))
+                   lambda: ctx.run.window_mean(per_sample(
+                       ctx.run.log.time_s, lambda t: np.exp(-t / tau_s))))
 
 
 def settle(ctx: RunContext, tau_s: float) -> np.ndarray:
     """Window mean of 1 - exp(-t/tau), t since the log's start."""
     def make() -> np.ndarray:
-        t = ctx.run.log.time_s - float(ctx.run.log.time_s[0])
-        return ctx.run.window_mean(1.0 - np.exp(-t / tau_s))
+        t0 = float(ctx.run.log.time_s[0])
+        return ctx.run.window_mean(per_sample(ctx.run.log.time_s,
+                                              lambda t: 1.0 - np.exp(-(t - t0) / tau_s)))
     return _cached(ctx, ("settle", float(tau_s)), make)
 
 

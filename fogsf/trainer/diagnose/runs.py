@@ -12,12 +12,14 @@ so the model and the data see the same averaging.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.columns import cumsum_at, derived, is_lazy
 from fogsf.trainer.logs.metrics import SFWindows, sf_windows
 
 
@@ -36,7 +38,12 @@ class Run:
         return len(self.win)
 
     def window_mean(self, x: np.ndarray) -> np.ndarray:
-        """Mean of a per-sample series over each window's samples."""
+        """Mean of a per-sample series over each window's samples (a column on disk is
+        summed a block at a time, with the same bits)."""
+        if is_lazy(x):
+            n = len(self.win.start)
+            ends = cumsum_at(x, np.concatenate([self.win.start, self.win.stop]))
+            return (ends[n:] - ends[:n]) / (self.win.stop - self.win.start)
         c = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=np.float64))])
         return (c[self.win.stop] - c[self.win.start]) / (self.win.stop - self.win.start)
 
@@ -92,3 +99,12 @@ def usable_sigma(sigma: np.ndarray) -> np.ndarray:
         return sigma
     fill = float(sigma[ok].min()) if ok.any() else NOISELESS_SIGMA_PPM
     return np.where(ok, sigma, fill)
+
+
+def per_sample(x: object, f: Callable[[np.ndarray], np.ndarray]) -> object:
+    """f of a per-sample series, elementwise: on a column on disk a derived column (computed
+    a block at a time when read), else the array f(x)."""
+    if is_lazy(x):
+        return derived(len(x), np.dtype(np.float64),
+                       lambda s: f(np.asarray(x[s], dtype=np.float64)))
+    return f(np.asarray(x, dtype=np.float64))
