@@ -14,7 +14,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from fogsf.trainer.logs.parquet_log import ParquetColumns, is_parquet
+from fogsf.trainer.logs.parquet_log import ParquetColumns, arrow_table, is_parquet
 
 NAMES = ("time_s", "gyro_dps", "gyro_corrected_dps", "sf_error_ppm", "bias_dph")
 DTYPES = (np.float64, np.float64, np.float64, np.float32, np.float32)
@@ -77,11 +77,7 @@ class CsvColumns:
             include_header=False, quoting_style="none", batch_size=1 << 16))
 
     def write(self, block: dict[str, np.ndarray]) -> None:
-        import pyarrow as pa
-
-        arrays = [pa.array(np.asarray(block[f.name], dtype=f.type.to_pandas_dtype()))
-                  for f in self.schema]
-        self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        self._writer.write_table(arrow_table(self.schema, block))
 
     def close(self) -> None:
         self._writer.close()

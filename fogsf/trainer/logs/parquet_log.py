@@ -25,6 +25,7 @@ BATCH_ROWS = 1 << 17  # rows read (and written) per batch
 COMPRESSION = "zstd"
 
 if TYPE_CHECKING:
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
 T = TypeVar("T")
@@ -147,6 +148,16 @@ def write_columns(path: str | Path, columns: dict[str, np.ndarray],
             w.write({k: v[a:a + block_rows] for k, v in columns.items()})
 
 
+def arrow_table(schema: pa.Schema, block: dict[str, np.ndarray]) -> pa.Table:
+    """`block`'s columns as an Arrow table of `schema` (each cast to its field's type): what
+    the Parquet and CSV column writers write."""
+    import pyarrow as pa
+
+    arrays = [pa.array(np.asarray(block[f.name], dtype=f.type.to_pandas_dtype()))
+              for f in schema]
+    return pa.Table.from_arrays(arrays, schema=schema)
+
+
 class ParquetColumns:
     """A Parquet file written block by block (a row group per block): named columns of fixed
     dtypes. The same blocks give the same bytes."""
@@ -161,11 +172,7 @@ class ParquetColumns:
         self._writer = pq.ParquetWriter(str(path), self.schema, compression=COMPRESSION)
 
     def write(self, block: dict[str, np.ndarray]) -> None:
-        import pyarrow as pa
-
-        arrays = [pa.array(np.asarray(block[f.name], dtype=f.type.to_pandas_dtype()))
-                  for f in self.schema]
-        self._writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
+        self._writer.write_table(arrow_table(self.schema, block))
 
     def close(self) -> None:
         self._writer.close()

@@ -129,6 +129,13 @@ def frontend(temp_c: np.ndarray, fe: FrontEnd) -> FrontEndOut:
     """Contract steps 1-4 up to s, for a whole log from reset, bit for bit as the C kernel."""
     tc, flags = sanitise_temperature(temp_c, fe)
     tm = block_means(tc, fe.decimation)
+    step_index = np.arange(tm.shape[0], dtype=np.int64) * fe.decimation
+    return FrontEndOut(step_index, state_of(tm, fe), flags)
+
+
+def state_of(tm: np.ndarray, fe: FrontEnd) -> np.ndarray:
+    """Contract steps 3-4 from the step means Tm: s = [Tm - t_ref, y_1 - t_ref, ...,
+    p_1 - t_ref, ...] per step (the lag filters, then the play operators)."""
     alpha = np.asarray(fe.filter_alpha, dtype=np.float32)
     y = lag_filters(tm, alpha)
     t_ref = F32(fe.t_ref_c)
@@ -139,8 +146,7 @@ def frontend(temp_c: np.ndarray, fe: FrontEnd) -> FrontEndOut:
     if fe.n_plays:
         s[:, 1 + k:] = plays(tm, y, fe.play_half_c(),
                              play_source_w(fe.play_source_w, k)) - t_ref
-    step_index = np.arange(tm.shape[0], dtype=np.int64) * fe.decimation
-    return FrontEndOut(step_index, s, flags)
+    return s
 
 
 # --- the model step ------------------------------------------------------------------------

@@ -19,8 +19,8 @@ from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.metrics import _signal_at, _signal_parts, step_means
 from fogsf.trainer.logs.plateaus import SETTLE_S, settled_plateaus
 from fogsf.trainer.models.f32 import F32
-from fogsf.trainer.models.reference import lag_filters, plays
-from fogsf.trainer.models.stream import FrontEnd, play_source_w
+from fogsf.trainer.models.reference import state_of
+from fogsf.trainer.models.stream import FrontEnd
 
 
 def _block_steps(decimation: int) -> int:
@@ -67,18 +67,7 @@ def step_temperatures(temp_c: columns.Column, fe: FrontEnd) -> np.ndarray:
 def frontend_s(temp_c: columns.Column, fe: FrontEnd) -> np.ndarray:
     """`reference.frontend(temp_c, fe).s`: [Tm - t_ref, y_1 - t_ref, ..., p_1 - t_ref, ...]
     per step."""
-    tm = step_temperatures(temp_c, fe)
-    alpha = np.asarray(fe.filter_alpha, dtype=np.float32)
-    y = lag_filters(tm, alpha)
-    t_ref = F32(fe.t_ref_c)
-    k = alpha.shape[0]
-    s = np.empty((tm.shape[0], 1 + k + fe.n_plays), dtype=np.float32)
-    s[:, 0] = tm - t_ref
-    s[:, 1:1 + k] = y - t_ref
-    if fe.n_plays:  # the front end's play operators, after the lag filters
-        s[:, 1 + k:] = plays(tm, y, fe.play_half_c(),
-                             play_source_w(fe.play_source_w, k)) - t_ref
-    return s
+    return state_of(step_temperatures(temp_c, fe), fe)
 
 
 def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = None,
