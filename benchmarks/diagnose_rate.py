@@ -48,8 +48,7 @@ def one(job: Job) -> dict[str, Any]:
                 "structure": {}, "seconds": time.time() - t0, "significant": [],
                 "params": {}, "truth": dict(case.params), "p_values": {}}
     j = report.to_json(d, {}, None)
-    o = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                    j["ambiguous"], j["causes"])
+    o = cases.judge_report(case, truth, j)
     return {"kind": kind, "name": name, "seed": seed, "ok": o.ok, "reason": o.reason,
             "cause": j["cause"], "causes": j["causes"], "unexplained": j["unexplained"],
             "ambiguous": j["ambiguous"],

@@ -24,8 +24,7 @@ VARIANTS = [(e, v) for e, vs in cases.VARIANTS.items() for v in vs]
 def _run(case: cases.Case) -> tuple[cases.Outcome, dict]:
     logs, truth = cases.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
-    out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                      j["ambiguous"], j["causes"])
+    out = cases.judge_report(case, truth, j)
     return out, j
 
 
@@ -47,8 +46,7 @@ def test_two_effects_both_named(pair: tuple[str, str]) -> None:
     logs, truth = cases.build(case)
     d = verdict.diagnose(logs)
     j = report.to_json(d, {}, None)
-    out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                      j["ambiguous"], j["causes"])
+    out = cases.judge_report(case, truth, j)
     assert out.ok, f"[{case.describe()}] -> {out.reason}"
     assert j["cause"] == j["causes"][0]
     # the extended model carries every cause
@@ -84,8 +82,7 @@ def test_power_on_from_the_board_alone() -> None:
     d = verdict.diagnose(logs)
     assert d.ctxs[0].power_on
     j = report.to_json(d, {}, None)
-    out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                      j["ambiguous"], j["causes"])
+    out = cases.judge_report(case, truth, j)
     assert out.ok, f"[{case.describe()}] -> {out.reason}"
 
 

@@ -36,8 +36,7 @@ def test_planted_hysteresis_is_named_and_never_misnamed() -> None:
         case = cases.draw_population("effect", "hysteresis", "", seed)
         logs, truth = cases.build(case)
         j = report.to_json(verdict.diagnose(logs), {}, None)
-        out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                          j["ambiguous"])
+        out = cases.judge_report(case, truth, j)
         where = f"seed {seed}: [{case.describe()}] -> {out.reason}"
         assert out.cause in (None, "hysteresis"), f"wrong cause {where}"
         named += out.cause == "hysteresis"

@@ -50,8 +50,7 @@ def _run(case: cases.Case) -> tuple[cases.Outcome, dict, fits.Diagnosis]:
     logs, truth = cases.build(case)
     d = verdict.diagnose(logs)
     j = report.to_json(d, {}, None)
-    return cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                       j["ambiguous"]), j, d
+    return cases.judge_report(case, truth, j), j, d
 
 
 @pytest.mark.parametrize(("seed", "multiple"), _draws("strong temp_rate", 2, STRONG))
@@ -193,8 +192,7 @@ def test_dtdt_term_on_a_population_gyro_gets_its_housing_coupling(seed: int) -> 
     case = cases.draw_population("effect", "temp_rate", "", seed)
     logs, truth = cases.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
-    out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                      j["ambiguous"], j["causes"])
+    out = cases.judge_report(case, truth, j)
     c = next(c for c in j["candidates"] if c["effect"] == "temp_rate")
     assert out.ok, f"[{case.describe()}] -> {out.reason}; params={c['params']}"
     lo, hi = c["params"]["housing_ppm_per_c_ci95"]

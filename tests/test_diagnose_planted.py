@@ -34,8 +34,7 @@ def _run(kind: str, name: str, seed: int) -> tuple[cases.Case, cases.Outcome, di
     case = cases.draw(kind, name, seed)
     logs, truth = cases.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
-    out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                      j["ambiguous"])
+    out = cases.judge_report(case, truth, j)
     return case, out, j
 
 
@@ -94,8 +93,7 @@ def test_a_shupe_bias_on_population_gyros_is_named() -> None:
         case = cases.draw_population("effect", "bias_shupe", "coil", seed)
         logs, truth = cases.build(case)
         j = report.to_json(verdict.diagnose(logs), {}, None)
-        out = cases.judge(case, truth, j["cause"], j["unexplained"], j["candidates"],
-                          j["ambiguous"])
+        out = cases.judge_report(case, truth, j)
         where = f"[{case.describe()}] -> {out.reason}"
         assert out.cause in (None, "bias_shupe"), f"wrong cause {where}"
         if not out.ok:

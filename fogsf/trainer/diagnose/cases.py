@@ -541,3 +541,9 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
                              "own nodes, not named")
         return out(cause == case.name, f"cause {cause!r}, planted {case.name}")
     raise ValueError(case.kind)
+
+
+def judge_report(case: Case, truth: dict[str, Any], j: dict[str, Any]) -> Outcome:
+    """`judge` on a diagnosis as `report.to_json` writes it."""
+    return judge(case, truth, j["cause"], j["unexplained"], j["candidates"], j["ambiguous"],
+                 j["causes"])
