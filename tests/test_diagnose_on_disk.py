@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from fogsf.trainer.cli import main
-from fogsf.trainer.diagnose import cases
+from fogsf.trainer.diagnose import cases, driver, hysteresis_form, runs
 from fogsf.trainer.logs import columns, stream_read
 from fogsf.trainer.logs.logio import read_log, write_log
 
@@ -20,7 +20,10 @@ def _outputs(tmp: Path, log: Path, earlier: Path, monkeypatch: pytest.MonkeyPatc
         monkeypatch.setattr(stream_read, "read_log_on_disk",
                             lambda p, d, spill=None, progress=None: read_log(p, d))
     out = tmp / how
+    # on disk, diagnose reads no column whole (a block at a time: memory bounded)
+    monkeypatch.setattr(columns, "STRICT", how == "disk")
     assert main(["diagnose", str(log), "--json", str(out / "d.json")]) == 0
+    monkeypatch.setattr(columns, "STRICT", False)
     assert main(["plan", "--from-logs", str(earlier), "--hours", "2", "--test-rates", "1",
                  "--interval-gyros", "0", "--workers", "1", "--out", str(out / "plan")]) == 0
     files = {p.relative_to(out): p.read_bytes().replace(str(out).encode(), b"OUT")  # paths named
@@ -34,6 +37,8 @@ def _outputs(tmp: Path, log: Path, earlier: Path, monkeypatch: pytest.MonkeyPatc
 def test_diagnose_and_plan_on_disk_are_in_memory(tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(columns, "READ_SAMPLES", 97)
+    for module in (runs, driver, hysteresis_form):  # lags made 1000 samples at a time
+        monkeypatch.setattr(module, "STREAM_BLOCK", 1000)
     logs, _ = cases.build(cases.draw("effect", "bias_drift", 11))
     log = tmp_path / "run.csv"
     write_log(log, logs[0])

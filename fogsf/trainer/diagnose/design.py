@@ -21,7 +21,6 @@ import numpy as np
 
 from fogsf.trainer.diagnose.driver import Driver
 from fogsf.trainer.diagnose.runs import Run, per_sample
-from fogsf.trainer.sim.lag import first_order_lag
 
 T_REF_C = 20.0
 BASE_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(600.0, 4000.0, 7), -1))
@@ -48,11 +47,8 @@ def _cached(ctx: RunContext, key: tuple, make) -> np.ndarray:
 
 def node(ctx: RunContext, tau_s: float) -> np.ndarray:
     """Window mean of lag(driver, tau) - 20 C."""
-    def make() -> np.ndarray:
-        d = ctx.driver.temp_c
-        dt = float(np.median(np.diff(ctx.run.log.time_s)))
-        return ctx.run.window_mean(first_order_lag(d, tau_s, dt, float(d[0]))) - T_REF_C
-    return _cached(ctx, ("node", float(tau_s)), make)
+    return _cached(ctx, ("node", float(tau_s)),
+                   lambda: ctx.run.lagged_window_mean(ctx.driver.temp_c, tau_s) - T_REF_C)
 
 
 def drive(ctx: RunContext) -> np.ndarray:
@@ -81,12 +77,13 @@ def settle(ctx: RunContext, tau_s: float) -> np.ndarray:
 
 def board_rate_c_per_min(ctx: RunContext, smooth_s: float = 60.0) -> np.ndarray:
     """Window mean of the board temperature's rate of change (C/min), smoothed by a lag."""
-    def make() -> np.ndarray:
-        tb = ctx.run.log.temp_c
-        dt = float(np.median(np.diff(ctx.run.log.time_s)))
-        lagged = first_order_lag(tb, smooth_s, dt, float(tb[0]))
-        return ctx.run.window_mean((tb - lagged) / smooth_s * 60.0)
-    return _cached(ctx, ("board_rate", smooth_s), make)
+    tb = ctx.run.log.temp_c
+
+    def rate(a: int, lagged: np.ndarray) -> np.ndarray:
+        return (np.asarray(tb[a:a + lagged.shape[0]], dtype=np.float64) - lagged) \
+            / smooth_s * 60.0
+    return _cached(ctx, ("board_rate", smooth_s),
+                   lambda: ctx.run.lagged_window_mean(tb, smooth_s, rate))
 
 
 def base_grid() -> list[tuple[float, float]]:

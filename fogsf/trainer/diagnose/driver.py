@@ -21,7 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsf.trainer.sim.lag import first_order_lag
+from fogsf.trainer.logs.columns import Column, Spill, blocks, derived, is_lazy
+from fogsf.trainer.logs.exact_stats import median_step
+from fogsf.trainer.sim.lag import STREAM_BLOCK, first_order_lag, lag_blocks
 
 TAU_GRID_S = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.0, 240.0, 300.0, 360.0, 480.0,
               600.0, 800.0, 1000.0, 1300.0, 1800.0)
@@ -33,14 +35,26 @@ def every(time_s: np.ndarray) -> int:
     """The decimation that takes a sample every DECIMATE_S (20 at 10 Hz, 200 at 100 Hz)."""
     if len(time_s) < 2:
         return 1
-    return max(1, int(round(DECIMATE_S / float(np.median(np.diff(time_s))))))
+    return max(1, int(round(DECIMATE_S / median_step(time_s))))
+
+
+def onset_samples(time_s: Column) -> int:
+    """How many samples from the log's start lie within ONSET_FIT_S of it (time increases)."""
+    t0 = float(time_s[0])
+    n = 0
+    for _, x in blocks(time_s):
+        inside = int(np.count_nonzero(np.asarray(x, dtype=np.float64) - t0 <= ONSET_FIT_S))
+        n += inside
+        if inside < x.shape[0]:
+            break
+    return n
 
 
 @dataclass
 class Driver:
     """The driving (housing) temperature at 10 Hz and how it was found."""
 
-    temp_c: np.ndarray
+    temp_c: Column  # per sample: the board thermometer's column, or the housing made here
     source: str  # "chamber" or "board"
     tau_housing_s: float
     tau_board_s: float
@@ -67,14 +81,14 @@ def board_power_on(time_s: np.ndarray, board_c: np.ndarray) -> float:
     actually rising at the start (b + q/tau > 0; a ramp that begins with the log gives the
     same curvature with the opposite initial slope, or a negative q). Returns the rise the
     fit shows over the first 3 tau."""
-    t = np.asarray(time_s, dtype=np.float64)
-    t = t - t[0]
-    sel = t <= ONSET_FIT_S
-    k = every(t[sel])
-    if np.count_nonzero(sel) < 10 * k:
+    n = onset_samples(time_s)
+    t = np.asarray(time_s[:n], dtype=np.float64)
+    t = t - float(time_s[0])
+    k = every(t)
+    if n < 10 * k:
         return 0.0
-    tt = t[sel][::k]
-    bb = np.asarray(board_c, dtype=np.float64)[sel][::k]
+    tt = t[::k]
+    bb = np.asarray(board_c[:n], dtype=np.float64)[::k]
     best: tuple[float, float, np.ndarray] | None = None
     for tau in ONSET_TAU_S:
         xm = np.column_stack([np.ones_like(tt), tt, 1.0 - np.exp(-tt / tau)])
@@ -104,13 +118,12 @@ def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | No
     onset = board_power_on(time_s, board_c) if start == "auto" else 0.0
     if chamber_c is None:
         power_on = start == "power-on" or onset > POWER_ON_MIN_C
-        return Driver(np.asarray(board_c, dtype=np.float64), "board", 0.0, 0.0, 0.0, 0.0,
-                      0.0, power_on, 0.0)
-    dt10 = float(np.median(np.diff(time_s)))  # the log's sample period
+        return Driver(board_c, "board", 0.0, 0.0, 0.0, 0.0, 0.0, power_on, 0.0)
+    dt10 = median_step(time_s)  # the log's sample period
     k = every(time_s)
     dt = dt10 * k
-    c = np.asarray(chamber_c, dtype=np.float64)[::k]
-    b = np.asarray(board_c, dtype=np.float64)[::k]
+    c = np.asarray(chamber_c[::k], dtype=np.float64)
+    b = np.asarray(board_c[::k], dtype=np.float64)
     step = np.ones_like(c)
     step[0] = 0.0
     with_steps = start != "warm"
@@ -133,17 +146,34 @@ def identify(time_s: np.ndarray, board_c: np.ndarray, chamber_c: np.ndarray | No
     assert best is not None
     sse, ta, tb, coef = best
     q_h, q_b = (float(coef[2]), float(coef[3])) if with_steps else (0.0, 0.0)
-    t_rel = np.asarray(time_s) - float(time_s[0])
-    early = np.asarray(chamber_c)[t_rel <= ONSET_FIT_S]
+    early = np.asarray(chamber_c[:onset_samples(time_s)], dtype=np.float64)
     air_still = float(np.ptp(early)) < 1.0  # then a rise of the board is its own heating
     power_on = start == "power-on" or (start == "auto" and (
         q_h + q_b > POWER_ON_MIN_C or (air_still and onset > POWER_ON_MIN_C)))
     if not power_on:
         q_h = q_b = 0.0
         ta, tb = min(ta, tb), max(ta, tb)
-    cham = np.asarray(chamber_c, dtype=np.float64)
-    power = np.ones_like(cham)
-    power[0] = 0.0
-    housing = first_order_lag(cham + q_h * power, ta, dt10, float(cham[0]))
-    return Driver(housing, "chamber", ta, tb, q_h, q_b, float(coef[1]), power_on,
-                  float(np.sqrt(sse / b.shape[0])))
+    return Driver(_housing(chamber_c, q_h, ta, dt10), "chamber", ta, tb, q_h, q_b,
+                  float(coef[1]), power_on, float(np.sqrt(sse / b.shape[0])))
+
+
+def _housing(chamber_c: Column, q_h: float, tau_s: float, dt_s: float) -> Column:
+    """lag(chamber + q_h * power, tau_s), power the unit step at the first sample, made a
+    block at a time: an array for a log in memory, a column on disk for a log on disk."""
+    def heated(s: slice) -> np.ndarray:
+        power = np.ones(s.stop - s.start)
+        if s.start == 0 and power.shape[0]:
+            power[0] = 0.0
+        return np.asarray(chamber_c[s], dtype=np.float64) + q_h * power
+
+    u = derived(len(chamber_c), np.dtype(np.float64), heated)
+    parts = lag_blocks(u, tau_s, dt_s, float(chamber_c[0]), STREAM_BLOCK)
+    if not is_lazy(chamber_c):
+        out = np.empty(len(chamber_c))
+        for a, y in parts:
+            out[a:a + y.shape[0]] = y
+        return out
+    f = Spill().file("housing", np.dtype(np.float64))
+    for _, y in parts:
+        f.append(y)
+    return f.column()

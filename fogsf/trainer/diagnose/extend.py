@@ -30,17 +30,21 @@ from fogsf.trainer.diagnose import catalogue, design
 from fogsf.trainer.diagnose.design import RunContext
 from fogsf.trainer.diagnose.fits import Diagnosis, ModelFit
 from fogsf.trainer.logs.chamber_log import EARTH_RATE_DPS
+from fogsf.trainer.logs.columns import Column, derived, exact_mean
 from fogsf.trainer.logs.metrics import sf_windows
 from fogsf.trainer.logs.plateaus import plateaus
 
 PROGRAM_STEP_S = 10.0
+SIM_STEP_S = 0.1  # closeness simulates at 10 Hz or slower (sim_step)
+SIM_MAX_SAMPLES = 1_000_000
 
 
-def _table(rate: np.ndarray, dt: float) -> tuple[dict[str, Any], bool]:
+def _table(rate: Column, dt: float) -> tuple[dict[str, Any], bool]:
     """Table schedule from the rate plateaus; the flag says whether it reproduces the log.
     Rows at rest measure nothing (and a simulated table never rests): only the moving
     plateaus make the schedule, so a log with rests is not reproduced exactly."""
-    pl = plateaus(rate, rate != 0.0)
+    pl = plateaus(rate, derived(len(rate), np.dtype(bool),
+                                lambda s: np.asarray(rate[s]) != 0.0))
     rates = [float(rate[a]) for a, _ in pl]
     lengths = [b - a for a, b in pl]
     if len(pl) == 1:
@@ -63,7 +67,7 @@ def _latitude(ctx: RunContext) -> float:
     log = ctx.run.log
     if log.earth_rate_dps is None:
         return 0.0
-    s = float(np.mean(log.earth_rate_dps)) / EARTH_RATE_DPS
+    s = exact_mean(log.earth_rate_dps, 0, len(log.earth_rate_dps)) / EARTH_RATE_DPS
     return math.degrees(math.asin(max(-1.0, min(1.0, s))))
 
 
@@ -71,16 +75,17 @@ def _program(ctx: RunContext) -> list[list[float]]:
     log = ctx.run.log
     src = log.extra.get("chamber_c") if ctx.driver.source == "chamber" else log.temp_c
     assert src is not None
-    t = log.time_s - float(log.time_s[0])
-    dt = float(np.median(np.diff(log.time_s)))
-    k = max(1, int(round(PROGRAM_STEP_S / dt)))
-    n = (t.shape[0] - 1) // k * k + 1
+    t0 = float(log.time_s[0])
+    k = max(1, int(round(PROGRAM_STEP_S / ctx.run.dt_s)))
+    n = (len(log.time_s) - 1) // k * k + 1
+    t = np.asarray(log.time_s[0:n:k], dtype=np.float64) - t0
     # block means keep the program smooth (the thermometer is quantised); the last point
     # closes the run so the simulation has as many samples as the log
     means = [float(np.mean(src[max(0, i - k // 2): i + k // 2 + 1])) for i in range(0, n, k)]
-    pts = [[float(t[i]), m] for i, m in zip(range(0, n, k), means, strict=True)]
-    if pts[-1][0] < t[-1]:
-        pts.append([float(t[-1]), float(np.mean(src[-k:]))])
+    pts = [[float(ti), m] for ti, m in zip(t, means, strict=True)]
+    t_end = float(log.time_s[-1]) - t0
+    if pts[-1][0] < t_end:
+        pts.append([t_end, float(np.mean(src[-k:]))])
     return pts
 
 
@@ -98,7 +103,7 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
     (tau1, tau2), g = model.combo
     names = model.stack.names
     coef = dict(zip(names, (float(b) for b in model.fit.beta), strict=True))
-    dt = round(float(np.median(np.diff(ctx.run.log.time_s))), 6)
+    dt = round(ctx.run.dt_s, 6)
     power_on = ctx.power_on
     from_chamber = drv.source == "chamber"
     board_heat = (drv.self_heat_board_c if power_on else drv.board_offset_c) \
@@ -164,15 +169,34 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
     }
 
 
-def simulated_windows(cfg: dict[str, Any], window_s: float) -> tuple[np.ndarray, np.ndarray]:
+def sim_step(cfg: dict[str, Any], duration_s: float, window_s: float) -> float:
+    """The sample step closeness simulates at: the log's step times k, k as large as keeps
+    at least SIM_STEP_S (10 Hz, what diagnose was built on) or at most SIM_MAX_SAMPLES
+    samples, and at least 20 samples a window, and dividing the table's dwell (so the
+    simulated table turns when the log's did). A noiseless simulation's window means hardly
+    depend on the step; its memory grows with the samples."""
+    dt = float(cfg["dt_s"])
+    want = max(SIM_STEP_S, duration_s / SIM_MAX_SAMPLES)
+    k = max(1, min(int(want / dt), int(window_s / 20.0 / dt)))
+    table = cfg["table"]
+    if table["kind"] != "constant":
+        dwell = int(round(float(table["dwell_s"]) / dt))
+        k = max(d for d in range(1, max(1, min(k, dwell)) + 1) if dwell % d == 0)
+    return dt * k
+
+
+def simulated_windows(cfg: dict[str, Any], window_s: float, dt_s: float | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """(window centre times, apparent SF error in ppm) of the configuration simulated without
-    noise."""
+    noise (at dt_s when given, else at its own step)."""
     from fogsf.trainer.sim.config import SimConfig
     from fogsf.trainer.sim.gyro import simulate
 
     quiet = copy.deepcopy(cfg)
     quiet["noise"] = {"arw_deg_per_sqrt_h": 0.0, "pulse_arcsec": 0.0, "temp_noise_c": 0.0,
                       "temp_lsb_c": 0.0}
+    if dt_s is not None:
+        quiet["dt_s"] = dt_s
     res = simulate(SimConfig.from_dict(quiet))
     w = sf_windows(res.log, window_s, remove_bias=False)  # as diagnose.runs reads the logs
     return w.t_s, (w.sf_ratio - 1.0) * 1e6
@@ -186,10 +210,13 @@ def closeness(d: Diagnosis, base_cfgs: list[dict[str, Any]], ext_cfgs: list[dict
     err_e: list[np.ndarray] = []
     for i, run in enumerate(d.runs):
         t0 = float(run.log.time_s[0])
+        step = sim_step(base_cfgs[i], run.log.duration_s, d.window_s)
         for cfgs, out in ((base_cfgs, err_b), (ext_cfgs, err_e)):
-            ts, ys = simulated_windows(cfgs[i], d.window_s)
-            j = np.clip(np.searchsorted(ts, run.t_s - t0), 0, ts.shape[0] - 1)
-            ok = np.abs(ts[j] - (run.t_s - t0)) < 0.5 * d.window_s
+            ts, ys = simulated_windows(cfgs[i], d.window_s, step)
+            tr = run.t_s - t0
+            j = np.clip(np.searchsorted(ts, tr), 1, ts.shape[0] - 1)
+            j -= np.abs(ts[j - 1] - tr) <= np.abs(ts[j] - tr)  # the nearest centre
+            ok = np.abs(ts[j] - tr) < 0.5 * d.window_s
             out.append((run.y_ppm - ys[j])[ok])
     rb = float(np.sqrt(np.mean(np.concatenate(err_b) ** 2)))
     re = float(np.sqrt(np.mean(np.concatenate(err_e) ** 2)))

@@ -14,8 +14,9 @@ import numpy as np
 
 from fogsf.trainer.diagnose import design
 from fogsf.trainer.diagnose.design import RunContext
+from fogsf.trainer.logs.columns import derived
 from fogsf.trainer.models.hysteresis import plays_batch
-from fogsf.trainer.sim.lag import first_order_lag
+from fogsf.trainer.sim.lag import STREAM_BLOCK, lag_blocks
 
 WIDTHS_C = (2.0, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 14.0)
 COIL_TAUS_S = (150.0, 300.0, 600.0, 1200.0, 2400.0)
@@ -35,23 +36,24 @@ def _plays(ctx: RunContext, tau_s: float, widths: tuple[float, ...] = WIDTHS_C
     """(windows, widths) window means of play(node, w) - node for every width."""
     def make() -> np.ndarray:
         d = ctx.driver.temp_c
-        dt = float(np.median(np.diff(ctx.run.log.time_s)))
-        node = first_order_lag(d, tau_s, dt, float(d[0]))
-        k = max(1, int(round(PLAY_STEP_S / dt)))
-        coarse = node[::k]
+        k = max(1, int(round(PLAY_STEP_S / ctx.run.dt_s)))
+        # the node every k-th sample, made a block at a time
+        coarse = np.concatenate([y[(-a) % k::k] for a, y in lag_blocks(
+            d, tau_s, ctx.run.dt_s, float(d[0]), STREAM_BLOCK)])
         off = plays_batch(np.repeat(coarse[:, None], len(widths), axis=1),
                           np.asarray(widths))
-        per_sample = np.repeat(off, k, axis=0)[:node.size]
-        return np.column_stack([ctx.run.window_mean(per_sample[:, j])
-                                for j in range(len(widths))])
+        # each play value held for its k samples, summed over the windows a block at a time
+        return np.column_stack([ctx.run.window_mean(derived(
+            len(d), np.dtype(np.float64),
+            lambda s, j=j: off[np.arange(s.start, s.stop) // k, j]))
+            for j in range(len(widths))])
     return design._cached(ctx, ("play", float(tau_s), widths), make)
 
 
 def has_minor_loop(ctx: RunContext) -> bool:
     """True when the run's driving temperature turns back inside its range (a minor loop)."""
     d = ctx.driver.temp_c
-    dt = float(np.median(np.diff(ctx.run.log.time_s)))
-    x = d[::max(1, int(round(PLAY_STEP_S / dt)))]
+    x = np.asarray(d[::max(1, int(round(PLAY_STEP_S / ctx.run.dt_s)))], dtype=np.float64)
     if x.size < 3:
         return False
     p = plays_batch(x[:, None], np.array([TURN_C]))[:, 0] + x  # the play of x itself

@@ -12,15 +12,17 @@ so the model and the data see the same averaging.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.columns import cumsum_at, derived, is_lazy
+from fogsf.trainer.logs.columns import Column, blocks, cumsum_blocks_at, derived, is_lazy
+from fogsf.trainer.logs.exact_stats import median_step
 from fogsf.trainer.logs.metrics import SFWindows, sf_windows
+from fogsf.trainer.sim.lag import STREAM_BLOCK, lag_blocks
 
 
 @dataclass
@@ -32,20 +34,36 @@ class Run:
     win: SFWindows
     y_ppm: np.ndarray  # apparent SF error vs nominal
     sigma_ppm: np.ndarray  # noise of y per window (pooled per |rate| level)
+    dt_s: float = 0.0  # the log's median sample step (np.median(np.diff(time_s)))
     cache: dict[tuple, np.ndarray] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.win)
 
-    def window_mean(self, x: np.ndarray) -> np.ndarray:
+    def window_mean(self, x: Column) -> np.ndarray:
         """Mean of a per-sample series over each window's samples (a column on disk is
         summed a block at a time, with the same bits)."""
         if is_lazy(x):
-            n = len(self.win.start)
-            ends = cumsum_at(x, np.concatenate([self.win.start, self.win.stop]))
-            return (ends[n:] - ends[:n]) / (self.win.stop - self.win.start)
+            return self.window_mean_blocks(blocks(x))
         c = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=np.float64))])
         return (c[self.win.stop] - c[self.win.start]) / (self.win.stop - self.win.start)
+
+    def window_mean_blocks(self, parts: Iterable[tuple[int, np.ndarray]]) -> np.ndarray:
+        """`window_mean` of a series given a block at a time, in order ((start, samples)):
+        the same bits, and never the whole series in memory."""
+        n = len(self.win.start)
+        ends = cumsum_blocks_at(parts, np.concatenate([self.win.start, self.win.stop]))
+        return (ends[n:] - ends[:n]) / (self.win.stop - self.win.start)
+
+    def lagged_window_mean(self, u: Column, tau_s: float,
+                           f: Callable[[int, np.ndarray], np.ndarray] | None = None
+                           ) -> np.ndarray:
+        """Window means of lag(u, tau_s) (u sampled every dt_s, started at u[0]), or of
+        f(start, lag block) when f is given, made a block of STREAM_BLOCK samples at a time."""
+        parts = lag_blocks(u, tau_s, self.dt_s, float(u[0]), STREAM_BLOCK)
+        if f is not None:
+            parts = ((a, f(a, y)) for a, y in parts)
+        return self.window_mean_blocks(parts)
 
     @property
     def rate(self) -> np.ndarray:
@@ -74,17 +92,23 @@ def load_run(log: ChamberLog, window_s: float, latitude_deg: float | None,
     for col, x in (("time_s", log.time_s), ("temp_c", log.temp_c),
                    ("table_rate_dps", log.table_rate_dps), ("gyro_dps", log.gyro_dps),
                    *((k, v) for k, v in log.extra.items() if k == "chamber_c")):
-        bad = np.flatnonzero(~np.isfinite(np.asarray(x, dtype=np.float64)))
-        if bad.size:
-            raise UserError(f"{log.path}: column {col!r} has {bad.size} NaN/Inf cells (first at "
-                            f"sample {int(bad[0])}); diagnose needs every cell: cut the log "
+        count, first = 0, -1
+        for a, block in blocks(x):
+            bad = np.flatnonzero(~np.isfinite(np.asarray(block, dtype=np.float64)))
+            if bad.size and first < 0:
+                first = a + int(bad[0])
+            count += bad.size
+        if count:
+            raise UserError(f"{log.path}: column {col!r} has {count} NaN/Inf cells (first at "
+                            f"sample {first}); diagnose needs every cell: cut the log "
                             "before them or fill them")
     win = sf_windows(log, window_s, latitude_deg, remove_bias=False)
     if len(win) < min_windows:
         raise UserError(f"{log.path}: only {len(win)} windows of {window_s:g} s; diagnose needs "
                         f"at least {min_windows} (a longer log or a shorter --window-s)")
     y = (win.sf_ratio - 1.0) * 1e6
-    return Run(name=log.path, log=log, win=win, y_ppm=y, sigma_ppm=usable_sigma(pooled_sigma(win)))
+    return Run(name=log.path, log=log, win=win, y_ppm=y,
+               sigma_ppm=usable_sigma(pooled_sigma(win)), dt_s=median_step(log.time_s))
 
 
 NOISELESS_SIGMA_PPM = 1e-3  # the weight of windows whose noise is zero (a noiseless simulation)

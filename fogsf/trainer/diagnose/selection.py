@@ -26,6 +26,7 @@ from fogsf.trainer.diagnose.fits import (
     visible_fraction,
     weighted_rms,
 )
+from fogsf.trainer.logs.columns import block_means
 
 ALPHA = 0.01
 MIN_GAIN_PCT = 5.0
@@ -202,11 +203,9 @@ def against_extra_node(results: list[CandidateResult], ctxs: list[RunContext], y
 def longest_soak_after_ramp(ctx: RunContext) -> float:
     """Longest stretch (s) over which the driving temperature holds still, after it has
     moved by RAMP_MIN_C or more since the run's start or the previous soak."""
-    t = ctx.run.log.time_s
-    d = ctx.driver.temp_c
-    k = max(1, int(round(300.0 / float(np.median(np.diff(t))))))
-    dm = d[: d.shape[0] // k * k].reshape(-1, k).mean(axis=1)  # 5-min means
-    tm = t[: d.shape[0] // k * k].reshape(-1, k).mean(axis=1)
+    k = max(1, int(round(300.0 / ctx.run.dt_s)))
+    dm = block_means(ctx.driver.temp_c, k)  # 5-min means
+    tm = block_means(ctx.run.log.time_s, k)
     still = np.abs(np.gradient(dm, tm)) * 60.0 < SOAK_RATE_C_PER_MIN if dm.shape[0] > 1 \
         else np.zeros(dm.shape, bool)
     best = 0.0

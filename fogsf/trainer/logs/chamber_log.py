@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs import columns
 from fogsf.trainer.logs.columns import (
     LazyColumn,
     any_true,
@@ -21,7 +20,7 @@ from fogsf.trainer.logs.columns import (
     derived,
     is_lazy,
 )
-from fogsf.trainer.logs.exact_stats import mean_in_order, median
+from fogsf.trainer.logs.exact_stats import mean_in_order, median, step_blocks
 
 REQUIRED = ("time_s", "temp_c", "table_rate_dps", "gyro_dps")
 OPTIONAL = ("earth_rate_dps", "chamber_c", "valid")
@@ -177,10 +176,7 @@ def _nominal_step_on_disk(t: LazyColumn) -> float:
     if n < 2:
         return NOMINAL_DT_S
 
-    def steps() -> Iterator[np.ndarray]:
-        size = columns.READ_SAMPLES
-        for a in range(0, n - 1, size):
-            yield np.diff(t[a:a + size + 1])
+    steps = step_blocks(t)
 
     step = median(steps, n - 1)
     if step > 0 and np.spacing(max(abs(col_min(t)), abs(col_max(t)))) > 1e-7 * step:

@@ -17,7 +17,7 @@ import atexit
 import shutil
 import tempfile
 from bisect import bisect_left
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
@@ -59,7 +59,13 @@ class LazyColumn:
         if isinstance(at, slice):
             a, b, step = at.indices(self.n)
             if step != 1:
-                return self._take(a, b)[::step] if b > a else np.empty(0, self.dtype)
+                if b <= a or step < 0:
+                    return self._take(b + 1, a + 1)[::step] if step < 0 and a > b else \
+                        np.empty(0, self.dtype)
+                # every step-th sample, read a block at a time (blocks of a multiple of step)
+                size = max(1, READ_SAMPLES // step) * step
+                return np.concatenate([self._take(s, min(b, s + size))[::step]
+                                       for s in range(a, b, size)])
             return self._take(a, b) if b > a else np.empty(0, self.dtype)
         idx = np.asarray(at)
         if idx.dtype == bool:
@@ -247,6 +253,16 @@ def blocks(col: Column, a: int = 0, b: int | None = None, size: int | None = Non
         yield s, np.asarray(col[s:min(b, s + size)])
 
 
+def block_means(col: Column, k: int) -> np.ndarray:
+    """The mean of every k consecutive samples (a trailing part of fewer is left out): the
+    bits of col[:n // k * k].reshape(-1, k).mean(axis=1), read a block at a time."""
+    n = len(col) // k * k
+    size = max(1, READ_SAMPLES // k) * k
+    parts = [np.asarray(x, dtype=np.float64).reshape(-1, k).mean(axis=1)
+             for _, x in blocks(col, 0, n, size)]
+    return np.concatenate(parts) if parts else np.empty(0)
+
+
 def col_min(col: Column) -> float:
     if not is_lazy(col):
         return float(np.min(col))
@@ -306,6 +322,13 @@ def exact_mean(col: Column, a: int, b: int) -> float:
 def cumsum_at(col: Column, ends: np.ndarray) -> np.ndarray:
     """c[ends] of c = [0, cumsum(col as float64)], the sum carried from block to block in
     numpy's order (one add after another)."""
+    return cumsum_blocks_at(blocks(col), ends)
+
+
+def cumsum_blocks_at(parts: Iterable[tuple[int, np.ndarray]], ends: np.ndarray
+                     ) -> np.ndarray:
+    """`cumsum_at` of the series given as (start, samples) blocks in order (a series made a
+    block at a time, never whole): the same bits as np.cumsum over all of it."""
     order = np.argsort(ends, kind="stable")
     out = np.empty(ends.shape[0])
     j, carry = 0, 0.0
@@ -313,7 +336,9 @@ def cumsum_at(col: Column, ends: np.ndarray) -> np.ndarray:
     while j < srt.size and srt[j] == 0:
         out[order[j]] = 0.0
         j += 1
-    for a, x in blocks(col):
+    for a, x in parts:
+        if x.shape[0] == 0:
+            continue
         y = np.array(x, dtype=np.float64)
         y[0] += carry
         c = np.cumsum(y)

@@ -1,7 +1,8 @@
 """Whole-series statistics made a block at a time with numpy's bits: the median (a radix
 select over the float64 bit patterns, a few passes over the blocks, memory of one block and
 a 64 k histogram) and the mean of a series seen once in order (numpy's pairwise sum).
-`nominal_step_s` of a log whose time column is on disk uses them."""
+`nominal_step_s` of a log whose time column is on disk uses them, and `median_step` gives
+the median sample step of a time column of either kind."""
 
 from __future__ import annotations
 
@@ -77,3 +78,25 @@ def mean_in_order(series: Blocks, n: int) -> float:
     if n <= max(columns.READ_SAMPLES, columns.PAIRWISE_LEAF):
         return float(np.concatenate([*series(), np.empty(0)]).mean())
     return (0.0 + _pairwise(take, 0, n)) / n
+
+
+def step_blocks(t: columns.Column) -> Blocks:
+    """np.diff(t) a block at a time (a fresh pass each call)."""
+    n = len(t)
+
+    def steps() -> Iterator[np.ndarray]:
+        size = columns.READ_SAMPLES
+        for a in range(0, n - 1, size):
+            yield np.diff(np.asarray(t[a:a + size + 1], dtype=np.float64))
+
+    return steps
+
+
+def median_step(t: columns.Column) -> float:
+    """The bits of np.median(np.diff(t)) (NaN for fewer than two samples), a block at a time
+    when t is a column on disk."""
+    if not columns.is_lazy(t):
+        return float(np.median(np.diff(np.asarray(t, dtype=np.float64))))
+    if len(t) < 2:
+        return float("nan")
+    return median(step_blocks(t), len(t) - 1)
