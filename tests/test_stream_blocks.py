@@ -77,3 +77,35 @@ def test_median_step_on_disk(monkeypatch: pytest.MonkeyPatch) -> None:
     t = np.cumsum(rng.choice([0.01, 0.01, 0.010000001, 0.02], size=4001))
     assert median_step(_lazy(t)) == float(np.median(np.diff(t)))
     assert median_step(t) == float(np.median(np.diff(t)))
+
+
+@pytest.mark.parametrize("n", [17, 480, 1201])
+def test_sign_flip_in_chunks(n: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The sign-flip test draws its signs a chunk at a time: the p-value of one draw of all."""
+    from fogsf.trainer.diagnose import stats
+
+    d = np.random.default_rng(n).normal(0.1, 1.0, n)
+    whole = stats.sign_flip_p(d, draws=3000)
+    monkeypatch.setattr(stats, "SIGN_ROWS_SAMPLES", 7 * n + 3)
+    assert stats.sign_flip_p(d, draws=3000) == whole
+    signs = np.random.default_rng(0).choice((1.0, -1.0), size=(3000, n))
+    hits = int(np.sum(signs @ np.abs(d) >= d.sum() - 1e-12 * (1 + abs(d.sum()))))
+    assert whole == (hits + 1) / 3001
+
+
+def test_profile_solve_in_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The profile over a grid, a few combinations at a time: the bits of all at once."""
+    from fogsf.trainer.models import node_fit
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(23, 300, 6))
+    y = x[7] @ rng.normal(size=6) + rng.normal(0.0, 0.1, 300)
+    w = rng.uniform(0.5, 2.0, 300)
+    rows = np.flatnonzero(rng.uniform(size=300) < 0.8)
+    whole = node_fit.profile_solve(x, y, w, rows)
+    assert whole.index == 7
+    monkeypatch.setattr(node_fit, "PROFILE_CHUNK", rows.shape[0] * 6 * 4)  # 4 at a time
+    part = node_fit.profile_solve(x, y, w, rows)
+    assert part.index == whole.index
+    for a, b in ((part.beta, whole.beta), (part.sse, whole.sse), (part.cov, whole.cov)):
+        assert np.array_equal(a, b)

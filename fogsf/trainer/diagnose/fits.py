@@ -114,6 +114,7 @@ def fit_model(ctxs: list[RunContext], cand: Candidate | None, y: np.ndarray, w: 
     dof = max(1, y.shape[0] - stack.x.shape[2])
     chi2 = float(np.sum((y - pred) ** 2 * w)) / dof
     held = crossval.heldout_residuals(stack, y, w, folds)
+    stack.release()  # stacked again if asked for (intervals, the chosen model's columns)
     return ModelFit(stack, fit, pred, held, chi2)
 
 

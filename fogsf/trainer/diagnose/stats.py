@@ -83,6 +83,9 @@ def ljung_box_p(segments: list[np.ndarray], lags: int | None = None) -> float:
     return chi2_sf(q, dof) if dof else 1.0
 
 
+SIGN_ROWS_SAMPLES = 1 << 20  # sign draws made at a time (8 MB)
+
+
 def sign_flip_p(d: np.ndarray, rng_seed: int = 0, draws: int = 20000) -> float:
     """One-sided p-value that the mean of per-block differences d is > 0 by chance."""
     d = np.asarray(d, dtype=np.float64)
@@ -92,13 +95,13 @@ def sign_flip_p(d: np.ndarray, rng_seed: int = 0, draws: int = 20000) -> float:
         return 1.0
     if n <= 16:
         signs = np.array(list(itertools.product((1.0, -1.0), repeat=n)))
-    else:
-        rng = np.random.default_rng(rng_seed)
-        signs = rng.choice((1.0, -1.0), size=(draws, n))
-    sums = signs @ np.abs(d)
-    hits = int(np.sum(sums >= obs - 1e-12 * (1 + abs(obs))))
-    if n <= 16:
-        return hits / signs.shape[0]
+        return int(np.sum(signs @ np.abs(d) >= obs - 1e-12 * (1 + abs(obs)))) / signs.shape[0]
+    rng = np.random.default_rng(rng_seed)
+    hits = 0
+    rows = max(1, SIGN_ROWS_SAMPLES // n)  # draws made a few MB at a time (long logs)
+    for a in range(0, draws, rows):
+        signs = rng.choice((1.0, -1.0), size=(min(rows, draws - a), n))
+        hits += int(np.sum(signs @ np.abs(d) >= obs - 1e-12 * (1 + abs(obs))))
     return (hits + 1) / (draws + 1)  # Monte Carlo: never an impossible p = 0
 
 

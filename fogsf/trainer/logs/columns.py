@@ -64,8 +64,8 @@ class LazyColumn:
                         np.empty(0, self.dtype)
                 # every step-th sample, read a block at a time (blocks of a multiple of step)
                 size = max(1, READ_SAMPLES // step) * step
-                return np.concatenate([self._take(s, min(b, s + size))[::step]
-                                       for s in range(a, b, size)])
+                return np.concatenate([self._take(s, min(b, s + size))[::step].copy()
+                                       for s in range(a, b, size)])  # no block kept
             return self._take(a, b) if b > a else np.empty(0, self.dtype)
         idx = np.asarray(at)
         if idx.dtype == bool:

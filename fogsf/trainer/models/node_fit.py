@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 PROFILE_RIDGE = 1e-5  # diagnose: a whisker of ridge on scaled columns for collinear nodes
+PROFILE_CHUNK = 1 << 21  # numbers of the design profile_solve works on at a time (16 MB)
 
 
 # --- the profile over a grid (diagnose's base model and catalogue) ---------------------------
@@ -40,24 +41,31 @@ class ProfileFit:
 def profile_solve(x: np.ndarray, y: np.ndarray, w: np.ndarray, rows: np.ndarray,
                   ridge: float = PROFILE_RIDGE) -> ProfileFit:
     """Every stacked design x (G, n, p) fitted on `rows` with weights w (1/sigma^2): batched
-    normal equations on scaled columns with `ridge` times the row count on the diagonal."""
-    xr = x[:, rows, :]
+    normal equations on scaled columns with `ridge` times the row count on the diagonal,
+    a few combinations at a time (PROFILE_CHUNK numbers: long logs have many rows)."""
     sw = np.sqrt(w[rows])
-    xw = xr * sw[None, :, None]
     yw = y[rows] * sw
-    scale = np.sqrt(np.mean(xw * xw, axis=1))  # (G, p)
-    scale = np.where(scale > 0, scale, 1.0)  # an all-zero column (e.g. warmup, no power-on)
-    xs = xw / scale[:, None, :]
-    a = np.einsum("gnp,gnq->gpq", xs, xs)
-    p = a.shape[-1]
-    a = a + ridge * rows.shape[0] * np.eye(p)[None]
-    rhs = np.einsum("gnp,n->gp", xs, yw)
-    bs = np.linalg.solve(a, rhs[..., None])[..., 0]
-    resid = yw[None, :] - np.einsum("gnp,gp->gn", xs, bs)
-    sse = np.sum(resid * resid, axis=1)
+    g_all, p = x.shape[0], x.shape[2]
+    per = max(1, PROFILE_CHUNK // max(1, rows.shape[0] * p))
+    sse = np.empty(g_all)
+    bs_all, scale_all, a_all = np.empty((g_all, p)), np.empty((g_all, p)), np.empty((g_all, p, p))
+    for g0 in range(0, g_all, per):
+        g1 = min(g_all, g0 + per)
+        xw = x[g0:g1][:, rows, :] * sw[None, :, None]
+        scale = np.sqrt(np.mean(xw * xw, axis=1))  # (G, p)
+        scale = np.where(scale > 0, scale, 1.0)  # an all-zero column (e.g. warmup, no power-on)
+        xs = xw / scale[:, None, :]
+        del xw
+        a = np.einsum("gnp,gnq->gpq", xs, xs)
+        a = a + ridge * rows.shape[0] * np.eye(p)[None]
+        rhs = np.einsum("gnp,n->gp", xs, yw)
+        bs = np.linalg.solve(a, rhs[..., None])[..., 0]
+        resid = yw[None, :] - np.einsum("gnp,gp->gn", xs, bs)
+        sse[g0:g1] = np.sum(resid * resid, axis=1)
+        bs_all[g0:g1], scale_all[g0:g1], a_all[g0:g1] = bs, scale, a
     k = int(np.argmin(sse))
-    beta = bs[k] / scale[k]
-    cov = np.linalg.inv(a[k]) / np.outer(scale[k], scale[k])
+    beta = bs_all[k] / scale_all[k]
+    cov = np.linalg.inv(a_all[k]) / np.outer(scale_all[k], scale_all[k])
     return ProfileFit(k, beta, sse, cov)
 
 
