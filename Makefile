@@ -23,7 +23,7 @@ help:
 	@echo "make bench-hysteresis  the default with and without its hysteresis term, partial cycles, evaluation gyros -> out/bench-hysteresis.json"
 	@echo "make bench-plan  the planned chamber program vs the paper's on evaluation gyros -> out/bench-plan.json"
 	@echo "make bench-rate  one model at 10/100/1000 Hz; a 24 h 100 Hz replay, time and memory -> out/bench-sample-rate.json"
-	@echo "make bench-scale  replay, inspect, train on 2.4 h, 24 h and 7-day logs at 100 Hz, CSV and Parquet: wall, peak memory -> out/bench-scale.json"
+	@echo "make bench-scale  replay, inspect, diagnose, plan (train up to 24 h) on 2.4 h, 24 h and 7-day logs at 100 Hz, CSV and Parquet: wall, peak memory -> out/bench-scale.json"
 	@echo "make bench-gsa   GSA against Rashedi et al. (2009) Table 4 -> out/bench-gsa.json"
 	@echo "make bench-sim   simulator speed and its calibration to the paper -> out/bench-sim.json"
 	@echo "make bench-rigs  rig logs (ROS, staircase, reversals, skew IMU) trained and scored against the truth -> out/bench-rigs.json"

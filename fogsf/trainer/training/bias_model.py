@@ -29,8 +29,9 @@ from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for
 from fogsf.trainer.models.lag_bank import BankFit, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.physics_nodes import NodeTemperatures
-from fogsf.trainer.models.reference import expand, frontend
+from fogsf.trainer.models.reference import expand
 from fogsf.trainer.models.reference import features as ref_features
+from fogsf.trainer.models.step_inputs import frontend_s
 from fogsf.trainer.models.stream import FrontEnd, StreamModel
 from fogsf.trainer.training.bias_interval import bias_interval, family, interval_message
 
@@ -53,8 +54,8 @@ class FeatureMap:
 
     def z(self, log: ChamberLog) -> np.ndarray:
         """[n_steps, F] float32: the features of every model step of the log from reset."""
-        out = frontend(log.temp_c, self.fe.at_rate(log.sample_dt_s))
-        return ref_features(self, out.s)  # type: ignore[arg-type]
+        s = frontend_s(log.temp_c, self.fe.at_rate(log.sample_dt_s))  # a block at a time
+        return ref_features(self, s)  # type: ignore[arg-type]
 
 
 def bank_curved(n_features: int) -> int:
@@ -119,7 +120,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
     for lg in logs:
         w = bias_windows(lg, window_s, latitude_deg, settle_s)
         fe = fe0.at_rate(lg.sample_dt_s)
-        s = frontend(lg.temp_c, fe).s
+        s = frontend_s(lg.temp_c, fe)  # frontend(...).s, a block of samples at a time
         n = s.shape[0]
         if w is not None:
             idx, y = step_targets(lg, w, fe.decimation, latitude_deg)
@@ -182,7 +183,7 @@ def _free_columns(log: ChamberLog, fe0: FrontEnd) -> Any:
     lags computed at any time constant)."""
     from fogsf.trainer.training import bias_structure as bs
 
-    nodes = NodeTemperatures([frontend(log.temp_c, fe0.at_rate(log.sample_dt_s)).s[:, 0]
+    nodes = NodeTemperatures([frontend_s(log.temp_c, fe0.at_rate(log.sample_dt_s))[:, 0]
                               .astype(np.float64)], fe0.step_s)
     return bs.Columns(nodes.z(())[:, 0], nodes.lag, None, nodes.z(TAU_GRID_S), n_curved())
 
