@@ -1,7 +1,7 @@
 """Logs of any length: wall time and peak memory of `fogsf replay`, `fogsf inspect`,
-`fogsf diagnose` and `fogsf plan --from-logs` on logs of 2.4 h, 24 h and 7 days at 100 Hz,
-CSV and Parquet, and how they grow with the log; `fogsf train --model poly` on the logs of a
-day or less. Each command runs --repeat times (2): its best wall time (the machine's other
+`fogsf train` (`--model poly` and the default), `fogsf diagnose` and `fogsf plan
+--from-logs` on logs of 2.4 h, 24 h and 7 days at 100 Hz, CSV and Parquet, and how they grow
+with the log. Each command runs --repeat times (2): its best wall time (the machine's other
 load only ever adds) and its largest peak are reported.
 
 Each log cycles -40..50 C at 1 C/min with 60 min soaks (the rig's columns: time, board
@@ -34,7 +34,7 @@ import numpy as np
 RATE_HZ = 100.0
 SEED = 3
 TILE_H = 10.0  # longer logs repeat a simulated stretch of two whole cycles
-TRAIN_MAX_H = 24.0  # train runs on the logs up to this long
+TILED_FROM_H = 24.0  # logs longer than this repeat a simulated stretch
 
 
 def measured(cmd: list[str], repeat: int = 1) -> tuple[float, float]:
@@ -69,7 +69,7 @@ def prepare(work: Path, hours: float) -> None:
     model.save(work / "model")
     build_kernel(model.at_rate(1.0 / RATE_HZ))  # cached: replay does not compile
     csv = work / f"log-{hours:g}h.csv"
-    if hours <= TRAIN_MAX_H:
+    if hours <= TILED_FROM_H:
         write_log(csv, day_log(RATE_HZ, hours, SEED))
         write_log(csv.with_suffix(".parquet"), read_log(csv))
     else:
@@ -138,25 +138,27 @@ def main(argv: list[str] | None = None) -> int:
                     "plan": [*fogsf, "plan", "--from-logs", str(log), "--hours", "2",
                              "--test-rates", "1", "--interval-gyros", "0", "--workers", "1",
                              "--out", str(work / f"plan-{fmt}")],
+                    "train": [*fogsf, "train", "--train", str(log), "--model", "poly",
+                              "--out", str(work / f"poly-{fmt}"), "--no-progress"],
+                    "train-default": [*fogsf, "train", "--train", str(log), "--out",
+                                      str(work / f"default-{fmt}"), "--no-progress"],
                 }
-                if h <= TRAIN_MAX_H:
-                    runs["train"] = [*fogsf, "train", "--train", str(log), "--model", "poly",
-                                     "--out", str(work / f"poly-{fmt}"), "--no-progress"]
                 for command, cmd in runs.items():
                     wall, peak = measured(cmd, args.repeat)
                     rows.append({"hours": h, "format": fmt, "command": command,
                                  "file_mb": size_mb, "wall_s": wall, "peak_mb": peak})
-                    print(f"{h:6g} h {fmt:8s} ({size_mb:7.1f} MB) {command:8s} "
+                    print(f"{h:6g} h {fmt:8s} ({size_mb:7.1f} MB) {command:13s} "
                           f"{wall:6.2f} s  peak {peak:7.0f} MB", flush=True)
                 (work / f"corrected.{fmt}").unlink(missing_ok=True)
-                for d in ("poly", "plan"):
+                for d in ("poly", "default", "plan"):
                     shutil.rmtree(work / f"{d}-{fmt}", ignore_errors=True)
             for p in logs.values():
                 p.unlink()
     growth = []
     for a, b in zip(hours[:-1], hours[1:], strict=True):
         for fmt in ("csv", "parquet"):
-            for command in ("replay", "inspect", "train", "diagnose", "plan"):
+            for command in ("replay", "inspect", "train", "train-default", "diagnose",
+                            "plan"):
                 pair = [next((r for r in rows if r["hours"] == h and r["format"] == fmt
                               and r["command"] == command), None) for h in (a, b)]
                 if pair[0] is None or pair[1] is None:

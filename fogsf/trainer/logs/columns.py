@@ -80,7 +80,16 @@ class LazyColumn:
 
     def _gather(self, idx: np.ndarray) -> np.ndarray:
         lo, hi = int(idx.min()), int(idx.max()) + 1
-        return self._take(lo, hi)[idx - lo]
+        if hi - lo <= READ_SAMPLES:
+            return self._take(lo, hi)[idx - lo]
+        # scattered samples: only the blocks that hold them, one at a time
+        out = np.empty(idx.shape, self.dtype)
+        block = idx // READ_SAMPLES
+        for b in np.unique(block):
+            sel = block == b
+            a = int(b) * READ_SAMPLES
+            out[sel] = self._take(a, min(self.n, a + READ_SAMPLES))[idx[sel] - a]
+        return out
 
     def __array__(self, dtype: np.dtype | None = None, copy: bool | None = None) -> np.ndarray:
         if STRICT:

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.trainer.errors import UserError
+from fogsf.trainer.logs import columns
 from fogsf.trainer.logs.chamber_log import ChamberLog, rate_text
 from fogsf.trainer.logs.columns import is_lazy, searchsorted
 from fogsf.trainer.logs.pairs import (
@@ -318,7 +319,14 @@ def log_metrics(log: ChamberLog, window_s: float = 100.0, ref: float | None = No
 
 def step_means(x: np.ndarray, decimation: int, mask: np.ndarray | None = None) -> np.ndarray:
     """Mean of a per-sample series over each model step's samples (the masked ones; NaN for a
-    step with none)."""
+    step with none). A column on disk is read a block of whole steps at a time (each step's
+    mean is made from its own samples alone: the same bits)."""
+    if is_lazy(x) or is_lazy(mask):
+        size = max(1, columns.READ_SAMPLES // decimation) * decimation
+        return np.concatenate([step_means(
+            np.asarray(x[a:a + size]), decimation,
+            None if mask is None else np.asarray(mask[a:a + size]))
+            for a in range(0, len(x), size)] or [np.empty(0)])
     x = np.asarray(x, dtype=np.float64)
     starts = np.arange((x.size - 1) // decimation + 1) * decimation
     if mask is None:

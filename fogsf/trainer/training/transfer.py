@@ -35,6 +35,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.columns import searchsorted
 from fogsf.trainer.logs.metrics import (
     noise_floor_ppm,
     sf_windows,
@@ -60,7 +61,7 @@ def ramp_rate_c_per_min(log: ChamberLog) -> float:
     windows on its ramps (the faster half of the windows moving faster than 0.05 C/min, so
     that the bends at a ramp's ends do not count); 0 for a log with no ramp."""
     t, temp = log.time_s, log.temp_c
-    n = int(np.searchsorted(t, t[0] + SLOPE_WINDOW_S))
+    n = searchsorted(t, float(t[0]) + SLOPE_WINDOW_S)
     if n < 1 or n >= t.size:
         return 0.0
     starts = np.arange(0, t.size - n, max(1, n // 5))
@@ -90,7 +91,7 @@ def ramp_segments(log: ChamberLog) -> list[RampSegment]:
     at a ramp's start, so its slope rises towards the chamber's).
     Up- and down-ramps, and ramps at different rates in one log, come out separately."""
     t, temp = log.time_s, log.temp_c
-    n = int(np.searchsorted(t, t[0] + SLOPE_WINDOW_S))
+    n = searchsorted(t, float(t[0]) + SLOPE_WINDOW_S)
     if n < 1 or n >= t.size:
         return []
     hop = max(1, n // 5)
@@ -122,9 +123,9 @@ def _split_rate_changes(segs: list[RampSegment], t: np.ndarray, temp: np.ndarray
     """Split a segment in two where a two-level fit of its 5-minute slopes explains most of
     their spread and the levels differ by more than 30 %."""
     out: list[RampSegment] = []
-    step = max(1, int(np.searchsorted(t, t[0] + SLOPE_WINDOW_S)))
+    step = max(1, searchsorted(t, float(t[0]) + SLOPE_WINDOW_S))
     for sg in segs:
-        i0, i1 = np.searchsorted(t, [sg.start_s, sg.stop_s])
+        i0, i1 = searchsorted(t, sg.start_s), searchsorted(t, sg.stop_s)
         hop = max(1, step // 5)  # windows overlap: five per window length
         idx = np.arange(i0, max(i0 + 1, i1 - step), hop)
         if idx.size < 30:
