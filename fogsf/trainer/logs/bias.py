@@ -27,7 +27,7 @@ from fogsf.trainer.logs.metrics import (
     sub_window_noise,
     window_samples,
 )
-from fogsf.trainer.logs.pairs import find_pairs
+from fogsf.trainer.logs.pairs import PlateauPairs, find_pairs
 from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
 
 SOURCES = ("pairs", "stationary")
@@ -110,8 +110,9 @@ def pair_windows(log: ChamberLog, latitude_deg: float | None = None,
                  settle_s: float = SETTLE_S) -> BiasWindows | None:
     """The +/- pairs' bias (`find_pairs`) as windows; None without pairs. A pair's window is
     its centre +/- one plateau; the noise floor is the spread of second differences of
-    successive pairs' bias (std / sqrt(6): a linear drift cancels, what is left is noise,
-    an upper bound where the bias curves fast)."""
+    successive pairs' bias (a linear drift cancels, what is left is noise, an upper bound
+    where the bias curves fast), scaled to one pair's noise by `second_difference_ratio`
+    (successive pairs share plateaus, so their noise is correlated)."""
     pp = find_pairs(log, latitude_deg, settle_s)
     if pp is None:
         return None
@@ -123,11 +124,28 @@ def pair_windows(log: ChamberLog, latitude_deg: float | None = None,
     bias = pp.bias_dps * DPS_TO_DPH
     if len(pp) >= MIN_SUB_WINDOWS:
         d2 = bias[:-2] - 2.0 * bias[1:-1] + bias[2:]
-        floor = float(np.std(d2) / np.sqrt(6.0))
+        floor = float(np.std(d2) * np.sqrt(second_difference_ratio(pp)))
     else:
         floor = float("nan")
     return BiasWindows("pairs", pp.t_s.copy(), pp.temp_c.copy(), bias, start, stop, floor,
                        span_s, float(log.time_s[0]))
+
+
+def second_difference_ratio(pp: PlateauPairs) -> float:
+    """Var(one pair's bias) / Var(a second difference of successive pairs' bias) for white
+    noise on the plateau means (a plateau's mean: variance 1/n of its n samples), from the
+    weights each pair's bias puts on its plateaus: 1/6 for independent pairs, 20/72 for
+    pairs of four equal plateaus that share two with each neighbour."""
+    n = pp.plateau_n
+    var_b = [float(np.sum(g * g / n[i])) for i, g in pp.bias_weights]
+    var_d2 = []
+    for k in range(len(pp.bias_weights) - 2):
+        c: dict[int, float] = {}
+        for (idx, g), f in zip(pp.bias_weights[k:k + 3], (1.0, -2.0, 1.0), strict=True):
+            for i, v in zip(idx.tolist(), g.tolist(), strict=True):
+                c[i] = c.get(i, 0.0) + f * v
+        var_d2.append(sum(v * v / n[i] for i, v in c.items()))
+    return float(np.mean(var_b) / np.mean(var_d2)) if var_d2 else 1.0 / 6.0
 
 
 def bias_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,

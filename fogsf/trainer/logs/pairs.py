@@ -4,7 +4,7 @@ step with its nonlinearity and asymmetry."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,6 +34,10 @@ class PlateauPairs:
     sf_ratio: np.ndarray
     bias_dps: np.ndarray
     rate_dps: np.ndarray  # |rate| of the pair
+    # each pair's bias as weights on the plateau means it is made of: (plateau indices,
+    # weights), and every plateau's sample count (what its mean's noise goes as 1/n of)
+    bias_weights: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    plateau_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
@@ -115,14 +119,15 @@ def _is_pair(p: _Plateau, q: _Plateau) -> bool:
     return abs(abs(p.rate) - abs(q.rate)) <= PAIR_RATE_TOL * big + 1e-6
 
 
-def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float]:
+def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float, np.ndarray]:
     """(SF ratio, bias) at time `tc` from a pair and its +/- neighbours: a least-squares fit
     of m = r (s0 + s1 tau) + b0 + b1 tau (tau = t - tc; with three plateaus no b1, with two
     neither s1 nor b1), each plateau weighted by its length (a stall shortens one). With
     both neighbours at +/-r and equal lengths this is the bias (m0 + 3 m1 + 3 m2 + m3) / 8
     (signs alternating), which cancels an SF that drifts linearly, even
     quadratically, in time (the SF moving between the two plateaus of a pair on a ramp
-    would otherwise read as bias: 5 ppm at 100 deg/s is 0.9 deg/h) and a linear bias drift."""
+    would otherwise read as bias: 5 ppm at 100 deg/s is 0.9 deg/h) and a linear bias drift.
+    The third value: the bias as weights on the group's plateau means."""
     r = np.array([p.rate for p in group])
     m = np.array([p.mean for p in group])
     tau = np.array([p.t_s for p in group]) - tc
@@ -132,8 +137,9 @@ def _pair_fit(group: list[_Plateau], tc: float) -> tuple[float, float]:
     if len(group) >= 4:
         cols.append(tau)
     w = np.sqrt([p.n for p in group])  # a plateau's noise goes as 1/sqrt(n)
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols) * w[:, None], m * w, rcond=None)
-    return float(coef[0]), float(coef[1])
+    a = np.column_stack(cols) * w[:, None]
+    coef, *_ = np.linalg.lstsq(a, m * w, rcond=None)
+    return float(coef[0]), float(coef[1]), np.linalg.pinv(a)[1] * w
 
 
 def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
@@ -143,27 +149,30 @@ def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
     at its centre time, from the pair and the +/- plateaus next to it (`_pair_fit`)."""
     pl = _plateau_means(log, latitude_deg, settle_s)
     out: list[tuple[float, float, float, float, float]] = []
+    weights: list[tuple[np.ndarray, np.ndarray]] = []
     i = 0
     while i + 1 < len(pl):
         p, q = pl[i], pl[i + 1]
         if not _is_pair(p, q):
             i += 1
             continue
-        group = [p, q]
+        idx = [i, i + 1]
         if i > 0 and _is_pair(pl[i - 1], p):
-            group.insert(0, pl[i - 1])
+            idx.insert(0, i - 1)
         if i + 2 < len(pl) and _is_pair(q, pl[i + 2]):
-            group.append(pl[i + 2])
+            idx.append(i + 2)
         i += 2
         tc = 0.5 * (p.t_s + q.t_s)
-        sf, bias = _pair_fit(group, tc)
+        sf, bias, g = _pair_fit([pl[j] for j in idx], tc)
+        weights.append((np.asarray(idx), g))
         out.append((tc, 0.5 * (p.temp_c + q.temp_c), sf, bias,
                     0.5 * (abs(p.rate) + abs(q.rate))))
     if not out:
         return None
     a = np.asarray(out)
     return PlateauPairs(t_s=a[:, 0], temp_c=a[:, 1], sf_ratio=a[:, 2], bias_dps=a[:, 3],
-                        rate_dps=a[:, 4])
+                        rate_dps=a[:, 4], bias_weights=weights,
+                        plateau_n=np.array([p.n for p in pl], dtype=np.float64))
 
 
 def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,

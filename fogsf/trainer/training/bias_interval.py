@@ -103,8 +103,8 @@ def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
     var = np.einsum("wi,ij,wj->w", xw, fam.gram_inv, xw) * fam.sigma2
     param = float(np.sqrt(np.mean(np.maximum(var, 0.0))))
     floor = float(w.noise_floor_dph) if np.isfinite(w.noise_floor_dph) else 0.0
-    # the training windows' residual bounds the noise too: a pair's floor (second
-    # differences of successive pairs, which share plateaus) can fall below its noise
+    # the training windows' residual bounds the noise too (a pair's floor, from second
+    # differences, assumes white noise on the plateaus)
     lo_floor, hi_floor = sorted((floor, fam.window_noise_dph))
     top = BIAS_INTERVAL_K * float(np.hypot(max(spread.values(), default=0.0), param))
     return asdict(BiasInterval(fam.consistent, len(fam.fits), spread, param, floor,
