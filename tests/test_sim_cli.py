@@ -80,3 +80,30 @@ def test_plot_writes_a_png(tmp_path) -> None:
     png = tmp_path / "fig.png"
     assert main(["simulate", *SHORT, "--no-noise", "--plot", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_thermal_bias_of_the_population(tmp_path, capsys) -> None:
+    """--thermal-bias gives a population gyro the thermal bias make bench-bias draws for
+    it (a Shupe term on its coil); refused without --random-gyro and for three gyros."""
+    from dataclasses import asdict
+
+    from fogsf.trainer.sim.population import gyro_for_seed
+
+    plain, shupe = tmp_path / "plain.json", tmp_path / "shupe.json"
+    for path, flag in ((plain, []), (shupe, ["--thermal-bias"])):
+        assert main(["simulate", *SHORT, "--random-gyro", "5", *flag, "--write-config",
+                     str(path), "--out", str(tmp_path / "x.csv")]) == 0
+    want = asdict(gyro_for_seed(5, thermal_bias=True).bias)
+    assert SimConfig.load(str(shupe)).bias.__dict__ == want
+    assert want["shupe_dph_per_c_per_min"] != 0.0
+    assert SimConfig.load(str(plain)).bias.shupe_dph_per_c_per_min == 0.0
+    assert main(["simulate", *SHORT, "--thermal-bias", "--out", str(tmp_path / "y.csv")]) == 2
+    assert "--random-gyro" in capsys.readouterr().err
+    assert main(["simulate", "--rig", "imu3", "--random-gyro", "5", "--thermal-bias",
+                 "--out", str(tmp_path / "imu.csv")]) == 2
+    assert "one gyro" in capsys.readouterr().err
+    rigs = [tmp_path / name / "log.csv" for name in ("rig", "rig-tb")]
+    for rig, flag in zip(rigs, ([], ["--thermal-bias"]), strict=True):
+        assert main(["simulate", "--rig", "plain", "--protocol", "stationary",
+                     "--random-gyro", "5", *flag, "--out", str(rig)]) == 0
+    assert rigs[0].read_bytes() != rigs[1].read_bytes()  # the rig's gyro has it too

@@ -74,6 +74,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "0 is the default gyro) instead of the default gyro; the run's noise "
                         "seed is GYRO_SEED unless --seed is given. Development seeds "
                         "0-9999, evaluation seeds 20000-29999")
+    g.add_argument("--thermal-bias", action="store_true",
+                   help="with --random-gyro: the gyro's thermal bias as the population draws "
+                        "it for make bench-bias (on its coil: a Shupe term, a quadratic and a "
+                        "cubic; docs/simulate.md); its offset and slope only without it")
     g.add_argument("--effect", action="append", default=[], metavar="NAME=STRENGTH[,k=v]",
                    help="switch on an effect (repeatable); see --list-effects")
 
@@ -170,8 +174,11 @@ def build_config(args: argparse.Namespace) -> SimConfig:
 
         if args.random_gyro < 0:
             raise UserError(f"--random-gyro must be >= 0, got {args.random_gyro}")
-        cfg = with_gyro(cfg, gyro_for_seed(args.random_gyro))
+        cfg = with_gyro(cfg, gyro_for_seed(args.random_gyro,
+                                           thermal_bias=args.thermal_bias))
         cfg.seed = args.random_gyro
+    elif args.thermal_bias:
+        raise UserError("--thermal-bias is the population's: give --random-gyro SEED too")
     if args.seed is not None:
         cfg.seed = args.seed
     pr = cfg.profile
@@ -342,7 +349,16 @@ def run_rig(args: argparse.Namespace) -> int:
     if len(seeds) != want:
         raise UserError(f"--rig {args.rig} takes {want} gyro seed(s), got {len(seeds)}")
     seed = args.seed if args.seed is not None else seeds[0]
-    log = rig_logs.rig_log(args.rig, args.out, _rig_protocol(args), seeds, seed)
+    protocol = _rig_protocol(args)
+    if args.thermal_bias:
+        from dataclasses import replace
+
+        from fogsf.trainer.sim.population import gyro_for_seed
+
+        if len(seeds) != 1:
+            raise UserError("--thermal-bias takes one gyro: not with --rig imu3")
+        protocol = replace(protocol, bias=gyro_for_seed(seeds[0], thermal_bias=True).bias)
+    log = rig_logs.rig_log(args.rig, args.out, protocol, seeds, seed)
     rows = len(next(iter(log.truth.values())).time_s)
     print(f"{rows} samples -> {log.path}"
           + (f", column map -> {log.mapping_path}" if log.mapping_path else ""),
