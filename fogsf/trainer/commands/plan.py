@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -138,7 +139,8 @@ def run(args: argparse.Namespace) -> int:
           + ", ".join(f"{r:.2g}" for r in rates) + f" C/min on {what}")
     t0 = time.perf_counter()
     with executor_from_args(args) as ex:
-        ranked, paper_s = search(limits, rates, gyros, ex, args.interval_gyros, args.axes)
+        ranked, paper_s = search(limits, rates, gyros, ex, args.interval_gyros, args.axes,
+                                 progress=sys.stderr.isatty())  # a bar on a terminal only
     print(table_md(ranked, paper_s, args.top), end="")
     best = ranked[0]
     meta = {"limits": vars(limits), "envelope_rates": list(rates),
