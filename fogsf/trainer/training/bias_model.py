@@ -7,7 +7,8 @@ node, ..., or the lag bank's full polynomial by ridge with its penalty chosen by
 `bias_structure.fit_gcv`). The Shupe term, a bias proportional to the rate of change of the coil's
 temperature, is (T - lag(T, tau)) / tau: a linear combination of z. Targets are the bias
 each training log measures (`logs.bias`): a stationary log's model steps (mean of output -
-earth rate over each step), a +/- pair's bias at the step under its centre.
+earth rate over each step), a +/- pair's bias at the step under its centre, the columns
+averaged there as the pair averages its plateaus (`target_kernel`).
 
 `fit_bias(...)` fits; `score_bias(...)` gives the before/after metrics over a log's bias
 windows; `with_bias_head` and `bias_only_stream_model` make the artifacts.
@@ -104,6 +105,31 @@ def step_targets(log: ChamberLog, w: BiasWindows, decimation: int,
     return w.step_index(decimation), w.bias_dph
 
 
+def target_kernel(w: BiasWindows | None, step_s: float) -> np.ndarray | None:
+    """What a target averages over, as weights on the model steps about it: a +/- pair's bias
+    is (m0 + 3 m1 + 3 m2 + m3) / 8 of its four plateaus (`logs.pairs`), each half the pairs'
+    span; a stationary log's target is its own step (None)."""
+    if w is None or w.source != "pairs":
+        return None
+    p = max(1, int(round(0.5 * w.window_s / step_s)))
+    k = np.repeat([1.0, 3.0, 3.0, 1.0], p)
+    return k / k.sum()
+
+
+def at_targets(x: np.ndarray, kernel: np.ndarray | None) -> np.ndarray:
+    """x (steps[, columns]) averaged as the targets average (`target_kernel`), the ends
+    held: the design a pair's bias is fitted to (linear features exactly; their squares and
+    cubes to within their spread over a few minutes)."""
+    if kernel is None:
+        return x
+    a = np.asarray(x, dtype=np.float64)
+    flat = a.reshape(a.shape[0], -1)
+    lo, hi = kernel.size // 2, kernel.size - 1 - kernel.size // 2
+    out = np.column_stack([np.convolve(np.pad(flat[:, j], (lo, hi), mode="edge"), kernel[::-1],
+                                       "valid") for j in range(flat.shape[1])])
+    return out.reshape(a.shape).astype(a.dtype)
+
+
 def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 100.0,
              latitude_deg: float | None = None, settle_s: float = SETTLE_S,
              step_s: float = MODEL_STEP_S, candidates: tuple[str, ...] | None = None
@@ -116,11 +142,14 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
 
     fe0 = fm.fe if fm is not None else front_end_for(logs, step_s, ())
     t_rel, zs, rows, ys, folds, groups, sources = [], [], [], [], [], [], []
+    kernels: list[np.ndarray | None] = []
     base = group_base = 0
     for lg in logs:
         w = bias_windows(lg, window_s, latitude_deg, settle_s)
         fe = fe0.at_rate(lg.sample_dt_s)
-        s = frontend_s(lg.temp_c, fe)  # frontend(...).s, a block of samples at a time
+        kernels.append(target_kernel(w, fe.step_s))
+        # frontend(...).s, a block of samples at a time, averaged as the targets are
+        s = at_targets(frontend_s(lg.temp_c, fe), kernels[-1])
         n = s.shape[0]
         if w is not None:
             idx, y = step_targets(lg, w, fe.decimation, latitude_deg)
@@ -168,11 +197,13 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
     taus = fit.taus_s
     if choice.name == "lead":
         own = lead_feature_map(logs, step_s, taus, float(fit.w))
-        z = np.concatenate([own.z(lg) for lg in logs]).astype(np.float64)[row]
+        z = np.concatenate([at_targets(own.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
+                           ).astype(np.float64)[row]
         return BiasModel(own, _lead_head(z, y), int(y.size), sources, choice, fam)
     own = (bank_feature_map(logs, step_s) if choice.name == "bank"
            else node_feature_map(logs, step_s, taus))
-    z = np.concatenate([own.z(lg) for lg in logs]).astype(np.float64)[row]
+    z = np.concatenate([at_targets(own.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
+                       ).astype(np.float64)[row]
     cols, i_t, lags = _shared_columns(own, z)
     refit = bs.fit_candidate(choice.name, cols, np.arange(y.size), y)
     return BiasModel(own, _head(refit, own, i_t, lags), int(y.size), sources, choice, fam)
