@@ -228,3 +228,23 @@ def test_every_bias_structure_goes_through_the_bias_head(structure: str) -> None
         own = model.family.fits[structure].predict(model.family.columns_of(test))
         head = model.predict_steps(model.fm.z(test))
         assert np.max(np.abs(own - head)) < 0.01, structure
+
+
+@pytest.mark.parametrize("shupe", [0.0, SHUPE_DPH_PER_C_PER_MIN])
+def test_a_shupe_bias_takes_the_coils_own_rate(shupe: float) -> None:
+    """On a front end of its own, a bias the cubic in T misses by far (a Shupe term) takes
+    `lead`, the coil's cubic and its own rate of change; without one the rule's choice."""
+    from fogsf.trainer.training.bias_structure import SHUPE_EVIDENT
+
+    train, _ = soak_log(TRAIN, 41, shupe=shupe)
+    test, true_bias = soak_log(TEST, 42, shupe=shupe)
+    model = fit_bias(None, [train])
+    assert model is not None
+    scores = model.choice.scores
+    evident = scores["cubic"] > SHUPE_EVIDENT * min(scores.values())
+    assert evident == (shupe > 0), scores
+    assert (model.choice.name == "lead") == evident
+    truth, w = truth_in_windows(test, true_bias)
+    pred = model.predict(test)
+    p = np.array([pred[a:b].mean() for a, b in zip(w.start, w.stop, strict=True)])
+    assert np.std(p - truth) < max(0.2, 0.1 * np.std(truth)), (model.choice.name, scores)

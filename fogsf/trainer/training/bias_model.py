@@ -199,7 +199,8 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
         own = lead_feature_map(logs, step_s, taus, float(fit.w))
         z = np.concatenate([at_targets(own.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
                            ).astype(np.float64)[row]
-        return BiasModel(own, _lead_head(z, y), int(y.size), sources, choice, fam)
+        return BiasModel(own, _lead_head(z, y, taus, float(fit.w)), int(y.size), sources,
+                         choice, fam)
     own = (bank_feature_map(logs, step_s) if choice.name == "bank"
            else node_feature_map(logs, step_s, taus))
     z = np.concatenate([at_targets(own.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
@@ -240,17 +241,21 @@ def _head(fit: Any, fm: FeatureMap, i_t: int | None, lags: dict[float, int]) -> 
     return bs.as_bank_fit(fit, i_t, [lags[t] for t in fit.taus_s], fm.feat_w.shape[0])
 
 
-def _lead_head(z: np.ndarray, y: np.ndarray) -> BankFit:
-    """The lead structure on its own z = [T, fast lag, lead-lag node c]: T and the fast lag
-    linear, c as a cubic."""
+def _lead_head(z: np.ndarray, y: np.ndarray, taus: tuple[float, ...], w: float) -> BankFit:
+    """The lead structure on its own z = [T, fast lag, lead-lag node c]: c as a cubic and its
+    rate of change (`bias_structure.lead_rate`, linear in z) as one column; the head holds
+    the rate's coefficient spread over z's linear terms."""
     from fogsf.trainer.models.node_fit import ridge_fit
     from fogsf.trainer.training import bias_structure as bs
 
     c = z[:, 2]
-    f = ridge_fit(np.column_stack([z[:, 0], z[:, 1], c, c * c, c * c * c]), y,
-                  bs.SMALL_LAMBDA)
-    return BankFit(f.intercept, f.coef[:3].copy(), np.array([0.0, 0.0, f.coef[3]]),
-                   np.array([0.0, 0.0, f.coef[4]]), bs.SMALL_LAMBDA, 6.0)
+    rate = bs.lead_rate(z[:, 0], z[:, 1], c, taus, w)
+    f = ridge_fit(np.column_stack([c, c * c, c * c * c, rate]), y, bs.SMALL_LAMBDA)
+    k1, k2, k3, kr = (float(v) for v in f.coef)
+    # rate = T (w / fast + 1 / tau_c) - fast lag (w / fast) - c / tau_c
+    lin = np.array([kr * (w / taus[0] + 1.0 / taus[1]), -kr * w / taus[0], k1 - kr / taus[1]])
+    return BankFit(f.intercept, lin, np.array([0.0, 0.0, k2]), np.array([0.0, 0.0, k3]),
+                   bs.SMALL_LAMBDA, 5.0)
 
 
 def lead_feature_map(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ...],
