@@ -36,17 +36,19 @@ class Stack:
                  candidate: Candidate | None, ctxs: list[RunContext] | None = None) -> None:
         self.combos, self.names, self.candidate = combos, names, candidate
         self._x, self._ctxs = x, ctxs
+        self._designs: Designs | None = None
 
     @property
     def x(self) -> np.ndarray | Designs:
         if self._x is not None:
             return self._x
         assert self._ctxs is not None
-        d = Designs(self._ctxs, self.candidate, self.combos)
-        if d.numbers <= KEEP_NUMBERS:
-            self._x = d[:]
+        if self._designs is None:
+            self._designs = Designs(self._ctxs, self.candidate, self.combos)
+        if self._designs.numbers <= KEEP_NUMBERS:
+            self._x = self._designs[:]
             return self._x
-        return d
+        return self._designs
 
     def release(self) -> None:
         if self._ctxs is not None:

@@ -19,7 +19,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.columns import Column, blocks, cumsum_blocks_at, derived, is_lazy
+from fogsf.trainer.logs.columns import Column, blocks, cumsum_blocks_at, derived
 from fogsf.trainer.logs.exact_stats import median_step
 from fogsf.trainer.logs.metrics import SFWindows, sf_windows
 from fogsf.trainer.sim.lag import STREAM_BLOCK, lag_blocks
@@ -41,12 +41,9 @@ class Run:
         return len(self.win)
 
     def window_mean(self, x: Column) -> np.ndarray:
-        """Mean of a per-sample series over each window's samples (a column on disk is
-        summed a block at a time, with the same bits)."""
-        if is_lazy(x):
-            return self.window_mean_blocks(blocks(x))
-        c = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=np.float64))])
-        return (c[self.win.stop] - c[self.win.start]) / (self.win.stop - self.win.start)
+        """Mean of a per-sample series over each window's samples, summed a block at a time
+        (numpy's cumulative sum's bits, for an array or a column on disk)."""
+        return self.window_mean_blocks(blocks(x))
 
     def window_mean_blocks(self, parts: Iterable[tuple[int, np.ndarray]]) -> np.ndarray:
         """`window_mean` of a series given a block at a time, in order ((start, samples)):
@@ -125,10 +122,8 @@ def usable_sigma(sigma: np.ndarray) -> np.ndarray:
     return np.where(ok, sigma, fill)
 
 
-def per_sample(x: object, f: Callable[[np.ndarray], np.ndarray]) -> object:
-    """f of a per-sample series, elementwise: on a column on disk a derived column (computed
-    a block at a time when read), else the array f(x)."""
-    if is_lazy(x):
-        return derived(len(x), np.dtype(np.float64),
-                       lambda s: f(np.asarray(x[s], dtype=np.float64)))
-    return f(np.asarray(x, dtype=np.float64))
+def per_sample(x: Column, f: Callable[[np.ndarray], np.ndarray]) -> Column:
+    """f of a per-sample series, elementwise, as a derived column (computed a block at a
+    time when read, for an array or a column on disk)."""
+    return derived(len(x), np.dtype(np.float64),
+                   lambda s: f(np.asarray(x[s], dtype=np.float64)))

@@ -58,10 +58,11 @@ class LazyColumn:
             return self._take(i, i + 1)[0]
         if isinstance(at, slice):
             a, b, step = at.indices(self.n)
+            if step < 0:  # backwards: samples (b, a], read together
+                return self._take(b + 1, a + 1)[::step] if a > b else np.empty(0, self.dtype)
             if step != 1:
-                if b <= a or step < 0:
-                    return self._take(b + 1, a + 1)[::step] if step < 0 and a > b else \
-                        np.empty(0, self.dtype)
+                if b <= a:
+                    return np.empty(0, self.dtype)
                 # every step-th sample, read a block at a time (blocks of a multiple of step)
                 size = max(1, READ_SAMPLES // step) * step
                 return np.concatenate([self._take(s, min(b, s + size))[::step].copy()

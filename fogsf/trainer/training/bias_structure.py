@@ -157,7 +157,6 @@ def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
 def fit_candidate(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
     """Candidate `name` fitted to targets y at `rows` of `cols`."""
     if name == "bank":
-
         return CandidateFit(name, (), np.zeros(0), 0.0, fit_gcv(cols.z[rows], y, cols.curved))
     if name == "lead":
         return _fit_lead(cols, rows, y)
