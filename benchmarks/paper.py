@@ -31,7 +31,7 @@ from fogsf.trainer.sim.gyro import simulate
 from fogsf.trainer.sim.scenarios import paper
 from fogsf.trainer.training.options import TrainOptions
 from fogsf.trainer.training.structure_choice import choice_message
-from fogsf.trainer.training.train import MODELS, per_sample_prediction, run_training
+from fogsf.trainer.training.train import DEFAULT_MODEL, MODELS, per_sample_prediction, run_training
 from fogsf.trainer.training.transfer import RateTransfer
 
 # The paper's Table 2 (1e-6); 450.24 is read as the RMS about the 20 C reference.
@@ -70,8 +70,9 @@ def main(argv: list[str] | None = None) -> int:
                             progress=sys.stderr.isatty(), structure=structure or "auto")
         print(f"-- {name}", flush=True)
         m, fitted = run_training(opts, [train], test, out / "models" / name)
+        if not rows or (kind == DEFAULT_MODEL and not structure):
+            transfer = m["rate_transfer"]  # the default's, else the first model's
         if not rows:
-            transfer = m["rate_transfer"]
             rows.append({"model": "before", **m["test"]["before"], "params": 0,
                          "weights_bytes": 0, "train_seconds": 0.0, "features": []})
         chosen = m.get("structure_choice", {}).get("chosen")

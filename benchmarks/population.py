@@ -15,6 +15,10 @@ protocol a only (its search reaches 3 x 256 LSTMs: minutes a protocol on 2 cores
   e  train one loop: 1 C/min up, 2 C/min down, 30 min soaks (3.75 h)
                                               test 1 C/min up, 1.5 C/min down, 30 min soaks;
                                               its training log is scored too (e-train)
+  f  the envelope: 0.5 and 2 C/min up-ramps,  test as (e)
+     e's training loop and e's test program
+     run again (other noise): training holds
+     every test condition (the model's capacity)
 
 All runs are -40..50 C, warm start, table at a constant 10 deg/s. The default model is what
 `fogsf train` uses without --model. Its rate-transfer interval (metrics.json
@@ -47,6 +51,9 @@ PROTOCOLS = {
     "c": (("up05", "up20"), "down10"),
     "d": (("up05", "up20"), "slowcycle"),
     "e": (("loop_train",), "loop_test"),
+    # the envelope: the training logs hold every condition of the test (its program run
+    # again with other noise) besides ramps at other rates: what the model can reach
+    "f": (("up05", "up20", "loop_train", "loop_test_again"), "loop_test"),
 }
 # default: what `fogsf train` fits without --model (lag-lstm, its structure chosen by the
 # training logs); bank: lag-lstm on the lag bank (`--structure bank`, the previous default)
@@ -79,13 +86,13 @@ def run_profile(name: str) -> ProfileConfig:
                              soak_s=2700.0, cycles=1)
     if name == "loop_train":
         return ProfileConfig(kind="program", points=_loop(1.0, 2.0))
-    if name == "loop_test":
+    if name in ("loop_test", "loop_test_again"):
         return ProfileConfig(kind="program", points=_loop(1.0, 1.5))
     raise ValueError(f"unknown run {name!r}")
 
 
 RUN_SEED_OFFSET = {"up05": 1, "up10": 2, "up20": 3, "down10": 4, "slowcycle": 5,
-                   "loop_train": 6, "loop_test": 7}
+                   "loop_train": 6, "loop_test": 7, "loop_test_again": 8}
 
 
 def run_config(gyro: SimConfig, name: str, gyro_seed: int) -> SimConfig:
@@ -160,10 +167,16 @@ def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ..
                     row["interval_ppm"] = [lo, hi]
                     row["inside"] = bool(lo <= after["rms_ppm"] <= hi)
                     row["model_spread_max_ppm"] = rt["model_spread_max_ppm"]
+                    row["structure_spread_ppm"] = rt["structure_spread_ppm"]
+                    row["one_segment"] = rt["one_segment"]
                     row["lag_excursion_c"] = rt["lag_excursion_c"]
-                    # the spread multiple this case needs to fall inside (calibration)
+                    row["upper_over_actual"] = hi / after["rms_ppm"]
+                    # the multiple of D this case needs to fall inside (calibration,
+                    # `training.transfer_interval`)
                     excess = max(0.0, after["rms_ppm"] ** 2 - floor**2) ** 0.5
-                    row["k_needed"] = excess / max(rt["model_spread_max_ppm"], 1e-9)
+                    d = (rt["model_spread_max_ppm"] if rt["one_segment"]
+                         else max(rt["structure_spread_ppm"].values()))
+                    row["k_needed"] = excess / max(d, 1e-9)
                 if p == "e":
                     tr = m["train"]["after"]
                     row["train_ratio"] = tr["rms_ppm"] / m["train"]["before"]["noise_floor_ppm"]
@@ -192,11 +205,18 @@ def summarise(rows: list[dict], models: tuple[str, ...], protocols: tuple[str, .
             summary["e-train/default"] = {"ratio": _stats(
                 [g["cases"]["e"]["default"]["train_ratio"] for g in rows])}
     if "default" in models:
-        inside = [g["cases"][p]["default"]["inside"] for g in rows for p in protocols]
-        k = [g["cases"][p]["default"]["k_needed"] for g in rows for p in protocols]
+        cases = [g["cases"][p]["default"] for g in rows for p in protocols]
+        inside = [c["inside"] for c in cases]
         summary["interval_coverage"] = {"inside": int(sum(inside)), "cases": len(inside),
-                                        "share": float(np.mean(inside)),
-                                        "k_needed_p90": float(np.percentile(k, 90))}
+                                        "share": float(np.mean(inside))}
+        for one in (True, False):
+            part = [c for c in cases if c["one_segment"] == one]
+            if part:
+                summary["interval_coverage"]["one_segment" if one else "several"] = {
+                    "inside": int(sum(c["inside"] for c in part)), "cases": len(part),
+                    "k_needed_p90": float(np.percentile([c["k_needed"] for c in part], 90)),
+                    "upper_over_actual_median": float(np.median(
+                        [c["upper_over_actual"] for c in part]))}
     return summary
 
 
@@ -244,8 +264,16 @@ def print_table(summary: dict, models: tuple[str, ...], protocols: tuple[str, ..
     if "interval_coverage" in summary:
         c = summary["interval_coverage"]
         print(f"interval coverage (default model): {c['inside']}/{c['cases']} "
-              f"({100 * c['share']:.0f} %); spread multiple for 90 % on these gyros: "
-              f"{c['k_needed_p90']:.2f} (calibrate on dev seeds only)")
+              f"({100 * c['share']:.0f} %)")
+        for part in ("one_segment", "several"):
+            if part in c:
+                q = c[part]
+                said = "one ramp" if part == "one_segment" else "several ramps"
+                print(f"  training logs with {said}: {q['inside']}/"
+                      f"{q['cases']} inside, upper end / actual error median "
+                      f"{q['upper_over_actual_median']:.2f}; the multiple of D 90 % of "
+                      f"these cases need: {q['k_needed_p90']:.2f} (calibrate on dev seeds "
+                      "only)")
 
 
 def magnitudes(seeds: list[int]) -> dict:

@@ -109,18 +109,29 @@ def test_protocol_programs_hold_what_they_promise() -> None:
     assert loop[-1, 0] == pytest.approx(3.75 * 3600)
     rates = np.diff(loop[:, 1]) / np.diff(loop[:, 0]) * 60.0
     assert sorted(set(np.round(rates, 3))) == [-2.0, 0.0, 1.0]
-    assert set(PROTOCOLS) == {"a", "b", "c", "d", "e"}
+    assert set(PROTOCOLS) == {"a", "b", "c", "d", "e", "f"}
+    # the envelope holds the test's own program among its training runs (other noise)
+    train, test = PROTOCOLS["f"]
+    assert test in {r.removesuffix("_again") for r in train} and test not in train
+    assert np.array_equal(breakpoints(run_profile("loop_test_again")),
+                          breakpoints(run_profile(test)))
 
 
 def test_summary_counts_interval_coverage() -> None:
     def row(seed: int, ratio: float, inside: bool) -> dict:
-        case = {"default": {"ratio": ratio, "std_ratio": ratio, "inside": inside,
-                            "k_needed": ratio, "train_ratio": 1.0}}
-        return {"gyro_seed": seed, "cases": {"a": case, "e": case}}
+        def case(one: bool) -> dict:
+            return {"default": {"ratio": ratio, "std_ratio": ratio, "inside": inside,
+                                "k_needed": ratio, "train_ratio": 1.0, "one_segment": one,
+                                "upper_over_actual": 2.0 * ratio}}
+
+        return {"gyro_seed": seed, "cases": {"a": case(True), "e": case(False)}}
 
     s = summarise([row(1, 1.0, True), row(2, 2.0, False), row(3, 3.0, True)], ("default",),
                   ("a", "e"))
-    assert s["interval_coverage"]["inside"] == 4 and s["interval_coverage"]["cases"] == 6
+    cov = s["interval_coverage"]
+    assert cov["inside"] == 4 and cov["cases"] == 6
+    assert cov["one_segment"]["inside"] == 2 and cov["several"]["cases"] == 3
+    assert cov["one_segment"]["upper_over_actual_median"] == 4.0
     assert s["a/default"]["ratio"]["median"] == 2.0 and s["a/default"]["ratio"]["worst"] == 3.0
     assert s["e-train/default"]["ratio"]["median"] == 1.0
 

@@ -16,7 +16,8 @@ from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.logio import write_log
 from fogsf.trainer.sim.gyro import simulate
 from fogsf.trainer.sim.scenarios import soak
-from fogsf.trainer.training.transfer import ramp_rate_c_per_min, rate_transfer
+from fogsf.trainer.training.transfer import ramp_rate_c_per_min
+from fogsf.trainer.training.transfer_interval import rate_transfer
 
 
 @pytest.fixture(scope="module")
@@ -135,3 +136,54 @@ def test_a_two_rate_target_outside_one_rate_training_is_not_covered(runs) -> Non
     assert not rt.covered and rt.target_rate_c_per_min == pytest.approx(1.0, rel=0.1)
     lo, hi = rt.rms_interval_ppm
     assert 0 < lo < rt.noise_floor_ppm < hi
+
+
+def test_interval_scales_what_the_training_logs_leave_open() -> None:
+    """One ramp: the farthest consistent lag model times K_ONE_SEGMENT; several ramps: the
+    farthest structure candidate times K_SEVERAL; the floor in quadrature either way."""
+    import numpy as np
+
+    from fogsf.trainer.training.transfer import INTERVAL_LO
+    from fogsf.trainer.training.transfer_interval import (
+        K_ONE_SEGMENT,
+        K_SEVERAL,
+        rms_interval,
+    )
+
+    lo, hi = rms_interval(5.0, 40.0, 10.0, one_segment=True)
+    assert lo == INTERVAL_LO * 5.0 and hi == pytest.approx(np.hypot(5.0, K_ONE_SEGMENT * 40.0))
+    lo, hi = rms_interval(5.0, 40.0, 10.0, one_segment=False)
+    assert hi == pytest.approx(np.hypot(5.0, K_SEVERAL * 10.0))
+    assert rms_interval(5.0, 0.0, 0.0, one_segment=False)[1] == pytest.approx(5.0)
+
+
+def test_rate_transfer_reports_every_structure_and_what_the_logs_hold(runs) -> None:
+    from fogsf.trainer.training.structure_choice import CANDIDATES, candidate_compensation
+    from fogsf.trainer.training.transfer_interval import rms_interval
+
+    def judged(train: list) -> object:  # the lag bank by least squares, as the judged model
+        return rate_transfer(train, runs["mid"], prediction_ppm=candidate_compensation(
+            "bank", train)(runs["mid"]))
+
+    one, two = judged([runs["a"]]), judged([runs["a"], runs["fast"]])
+    assert one.one_segment and not two.one_segment
+    for rt in (one, two):
+        assert set(rt.structure_spread_ppm) == set(CANDIDATES)
+        assert all(v >= 0 for v in rt.structure_spread_ppm.values())
+        assert rt.structure_spread_ppm["bank"] < 1e-3  # the judged model is the bank
+        assert rt.rms_interval_ppm == pytest.approx(rms_interval(
+            rt.noise_floor_ppm, rt.model_spread_max_ppm, max(rt.structure_spread_ppm.values()),
+            rt.one_segment))
+    # two rates around the target pin the structures down: they agree more than on one ramp
+    assert max(two.structure_spread_ppm.values()) < max(one.structure_spread_ppm.values())
+    assert "structures fitted to the same logs differ" in two.message()
+
+
+def test_a_slow_start_is_not_a_second_ramp() -> None:
+    """The first 10 min of a ramp at 0.2 C/min (the board catching up with the chamber) and
+    then 0.5 C/min: one ramp, not two segments."""
+    from fogsf.trainer.training.transfer import ramp_segments
+
+    log = _program_log([[0, -30], [600, -28], [4800, 7]], seed=44)
+    segs = ramp_segments(log)
+    assert len(segs) == 1 and segs[0].rate_c_per_min == pytest.approx(0.5, rel=0.08)

@@ -105,7 +105,8 @@ def interval_gyro(item: tuple[int, int | SimConfig], programs: list[Program], li
     loop at `rate` for each program trained on one gyro: how sure `fogsf train --test`
     would be."""
     from fogsf.trainer.training.train import bank_compensation
-    from fogsf.trainer.training.transfer import INTERVAL_LO, rate_transfer
+    from fogsf.trainer.training.transfer import INTERVAL_LO
+    from fogsf.trainer.training.transfer_interval import rate_transfer
 
     gyro_seed, ref = item
     gyro = gyro_of(ref)

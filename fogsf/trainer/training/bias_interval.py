@@ -1,7 +1,7 @@
 """How sure the bias model is on another log: the bias's rate-transfer interval.
 
-As the SF's (`transfer.rate_transfer`, `transfer.rms_interval`), from the training targets
-and the target log's board temperature alone (its gyro output is not used):
+In the form of the SF's (`transfer_interval.rate_transfer`), from the training targets and
+the target log's board temperature alone (its gyro output is not used):
 
 1. every bias structure (`bias_structure.CANDIDATES`) fitted to every training target;
    those whose sum of squares is within a chi-square allowance of the best (the noise

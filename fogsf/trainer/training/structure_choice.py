@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.models.chain_nodes import chain_z, identify_chains, node_taus
 from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for, prepare
 from fogsf.trainer.models.lag_bank import BANK_LAMBDA, fit_bank, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S, fit_candidates, node_candidates
@@ -119,6 +120,10 @@ def fit_candidate(name: str, sd: StepData, rows: np.ndarray) -> Predictor:
         pool = [f for f in fits if f.plausible] or fits
         best = min(pool, key=lambda f: f.sse)
         return lambda nt: best.cand.design(nt.z(TAU_GRID_S) * 50.0) @ best.coef
+    if name.startswith("chain"):
+        chains = identify_chains(sd.nodes, sd.y, int(name.removeprefix("chain")), rows)
+        cfit = fit_coefficients(chain_z(sd.nodes, chains)[rows], y, node_taus(chains))
+        return lambda nt: cfit.predict(chain_z(nt, chains))
     n_nodes = int(name.removeprefix("physics"))
     taus = identify_taus(sd.nodes, sd.y, n_nodes, rows)
     fit = fit_coefficients(sd.nodes.z(taus)[rows], y, taus)
@@ -206,18 +211,29 @@ def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
     return StructureChoice(name, scores, sd.n_folds, sd.one_segment, tolerance)
 
 
+def candidate_compensations(names: tuple[str, ...], logs: list[ChamberLog],
+                            step_s: float = MODEL_STEP_S, latitude_deg: float | None = None
+                            ) -> tuple[StepData, dict[str, Callable[[ChamberLog], np.ndarray]]]:
+    """Candidates `names`, each by least squares on every step of `logs`, and the steps data
+    they were fitted to: per name, a function giving a log's SF error prediction (ppm vs
+    nominal) per sample, held over each model step."""
+    sd = step_data(logs, step_s, latitude_deg)
+    every = np.arange(sd.y.size)
+
+    def compensation(pred: Predictor) -> Callable[[ChamberLog], np.ndarray]:
+        def predict(log: ChamberLog) -> np.ndarray:
+            d = prepare(log, sd.fe, None, None)
+            steps = pred(NodeTemperatures([d.s[:, 0].astype(np.float64)], sd.fe.step_s))
+            return expand(steps, len(log), d.decimation)
+
+        return predict
+
+    return sd, {n: compensation(fit_candidate(n, sd, every)) for n in names}
+
+
 def candidate_compensation(name: str, logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
                            latitude_deg: float | None = None
                            ) -> Callable[[ChamberLog], np.ndarray]:
-    """Candidate `name` by least squares on every step of `logs`: a function giving a log's
-    SF error prediction (ppm vs nominal) per sample, held over each model step. For benches
-    and probes."""
-    sd = step_data(logs, step_s, latitude_deg)
-    pred = fit_candidate(name, sd, np.arange(sd.y.size))
-
-    def predict(log: ChamberLog) -> np.ndarray:
-        d = prepare(log, sd.fe, None, None)
-        steps = pred(NodeTemperatures([d.s[:, 0].astype(np.float64)], sd.fe.step_s))
-        return expand(steps, len(log), d.decimation)
-
-    return predict
+    """Candidate `name` by least squares on every step of `logs` (`candidate_compensations`).
+    For benches and probes."""
+    return candidate_compensations((name,), logs, step_s, latitude_deg)[1][name]

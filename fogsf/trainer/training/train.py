@@ -59,7 +59,8 @@ from fogsf.trainer.models.physics_nodes import NodeFit
 from fogsf.trainer.models.reference import expand
 from fogsf.trainer.models.stream import FrontEnd, StreamModel, decimation_for
 from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.transfer import ramp_segments, rate_transfer, training_ramp_rates
+from fogsf.trainer.training.transfer import ramp_segments, training_ramp_rates
+from fogsf.trainer.training.transfer_interval import rate_transfer
 
 if TYPE_CHECKING:  # training.fit imports torch; commands import this module at start-up
     from fogsf.trainer.training.fit import LSTMConfig

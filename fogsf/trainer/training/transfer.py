@@ -25,11 +25,14 @@ the board temperatures of a target log (its gyro output is not used):
 A small spread says the training data pins the compensation down on the target's
 temperature history; a spread far above the noise floor says it does not, and whatever a
 model does there rests on its structural assumption, not on the data.
+
+`training.transfer_interval` runs the check (`rate_transfer`) and adds the interval for the
+error the trained model leaves on the target.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -37,8 +40,6 @@ from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.columns import searchsorted
 from fogsf.trainer.logs.metrics import (
-    noise_floor_ppm,
-    sf_windows,
     step_means,
     step_windows,
     windows_rms,
@@ -52,7 +53,6 @@ CHI2_ALLOWANCE = 6.0  # ~95 % of chi-square with 2 degrees of freedom
 STEP_S = 5.0  # the model step of the lag models compared (default: the trained model's)
 LONG_RUN_S = 100.0  # the residual's long-run variance over 100 s windows
 INTERVAL_LO = 0.8  # the RMS of noise alone over a run's windows falls this far below its floor
-INTERVAL_SPREAD_K = 1.25  # 78 of 80 cases inside on development gyros 1-16 (docs/population.md)
 EXCURSION_NOTE_C = 5.0  # lag states this far beyond the training range are worth a note
 
 
@@ -121,7 +121,8 @@ def _steady_rate(slopes: np.ndarray) -> float:
 def _split_rate_changes(segs: list[RampSegment], t: np.ndarray, temp: np.ndarray
                         ) -> list[RampSegment]:
     """Split a segment in two where a two-level fit of its 5-minute slopes explains most of
-    their spread and the levels differ by more than 30 %."""
+    their spread, the levels differ by more than 30 % and each part is a ramp of its own
+    (SEGMENT_MIN_S): the board's slow start on a single ramp is a bend, not a second rate."""
     out: list[RampSegment] = []
     step = max(1, searchsorted(t, float(t[0]) + SLOPE_WINDOW_S))
     for sg in segs:
@@ -143,8 +144,9 @@ def _split_rate_changes(segs: list[RampSegment], t: np.ndarray, temp: np.ndarray
         sse, cut = best
         left, right = sl[:cut - 5], sl[cut + 5:]  # a window's length from the bend
         lv, rv = _steady_rate(left), _steady_rate(right)
-        if sse < 0.2 * total and abs(rv - lv) > 0.3 * min(abs(lv), abs(rv)):
-            tc = float(t[idx[cut]])
+        tc = float(t[idx[cut]])
+        long_enough = min(tc - sg.start_s, sg.stop_s - tc) >= SEGMENT_MIN_S
+        if sse < 0.2 * total and abs(rv - lv) > 0.3 * min(abs(lv), abs(rv)) and long_enough:
             out += [RampSegment(sg.start_s, tc, lv), RampSegment(tc, sg.stop_s, rv)]
         else:
             out.append(sg)
@@ -200,8 +202,14 @@ class RateTransfer:
     # how far (C) the target drives any lag-filter state (60 s .. 2 h) beyond the range the
     # training logs gave it: the compensation there extrapolates in temperature
     lag_excursion_c: float = 0.0
-    # where the RMS error (SF windows) left on the target should fall (`rms_interval`)
+    # where the RMS error (SF windows) left on the target should fall
+    # (`transfer_interval.rms_interval`)
     rms_interval_ppm: tuple[float, float] = (0.0, 0.0)
+    # the windowed RMS distance on the target from the judged model to each structure
+    # candidate fitted to the training logs (`training.structure_choice`), what the
+    # interval's upper end scales; and whether the training logs hold one ramp
+    structure_spread_ppm: dict[str, float] = field(default_factory=dict)
+    one_segment: bool = False
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -219,6 +227,10 @@ class RateTransfer:
                        f"{self.residual_long_run_ratio:.0f} x white: no lag model of this family "
                        "explains the training data to its noise)")
         lo, hi = self.rms_interval_ppm
+        if self.structure_spread_ppm:
+            far = max(self.structure_spread_ppm, key=self.structure_spread_ppm.__getitem__)
+            spread += (f"; the structures fitted to the same logs differ from this model by up "
+                       f"to {self.structure_spread_ppm[far]:.1f} ppm RMS there ({far})")
         if hi > 0 and self.noise_floor_ppm > 0:
             spread += (f". Expected RMS error on the target: {lo:.1f}-{hi:.1f} ppm "
                        f"({lo / self.noise_floor_ppm:.1f}-{hi / self.noise_floor_ppm:.1f} x its "
@@ -233,14 +245,37 @@ class RateTransfer:
                 f"extrapolation; {spread}")
 
 
-def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
-                  latitude_deg: float | None = None,
-                  prediction_ppm: np.ndarray | None = None, step_s: float = STEP_S,
-                  window_s: float = 100.0, settle_s: float = SETTLE_S) -> RateTransfer:
-    """How well the training logs determine the lag-temperature model on `target`;
-    `prediction_ppm` (per sample of the target) is the trained model's prediction there, the
-    model the interval is for (without it, the best-fitting lag model's). Spreads and the
-    noise floor are over the target's SF windows (`window_s`, `settle_s`)."""
+@dataclass
+class TargetSpreads:
+    """The consistent lag models on a target log (`rate_transfer`'s step 3): each one's
+    windowed RMS distance from the best one (`spread`) and from the judged model
+    (`model_spread`), the training fit's long-run ratio, and the target's steps and windows."""
+
+    candidates: int
+    spread: np.ndarray  # ppm, one per consistent model
+    model_spread: np.ndarray  # ppm, one per consistent model
+    inflation: float
+    excursion_c: float
+    decimation: int
+    n_steps: int
+    windows: np.ndarray  # the target's SF windows as step ranges
+    every: np.ndarray  # the target's measured steps
+    judged: np.ndarray  # the judged model's prediction per step (ppm; the best lag model's)
+
+    def steps(self, per_sample_ppm: np.ndarray) -> np.ndarray:
+        """A per-sample prediction on the target as the means of its model steps."""
+        return step_means(np.asarray(per_sample_ppm), self.decimation)[:self.n_steps]
+
+    def distance(self, per_sample_ppm: np.ndarray) -> float:
+        """Windowed RMS (ppm) of a per-sample prediction's distance from the judged model."""
+        return windows_rms(self.steps(per_sample_ppm) - self.judged, self.windows, self.every)
+
+
+def target_spreads(train_logs: list[ChamberLog], target: ChamberLog,
+                   latitude_deg: float | None = None,
+                   prediction_ppm: np.ndarray | None = None, step_s: float = STEP_S,
+                   window_s: float = 100.0, settle_s: float = SETTLE_S) -> TargetSpreads:
+    """Steps 2 and 3 of the module docstring (`rate_transfer`'s arguments)."""
     from fogsf.trainer.models.features import common_sample_dt, front_end_for
     from fogsf.trainer.models.least_squares import (
         MAX_NODE_SLOPE_PPM_PER_C,
@@ -271,34 +306,13 @@ def rate_transfer(train_logs: list[ChamberLog], target: ChamberLog,
     every = tdata.measured
     windows = step_windows(target, tdata.decimation, window_s, settle_s)
     spread = np.array([windows_rms(preds[i] - preds[best], windows, every) for i in ok])
-    model_spread = spread
+    model_spread, ref = spread, preds[best]
     if prediction_ppm is not None:
         ref = step_means(prediction_ppm, tdata.decimation)[:tdata.n_steps]
         model_spread = np.array([windows_rms(preds[i] - ref, windows, every) for i in ok])
-    excursion = lag_excursion_c(s, tdata.s)
-    train_rates = training_ramp_rates(train_logs)
-    target_rates = ramp_rates(target) or [0.0]
-    lo, hi = (min(train_rates), max(train_rates)) if train_rates else (0.0, 0.0)
-    outside = [r for r in target_rates
-               if not lo * (1 - RATE_TOLERANCE) <= r <= hi * (1 + RATE_TOLERANCE)]
-    covered = not outside
-    target_rate = outside[0] if outside else max(target_rates)
-    floor = noise_floor_ppm(sf_windows(target, window_s, latitude_deg, settle_s=settle_s))
-    m_max = float(np.max(model_spread))
-    interval = rms_interval(floor, m_max)
-    return RateTransfer(train_rates, target_rate, bool(covered), len(fits), int(ok.size),
-                        float(np.median(spread)), float(np.max(spread)), inflation, floor,
-                        m_max, excursion, interval)
-
-
-def rms_interval(floor_ppm: float, model_spread_max_ppm: float) -> tuple[float, float]:
-    """The interval for the RMS error the judged model leaves on the target (SF windows):
-    from INTERVAL_LO times the noise floor (noise alone scatters that far below it) to the
-    floor and INTERVAL_SPREAD_K times the largest distance from the model to a lag model
-    consistent with the training data, added in quadrature. INTERVAL_SPREAD_K is calibrated
-    on development gyros for 90 % coverage (docs/population.md)."""
-    top = INTERVAL_SPREAD_K * model_spread_max_ppm
-    return (INTERVAL_LO * floor_ppm, float(np.hypot(floor_ppm, top)))
+    return TargetSpreads(len(fits), spread, model_spread, inflation,
+                         lag_excursion_c(s, tdata.s), tdata.decimation, tdata.n_steps,
+                         windows, every, ref)
 
 
 def lag_excursion_c(train_s: np.ndarray, target_s: np.ndarray) -> float:
