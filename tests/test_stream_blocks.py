@@ -109,3 +109,17 @@ def test_profile_solve_in_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
     assert part.index == whole.index
     for a, b in ((part.beta, whole.beta), (part.sse, whole.sse), (part.cov, whole.cov)):
         assert np.array_equal(a, b)
+
+
+def test_held_steps_on_disk_are_the_expanded_steps() -> None:
+    """Step values held over their samples: a column on disk gets a derived column with the
+    same samples, read in any block; one in memory the array itself."""
+    from fogsf.trainer.models.reference import expand
+
+    steps = _series(101, 5)
+    x = _series(1003, 6)
+    whole = expand(steps, x.shape[0], 10)
+    assert np.array_equal(columns.held(steps, x, 10), whole)
+    lazy = columns.held(steps, _lazy(x), 10)
+    assert columns.is_lazy(lazy) and len(lazy) == x.shape[0]
+    assert np.array_equal(np.concatenate([b for _, b in columns.blocks(lazy, size=97)]), whole)

@@ -254,6 +254,17 @@ def is_lazy(col: object) -> bool:
     return isinstance(col, LazyColumn)
 
 
+def held(step_values: np.ndarray, like: Column, decimation: int) -> Column:
+    """Per-sample values of a column like `like` (its length; on disk when it is) holding
+    step i's value over its samples i*D .. i*D + D - 1: a log on disk gets a derived column,
+    made a block at a time when read."""
+    steps = np.asarray(step_values)
+    if is_lazy(like):
+        return derived(len(like), steps.dtype,
+                       lambda s: steps[np.arange(s.start, s.stop) // decimation])
+    return steps[np.arange(len(like)) // decimation]
+
+
 def blocks(col: Column, a: int = 0, b: int | None = None, size: int | None = None
            ) -> Iterator[tuple[int, np.ndarray]]:
     """(start, samples) of col[a:b] in blocks of `size` (READ_SAMPLES)."""

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.columns import held
 from fogsf.trainer.models.chain_nodes import chain_z, identify_chains, node_taus
 from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for, prepare
 from fogsf.trainer.models.lag_bank import BANK_LAMBDA, fit_bank, n_curved
@@ -43,7 +44,6 @@ from fogsf.trainer.models.physics_nodes import (
     fit_coefficients,
     identify_taus,
 )
-from fogsf.trainer.models.reference import expand
 from fogsf.trainer.models.stream import FrontEnd
 from fogsf.trainer.training.transfer import ramp_segments
 
@@ -224,7 +224,7 @@ def candidate_compensations(names: tuple[str, ...], logs: list[ChamberLog],
         def predict(log: ChamberLog) -> np.ndarray:
             d = prepare(log, sd.fe, None, None)
             steps = pred(NodeTemperatures([d.s[:, 0].astype(np.float64)], sd.fe.step_s))
-            return expand(steps, len(log), d.decimation)
+            return held(steps, log.time_s, d.decimation)
 
         return predict
 

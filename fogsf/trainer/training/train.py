@@ -39,7 +39,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.columns import derived, is_lazy
+from fogsf.trainer.logs.columns import held
 from fogsf.trainer.logs.metrics import log_metrics, reference_sf_of_logs
 from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.features import (
@@ -453,11 +453,8 @@ def _fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
 def per_sample_prediction(fitted: Fitted, log: ChamberLog, latitude_deg: float | None
                           ) -> np.ndarray:
     d = prepare(log, fitted.fe, None, latitude_deg)
-    steps = fitted.predict_steps(d)
-    if is_lazy(log.time_s):  # a log on disk: the prediction made a block at a time too
-        return derived(len(log), np.asarray(steps).dtype,
-                       lambda s: np.asarray(steps)[np.arange(s.start, s.stop) // d.decimation])
-    return expand(steps, len(log), d.decimation)
+    # a log on disk: the prediction made a block at a time too
+    return held(fitted.predict_steps(d), log.time_s, d.decimation)
 
 
 def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,

@@ -264,7 +264,7 @@ class TargetSpreads:
 
     def steps(self, per_sample_ppm: np.ndarray) -> np.ndarray:
         """A per-sample prediction on the target as the means of its model steps."""
-        return step_means(np.asarray(per_sample_ppm), self.decimation)[:self.n_steps]
+        return step_means(per_sample_ppm, self.decimation)[:self.n_steps]
 
     def distance(self, per_sample_ppm: np.ndarray) -> float:
         """Windowed RMS (ppm) of a per-sample prediction's distance from the judged model."""
