@@ -31,10 +31,9 @@ from fogsf.trainer.logs.metrics import log_metrics
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
 from fogsf.trainer.training.structure_choice import (
     CANDIDATES,
-    candidate_compensation,
+    candidate_compensations,
     choose,
     heldout_score,
-    step_data,
 )
 from fogsf.trainer.training.transfer import target_spreads
 
@@ -49,15 +48,15 @@ def gyro_cases(seed: int, protocols: tuple[str, ...]) -> list[dict]:
     for p in protocols:
         train, test = protocol_logs(gyro, seed, p)
         choice = choose(train)
-        preds = {c: candidate_compensation(c, train)(test) for c in CANDIDATES + EXTRA}
+        sd, comp = candidate_compensations(CANDIDATES + EXTRA, train)
+        preds = {c: f(test) for c, f in comp.items()}
         pred = preds[choice.name]
         m = log_metrics(test, correction_ppm=pred)
         ts = target_spreads(train, test, prediction_ppm=pred)
         dist = {c: ts.distance(preds[c]) for c in CANDIDATES if c != choice.name}
         row = {"seed": seed, "p": p, "chosen": choice.name, "rms": m["rms_ppm"],
                "floor": m["noise_floor_ppm"], "consistent": int(ts.model_spread.size),
-               "heldout": choice.scores.get(choice.name)
-               or heldout_score(choice.name, step_data(train))}
+               "heldout": choice.scores.get(choice.name) or heldout_score(choice.name, sd)}
         for q in QUANTILES:
             row[f"lag_q{q}"] = float(np.percentile(ts.model_spread, q))
         row["cand_max"] = max(dist.values())
