@@ -248,3 +248,112 @@ def test_a_shupe_bias_takes_the_coils_own_rate(shupe: float) -> None:
     pred = model.predict(test)
     p = np.array([pred[a:b].mean() for a, b in zip(w.start, w.stop, strict=True)])
     assert np.std(p - truth) < max(0.2, 0.1 * np.std(truth)), (model.choice.name, scores)
+
+
+@pytest.mark.parametrize("poly, diag, n_in", [(True, True, 1), (True, False, None),
+                                              (False, False, None)])
+def test_bias_rows_of_their_own_leave_the_sf_model_as_it_was(poly: bool, diag: bool,
+                                                             n_in: int | None) -> None:
+    """An SF artifact widened by a bias structure's filters and features (`with_rows`): the
+    same sf_ppm bit for bit (with plays, a full or diagonal quadratic, an LSTM reading all
+    of z or part), the widened z's first rows the old z, the new rows the own map's z."""
+    from fogsf.trainer.models import reference, samples
+    from fogsf.trainer.models.features import FeatureSpec, filter_alpha, physical_normaliser
+    from fogsf.trainer.models.stream import FrontEnd
+    from fogsf.trainer.training.bias_model import FeatureMap, _widened, with_rows
+
+    sm = samples.random_model(3, 5, 1, 6, 10, seed=7, taus_s=[100.0, 400.0, 1600.0],
+                              poly_head=poly, quad_diag=diag, lstm_inputs=n_in,
+                              plays=(((0.5, 0.2, 0.3, 0.0), 4.0),))
+    w = sm.weights
+    fm = FeatureMap(sm.front_end, w["feat_w"], w["feat_b"], 5)
+    spec = FeatureSpec((20.0, 300.0), ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.6, 0.0, 0.4)),
+                       ("T", "lag(T,20s)", "node(T,300s,w=0.600)"))
+    norm = physical_normaliser(spec)
+    own_fe = FrontEnd(sm.t_ref_c, sm.t_min_c, sm.t_max_c, sm.decimation, sm.stuck_samples,
+                      filter_alpha([20.0, 300.0], sm.decimation, sm.sample_dt_s),
+                      sm.sample_dt_s, (20.0, 300.0))
+    own = FeatureMap(own_fe, norm.feat_w, norm.feat_b, 3, spec.names)
+    wide_fm = with_rows(fm, own)
+    wide = _widened(sm, wide_fm)
+    assert (wide.n_filters, wide.n_features, wide.n_lstm_inputs) == (5, 8, sm.n_lstm_inputs)
+    rng = np.random.default_rng(3)
+    temp = (20.0 + np.cumsum(rng.normal(0.0, 0.05, 20000))).astype(np.float32)
+    gyro = rng.normal(0.0, 1.0, temp.size)
+    a, b = reference.replay(sm, temp, gyro), reference.replay(wide, temp, gyro)
+    assert np.array_equal(a.sf_ppm, b.sf_ppm)
+    log = ChamberLog(np.arange(temp.size) * sm.sample_dt_s, temp.astype(np.float64),
+                     np.zeros(temp.size), gyro, np.ones(temp.size))
+    z_old, z_new = fm.z(log), wide_fm.z(log)
+    assert np.array_equal(z_new[:, :5], z_old)
+    assert np.array_equal(z_new[:, 5:], own.z(log))
+
+
+def reversal_rig_log(path: Path, gyro: int, shupe: float, loop: tuple, seed: int) -> object:
+    """A plain rig's reversal log (+/-100 deg/s every 60 s) through a chamber loop, the
+    gyro's bias with a Shupe term on its coil (`benchmarks.bias_eval`'s law)."""
+    from dataclasses import replace
+
+    from benchmarks.bias_eval import bias_law, protocol
+    from fogsf.trainer.sim import rig_logs
+
+    return rig_logs.rig_log("plain", path, protocol("reversals", loop, replace(
+        bias_law(gyro, shupe))), (gyro,), seed=seed)
+
+
+def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
+        tmp_path: Path) -> None:
+    """Reversal logs (the bias head on the SF model's z): a Shupe term the cubic in T misses
+    takes `lead` on filters of its own, added after the SF model's; the SF the artifact
+    gives is the SF model's bit for bit, the kernel's bias the fit's, and the test loop's
+    bias nearer the truth than the same SF model's z alone gives."""
+    from benchmarks.bias_eval import TEST_LOOP, TRAIN_LOOP
+    from fogsf.trainer.logs.dialect import Dialect
+    from fogsf.trainer.logs.logio import read_log, with_mapping_beside
+    from fogsf.trainer.models import reference
+    from fogsf.trainer.models.lag_bank import bank_spec
+    from fogsf.trainer.models.stream import StreamModel
+    from fogsf.trainer.training.bias_model import bank_feature_map
+
+    rl = [reversal_rig_log(tmp_path / n / "log.csv", 3, 2.0, loop, seed)
+          for n, loop, seed in (("a", TRAIN_LOOP, 1), ("b", TEST_LOOP, 2))]
+    assert cli.main(["train", "--train", str(rl[0].path), "--out", str(tmp_path / "m")]) == 0
+    m = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    assert m["bias"]["model"]["structure"]["chosen"] == "lead"
+    assert [n.split("(")[0] for n in m["bias"]["model"]["own_features"]] == ["T", "lag", "node"]
+    sm = StreamModel.load(tmp_path / "m")
+    taus = list(bank_spec().taus_s)
+    assert sm.filter_tau_s[:len(taus)] == taus and len(sm.filter_tau_s) == len(taus) + 2
+    assert len(sm.extra["feature_names"]) == sm.n_features == len(taus) + 1 + 3
+    test = read_log(rl[1].path, with_mapping_beside(rl[1].path, Dialect()))
+    wide = reference.replay(sm, test.temp_c, test.gyro_dps)
+    # the SF model alone: the widened rows, filters and bias head taken off again
+    k, f = len(taus), len(taus) + 1
+    w = {n: a for n, a in sm.weights.items() if not n.startswith("bias_")}
+    w["filter_alpha"] = w["filter_alpha"][:k]
+    w["feat_w"], w["feat_b"] = w["feat_w"][:f, :1 + k], w["feat_b"][:f]
+    for n in ("skip_w", "quad_w", "cube_w"):
+        w[n] = w[n][:f]
+    from dataclasses import replace
+
+    alone = replace(sm, weights=w, filter_tau_s=taus, n_features=f, bias_head=False,
+                    lstm_inputs=None if sm.n_lstm_inputs == f else sm.n_lstm_inputs,
+                    extra={})
+    assert np.array_equal(reference.replay(alone, test.temp_c, test.gyro_dps).sf_ppm,
+                          wide.sf_ppm)
+    train = read_log(rl[0].path, with_mapping_beside(rl[0].path, Dialect()))
+    fm = bank_feature_map([train], 5.0)
+    ws = bias_windows(test, 100.0)
+    assert ws is not None
+    truth = rl[1].truth[""].bias_dph
+
+    def err(pred: np.ndarray) -> float:
+        return float(np.std([pred[a:b].mean() - truth[a:b].mean()
+                             for a, b in zip(ws.start, ws.stop, strict=True)]))
+
+    lead = fit_bias(fm, [train])
+    shared = fit_bias(fm, [train], candidates=("cubic", "shupe", "node", "shupe2", "bank"))
+    assert lead is not None and shared is not None and lead.choice.name == "lead"
+    assert np.max(np.abs(lead.predict(test) - wide.bias_dph)) < 1e-3
+    e_lead, e_shared = err(lead.predict(test)), err(shared.predict(test))
+    assert e_lead < 0.8 * e_shared, (e_lead, e_shared)

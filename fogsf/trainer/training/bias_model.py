@@ -48,6 +48,7 @@ class FeatureMap:
     feat_w: np.ndarray  # [F, 1+K] float32
     feat_b: np.ndarray  # [F] float32
     curved: int  # features (from the first) that carry squares and cubes
+    names: tuple[str, ...] = ()  # the features' names, where known
 
     @property
     def weights(self) -> dict[str, np.ndarray]:  # what reference.features reads
@@ -76,6 +77,7 @@ class BiasModel:
     sources: list[str]
     choice: Any = None  # bias_structure.BiasChoice: the structure and why
     family: Any = None  # bias_interval.Family: what the rate-transfer interval needs
+    n_shared: int = 0  # z's features the SF model reads (those after are the bias's own)
 
     def predict_steps(self, z: np.ndarray) -> np.ndarray:
         return self.fit.predict(z)
@@ -90,6 +92,7 @@ class BiasModel:
                 "quad": self.fit.quad.tolist(), "cube": self.fit.cube.tolist(),
                 "ridge_lambda": self.fit.lam, "dof": self.fit.dof,
                 "targets": self.n_targets, "sources": self.sources,
+                "own_features": list(self.fm.names[self.n_shared:]) if self.n_shared else [],
                 "structure": None if self.choice is None else self.choice.as_dict()}
 
 
@@ -177,19 +180,28 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
     fold = np.concatenate(folds)
     group = np.concatenate(groups)
     order = bs.CANDIDATES if candidates is None else candidates
+    nodes = NodeTemperatures(t_rel, fe0.step_s)
+    free = bs.Columns(nodes.z(())[row, 0], lambda tau: nodes.lag(tau)[row], None,
+                      nodes.z(TAU_GRID_S)[row], n_curved())
     if fm is not None:
         z = np.concatenate(zs).astype(np.float64)[row]
-        cols, i_t, lags = _shared_columns(fm, z)
+        cols, i_t, lags = _shared_columns(fm, z, free)
         if i_t is None:
             order = ("bank",)
         choice, fit = bs.choose(cols, y, fold, group, order)
         fam = family(cols, y, tuple(choice.scores), choice.name, group,
-                     lambda lg: _shared_columns(fm, fm.z(lg).astype(np.float64))[0],
+                     lambda lg: _shared_columns(fm, fm.z(lg).astype(np.float64),
+                                                _free_columns(lg, fe0))[0],
                      lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
+        if choice.name == "lead":  # the coil node's filters added to the SF model's
+            taus, w = fit.taus_s, float(fit.w)
+            own = lead_feature_map(logs, step_s, taus, w)
+            z = np.concatenate([at_targets(own.z(lg), k) for lg, k in
+                                zip(logs, kernels, strict=True)]).astype(np.float64)[row]
+            f = fm.feat_w.shape[0]
+            return BiasModel(with_rows(fm, own), _lead_head(z, y, taus, w, f), int(y.size),
+                             sources, choice, fam, f)
         return BiasModel(fm, _head(fit, fm, i_t, lags), int(y.size), sources, choice, fam)
-    nodes = NodeTemperatures(t_rel, fe0.step_s)
-    free = bs.Columns(nodes.z(())[row, 0], lambda tau: nodes.lag(tau)[row], None,
-                      nodes.z(TAU_GRID_S)[row], n_curved())
     choice, fit = bs.choose(free, y, fold, group, order)
     fam = family(free, y, tuple(choice.scores), choice.name, group,
                  lambda lg: _free_columns(lg, fe0),
@@ -220,15 +232,16 @@ def _free_columns(log: ChamberLog, fe0: FrontEnd) -> Any:
     return bs.Columns(nodes.z(())[:, 0], nodes.lag, None, nodes.z(TAU_GRID_S), n_curved())
 
 
-def _shared_columns(fm: FeatureMap, z: np.ndarray
+def _shared_columns(fm: FeatureMap, z: np.ndarray, own: Any = None
                     ) -> tuple[Any, int | None, dict[float, int]]:
-    """The candidates' columns on z (targets' rows): T and z's lags by time constant."""
+    """The candidates' columns on z (targets' rows): T and z's lags by time constant;
+    `own`, the same rows' columns at any time constant (what `lead` reads)."""
     from fogsf.trainer.training import bias_structure as bs
 
     i_t, by_filter = bs.pure_columns(fm.feat_w)
     lags = {float(fm.fe.filter_tau_s[k]): i for k, i in by_filter.items()}
     t = z[:, i_t] if i_t is not None else z[:, 0]
-    cols = bs.Columns(t, lambda tau: z[:, lags[tau]], tuple(lags), z, fm.curved)
+    cols = bs.Columns(t, lambda tau: z[:, lags[tau]], tuple(lags), z, fm.curved, own)
     return cols, i_t, lags
 
 
@@ -241,10 +254,12 @@ def _head(fit: Any, fm: FeatureMap, i_t: int | None, lags: dict[float, int]) -> 
     return bs.as_bank_fit(fit, i_t, [lags[t] for t in fit.taus_s], fm.feat_w.shape[0])
 
 
-def _lead_head(z: np.ndarray, y: np.ndarray, taus: tuple[float, ...], w: float) -> BankFit:
+def _lead_head(z: np.ndarray, y: np.ndarray, taus: tuple[float, ...], w: float,
+               before: int = 0) -> BankFit:
     """The lead structure on its own z = [T, fast lag, lead-lag node c]: c as a cubic and its
     rate of change (`bias_structure.lead_rate`, linear in z) as one column; the head holds
-    the rate's coefficient spread over z's linear terms."""
+    the rate's coefficient spread over z's linear terms. `before`: features ahead of these
+    three in the head's z (the SF model's, `with_rows`), their terms zero."""
     from fogsf.trainer.models.node_fit import ridge_fit
     from fogsf.trainer.training import bias_structure as bs
 
@@ -254,8 +269,33 @@ def _lead_head(z: np.ndarray, y: np.ndarray, taus: tuple[float, ...], w: float) 
     k1, k2, k3, kr = (float(v) for v in f.coef)
     # rate = T (w / fast + 1 / tau_c) - fast lag (w / fast) - c / tau_c
     lin = np.array([kr * (w / taus[0] + 1.0 / taus[1]), -kr * w / taus[0], k1 - kr / taus[1]])
-    return BankFit(f.intercept, lin, np.array([0.0, 0.0, k2]), np.array([0.0, 0.0, k3]),
+    pad = np.zeros(before)
+    return BankFit(f.intercept, np.concatenate([pad, lin]),
+                   np.concatenate([pad, [0.0, 0.0, k2]]), np.concatenate([pad, [0.0, 0.0, k3]]),
                    bs.SMALL_LAMBDA, 5.0)
+
+
+def with_rows(fm: FeatureMap, own: FeatureMap) -> FeatureMap:
+    """The SF model's features `fm` followed by `own`'s (a bias structure's, on filters of
+    its own): the front end runs fm's filters, then own's, then fm's plays; fm's rows read
+    none of own's filters and its plays none of them, so fm's z is unchanged."""
+    k, k_own, p = fm.fe.filter_alpha.size, own.fe.filter_alpha.size, fm.fe.n_plays
+    if own.fe.n_plays or own.fe.decimation != fm.fe.decimation:
+        raise ValueError("the bias features' front end differs from the SF model's")
+    rows_sf = np.insert(fm.feat_w, [1 + k] * k_own, 0.0, axis=1)
+    rows_own = np.zeros((own.feat_w.shape[0], 1 + k + k_own + p), np.float32)
+    rows_own[:, 0] = own.feat_w[:, 0]
+    rows_own[:, 1 + k:1 + k + k_own] = own.feat_w[:, 1:]
+    if len(fm.fe.filter_tau_s) != k:
+        raise ValueError("the SF model's filters' time constants are unknown")
+    fe = replace(fm.fe, filter_alpha=np.concatenate([fm.fe.filter_alpha, own.fe.filter_alpha]
+                                                    ).astype(np.float32),
+                 filter_tau_s=(*fm.fe.filter_tau_s, *own.fe.filter_tau_s),
+                 play_source_w=tuple((*r[:1 + k], *([0.0] * k_own), *r[1 + k:])
+                                     for r in fm.fe.play_source_w))
+    return FeatureMap(fe, np.concatenate([rows_sf, rows_own]).astype(np.float32),
+                      np.concatenate([fm.feat_b, own.feat_b]).astype(np.float32), fm.curved,
+                      (*(fm.names or ("",) * fm.feat_w.shape[0]), *own.names))
 
 
 def lead_feature_map(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ...],
@@ -268,7 +308,8 @@ def lead_feature_map(logs: list[ChamberLog], step_s: float, taus_s: tuple[float,
                        ("T", f"lag(T,{taus_s[0]:.0f}s)",
                         f"node(T,{taus_s[1]:.0f}s,w={w:.3f})"))
     norm = physical_normaliser(spec)
-    return FeatureMap(front_end_for(logs, step_s, taus_s), norm.feat_w, norm.feat_b, 3)
+    return FeatureMap(front_end_for(logs, step_s, taus_s), norm.feat_w, norm.feat_b, 3,
+                      spec.names)
 
 
 def node_feature_map(logs: list[ChamberLog], step_s: float,
@@ -374,7 +415,10 @@ def bias_lines(b: dict) -> list[str]:
 
 def with_bias_head(sm: StreamModel, model: BiasModel) -> StreamModel:
     """The artifact with the bias model as its bias head (float32, deg/h); the bias model
-    must read the artifact's own z (`feature_map_of(sm, ...)`)."""
+    must read the artifact's own z (`feature_map_of(sm, ...)`), or that z followed by
+    features of its own (`with_rows`), which the artifact then gains."""
+    if model.fm.feat_w.shape[0] > sm.n_features:
+        sm = _widened(sm, model.fm)
     if model.fm.feat_w.tobytes() != sm.weights["feat_w"].tobytes():
         raise ValueError("the bias model reads other features than the artifact")
     f = model.fit
@@ -384,6 +428,33 @@ def with_bias_head(sm: StreamModel, model: BiasModel) -> StreamModel:
                     "bias_quad_w": f.quad.astype(np.float32),
                     "bias_cube_w": f.cube.astype(np.float32)})
     out = replace(sm, weights=weights, bias_head=True, extra=dict(sm.extra))
+    out.validate()
+    return out
+
+
+def _widened(sm: StreamModel, fm: FeatureMap) -> StreamModel:
+    """The artifact with `fm`'s filters and features after its own (`with_rows`): every SF
+    weight on them zero, the LSTM reading the features it read, so sf_ppm is the same."""
+    f, k = sm.n_features, sm.n_filters
+    f2, k2 = fm.feat_w.shape[0], len(fm.fe.filter_tau_s)
+    if (list(fm.fe.filter_tau_s[:k]) != list(sm.filter_tau_s) or fm.fe.filter_alpha[:k].tobytes()
+            != sm.weights["filter_alpha"].tobytes() or fm.feat_w[:f].tobytes()
+            != np.insert(sm.weights["feat_w"], [1 + k] * (k2 - k), 0.0, axis=1).tobytes()):
+        raise ValueError("the bias model's features do not extend the artifact's")
+    w = dict(sm.weights)
+    pad = np.zeros(f2 - f, np.float32)
+    w.update({"filter_alpha": fm.fe.filter_alpha, "feat_w": fm.feat_w, "feat_b": fm.feat_b,
+              "skip_w": np.concatenate([w["skip_w"], pad])})
+    if sm.poly_head:
+        w["cube_w"] = np.concatenate([w["cube_w"], pad])
+        w["quad_w"] = (np.concatenate([w["quad_w"], pad]) if sm.quad_diag
+                       else np.pad(w["quad_w"], ((0, f2 - f), (0, f2 - f))))
+    extra = dict(sm.extra)
+    if isinstance(extra.get("feature_names"), list) and len(fm.names) == f2:
+        extra["feature_names"] = [*extra["feature_names"], *fm.names[f:]]
+    out = replace(sm, weights=w, filter_tau_s=list(fm.fe.filter_tau_s), n_features=f2,
+                  lstm_inputs=sm.n_lstm_inputs, extra=extra,
+                  play_source_w=[list(r) for r in fm.fe.play_source_w])
     out.validate()
     return out
 

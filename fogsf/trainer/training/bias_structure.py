@@ -11,8 +11,8 @@ coil node behind it):
   change dc/dt = w dT/dt + (T - c)/tau_c as one column (dT/dt from a 20 s lag): a coil
   behind the housing seen from a board behind the same housing is exactly such a node (w =
   the board's time constant over the coil's, > 1 when the coil is the faster), and the
-  Shupe term is the coil's own rate; (tau_c, w) by the profile over a grid; only with a
-  front end of its own (c is a feature of its own);
+  Shupe term is the coil's own rate; (tau_c, w) by the profile over a grid; its filters
+  are its own (`Columns.own`): on the SF model's z it adds them to the SF model's front end;
 - `bank`: the lag bank's polynomial of every feature (T, its lags at 11 time constants,
   cubes up to 2000 s) by ridge with the penalty chosen by GCV (`fit_gcv`).
 Time constants are identified by variable projection (`models.node_fit.varpro`, from the
@@ -60,11 +60,18 @@ class Columns:
     """The columns a candidate is built from, at the training targets' steps: `t` (the
     board temperature, normalised), `lag(tau)` (a lag of it, the same unit) and `z` (every
     feature of the bank, for `bank`). `taus` is None when any time constant may be used
-    (varpro), else the time constants available."""
+    (varpro), else the time constants available; then `own`, if given, are the same
+    steps' columns at any time constant, which `lead` reads (filters of its own)."""
 
     def __init__(self, t: np.ndarray, lag: Callable[[float], np.ndarray],
-                 taus: tuple[float, ...] | None, z: np.ndarray, curved: int) -> None:
+                 taus: tuple[float, ...] | None, z: np.ndarray, curved: int,
+                 own: Columns | None = None) -> None:
         self.t, self.lag, self.taus, self.z, self.curved = t, lag, taus, z, curved
+        self.own = own
+
+    def any_tau(self) -> Columns | None:
+        """Columns at any time constant: these, or `own`; None when there are none."""
+        return self if self.taus is None else self.own
 
 
 NODES = {"cubic": 0, "shupe": 1, "node": 1, "shupe2": 2, "lead": 2, "bank": 0}
@@ -127,6 +134,8 @@ class CandidateFit:
             from fogsf.trainer.models.lag_bank import bank_design
 
             return bank_design(cols.z[rows], cols.curved)
+        if self.name == "lead":
+            cols = _lead_columns(cols)
         n = [cols.lag(tau)[rows] for tau in self.taus_s]
         return design(self.name, cols.t[rows], n, self.w, self.taus_s)
 
@@ -138,10 +147,18 @@ def _fixed_taus(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray,
     return CandidateFit(name, taus, f.coef, f.intercept, None, w)
 
 
+def _lead_columns(cols: Columns) -> Columns:
+    own = cols.any_tau()
+    if own is None:
+        raise ValueError("lead needs lags at any time constant (Columns.own)")
+    return own
+
+
 def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
     """The lead candidate: the coil's time constant and the lead-lag weight by the profile
     of the least-squares fit over LEAD_TAU_GRID_S x LEAD_W_GRID (the tied rate column makes
     the profile sharp enough to find the coil; a free derivative column did not)."""
+    cols = _lead_columns(cols)
     best: tuple[float, float, float] | None = None
     for tc in LEAD_TAU_GRID_S:
         taus = (LEAD_FAST_S, tc)
@@ -230,7 +247,9 @@ def choice_message(d: dict) -> str:
            else "the smallest within " + tol + " of the best")
     tau = ""
     if d.get("node_taus_s"):
-        how = "by variable projection" if d["free_tau"] else "the best of the features' lags"
+        how = ("the coil's by a grid, on filters of its own" if d["chosen"] == "lead"
+               else "by variable projection" if d["free_tau"]
+               else "the best of the features' lags")
         taus = ", ".join(f"{t:.0f}" for t in d["node_taus_s"])
         tau = f"; node time constants {taus} s ({how})"
     return (f"bias structure {d['chosen']}, chosen on held-out blocks of the training "
@@ -243,6 +262,7 @@ def choose(cols: Columns, y: np.ndarray, fold: np.ndarray, group: np.ndarray,
            tolerance: float = CHOICE_TOLERANCE) -> tuple[BiasChoice, CandidateFit]:
     """The rule (module docstring), and the chosen candidate fitted on every target."""
     order = [c for c in candidates if cols.taus is None
+             or (c == "lead" and cols.own is not None)
              or (c != "lead" and NODES[c] <= len(cols.taus))]
     errs = {c: heldout_errors(c, cols, y, fold, group) for c in order}
     scores = {c: float(np.sqrt(np.mean(e * e))) for c, e in errs.items()}
@@ -254,7 +274,7 @@ def choose(cols: Columns, y: np.ndarray, fold: np.ndarray, group: np.ndarray,
         name = "lead"
     fit = fit_candidate(name, cols, np.arange(y.size), y)
     return (BiasChoice(name, scores, int(np.unique(fold).size), fit.taus_s, tolerance,
-                       cols.taus is None), fit)
+                       cols.taus is None or name == "lead"), fit)
 
 
 # Held-out segments: blocks of BLOCK_S dealt to N_FOLDS folds in turn, so that every fold
