@@ -115,7 +115,7 @@ RIGS_N ?= 2
 bench-rigs: $(STAMP)
 	$(PY) -m benchmarks.rigs --seeds eval --n $(RIGS_N) --out $(OUT)/bench-rigs.json
 
-BIAS_GYROS ?= 20000:20008
+BIAS_GYROS ?= 20000:20032
 bench-bias: $(STAMP)
 	$(PY) -m benchmarks.bias_eval --gyros $(BIAS_GYROS) --out $(OUT)/bench-bias.json
 

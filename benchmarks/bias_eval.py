@@ -9,7 +9,7 @@ stopped: the bias is the output minus the earth rate). Scored per test window (a
 100 s): std(predicted - true) beside std(true) and a PX4-style cubic in board temperature
 fitted to the same training windows.
 
-  python -m benchmarks.bias_eval --gyros 20000:20008 --out out/bench-bias.json
+  python -m benchmarks.bias_eval --gyros 20000:20032 --out out/bench-bias.json
 """
 
 from __future__ import annotations
@@ -109,7 +109,7 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path,
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.bias_eval", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--gyros", default="20000:20008", help="population seeds LO:HI")
+    p.add_argument("--gyros", default="20000:20032", help="population seeds LO:HI")
     p.add_argument("--out", type=Path, default=Path("out/bench-bias.json"))
     p.add_argument("--candidates", default=None,
                    help="bias structures to choose among, comma-separated (default: all)")

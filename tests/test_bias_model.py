@@ -5,6 +5,7 @@ bias-only model of `fogsf train` on stationary logs; mixed logs refused."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -209,17 +210,26 @@ def test_same_logs_same_bias_model_bytes(tmp_path: Path) -> None:
 def test_every_bias_structure_goes_through_the_bias_head(structure: str) -> None:
     """Each structure, forced, as a bias-only artifact: the kernel's reference (float32,
     the C kernel's order) gives the fit's bias to 1e-3 deg/h on another log; the head's
-    polynomial over z is the structure's own fit, on a front end of its own and on the SF
-    model's z (the lag bank's; not `lead`, which needs a feature of its own)."""
+    polynomial over z is the structure's own fit, on a front end of its own and on an SF
+    model's z (the lag bank's; for `lead`, which adds its coil node, also a z without a lag
+    fast enough for the board's rate, to which it adds that too)."""
     from fogsf.trainer.models import reference
-    from fogsf.trainer.training.bias_model import bias_only_stream_model
+    from fogsf.trainer.training.bias_model import bias_only_stream_model, node_feature_map
 
     train, _ = soak_log(TRAIN, 31)
     test, _ = soak_log(TEST, 32)
-    shared = [bank_feature_map([train], 5.0)] if structure != "lead" else []
+    shared = [bank_feature_map([train], 5.0)]
+    if structure == "lead":  # and z standardised (gsa-lstm's): T and its lags scaled, shifted
+        shared.append(node_feature_map([train], 5.0, (500.0, 3000.0)))
+        fm0 = shared[0]
+        shared.append(replace(fm0, feat_w=(fm0.feat_w * 2.0).astype(np.float32),
+                              feat_b=(fm0.feat_b + 0.3).astype(np.float32)))
     for fm in [None, *shared]:
         model = fit_bias(fm, [train], candidates=(structure,))
         assert model is not None and model.choice.name == structure
+        if fm is not None and structure == "lead":  # its own filters after z's
+            added = model.fm.fe.filter_tau_s[len(fm.fe.filter_tau_s):]
+            assert len(added) == (1 if 60.0 in fm.fe.filter_tau_s else 2), added
         sm = bias_only_stream_model(model) if fm is None else None
         if sm is not None:
             ref = reference.replay(sm, test.temp_c, test.gyro_dps)
@@ -304,9 +314,9 @@ def reversal_rig_log(path: Path, gyro: int, shupe: float, loop: tuple, seed: int
 def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
         tmp_path: Path) -> None:
     """Reversal logs (the bias head on the SF model's z): a Shupe term the cubic in T misses
-    takes `lead` on filters of its own, added after the SF model's; the SF the artifact
-    gives is the SF model's bit for bit, the kernel's bias the fit's, and the test loop's
-    bias nearer the truth than the same SF model's z alone gives."""
+    takes `lead`, its coil node on a filter of its own added after the SF model's; the SF
+    the artifact gives is the SF model's bit for bit, the kernel's bias the fit's, and the
+    test loop's bias nearer the truth than the same SF model's z alone gives."""
     from benchmarks.bias_eval import TEST_LOOP, TRAIN_LOOP
     from fogsf.trainer.logs.dialect import Dialect
     from fogsf.trainer.logs.logio import read_log, with_mapping_beside
@@ -320,11 +330,13 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     assert cli.main(["train", "--train", str(rl[0].path), "--out", str(tmp_path / "m")]) == 0
     m = json.loads((tmp_path / "m" / "metrics.json").read_text())
     assert m["bias"]["model"]["structure"]["chosen"] == "lead"
-    assert [n.split("(")[0] for n in m["bias"]["model"]["own_features"]] == ["T", "lag", "node"]
+    # T and the board's rate (the bank's 60 s lag) from the SF model's z: one filter more
+    assert [n.split("(")[0] for n in m["bias"]["model"]["own_features"]] == ["node"]
+    assert m["bias"]["model"]["structure"]["node_taus_s"][0] == 60.0
     sm = StreamModel.load(tmp_path / "m")
     taus = list(bank_spec().taus_s)
-    assert sm.filter_tau_s[:len(taus)] == taus and len(sm.filter_tau_s) == len(taus) + 2
-    assert len(sm.extra["feature_names"]) == sm.n_features == len(taus) + 1 + 3
+    assert sm.filter_tau_s[:len(taus)] == taus and len(sm.filter_tau_s) == len(taus) + 1
+    assert len(sm.extra["feature_names"]) == sm.n_features == len(taus) + 1 + 1
     test = read_log(rl[1].path, with_mapping_beside(rl[1].path, Dialect()))
     wide = reference.replay(sm, test.temp_c, test.gyro_dps)
     # the SF model alone: the widened rows, filters and bias head taken off again
@@ -334,8 +346,6 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     w["feat_w"], w["feat_b"] = w["feat_w"][:f, :1 + k], w["feat_b"][:f]
     for n in ("skip_w", "quad_w", "cube_w"):
         w[n] = w[n][:f]
-    from dataclasses import replace
-
     alone = replace(sm, weights=w, filter_tau_s=taus, n_features=f, bias_head=False,
                     lstm_inputs=None if sm.n_lstm_inputs == f else sm.n_lstm_inputs,
                     extra={})

@@ -26,7 +26,7 @@ from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
 from fogsf.trainer.logs.metrics import step_means
 from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
-from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for
+from fogsf.trainer.models.features import MODEL_STEP_S, PHYSICAL_SCALE_C, front_end_for
 from fogsf.trainer.models.lag_bank import BankFit, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.physics_nodes import NodeTemperatures
@@ -186,6 +186,9 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
     if fm is not None:
         z = np.concatenate(zs).astype(np.float64)[row]
         cols, i_t, lags = _shared_columns(fm, z, free)
+        fast = min(lags, default=bs.LEAD_FAST_S)
+        if fast <= bs.LEAD_FAST_MAX_S:  # lead takes the board's rate from z's fastest lag
+            free.lead_fast_s = fast
         if i_t is None:
             order = ("bank",)
         choice, fit = bs.choose(cols, y, fold, group, order)
@@ -194,13 +197,8 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
                                                 _free_columns(lg, fe0))[0],
                      lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
         if choice.name == "lead":  # the coil node's filters added to the SF model's
-            taus, w = fit.taus_s, float(fit.w)
-            own = lead_feature_map(logs, step_s, taus, w)
-            z = np.concatenate([at_targets(own.z(lg), k) for lg, k in
-                                zip(logs, kernels, strict=True)]).astype(np.float64)[row]
-            f = fm.feat_w.shape[0]
-            return BiasModel(with_rows(fm, own), _lead_head(z, y, taus, w, f), int(y.size),
-                             sources, choice, fam, f)
+            return _shared_lead(fm, logs, kernels, row, y, fit, lags, i_t, step_s,
+                                (sources, choice, fam))
         return BiasModel(fm, _head(fit, fm, i_t, lags), int(y.size), sources, choice, fam)
     choice, fit = bs.choose(free, y, fold, group, order)
     fam = family(free, y, tuple(choice.scores), choice.name, group,
@@ -208,7 +206,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
                  lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
     taus = fit.taus_s
     if choice.name == "lead":
-        own = lead_feature_map(logs, step_s, taus, float(fit.w))
+        own = lead_feature_map(logs, step_s, taus[1], float(fit.w), taus[0])
         z = np.concatenate([at_targets(own.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
                            ).astype(np.float64)[row]
         return BiasModel(own, _lead_head(z, y, taus, float(fit.w)), int(y.size), sources,
@@ -255,24 +253,62 @@ def _head(fit: Any, fm: FeatureMap, i_t: int | None, lags: dict[float, int]) -> 
 
 
 def _lead_head(z: np.ndarray, y: np.ndarray, taus: tuple[float, ...], w: float,
-               before: int = 0) -> BankFit:
-    """The lead structure on its own z = [T, fast lag, lead-lag node c]: c as a cubic and its
-    rate of change (`bias_structure.lead_rate`, linear in z) as one column; the head holds
-    the rate's coefficient spread over z's linear terms. `before`: features ahead of these
-    three in the head's z (the SF model's, `with_rows`), their terms zero."""
+               at: tuple[int, int, int] = (0, 1, 2),
+               scale: tuple[tuple[float, float], ...] = ((1.0, 0.0),) * 3,
+               n_features: int = 3) -> BankFit:
+    """The lead structure's head over z: T, the fast lag and the lead-lag node c at features
+    `at` of z, each z_i = a x + b (`scale`, x in the physical unit; c's (1, 0)); c as a cubic
+    and its rate of change (`bias_structure.lead_rate`, linear in x) as one column, fitted
+    to the targets y; the rate's coefficient spread over the three linear terms."""
     from fogsf.trainer.models.node_fit import ridge_fit
     from fogsf.trainer.training import bias_structure as bs
 
-    c = z[:, 2]
-    rate = bs.lead_rate(z[:, 0], z[:, 1], c, taus, w)
+    t, fast, c = ((z[:, i] - b) / a for i, (a, b) in zip(at, scale, strict=True))
+    rate = bs.lead_rate(t, fast, c, taus, w)
     f = ridge_fit(np.column_stack([c, c * c, c * c * c, rate]), y, bs.SMALL_LAMBDA)
     k1, k2, k3, kr = (float(v) for v in f.coef)
     # rate = T (w / fast + 1 / tau_c) - fast lag (w / fast) - c / tau_c
-    lin = np.array([kr * (w / taus[0] + 1.0 / taus[1]), -kr * w / taus[0], k1 - kr / taus[1]])
-    pad = np.zeros(before)
-    return BankFit(f.intercept, np.concatenate([pad, lin]),
-                   np.concatenate([pad, [0.0, 0.0, k2]]), np.concatenate([pad, [0.0, 0.0, k3]]),
-                   bs.SMALL_LAMBDA, 5.0)
+    lin_x = (kr * (w / taus[0] + 1.0 / taus[1]), -kr * w / taus[0], k1 - kr / taus[1])
+    lin, quad, cube = np.zeros(n_features), np.zeros(n_features), np.zeros(n_features)
+    intercept = f.intercept
+    for k, i, (a, b) in zip(lin_x, at, scale, strict=True):
+        lin[i] += k / a
+        intercept -= k * b / a
+    if scale[2] != (1.0, 0.0):
+        raise ValueError("the lead-lag node's feature must be in the physical unit")
+    quad[at[2]], cube[at[2]] = k2, k3
+    return BankFit(intercept, lin, quad, cube, bs.SMALL_LAMBDA, 5.0)
+
+
+def _shared_lead(fm: FeatureMap, logs: list[ChamberLog], kernels: list, row: np.ndarray,
+                 y: np.ndarray, fit: Any, lags: dict[float, int], i_t: int | None,
+                 step_s: float, rest: tuple) -> BiasModel:
+    """`lead` as the SF model's bias head: the coil node (and the fast lag, if z has none)
+    on filters of their own after the SF model's (`with_rows`); T (and the fast lag) from
+    z's own features."""
+    fast, tau_c = fit.taus_s
+    w = float(fit.w)
+    shared_fast = fast in lags
+    own = lead_feature_map(logs, step_s, tau_c, w, None if shared_fast else fast,
+                           with_t=False)
+    wide = with_rows(fm, own)
+    z = np.concatenate([at_targets(wide.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
+                       ).astype(np.float64)[row]
+    f = fm.feat_w.shape[0]
+    taus_sf = list(fm.fe.filter_tau_s)
+    assert i_t is not None
+
+    def pure(i: int, col: int) -> tuple[float, float]:  # z_i = a x + b, x = s_col / 50
+        return (PHYSICAL_SCALE_C * float(fm.feat_w[i, col]), float(fm.feat_b[i]))
+
+    i_fast = lags[fast] if shared_fast else f
+    at = (i_t, i_fast, f if shared_fast else f + 1)
+    scale = (pure(i_t, 0),
+             pure(i_fast, 1 + taus_sf.index(fast)) if shared_fast else (1.0, 0.0),
+             (1.0, 0.0))
+    head = _lead_head(z, y, fit.taus_s, w, at, scale, wide.feat_w.shape[0])
+    sources, choice, fam = rest
+    return BiasModel(wide, head, int(y.size), sources, choice, fam, f)
 
 
 def with_rows(fm: FeatureMap, own: FeatureMap) -> FeatureMap:
@@ -298,18 +334,29 @@ def with_rows(fm: FeatureMap, own: FeatureMap) -> FeatureMap:
                       (*(fm.names or ("",) * fm.feat_w.shape[0]), *own.names))
 
 
-def lead_feature_map(logs: list[ChamberLog], step_s: float, taus_s: tuple[float, ...],
-                     w: float) -> FeatureMap:
-    """z = [T, lag(T, fast), w T + (1 - w) lag(T, coil)] (one physical unit) on a front end
-    of its own: the lead structure's features."""
+def lead_feature_map(logs: list[ChamberLog], step_s: float, tau_c: float, w: float,
+                     fast_s: float | None, with_t: bool = True) -> FeatureMap:
+    """The lead structure's features on a front end of its own (one physical unit): T (if
+    `with_t`), lag(T, fast_s) (if given) and the node w T + (1 - w) lag(T, tau_c), in
+    that order."""
     from fogsf.trainer.models.features import FeatureSpec, physical_normaliser
 
-    spec = FeatureSpec(tuple(taus_s), ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (w, 0.0, 1.0 - w)),
-                       ("T", f"lag(T,{taus_s[0]:.0f}s)",
-                        f"node(T,{taus_s[1]:.0f}s,w={w:.3f})"))
+    taus = ((fast_s,) if fast_s is not None else ()) + (tau_c,)
+    k = len(taus)
+    rows: list[tuple[float, ...]] = []
+    names: list[str] = []
+    if with_t:
+        rows.append((1.0,) + (0.0,) * k)
+        names.append("T")
+    if fast_s is not None:
+        rows.append((0.0, 1.0) + (0.0,) * (k - 1))
+        names.append(f"lag(T,{fast_s:.0f}s)")
+    rows.append((w,) + (0.0,) * (k - 1) + (1.0 - w,))
+    names.append(f"node(T,{tau_c:.0f}s,w={w:.3f})")
+    spec = FeatureSpec(taus, tuple(rows), tuple(names))
     norm = physical_normaliser(spec)
-    return FeatureMap(front_end_for(logs, step_s, taus_s), norm.feat_w, norm.feat_b, 3,
-                      spec.names)
+    return FeatureMap(front_end_for(logs, step_s, taus), norm.feat_w, norm.feat_b,
+                      len(rows), spec.names)
 
 
 def node_feature_map(logs: list[ChamberLog], step_s: float,

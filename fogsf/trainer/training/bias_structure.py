@@ -68,6 +68,7 @@ class Columns:
                  own: Columns | None = None) -> None:
         self.t, self.lag, self.taus, self.z, self.curved = t, lag, taus, z, curved
         self.own = own
+        self.lead_fast_s = LEAD_FAST_S  # the lag `lead` takes the board's rate from
 
     def any_tau(self) -> Columns | None:
         """Columns at any time constant: these, or `own`; None when there are none."""
@@ -75,10 +76,13 @@ class Columns:
 
 
 NODES = {"cubic": 0, "shupe": 1, "node": 1, "shupe2": 2, "lead": 2, "bank": 0}
-# lead: the board's derivative from a 20 s lag; the coil's time constant and the lead-lag
-# weight profiled over a grid (a coil lags the housing by 100-3000 s in the population, and
-# w = the board's time constant over the coil's)
+# lead: the board's derivative from a 20 s lag (on the SF model's z, its fastest lag if at
+# most LEAD_FAST_MAX_S: the bank's 60 s, no filter more; development gyros 1-16, reversals
+# with a Shupe term, 0.114 deg/h median at 20 s, 0.118 at 60 s); the coil's time constant
+# and the lead-lag weight profiled over a grid (a coil lags the housing by 100-3000 s in
+# the population, and w = the board's time constant over the coil's)
 LEAD_FAST_S = 20.0
+LEAD_FAST_MAX_S = 60.0
 LEAD_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(100.0, 3000.0, 30), 1))
 LEAD_W_GRID = tuple(float(x) for x in np.round(np.linspace(0.0, 3.0, 31), 2))
 
@@ -161,14 +165,14 @@ def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
     cols = _lead_columns(cols)
     best: tuple[float, float, float] | None = None
     for tc in LEAD_TAU_GRID_S:
-        taus = (LEAD_FAST_S, tc)
+        taus = (cols.lead_fast_s, tc)
         n = [cols.lag(tau)[rows] for tau in taus]
         for w in LEAD_W_GRID:
             sse = ridge_fit(design("lead", cols.t[rows], n, w, taus), y, SMALL_LAMBDA).sse
             if best is None or sse < best[0]:
                 best = (sse, tc, w)
     assert best is not None
-    return _fixed_taus("lead", cols, rows, y, (LEAD_FAST_S, best[1]), best[2])
+    return _fixed_taus("lead", cols, rows, y, (cols.lead_fast_s, best[1]), best[2])
 
 
 def fit_candidate(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
