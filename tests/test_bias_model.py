@@ -351,6 +351,14 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
                     extra={})
     assert np.array_equal(reference.replay(alone, test.temp_c, test.gyro_dps).sf_ppm,
                           wide.sf_ppm)
+    # the C kernel (host, through cffi) gives the widened artifact's bias and SF bit for bit
+    from kernel_helpers import kernel_for
+
+    n = 20000
+    corrected, sf, bias, _ = kernel_for(sm, tmp_path / "k").run_bias(
+        test.temp_c[:n].astype(np.float32), test.gyro_dps[:n])
+    assert bias.tobytes() == wide.bias_dph[:n].tobytes() and np.ptp(bias) > 0.5
+    assert sf.tobytes() == wide.sf_ppm[:n].tobytes()
     train = read_log(rl[0].path, with_mapping_beside(rl[0].path, Dialect()))
     fm = bank_feature_map([train], 5.0)
     ws = bias_windows(test, 100.0)
