@@ -56,8 +56,12 @@ PROTOCOLS = {
     "f": (("up05", "up20", "loop_train", "loop_test_again"), "loop_test"),
 }
 # default: what `fogsf train` fits without --model (lag-lstm, its structure chosen by the
-# training logs); bank: lag-lstm on the lag bank (`--structure bank`, the previous default)
-MODELS = ("poly", "polyrate", "default", "bank", "gsa-lstm")
+# training logs); bank, node, physics2: lag-lstm with its physics part forced (`--structure
+# bank`, the previous default; `node`, one effective node; `physics --nodes 2`)
+MODELS = ("poly", "polyrate", "default", "bank", "node", "physics2", "gsa-lstm")
+# the default model with its physics part forced (`fogsf train --structure ...`)
+FORCED = {"bank": {"structure": "bank"}, "node": {"structure": "node"},
+          "physics2": {"structure": "physics", "nodes": 2}}
 # GSA's search space reaches 3 x 256 LSTMs: even this budget takes minutes a protocol on
 # 2 cores, so gsa-lstm runs on the paper's protocol (a) only
 GSA_SMALL = {"gsa_agents": 3, "gsa_iters": 2, "gsa_fitness_iters": 20, "iters": 100}
@@ -121,10 +125,8 @@ def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, impor
     from fogsf.trainer.training.options import TrainOptions
     from fogsf.trainer.training.train import DEFAULT_MODEL
 
-    kind = DEFAULT_MODEL if model in ("default", "bank") else model
-    extra: dict = GSA_SMALL if kind == "gsa-lstm" else {}
-    if model == "bank":
-        extra = {"structure": "bank"}
+    kind = DEFAULT_MODEL if model == "default" or model in FORCED else model
+    extra: dict = GSA_SMALL if kind == "gsa-lstm" else dict(FORCED.get(model, {}))
     # the rate-transfer interval is the default model's; the others skip that check
     return TrainOptions(model=kind, seed=seed, progress=False, workers=1,
                         transfer_check=model == "default", **extra)

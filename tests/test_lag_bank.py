@@ -136,6 +136,21 @@ def test_summary_counts_interval_coverage() -> None:
     assert s["e-train/default"]["ratio"]["median"] == 1.0
 
 
+@pytest.mark.parametrize("model, structure, nodes", [
+    ("default", "auto", 1), ("bank", "bank", 1), ("node", "node", 1),
+    ("physics2", "physics", 2)])
+def test_bench_population_forces_the_structures_it_names(model: str, structure: str,
+                                                         nodes: int) -> None:
+    """bench-population's bank, node and physics2 are the default model with its physics
+    part forced (`fogsf train --structure ...`), the default model its own choice."""
+    from benchmarks.population import _train_options
+    from fogsf.trainer.training.train import DEFAULT_MODEL
+
+    opts = _train_options(model, 3)
+    assert (opts.model, opts.structure, opts.nodes) == (DEFAULT_MODEL, structure, nodes)
+    assert opts.transfer_check == (model == "default")
+
+
 def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> None:  # noqa: ANN001
     import json
 
