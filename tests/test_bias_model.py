@@ -337,6 +337,11 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     taus = list(bank_spec().taus_s)
     assert sm.filter_tau_s[:len(taus)] == taus and len(sm.filter_tau_s) == len(taus) + 1
     assert len(sm.extra["feature_names"]) == sm.n_features == len(taus) + 1 + 1
+    # metrics.json and train_info.json describe what the artifact runs
+    info = json.loads((tmp_path / "m" / "train_info.json").read_text())
+    for d in (m, info):
+        assert d["features"] == sm.extra["feature_names"]
+        assert d["filter_tau_s"] == sm.filter_tau_s
     test = read_log(rl[1].path, with_mapping_beside(rl[1].path, Dialect()))
     wide = reference.replay(sm, test.temp_c, test.gyro_dps)
     # the SF model alone: the widened rows, filters and bias head taken off again

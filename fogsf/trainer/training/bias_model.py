@@ -295,17 +295,15 @@ def _shared_lead(fm: FeatureMap, logs: list[ChamberLog], kernels: list, row: np.
     z = np.concatenate([at_targets(wide.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
                        ).astype(np.float64)[row]
     f = fm.feat_w.shape[0]
-    taus_sf = list(fm.fe.filter_tau_s)
     assert i_t is not None
 
-    def pure(i: int, col: int) -> tuple[float, float]:  # z_i = a x + b, x = s_col / 50
+    def pure(i: int) -> tuple[float, float]:  # z_i = a x + b, x = s / 50 of its one column
+        col = int(np.flatnonzero(fm.feat_w[i])[0])
         return (PHYSICAL_SCALE_C * float(fm.feat_w[i, col]), float(fm.feat_b[i]))
 
     i_fast = lags[fast] if shared_fast else f
     at = (i_t, i_fast, f if shared_fast else f + 1)
-    scale = (pure(i_t, 0),
-             pure(i_fast, 1 + taus_sf.index(fast)) if shared_fast else (1.0, 0.0),
-             (1.0, 0.0))
+    scale = (pure(i_t), pure(i_fast) if shared_fast else (1.0, 0.0), (1.0, 0.0))
     head = _lead_head(z, y, fit.taus_s, w, at, scale, wide.feat_w.shape[0])
     sources, choice, fam = rest
     return BiasModel(wide, head, int(y.size), sources, choice, fam, f)
@@ -486,7 +484,10 @@ def _widened(sm: StreamModel, fm: FeatureMap) -> StreamModel:
     f2, k2 = fm.feat_w.shape[0], len(fm.fe.filter_tau_s)
     if (list(fm.fe.filter_tau_s[:k]) != list(sm.filter_tau_s) or fm.fe.filter_alpha[:k].tobytes()
             != sm.weights["filter_alpha"].tobytes() or fm.feat_w[:f].tobytes()
-            != np.insert(sm.weights["feat_w"], [1 + k] * (k2 - k), 0.0, axis=1).tobytes()):
+            != np.insert(sm.weights["feat_w"], [1 + k] * (k2 - k), 0.0, axis=1).tobytes()
+            or fm.feat_b[:f].tobytes() != sm.weights["feat_b"].tobytes()
+            or list(fm.fe.play_width_c) != list(sm.play_width_c)
+            or fm.fe.decimation != sm.decimation):
         raise ValueError("the bias model's features do not extend the artifact's")
     w = dict(sm.weights)
     pad = np.zeros(f2 - f, np.float32)

@@ -233,7 +233,7 @@ class BiasChoice:
     folds: int
     taus_s: tuple[float, ...]  # the chosen candidate's node time constants
     tolerance: float = CHOICE_TOLERANCE
-    free_tau: bool = True  # the time constant by varpro (else one of z's lags)
+    free_tau: bool = True  # by varpro (lead: a grid), else one of z's lags
 
     def as_dict(self) -> dict:
         return {"chosen": self.name, "heldout_rms_dph": self.scores, "folds": self.folds,
@@ -251,7 +251,7 @@ def choice_message(d: dict) -> str:
            else "the smallest within " + tol + " of the best")
     tau = ""
     if d.get("node_taus_s"):
-        how = ("the coil's by a grid, on filters of its own" if d["chosen"] == "lead"
+        how = ("the coil's by a grid" if d["chosen"] == "lead"
                else "by variable projection" if d["free_tau"]
                else "the best of the features' lags")
         taus = ", ".join(f"{t:.0f}" for t in d["node_taus_s"])

@@ -519,11 +519,16 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     if "noise_floor_ppm" not in metrics:
         first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
         metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]
+    features, taus = list(fitted.spec.names), list(fitted.spec.taus_s)
+    if bias is not None and fitted.stream_model is not None and bias.n_shared:
+        # the bias head's own features and filters, after the SF model's (`lead`)
+        features += list(bias.fm.names[bias.n_shared:])
+        taus += list(bias.fm.fe.filter_tau_s[len(taus):])
     metrics.update({
         "params": fitted.params,
         "weights_bytes": fitted.weights_bytes,
-        "features": list(fitted.spec.names),
-        "filter_tau_s": list(fitted.spec.taus_s),
+        "features": features,
+        "filter_tau_s": taus,
         "decimation": fitted.fe.decimation,
         "model_step_s": fitted.fe.step_s,
         "sample_rate_hz": 1.0 / fitted.fe.sample_dt_s,
@@ -552,8 +557,8 @@ def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
     info = {k: v for k, v in fitted.info.items() if k != "gsa_result"}
     (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     (out_dir / "train_info.json").write_text(json.dumps(
-        {"model": fitted.kind, "features": list(fitted.spec.names),
-         "filter_tau_s": list(fitted.spec.taus_s), **info}, indent=2, default=_json) + "\n")
+        {"model": fitted.kind, "features": metrics["features"],
+         "filter_tau_s": metrics["filter_tau_s"], **info}, indent=2, default=_json) + "\n")
     if fitted.stream_model is not None:
         fitted.stream_model.save(out_dir)
     if fitted.torch_state is not None:
