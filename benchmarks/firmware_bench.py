@@ -229,10 +229,11 @@ def main(argv: list[str] | None = None) -> int:
                          for r in rows)
     print("target (deployable): flash < 32768 B, RAM < 2048 B, < 50000 instructions per "
           f"10 Hz step; {verdicts}")
-    print(f"\n{'image (Cortex-M4F, -O2)':40s} {'flash B':>8s} {'RAM B':>7s} "
+    w = max([len("image (Cortex-M4F, -O2)")] + [len(r["name"]) for r in images])
+    print(f"\n{'image (Cortex-M4F, -O2)':{w}s} {'flash B':>8s} {'RAM B':>7s} "
           f"{'instr/sample worst':>19s} {'(mean)':>8s}")
     for r in images:
-        print(f"{r['name']:40s} {r['flash_bytes']:8d} {r['ram_bytes']:7d} "
+        print(f"{r['name']:{w}s} {r['flash_bytes']:8d} {r['ram_bytes']:7d} "
               f"{r['instructions_per_sample_worst']:19d} {r['instructions_per_sample_mean']:8.0f}")
     if images:
         threes = ", ".join(f"{r['name']}: {'meets' if r['meets_target'] else 'misses'}"
