@@ -380,3 +380,17 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     assert np.max(np.abs(lead.predict(test) - wide.bias_dph)) < 1e-3
     e_lead, e_shared = err(lead.predict(test)), err(shared.predict(test))
     assert e_lead < 0.8 * e_shared, (e_lead, e_shared)
+
+
+def test_the_choice_message_says_why_lead_was_taken() -> None:
+    """`fogsf train`'s line on the bias structure: the rule's reason, and for `lead` taken
+    because the cubic in T misses by far, that reason, not 'within 10 %'."""
+    from fogsf.trainer.training.bias_structure import BiasChoice, choice_message
+
+    scores = {"cubic": 0.805, "shupe": 0.243, "node": 0.216, "lead": 0.343, "bank": 0.336}
+    msg = choice_message(BiasChoice("lead", scores, 5, (60.0, 1044.0)).as_dict())
+    assert "misses them by 3.7 x the best" in msg and "within" not in msg
+    assert "60, 1044 s (the coil's by a grid)" in msg
+    flat = {"cubic": 0.101, "shupe": 0.100, "node": 0.099, "lead": 0.1, "bank": 0.12}
+    msg = choice_message(BiasChoice("cubic", flat, 5, ()).as_dict())
+    assert "the smallest within 10 % of the best" in msg and "misses" not in msg

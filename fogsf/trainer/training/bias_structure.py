@@ -249,6 +249,9 @@ def choice_message(d: dict) -> str:
     tol = f"{100 * d['tolerance']:.0f} %"
     why = ("the best" if scores[d["chosen"]] == best and d["chosen"] == next(iter(scores))
            else "the smallest within " + tol + " of the best")
+    if d["chosen"] == "lead" and scores.get("cubic", 0.0) > SHUPE_EVIDENT * best:
+        why = (f"the cubic in T misses them by {scores['cubic'] / best:.1f} x the best (over "
+               f"{SHUPE_EVIDENT:g} x: a Shupe term), so the coil's own rate of change")
     tau = ""
     if d.get("node_taus_s"):
         how = ("the coil's by a grid" if d["chosen"] == "lead"
