@@ -22,6 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from benchmarks.hysteresis import TEST_OFFSET, TRAIN_OFFSET, pick_seeds
+from benchmarks.probes import finish
 
 BASE = "bank"
 THRESHOLDS = (0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40)
@@ -93,11 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     with ProcessPoolExecutor(args.workers) as ex:
         rows = list(ex.map(one, items))
     analyse(rows)
-    if args.out:
-        with open(args.out, "w") as fh:
-            json.dump(rows, fh, indent=1)
-    print(f"{time.perf_counter() - t0:.0f} s")
-    return 0
+    return finish(rows, args.out, t0)
 
 
 if __name__ == "__main__":

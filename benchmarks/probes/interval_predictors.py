@@ -27,6 +27,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from benchmarks.population import protocol_logs
+from benchmarks.probes import finish
 from fogsf.trainer.logs.metrics import log_metrics
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
 from fogsf.trainer.training.structure_choice import (
@@ -115,11 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = [r for part in ex.map(gyro_cases, seeds, [protocols] * len(seeds))
                 for r in part]
     analyse(rows)
-    if args.out:
-        with open(args.out, "w") as fh:
-            json.dump(rows, fh, indent=1)
-    print(f"{time.perf_counter() - t0:.0f} s")
-    return 0
+    return finish(rows, args.out, t0)
 
 
 if __name__ == "__main__":

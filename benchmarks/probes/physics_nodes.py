@@ -15,12 +15,12 @@ Run it on development gyros (the rule is tuned there):
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
 
 from benchmarks.population import protocol_logs
+from benchmarks.probes import finish
 from fogsf.trainer.logs.metrics import log_metrics
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
 from fogsf.trainer.training.structure_choice import CANDIDATES, candidate_compensation, choose
@@ -109,11 +109,7 @@ def main(argv: list[str] | None = None) -> int:
                          f"{np.percentile([r[n] for r in sub], 90):.2f}/"
                          f"{np.max([r[n] for r in sub]):.2f}" for n in names)
         print(f"({p}) median/p90/worst {cells}")
-    if args.out:
-        with open(args.out, "w") as fh:
-            json.dump(rows, fh, indent=1)
-    print(f"{time.perf_counter() - t0:.0f} s")
-    return 0
+    return finish(rows, args.out, t0)
 
 
 if __name__ == "__main__":
