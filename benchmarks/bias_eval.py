@@ -77,13 +77,9 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path,
     wt, ws = bias_windows(logs[0], 100.0), bias_windows(logs[1], 100.0)
     assert model is not None and wt is not None and ws is not None
 
-    def window_mean(x: np.ndarray, w) -> np.ndarray:  # noqa: ANN001
-        c = np.concatenate([[0.0], np.cumsum(x)])
-        return (c[w.stop] - c[w.start]) / (w.stop - w.start)
-
-    true = window_mean(truth[1], ws)
+    true = ws.mean_of(truth[1])
     per_sample = model.predict(logs[1])
-    pred = window_mean(per_sample, ws)
+    pred = ws.mean_of(per_sample)
     iv = bias_interval(model.family, logs[1], per_sample)
     assert iv is not None
     lo_iv, hi_iv = iv["rms_interval_dph"]

@@ -12,6 +12,12 @@ kernel) predicts the test log's SF error. Scored against the generator's truth, 
   sf_target_ppm max(3 ppm, 2 % of the true SF error's std there): the issue's target
   bias_err_dph  per +/- pair of the test log (`pairs.find_pairs`): measured bias minus the
                 true bias at the pair's centre; median |err| and the largest |err|
+  bias_model    the trained bias head per test pair: std(predicted - true) against
+                max(0.1 deg/h, 5 % of the true bias' std), beside a PX4-style cubic in board
+                temperature fitted to the training log's pairs
+
+Every gyro has its own thermal bias from the population (a Shupe term, a quadratic and a
+cubic on its coil).
 
 Gyros: evaluation seeds 20000-29999 by default (`--seeds dev` for 0-9999, to tune on).
 
@@ -34,9 +40,29 @@ SEED_BASE = {"dev": 0, "eval": 20000}
 SF_FLOOR_PPM = 3.0
 SF_SHARE = 0.02
 BIAS_TARGET_DPH = 0.1
+BIAS_SHARE = 0.05
 
 
-def score_axis(model_dir: Path, test_path: Path, axis: str, truth, model: str) -> dict:  # noqa: ANN001 - rigs.Truth
+def score_bias(train_log, log, bias_dph: np.ndarray, truth) -> dict:  # noqa: ANN001
+    """The bias head on the test log: per test window (a +/- pair), std(predicted - true)
+    against max(0.1 deg/h, 5 % of the true bias' std), beside a PX4-style cubic in board
+    temperature fitted to the training log's windows."""
+    from fogsf.trainer.logs.bias import bias_windows
+
+    wt, ws = bias_windows(train_log), bias_windows(log)
+    if wt is None or ws is None:
+        return {}
+    true = ws.mean_of(truth.bias_dph)
+    err = float(np.std(ws.mean_of(bias_dph) - true))
+    cubic = np.polyval(np.polyfit(wt.temp_c, wt.bias_dph, 3), ws.temp_c)
+    target = max(BIAS_TARGET_DPH, BIAS_SHARE * float(np.std(true)))
+    return {"bias_model_err_std_dph": err, "bias_true_std_dph": float(np.std(true)),
+            "bias_model_target_dph": target, "bias_model_meets": bool(err <= target),
+            "bias_px4_cubic_err_std_dph": float(np.std(cubic - true))}
+
+
+def score_axis(model_dir: Path, train_path: Path, test_path: Path, axis: str, truth,  # noqa: ANN001 - rigs.Truth
+               model: str) -> dict:
     """The trained model of one axis on its test log, against the truth."""
     from fogsf.trainer.logs.dialect import Dialect
     from fogsf.trainer.logs.logio import read_log
@@ -46,7 +72,8 @@ def score_axis(model_dir: Path, test_path: Path, axis: str, truth, model: str) -
 
     log = read_log(test_path, Dialect(axis=axis or None))
     sm = StreamModel.load(model_dir).at_rate(log.sample_dt_s)
-    pred = replay(sm, log.temp_c, log.gyro_dps).sf_ppm.astype(np.float64)
+    out_steps = replay(sm, log.temp_c, log.gyro_dps)
+    pred = out_steps.sf_ppm.astype(np.float64)
     m = truth.measures & log.measures
     diff = pred[m] - truth.sf_ppm[m]
     true_std = float(np.std(truth.sf_ppm[m]))
@@ -61,6 +88,9 @@ def score_axis(model_dir: Path, test_path: Path, axis: str, truth, model: str) -
         out.update(pairs=len(pairs), bias_err_median_dph=float(np.median(np.abs(err))),
                    bias_err_max_dph=float(np.max(np.abs(err))),
                    bias_within_target=float(np.mean(np.abs(err) <= BIAS_TARGET_DPH)))
+    if sm.bias_head and out_steps.bias_dph is not None:
+        out.update(score_bias(read_log(train_path, Dialect(axis=axis or None)), log,
+                              out_steps.bias_dph.astype(np.float64), truth))
     return out
 
 
@@ -87,7 +117,7 @@ def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> 
     took = time.perf_counter() - t0
     rows = []
     for a in axes or [""]:
-        row = score_axis(out_dir / a if a else out_dir, test.path, a, test.truth[a],
+        row = score_axis(out_dir / a if a else out_dir, train.path, test.path, a, test.truth[a],
                          model or "default")
         row.update(case=name, gyro=gyro, train_s=took)
         rows.append(row)
@@ -130,6 +160,10 @@ def main(argv: list[str] | None = None) -> int:
                     bias = (f"bias |err| median {row['bias_err_median_dph']:.3f} max "
                             f"{row['bias_err_max_dph']:.3f} deg/h ({row['pairs']} pairs)"
                             if "pairs" in row else "no pairs")
+                    if "bias_model_err_std_dph" in row:
+                        bias += (f"; bias model {row['bias_model_err_std_dph']:.3f} deg/h "
+                                 f"(target {row['bias_model_target_dph']:.2f}, PX4 cubic "
+                                 f"{row['bias_px4_cubic_err_std_dph']:.3f})")
                     ok = "ok" if row["sf_std_ppm"] <= row["sf_target_ppm"] else "MISS"
                     print(f"{name:18s} gyro {gyro} axis {row['axis']}: std(pred - true) "
                           f"{row['sf_std_ppm']:6.2f} ppm (target {row['sf_target_ppm']:.2f}, "
@@ -137,6 +171,12 @@ def main(argv: list[str] | None = None) -> int:
     met = sum(r.get("sf_std_ppm", np.inf) <= r.get("sf_target_ppm", 0.0) for r in rows)
     print(f"SF target met on {met} of {len(rows)} axes ({args.seeds} gyros from {base}; "
           f"{sum('failed' in r for r in rows)} runs failed)")
+    scored = [r for r in rows if "bias_model_meets" in r]
+    if scored:
+        print(f"bias model target met on {sum(r['bias_model_meets'] for r in scored)} of "
+              f"{len(scored)} axes; median std(pred - true) "
+              f"{np.median([r['bias_model_err_std_dph'] for r in scored]):.3f} deg/h, PX4 "
+              f"cubic {np.median([r['bias_px4_cubic_err_std_dph'] for r in scored]):.3f}")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"seeds": args.seeds, "first_gyro": base, "rows": rows},

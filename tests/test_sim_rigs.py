@@ -373,10 +373,28 @@ def test_bench_cases_write_train_and_test(tmp_path: Path) -> None:
     ({"stalls_per_h": 1e9}, "stalls_per_h"), ({"stall_share": (0.5, 1.5)}, "stall_share"),
     ({"temp_lsb_c": float("nan")}, "temp_lsb_c"), ({"schedule": []}, "schedule"),
     ({"schedule": [rigs.Step(10.0, 0.0)]}, "dwell_s"), ({"latitude_deg": 95.0}, "latitude"),
+    ({"thermal_bias": True}, "thermal_bias"),
 ])
 def test_bad_protocols_refused(change: dict[str, object], word: str) -> None:
     with pytest.raises(UserError, match=word):
         rigs.run_rig(replace(small_reversals(), **change))
+
+
+def test_thermal_bias_is_each_gyros_own() -> None:
+    """thermal_bias: each gyro's bias law from the population (its coil, a Shupe term, a
+    quadratic, a cubic); the bench cases use it."""
+    from fogsf.trainer.sim.population import gyro_for_seed
+
+    p = small_reversals(bias=None, thermal_bias=True)
+    run = rigs.run_rig(p, gyro_seed=20003, seed=1)
+    law = gyro_for_seed(20003, thermal_bias=True).bias
+    assert law.shupe_dph_per_c_per_min != 0.0 and law.node.startswith("coil")
+    assert run.axes[""].result.config.bias == law
+    plain = rigs.run_rig(small_reversals(bias=None), gyro_seed=20003, seed=1)
+    assert plain.axes[""].result.config.bias == gyro_for_seed(20003).bias
+    assert not np.allclose(run.truth("").bias_dph, plain.truth("").bias_dph)
+    for case in rig_logs.bench_cases().values():
+        assert case.train.thermal_bias and case.test.thermal_bias and case.train.bias is None
 
 
 def test_bad_chambers_refused() -> None:
@@ -404,3 +422,25 @@ def test_stamp_jitter(tmp_path: Path) -> None:
     assert log.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
     with pytest.raises(UserError, match="stamp_jitter_s"):
         rigs.run_rig(replace(p, stamp_jitter_s=0.001))
+
+
+def test_bench_rigs_scores_the_bias_head_against_the_truth(tmp_path: Path) -> None:
+    """`make bench-rigs`' bias score: per test pair, std(predicted - true) against max(0.1 deg/h,
+    5 % of the true bias' std) beside a cubic in T fitted to the training pairs; a perfect
+    prediction scores 0, no prediction scores the true bias' own std."""
+    from benchmarks.rigs import score_bias
+
+    case = rig_logs.bench_cases()["plain-reversals"]
+    short = rigs.loop(-10.0, 20.0, 2.0, 2.0, 300.0)
+    case = replace(case, train=replace(case.train, chamber=short),
+                   test=replace(case.test, chamber=short))
+    train, test = rig_logs.write_case(tmp_path, case, (20003,), seed=3)
+    logs = [read_log(r.path) for r in (train, test)]
+    truth = test.truth[""]
+    exact = score_bias(logs[0], logs[1], truth.bias_dph, truth)
+    assert exact["bias_model_err_std_dph"] < 1e-9 and exact["bias_model_meets"]
+    none = score_bias(logs[0], logs[1], np.zeros_like(truth.bias_dph), truth)
+    assert none["bias_model_err_std_dph"] == pytest.approx(none["bias_true_std_dph"])
+    assert none["bias_true_std_dph"] > 0.1  # the population's thermal bias moves
+    assert none["bias_model_target_dph"] == max(0.1, 0.05 * none["bias_true_std_dph"])
+    assert 0.0 < none["bias_px4_cubic_err_std_dph"] < none["bias_true_std_dph"]

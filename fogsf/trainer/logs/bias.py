@@ -55,6 +55,14 @@ class BiasWindows:
         """The model step whose held output covers each window's middle sample."""
         return ((self.start + self.stop - 1) // 2) // decimation
 
+    def mean_of(self, x: np.ndarray) -> np.ndarray:
+        """Each window's mean of a per-sample series (in memory or on disk), float64."""
+        if is_lazy(x):  # on disk: the running sum at the windows' ends only
+            at = cumsum_at(x, np.concatenate([self.start, self.stop]))
+            return (at[len(self):] - at[:len(self)]) / (self.stop - self.start)
+        c = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=np.float64))])
+        return (c[self.stop] - c[self.start]) / (self.stop - self.start)
+
     def drift_dph_per_c(self) -> float | None:
         """Slope of the bias over board temperature; None under 1 C of span or 3 windows."""
         if len(self) < 3 or np.ptp(self.temp_c) < 1.0:
@@ -174,13 +182,7 @@ def bias_metrics(err_dph: np.ndarray, noise_floor_dph: float) -> dict[str, float
 def before_after(w: BiasWindows, predicted_dph: np.ndarray) -> dict:
     """Before (the measured bias, nothing taken off) and after (measured - predicted, the
     per-sample prediction averaged over each window's samples) over the bias windows."""
-    if is_lazy(predicted_dph):  # on disk: the running sum at the windows' ends only
-        ends = np.concatenate([w.start, w.stop])
-        at = cumsum_at(predicted_dph, ends)
-        p = (at[len(w):] - at[:len(w)]) / (w.stop - w.start)
-    else:
-        c = np.concatenate([[0.0], np.cumsum(np.asarray(predicted_dph, dtype=np.float64))])
-        p = (c[w.stop] - c[w.start]) / (w.stop - w.start)
+    p = w.mean_of(predicted_dph)
     return {"source": w.source, "windows": len(w),
             "before": bias_metrics(w.bias_dph, w.noise_floor_dph),
             "after": bias_metrics(w.bias_dph - p, w.noise_floor_dph)}

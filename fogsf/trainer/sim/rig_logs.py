@@ -284,15 +284,18 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
     reversals in the ROS convention with stalls and a quiet gyro (QUIET_ARW: the population's
     0.03-0.08 deg/sqrt(h) alone puts 0.16-0.44 deg/h (1 sigma) on a 60 s + 60 s pair).
     thermometer-1c / -0.25c: the plain reversals with a thermometer of 1 C / 0.25 C steps.
+    Every gyro has its own thermal bias from the population (`thermal_bias`: its coil, a
+    Shupe term, a quadratic and a cubic).
     """
     up = loop(-20.0, 50.0, 1.0, 0.7)
     down = loop(-20.0, 50.0, 0.8, 0.9)
     steps = staircase()
     hold = 2 * schedule_s(steps)
+    own: dict[str, Any] = {"bias": None, "thermal_bias": True}
     stairs = staircase_protocol(chamber=bang_bang(hold_s=hold), rate_hz=rate_hz,
-                                stalls_per_h=6.0, stamp_jitter_s=0.02 / rate_hz)
+                                stalls_per_h=6.0, stamp_jitter_s=0.02 / rate_hz, **own)
     stairs_test = replace(stairs, chamber=bang_bang((-10.0, 10.0, 30.0, 50.0), hold_s=hold))
-    rev, rev_test = (reversal_protocol(chamber=c, rate_hz=rate_hz) for c in (up, down))
+    rev, rev_test = (reversal_protocol(chamber=c, rate_hz=rate_hz, **own) for c in (up, down))
     ros_quiet: dict[str, Any] = {"arw_deg_per_sqrt_h": QUIET_ARW, "stalls_per_h": 6.0,
                                  "stamp_jitter_s": 0.02 / rate_hz}
     cases = {

@@ -234,7 +234,9 @@ class RigProtocol:
     accel_dps2: the table's acceleration (0: at each command at once); stalls_per_h:
     stalls an hour, each stall_s long, the table at stall_share of the command;
     temp_lsb_c: the thermometer's step (1, 0.25 or 0.0625 C); bias: the gyros' bias law
-    (None: each gyro's own, from the population); arw_deg_per_sqrt_h: the gyros' angle
+    (None: each gyro's own, from the population); thermal_bias: with bias None, each gyro's
+    own thermal bias from the population (its coil, a Shupe term, a quadratic and a cubic:
+    `population.with_thermal_bias`); arw_deg_per_sqrt_h: the gyros' angle
     random walk (None: each gyro's own; 0.05 deg/sqrt(h) is 0.27 deg/h on the mean of a
     +/- pair of 60 s plateaus); effects: the simulator's optional effects on every gyro
     (e.g. rate_nonlinearity, asymmetry: they see the rate the axis actually turns at);
@@ -254,6 +256,7 @@ class RigProtocol:
     temp_lsb_c: float = 0.0625
     latitude_deg: float = LATITUDE_DEG
     bias: BiasConfig | None = None
+    thermal_bias: bool = False
     arw_deg_per_sqrt_h: float | None = None
     effects: list[EffectConfig] = field(default_factory=list)
     rotating_earth: bool = False
@@ -376,7 +379,7 @@ def _axis_config(p: RigProtocol, gyro_seed: int, noise_seed: int) -> SimConfig:
                     latitude_deg=p.latitude_deg)
     run.profile = ProfileConfig(kind="program", points=p.chamber.points)
     run.table = TableConfig(kind="constant", rate_dps=1.0)  # unused: the actual rate is given
-    cfg = with_gyro(run, gyro_for_seed(gyro_seed))
+    cfg = with_gyro(run, gyro_for_seed(gyro_seed, thermal_bias=p.thermal_bias))
     cfg.noise.temp_lsb_c = p.temp_lsb_c
     if p.bias is not None:
         cfg.bias = replace(p.bias)
@@ -416,6 +419,8 @@ def check_protocol(p: RigProtocol) -> None:
         (all(math.isfinite(s.rate_dps) and math.isfinite(s.dwell_s) and s.dwell_s > 0
              for s in p.schedule), "schedule: every rate must be finite, every dwell_s > 0"),
         (len(p.chamber.points) >= 2, "chamber: at least two (time_s, temp_c) points"),
+        (p.bias is None or not p.thermal_bias,
+         "thermal_bias draws each gyro's own bias: give bias=None with it"),
     ]
     for ok, message in rules:
         if not ok:
