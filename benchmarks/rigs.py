@@ -43,13 +43,15 @@ BIAS_TARGET_DPH = 0.1
 BIAS_SHARE = 0.05
 
 
-def score_bias(train_log, log, bias_dph: np.ndarray, truth) -> dict:  # noqa: ANN001
+def score_bias(train_log, log, bias_dph: np.ndarray, truth,  # noqa: ANN001
+               sf_train: np.ndarray | None = None, sf_test: np.ndarray | None = None) -> dict:
     """The bias head on the test log: per test window (a +/- pair), std(predicted - true)
     against max(0.1 deg/h, 5 % of the true bias' std), beside a PX4-style cubic in board
-    temperature fitted to the training log's windows."""
+    temperature fitted to the training log's windows (the pairs measured as `train` measures
+    them: the SF model's prediction `sf_train`, `sf_test` taken off their plateaus)."""
     from fogsf.trainer.logs.bias import bias_windows
 
-    wt, ws = bias_windows(train_log), bias_windows(log)
+    wt, ws = bias_windows(train_log, sf_ppm=sf_train), bias_windows(log, sf_ppm=sf_test)
     if wt is None or ws is None:
         return {}
     true = ws.mean_of(truth.bias_dph)
@@ -89,8 +91,10 @@ def score_axis(model_dir: Path, train_path: Path, test_path: Path, axis: str, tr
                    bias_err_max_dph=float(np.max(np.abs(err))),
                    bias_within_target=float(np.mean(np.abs(err) <= BIAS_TARGET_DPH)))
     if sm.bias_head and out_steps.bias_dph is not None:
-        out.update(score_bias(read_log(train_path, Dialect(axis=axis or None)), log,
-                              out_steps.bias_dph.astype(np.float64), truth))
+        train_log = read_log(train_path, Dialect(axis=axis or None))
+        sf_train = replay(sm, train_log.temp_c, train_log.gyro_dps).sf_ppm.astype(np.float64)
+        out.update(score_bias(train_log, log, out_steps.bias_dph.astype(np.float64), truth,
+                              sf_train, pred))
     return out
 
 

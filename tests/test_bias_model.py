@@ -374,8 +374,12 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
         return float(np.std([pred[a:b].mean() - truth[a:b].mean()
                              for a, b in zip(ws.start, ws.stop, strict=True)]))
 
-    lead = fit_bias(fm, [train])
-    shared = fit_bias(fm, [train], candidates=("cubic", "shupe", "node", "shupe2", "bank"))
+    def sf_of(lg: ChamberLog) -> np.ndarray:  # `train` takes the SF model's off the pairs
+        return reference.replay(alone, lg.temp_c, lg.gyro_dps).sf_ppm.astype(np.float64)
+
+    lead = fit_bias(fm, [train], sf_of=sf_of)
+    shared = fit_bias(fm, [train], candidates=("cubic", "shupe", "node", "shupe2", "bank"),
+                      sf_of=sf_of)
     assert lead is not None and shared is not None and lead.choice.name == "lead"
     assert np.max(np.abs(lead.predict(test) - wide.bias_dph)) < 1e-3
     e_lead, e_shared = err(lead.predict(test)), err(shared.predict(test))
@@ -394,3 +398,34 @@ def test_the_choice_message_says_why_lead_was_taken() -> None:
     flat = {"cubic": 0.101, "shupe": 0.100, "node": 0.099, "lead": 0.1, "bank": 0.12}
     msg = choice_message(BiasChoice("cubic", flat, 5, ()).as_dict())
     assert "the smallest within 10 % of the best" in msg and "misses" not in msg
+
+
+def test_train_takes_the_sf_models_prediction_off_a_staircases_pairs(tmp_path: Path) -> None:
+    """A rate staircase through a ramp: the SF (linear in T here) moves between the two
+    plateaus of each pair, and a staircase pair has no neighbour at its own rate to cancel
+    it, so the pairs alone read up to ~0.5 deg/h of it as bias. `train` takes the SF model's
+    prediction off the plateaus first: the constant bias it then measures (metrics.json,
+    before) is flat, and the bias model has little to model."""
+    from fogsf.trainer.logs.pairs import find_pairs
+
+    dt, per = 0.1, 160
+    stair = [s * 4.0 * k for k in range(1, 26) for s in (1.0, -1.0)]
+    cmd = np.repeat(stair * 6, per)
+    n = cmd.size
+    t = np.arange(n) * dt
+    temp = 0.0 + 40.0 * np.abs(((t / (n * dt)) * 2.0) % 2.0 - 1.0)  # 0 -> 40 -> 0 C, 1 C/min
+    temp = 40.0 - temp
+    sf = 150.0 + 10.0 * (temp - 20.0)  # ppm: 10 ppm/C x 1 C/min is 2.7 ppm in 16 s
+    rng = np.random.default_rng(5)
+    gyro = (cmd * (1 + sf * 1e-6) + 1.0 / 3600.0 + EARTH_DPS
+            + rng.normal(0.0, 1e-5, n))
+    log = ChamberLog(t, temp, cmd, gyro, np.full(n, EARTH_DPS))
+    path = tmp_path / "stair.csv"
+    write_log(path, log)
+    pp = find_pairs(log)
+    assert pp is not None and np.std(pp.bias_dps * 3600.0) > 0.1  # the drift, read as bias
+    assert cli.main(["train", "--train", str(path), "--out", str(tmp_path / "m")]) == 0
+    m = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    before = m["bias"]["train"]["log0"]["before"]
+    assert before["std_dph"] < 0.03, before
+    assert abs(m["bias"]["model"]["intercept_dph"]) < 5.0

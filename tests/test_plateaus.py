@@ -130,6 +130,39 @@ def test_staircase_with_a_slewing_table_needs_the_settle_margin() -> None:
     assert np.max(np.abs((raw.sf_ratio - 1.0) * 1e6 - want0)) > 1000.0
 
 
+def test_the_sf_series_taken_off_a_staircases_pairs() -> None:
+    """A staircase pair has no neighbour at its own rate, so an SF drifting between its two
+    plateaus reads as bias (r/2 x the drift); `minus_sf` with that SF series takes it off,
+    and an SF series constant in time leaves every pair's bias as it was."""
+    dt, per = 0.1, 160
+    cmd = np.repeat([s * 4.0 * k for k in range(1, 26) for s in (1.0, -1.0)], per)
+    n = cmd.size
+    t = np.arange(n) * dt
+    sf = 150.0 + 20.0 * np.sin(2 * np.pi * t / 1800.0)  # ppm: up to 0.07 ppm/s
+    bias_dph = 1.0
+    gyro = cmd * (1 + sf * 1e-6) + bias_dph / 3600.0 + EARTH_DPS
+    log = ChamberLog(t, np.full(n, 20.0), cmd, gyro, np.full(n, EARTH_DPS))
+    pp = find_pairs(log)
+    assert pp is not None and len(pp) == 25
+    raw = pp.bias_dps * 3600.0 - bias_dph
+    assert np.max(np.abs(raw)) > 0.1  # 0.07 ppm/s x 16 s x 100 deg/s / 2: 0.2 deg/h
+    fixed = pp.minus_sf(sf).bias_dps * 3600.0 - bias_dph
+    assert np.max(np.abs(fixed)) < 1e-6
+    same = pp.minus_sf(np.full(n, 123.0)).bias_dps
+    np.testing.assert_allclose(same, pp.bias_dps, rtol=0, atol=1e-12)
+    # reversals at one rate: the neighbours already cancel a drift that is linear in time
+    rev = np.repeat([s * 100.0 for _ in range(20) for s in (1.0, -1.0)], per)
+    tr = np.arange(rev.size) * dt
+    drift = 150.0 + 0.01 * tr
+    lg = ChamberLog(tr, np.full(rev.size, 20.0), rev, rev * (1 + drift * 1e-6)
+                    + bias_dph / 3600.0 + EARTH_DPS, np.full(rev.size, EARTH_DPS))
+    pr = find_pairs(lg)
+    assert pr is not None
+    inner = slice(1, -1)  # the first and last pairs have one neighbour
+    np.testing.assert_allclose(pr.bias_dps[inner] * 3600.0, bias_dph, atol=1e-6)
+    np.testing.assert_allclose(pr.minus_sf(drift).bias_dps * 3600.0, bias_dph, atol=1e-6)
+
+
 def test_staircase_at_bang_bang_set_points() -> None:
     """The staircase at four heater set points (-20, 10, 40, 70 C) held bang-bang (+/-0.5 C,
     2 min), the table at rest on the 30 min ramps between them; SF 150 + 5 (T - 20) + 0.05

@@ -171,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
         print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
-    bias_block = replay_bias(model, log, bias, args) if model.bias_head else None
+    bias_block = replay_bias(model, log, bias, sf, args) if model.bias_head else None
     args.axis_result = {"model_id": model.model_id, "out": args.out, "before": before,
                         "after": after, "flags": counts, "bias": bias_block}
     if args.json:
@@ -194,13 +194,15 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def replay_bias(model, log, bias: np.ndarray,  # noqa: ANN001 - StreamModel, ChamberLog
+def replay_bias(model, log, bias: np.ndarray, sf,  # noqa: ANN001 - StreamModel, ChamberLog, Column
                 args: argparse.Namespace) -> dict | None:
-    """The bias before/after (deg/h) over the log's bias windows, printed; None when the log
-    measures no bias."""
+    """The bias before/after (deg/h) over the log's bias windows (the replayed SF taken off
+    the pairs' plateaus, as `train` measures them), printed; None when the log measures no
+    bias."""
     from fogsf.trainer.logs.bias import before_after, bias_windows
 
-    w = bias_windows(log, args.window_s, args.latitude_deg, args.settle_s, args.skip_s)
+    w = bias_windows(log, args.window_s, args.latitude_deg, args.settle_s, args.skip_s,
+                     sf_ppm=sf)
     if w is None:
         print("bias: the log measures no bias (no +/- pairs, the table turning)")
         return None

@@ -20,7 +20,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
-from fogsf.trainer.logs.columns import cumsum_at, is_lazy, searchsorted
+from fogsf.trainer.logs.columns import Column, searchsorted, span_means
 from fogsf.trainer.logs.metrics import (
     MIN_SUB_WINDOWS,
     SUB_WINDOWS,
@@ -57,11 +57,7 @@ class BiasWindows:
 
     def mean_of(self, x: np.ndarray) -> np.ndarray:
         """Each window's mean of a per-sample series (in memory or on disk), float64."""
-        if is_lazy(x):  # on disk: the running sum at the windows' ends only
-            at = cumsum_at(x, np.concatenate([self.start, self.stop]))
-            return (at[len(self):] - at[:len(self)]) / (self.stop - self.start)
-        c = np.concatenate([[0.0], np.cumsum(np.asarray(x, dtype=np.float64))])
-        return (c[self.stop] - c[self.start]) / (self.stop - self.start)
+        return span_means(x, self.start, self.stop)
 
     def drift_dph_per_c(self) -> float | None:
         """Slope of the bias over board temperature; None under 1 C of span or 3 windows."""
@@ -115,15 +111,19 @@ BLOCK_WINDOWS_SAMPLES = 1 << 18  # stationary windows are measured about this ma
 
 
 def pair_windows(log: ChamberLog, latitude_deg: float | None = None,
-                 settle_s: float = SETTLE_S) -> BiasWindows | None:
-    """The +/- pairs' bias (`find_pairs`) as windows; None without pairs. A pair's window is
-    its centre +/- one plateau; the noise floor is the spread of second differences of
-    successive pairs' bias (a linear drift cancels, what is left is noise, an upper bound
-    where the bias curves fast), scaled to one pair's noise by `second_difference_ratio`
+                 settle_s: float = SETTLE_S, sf_ppm: Column | None = None
+                 ) -> BiasWindows | None:
+    """The +/- pairs' bias (`find_pairs`; with `sf_ppm`, an SF series per sample such as the
+    SF model's prediction, `PlateauPairs.minus_sf`) as windows; None without pairs. A
+    pair's window is its centre +/- one plateau; the noise floor is the spread of second
+    differences of successive pairs' bias (a linear drift cancels, what is left is noise, an
+    upper bound where the bias curves fast), scaled to one pair's noise by `second_difference_ratio`
     (successive pairs share plateaus, so their noise is correlated)."""
     pp = find_pairs(log, latitude_deg, settle_s)
     if pp is None:
         return None
+    if sf_ppm is not None:
+        pp = pp.minus_sf(sf_ppm)
     centre = np.clip([searchsorted(log.time_s, float(x)) for x in pp.t_s], 0, len(log) - 1)
     span_s = float(np.median(np.diff(pp.t_s))) if len(pp) > 1 else 0.0
     half = max(1, int(round(0.5 * span_s / log.sample_dt_s)))
@@ -157,12 +157,14 @@ def second_difference_ratio(pp: PlateauPairs) -> float:
 
 
 def bias_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | None = None,
-                 settle_s: float = SETTLE_S, skip_s: float = 0.0) -> BiasWindows | None:
-    """The bias the log measures: a stationary log's windows, else its +/- pairs; None when
-    it measures no bias (no pairs, the table turning)."""
+                 settle_s: float = SETTLE_S, skip_s: float = 0.0,
+                 sf_ppm: Column | None = None) -> BiasWindows | None:
+    """The bias the log measures: a stationary log's windows, else its +/- pairs (`sf_ppm`:
+    the SF series taken off their plateaus, `pair_windows`); None when it measures no bias
+    (no pairs, the table turning)."""
     if is_stationary(log):
         return stationary_windows(log, window_s, latitude_deg, skip_s)
-    w = pair_windows(log, latitude_deg, settle_s)
+    w = pair_windows(log, latitude_deg, settle_s, sf_ppm)
     if w is not None and skip_s > 0:
         keep = w.t_s >= log.time_s[0] + skip_s
         w = BiasWindows(w.source, w.t_s[keep], w.temp_c[keep], w.bias_dph[keep],

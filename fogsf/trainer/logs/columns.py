@@ -346,6 +346,18 @@ def cumsum_at(col: Column, ends: np.ndarray) -> np.ndarray:
     return cumsum_blocks_at(blocks(col), ends)
 
 
+def span_means(col: Column, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """The mean of col over each span [start, stop) (float64; in memory or on disk, where
+    only the running sum at the spans' ends is kept)."""
+    start, stop = np.asarray(start, dtype=np.int64), np.asarray(stop, dtype=np.int64)
+    if is_lazy(col):
+        at = cumsum_at(col, np.concatenate([start, stop]))
+    else:
+        c = np.concatenate([[0.0], np.cumsum(np.asarray(col, dtype=np.float64))])
+        at = c[np.concatenate([start, stop])]
+    return (at[start.size:] - at[:start.size]) / (stop - start)
+
+
 def cumsum_blocks_at(parts: Iterable[tuple[int, np.ndarray]], ends: np.ndarray
                      ) -> np.ndarray:
     """`cumsum_at` of the series given as (start, samples) blocks in order (a series made a

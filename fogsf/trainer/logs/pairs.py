@@ -4,14 +4,14 @@ step with its nonlinearity and asymmetry."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs import columns
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.columns import all_equal, derived, exact_sum, is_lazy
+from fogsf.trainer.logs.columns import all_equal, derived, exact_sum, is_lazy, span_means
 from fogsf.trainer.logs.plateaus import (
     BLOCK_SAMPLES,
     DPS_TO_DPH,
@@ -38,9 +38,27 @@ class PlateauPairs:
     # weights), and every plateau's sample count (what its mean's noise goes as 1/n of)
     bias_weights: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     plateau_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # every plateau's settled samples [start, stop) and its commanded rate (deg/s)
+    plateau_span: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    plateau_rate: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
+
+    def minus_sf(self, sf_ppm: np.ndarray) -> PlateauPairs:
+        """The pairs with an SF series (ppm per sample, e.g. the SF model's prediction) taken
+        off every plateau's mean before the fit: the bias the pair's fit gives then, which
+        is free of the SF moving between its plateaus as far as the series follows it.
+        The fit is linear in the plateau means and blind to an SF constant over a group (its
+        bias weights sum to zero against the rates), so this is bias - sum_j g_j r_j s_j.
+        A staircase pair has no neighbour at its own rate to cancel that drift: 1 ppm
+        between 16 s plateaus at 100 deg/s is 0.18 deg/h of bias."""
+        if not len(self):
+            return self
+        s = span_means(sf_ppm, self.plateau_span[:, 0], self.plateau_span[:, 1]) * 1e-6
+        rs = self.plateau_rate * s
+        shift = np.array([float(np.dot(g, rs[idx])) for idx, g in self.bias_weights])
+        return replace(self, bias_dps=self.bias_dps - shift)
 
     def bias_drift_dph_per_c(self) -> float | None:
         """Slope of the pairs' bias over their board temperature (deg/h per C); None when
@@ -172,7 +190,9 @@ def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
     a = np.asarray(out)
     return PlateauPairs(t_s=a[:, 0], temp_c=a[:, 1], sf_ratio=a[:, 2], bias_dps=a[:, 3],
                         rate_dps=a[:, 4], bias_weights=weights,
-                        plateau_n=np.array([p.n for p in pl], dtype=np.float64))
+                        plateau_n=np.array([p.n for p in pl], dtype=np.float64),
+                        plateau_span=np.array([[p.start, p.stop] for p in pl], np.int64),
+                        plateau_rate=np.array([p.rate for p in pl], dtype=np.float64))
 
 
 def plateau_pairs(log: ChamberLog, latitude_deg: float | None = None,

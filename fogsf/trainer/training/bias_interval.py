@@ -84,10 +84,12 @@ def _window_means(per_sample: np.ndarray, start: np.ndarray, stop: np.ndarray) -
 
 def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
                   window_s: float = 100.0, latitude_deg: float | None = None,
-                  settle_s: float = SETTLE_S) -> dict | None:
-    """The interval on `log` for the model whose per-sample prediction is `model_pred_dph`;
-    None for a log that measures no bias."""
-    w = bias_windows(log, window_s, latitude_deg, settle_s)
+                  settle_s: float = SETTLE_S, sf_ppm: np.ndarray | None = None
+                  ) -> dict | None:
+    """The interval on `log` for the model whose per-sample prediction is `model_pred_dph`
+    (`sf_ppm`: the SF model's, taken off the pairs' plateaus); None for a log that measures
+    no bias."""
+    w = bias_windows(log, window_s, latitude_deg, settle_s, sf_ppm=sf_ppm)
     if w is None:
         return None
     cols = fam.columns_of(log)

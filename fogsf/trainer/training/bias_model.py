@@ -16,6 +16,7 @@ windows; `with_bias_head` and `bias_only_stream_model` make the artifacts.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -135,12 +136,14 @@ def at_targets(x: np.ndarray, kernel: np.ndarray | None) -> np.ndarray:
 
 def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 100.0,
              latitude_deg: float | None = None, settle_s: float = SETTLE_S,
-             step_s: float = MODEL_STEP_S, candidates: tuple[str, ...] | None = None
-             ) -> BiasModel | None:
+             step_s: float = MODEL_STEP_S, candidates: tuple[str, ...] | None = None,
+             sf_of: SFOf | None = None) -> BiasModel | None:
     """The bias model on the logs that measure the bias; None when none does. Its structure
     is chosen by the training targets (`bias_structure`): on `fm`'s features z when the
     bias head shares the SF model's (the node's time constant one of z's lags), on a front
-    end of its own when `fm` is None (the time constant by variable projection)."""
+    end of its own when `fm` is None (the time constant by variable projection). `sf_of`:
+    the SF model's per-sample prediction of a log, taken off the pairs' plateaus
+    (`measured_windows`)."""
     from fogsf.trainer.training import bias_structure as bs
 
     fe0 = fm.fe if fm is not None else front_end_for(logs, step_s, ())
@@ -148,7 +151,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
     kernels: list[np.ndarray | None] = []
     base = group_base = 0
     for lg in logs:
-        w = bias_windows(lg, window_s, latitude_deg, settle_s)
+        w = measured_windows(lg, window_s, latitude_deg, settle_s, sf_of)
         fe = fe0.at_rate(lg.sample_dt_s)
         kernels.append(target_kernel(w, fe.step_s))
         # frontend(...).s, a block of samples at a time, averaged as the targets are
@@ -369,27 +372,41 @@ def node_feature_map(logs: list[ChamberLog], step_s: float,
                       1 + len(taus_s))
 
 
+SFOf = Callable[[ChamberLog], Any]  # a log -> the SF model's prediction, ppm per sample
+
+
+def measured_windows(log: ChamberLog, window_s: float, latitude_deg: float | None,
+                     settle_s: float, sf_of: SFOf | None = None) -> BiasWindows | None:
+    """The bias windows a log measures (`logs.bias.bias_windows`); with `sf_of`, the SF
+    model's prediction taken off the pairs' plateaus first (`PlateauPairs.minus_sf`: the SF
+    drifting between a staircase pair's two plateaus would read as bias)."""
+    sf = None if sf_of is None or is_stationary(log) else sf_of(log)
+    return bias_windows(log, window_s, latitude_deg, settle_s, sf_ppm=sf)
+
+
 def score_bias(model: BiasModel, log: ChamberLog, window_s: float = 100.0,
-               latitude_deg: float | None = None, settle_s: float = SETTLE_S
-               ) -> dict | None:
+               latitude_deg: float | None = None, settle_s: float = SETTLE_S,
+               sf_of: SFOf | None = None) -> dict | None:
     """Before (the measured bias, nothing taken off) and after (measured - predicted, the
     prediction averaged over each window's samples) over the log's bias windows, deg/h;
     None for a log that measures no bias."""
-    w = bias_windows(log, window_s, latitude_deg, settle_s)
+    w = measured_windows(log, window_s, latitude_deg, settle_s, sf_of)
     return None if w is None else before_after(w, model.predict(log))
 
 
 def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: ChamberLog | None,
-               window_s: float, latitude_deg: float | None, settle_s: float) -> dict:
+               window_s: float, latitude_deg: float | None, settle_s: float,
+               sf_of: SFOf | None = None) -> dict:
     """metrics.json's "bias" block: the fit, then test and train scores (one per log)."""
     out: dict = {"model": model.as_dict()}
     if test_log is not None:
-        out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s)
+        out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s, sf_of)
         if out["test"] is not None and model.family is not None:
+            sf = None if sf_of is None or is_stationary(test_log) else sf_of(test_log)
             out["rate_transfer"] = bias_interval(model.family, test_log,
                                                  model.predict(test_log), window_s,
-                                                 latitude_deg, settle_s)
-    out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s)
+                                                 latitude_deg, settle_s, sf)
+    out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s, sf_of)
                     for i, lg in enumerate(train_logs)}
     return out
 

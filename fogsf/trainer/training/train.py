@@ -487,8 +487,11 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     fitted = fit_model(opts, train_logs)
     shared = (None if fitted.stream_model is None else  # the bias head reads the SF's z
               bm.feature_map_of(fitted.stream_model, train_logs, opts.model_step_s))
+    def sf_of(log: ChamberLog) -> np.ndarray:  # the SF model's, off the pairs' plateaus
+        return per_sample_prediction(fitted, log, opts.latitude_deg)
+
     bias = bm.fit_bias(shared, train_logs, opts.window_s, opts.latitude_deg, opts.settle_s,
-                       opts.model_step_s)
+                       opts.model_step_s, sf_of=sf_of)
     if bias is not None and fitted.stream_model is not None:  # one step corrects both
         fitted.stream_model = bm.with_bias_head(fitted.stream_model, bias)
         fitted.params, fitted.weights_bytes = (fitted.stream_model.params,
@@ -515,7 +518,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
                                       for lg in train_logs]
     if bias is not None:  # the logs measure the bias: its model and before/after (deg/h)
         metrics["bias"] = bm.score_logs(bias, train_logs, test_log, opts.window_s,
-                                        opts.latitude_deg, opts.settle_s)
+                                        opts.latitude_deg, opts.settle_s, sf_of)
     if "noise_floor_ppm" not in metrics:
         first = metrics["train"] if "after" in metrics["train"] else metrics["train"]["log0"]
         metrics["noise_floor_ppm"] = first["before"]["noise_floor_ppm"]
