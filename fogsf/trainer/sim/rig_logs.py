@@ -284,6 +284,8 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
     reversals in the ROS convention with stalls and a quiet gyro (QUIET_ARW: the population's
     0.03-0.08 deg/sqrt(h) alone puts 0.16-0.44 deg/h (1 sigma) on a 60 s + 60 s pair).
     thermometer-1c / -0.25c: the plain reversals with a thermometer of 1 C / 0.25 C steps.
+    ros-stationary: the table stopped through the same loops (the autopilots' soak and
+    warm-up), a 0.25 C thermometer: the bias alone.
     Every gyro has its own thermal bias from the population (`thermal_bias`: its coil, a
     Shupe term, a quadratic and a cubic).
     """
@@ -313,6 +315,12 @@ def bench_cases(rate_hz: float = 10.0) -> dict[str, BenchCase]:
                                 "the same with the horizontal earth rate turning with the "
                                 "table"),
     }
+    still, still_test = (stationary_protocol(chamber=c, rate_hz=rate_hz, temp_lsb_c=0.25,
+                                             stamp_jitter_s=0.02 / rate_hz, **own)
+                         for c in (up, down))
+    cases["ros-stationary"] = BenchCase(
+        "ros", still, still_test, "ROS log, the table stopped through the loop (soak and "
+        "warm-up), 0.25 C thermometer: a bias-only model")
     for lsb, name in ((1.0, "1c"), (0.25, "0.25c")):
         cases[f"thermometer-{name}"] = BenchCase(
             "plain", replace(rev, temp_lsb_c=lsb), replace(rev_test, temp_lsb_c=lsb),
