@@ -41,11 +41,6 @@ FAST_S = 20.0  # the board derivative's lag (board oracle)
 BASIS = ("lin_dph_per_c", "quad_dph_per_c2", "cube_dph_per_c3", "shupe_dph_per_c_per_min")
 
 
-def _window_mean(x: np.ndarray, w) -> np.ndarray:  # noqa: ANN001
-    c = np.concatenate([[0.0], np.cumsum(x)])
-    return (c[w.stop] - c[w.start]) / (w.stop - w.start)
-
-
 def _board_regressors(log, bias: BiasConfig, gyro: int) -> np.ndarray | None:  # noqa: ANN001
     """(T_coil - ref), its square and cube, dT_coil/dt (C/min) from the logged board
     temperature and the true time constants; None where the coil is not the board's
@@ -73,7 +68,7 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path) -> dict:
         ws = bias_windows(log, 100.0)
         assert ws is not None
         br = _board_regressors(log, bias, gyro)
-        xb.append(None if br is None else np.column_stack([_window_mean(br[:, j], ws)
+        xb.append(None if br is None else np.column_stack([ws.mean_of(br[:, j])
                                                            for j in range(4)]))
         cols = []
         for term in BASIS:
@@ -82,10 +77,10 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path) -> dict:
                               "shupe_dph_per_c_per_min": 0.0, term: 1.0})
             rb = rig_logs.rig_log("plain", work / f"{gyro}-{kind}-{name}-{term}" / "log.csv",
                                   protocol(kind, loop, b), (gyro,), seed=seed)
-            cols.append(_window_mean(rb.truth[""].bias_dph, ws))
+            cols.append(ws.mean_of(rb.truth[""].bias_dph))
         x.append(np.column_stack(cols))
         y.append(ws.bias_dph)
-        true.append(_window_mean(rl.truth[""].bias_dph, ws))
+        true.append(ws.mean_of(rl.truth[""].bias_dph))
     used = [j for j, term in enumerate(BASIS) if getattr(bias, term) != 0.0]
     a = np.column_stack([np.ones(len(y[0])), x[0][:, used]])
     coef = np.linalg.lstsq(a, y[0], rcond=None)[0]

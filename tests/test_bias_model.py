@@ -426,6 +426,7 @@ def test_train_takes_the_sf_models_prediction_off_a_staircases_pairs(tmp_path: P
     assert pp is not None and np.std(pp.bias_dps * 3600.0) > 0.1  # the drift, read as bias
     assert cli.main(["train", "--train", str(path), "--out", str(tmp_path / "m")]) == 0
     m = json.loads((tmp_path / "m" / "metrics.json").read_text())
-    before = m["bias"]["train"]["log0"]["before"]
+    before, after = m["bias"]["train"]["log0"]["before"], m["bias"]["train"]["log0"]["after"]
     assert before["std_dph"] < 0.03, before
-    assert abs(m["bias"]["model"]["intercept_dph"]) < 5.0
+    assert abs(before["rms_dph"] - 1.0) < 0.03  # the constant bias, 1 deg/h
+    assert after["std_dph"] < 0.03 and after["rms_dph"] < 0.03, after  # the model fitted it

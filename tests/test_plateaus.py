@@ -150,16 +150,21 @@ def test_the_sf_series_taken_off_a_staircases_pairs() -> None:
     assert np.max(np.abs(fixed)) < 1e-6
     same = pp.minus_sf(np.full(n, 123.0)).bias_dps
     np.testing.assert_allclose(same, pp.bias_dps, rtol=0, atol=1e-12)
-    # reversals at one rate: the neighbours already cancel a drift that is linear in time
-    rev = np.repeat([s * 100.0 for _ in range(20) for s in (1.0, -1.0)], per)
+    # reversals at one rate (groups of 3 and 4 plateaus): the neighbours cancel a drift
+    # linear in time, not a faster one; minus_sf takes any drift off, also where a stall cut
+    # a plateau in two (the SF averaged over the rows the plateau's mean has)
+    rev = np.repeat([s * 100.0 for _ in range(20) for s in (1.0, -1.0)], 600)
     tr = np.arange(rev.size) * dt
-    drift = 150.0 + 0.01 * tr
+    drift = 150.0 + 20.0 * np.sin(2 * np.pi * tr / 1200.0)
+    valid = np.ones(rev.size, bool)
+    valid[6300:6330] = False  # 3 s of stall in the 11th plateau
     lg = ChamberLog(tr, np.full(rev.size, 20.0), rev, rev * (1 + drift * 1e-6)
-                    + bias_dph / 3600.0 + EARTH_DPS, np.full(rev.size, EARTH_DPS))
+                    + bias_dph / 3600.0 + EARTH_DPS, np.full(rev.size, EARTH_DPS),
+                    valid=valid)
     pr = find_pairs(lg)
-    assert pr is not None
-    inner = slice(1, -1)  # the first and last pairs have one neighbour
-    np.testing.assert_allclose(pr.bias_dps[inner] * 3600.0, bias_dph, atol=1e-6)
+    assert pr is not None and len(pr) == 20
+    assert np.unique(pr.plateau_spans[:, 2]).size < pr.plateau_spans.shape[0]  # the cut one
+    assert np.max(np.abs(pr.bias_dps * 3600.0 - bias_dph)) > 0.01
     np.testing.assert_allclose(pr.minus_sf(drift).bias_dps * 3600.0, bias_dph, atol=1e-6)
 
 

@@ -37,6 +37,7 @@ from fogsf.trainer.commands import (
     read_logs,
 )
 from fogsf.trainer.commands.axes import run_all, wants_all
+from fogsf.trainer.logs.columns import Column
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -194,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def replay_bias(model, log, bias: np.ndarray, sf,  # noqa: ANN001 - StreamModel, ChamberLog, Column
+def replay_bias(model, log, bias: np.ndarray, sf: Column,  # noqa: ANN001 - StreamModel, ChamberLog
                 args: argparse.Namespace) -> dict | None:
     """The bias before/after (deg/h) over the log's bias windows (the replayed SF taken off
     the pairs' plateaus, as `train` measures them), printed; None when the log measures no

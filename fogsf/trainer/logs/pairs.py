@@ -11,7 +11,14 @@ import numpy as np
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs import columns
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.columns import all_equal, derived, exact_sum, is_lazy, span_means
+from fogsf.trainer.logs.columns import (
+    Column,
+    all_equal,
+    derived,
+    exact_sum,
+    is_lazy,
+    span_means,
+)
 from fogsf.trainer.logs.plateaus import (
     BLOCK_SAMPLES,
     DPS_TO_DPH,
@@ -38,14 +45,15 @@ class PlateauPairs:
     # weights), and every plateau's sample count (what its mean's noise goes as 1/n of)
     bias_weights: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     plateau_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    # every plateau's settled samples [start, stop) and its commanded rate (deg/s)
-    plateau_span: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    # the [start, stop) spans each plateau's mean averages ([k, 3]: start, stop, plateau;
+    # a plateau cut by a stall has two) and every plateau's commanded rate (deg/s)
+    plateau_spans: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
     plateau_rate: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
 
-    def minus_sf(self, sf_ppm: np.ndarray) -> PlateauPairs:
+    def minus_sf(self, sf_ppm: Column) -> PlateauPairs:
         """The pairs with an SF series (ppm per sample, e.g. the SF model's prediction) taken
         off every plateau's mean before the fit: the bias the pair's fit gives then, which
         is free of the SF moving between its plateaus as far as the series follows it.
@@ -55,7 +63,11 @@ class PlateauPairs:
         between 16 s plateaus at 100 deg/s is 0.18 deg/h of bias."""
         if not len(self):
             return self
-        s = span_means(sf_ppm, self.plateau_span[:, 0], self.plateau_span[:, 1]) * 1e-6
+        sp = self.plateau_spans
+        n = (sp[:, 1] - sp[:, 0]).astype(np.float64)
+        sums = span_means(sf_ppm, sp[:, 0], sp[:, 1]) * n  # over the samples each mean has
+        k = self.plateau_rate.shape[0]
+        s = (np.bincount(sp[:, 2], sums, k) / np.bincount(sp[:, 2], n, k)) * 1e-6
         rs = self.plateau_rate * s
         shift = np.array([float(np.dot(g, rs[idx])) for idx, g in self.bias_weights])
         return replace(self, bias_dps=self.bias_dps - shift)
@@ -77,6 +89,7 @@ class _Plateau:
     t_s: float
     temp_c: float
     n: int  # samples averaged (a plateau cut by a stall: both pieces)
+    pieces: tuple[tuple[int, int], ...] = ()  # the [start, stop) spans averaged
 
 
 def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
@@ -102,11 +115,12 @@ def _plateau_means(log: ChamberLog, latitude_deg: float | None, settle_s: float
                 prev.start, b, prev.rate,
                 (prev.mean * prev.n + float(signal.sum())) / tot,
                 (prev.t_s * prev.n + float(log.time_s[a:b].sum())) / tot,
-                (prev.temp_c * prev.n + float(log.temp_c[a:b].sum())) / tot, tot)
+                (prev.temp_c * prev.n + float(log.temp_c[a:b].sum())) / tot, tot,
+                (*prev.pieces, (a, b)))
             continue
         out.append(_Plateau(a, b, float(rate.mean()), float(signal.mean()),
                             float(log.time_s[a:b].mean()), float(log.temp_c[a:b].mean()),
-                            b - a))
+                            b - a, ((a, b),)))
     return out
 
 
@@ -124,10 +138,11 @@ def _long_plateau(log: ChamberLog, earth: np.ndarray, a: int, b: int,
         tot = prev.n + b - a
         return _Plateau(prev.start, b, prev.rate, (prev.mean * prev.n + signal) / tot,
                         (prev.t_s * prev.n + total(log.time_s)) / tot,
-                        (prev.temp_c * prev.n + total(log.temp_c)) / tot, tot)
+                        (prev.temp_c * prev.n + total(log.temp_c)) / tot, tot,
+                        (*prev.pieces, (a, b)))
     n = b - a
     return _Plateau(a, b, total(log.table_rate_dps) / n, signal / n, total(log.time_s) / n,
-                    total(log.temp_c) / n, n)
+                    total(log.temp_c) / n, n, ((a, b),))
 
 
 def _is_pair(p: _Plateau, q: _Plateau) -> bool:
@@ -191,7 +206,8 @@ def find_pairs(log: ChamberLog, latitude_deg: float | None = None,
     return PlateauPairs(t_s=a[:, 0], temp_c=a[:, 1], sf_ratio=a[:, 2], bias_dps=a[:, 3],
                         rate_dps=a[:, 4], bias_weights=weights,
                         plateau_n=np.array([p.n for p in pl], dtype=np.float64),
-                        plateau_span=np.array([[p.start, p.stop] for p in pl], np.int64),
+                        plateau_spans=np.array([[a, b, j] for j, p in enumerate(pl)
+                                                for a, b in p.pieces], np.int64),
                         plateau_rate=np.array([p.rate for p in pl], dtype=np.float64))
 
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from fogsf.trainer.logs.bias import bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.columns import Column
 from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.reference import expand
 from fogsf.trainer.training.bias_structure import CandidateFit, Columns, fit_candidate
@@ -84,7 +85,7 @@ def _window_means(per_sample: np.ndarray, start: np.ndarray, stop: np.ndarray) -
 
 def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
                   window_s: float = 100.0, latitude_deg: float | None = None,
-                  settle_s: float = SETTLE_S, sf_ppm: np.ndarray | None = None
+                  settle_s: float = SETTLE_S, sf_ppm: Column | None = None
                   ) -> dict | None:
     """The interval on `log` for the model whose per-sample prediction is `model_pred_dph`
     (`sf_ppm`: the SF model's, taken off the pairs' plateaus); None for a log that measures

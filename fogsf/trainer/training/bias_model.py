@@ -25,6 +25,7 @@ import numpy as np
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.bias import BiasWindows, before_after, bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog, is_stationary
+from fogsf.trainer.logs.columns import Column
 from fogsf.trainer.logs.metrics import step_means
 from fogsf.trainer.logs.plateaus import DPS_TO_DPH, SETTLE_S
 from fogsf.trainer.models.features import MODEL_STEP_S, PHYSICAL_SCALE_C, front_end_for
@@ -372,7 +373,7 @@ def node_feature_map(logs: list[ChamberLog], step_s: float,
                       1 + len(taus_s))
 
 
-SFOf = Callable[[ChamberLog], Any]  # a log -> the SF model's prediction, ppm per sample
+SFOf = Callable[[ChamberLog], Column]  # a log -> the SF model's prediction, ppm per sample
 
 
 def measured_windows(log: ChamberLog, window_s: float, latitude_deg: float | None,

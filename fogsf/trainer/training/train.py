@@ -39,7 +39,7 @@ import numpy as np
 
 from fogsf.trainer.errors import UserError
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.columns import held
+from fogsf.trainer.logs.columns import Column, held
 from fogsf.trainer.logs.metrics import log_metrics, reference_sf_of_logs
 from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.features import (
@@ -487,8 +487,12 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     fitted = fit_model(opts, train_logs)
     shared = (None if fitted.stream_model is None else  # the bias head reads the SF's z
               bm.feature_map_of(fitted.stream_model, train_logs, opts.model_step_s))
-    def sf_of(log: ChamberLog) -> np.ndarray:  # the SF model's, off the pairs' plateaus
-        return per_sample_prediction(fitted, log, opts.latitude_deg)
+    sf_seen: dict[int, Column] = {}
+
+    def sf_of(log: ChamberLog) -> Column:  # the SF model's, off the pairs' plateaus
+        if id(log) not in sf_seen:  # once a log: the fit and the scores read it
+            sf_seen[id(log)] = per_sample_prediction(fitted, log, opts.latitude_deg)
+        return sf_seen[id(log)]
 
     bias = bm.fit_bias(shared, train_logs, opts.window_s, opts.latitude_deg, opts.settle_s,
                        opts.model_step_s, sf_of=sf_of)
