@@ -118,6 +118,29 @@ def test_train_on_stationary_logs_is_a_bias_only_model(tmp_path: Path,
     after = m["bias"]["test"]["after"]
     assert after["std_dph"] < 1.5 * after["noise_floor_dph"]
     assert m["bias"]["test"]["before"]["std_dph"] > 4.0 * after["std_dph"]
+    # the test ramps (at most 1.1 C/min) within the training's 1 C/min (+15 %)
+    rr = m["bias"]["rate_transfer"]["ramp_rates"]
+    assert rr["train_fastest_c_per_min"] == pytest.approx(1.0, rel=0.05)
+    assert not rr["rate_term_extrapolated"] and "extrapolated" not in text
+
+
+def test_train_says_when_the_test_ramps_faster_than_any_training_ramp(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A Shupe term fitted on 1 C/min ramps and tested on a 3 C/min ramp is extrapolated:
+    `train` says so, and what would pin it."""
+    fast = [(0, 15), (900, 15), (1300, 35), (2200, 35), (2600, 15), (3600, 15)]  # 3 C/min
+    for name, pts, seed in (("a.csv", TRAIN, 7), ("b.csv", fast, 8)):
+        write_log(tmp_path / name, soak_log(pts, seed)[0])
+    out = tmp_path / "m"
+    assert cli.main(["train", "--train", str(tmp_path / "a.csv"), "--test",
+                     str(tmp_path / "b.csv"), "--out", str(out)]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["bias"]["model"]["structure"]["chosen"] != "cubic"
+    rr = m["bias"]["rate_transfer"]["ramp_rates"]
+    assert rr["rate_term_extrapolated"]
+    assert rr["test_fastest_c_per_min"] > 2.0 * rr["train_fastest_c_per_min"]
+    assert "faster than any training ramp" in text and "Shupe term" in text
 
 
 def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,

@@ -130,8 +130,15 @@ class BiasInterval:
 def interval_message(d: dict) -> str:
     lo, hi = d["rms_interval_dph"]
     spread = max(d["spread_dph"].values(), default=0.0)
-    return (f"bias rate transfer: {len(d['consistent'])} of {d['candidates']} bias structures "
+    text = (f"bias rate transfer: {len(d['consistent'])} of {d['candidates']} bias structures "
             f"fit the training targets as well as the best ({', '.join(d['consistent'])}); on "
             f"the target they differ from the model by up to {spread:.3f} deg/h RMS, its "
             f"parameters are uncertain by {d['parameter_dph']:.3f}. Expected RMS bias error "
             f"on the target: {lo:.3f}-{hi:.3f} deg/h (noise floor {d['noise_floor_dph']:.3f})")
+    rr = d.get("ramp_rates") or {}
+    if rr.get("rate_term_extrapolated"):
+        text += (f". The test ramps at {rr['test_fastest_c_per_min']:.2f} C/min, faster than "
+                 f"any training ramp ({rr['train_fastest_c_per_min']:.2f}): the bias's rate "
+                 "term (a Shupe term) is extrapolated there; a training ramp as fast as the "
+                 "fastest the gyro will see pins it (docs/train.md, \"Bias\")")
+    return text

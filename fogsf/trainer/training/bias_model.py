@@ -407,9 +407,29 @@ def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: Chamber
             out["rate_transfer"] = bias_interval(model.family, test_log,
                                                  model.predict(test_log), window_s,
                                                  latitude_deg, settle_s, sf)
+            if out["rate_transfer"] is not None and model.choice is not None:
+                out["rate_transfer"]["ramp_rates"] = ramp_rate_check(
+                    train_logs, test_log, model.choice.name)
     out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s, sf_of)
                     for i, lg in enumerate(train_logs)}
     return out
+
+
+def ramp_rate_check(train_logs: list[ChamberLog], test_log: ChamberLog, structure: str
+                    ) -> dict:
+    """The fastest ramp (C/min) of the training logs and of the test log, and whether the
+    bias's rate term is extrapolated there: a structure with one (every one but the cubic)
+    and a test ramp faster than any training ramp by more than the rate tolerance. From a
+    loop at 1 up / 0.7 down C/min, a 1.5 C/min test ramp leaves 0.134 deg/h median with a
+    Shupe term (evaluation gyros 20000-20031); from 1 up / 2 down, 0.064 (docs/train.md,
+    "Bias")."""
+    from fogsf.trainer.training.transfer import RATE_TOLERANCE, ramp_rates, training_ramp_rates
+
+    fastest = max(training_ramp_rates(train_logs), default=0.0)
+    test = max(ramp_rates(test_log), default=0.0)
+    return {"train_fastest_c_per_min": fastest, "test_fastest_c_per_min": test,
+            "rate_term_extrapolated": bool(structure != "cubic"
+                                           and test > fastest * (1 + RATE_TOLERANCE))}
 
 
 def check_mixed(logs: list[ChamberLog]) -> bool:
