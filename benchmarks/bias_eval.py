@@ -5,9 +5,10 @@ For each gyro: its own bias law from the population (offset, slope), on its coil
 temperature, with a quadratic and, in the "shupe" case, a Shupe term (deg/h per C/min of the
 coil's temperature change) added. Two protocols on the same chamber loops: +/-100 deg/s
 reversals every 60 s (the bias from the pairs) and a stationary soak-and-ramp (the table
-stopped: the bias is the output minus the earth rate). Scored per test window (a pair, or
-100 s): std(predicted - true) beside std(true) and a PX4-style cubic in board temperature
-fitted to the same training windows.
+stopped: the bias is the output minus the earth rate); and the reversals again from a
+training loop that ramps down at 2 C/min, faster than the test's 1.5 ("reversals-fast").
+Scored per test window (a pair, or 100 s): std(predicted - true) beside std(true) and a
+PX4-style cubic in board temperature fitted to the same training windows.
 
   python -m benchmarks.bias_eval --gyros 20000:20032 --out out/bench-bias.json
 """
@@ -34,6 +35,9 @@ from fogsf.trainer.training.bias_model import bank_feature_map, fit_bias
 from fogsf.trainer.training.bias_structure import CANDIDATES
 
 TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)  # lo, hi C, up, down C/min, soak s
+# reversals-fast: the same reversals from a loop that ramps down faster than the test
+FAST_TRAIN_LOOP = (-10.0, 50.0, 1.0, 2.0, 1200.0)
+KINDS = ("reversals", "reversals-fast", "stationary")
 TEST_LOOP = (0.0, 40.0, 0.5, 1.5, 900.0)
 SHUPE = {"no-shupe": 0.0, "shupe": 2.0}  # deg/h per C/min
 # the population's own thermal bias (`population.with_thermal_bias`): Shupe, quadratic, cubic
@@ -56,7 +60,7 @@ def bias_law(gyro: int, shupe: float | None) -> BiasConfig:
 
 def protocol(kind: str, loop: tuple, bias: BiasConfig) -> rigs.RigProtocol:
     chamber = rigs.loop(*loop)
-    if kind == "reversals":
+    if kind.startswith("reversals"):
         return rigs.reversal_protocol(100.0, 60.0, chamber=chamber, bias=bias)
     return rigs.stationary_protocol(chamber, bias=bias)
 
@@ -65,14 +69,16 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path,
         candidates: tuple[str, ...] | None = None) -> dict:
     bias = bias_law(gyro, shupe)
     logs, truth = [], []
-    for name, loop, seed in (("train", TRAIN_LOOP, 1), ("test", TEST_LOOP, 2)):
+    train_loop = FAST_TRAIN_LOOP if kind == "reversals-fast" else TRAIN_LOOP
+    for name, loop, seed in (("train", train_loop, 1), ("test", TEST_LOOP, 2)):
         rl = rig_logs.rig_log("plain", work / f"{gyro}-{kind}-{name}" / "log.csv",
                           protocol(kind, loop, replace(bias)), (gyro,), seed=seed)
         logs.append(read_log(rl.path, with_mapping_beside(rl.path, Dialect())))
         truth.append(rl.truth[""].bias_dph)
     # reversals: the bias head on the SF model's z (the lag bank's, for a loop); stationary:
     # a bias-only model with its own front end
-    fm = bank_feature_map([logs[0]], 5.0) if kind == "reversals" else None
+    turning = kind.startswith("reversals")
+    fm = bank_feature_map([logs[0]], 5.0) if turning else None
     model = fit_bias(fm, [logs[0]], candidates=candidates)
     wt, ws = bias_windows(logs[0], 100.0), bias_windows(logs[1], 100.0)
     assert model is not None and wt is not None and ws is not None
@@ -86,8 +92,8 @@ def one(gyro: int, kind: str, shupe: float | None, work: Path,
     after_rms = before_after(ws, per_sample)["after"]["rms_dph"]
     cubic = np.polyval(np.polyfit(wt.temp_c, wt.bias_dph, 3), ws.temp_c)
     err, err_cubic = float(np.std(pred - true)), float(np.std(cubic - true))
-    rel = 0.05 if kind == "reversals" else 0.10
-    floor = 0.1 if kind == "reversals" else 0.2
+    rel = 0.05 if turning else 0.10
+    floor = 0.1 if turning else 0.2
     return {"gyro": gyro, "protocol": kind,
             "shupe_dph_per_c_per_min": bias.shupe_dph_per_c_per_min,
             "bias_node": bias.node, "windows": len(ws),
@@ -114,14 +120,14 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for gyro in range(lo, hi):
-            for kind in ("reversals", "stationary"):
+            for kind in KINDS:
                 for case in CASES:
                     shupe = SHUPE.get(case)
                     cands = tuple(args.candidates.split(",")) if args.candidates else None
                     r = one(gyro, kind, shupe, Path(tmp), cands)
                     r["case"] = case
                     rows.append(r)
-                    print(f"gyro {gyro} {kind:10s} {case:8s} true std {r['true_std_dph']:6.3f}"
+                    print(f"gyro {gyro} {kind:14s} {case:8s} true std {r['true_std_dph']:6.3f}"
                           f"  err {r['err_std_dph']:6.3f}  cubic {r['px4_cubic_err_std_dph']:6.3f}"
                           f"  floor {r['measured_noise_floor_dph']:6.3f}  target "
                           f"{r['target_dph']:5.3f} {'ok' if r['meets_target'] else 'MISS'}"
@@ -132,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
                               r['structure']['heldout_rms_dph'].items()),
                           flush=True)
     summary = {}
-    for kind in ("reversals", "stationary"):
+    for kind in KINDS:
         for case in CASES:
             sel = [r for r in rows if r["protocol"] == kind and r["case"] == case]
             e = np.array([r["err_std_dph"] for r in sel])
@@ -147,13 +153,14 @@ def main(argv: list[str] | None = None) -> int:
                                for c in CANDIDATES if any(r["structure"]["chosen"] == c
                                                           for r in sel)}}
     for k, v in summary.items():
-        print(f"{k:24s} median err {v['err_median_dph']:.3f} (max {v['err_max_dph']:.3f}) "
+        print(f"{k:29s} median err {v['err_median_dph']:.3f} (max {v['err_max_dph']:.3f}) "
               f"deg/h, PX4 cubic {v['cubic_median_dph']:.3f}; target met {v['meets_target']}/"
               f"{v['gyros']}, cubic beaten 2x {v['beats_cubic_2x']}/{v['gyros']}, interval "
               f"covers {v['interval_covers']}/{v['gyros']}; chosen "
               + ", ".join(f"{c} {n}" for c, n in v["structures"].items()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"gyros": [lo, hi], "train_loop": TRAIN_LOOP,
+                                    "fast_train_loop": FAST_TRAIN_LOOP,
                                     "test_loop": TEST_LOOP, "rows": rows,
                                     "summary": summary}, indent=2) + "\n")
     print(f"wrote {args.out}")
