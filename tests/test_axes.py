@@ -308,3 +308,33 @@ def test_a_skew_mounted_imu_reads_as_three_vertical_gyros(
         assert got[a]["ref_sf_ratio"] == pytest.approx(want[a]["ref_sf_ratio"], abs=1e-9)
         assert got[a]["metrics"]["rms_ppm"] == pytest.approx(want[a]["metrics"]["rms_ppm"],
                                                              abs=0.01)
+
+
+def test_a_stationary_imu_trains_a_bias_only_model_per_axis_titled_as_the_bias(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A skew IMU logged with the table stopped, in the rig's own columns: `--axis all`
+    trains a bias-only model per axis, and the summary is titled as the bias (no SF); replay
+    of one axis's model over its log reports the bias too."""
+    from dataclasses import replace
+
+    from fogsf.trainer.sim import rig_logs, rigs
+
+    still = rigs.stationary_protocol(chamber=rigs.loop(-10.0, 20.0, 2.0, 2.0, 300.0),
+                                     bias=None, thermal_bias=True)
+    case = rig_logs.BenchCase("imu3", still, replace(still), "stationary IMU")
+    train, test = rig_logs.write_case(tmp_path / "logs", case, (20000, 20001, 20002), 5)
+    assert fogsf("train", "--train", train.path, "--test", test.path, "--axis", "all",
+                 "--out", tmp_path / "m") == 0
+    out = capsys.readouterr().out
+    summary = out[out.index("summary, "):].splitlines()
+    assert summary[0].startswith("summary, the bias") and "SF error" not in summary[0]
+    assert summary[1].split()[:3] == ["axis", "model", "bias"]
+    assert [line.split()[0] for line in summary[2:]] == list(AXES)
+    for a in AXES:
+        m = json.loads((tmp_path / "m" / a / "metrics.json").read_text())
+        assert m["bias_only"] and m["bias"]["test"]["after"]["std_dph"] > 0
+    assert fogsf("replay", tmp_path / "m", test.path, "--axis", "all", "--out",
+                 tmp_path / "r" / "corr.csv", "--build-dir", tmp_path / "k") == 0
+    out = capsys.readouterr().out
+    summary = out[out.index("summary, "):].splitlines()
+    assert "bias after deg/h" in summary[1] and summary[0].startswith("summary, the bias")

@@ -52,6 +52,11 @@ def for_axis(value: str, kind: Kind, axis: str) -> str:
     raise ValueError(kind)
 
 
+SF_TITLE = "SF error RMS in ppm (before: about the SF at 20 C or --ref-sf)"
+BIAS_TITLE = ("the bias, STD in deg/h over the bias windows (before: as measured; after: "
+              "measured - predicted); the logs measure no SF")
+
+
 @dataclass(frozen=True)
 class Spec:
     """How a command runs per axis."""
@@ -60,7 +65,14 @@ class Spec:
     per_axis: dict[str, Kind]  # args attribute -> kind, for those given
     row: Callable[[dict], dict[str, object]]  # a summary row from args.axis_result
     json_stdout: bool = False  # with --json, stdout is one JSON object: {axis: ...}
-    title: str = "SF error RMS in ppm (before: about the SF at 20 C or --ref-sf)"
+    title: str = SF_TITLE
+
+
+def summary_title(spec_title: str, rows: dict[str, dict[str, object]]) -> str:
+    """The summary's title: the spec's, or the bias's when every row is the bias alone (a
+    stationary log, a bias-only model: no SF figure to title)."""
+    sf = any(isinstance(v, float) for r in rows.values() for v in r.values())
+    return spec_title if sf or spec_title != SF_TITLE else BIAS_TITLE
 
 
 def _rms(values: list[float]) -> float:
@@ -113,6 +125,7 @@ def _replay_row(r: dict) -> dict[str, object]:
     if r["before"] is not None:
         row.update({"before": r["before"]["rms_ppm"], "after": r["after"]["rms_ppm"],
                     "noise floor": r["before"]["noise_floor_ppm"]})
+    row.update(_bias_cells(None if r.get("bias") is None else {"test": r["bias"]}))
     flagged = [f"{k} {v}" for k, v in r["flags"].items() if v]
     row["flags"] = ", ".join(flagged) or "none"
     return row
@@ -238,7 +251,7 @@ def run_all(args: argparse.Namespace, run: Callable[[argparse.Namespace], int],
     if as_json:
         print(json.dumps(docs, indent=2))
     else:
-        print(summary_table(rows, spec.title))
+        print(summary_table(rows, summary_title(spec.title, rows)))
     return 0
 
 
