@@ -27,7 +27,7 @@ help:
 	@echo "make bench-gsa   GSA against Rashedi et al. (2009) Table 4 -> out/bench-gsa.json"
 	@echo "make bench-sim   simulator speed and its calibration to the paper -> out/bench-sim.json"
 	@echo "make bench-rigs  rig logs (ROS, staircase, reversals, skew IMU) trained and scored against the truth -> out/bench-rigs.json"
-	@echo "make bench-bias  the bias model on evaluation gyros (reversals, stationary; with and without a Shupe term) vs a PX4-style cubic -> out/bench-bias.json"
+	@echo "make bench-bias  the bias model on evaluation gyros (reversals from a standard and a fast loop, stationary; with and without a Shupe term) vs a PX4-style cubic -> out/bench-bias.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt

@@ -3,7 +3,7 @@ on another (another path, another noise seed) against the simulator's true bias.
 
 For each gyro: its own bias law from the population (offset, slope), on its coil's
 temperature, with a quadratic and, in the "shupe" case, a Shupe term (deg/h per C/min of the
-coil's temperature change) added. Two protocols on the same chamber loops: +/-100 deg/s
+coil's temperature change) added. Three protocols on the same chamber loops: +/-100 deg/s
 reversals every 60 s (the bias from the pairs) and a stationary soak-and-ramp (the table
 stopped: the bias is the output minus the earth rate); and the reversals again from a
 training loop that ramps down at 2 C/min, faster than the test's 1.5 ("reversals-fast").

@@ -338,3 +338,18 @@ def test_a_stationary_imu_trains_a_bias_only_model_per_axis_titled_as_the_bias(
     out = capsys.readouterr().out
     summary = out[out.index("summary, "):].splitlines()
     assert "bias after deg/h" in summary[1] and summary[0].startswith("summary, the bias")
+
+
+def test_the_summary_is_titled_as_the_bias_only_when_every_row_is_the_bias_alone() -> None:
+    """A replay row with no SF figures (its log never passes 20 C) is still an SF model's:
+    the bias title needs every row marked bias-only (a bias-only model, a stationary log)."""
+    from fogsf.trainer.commands.axes import BIAS_ONLY, BIAS_TITLE, SF_TITLE, summary_table
+    from fogsf.trainer.commands.axes import summary_title as title
+
+    sf_row = {"model": "abc", "out": "r.csv", "flags": "none"}
+    bias_row = {"model": "def", "bias before deg/h": "0.5", BIAS_ONLY: True}
+    assert title(SF_TITLE, {"x": sf_row, "y": sf_row}) == SF_TITLE
+    assert title(SF_TITLE, {"x": sf_row, "y": bias_row}) == SF_TITLE
+    assert title(SF_TITLE, {"x": bias_row, "y": bias_row}) == BIAS_TITLE
+    assert title("one C model per axis", {"x": bias_row}) == "one C model per axis"
+    assert BIAS_ONLY not in summary_table({"x": bias_row}, BIAS_TITLE)

@@ -53,8 +53,8 @@ def for_axis(value: str, kind: Kind, axis: str) -> str:
 
 
 SF_TITLE = "SF error RMS in ppm (before: about the SF at 20 C or --ref-sf)"
-BIAS_TITLE = ("the bias, STD in deg/h over the bias windows (before: as measured; after: "
-              "measured - predicted); the logs measure no SF")
+BIAS_TITLE = "the bias in deg/h, STD over the bias windows (the logs measure no SF)"
+BIAS_ONLY = "_bias_only"  # a row's marker (not a column): the row is the bias alone
 
 
 @dataclass(frozen=True)
@@ -71,8 +71,9 @@ class Spec:
 def summary_title(spec_title: str, rows: dict[str, dict[str, object]]) -> str:
     """The summary's title: the spec's, or the bias's when every row is the bias alone (a
     stationary log, a bias-only model: no SF figure to title)."""
-    sf = any(isinstance(v, float) for r in rows.values() for v in r.values())
-    return spec_title if sf or spec_title != SF_TITLE else BIAS_TITLE
+    if spec_title == SF_TITLE and rows and all(r.get(BIAS_ONLY) for r in rows.values()):
+        return BIAS_TITLE
+    return spec_title
 
 
 def _rms(values: list[float]) -> float:
@@ -94,7 +95,7 @@ def _bias_cells(b: dict | None, block: str = "test") -> dict[str, object]:
 
 def _train_row(m: dict) -> dict[str, object]:
     if m.get("bias_only"):  # stationary logs: no SF figures
-        return {"model": m["model"], **_bias_cells(m["bias"])}
+        return {"model": m["model"], **_bias_cells(m["bias"]), BIAS_ONLY: True}
     train = m["train"]
     blocks = [train] if "before" in train else list(train.values())
     row: dict[str, object] = {
@@ -114,7 +115,7 @@ def _inspect_row(s: dict) -> dict[str, object]:
     if m is None:  # a stationary log: its bias only
         return {"samples": s["samples"],
                 "temp C": "{:.1f} .. {:.1f}".format(*s["temp_range_c"]),
-                **_bias_cells(s.get("bias"))}
+                **_bias_cells(s.get("bias")), BIAS_ONLY: True}
     return {"samples": s["samples"], "temp C": "{:.1f} .. {:.1f}".format(*s["temp_range_c"]),
             "RMS": m["rms_ppm"], "p-p": m["pp_ppm"], "noise floor": m["noise_floor_ppm"],
             "ref SF ratio": f"{s['ref_sf_ratio']:.9f}"}
@@ -128,6 +129,8 @@ def _replay_row(r: dict) -> dict[str, object]:
     row.update(_bias_cells(None if r.get("bias") is None else {"test": r["bias"]}))
     flagged = [f"{k} {v}" for k, v in r["flags"].items() if v]
     row["flags"] = ", ".join(flagged) or "none"
+    if r.get("bias_only"):
+        row[BIAS_ONLY] = True
     return row
 
 
@@ -263,7 +266,7 @@ def summary_table(rows: dict[str, dict[str, object]], title: str) -> str:
     """One line per axis, the columns of the rows (ppm figures to 0.01)."""
     cols: list[str] = []
     for r in rows.values():
-        cols += [c for c in r if c not in cols]
+        cols += [c for c in r if c not in cols and c != BIAS_ONLY]
     table = [["axis", *cols]] + [[a, *(_cell(r.get(c, "")) for c in cols)]
                                  for a, r in rows.items()]
     widths = [max(len(line[i]) for line in table) for i in range(len(table[0]))]

@@ -173,7 +173,8 @@ def run(args: argparse.Namespace) -> int:
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
         print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
     bias_block = replay_bias(model, log, bias, sf, args) if model.bias_head else None
-    args.axis_result = {"model_id": model.model_id, "out": args.out, "before": before,
+    args.axis_result = {"model_id": model.model_id, "bias_only": model.model == "bias",
+                        "out": args.out, "before": before,
                         "after": after, "flags": counts, "bias": bias_block}
     if args.json:
         Path(args.json).write_text(json.dumps({"model_id": model.model_id,

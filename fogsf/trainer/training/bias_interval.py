@@ -137,8 +137,9 @@ def interval_message(d: dict) -> str:
             f"on the target: {lo:.3f}-{hi:.3f} deg/h (noise floor {d['noise_floor_dph']:.3f})")
     rr = d.get("ramp_rates") or {}
     if rr.get("rate_term_extrapolated"):
-        text += (f". The test ramps at {rr['test_fastest_c_per_min']:.2f} C/min, faster than "
-                 f"any training ramp ({rr['train_fastest_c_per_min']:.2f}): the bias's rate "
-                 "term (a Shupe term) is extrapolated there; a training ramp as fast as the "
-                 "fastest the gyro will see pins it (docs/train.md, \"Bias\")")
+        than = (f"faster than any training ramp ({rr['train_fastest_c_per_min']:.2f})"
+                if rr["train_fastest_c_per_min"] > 0 else "and the training logs hold no ramp")
+        text += (f". The test ramps at {rr['test_fastest_c_per_min']:.2f} C/min, {than}: the "
+                 "bias's rate term (a Shupe term) is extrapolated there; a training ramp as "
+                 "fast as the fastest the gyro will see pins it (docs/train.md, \"Bias\")")
     return text

@@ -423,10 +423,13 @@ def ramp_rate_check(train_logs: list[ChamberLog], test_log: ChamberLog, structur
     loop at 1 up / 0.7 down C/min, a 1.5 C/min test ramp leaves 0.134 deg/h median with a
     Shupe term (evaluation gyros 20000-20031); from 1 up / 2 down, 0.064 (docs/train.md,
     "Bias")."""
-    from fogsf.trainer.training.transfer import RATE_TOLERANCE, ramp_rates, training_ramp_rates
+    from fogsf.trainer.training.transfer import RATE_TOLERANCE, ramp_segments
 
-    fastest = max(training_ramp_rates(train_logs), default=0.0)
-    test = max(ramp_rates(test_log), default=0.0)
+    def fastest_of(logs: list[ChamberLog]) -> float:
+        return max((abs(sg.rate_c_per_min) for lg in logs for sg in ramp_segments(lg)),
+                   default=0.0)
+
+    fastest, test = fastest_of(train_logs), fastest_of([test_log])
     return {"train_fastest_c_per_min": fastest, "test_fastest_c_per_min": test,
             "rate_term_extrapolated": bool(structure != "cubic"
                                            and test > fastest * (1 + RATE_TOLERANCE))}
