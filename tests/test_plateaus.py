@@ -272,9 +272,11 @@ def test_inspect_reports_pairs_rate_steps_and_a_moving_start(tmp_path: Path) -> 
     assert s["rate_steps"]["sf_asymmetry_ppm"] == pytest.approx(20.0, abs=0.1)
     assert s["rate_steps"]["sf_nonlinearity_ppm_fs"] > 0
     assert s["pairs"]["count"] == 25 and s["settle_s"] == 2.0
+    assert s["pairs"]["without_neighbours"] == 25  # +r, -r, then +(r + 4): no neighbours
     assert "starts while" not in out.stderr  # 20 C throughout
     text = _run("inspect", str(tmp_path / "stairs.csv"), "--ref-sf", "1.00015").stdout
     assert "nonlinearity" in text and "asymmetry" in text and "+/- pairs" in text
+    assert "25 of them have no neighbour at their own rate" in text
 
     res = reversal_run(8, ramp_c_per_min=2.0)
     mid = res.log.slice(int(np.searchsorted(res.log.time_s, 1500.0)), len(res.log))
@@ -288,6 +290,7 @@ def test_inspect_reports_pairs_rate_steps_and_a_moving_start(tmp_path: Path) -> 
     assert "first 600 s are left out" in out.stderr
     s = json.loads(out.stdout)
     assert s["skip_s"] == 600.0 and s["start_ramp_c_per_min"] == pytest.approx(2.0, rel=0.2)
+    assert s["pairs"]["without_neighbours"] == 0  # reversals: every pair has its neighbours
     w = sf_windows(mid, skip_s=600.0)
     assert w.start[0] >= 6000
 

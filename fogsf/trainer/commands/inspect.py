@@ -65,7 +65,9 @@ def pairs_summary(log: ChamberLog, latitude_deg: float | None, settle_s: float
     if pp is None:
         return None
     bias = pp.bias_dps * DPS_TO_DPH
+    alone = sum(idx.size == 2 for idx, _ in pp.bias_weights)  # no neighbour at their rate
     return {"count": len(pp), "rates_dps": sorted({round(float(r), 6) for r in pp.rate_dps}),
+            "without_neighbours": int(alone),
             "bias_dph": float(bias.mean()), "bias_std_dph": float(bias.std()),
             "bias_range_dph": [float(bias.min()), float(bias.max())],
             "bias_drift_dph_per_c": pp.bias_drift_dph_per_c(),
@@ -126,6 +128,10 @@ def print_plateau_figures(s: dict) -> None:
         lo, hi = p["bias_range_dph"]
         print(f"  bias from {p['count']} +/- pairs: {p['bias_dph']:+.4f} deg/h (std "
               f"{p['bias_std_dph']:.4f}, {lo:+.4f} .. {hi:+.4f}){drift}; taken off before SF")
+        if 2 * p.get("without_neighbours", 0) > p["count"]:
+            print(f"    {p['without_neighbours']} of them have no neighbour at their own rate "
+                  "(a staircase): the SF moving between a pair's plateaus reads as bias here; "
+                  "train and replay take the SF model's prediction off first")
     st = s["rate_steps"]
     if st is not None:
         print(f"  rate steps: SF nonlinearity {st['sf_nonlinearity_ppm_fs']:.1f} ppm of full "
