@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
+from tempfile import TemporaryDirectory
 
 import numpy as np
 import pytest
@@ -118,6 +119,12 @@ def test_train_on_stationary_logs_is_a_bias_only_model(tmp_path: Path,
     after = m["bias"]["test"]["after"]
     assert after["std_dph"] < 1.5 * after["noise_floor_dph"]
     assert m["bias"]["test"]["before"]["std_dph"] > 4.0 * after["std_dph"]
+    # the interval: the chosen structure among the consistent ones (by held-out score, not
+    # the most flexible fit), the test's RMS inside it, its top not far above
+    rt = m["bias"]["rate_transfer"]
+    assert m["bias"]["model"]["structure"]["chosen"] in rt["consistent"]
+    lo, hi = rt["rms_interval_dph"]
+    assert lo <= after["rms_dph"] <= hi <= 3.0 * after["rms_dph"], (lo, after, hi)
     # the test ramps (at most 1.1 C/min) within the training's 1 C/min (+15 %)
     rr = m["bias"]["rate_transfer"]["ramp_rates"]
     assert rr["train_fastest_c_per_min"] == pytest.approx(1.0, rel=0.05)
@@ -453,3 +460,18 @@ def test_train_takes_the_sf_models_prediction_off_a_staircases_pairs(tmp_path: P
     assert before["std_dph"] < 0.03, before
     assert abs(before["rms_dph"] - 1.0) < 0.03  # the constant bias, 1 deg/h
     assert after["std_dph"] < 0.03 and after["rms_dph"] < 0.03, after  # the model fitted it
+
+
+def test_the_bias_interval_is_not_the_most_flexible_fits_distance() -> None:
+    """Reversals from a loop with a fast down-ramp (development gyro 1, its population bias):
+    the bank fits the training pairs best and extrapolates worst; the interval's family is
+    the structures as good on held-out blocks, with the chosen one, so its top stays near
+    the test's actual RMS (before: the bank's distance alone, 6 x it) and still holds it."""
+    from benchmarks.bias_eval import one
+
+    with TemporaryDirectory() as tmp:
+        r = one(1, "reversals-fast", None, Path(tmp))
+    iv = r["interval"]
+    assert r["structure"]["chosen"] in iv["consistent"]
+    lo, hi = iv["rms_interval_dph"]
+    assert lo <= r["after_rms_dph"] <= hi <= 2.0 * r["after_rms_dph"], (lo, r["after_rms_dph"], hi)

@@ -196,7 +196,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
         if i_t is None:
             order = ("bank",)
         choice, fit = bs.choose(cols, y, fold, group, order)
-        fam = family(cols, y, tuple(choice.scores), choice.name, group,
+        fam = family(cols, y, choice.scores, choice.name, group,
                      lambda lg: _shared_columns(fm, fm.z(lg).astype(np.float64),
                                                 _free_columns(lg, fe0))[0],
                      lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
@@ -205,7 +205,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
                                 (sources, choice, fam))
         return BiasModel(fm, _head(fit, fm, i_t, lags), int(y.size), sources, choice, fam)
     choice, fit = bs.choose(free, y, fold, group, order)
-    fam = family(free, y, tuple(choice.scores), choice.name, group,
+    fam = family(free, y, choice.scores, choice.name, group,
                  lambda lg: _free_columns(lg, fe0),
                  lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
     taus = fit.taus_s
