@@ -475,3 +475,19 @@ def test_the_bias_interval_is_not_the_most_flexible_fits_distance() -> None:
     assert r["structure"]["chosen"] in iv["consistent"]
     lo, hi = iv["rms_interval_dph"]
     assert lo <= r["after_rms_dph"] <= hi <= 2.0 * r["after_rms_dph"], (lo, r["after_rms_dph"], hi)
+
+
+def test_a_stationary_logs_partial_last_step_is_no_target() -> None:
+    """A log one sample longer than whole steps: that sample's step is no target (a mean of
+    one sample holds its noise alone; it set every held-out score before)."""
+    log, _ = soak_log(TRAIN, 7)
+    n = len(log)
+    assert n % 50 == 0  # whole 5 s steps at 10 Hz
+    longer = ChamberLog(np.append(log.time_s, log.time_s[-1] + 0.1),
+                        np.append(log.temp_c, log.temp_c[-1]), np.zeros(n + 1),
+                        np.append(log.gyro_dps, log.gyro_dps[-1] + 15.0 / 3600.0),
+                        np.full(n + 1, EARTH_DPS))
+    a, b = fit_bias(None, [log]), fit_bias(None, [longer])
+    assert a is not None and b is not None and b.n_targets == a.n_targets
+    for name, score in a.choice.scores.items():
+        assert b.choice.scores[name] == pytest.approx(score, rel=1e-6), name

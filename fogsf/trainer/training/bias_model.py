@@ -39,6 +39,11 @@ from fogsf.trainer.models.stream import FrontEnd, StreamModel
 from fogsf.trainer.training.bias_interval import bias_interval, family, interval_message
 
 MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
+# A stationary log's step with fewer valid samples than this share of a step (the log's
+# last, partial step; one cut by invalid rows) is no target: the fit weighs every step
+# alike, and a mean of a few samples holds the angle random walk of a few samples (one
+# sample at 10 Hz: 12 deg/h off, which alone set a held-out score)
+MIN_STEP_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -100,12 +105,15 @@ class BiasModel:
 
 def step_targets(log: ChamberLog, w: BiasWindows, decimation: int,
                  latitude_deg: float | None) -> tuple[np.ndarray, np.ndarray]:
-    """(step index, bias deg/h) the log gives: every step of a stationary log's valid
-    samples, or each +/- pair at the step under its centre."""
+    """(step index, bias deg/h) the log gives: every step of a stationary log with at least
+    MIN_STEP_SHARE of its samples valid, or each +/- pair at the step under its centre."""
     if w.source == "stationary":
         keep = np.ones(len(log), dtype=bool) if log.valid is None else log.valid
         y = step_means((log.gyro_dps - log.earth(latitude_deg)) * DPS_TO_DPH, decimation, keep)
-        idx = np.flatnonzero(np.isfinite(y))
+        length = np.minimum(decimation, len(log) - np.arange(y.size) * decimation)
+        count = (length if log.valid is None
+                 else step_means(log.valid, decimation) * length)
+        idx = np.flatnonzero(np.isfinite(y) & (count >= MIN_STEP_SHARE * decimation))
         return idx, y[idx]
     return w.step_index(decimation), w.bias_dph
 
