@@ -389,8 +389,12 @@ def measured_windows(log: ChamberLog, window_s: float, latitude_deg: float | Non
     """The bias windows a log measures (`logs.bias.bias_windows`); with `sf_of`, the SF
     model's prediction taken off the pairs' plateaus first (`PlateauPairs.minus_sf`: the SF
     drifting between a staircase pair's two plateaus would read as bias)."""
-    sf = None if sf_of is None or is_stationary(log) else sf_of(log)
-    return bias_windows(log, window_s, latitude_deg, settle_s, sf_ppm=sf)
+    return bias_windows(log, window_s, latitude_deg, settle_s, sf_ppm=_sf_for(log, sf_of))
+
+
+def _sf_for(log: ChamberLog, sf_of: SFOf | None) -> Column | None:
+    """The SF series to take off a log's pairs: none for a stationary log (no pairs)."""
+    return None if sf_of is None or is_stationary(log) else sf_of(log)
 
 
 def score_bias(model: BiasModel, log: ChamberLog, window_s: float = 100.0,
@@ -411,10 +415,10 @@ def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: Chamber
     if test_log is not None:
         out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s, sf_of)
         if out["test"] is not None and model.family is not None:
-            sf = None if sf_of is None or is_stationary(test_log) else sf_of(test_log)
             out["rate_transfer"] = bias_interval(model.family, test_log,
                                                  model.predict(test_log), window_s,
-                                                 latitude_deg, settle_s, sf)
+                                                 latitude_deg, settle_s,
+                                                 _sf_for(test_log, sf_of))
             if out["rate_transfer"] is not None and model.choice is not None:
                 out["rate_transfer"]["ramp_rates"] = ramp_rate_check(
                     train_logs, test_log, model.choice.name)
