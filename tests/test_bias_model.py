@@ -357,7 +357,9 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
 
     rl = [reversal_rig_log(tmp_path / n / "log.csv", 3, 2.0, loop, seed)
           for n, loop, seed in (("a", TRAIN_LOOP, 1), ("b", TEST_LOOP, 2))]
-    assert cli.main(["train", "--train", str(rl[0].path), "--out", str(tmp_path / "m")]) == 0
+    # the SF model the bank (what the filters below count); the rule may take physics nodes
+    assert cli.main(["train", "--train", str(rl[0].path), "--structure", "bank",
+                     "--out", str(tmp_path / "m")]) == 0
     m = json.loads((tmp_path / "m" / "metrics.json").read_text())
     assert m["bias"]["model"]["structure"]["chosen"] == "lead"
     # T and the board's rate (the bank's 60 s lag) from the SF model's z: one filter more
