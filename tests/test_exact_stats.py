@@ -48,3 +48,18 @@ def test_median_mean_sum_are_numpys(n: int, read: int, monkeypatch: pytest.Monke
         assert np.array_equal(c[idx], x[idx]) and c[n - 1] == x[-1]
         assert np.array_equal(c[1:n:2], x[1:n:2])
         spill.close()
+
+
+def test_span_means_of_several_columns_are_each_columns() -> None:
+    """`columns.span_means` of an [n, k] array: each column's span means, bit for bit those
+    of the column alone (the bias interval's windows of a design use it)."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(3.0, 2.0, (1000, 3))
+    start = np.array([0, 10, 400, 999])
+    stop = np.array([5, 400, 1000, 1000])
+    got = columns.span_means(x, start, stop)
+    assert got.shape == (4, 3)
+    for j in range(3):
+        one = columns.span_means(x[:, j], start, stop)
+        assert np.array_equal(got[:, j], one)
+        assert np.allclose(one, [x[a:b, j].mean() for a, b in zip(start, stop, strict=True)])

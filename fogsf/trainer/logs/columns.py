@@ -348,14 +348,17 @@ def cumsum_at(col: Column, ends: np.ndarray) -> np.ndarray:
 
 def span_means(col: Column, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
     """The mean of col over each span [start, stop) (float64; in memory or on disk, where
-    only the running sum at the spans' ends is kept)."""
+    only the running sum at the spans' ends is kept). An in-memory array of several columns
+    ([n, k]) gives each column's means ([spans, k])."""
     start, stop = np.asarray(start, dtype=np.int64), np.asarray(stop, dtype=np.int64)
     if is_lazy(col):
         at = cumsum_at(col, np.concatenate([start, stop]))
     else:
-        c = np.concatenate([[0.0], np.cumsum(np.asarray(col, dtype=np.float64))])
+        x = np.asarray(col, dtype=np.float64)
+        c = np.concatenate([np.zeros((1,) + x.shape[1:]), np.cumsum(x, axis=0)])
         at = c[np.concatenate([start, stop])]
-    return (at[start.size:] - at[:start.size]) / (stop - start)
+    n = (stop - start).reshape((-1,) + (1,) * (at.ndim - 1))
+    return (at[start.size:] - at[:start.size]) / n
 
 
 def cumsum_blocks_at(parts: Iterable[tuple[int, np.ndarray]], ends: np.ndarray

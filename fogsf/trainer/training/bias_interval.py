@@ -29,7 +29,7 @@ import numpy as np
 
 from fogsf.trainer.logs.bias import bias_windows
 from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.columns import Column
+from fogsf.trainer.logs.columns import Column, span_means
 from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.reference import expand
 from fogsf.trainer.training.bias_structure import CandidateFit, Columns, fit_candidate
@@ -84,12 +84,6 @@ def family(cols: Columns, y: np.ndarray, scores: dict[str, float], chosen: str,
                   columns_of, decimation_of)
 
 
-def _window_means(per_sample: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
-    c = np.concatenate([np.zeros((1,) + per_sample.shape[1:]), np.cumsum(per_sample, axis=0)])
-    n = (stop - start).reshape((-1,) + (1,) * (per_sample.ndim - 1))
-    return (c[stop] - c[start]) / n
-
-
 def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
                   window_s: float = 100.0, latitude_deg: float | None = None,
                   settle_s: float = SETTLE_S, sf_ppm: Column | None = None
@@ -103,12 +97,12 @@ def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
     cols = fam.columns_of(log)
     dec = fam.decimation_of(log)
     n = len(log)
-    ref = _window_means(np.asarray(model_pred_dph, dtype=np.float64), w.start, w.stop)
-    spread = {c: float(np.sqrt(np.mean((_window_means(expand(fam.fits[c].predict(cols), n,
+    ref = span_means(np.asarray(model_pred_dph, dtype=np.float64), w.start, w.stop)
+    spread = {c: float(np.sqrt(np.mean((span_means(expand(fam.fits[c].predict(cols), n,
                                                                    dec), w.start, w.stop)
                                           - ref) ** 2))) for c in fam.consistent}
     x = fam.fits[fam.chosen].columns(cols)
-    xw = _window_means(expand(np.column_stack([np.ones(x.shape[0]), x]), n, dec), w.start,
+    xw = span_means(expand(np.column_stack([np.ones(x.shape[0]), x]), n, dec), w.start,
                        w.stop)
     var = np.einsum("wi,ij,wj->w", xw, fam.gram_inv, xw) * fam.sigma2
     param = float(np.sqrt(np.mean(np.maximum(var, 0.0))))
