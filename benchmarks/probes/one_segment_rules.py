@@ -43,13 +43,10 @@ def gyro_row(seed: int) -> dict:
 
 
 def by_rule(rows: list[dict], order: tuple[str, ...], tol: float) -> np.ndarray:
-    """Each gyro's test ratio under the rule (a log of several ramps keeps the bank)."""
+    """Each gyro's test ratio under the one-ramp rule (order, tolerance)."""
     out = []
     for r in rows:
         s = r["scores"]
-        if not s:
-            out.append(r["ratios"]["bank"])
-            continue
         best = min(s.values())
         out.append(r["ratios"][next(c for c in order if s[c] <= (1.0 + tol) * best)])
     return np.asarray(out)
