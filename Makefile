@@ -73,13 +73,13 @@ paper: $(STAMP)
 bench-transfer: $(STAMP)
 	$(PY) -m benchmarks.rate_transfer --out $(OUT)/bench-transfer.json
 
-# --- compensation over the gyro population: evaluation seeds, ~15 min on 2 cores ---
+# --- compensation over the gyro population: evaluation seeds, ~27 min on 2 cores ---
 POP_N ?= 24
 bench-population: $(STAMP)
 	$(PY) -m benchmarks.population --seeds eval --n $(POP_N) --out $(OUT)/bench-population.json
 
 # --- SF hysteresis: trained on partial cycles, tested on others; HYST_N gyros per group
-# (with hysteresis, the same without it, gyros without it), evaluation seeds, ~5 min ---
+# (with hysteresis, the same without it, gyros without it), evaluation seeds, ~9 min ---
 HYST_N ?= 12
 bench-hysteresis: $(STAMP)
 	$(PY) -m benchmarks.hysteresis --seeds eval --n $(HYST_N) --workers 2 --kernel --out $(OUT)/bench-hysteresis.json
