@@ -23,11 +23,17 @@ from fogsf.trainer.training.options import TrainOptions
 from fogsf.trainer.training.structure_choice import (
     CANDIDATES,
     EVIDENCE_FACTOR,
+    MAX_CHOICE_STEPS,
+    MAX_PART_FOLDS,
     MULTI_SEGMENT_ORDER,
     PHYSICS,
+    SPLIT_PARTS,
     StepData,
+    choice_message,
+    choice_step_s,
     choose,
     heldout_score,
+    part_folds,
 )
 from fogsf.trainer.training.train import per_sample_prediction, run_training
 
@@ -181,3 +187,47 @@ def test_two_rates_on_the_default_gyro_take_physics_nodes() -> None:
     assert c.name in PHYSICS, c.scores
     assert c.scores["bank"] >= EVIDENCE_FACTOR * c.scores[c.name] / (1 + c.tolerance)
     assert "better than the lag bank" in c.message()
+
+
+def _segments(n_segments: int, steps: int = 30) -> StepData:
+    from types import SimpleNamespace
+
+    fold = np.repeat(np.arange(n_segments), steps)
+    return StepData(SimpleNamespace(step_s=5.0), [np.zeros(fold.size)], np.zeros(fold.size),
+                    fold)
+
+
+def test_part_folds_are_the_parts_then_dealt_to_a_bounded_number() -> None:
+    """Up to MAX_PART_FOLDS parts every part is a fold of its own (contiguous, a third of its
+    segment); beyond, part i goes to fold i mod MAX_PART_FOLDS, so the cost of the choice
+    grows with the log, not with its square, and no fold holds two parts of one segment."""
+    few = MAX_PART_FOLDS // SPLIT_PARTS
+    sd = _segments(few)
+    f = part_folds(sd)
+    assert f.max() + 1 == few * SPLIT_PARTS
+    for k in range(few * SPLIT_PARTS):
+        idx = np.flatnonzero(f == k)
+        assert idx.size == 10 and np.all(np.diff(idx) == 1) and np.all(sd.fold[idx] == k // 3)
+    many = _segments(34)
+    g = part_folds(many)
+    assert g.max() + 1 == MAX_PART_FOLDS
+    for k in range(MAX_PART_FOLDS):
+        segs = many.fold[g == k]
+        assert np.unique(segs).size == segs.size // 10  # whole parts, each of its own segment
+    d = {"chosen": "bank", "heldout_rms_ppm": {"physics1": 2.0, "bank": 1.0}, "segments": 34,
+         "one_segment": False, "tolerance": 0.2, "evidence_factor": EVIDENCE_FACTOR}
+    assert f"34 ramps, each in 3 parts dealt to {MAX_PART_FOLDS} folds" in choice_message(d)
+    assert "dealt" not in choice_message({**d, "segments": few})
+
+
+def test_long_logs_are_scored_at_a_whole_multiple_of_the_model_step() -> None:
+    """The choice keeps the model step for up to MAX_CHOICE_STEPS steps of logs (every bench
+    program), and scores longer logs (a week) at the smallest whole multiple under it."""
+    from types import SimpleNamespace
+
+    day, week = SimpleNamespace(duration_s=86_400.0), SimpleNamespace(duration_s=604_800.0)
+    assert choice_step_s([day], 5.0) == 5.0
+    assert choice_step_s([day, day], 5.0) == 10.0
+    step = choice_step_s([week], 5.0)
+    assert step % 5.0 == 0 and week.duration_s / step <= MAX_CHOICE_STEPS
+    assert week.duration_s / (step - 5.0) > MAX_CHOICE_STEPS

@@ -30,6 +30,7 @@ The orders, the tolerance and the factor were chosen on development gyros.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -61,6 +62,16 @@ CHOICE_TOLERANCE = 0.20
 EVIDENCE_FACTOR = 2.5
 PHYSICS = ("physics1", "physics2", "physics3")
 SPLIT_PARTS = 3
+# Several segments: at most this many folds (every fold is one fit over the other steps, so
+# a fold per part would make a week of ramps cost the square of its length); the parts are
+# dealt to them in turn, so a fold's parts lie far apart. No training program of the benches
+# holds more than 8 ramps, so their folds are the parts themselves.
+MAX_PART_FOLDS = 24
+# Logs longer than this many model steps (33 h at 5 s) are scored at a coarser step, a
+# whole multiple of the model step: the choice is between thermal structures of minutes to
+# hours, and every fold refits every candidate to all other steps (a week at 100 Hz: 244 s
+# at 5 s, 24 folds). The chosen structure is then fitted at the model step.
+MAX_CHOICE_STEPS = 24_000
 SCORE_WINDOW_S = 100.0
 
 
@@ -110,13 +121,14 @@ def step_data(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
 
 
 def part_folds(sd: StepData) -> np.ndarray:
-    """Every segment of `sd` in SPLIT_PARTS contiguous parts: one fold per part."""
+    """Every segment of `sd` in SPLIT_PARTS contiguous parts, one fold per part; beyond
+    MAX_PART_FOLDS parts, part i goes to fold i mod MAX_PART_FOLDS."""
     out = np.empty_like(sd.fold)
     for k in range(sd.n_folds):
         idx = np.flatnonzero(sd.fold == k)
         out[idx] = k * SPLIT_PARTS + np.minimum(np.arange(idx.size) * SPLIT_PARTS // idx.size,
                                                 SPLIT_PARTS - 1)
-    return out
+    return out % MAX_PART_FOLDS
 
 
 Predictor = Callable[[NodeTemperatures], np.ndarray]  # steps' prediction (ppm) of any logs
@@ -206,6 +218,8 @@ def choice_message(d: dict) -> str:
                "rate dependence apart)")
     elif factor is not None:
         parts = f"{d['segments']} ramps, each in {SPLIT_PARTS} parts"
+        if d["segments"] * SPLIT_PARTS > MAX_PART_FOLDS:
+            parts += f" dealt to {MAX_PART_FOLDS} folds"
         if d["chosen"] == "bank":
             why = (f"the lag bank, as no physics structure predicts the held-out parts "
                    f"{factor:g} x better")
@@ -222,13 +236,20 @@ def choice_message(d: dict) -> str:
             f"({parts}; held-out RMS, ppm: {cells}): {why}")
 
 
+def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float:
+    """The step the choice scores at: `step_s`, or the smallest whole multiple of it that
+    keeps the logs under MAX_CHOICE_STEPS steps."""
+    total_s = sum(lg.duration_s for lg in logs)
+    return step_s * max(1, math.ceil(total_s / step_s / MAX_CHOICE_STEPS))
+
+
 def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
            latitude_deg: float | None = None,
            candidates: tuple[str, ...] | None = None,
            tolerance: float = CHOICE_TOLERANCE) -> StructureChoice:
     """The rule (module docstring); `candidates` in order replaces the rule's order (and,
     with several segments, scores whole segments held out, the rule tuned first)."""
-    sd = step_data(logs, step_s, latitude_deg)
+    sd = step_data(logs, choice_step_s(logs, step_s), latitude_deg)
     if candidates is None and not sd.one_segment:
         segments = sd.n_folds
         sd.fold = part_folds(sd)
