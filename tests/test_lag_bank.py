@@ -180,6 +180,8 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
     assert "(2 ramps, each in 3 parts;" in out
     if choice["chosen"] == "bank":
         assert len(auto["features"]) == 1 + len(TAU_GRID_S)
+    else:  # T and one lag per physics node
+        assert len(auto["features"]) == 1 + int(choice["chosen"].removeprefix("physics"))
     assert main([*common[:3], *common[5:], "--out", str(tmp_path / "one")]) == 0
     out = " ".join(capsys.readouterr().out.split())
     one = json.loads((tmp_path / "one" / "metrics.json").read_text())["structure_choice"]

@@ -231,3 +231,58 @@ def test_long_logs_are_scored_at_a_whole_multiple_of_the_model_step() -> None:
     step = choice_step_s([week], 5.0)
     assert step % 5.0 == 0 and week.duration_s / step <= MAX_CHOICE_STEPS
     assert week.duration_s / (step - 5.0) > MAX_CHOICE_STEPS
+
+
+@pytest.mark.parametrize("bank, phys, chosen", [
+    (10.0, (4.0, 3.9, 4.1), "physics1"),  # 2.5 x better: the first within 20 % of 3.9
+    (9.7, (4.0, 3.9, 4.1), "bank"),  # 9.7 < 2.5 x 3.9: not evidence enough
+    (10.0, (4.7, 3.9, 4.1), "physics2"),  # physics1 is over 1.2 x 3.9
+])
+def test_several_ramps_keep_the_bank_unless_physics_is_evident(
+        monkeypatch: pytest.MonkeyPatch, bank: float, phys: tuple[float, ...],
+        chosen: str) -> None:
+    """The several-ramp rule on given held-out scores: the bank unless the best physics
+    structure scores EVIDENCE_FACTOR x better, then the smallest within the tolerance."""
+    import fogsf.trainer.training.structure_choice as sc
+
+    scores = {"bank": bank, **dict(zip(PHYSICS, phys, strict=True))}
+    monkeypatch.setattr(sc, "heldout_score", lambda name, sd, fit=None: scores[name])
+    c = choose([short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)])
+    assert c.name == chosen and c.scores == {**dict(zip(PHYSICS, phys, strict=True)),
+                                             "bank": bank}
+    assert c.as_dict()["evidence_factor"] == EVIDENCE_FACTOR
+
+
+def test_choose_scores_long_logs_at_the_coarser_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`choose` builds its steps at `choice_step_s` (here forced coarse by a small
+    MAX_CHOICE_STEPS) and still chooses among every candidate."""
+    import fogsf.trainer.training.structure_choice as sc
+
+    logs = [short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)]
+    seen: list[float] = []
+    real = sc.step_data
+
+    def spy(lg, step_s=5.0, latitude_deg=None):
+        seen.append(step_s)
+        return real(lg, step_s, latitude_deg)
+
+    monkeypatch.setattr(sc, "step_data", spy)
+    choose(logs)
+    assert seen == [5.0]
+    monkeypatch.setattr(sc, "MAX_CHOICE_STEPS", 200)
+    c = choose(logs)
+    total = sum(lg.duration_s for lg in logs)
+    assert seen[-1] > 5.0 and seen[-1] % 5.0 == 0 and total / seen[-1] <= 200
+    assert set(c.scores) == {*PHYSICS, "bank"} and all(np.isfinite(list(c.scores.values())))
+
+
+def test_part_folds_of_short_segments_leave_no_empty_fold() -> None:
+    """A segment shorter than SPLIT_PARTS steps gives fewer parts; the folds are numbered
+    without gaps, so every fold holds steps and no held-out score is a mean of nothing."""
+    from types import SimpleNamespace
+
+    fold = np.repeat(np.arange(3), [31, 2, 1])
+    sd = StepData(SimpleNamespace(step_s=5.0), [np.zeros(fold.size)], np.zeros(fold.size),
+                  fold)
+    f = part_folds(sd)
+    assert np.array_equal(np.unique(f), np.arange(f.max() + 1)) and f.max() + 1 == 6

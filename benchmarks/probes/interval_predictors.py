@@ -8,7 +8,7 @@ leaves, the test's noise floor, and predictors computed without the test's gyro 
   logs (`transfer.target_spreads`; the interval uses the largest);
 - the distance from the model to each other structure candidate fitted to the same logs
   (their disagreement on the test's temperatures);
-- the leave-one-segment-out score of the chosen structure.
+- the held-out score of the chosen structure (the structure choice's).
 Then, per predictor P, the K that puts 90 % of the cases inside hypot(floor, K P) and what
 that interval gives: coverage and the median of its upper end over the actual error, per
 protocol. Run it on development gyros (the interval is calibrated there):

@@ -5,7 +5,7 @@ For each gyro and protocol of `benchmarks.population` (and the default gyro's pa
 protocol with `--paper`, noise seeds FIRST..), prints the test RMS / noise floor of every
 candidate of `training.structure_choice` (physics nodes with 1-3 nodes, the lag bank; with
 `--candidates`, others such as `node`), of the one the rule chooses ("default"), of plain
-averages of candidates' predictions, and the leave-one-segment-out scores the rule reads.
+averages of candidates' predictions, and the held-out scores the rule reads.
 Run it on development gyros (the rule is tuned there):
 
     python -m benchmarks.probes.physics_nodes --first 1 --n 24 --protocols a,b,c,d,e

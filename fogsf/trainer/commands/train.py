@@ -3,16 +3,16 @@
 Models: poly (polynomial in T), polyrate (T and a filtered dT/dt), mlp (the paper's MLP),
 lstm (the paper's LSTM, Table 1: 2 x 200, batch 32, lr 0.02), lag-lstm (the default: a
 physics part fitted by least squares, plus a 1 x 16 LSTM on what it leaves; the physics part
-is chosen by the training logs, leave one segment out, among physics nodes with 1-3 nodes
-(first-order lags of T with identified time constants, a quadratic with cross terms) and
-the lag bank (T and its lags at 11 time constants from 60 s to 2 h, ridge with a fixed
-prior); `--structure` to give it, `node` for one or two effective nodes
-T_eff = w T + (1 - w) lag(T, tau)), gsa-lstm (GSA tunes batch size, layers, hidden
-units, learning rate and (tau, w) of T_eff on the validation part of the training logs).
-The rule's tolerance was chosen on development gyros of the population
-(docs/decisions.md); train on two or more ramp rates (or one log with up- and down-ramps
-at different rates and soaks): one rate leaves the lags undetermined, and with --test the
-rate-transfer check says how far (an interval for the RMS error on the test log).
+is chosen by the training logs, by held-out prediction of their parts, among physics nodes
+with 1-3 nodes (first-order lags of T with identified time constants, a quadratic with cross
+terms) and the lag bank (T and its lags at 11 time constants from 60 s to 2 h, ridge with a
+fixed prior); `--structure` to give it, `node` for one or two effective nodes T_eff = w T +
+(1 - w) lag(T, tau)), gsa-lstm (GSA tunes batch size, layers, hidden units, learning rate
+and (tau, w) of T_eff on the validation part of the training logs). The rule's tolerance was
+chosen on development gyros of the population (docs/decisions.md); train on two or more ramp
+rates (or one log with up- and down-ramps at different rates and soaks): one rate leaves the
+lags undetermined, and with --test the rate-transfer check says how far (an interval for the
+RMS error on the test log).
 
 Every model uses only what firmware has (board thermometer and time) and predicts the SF
 error in ppm vs nominal, causally. The part --val-chunk of each training log is held out
@@ -82,12 +82,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="time constant of the dT/dt filter (default 120 s)")
     parser.add_argument("--structure", choices=STRUCTURES, default=None,
                         help="lag-lstm's physics part: auto (default: chosen by the training "
-                             "logs, leave one segment out, among physics nodes with 1-3 nodes "
-                             "and the bank; docs/train.md), physics (--nodes first-order lags "
-                             "of T with identified time constants, a quadratic with cross "
-                             "terms), bank (T and its lags at 11 time constants from 60 s to "
-                             "2 h, cubic up to 2000 s and linear beyond, ridge with one fixed "
-                             "prior) or node (one or two effective nodes with a cubic, "
+                             "logs, by held-out prediction of their parts, among physics nodes "
+                             "with 1-3 nodes and the bank; docs/train.md), physics (--nodes "
+                             "first-order lags of T with identified time constants, a quadratic "
+                             "with cross terms), bank (T and its lags at 11 time constants from "
+                             "60 s to 2 h, cubic up to 2000 s and linear beyond, ridge with one "
+                             "fixed prior) or node (one or two effective nodes with a cubic, "
                              "--nodes)")
     parser.add_argument("--nodes", type=int, choices=(1, 2, 3), default=None,
                         help="nodes of --structure physics (1-3, default 1) or node (1-2)")

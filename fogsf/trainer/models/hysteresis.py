@@ -11,9 +11,9 @@ exact in C. The structure's coefficients are fitted as before (ridge) with h's c
 unpenalised (its scale is the hysteresis strength in ppm/C; shrinking it would leave half
 the loop). (source, width) are chosen on a grid by the fitted rows' squared error.
 
-Whether a structure gets the term is for its held-out segments to say
-(`training.structure_choice`): the term is kept when it lowers the leave-one-segment-out
-RMS by more than HYST_GAIN, so gyros without hysteresis keep the structure they had.
+Whether a structure gets the term is for held-out blocks of its training logs to say
+(`training.hysteresis_choice`): the term is kept when it lowers their RMS by more than
+HYST_GAIN, so gyros without hysteresis keep the structure they had.
 """
 
 from __future__ import annotations

@@ -1,25 +1,23 @@
-"""The default's structure, chosen by the training logs: leave one segment out.
+"""The default's structure, chosen by the training logs: held-out prediction of their parts.
 
 The candidates, smallest and most physical first: physics nodes with 1, 2 and 3 nodes
 (`physics1`..`physics3`, `models.physics_nodes`) and the lag bank (`bank`). One effective
 node with a cubic (`node`, `--structure node`) is not among them: on development gyros its
 held-out score chose it where it then left 4-30 x the noise floor on loops
-(docs/decisions.md). Each is fitted by least squares to the
-training logs with one segment held out (a ramp with the soak before it, or a whole log),
-predicts that segment, and scores the RMS of its error over 100 s windows; a candidate's
-score is the RMS over every held-out segment. Predicting a ramp at a rate or in a direction
-the rest of the logs hold is what compensation at an untrained rate asks of a model.
-
-The rule: the first candidate, in an order that depends on what the logs hold, whose score
-is within CHOICE_TOLERANCE of the best:
+(docs/decisions.md). The logs are cut into segments (from one ramp's start to the next,
+so the first holds the soak before it; a log without a ramp is one segment). Each candidate
+is fitted by least squares to the training logs with one fold held out, predicts it, and
+scores the RMS of its error over 100 s windows; a candidate's score is the RMS over every
+held-out fold. The folds and the rule depend on what the logs hold:
 - one segment (one ramp; split into SPLIT_PARTS contiguous parts): its held-out parts test
   extrapolation in temperature, not in rate, so the data cannot tell the structures'
   rate dependence apart: the smaller, more physical structure first (physics nodes with
-  1, 2, 3 nodes, then the bank);
+  1, 2, 3 nodes, then the bank), the first within CHOICE_TOLERANCE of the best;
 - several segments (ramps at several rates or directions): every segment in SPLIT_PARTS
   parts, one part held out at a time. The other segments still hold the part's temperatures
   at their own rates, so the score tests interpolation in rate, what compensation at a rate
-  between the trained ones asks. The lag bank unless a physics structure's score is
+  between the trained ones asks (beyond MAX_PART_FOLDS parts, they are dealt to that many
+  folds in turn). The lag bank unless a physics structure's score is
   EVIDENCE_FACTOR times better than the bank's; then the smallest physics structure within
   CHOICE_TOLERANCE of the best physics score. Holding out whole segments (extrapolation in
   rate, MULTI_SEGMENT_ORDER) chose physics structures that then lost to the bank on
@@ -58,7 +56,8 @@ MULTI_SEGMENT_ORDER = ("bank", "physics1", "physics2", "physics3")
 # such in CANDIDATES is chosen. Chosen on development gyros (docs/decisions.md).
 CHOICE_TOLERANCE = 0.20
 # Several segments: a physics structure replaces the bank when its held-out-part score is
-# this many times better (development gyros: 2-3 gave the same figures, docs/decisions.md).
+# this many times better (development gyros 1-48: the factor of 2, 2.5 and 3 that never
+# left a median or worst case above the bank's, docs/decisions.md).
 EVIDENCE_FACTOR = 2.5
 PHYSICS = ("physics1", "physics2", "physics3")
 SPLIT_PARTS = 3
@@ -121,14 +120,15 @@ def step_data(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
 
 
 def part_folds(sd: StepData) -> np.ndarray:
-    """Every segment of `sd` in SPLIT_PARTS contiguous parts, one fold per part; beyond
-    MAX_PART_FOLDS parts, part i goes to fold i mod MAX_PART_FOLDS."""
+    """Every segment of `sd` in SPLIT_PARTS contiguous parts (fewer when it has fewer steps),
+    one fold per part, numbered without gaps; beyond MAX_PART_FOLDS parts, part i goes to
+    fold i mod MAX_PART_FOLDS."""
     out = np.empty_like(sd.fold)
     for k in range(sd.n_folds):
         idx = np.flatnonzero(sd.fold == k)
         out[idx] = k * SPLIT_PARTS + np.minimum(np.arange(idx.size) * SPLIT_PARTS // idx.size,
                                                 SPLIT_PARTS - 1)
-    return out % MAX_PART_FOLDS
+    return np.unique(out, return_inverse=True)[1].reshape(out.shape) % MAX_PART_FOLDS
 
 
 Predictor = Callable[[NodeTemperatures], np.ndarray]  # steps' prediction (ppm) of any logs

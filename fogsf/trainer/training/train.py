@@ -8,8 +8,8 @@ Models (all causal, all from the board thermometer and time only):
   lr 0.02, Adam);
 - `lag-lstm` (the default): the physics part fitted by least squares and carried exactly in
   the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is chosen by
-  the training logs (`structure="auto"`, `training.structure_choice`: leave one segment
-  out among physics nodes with 1-3 nodes and the lag bank), or given: physics nodes
+  the training logs (`structure="auto"`, `training.structure_choice`: held-out prediction
+  of their parts among physics nodes with 1-3 nodes and the lag bank), or given: physics nodes
   (`models.physics_nodes`: T and N first-order lags of it with identified time constants,
   a quadratic with cross terms), the lag bank (`models.lag_bank`: T and its lags at 11 time
   constants, ridge with a fixed prior; in the head's diagonal quadratic) or, with
