@@ -69,7 +69,7 @@ fuzz: $(STAMP)
 paper: $(STAMP)
 	$(PY) -m benchmarks.paper --out $(OUT)/paper
 
-# --- one ramp rate vs two on the default gyro (noise seeds 0-7), ~40 s ---
+# --- one ramp rate vs two on the default gyro (noise seeds 0-7), ~2.5 min ---
 bench-transfer: $(STAMP)
 	$(PY) -m benchmarks.rate_transfer --out $(OUT)/bench-transfer.json
 
