@@ -246,7 +246,7 @@ def test_several_ramps_keep_the_bank_unless_physics_is_evident(
     import fogsf.trainer.training.structure_choice as sc
 
     scores = {"bank": bank, **dict(zip(PHYSICS, phys, strict=True))}
-    monkeypatch.setattr(sc, "heldout_score", lambda name, sd, fit=None: scores[name])
+    monkeypatch.setattr(sc, "heldout_score", lambda name, sd, **kw: scores[name])
     c = choose([short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)])
     assert c.name == chosen and c.scores == {**dict(zip(PHYSICS, phys, strict=True)),
                                              "bank": bank}
@@ -286,3 +286,15 @@ def test_part_folds_of_short_segments_leave_no_empty_fold() -> None:
                   fold)
     f = part_folds(sd)
     assert np.array_equal(np.unique(f), np.arange(f.max() + 1)) and f.max() + 1 == 6
+
+
+def test_choice_progress_bar_counts_every_fit(capsys: pytest.CaptureFixture[str]) -> None:
+    """`choose(progress=True)` draws a bar over candidates x folds on stderr (what `fogsf
+    train` shows while a week of logs is scored); without it nothing is printed."""
+    logs = [short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)]
+    quiet = choose(logs)
+    assert capsys.readouterr().err == ""
+    loud = choose(logs, progress=True)
+    err = capsys.readouterr().err
+    assert "structure choice:" in err and f"/{4 * 2 * SPLIT_PARTS} [" in err  # 4 x 6 fits
+    assert loud.scores == quiet.scores

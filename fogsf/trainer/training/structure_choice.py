@@ -167,16 +167,20 @@ def _windowed_sq(err: np.ndarray, step_s: float) -> list[float]:
 
 
 def heldout_score(name: str, sd: StepData,
-                  fit: Callable[[StepData, np.ndarray], Predictor] | None = None) -> float:
+                  fit: Callable[[StepData, np.ndarray], Predictor] | None = None,
+                  tick: Callable[[], object] | None = None) -> float:
     """RMS (ppm, 100 s windows) of the candidate's error on each segment when fitted on the
     others, over every segment; `fit` (steps data, fitted rows) instead of the candidate's
-    own least squares (e.g. with a hysteresis term, `training.hysteresis_choice`)."""
+    own least squares (e.g. with a hysteresis term, `training.hysteresis_choice`); `tick`
+    is called after every fold's fit (a progress bar's update)."""
     sq: list[float] = []
     for k in range(sd.n_folds):
         held = sd.fold == k
         fitter = fit or (lambda s, r: fit_candidate(name, s, r))
         pred = fitter(sd, np.flatnonzero(~held))(sd.nodes)
         sq += _windowed_sq(pred[held] - sd.y[held], sd.fe.step_s)
+        if tick is not None:
+            tick()
     return float(np.sqrt(np.mean(sq)))
 
 
@@ -243,24 +247,34 @@ def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float
     return step_s * max(1, math.ceil(total_s / step_s / MAX_CHOICE_STEPS))
 
 
+def _scores(order: tuple[str, ...], sd: StepData, progress: bool) -> dict[str, float]:
+    """Every candidate's held-out score, in `order`; a bar over the fits if `progress`."""
+    from tqdm import tqdm
+
+    with tqdm(total=len(order) * sd.n_folds, desc="structure choice", unit="fit",
+              disable=not progress, leave=False) as bar:
+        return {c: heldout_score(c, sd, tick=bar.update) for c in order}
+
+
 def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
            latitude_deg: float | None = None,
            candidates: tuple[str, ...] | None = None,
-           tolerance: float = CHOICE_TOLERANCE) -> StructureChoice:
+           tolerance: float = CHOICE_TOLERANCE, progress: bool = False) -> StructureChoice:
     """The rule (module docstring); `candidates` in order replaces the rule's order (and,
-    with several segments, scores whole segments held out, the rule tuned first)."""
+    with several segments, scores whole segments held out, the rule tuned first);
+    `progress`: a bar over the fits (a week of logs takes a minute)."""
     sd = step_data(logs, choice_step_s(logs, step_s), latitude_deg)
     if candidates is None and not sd.one_segment:
         segments = sd.n_folds
         sd.fold = part_folds(sd)
-        scores = {c: heldout_score(c, sd) for c in (*PHYSICS, "bank")}
+        scores = _scores((*PHYSICS, "bank"), sd, progress)
         best = min(scores[c] for c in PHYSICS)
         name = "bank"
         if EVIDENCE_FACTOR * best <= scores["bank"]:
             name = next(c for c in PHYSICS if scores[c] <= (1.0 + tolerance) * best)
         return StructureChoice(name, scores, segments, False, tolerance, EVIDENCE_FACTOR)
     order = candidates or CANDIDATES
-    scores = {c: heldout_score(c, sd) for c in order}
+    scores = _scores(order, sd, progress)
     best = min(scores.values())
     name = next(c for c in order if scores[c] <= (1.0 + tolerance) * best)
     return StructureChoice(name, scores, sd.n_folds, sd.one_segment, tolerance)

@@ -146,7 +146,8 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         if opts.structure == "auto" and opts.node is None and opts.nodes == 1:
             from fogsf.trainer.training.structure_choice import choose
 
-            choice = choose(train_logs, opts.model_step_s, opts.latitude_deg)
+            choice = choose(train_logs, opts.model_step_s, opts.latitude_deg,
+                            progress=opts.progress)
             structure, nodes = choice.structure()
             opts = TrainOptions(**{**asdict(opts), "structure": structure, "nodes": nodes})
         bank = opts.structure in ("bank", "auto") and opts.node is None and opts.nodes == 1
