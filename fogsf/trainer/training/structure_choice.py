@@ -56,8 +56,8 @@ MULTI_SEGMENT_ORDER = ("bank", "physics1", "physics2", "physics3")
 # such in CANDIDATES is chosen. Chosen on development gyros (docs/decisions.md).
 CHOICE_TOLERANCE = 0.20
 # Several segments: a physics structure replaces the bank when its held-out-part score is
-# this many times better (development gyros 1-48: the factor of 2, 2.5 and 3 that never
-# left a median or worst case above the bank's, docs/decisions.md).
+# this many times better (development gyros 1-48: of 2, 2.5 and 3, the one that improved
+# on the bank with no median or worst case above it, docs/decisions.md).
 EVIDENCE_FACTOR = 2.5
 PHYSICS = ("physics1", "physics2", "physics3")
 SPLIT_PARTS = 3
