@@ -189,10 +189,11 @@ def test_two_rates_on_the_default_gyro_take_physics_nodes() -> None:
     assert "better than the lag bank" in c.message()
 
 
-def _segments(n_segments: int, steps: int = 30) -> StepData:
+def _segments(steps: list[int]) -> StepData:
+    """Steps data of segments `steps` long (no temperatures: for the folds alone)."""
     from types import SimpleNamespace
 
-    fold = np.repeat(np.arange(n_segments), steps)
+    fold = np.repeat(np.arange(len(steps)), steps)
     return StepData(SimpleNamespace(step_s=5.0), [np.zeros(fold.size)], np.zeros(fold.size),
                     fold)
 
@@ -202,13 +203,13 @@ def test_part_folds_are_the_parts_then_dealt_to_a_bounded_number() -> None:
     segment); beyond, part i goes to fold i mod MAX_PART_FOLDS, so the cost of the choice
     grows with the log, not with its square, and no fold holds two parts of one segment."""
     few = MAX_PART_FOLDS // SPLIT_PARTS
-    sd = _segments(few)
+    sd = _segments([30] * few)
     f = part_folds(sd)
     assert f.max() + 1 == few * SPLIT_PARTS
     for k in range(few * SPLIT_PARTS):
         idx = np.flatnonzero(f == k)
         assert idx.size == 10 and np.all(np.diff(idx) == 1) and np.all(sd.fold[idx] == k // 3)
-    many = _segments(34)
+    many = _segments([30] * 34)
     g = part_folds(many)
     assert g.max() + 1 == MAX_PART_FOLDS
     for k in range(MAX_PART_FOLDS):
@@ -279,11 +280,7 @@ def test_choose_scores_long_logs_at_the_coarser_step(monkeypatch: pytest.MonkeyP
 def test_part_folds_of_short_segments_leave_no_empty_fold() -> None:
     """A segment shorter than SPLIT_PARTS steps gives fewer parts; the folds are numbered
     without gaps, so every fold holds steps and no held-out score is a mean of nothing."""
-    from types import SimpleNamespace
-
-    fold = np.repeat(np.arange(3), [31, 2, 1])
-    sd = StepData(SimpleNamespace(step_s=5.0), [np.zeros(fold.size)], np.zeros(fold.size),
-                  fold)
+    sd = _segments([31, 2, 1])
     f = part_folds(sd)
     assert np.array_equal(np.unique(f), np.arange(f.max() + 1)) and f.max() + 1 == 6
 
