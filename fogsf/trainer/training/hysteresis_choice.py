@@ -8,10 +8,9 @@ dealt in turn to HOLDOUT_FOLDS folds, each fold predicted by the structure fitte
 others (`training.structure_choice.heldout_score`; the term's source and width chosen on
 the fitted blocks only), and the term is kept when it lowers the held-out RMS by more than
 HYST_GAIN. Interleaved blocks test what the term adds where the rest of the log holds the
-same temperatures; holding out whole ramp segments tests
-extrapolation instead, whose errors drowned the term's gain on development gyros
-(docs/decisions.md). Gyros without hysteresis keep their structure unless their own logs
-say otherwise.
+same temperatures; holding out whole ramp segments tests extrapolation instead, whose
+errors drowned the term's gain on development gyros (docs/decisions.md). Gyros without
+hysteresis keep their structure unless their own logs say otherwise.
 """
 
 from __future__ import annotations

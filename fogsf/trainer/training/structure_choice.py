@@ -174,9 +174,9 @@ def heldout_score(name: str, sd: StepData,
     own least squares (e.g. with a hysteresis term, `training.hysteresis_choice`); `tick`
     is called after every fold's fit (a progress bar's update)."""
     sq: list[float] = []
+    fitter = fit or (lambda s, r: fit_candidate(name, s, r))
     for k in range(sd.n_folds):
         held = sd.fold == k
-        fitter = fit or (lambda s, r: fit_candidate(name, s, r))
         pred = fitter(sd, np.flatnonzero(~held))(sd.nodes)
         sq += _windowed_sq(pred[held] - sd.y[held], sd.fe.step_s)
         if tick is not None:
