@@ -1,5 +1,5 @@
-"""SF hysteresis: the default with its hysteresis term against the default without it
-(`make bench-hysteresis`).
+"""SF hysteresis: the default (its hysteresis term when the logs ask for it) against the same
+model without the term and with it always (`make bench-hysteresis`).
 
 Gyros come from the population (`fogsf.trainer.sim.population`): a share draws a play
 operator of the coil temperature in its SF (`hysteresis_for_seed`: widths 4-10 C,
@@ -13,8 +13,8 @@ the test RMS after compensation over the noise floor. Three groups of gyros:
   flat       the first N gyros from --first that draw none (the term must not hurt them)
 
 Models: `auto` (lag-lstm, the structure chosen by the logs, the hysteresis term when the
-logs' held-out blocks say so: `--hysteresis auto`), `off` (the same with `--hysteresis off`,
-what `fogsf train` fits by default) and `on` (`--hysteresis on`: the term always, what it can
+logs' held-out blocks say so: what `fogsf train` fits by default), `off` (the same with
+`--hysteresis off`) and `on` (`--hysteresis on`: the term always, what it can
 capture when the check does not hold it back). With --kernel, the first case whose `auto`
 model carries the play is trained again and replayed through
 the C kernel (its SF output must equal the numpy reference bit for bit, and the ratio is

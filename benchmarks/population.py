@@ -58,10 +58,11 @@ PROTOCOLS = {
 # default: what `fogsf train` fits without --model (lag-lstm, its structure chosen by the
 # training logs); bank, node, physics2: lag-lstm with its physics part forced (`--structure
 # bank`, the previous default; `node`, one effective node; `physics --nodes 2`)
-MODELS = ("poly", "polyrate", "default", "bank", "node", "physics2", "gsa-lstm")
+MODELS = ("poly", "polyrate", "default", "bank", "node", "physics2", "hyst-off", "gsa-lstm")
 # the default model with its physics part forced (`fogsf train --structure ...`)
 FORCED = {"bank": {"structure": "bank"}, "node": {"structure": "node"},
-          "physics2": {"structure": "physics", "nodes": 2}}
+          "physics2": {"structure": "physics", "nodes": 2},
+          "hyst-off": {"hysteresis": "off"}}
 # GSA's search space reaches 3 x 256 LSTMs: even this budget takes minutes a protocol on
 # 2 cores, so gsa-lstm runs on the paper's protocol (a) only
 GSA_SMALL = {"gsa_agents": 3, "gsa_iters": 2, "gsa_fitness_iters": 20, "iters": 100}

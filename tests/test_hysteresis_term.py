@@ -131,3 +131,35 @@ def test_trained_play_model_runs_bit_for_bit_in_c(tmp_path) -> None:
                        [train], test, tmp_path / "off")[0]
     # an 8 ppm/C, 8 C play: the term takes most of what the model without it leaves
     assert m["test"]["after"]["rms_ppm"] < 0.8 * off["test"]["after"]["rms_ppm"]
+
+
+def test_the_check_is_the_default(tmp_path) -> None:
+    """`fogsf train` without --hysteresis on the docs' example (development gyro 17, 5.7
+    ppm/C, 9 C wide, on the partial-cycle program): the check runs and keeps the term."""
+    import json
+
+    from fogsf.trainer.cli import main
+
+    log = tmp_path / "train.csv"
+    assert main(["simulate", "--scenario", "partial", "--random-gyro", "17", "--seed", "3",
+                 "--out", str(log)]) == 0
+    assert main(["train", "--train", str(log), "--out", str(tmp_path / "m"), "--iters", "5",
+                 "--no-progress"]) == 0
+    choice = json.loads((tmp_path / "m" / "metrics.json").read_text())["hysteresis_choice"]
+    assert choice["mode"] == "auto" and choice["used"], choice
+    assert json.loads((tmp_path / "m" / "stream.json").read_text()).get("play_width_c"), \
+        "the artifact carries no play"
+
+
+def test_long_logs_are_checked_at_the_choice_step(monkeypatch) -> None:
+    from fogsf.trainer.training import hysteresis_choice, structure_choice
+    from fogsf.trainer.training import train as train_mod
+
+    seen: list[float] = []
+    monkeypatch.setattr(structure_choice, "MAX_CHOICE_STEPS", 100)
+    monkeypatch.setattr(hysteresis_choice, "decide",
+                        lambda logs, base, step_s, lat, mode: seen.append(step_s) or {})
+    log = simulate(_partial_run(1)).log
+    train_mod._hysteresis_choice(TrainOptions(model="lag-lstm"), [log], "bank")
+    want = structure_choice.choice_step_s([log], 5.0)
+    assert want > 5.0 and seen == [want]

@@ -96,12 +96,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         metavar=("TAU_S", "W"),
                         help="effective sensing temperature T_eff = W*T + (1-W)*lag(T, TAU_S) "
                              "for lag-lstm (default: identified from the training logs)")
-    parser.add_argument("--hysteresis", choices=("auto", "on", "off"), default="off",
+    parser.add_argument("--hysteresis", choices=("auto", "on", "off"), default="auto",
                         help="lag-lstm (bank or physics nodes): a play (backlash) term for "
-                             "rate-independent SF hysteresis; auto: when the training logs "
-                             "turn back in temperature and their held-out segments predict "
-                             "better with it; off (default): auto still makes some gyros "
-                             "without hysteresis worse (docs/train.md)")
+                             "rate-independent SF hysteresis; auto (default): when the "
+                             "training logs turn back in temperature and their held-out "
+                             "blocks predict 10 %% better with it; on: always; off: never "
+                             "(docs/train.md, \"Hysteresis\")")
     g = parser.add_argument_group("LSTM (defaults: lstm = paper Table 1, others 1 x 16)")
     g.add_argument("--layers", type=int)
     g.add_argument("--hidden", type=int)

@@ -24,8 +24,8 @@ class TrainOptions:
     nodes: int = 1  # nodes of lag-lstm's node (1-2) or physics (1-3) structure
     structure: str = "auto"  # lag-lstm: "auto" (chosen by the logs), "physics", "bank", "node"
     # lag-lstm (bank, physics): a play (hysteresis) term: "auto" (when the training logs'
-    # held-out segments say it helps, `training.hysteresis_choice`), "on", "off"
-    hysteresis: str = "off"
+    # held-out blocks say it helps, `training.hysteresis_choice`), "on", "off"
+    hysteresis: str = "auto"
     layers: int | None = None
     hidden: int | None = None
     batch_size: int | None = None

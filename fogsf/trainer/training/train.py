@@ -178,8 +178,12 @@ def _lstm_inputs(opts: TrainOptions, spec: FeatureSpec) -> int:
 
 def _hysteresis_choice(opts: TrainOptions, logs: list[ChamberLog], base: str) -> dict:
     from fogsf.trainer.training.hysteresis_choice import decide
+    from fogsf.trainer.training.structure_choice import choice_step_s
 
-    return decide(logs, base, opts.model_step_s, opts.latitude_deg, opts.hysteresis)
+    # long logs are checked at the structure choice's coarser step (the term is then fitted
+    # at the model step)
+    return decide(logs, base, choice_step_s(logs, opts.model_step_s), opts.latitude_deg,
+                  opts.hysteresis)
 
 
 def _fit_physics(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False
