@@ -48,27 +48,35 @@ AXES = ("imu_x", "imu_y", "imu_z")
 
 
 def small_poly_models(n: int, filters: int = 1, bank_form: bool = True,
-                      bias_head: bool = False, own: int = 0) -> list[st.StreamModel]:
+                      bias_head: bool = False, own: int = 0, play: bool = False
+                      ) -> list[st.StreamModel]:
     """n 1x16 LSTM models with the polynomial head (seeded random weights), one per gyro:
     one filter and feature (one effective node), or `filters` lags plus T (the lag bank's
     shape, the default model: 11 filters, 12 features). The bank's shape is the default
     model's form: the LSTM reads z[0:BANK_LSTM_INPUTS], the quadratic is diagonal;
     `bank_form=False` gives the previous form (the LSTM on all 12, a full 12 x 12 quad_w);
     `bias_head` adds the bias head (the SF weights stay those drawn without it); `own`
-    filters and features more, the bias's own (`lead` on turning logs: one, its coil node)."""
+    filters and features more, the bias's own (`lead` on turning logs: one, its coil node);
+    `play` a hysteresis term (one play of a mix of T and the fifth lag, and its feature),
+    which the default takes when its logs turn back in temperature and ask for it."""
     bank = filters > 1 and bank_form
-    return [samples.random_model(filters + own, filters + (filters > 1) + own, 1, 16,
+    k = filters + own
+    plays = (((0.5,) + (0.0,) * 4 + (0.5,) + (0.0,) * (k - 5), 6.0),) if play else ()
+    return [samples.random_model(k, filters + (filters > 1) + own + play, 1, 16,
                                  decimation=50, seed=300 + a, poly_head=True,
                                  lstm_inputs=BANK_LSTM_INPUTS if bank else None,
-                                 quad_diag=bank, bias_head=bias_head)
+                                 quad_diag=bank, bias_head=bias_head, plays=plays)
             for a in range(n)]
 
 
-# (filters, label, bank_form, bias_head, the bias's own filters) of the image rows
-IMAGES = ((1, "small-lstm-1x16-poly", True, False, 0), (11, "lag-bank-1x16", True, False, 0),
-          (11, "lag-bank-1x16-bias-head", True, True, 0),
-          (11, "lag-bank-1x16-lead-bias-head", True, True, 1),
-          (11, "lag-bank-1x16-all-inputs-full-quad", False, False, 0))
+# (filters, label, bank_form, bias_head, the bias's own filters, a play) of the image rows
+IMAGES = ((1, "small-lstm-1x16-poly", True, False, 0, False),
+          (11, "lag-bank-1x16", True, False, 0, False),
+          (11, "lag-bank-1x16-bias-head", True, True, 0, False),
+          (11, "lag-bank-1x16-lead-bias-head", True, True, 1, False),
+          (11, "lag-bank-1x16-play", True, False, 0, True),
+          (11, "lag-bank-1x16-lead-bias-head-play", True, True, 1, True),
+          (11, "lag-bank-1x16-all-inputs-full-quad", False, False, 0, False))
 
 
 def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-lstm-1x16-poly"
@@ -211,8 +219,9 @@ def main(argv: list[str] | None = None) -> int:
         rows = [bench_model(n, m, note, args.build.resolve(), args.steps)
                 for n, m, note in models]
         images = [] if arm_tools_missing() else [
-            bench_image(small_poly_models(n, k, form, bias, own), args.build.resolve(), label)
-            for k, label, form, bias, own in IMAGES for n in (1, 3)]
+            bench_image(small_poly_models(n, k, form, bias, own, play), args.build.resolve(),
+                        label)
+            for k, label, form, bias, own, play in IMAGES for n in (1, 3)]
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)
         return 2

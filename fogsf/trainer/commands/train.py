@@ -7,7 +7,8 @@ is chosen by the training logs, by held-out prediction of their parts, among phy
 with 1-3 nodes (first-order lags of T with identified time constants, a quadratic with cross
 terms) and the lag bank (T and its lags at 11 time constants from 60 s to 2 h, ridge with a
 fixed prior); `--structure` to give it, `node` for one or two effective nodes T_eff = w T +
-(1 - w) lag(T, tau)), gsa-lstm (GSA tunes batch size, layers, hidden units, learning rate
+(1 - w) lag(T, tau); a hysteresis term when logs that turn back in temperature ask for it,
+`--hysteresis`), gsa-lstm (GSA tunes batch size, layers, hidden units, learning rate
 and (tau, w) of T_eff on the validation part of the training logs). The rule's tolerance was
 chosen on development gyros of the population (docs/decisions.md); train on two or more ramp
 rates (or one log with up- and down-ramps at different rates and soaks): one rate leaves the

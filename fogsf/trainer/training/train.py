@@ -15,7 +15,9 @@ Models (all causal, all from the board thermometer and time only):
   constants, ridge with a fixed prior; in the head's diagonal quadratic) or, with
   `structure="node"`, one or two effective sensing temperatures
   T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid; the LSTM reads the
-  first BANK_LSTM_INPUTS features (T);
+  first BANK_LSTM_INPUTS features (T). A hysteresis (play) term joins the bank or the
+  physics nodes when logs that turn back in temperature ask for it
+  (`training.hysteresis_choice`; `hysteresis="on"` / `"off"` to force it);
 - `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
   four) and (tau, w) of T_eff; fitness is the error on the validation part of the training
   logs, never the test log.
