@@ -75,6 +75,7 @@ IMAGES = ((1, "small-lstm-1x16-poly", True, False, 0, False),
           (11, "lag-bank-1x16-bias-head", True, True, 0, False),
           (11, "lag-bank-1x16-lead-bias-head", True, True, 1, False),
           (11, "lag-bank-1x16-play", True, False, 0, True),
+          (11, "lag-bank-1x16-bias-head-play", True, True, 0, True),
           (11, "lag-bank-1x16-lead-bias-head-play", True, True, 1, True),
           (11, "lag-bank-1x16-all-inputs-full-quad", False, False, 0, False))
 

@@ -418,6 +418,26 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     assert e_lead < 0.8 * e_shared, (e_lead, e_shared)
 
 
+def test_a_model_with_a_play_leaves_lead_out(tmp_path: Path) -> None:
+    """The same reversal log with the hysteresis term forced: the bias head does not take
+    `lead` (its filter and feature beside the play would overflow the three-model M4F
+    image), says so, and the artifact carries the play and no filter of the bias's own."""
+    from benchmarks.bias_eval import TRAIN_LOOP
+    from fogsf.trainer.models.lag_bank import bank_spec
+    from fogsf.trainer.models.stream import StreamModel
+    from fogsf.trainer.training.bias_model import LEAD_LEFT_OUT
+
+    log = reversal_rig_log(tmp_path / "a" / "log.csv", 3, 2.0, TRAIN_LOOP, 1)
+    assert cli.main(["train", "--train", str(log.path), "--structure", "bank",
+                     "--hysteresis", "on", "--out", str(tmp_path / "m")]) == 0
+    m = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    structure = m["bias"]["model"]["structure"]
+    assert structure["chosen"] != "lead" and "lead" not in structure["heldout_rms_dph"]
+    assert structure["left_out"] == LEAD_LEFT_OUT
+    sm = StreamModel.load(tmp_path / "m")
+    assert sm.n_plays == 1 and list(sm.filter_tau_s) == list(bank_spec().taus_s)
+
+
 def test_the_choice_message_says_why_lead_was_taken() -> None:
     """`fogsf train`'s line on the bias structure: the rule's reason, and for `lead` taken
     because the cubic in T misses by far, that reason, not 'within 10 %'."""

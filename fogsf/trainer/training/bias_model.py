@@ -44,6 +44,11 @@ MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
 # alike, and a mean of a few samples holds the angle random walk of a few samples (one
 # sample at 10 Hz: 12 deg/h off, which alone set a held-out score)
 MIN_STEP_SHARE = 0.5
+# A bias head on turning logs whose SF model carries a hysteresis play does not take `lead`:
+# its own filter and feature beside the play's would take three such models past the
+# Cortex-M4F image's 24 KB of flash (`make bench`, docs/firmware.md)
+LEAD_LEFT_OUT = ("lead left out: the SF model carries a hysteresis play, and three models "
+                 "with both overflow the 24 KB M4F image")
 
 
 @dataclass(frozen=True)
@@ -203,7 +208,12 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
             free.lead_fast_s = fast
         if i_t is None:
             order = ("bank",)
+        left_out = ""
+        if fm.fe.n_plays and "lead" in order:
+            order = tuple(c for c in order if c != "lead")
+            left_out = LEAD_LEFT_OUT
         choice, fit = bs.choose(cols, y, fold, group, order)
+        choice.left_out = left_out
         fam = family(cols, y, choice.scores, choice.name, group,
                      lambda lg: _shared_columns(fm, fm.z(lg).astype(np.float64),
                                                 _free_columns(lg, fe0))[0],

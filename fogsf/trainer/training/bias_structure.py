@@ -234,11 +234,15 @@ class BiasChoice:
     taus_s: tuple[float, ...]  # the chosen candidate's node time constants
     tolerance: float = CHOICE_TOLERANCE
     free_tau: bool = True  # by varpro (lead: a grid), else one of z's lags
+    left_out: str = ""  # why a candidate was not tried (metrics.json `left_out`)
 
     def as_dict(self) -> dict:
-        return {"chosen": self.name, "heldout_rms_dph": self.scores, "folds": self.folds,
-                "node_taus_s": list(self.taus_s), "tolerance": self.tolerance,
-                "free_tau": self.free_tau}
+        out = {"chosen": self.name, "heldout_rms_dph": self.scores, "folds": self.folds,
+               "node_taus_s": list(self.taus_s), "tolerance": self.tolerance,
+               "free_tau": self.free_tau}
+        if self.left_out:
+            out["left_out"] = self.left_out
+        return out
 
 
 def choice_message(d: dict) -> str:
@@ -259,9 +263,10 @@ def choice_message(d: dict) -> str:
                else "the best of the features' lags")
         taus = ", ".join(f"{t:.0f}" for t in d["node_taus_s"])
         tau = f"; node time constants {taus} s ({how})"
+    left = f"; {d['left_out']}" if d.get("left_out") else ""
     return (f"bias structure {d['chosen']}, chosen on held-out blocks of the training "
             f"targets ({d['folds']} folds of {BLOCK_S:.0f} s blocks; held-out RMS, deg/h: "
-            f"{cells}): {why}{tau}")
+            f"{cells}): {why}{tau}{left}")
 
 
 def choose(cols: Columns, y: np.ndarray, fold: np.ndarray, group: np.ndarray,
