@@ -140,7 +140,7 @@ def test_the_check_is_the_default(tmp_path) -> None:
 
     from fogsf.trainer.cli import main
 
-    assert TrainOptions().hysteresis == "auto"
+    assert TrainOptions(model="lag-lstm").hysteresis == "auto"
     log = tmp_path / "train.csv"
     assert main(["simulate", "--scenario", "partial", "--random-gyro", "17", "--seed", "3",
                  "--out", str(log)]) == 0
@@ -162,5 +162,5 @@ def test_long_logs_are_checked_at_the_choice_step(monkeypatch) -> None:
                         lambda logs, base, step_s, lat, mode: seen.append(step_s) or {})
     log = simulate(_partial_run(1)).log
     train_mod._hysteresis_choice(TrainOptions(model="lag-lstm"), [log], "bank")
-    want = structure_choice.choice_step_s([log], TrainOptions().model_step_s)
+    want = structure_choice.choice_step_s([log], TrainOptions(model="lag-lstm").model_step_s)
     assert want > 5.0 and seen == [want]
