@@ -74,6 +74,8 @@ HYST_OFF_PROTOCOLS = ("e", "f")
 # 2 cores, so gsa-lstm runs on the paper's protocol (a) only
 GSA_SMALL = {"gsa_agents": 3, "gsa_iters": 2, "gsa_fitness_iters": 20, "iters": 100}
 GSA_PROTOCOLS = ("a",)
+# models that run on some protocols only (the others on every one)
+ONLY_ON = {"gsa-lstm": GSA_PROTOCOLS, "hyst-off": HYST_OFF_PROTOCOLS}
 LO_C, HI_C = -40.0, 50.0
 
 
@@ -157,8 +159,7 @@ def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ..
             train_names, test_name = PROTOCOLS[p]
             case: dict = {}
             for model in models:
-                if (model == "gsa-lstm" and p not in GSA_PROTOCOLS) or \
-                        (model == "hyst-off" and p not in HYST_OFF_PROTOCOLS):
+                if p not in ONLY_ON.get(model, (p,)):
                     continue
                 opts = _train_options(model, gyro_seed)
                 m, _ = run_training(opts, [logs[r] for r in train_names], logs[test_name],
