@@ -247,7 +247,7 @@ def test_several_ramps_keep_the_bank_unless_physics_is_evident(
     import fogsf.trainer.training.structure_choice as sc
 
     scores = {"bank": bank, **dict(zip(PHYSICS, phys, strict=True))}
-    monkeypatch.setattr(sc, "heldout_score", lambda name, sd, **kw: scores[name])
+    monkeypatch.setattr(sc, "heldout_folds", lambda name, sd, **kw: [[scores[name] ** 2]])
     c = choose([short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)])
     assert c.name == chosen and c.scores == {**dict(zip(PHYSICS, phys, strict=True)),
                                              "bank": bank}

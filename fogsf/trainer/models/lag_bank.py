@@ -7,7 +7,9 @@ first-order lag filters at every time constant of `TAU_GRID_S` (60 s .. 2 h), ea
 on its own (no cross terms): T and the lags up to CURVED_MAX_TAU_S (2000 s) as cubics, the slower
 lags linearly, all fitted together by ridge regression with one fixed
 penalty (a physics prior chosen on development gyros). No structure is selected, so there
-is no selection to get wrong; the penalty shrinks what the data does not determine.
+is no selection to get wrong; the penalty shrinks what the data does not determine. Logs
+with many held-out parts may lower it (`training.structure_choice`): where the data
+decides, the prior gives way.
 
 Chosen over the alternatives on development gyros (docs/decisions.md has the figures):
 one effective node with a cubic (`--structure node`), the best of one and two nodes, the
@@ -49,6 +51,22 @@ CURVED_MAX_TAU_S = 2000.0
 # models must fit one Cortex-M4F image in 24 KB (docs/firmware.md). Set from a comparison on
 # development gyros (docs/decisions.md).
 BANK_LSTM_INPUTS = 1
+
+
+def bank_name(lam: float = BANK_LAMBDA) -> str:
+    """The structure name of the bank fitted with penalty `lam`: "bank" at the prior
+    BANK_LAMBDA, else "bank:LAM" (a penalty the training logs chose,
+    `training.structure_choice`)."""
+    return "bank" if lam == BANK_LAMBDA else f"bank:{lam:g}"
+
+
+def bank_penalty(name: str) -> float | None:
+    """The ridge penalty of a bank structure name (`bank_name`); None for any other."""
+    if name == "bank":
+        return BANK_LAMBDA
+    if name.startswith("bank:"):
+        return float(name.removeprefix("bank:"))
+    return None
 
 
 def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:

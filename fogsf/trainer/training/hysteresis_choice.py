@@ -29,7 +29,7 @@ from fogsf.trainer.models.hysteresis import (
     sources,
     term_column,
 )
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, BankFit, bank_design, n_curved
+from fogsf.trainer.models.lag_bank import BankFit, bank_design, bank_penalty, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.node_fit import RidgeFit, discrete_lag, lag_alpha
 from fogsf.trainer.models.physics_nodes import (
@@ -76,12 +76,14 @@ class Structure:
 
 
 def structure(name: str, sd: StepData, rows: np.ndarray) -> Structure:
-    """`bank` or `physicsN` (time constants identified on `rows`) with a column h."""
-    if name == "bank":
+    """The bank (`bank` or `bank:LAM`, `lag_bank.bank_name`) or `physicsN` (time constants
+    identified on `rows`) with a column h."""
+    lam = bank_penalty(name)
+    if lam is not None:
         def bank(nt: NodeTemperatures, h: np.ndarray) -> np.ndarray:
             return bank_design(np.column_stack([nt.z(TAU_GRID_S), h]), n_curved())
 
-        return Structure(TAU_GRID_S, BANK_LAMBDA, len(TAU_GRID_S) + 1,
+        return Structure(TAU_GRID_S, lam, len(TAU_GRID_S) + 1,
                          float(np.std(sd.y[rows])) or 1.0, bank)
     n_nodes = int(name.removeprefix("physics"))
     taus = identify_taus(sd.nodes, sd.y, n_nodes, rows)
@@ -125,8 +127,8 @@ def final_term(name: str, sd: StepData, taus_s: tuple[float, ...]) -> HystTerm:
     """The term (source mix over T and the structure's lags `taus_s`, width) of structure
     `name` fitted on every step of `sd`."""
     rows = np.arange(sd.y.size)
-    if name == "bank":
-        st = structure("bank", sd, rows)
+    if bank_penalty(name) is not None:
+        st = structure(name, sd, rows)
     else:
         n_nodes = len(taus_s)
 
@@ -173,12 +175,13 @@ def choice_line(d: dict) -> str:
             f"({d.get('reason', '')})")
 
 
-def bank_head(z: np.ndarray, y: np.ndarray, fit: RidgeFit) -> BankFit:
-    """A ridge fit of bank_design(z, n_curved()) (h the last feature, linear) as a BankFit."""
+def bank_head(z: np.ndarray, fit: RidgeFit, lam: float) -> BankFit:
+    """A ridge fit of bank_design(z, n_curved()) (h the last feature, linear) with penalty
+    `lam` as a BankFit."""
     k, c = z.shape[1], n_curved()
     quad, cube = np.zeros(k), np.zeros(k)
     quad[:c], cube[:c] = fit.coef[k:k + c], fit.coef[k + c:]
-    return BankFit(fit.intercept, fit.coef[:k], quad, cube, BANK_LAMBDA, fit.dof)
+    return BankFit(fit.intercept, fit.coef[:k], quad, cube, lam, fit.dof)
 
 
 def node_head(z: np.ndarray, fit: RidgeFit, taus_s: tuple[float, ...]) -> NodeFit:
@@ -190,8 +193,9 @@ def head_fit(name: str, z: np.ndarray, y: np.ndarray, taus_s: tuple[float, ...]
     """The structure's head over features z whose last is the hysteresis feature (from the
     front end), its coefficient unpenalised: what the firmware carries."""
     f = z.shape[1] - 1
-    if name == "bank":
-        fit = ridge_fit_free(bank_design(z, n_curved()), y, BANK_LAMBDA, [f])
-        return bank_head(z, y, fit)
+    lam = bank_penalty(name)
+    if lam is not None:
+        fit = ridge_fit_free(bank_design(z, n_curved()), y, lam, [f])
+        return bank_head(z, fit, lam)
     fit = ridge_fit_free(node_design(z, taus_s), y, NODE_LAMBDA, [f])
     return node_head(z, fit, taus_s)

@@ -23,7 +23,14 @@ held-out fold. The folds and the rule depend on what the logs hold:
   rate, MULTI_SEGMENT_ORDER) chose physics structures that then lost to the bank on
   evaluation gyros (docs/decisions.md); it is kept for `choose(candidates=...)` and the
   probes.
-The orders, the tolerance and the factor were chosen on development gyros.
+When the bank is chosen from several segments and the logs hold at least
+PENALTY_MIN_FOLDS held-out parts, its ridge penalty may go below the prior (BANK_LAMBDA):
+each of PENALTIES in turn replaces the current one when it predicts at least half of the
+held-out parts better and lowers the score. With many parts the data, not the prior, can
+say how far the lags' fine structure (a slow chain's delay) is determined; with few, a
+lower penalty chose itself by chance and lost on the tests (docs/decisions.md).
+The orders, the tolerance, the factor and the penalty rule were chosen on development
+gyros.
 """
 
 from __future__ import annotations
@@ -38,7 +45,7 @@ from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.columns import held
 from fogsf.trainer.models.chain_nodes import chain_z, identify_chains, node_taus
 from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for, prepare
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, fit_bank, n_curved
+from fogsf.trainer.models.lag_bank import bank_name, bank_penalty, fit_bank, n_curved
 from fogsf.trainer.models.least_squares import TAU_GRID_S, fit_candidates, node_candidates
 from fogsf.trainer.models.physics_nodes import (
     NodeTemperatures,
@@ -72,6 +79,12 @@ MAX_PART_FOLDS = 24
 # at 5 s, 24 folds). The chosen structure is then fitted at the model step.
 MAX_CHOICE_STEPS = 24_000
 SCORE_WINDOW_S = 100.0
+# The bank's penalty: the lower ones tried in turn (multiples of the design's mean diagonal,
+# as BANK_LAMBDA), and the held-out parts the logs must hold for the rule to run
+# (development gyros 1-80, docs/decisions.md: the envelope's 18 parts, not a loop's or two
+# ramps' 6).
+PENALTIES = (1e-4, 1e-5, 1e-6)
+PENALTY_MIN_FOLDS = 12
 
 
 @dataclass
@@ -137,10 +150,11 @@ Predictor = Callable[[NodeTemperatures], np.ndarray]  # steps' prediction (ppm) 
 def fit_candidate(name: str, sd: StepData, rows: np.ndarray) -> Predictor:
     """Candidate `name` fitted by least squares on the steps `rows` of `sd`."""
     y = sd.y[rows]
-    if name == "bank":
+    lam = bank_penalty(name)
+    if lam is not None:
         z = sd.nodes.z(TAU_GRID_S)
         scale = float(np.std(y)) or 1.0
-        bank = fit_bank(z[rows], y / scale, BANK_LAMBDA, curved=n_curved())
+        bank = fit_bank(z[rows], y / scale, lam, curved=n_curved())
         return lambda nt: bank.predict(nt.z(TAU_GRID_S)) * scale
     if name == "node":
         s = sd.nodes.z(TAU_GRID_S) * 50.0
@@ -166,6 +180,27 @@ def _windowed_sq(err: np.ndarray, step_s: float) -> list[float]:
     return list(np.mean(err[:n * win].reshape(n, win), axis=1) ** 2)
 
 
+def heldout_folds(name: str, sd: StepData,
+                  fit: Callable[[StepData, np.ndarray], Predictor] | None = None,
+                  tick: Callable[[], object] | None = None) -> list[list[float]]:
+    """Per fold, the squared 100 s window means (ppm^2) of the candidate's error on it when
+    fitted on the others (`heldout_score`'s arguments)."""
+    out: list[list[float]] = []
+    fitter = fit or (lambda s, r: fit_candidate(name, s, r))
+    for k in range(sd.n_folds):
+        held = sd.fold == k
+        pred = fitter(sd, np.flatnonzero(~held))(sd.nodes)
+        out.append(_windowed_sq(pred[held] - sd.y[held], sd.fe.step_s))
+        if tick is not None:
+            tick()
+    return out
+
+
+def pooled_rms(folds: list[list[float]]) -> float:
+    """The held-out score of `heldout_folds`: RMS over every window of every fold."""
+    return float(np.sqrt(np.mean([v for f in folds for v in f])))
+
+
 def heldout_score(name: str, sd: StepData,
                   fit: Callable[[StepData, np.ndarray], Predictor] | None = None,
                   tick: Callable[[], object] | None = None) -> float:
@@ -173,15 +208,45 @@ def heldout_score(name: str, sd: StepData,
     others, over every segment; `fit` (steps data, fitted rows) instead of the candidate's
     own least squares (e.g. with a hysteresis term, `training.hysteresis_choice`); `tick`
     is called after every fold's fit (a progress bar's update)."""
-    sq: list[float] = []
-    fitter = fit or (lambda s, r: fit_candidate(name, s, r))
-    for k in range(sd.n_folds):
-        held = sd.fold == k
-        pred = fitter(sd, np.flatnonzero(~held))(sd.nodes)
-        sq += _windowed_sq(pred[held] - sd.y[held], sd.fe.step_s)
-        if tick is not None:
-            tick()
-    return float(np.sqrt(np.mean(sq)))
+    return pooled_rms(heldout_folds(name, sd, fit, tick))
+
+
+@dataclass
+class PenaltyChoice:
+    """The bank's penalty chosen by the held-out parts (module docstring)."""
+
+    name: str  # the bank's structure name (`lag_bank.bank_name`)
+    scores: dict[str, float]  # held-out RMS (ppm) per penalty tried, prior first
+    wins: dict[str, int]  # per lower penalty: parts it predicts better than the one before
+    folds: int
+
+    @property
+    def penalty(self) -> float:
+        lam = bank_penalty(self.name)
+        assert lam is not None
+        return lam
+
+    def as_dict(self) -> dict:
+        return {"penalty": self.penalty, "heldout_rms_ppm": self.scores, "wins": self.wins,
+                "parts": self.folds, "min_parts": PENALTY_MIN_FOLDS}
+
+
+def choose_penalty(sd: StepData, prior: list[list[float]],
+                   tick: Callable[[], object] | None = None) -> PenaltyChoice:
+    """From the prior's held-out folds `prior`, each of PENALTIES in turn while it predicts
+    at least half of the parts better than the current one and lowers the score."""
+    cur, cur_folds = bank_name(), prior
+    scores, wins = {cur: pooled_rms(prior)}, {}
+    for lam in PENALTIES:
+        name = bank_name(lam)
+        folds = heldout_folds(name, sd, tick=tick)
+        scores[name] = pooled_rms(folds)
+        better = [np.mean(a) < np.mean(b) for a, b in zip(folds, cur_folds, strict=True)]
+        wins[name] = int(sum(better))
+        if 2 * wins[name] < len(folds) or scores[name] >= scores[cur]:
+            break
+        cur, cur_folds = name, folds
+    return PenaltyChoice(cur, scores, wins, sd.n_folds)
 
 
 @dataclass
@@ -192,9 +257,15 @@ class StructureChoice:
     one_segment: bool
     tolerance: float = CHOICE_TOLERANCE
     factor: float | None = None  # several segments: EVIDENCE_FACTOR (None: `candidates=`)
+    penalty: PenaltyChoice | None = None  # the bank's, where the rule ran
 
     def message(self) -> str:
         return choice_message(self.as_dict())
+
+    @property
+    def bank(self) -> str:
+        """The bank's structure name, its penalty in it (`lag_bank.bank_name`)."""
+        return self.penalty.name if self.penalty is not None else bank_name()
 
     def structure(self) -> tuple[str, int]:
         """(structure, nodes) of `fogsf train` for the chosen candidate."""
@@ -205,7 +276,8 @@ class StructureChoice:
     def as_dict(self) -> dict:
         return {"chosen": self.name, "heldout_rms_ppm": self.scores, "segments": self.folds,
                 "one_segment": self.one_segment, "tolerance": self.tolerance,
-                "evidence_factor": self.factor}
+                "evidence_factor": self.factor,
+                **({"bank_penalty": self.penalty.as_dict()} if self.penalty else {})}
 
 
 def choice_message(d: dict) -> str:
@@ -236,8 +308,25 @@ def choice_message(d: dict) -> str:
         parts = f"{d['segments']} segments"
         why = (f"the lag bank within {tol} of the best" if d["chosen"] == "bank" else
                f"better than the lag bank by more than {tol}")
-    return (f"structure {d['chosen']}, chosen by held-out prediction on the training logs "
-            f"({parts}; held-out RMS, ppm: {cells}): {why}")
+    out = (f"structure {d['chosen']}, chosen by held-out prediction on the training logs "
+           f"({parts}; held-out RMS, ppm: {cells}): {why}")
+    pen = d.get("bank_penalty")
+    if pen is not None:
+        out += "; " + penalty_message(pen)
+    return out
+
+
+def penalty_message(pen: dict) -> str:
+    """The bank's penalty (`PenaltyChoice.as_dict`) in a sentence."""
+    lam = pen["penalty"]
+    name = bank_name(lam)
+    n = pen["parts"]
+    if name == bank_name():
+        return f"the bank's penalty: the prior {lam:g} (no lower one predicts most of the " \
+               f"{n} held-out parts better)"
+    return (f"the bank's penalty: {lam:g}, below the prior (it predicts {pen['wins'][name]} of "
+            f"the {n} held-out parts better, held-out RMS {pen['heldout_rms_ppm'][name]:.1f} "
+            "ppm)")
 
 
 def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float:
@@ -247,13 +336,26 @@ def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float
     return step_s * max(1, math.ceil(total_s / step_s / MAX_CHOICE_STEPS))
 
 
-def _scores(order: tuple[str, ...], sd: StepData, progress: bool) -> dict[str, float]:
-    """Every candidate's held-out score, in `order`; a bar over the fits if `progress`."""
+def _folds(order: tuple[str, ...], sd: StepData, progress: bool
+           ) -> dict[str, list[list[float]]]:
+    """Every candidate's held-out folds, in `order`; a bar over the fits if `progress`."""
     from tqdm import tqdm
 
     with tqdm(total=len(order) * sd.n_folds, desc="structure choice", unit="fit",
               disable=not progress, leave=False) as bar:
-        return {c: heldout_score(c, sd, tick=bar.update) for c in order}
+        return {c: heldout_folds(c, sd, tick=bar.update) for c in order}
+
+
+def _scores(order: tuple[str, ...], sd: StepData, progress: bool) -> dict[str, float]:
+    return {c: pooled_rms(f) for c, f in _folds(order, sd, progress).items()}
+
+
+def _penalty(sd: StepData, prior: list[list[float]], progress: bool) -> PenaltyChoice:
+    from tqdm import tqdm
+
+    with tqdm(total=len(PENALTIES) * sd.n_folds, desc="bank penalty", unit="fit",
+              disable=not progress, leave=False) as bar:
+        return choose_penalty(sd, prior, tick=bar.update)
 
 
 def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
@@ -267,12 +369,17 @@ def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
     if candidates is None and not sd.one_segment:
         segments = sd.n_folds
         sd.fold = part_folds(sd)
-        scores = _scores((*PHYSICS, "bank"), sd, progress)
+        folds = _folds((*PHYSICS, "bank"), sd, progress)
+        scores = {c: pooled_rms(f) for c, f in folds.items()}
         best = min(scores[c] for c in PHYSICS)
         name = "bank"
         if EVIDENCE_FACTOR * best <= scores["bank"]:
             name = next(c for c in PHYSICS if scores[c] <= (1.0 + tolerance) * best)
-        return StructureChoice(name, scores, segments, False, tolerance, EVIDENCE_FACTOR)
+        penalty = None
+        if name == "bank" and sd.n_folds >= PENALTY_MIN_FOLDS:
+            penalty = _penalty(sd, folds["bank"], progress)
+        return StructureChoice(name, scores, segments, False, tolerance, EVIDENCE_FACTOR,
+                               penalty)
     order = candidates or CANDIDATES
     scores = _scores(order, sd, progress)
     best = min(scores.values())

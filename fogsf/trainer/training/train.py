@@ -56,7 +56,15 @@ from fogsf.trainer.models.features import (
     prepare,
     step_targets,
 )
-from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, BankFit, bank_spec, fit_bank, n_curved
+from fogsf.trainer.models.lag_bank import (
+    BANK_LAMBDA,
+    BANK_LSTM_INPUTS,
+    BankFit,
+    bank_penalty,
+    bank_spec,
+    fit_bank,
+    n_curved,
+)
 from fogsf.trainer.models.physics_nodes import NodeFit
 from fogsf.trainer.models.reference import expand
 from fogsf.trainer.models.stream import FrontEnd, StreamModel, decimation_for
@@ -155,12 +163,14 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         bank = opts.structure in ("bank", "auto") and opts.node is None and opts.nodes == 1
         if opts.structure != "physics" and not bank:
             return _fit_node(opts, train_logs)
-        base = "bank" if bank else f"physics{opts.nodes}"
+        # the bank's name carries its penalty (the prior unless the choice lowered it)
+        base = (choice.bank if choice is not None else "bank") if bank \
+            else f"physics{opts.nodes}"
         hyst = _hysteresis_choice(opts, train_logs, base)
         if opts.structure == "physics":
             fitted = _fit_physics(opts, train_logs, hyst["used"])
         else:
-            fitted = _fit_bank(opts, train_logs, hyst["used"])
+            fitted = _fit_bank(opts, train_logs, hyst["used"], base)
         if choice is not None:
             fitted.info["structure_choice"] = choice.as_dict()
         if "term" in fitted.info:
@@ -210,21 +220,24 @@ def _fit_physics(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = 
                           head_fn=head_fn)
 
 
-def _fit_bank(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False
-              ) -> Fitted:
+def _fit_bank(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False,
+              name: str = "bank") -> Fitted:
     """The lag bank (ridge, its diagonal quadratic in the head) and the LSTM on what it
-    leaves; with `hysteresis`, a play term too."""
+    leaves; with `hysteresis`, a play term too. `name` carries the penalty
+    (`lag_bank.bank_name`)."""
     spec = bank_spec()
     if hysteresis:
         from fogsf.trainer.training.structure_choice import step_data
 
         sd = step_data(logs, opts.model_step_s, opts.latitude_deg)
-        return _fit_with_term(opts, logs, "bank", spec, sd)
+        return _fit_with_term(opts, logs, name, spec, sd)
+    lam = bank_penalty(name)
+    assert lam is not None
     # the bank's quadratic is diagonal: the head carries quad_w [F], not [F, F]
     return _fit_with_spec(opts, logs, spec,
                           _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec),
                                        quad_diag=True),
-                          head_fn=_fit_bank_head)
+                          head_fn=lambda ti: _fit_bank_head(ti, lam))
 
 
 def _fit_with_term(opts: TrainOptions, logs: list[ChamberLog], base: str, spec: FeatureSpec,
@@ -242,7 +255,7 @@ def _fit_with_term(opts: TrainOptions, logs: list[ChamberLog], base: str, spec: 
 
     fitted = _fit_with_spec(opts, logs, full,
                             _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, full),
-                                         quad_diag=base == "bank"),
+                                         quad_diag=bank_penalty(base) is not None),
                             head_fn=head_fn)
     fitted.info["term"] = term.as_dict()
     return fitted
@@ -300,11 +313,11 @@ def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpe
                           float(y.mean()), float(y.std() or 1.0))
 
 
-def _fit_bank_head(ti: TrainingInputs) -> BankFit:
-    """The lag bank fitted by ridge to the normalised targets of every step of the
-    training logs (the validation part too: it only picks the LSTM's iteration, and the
-    bank needs every transient the logs hold)."""
-    return fit_bank(*bank_data(ti), curved=n_curved())
+def _fit_bank_head(ti: TrainingInputs, lam: float = BANK_LAMBDA) -> BankFit:
+    """The lag bank fitted by ridge (penalty `lam`) to the normalised targets of every step
+    of the training logs (the validation part too: it only picks the LSTM's iteration, and
+    the bank needs every transient the logs hold)."""
+    return fit_bank(*bank_data(ti), lam, curved=n_curved())
 
 
 def bank_data(ti: TrainingInputs) -> tuple[np.ndarray, np.ndarray]:
