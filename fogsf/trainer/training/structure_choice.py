@@ -25,10 +25,11 @@ held-out fold. The folds and the rule depend on what the logs hold:
   probes.
 When the bank is chosen from several segments and the logs hold at least
 PENALTY_MIN_FOLDS held-out parts, its ridge penalty may go below the prior (BANK_LAMBDA):
-each of PENALTIES in turn replaces the current one when it predicts at least half of the
-held-out parts better and lowers the score. With many parts the data, not the prior, can
-say how far the lags' fine structure (a slow chain's delay) is determined; with few, a
-lower penalty chose itself by chance and lost on the tests (docs/decisions.md).
+each of PENALTIES in turn replaces the current one when it predicts at least
+PENALTY_WIN_SHARE of the held-out parts better and lowers the score. With many parts the
+data, not the prior, can say how far the lags' fine structure (a slow chain's delay) is
+determined; with few, a lower penalty chose itself by chance and lost on the tests
+(docs/decisions.md). The hysteresis check runs on the bank at the prior.
 The orders, the tolerance, the factor and the penalty rule were chosen on development
 gyros.
 """
@@ -85,6 +86,8 @@ SCORE_WINDOW_S = 100.0
 # ramps' 6).
 PENALTIES = (1e-4, 1e-5, 1e-6)
 PENALTY_MIN_FOLDS = 12
+# the share of the held-out parts a lower penalty must predict better
+PENALTY_WIN_SHARE = 2 / 3
 
 
 @dataclass
@@ -234,7 +237,8 @@ class PenaltyChoice:
 def choose_penalty(sd: StepData, prior: list[list[float]],
                    tick: Callable[[], object] | None = None) -> PenaltyChoice:
     """From the prior's held-out folds `prior`, each of PENALTIES in turn while it predicts
-    at least half of the parts better than the current one and lowers the score."""
+    at least PENALTY_WIN_SHARE of the parts better than the current one and lowers the
+    score."""
     cur, cur_folds = bank_name(), prior
     scores, wins = {cur: pooled_rms(prior)}, {}
     for lam in PENALTIES:
@@ -243,7 +247,7 @@ def choose_penalty(sd: StepData, prior: list[list[float]],
         scores[name] = pooled_rms(folds)
         better = [np.mean(a) < np.mean(b) for a, b in zip(folds, cur_folds, strict=True)]
         wins[name] = int(sum(better))
-        if 2 * wins[name] < len(folds) or scores[name] >= scores[cur]:
+        if wins[name] < PENALTY_WIN_SHARE * len(folds) or scores[name] >= scores[cur]:
             break
         cur, cur_folds = name, folds
     return PenaltyChoice(cur, scores, wins, sd.n_folds)

@@ -163,14 +163,15 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         bank = opts.structure in ("bank", "auto") and opts.node is None and opts.nodes == 1
         if opts.structure != "physics" and not bank:
             return _fit_node(opts, train_logs)
-        # the bank's name carries its penalty (the prior unless the choice lowered it)
-        base = (choice.bank if choice is not None else "bank") if bank \
-            else f"physics{opts.nodes}"
+        base = "bank" if bank else f"physics{opts.nodes}"
+        # the check runs on the bank at its prior: a lower penalty lets the slow lags mimic a
+        # play inside the training program, which the held-out blocks then cannot see
         hyst = _hysteresis_choice(opts, train_logs, base)
         if opts.structure == "physics":
             fitted = _fit_physics(opts, train_logs, hyst["used"])
-        else:
-            fitted = _fit_bank(opts, train_logs, hyst["used"], base)
+        else:  # the bank's name carries its penalty (the prior unless the choice lowered it)
+            fitted = _fit_bank(opts, train_logs, hyst["used"],
+                               choice.bank if choice is not None else "bank")
         if choice is not None:
             fitted.info["structure_choice"] = choice.as_dict()
         if "term" in fitted.info:

@@ -1,0 +1,116 @@
+"""The bank's ridge penalty: the prior, fixed lower penalties and the rule that lowers it.
+
+Least squares only (no LSTM). For each gyro and protocol of `benchmarks.population` (and,
+with `--partial`, the partial-cycle programs of `benchmarks.hysteresis`, the hysteresis check
+run for each base), prints the test RMS / noise floor of the lag bank at the prior
+(`lag_bank.BANK_LAMBDA`) and at every penalty of `structure_choice.PENALTIES`, of the
+penalty `structure_choice.choose_penalty` takes ("rule"; the prior where the logs hold fewer
+than PENALTY_MIN_FOLDS held-out parts), the number of held-out parts and the penalty chosen.
+Run it on development gyros (the rule is tuned there):
+
+    python -m benchmarks.probes.bank_penalty --first 1 --n 40 --protocols b,e,f
+    python -m benchmarks.probes.bank_penalty --partial --first 1 --n 20
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from benchmarks.probes import finish
+from benchmarks.probes.physics_nodes import ratio
+from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name
+
+
+def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - ChamberLogs
+    """Every penalty's test ratio (with the hysteresis term where the check keeps it on the
+    bank at the prior, as `fogsf train` decides it), the rule's choice, and every penalty's
+    held-out parts (mean squared window error per part) for trying other rules."""
+    from fogsf.trainer.models.features import prepare
+    from fogsf.trainer.models.physics_nodes import NodeTemperatures
+    from fogsf.trainer.models.reference import expand
+    from fogsf.trainer.training import structure_choice as sc
+    from fogsf.trainer.training.hysteresis_choice import decide, fit_with_term
+
+    step = sc.choice_step_s(train)
+    sd = sc.step_data(train, step)
+    if not sd.one_segment:
+        sd.fold = sc.part_folds(sd)
+    lams = (BANK_LAMBDA, *sc.PENALTIES)
+    folds = {f"{lam:g}": sc.heldout_folds(bank_name(lam), sd) for lam in lams}
+    rule = bank_name()
+    if not sd.one_segment and sd.n_folds >= sc.PENALTY_MIN_FOLDS:
+        rule = sc.choose_penalty(sd, folds[f"{BANK_LAMBDA:g}"]).name
+    used = hysteresis and decide(train, bank_name(), step)["used"]
+    full = sc.step_data(train)
+    every = np.arange(full.y.size)
+    dt = prepare(test, full.fe, None, None)
+    nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
+    out: dict = {"parts": sd.n_folds, "term": bool(used),
+                 "rule_penalty": BANK_LAMBDA if rule == "bank" else
+                 float(rule.removeprefix("bank:")),
+                 "part_mse": {k: [float(np.mean(f)) for f in v] for k, v in folds.items()}}
+    for lam in lams:
+        name = bank_name(lam)
+        pred = fit_with_term(name, full, every)[0] if used else sc.fit_candidate(name, full,
+                                                                                  every)
+        out[f"{lam:g}"] = ratio(test, expand(pred(nt), len(test), dt.decimation))
+    out["rule"] = out[f"{out['rule_penalty']:g}"]
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--first", type=int, default=1)
+    ap.add_argument("--n", type=int, default=8)
+    ap.add_argument("--protocols", default="b,e,f")
+    ap.add_argument("--partial", action="store_true",
+                    help="the partial-cycle programs (gyros with and without hysteresis)")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args(argv)
+    from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
+    from fogsf.trainer.training.structure_choice import PENALTIES
+
+    rows: list[dict] = []
+    t0 = time.perf_counter()
+    if args.partial:
+        from benchmarks.hysteresis import TEST_OFFSET, TRAIN_OFFSET, pick_seeds
+        from fogsf.trainer.sim import simulate
+        from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
+        from fogsf.trainer.sim.population import run_on_gyro
+
+        groups = pick_seeds(args.first, args.n, DEV_SEEDS)
+        items = [(s, g) for g in ("hyst", "flat") for s in groups[g]]
+        for seed, group in items:
+            gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
+            runs = [simulate(run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name)).log
+                    for prog, off in ((PARTIAL_TRAIN, TRAIN_OFFSET), (PARTIAL_TEST, TEST_OFFSET))]
+            rows.append({"seed": seed, "p": f"partial-{group}",
+                         **case(runs[:1], runs[1], hysteresis=True)})
+            print(rows[-1], flush=True)
+    else:
+        from benchmarks.population import protocol_logs
+
+        for seed in range(args.first, args.first + args.n):
+            assert seed in DEV_SEEDS or seed >= 20000
+            gyro = gyro_for_seed(seed)
+            for p in args.protocols.split(","):
+                train, test = protocol_logs(gyro, seed, p)
+                rows.append({"seed": seed, "p": p, **case(train, test, hysteresis=p in "ef")})
+                print(rows[-1], flush=True)
+    names = [f"{lam:g}" for lam in (BANK_LAMBDA, *PENALTIES)] + ["rule"]
+    for p in sorted({r["p"] for r in rows}):
+        sub = [r for r in rows if r["p"] == p]
+        cells = " ".join(f"{n}:{np.median([r[n] for r in sub]):.2f}/"
+                         f"{np.percentile([r[n] for r in sub], 90):.2f}/"
+                         f"{np.max([r[n] for r in sub]):.2f}" for n in names)
+        moved = sum(r["rule_penalty"] != BANK_LAMBDA for r in sub)
+        print(f"({p}) {len(sub)} cases, penalty lowered on {moved}; median/p90/worst {cells}")
+    return finish(rows, args.out, t0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
