@@ -8,8 +8,9 @@ penalty `structure_choice.choose_penalty` takes ("rule"; the prior where the log
 than PENALTY_MIN_FOLDS held-out parts), the number of held-out parts and the penalty chosen.
 Run it on development gyros (the rule is tuned there):
 
-    python -m benchmarks.probes.bank_penalty --first 1 --n 40 --protocols b,e,f
+    python -m benchmarks.probes.bank_penalty --first 1 --n 40 --protocols f
     python -m benchmarks.probes.bank_penalty --partial --first 1 --n 20
+    python -m benchmarks.probes.bank_penalty --first 1 --n 40 --protocols b,e --min-parts 1
 """
 
 from __future__ import annotations
@@ -69,10 +70,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--protocols", default="b,e,f")
     ap.add_argument("--partial", action="store_true",
                     help="the partial-cycle programs (gyros with and without hysteresis)")
+    ap.add_argument("--min-parts", type=int, default=None,
+                    help="PENALTY_MIN_FOLDS for this run (1: the rule runs on any logs)")
+    ap.add_argument("--share", type=float, default=None,
+                    help="PENALTY_WIN_SHARE for this run")
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
     from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
+    from fogsf.trainer.training import structure_choice
     from fogsf.trainer.training.structure_choice import PENALTIES
+
+    if args.min_parts is not None:
+        structure_choice.PENALTY_MIN_FOLDS = args.min_parts
+    if args.share is not None:
+        structure_choice.PENALTY_WIN_SHARE = args.share
 
     rows: list[dict] = []
     t0 = time.perf_counter()

@@ -322,15 +322,16 @@ def choice_message(d: dict) -> str:
 
 def penalty_message(pen: dict) -> str:
     """The bank's penalty (`PenaltyChoice.as_dict`) in a sentence."""
-    lam = pen["penalty"]
-    name = bank_name(lam)
-    n = pen["parts"]
-    if name == bank_name():
-        return f"the bank's penalty: the prior {lam:g} (no lower one predicts most of the " \
-               f"{n} held-out parts better)"
-    return (f"the bank's penalty: {lam:g}, below the prior (it predicts {pen['wins'][name]} of "
-            f"the {n} held-out parts better, held-out RMS {pen['heldout_rms_ppm'][name]:.1f} "
-            "ppm)")
+    lam, n = pen["penalty"], pen["parts"]
+    need = math.ceil(PENALTY_WIN_SHARE * n - 1e-9)
+    prior = bank_name()
+    if bank_name(lam) == prior:
+        return (f"the bank's penalty: the prior {lam:g} (no lower one predicts {need} of the "
+                f"{n} held-out parts better)")
+    rms = pen["heldout_rms_ppm"]
+    return (f"the bank's penalty: {lam:g}, below the prior {bank_penalty(prior):g} (each step "
+            f"down predicted at least {need} of the {n} held-out parts better; held-out RMS "
+            f"{rms[prior]:.1f} -> {rms[bank_name(lam)]:.1f} ppm)")
 
 
 def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float:
