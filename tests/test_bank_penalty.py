@@ -44,6 +44,12 @@ def _folds(n: int, per_fold: list[float]) -> list[list[float]]:
     ({"bank:0.0001": 0.9, "bank:1e-05": "minority", "bank:1e-06": 0.1}, 1e-4),
     # the first lower penalty worse: the prior
     ({"bank:0.0001": 1.1, "bank:1e-05": 0.1, "bank:1e-06": 0.1}, BANK_LAMBDA),
+    # 1e-4 better on 13 of 18 parts but a higher pooled score: the prior
+    ({"bank:0.0001": "higher", "bank:1e-05": 0.1, "bank:1e-06": 0.1}, BANK_LAMBDA),
+    # 1e-4 better on exactly 12 of 18 parts (two thirds) and a lower score: taken
+    ({"bank:0.0001": "twelve", "bank:1e-05": 1.1, "bank:1e-06": 0.1}, 1e-4),
+    # 1e-4 better on 11 of 18 parts only, however much lower its score: the prior
+    ({"bank:0.0001": "eleven", "bank:1e-05": 0.1, "bank:1e-06": 0.1}, BANK_LAMBDA),
 ])
 def test_a_lower_penalty_must_win_most_parts_and_the_score(
         monkeypatch: pytest.MonkeyPatch, errors: dict, chosen: float) -> None:
@@ -52,9 +58,13 @@ def test_a_lower_penalty_must_win_most_parts_and_the_score(
 
     def folds(name: str, sd: StepData, **kw: object) -> list[list[float]]:
         e = errors[name]
-        if e == "minority":  # 11 of 18 parts much better, the other 7 slightly worse
-            return _folds(n, [0.1] * 11 + [0.95] * (n - 11))
-        return _folds(n, [e] * n)
+        shapes = {
+            "minority": [0.1] * 11 + [0.95] * 7,  # 11 of 18 much better than 0.9, 7 worse
+            "higher": [0.9] * 13 + [3.0] * 5,  # 13 of 18 better than 1.0, the mean higher
+            "twelve": [0.5] * 12 + [1.1] * 6,  # 12 of 18 better than 1.0, the mean lower
+            "eleven": [0.01] * 11 + [1.1] * 7,
+        }
+        return _folds(n, shapes[e] if isinstance(e, str) else [e] * n)
 
     monkeypatch.setattr(sc, "heldout_folds", folds)
     from types import SimpleNamespace
@@ -69,7 +79,10 @@ def test_a_lower_penalty_must_win_most_parts_and_the_score(
         assert f"the bank's penalty: {chosen:g}, below the prior" in \
             sc.penalty_message(pc.as_dict())
     else:
-        assert "the prior" in sc.penalty_message(pc.as_dict())
+        text = sc.penalty_message(pc.as_dict())
+        assert text.startswith(f"the bank's penalty: the prior {BANK_LAMBDA:g} (0.0001 "
+                               "predicted"), text
+        assert ("12 needed" in text) == (pc.wins["bank:0.0001"] < 12), text
 
 
 def test_logs_with_few_parts_keep_the_prior() -> None:
@@ -127,3 +140,22 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
 
     text = format_metrics(m).replace("\n", " ")
     assert f"the bank's penalty: {lam:g}, below the prior" in text
+
+
+def test_a_play_term_is_fitted_at_the_banks_penalty() -> None:
+    """With a hysteresis term the bank's head is the ridge fit at the penalty its name
+    carries (the term's coefficient free), not at the prior."""
+    from fogsf.trainer.models.hysteresis import ridge_fit_free
+    from fogsf.trainer.models.lag_bank import bank_design, n_curved
+    from fogsf.trainer.models.least_squares import TAU_GRID_S
+    from fogsf.trainer.training.hysteresis_choice import head_fit
+
+    rng = np.random.default_rng(5)
+    z = rng.normal(size=(400, len(TAU_GRID_S) + 2)) * 0.3
+    y = z[:, 0] - 0.5 * z[:, 3] + 0.2 * z[:, -1] + 0.01 * rng.normal(size=400)
+    fits = {lam: head_fit(bank_name(lam), z, y, TAU_GRID_S) for lam in (BANK_LAMBDA, 1e-5)}
+    for lam, fit in fits.items():
+        want = ridge_fit_free(bank_design(z, n_curved()), y, lam, [z.shape[1] - 1])
+        assert fit.lam == lam
+        assert np.allclose(fit.lin, want.coef[:z.shape[1]]) and fit.intercept == want.intercept
+    assert not np.allclose(fits[BANK_LAMBDA].lin, fits[1e-5].lin)

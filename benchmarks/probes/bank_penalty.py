@@ -6,6 +6,8 @@ run for each base), prints the test RMS / noise floor of the lag bank at the pri
 (`lag_bank.BANK_LAMBDA`) and at every penalty of `structure_choice.PENALTIES`, of the
 penalty `structure_choice.choose_penalty` takes ("rule"; the prior where the logs hold fewer
 than PENALTY_MIN_FOLDS held-out parts), the number of held-out parts and the penalty chosen.
+Every case scores the bank, also where `fogsf train` would take physics nodes instead (on
+these protocols it keeps the bank on every development gyro of (e), (f) and partial cycles).
 Run it on development gyros (the rule is tuned there):
 
     python -m benchmarks.probes.bank_penalty --first 1 --n 40 --protocols f
@@ -22,7 +24,7 @@ import numpy as np
 
 from benchmarks.probes import finish
 from benchmarks.probes.physics_nodes import ratio
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name
+from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name, bank_penalty
 
 
 def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - ChamberLogs
@@ -49,9 +51,7 @@ def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - Chamber
     every = np.arange(full.y.size)
     dt = prepare(test, full.fe, None, None)
     nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
-    out: dict = {"parts": sd.n_folds, "term": bool(used),
-                 "rule_penalty": BANK_LAMBDA if rule == "bank" else
-                 float(rule.removeprefix("bank:")),
+    out: dict = {"parts": sd.n_folds, "term": bool(used), "rule_penalty": bank_penalty(rule),
                  "part_mse": {k: [float(np.mean(f)) for f in v] for k, v in folds.items()}}
     for lam in lams:
         name = bank_name(lam)

@@ -4,12 +4,12 @@ A real gyro's SF error is a sum of polynomials of several internal temperatures,
 lagging the board thermometer differently (and with either sign), so no one or two
 effective nodes hold it. The bank holds them all at once: the board temperature T and its
 first-order lag filters at every time constant of `TAU_GRID_S` (60 s .. 2 h), each entering
-on its own (no cross terms): T and the lags up to CURVED_MAX_TAU_S (2000 s) as cubics, the slower
-lags linearly, all fitted together by ridge regression with one fixed
-penalty (a physics prior chosen on development gyros). No structure is selected, so there
-is no selection to get wrong; the penalty shrinks what the data does not determine. Logs
-with many held-out parts may lower it (`training.structure_choice`): where the data
-decides, the prior gives way.
+on its own (no cross terms): T and the lags up to CURVED_MAX_TAU_S (2000 s) as cubics, the
+slower lags linearly, all fitted together by ridge regression with a penalty that is a
+physics prior chosen on development gyros (BANK_LAMBDA), which logs with many held-out
+parts may lower (`training.structure_choice`: where the data decides, the prior gives
+way). No structure is selected, so there is no selection to get wrong; the penalty shrinks
+what the data does not determine.
 
 Chosen over the alternatives on development gyros (docs/decisions.md has the figures):
 one effective node with a cubic (`--structure node`), the best of one and two nodes, the
@@ -57,7 +57,7 @@ def bank_name(lam: float = BANK_LAMBDA) -> str:
     """The structure name of the bank fitted with penalty `lam`: "bank" at the prior
     BANK_LAMBDA, else "bank:LAM" (a penalty the training logs chose,
     `training.structure_choice`)."""
-    return "bank" if lam == BANK_LAMBDA else f"bank:{lam:g}"
+    return "bank" if lam == BANK_LAMBDA else f"bank:{lam!r}"
 
 
 def bank_penalty(name: str) -> float | None:

@@ -321,17 +321,27 @@ def choice_message(d: dict) -> str:
 
 
 def penalty_message(pen: dict) -> str:
-    """The bank's penalty (`PenaltyChoice.as_dict`) in a sentence."""
+    """The bank's penalty (`PenaltyChoice.as_dict`) in a sentence: what the rule did."""
     lam, n = pen["penalty"], pen["parts"]
     need = math.ceil(PENALTY_WIN_SHARE * n - 1e-9)
-    prior = bank_name()
-    if bank_name(lam) == prior:
-        return (f"the bank's penalty: the prior {lam:g} (no lower one predicts {need} of the "
-                f"{n} held-out parts better)")
-    rms = pen["heldout_rms_ppm"]
-    return (f"the bank's penalty: {lam:g}, below the prior {bank_penalty(prior):g} (each step "
-            f"down predicted at least {need} of the {n} held-out parts better; held-out RMS "
-            f"{rms[prior]:.1f} -> {rms[bank_name(lam)]:.1f} ppm)")
+    rms, wins = pen["heldout_rms_ppm"], pen["wins"]
+    tried = list(rms)  # the prior, then each penalty tried, in order
+    kept = bank_name(lam)
+    lowered = kept != tried[0]
+    if lowered:
+        out = (f"the bank's penalty: {lam:g}, below the prior {bank_penalty(tried[0]):g} (each "
+               f"step down predicted at least {need} of the {n} held-out parts better; "
+               f"held-out RMS {rms[tried[0]]:.1f} -> {rms[kept]:.1f} ppm")
+    else:
+        out = f"the bank's penalty: the prior {lam:g} ("
+    i = tried.index(kept)
+    if i + 1 < len(tried):  # the step that failed
+        nxt = tried[i + 1]
+        lower = f"{'; ' if lowered else ''}{bank_penalty(nxt):g} predicted {wins[nxt]} of " + \
+            (f"{n}" if lowered else f"the {n} held-out parts") + " better"
+        out += (f"{lower}, {need} needed" if wins[nxt] < need else
+                f"{lower} but raised the held-out RMS to {rms[nxt]:.1f} ppm")
+    return out + ")"
 
 
 def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float:
@@ -352,10 +362,12 @@ def _folds(order: tuple[str, ...], sd: StepData, progress: bool
 
 
 def _scores(order: tuple[str, ...], sd: StepData, progress: bool) -> dict[str, float]:
+    """Every candidate's held-out score (`_folds` pooled)."""
     return {c: pooled_rms(f) for c, f in _folds(order, sd, progress).items()}
 
 
 def _penalty(sd: StepData, prior: list[list[float]], progress: bool) -> PenaltyChoice:
+    """`choose_penalty`, with a bar over its fits if `progress`."""
     from tqdm import tqdm
 
     with tqdm(total=len(PENALTIES) * sd.n_folds, desc="bank penalty", unit="fit",

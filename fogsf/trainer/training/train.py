@@ -331,9 +331,11 @@ def bank_data(ti: TrainingInputs) -> tuple[np.ndarray, np.ndarray]:
 
 def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
                       ) -> Callable[[ChamberLog], np.ndarray]:
-    """The default model's fixed part (the lag bank by least squares) trained on `logs`:
-    a function giving a log's SF error prediction (ppm vs nominal) per sample, held over
-    each model step as the kernel holds it. Fast (no LSTM), for benches and the planner."""
+    """The lag bank at its prior (least squares; the default model's fixed part wherever the
+    logs hold fewer than PENALTY_MIN_FOLDS held-out parts, `training.structure_choice`)
+    trained on `logs`: a function giving a log's SF error prediction (ppm vs nominal) per
+    sample, held over each model step as the kernel holds it. Fast (no LSTM), for benches
+    and the planner."""
     ti = training_inputs(opts or TrainOptions(model="lag-lstm"), logs, bank_spec(),
                          physical=True)
     bank = _fit_bank_head(ti)
