@@ -73,7 +73,7 @@ paper: $(STAMP)
 bench-transfer: $(STAMP)
 	$(PY) -m benchmarks.rate_transfer --out $(OUT)/bench-transfer.json
 
-# --- compensation over the gyro population: evaluation seeds, ~32 min on 2 cores ---
+# --- compensation over the gyro population: evaluation seeds, ~34 min on 2 cores ---
 POP_N ?= 24
 bench-population: $(STAMP)
 	$(PY) -m benchmarks.population --seeds eval --n $(POP_N) --out $(OUT)/bench-population.json
