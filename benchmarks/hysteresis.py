@@ -43,24 +43,31 @@ GROUPS = ("hyst", "same-flat", "flat")
 TRAIN_OFFSET, TEST_OFFSET = 8, 9  # run seeds gyro_seed * 16 + offset (population's: 1-7)
 
 
+def partial_runs(seed: int, group: str) -> tuple:
+    """The gyro of `seed` (with its SF hysteresis for group "hyst", without for the others)
+    on the partial-cycle training and test programs: (gyro, train log, test log)."""
+    from fogsf.trainer.sim import simulate
+    from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
+    from fogsf.trainer.sim.population import gyro_for_seed, run_on_gyro
+
+    gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
+    train, test = (simulate(run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name)).log
+                   for prog, off in ((PARTIAL_TRAIN, TRAIN_OFFSET), (PARTIAL_TEST, TEST_OFFSET)))
+    return gyro, train, test
+
+
 def case(item: tuple[int, str], kernel: bool = False) -> dict:
     """Every model on one (gyro seed, group) (one unit of work)."""
     import torch
 
-    from fogsf.trainer.sim import simulate
-    from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
-    from fogsf.trainer.sim.population import gyro_for_seed, hysteresis_for_seed, run_on_gyro
+    from fogsf.trainer.sim.population import hysteresis_for_seed
     from fogsf.trainer.training.options import TrainOptions
     from fogsf.trainer.training.train import run_training
 
     torch.set_num_threads(1)
     seed, group = item
     t0 = time.perf_counter()
-    gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
-    train = simulate(run_on_gyro(gyro, PARTIAL_TRAIN.profile(), seed * 16 + TRAIN_OFFSET,
-                                 PARTIAL_TRAIN.name)).log
-    test = simulate(run_on_gyro(gyro, PARTIAL_TEST.profile(), seed * 16 + TEST_OFFSET,
-                                PARTIAL_TEST.name)).log
+    gyro, train, test = partial_runs(seed, group)
     h = hysteresis_for_seed(seed)
     out: dict = {"gyro_seed": seed, "group": group, "gyro": gyro.scenario,
                  "hysteresis": ({"strength_ppm_per_c": h.strength, **h.params}

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from benchmarks.probes import finish
+from benchmarks.probes import finish, spread_cells
 from benchmarks.probes.physics_nodes import ratio
 from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name, bank_penalty
 
@@ -88,19 +88,14 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict] = []
     t0 = time.perf_counter()
     if args.partial:
-        from benchmarks.hysteresis import TEST_OFFSET, TRAIN_OFFSET, pick_seeds
-        from fogsf.trainer.sim import simulate
-        from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
-        from fogsf.trainer.sim.population import run_on_gyro
+        from benchmarks.hysteresis import partial_runs, pick_seeds
 
         groups = pick_seeds(args.first, args.n, DEV_SEEDS)
         items = [(s, g) for g in ("hyst", "flat") for s in groups[g]]
         for seed, group in items:
-            gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
-            runs = [simulate(run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name)).log
-                    for prog, off in ((PARTIAL_TRAIN, TRAIN_OFFSET), (PARTIAL_TEST, TEST_OFFSET))]
+            _, train, test = partial_runs(seed, group)
             rows.append({"seed": seed, "p": f"partial-{group}",
-                         **case(runs[:1], runs[1], hysteresis=True)})
+                         **case([train], test, hysteresis=True)})
             print(rows[-1], flush=True)
     else:
         from benchmarks.population import protocol_logs
@@ -115,9 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     names = [f"{lam:g}" for lam in (BANK_LAMBDA, *PENALTIES)] + ["rule"]
     for p in sorted({r["p"] for r in rows}):
         sub = [r for r in rows if r["p"] == p]
-        cells = " ".join(f"{n}:{np.median([r[n] for r in sub]):.2f}/"
-                         f"{np.percentile([r[n] for r in sub], 90):.2f}/"
-                         f"{np.max([r[n] for r in sub]):.2f}" for n in names)
+        cells = spread_cells(sub, names)
         moved = sum(r["rule_penalty"] != BANK_LAMBDA for r in sub)
         print(f"({p}) {len(sub)} cases, penalty lowered on {moved}; median/p90/worst {cells}")
     return finish(rows, args.out, t0)

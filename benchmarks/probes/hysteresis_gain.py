@@ -21,7 +21,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from benchmarks.hysteresis import TEST_OFFSET, TRAIN_OFFSET, pick_seeds
+from benchmarks.hysteresis import partial_runs, pick_seeds
 from benchmarks.probes import finish
 
 BASE = "bank"
@@ -33,18 +33,11 @@ def one(item: tuple[int, str]) -> dict:
     from fogsf.trainer.models.features import prepare
     from fogsf.trainer.models.physics_nodes import NodeTemperatures
     from fogsf.trainer.models.reference import expand
-    from fogsf.trainer.sim import simulate
-    from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
-    from fogsf.trainer.sim.population import gyro_for_seed, run_on_gyro
     from fogsf.trainer.training.hysteresis_choice import decide, fit_with_term
     from fogsf.trainer.training.structure_choice import fit_candidate, step_data
 
     seed, group = item
-    gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
-    train = simulate(run_on_gyro(gyro, PARTIAL_TRAIN.profile(), seed * 16 + TRAIN_OFFSET,
-                                 PARTIAL_TRAIN.name)).log
-    test = simulate(run_on_gyro(gyro, PARTIAL_TEST.profile(), seed * 16 + TEST_OFFSET,
-                                PARTIAL_TEST.name)).log
+    _, train, test = partial_runs(seed, group)
     d = decide([train], BASE, 5.0)
     sd = step_data([train])
     every = np.arange(sd.y.size)

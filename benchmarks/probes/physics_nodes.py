@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from benchmarks.probes import finish
+from benchmarks.probes import finish, spread_cells
 from fogsf.trainer.logs.metrics import log_metrics
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
 from fogsf.trainer.training.structure_choice import CANDIDATES, candidate_compensation, choose
@@ -105,10 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     names = [n for n in (*CANDS, "default", "pmean", "allmean", "bank+pmean") if n in rows[0]]
     for p in sorted({r["p"] for r in rows}):
         sub = [r for r in rows if r["p"] == p]
-        cells = " ".join(f"{n}:{np.median([r[n] for r in sub]):.2f}/"
-                         f"{np.percentile([r[n] for r in sub], 90):.2f}/"
-                         f"{np.max([r[n] for r in sub]):.2f}" for n in names)
-        print(f"({p}) median/p90/worst {cells}")
+        print(f"({p}) median/p90/worst {spread_cells(sub, names)}")
     return finish(rows, args.out, t0)
 
 

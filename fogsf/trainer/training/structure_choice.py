@@ -351,13 +351,17 @@ def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float
     return step_s * max(1, math.ceil(total_s / step_s / MAX_CHOICE_STEPS))
 
 
+def _bar(fits: int, desc: str, progress: bool):  # noqa: ANN202 - a tqdm bar
+    """A bar over `fits` fits, drawn if `progress`."""
+    from tqdm import tqdm
+
+    return tqdm(total=fits, desc=desc, unit="fit", disable=not progress, leave=False)
+
+
 def _folds(order: tuple[str, ...], sd: StepData, progress: bool
            ) -> dict[str, list[list[float]]]:
     """Every candidate's held-out folds, in `order`; a bar over the fits if `progress`."""
-    from tqdm import tqdm
-
-    with tqdm(total=len(order) * sd.n_folds, desc="structure choice", unit="fit",
-              disable=not progress, leave=False) as bar:
+    with _bar(len(order) * sd.n_folds, "structure choice", progress) as bar:
         return {c: heldout_folds(c, sd, tick=bar.update) for c in order}
 
 
@@ -368,10 +372,7 @@ def _scores(order: tuple[str, ...], sd: StepData, progress: bool) -> dict[str, f
 
 def _penalty(sd: StepData, prior: list[list[float]], progress: bool) -> PenaltyChoice:
     """`choose_penalty`, with a bar over its fits if `progress`."""
-    from tqdm import tqdm
-
-    with tqdm(total=len(PENALTIES) * sd.n_folds, desc="bank penalty", unit="fit",
-              disable=not progress, leave=False) as bar:
+    with _bar(len(PENALTIES) * sd.n_folds, "bank penalty", progress) as bar:
         return choose_penalty(sd, prior, tick=bar.update)
 
 
