@@ -335,6 +335,7 @@ def test_old_artifact_saves_again_without_the_new_keys(tmp_path) -> None:
     cfg_new = json.loads((tmp_path / "again" / "stream.json").read_text())
     assert set(cfg_new) - set(cfg_old) == {"poly_head"}  # the key of the earlier extension
     assert "lstm_inputs" not in cfg_new and "quad_diag" not in cfg_new
+    assert "feat_diag" not in cfg_new and not old.feat_diag
     again = st.StreamModel.load(tmp_path / "again")
     assert again.model_id == FIXTURE_ID
     with np.load(Path(FIXTURE) / "stream_weights.npz") as a, \
@@ -420,6 +421,106 @@ def test_new_forms_compute_the_full_model_with_zeros_bit_for_bit() -> None:
 def test_load_refuses_bad_new_keys(tmp_path, breakage, message) -> None:
     samples.random_model(2, 4, 1, 6, 5, seed=15, poly_head=True, lstm_inputs=2,
                     quad_diag=True).save(tmp_path / "m")
+    breakage(tmp_path / "m")
+    with pytest.raises(UserError, match=message):
+        st.StreamModel.load(tmp_path / "m")
+
+
+# --- the diagonal feature map (feat_diag) ---------------------------------------------------
+
+def test_feat_diag_roundtrips_and_enters_the_id_only_when_true(tmp_path) -> None:
+    plain = samples.random_model(2, 3, 1, 6, 4, seed=16, poly_head=True)
+    model = samples.random_model(2, 3, 1, 6, 4, seed=16, poly_head=True, feat_diag=True)
+    assert model.weights["feat_w"].shape == (3,)
+    for name, arr in plain.weights.items():  # the other draws stay put
+        assert name == "feat_w" or arr.tobytes() == model.weights[name].tobytes(), name
+    assert "feat_diag" not in plain.config() and model.config()["feat_diag"] is True
+    assert "(diagonal feat_w)" in model.summary and "diagonal" not in plain.summary
+    model.save(tmp_path / "m")
+    again = st.StreamModel.load(tmp_path / "m")
+    assert again.feat_diag and again.model_id == model.model_id
+    assert "feat_diag" not in again.extra
+    # the key is part of the id: the same arrays with a full feat_w holding the diagonal
+    full = replace(model, weights={**model.weights,
+                                   "feat_w": np.diag(model.weights["feat_w"])}, feat_diag=False)
+    assert full.model_id != model.model_id
+    assert st.diagonal_features(full).model_id == model.model_id
+
+
+def _square_diagonal(model: st.StreamModel) -> st.StreamModel:
+    """The model with its diagonal feat_w written as the full [F, F] matrix."""
+    w = np.diag(model.weights["feat_w"]).astype(np.float32)
+    return replace(model, weights={**model.weights, "feat_w": w}, feat_diag=False)
+
+
+def test_diagonal_features_stores_the_diagonal_with_the_same_bits() -> None:
+    diag = samples.random_model(3, 4, 1, 6, 5, seed=17, feat_diag=True, bias_head=True)
+    diag.weights["feat_w"][1] = F32(0.0)
+    diag.weights["feat_w"][2] = F32(-0.0)
+    full = _square_diagonal(diag)
+    full.weights["feat_w"][0, 3] = F32(-0.0)  # a zero of either sign off the diagonal
+    full.validate()
+    conv = st.diagonal_features(full)
+    assert conv.feat_diag and conv.weights["feat_w"].flags.c_contiguous
+    assert conv.weights["feat_w"].tobytes() == diag.weights["feat_w"].tobytes()
+    assert conv.model_id == diag.model_id and conv.weights is not full.weights
+    assert not full.feat_diag and full.weights["feat_w"].shape == (4, 4)  # left alone
+    temp, gyro = samples.chamber_ramp(hours=1.0, seed=17)
+    temp[::97] = F32(diag.t_ref_c)  # s_0 = 0 exactly: zero products on the diagonal too
+    a, b = reference.replay(full, temp, gyro), reference.replay(conv, temp, gyro)
+    assert np.ptp(a.sf_ppm) > 1.0
+    for x, y in zip(a, b, strict=True):
+        assert x.tobytes() == y.tobytes()
+    s = reference.frontend(temp, full.front_end).s
+    assert reference.features(full, s).tobytes() == reference.features(conv, s).tobytes()
+    assert st.diagonal_features(conv) is conv
+
+
+def test_diagonal_features_leaves_other_models_as_they_are() -> None:
+    dense = samples.random_model(3, 4, 1, 6, 5, seed=18)  # square, not diagonal
+    assert st.diagonal_features(dense) is dense
+    wide = samples.random_model(3, 3, 1, 6, 5, seed=18)  # F = 3 != 1+K = 4
+    w = np.zeros((3, 4), np.float32)
+    w[[0, 1, 2], [0, 1, 2]] = 0.02
+    wide = replace(wide, weights={**wide.weights, "feat_w": w})
+    assert st.diagonal_features(wide) is wide
+    diag = _square_diagonal(samples.random_model(3, 4, 1, 6, 5, seed=18, feat_diag=True))
+    diag.weights["feat_w"][2, 0] = F32(1e-30)  # one nonzero entry off the diagonal
+    assert st.diagonal_features(diag) is diag
+    played = _square_diagonal(samples.random_model(2, 4, 1, 6, 5, seed=18, feat_diag=True,
+                                                   plays=(((0.5, 0.5, 0.0), 4.0),)))
+    assert st.diagonal_features(played).feat_diag  # F = 1+K+P
+
+
+def test_diagonal_features_keeps_a_negative_zero_bias_dense() -> None:
+    """feat_b[i] = -0.0 is the one case where the zero terms could change a bit: with
+    s_0 = 0 and feat_w[0, 0] < 0 the diagonal form gives -0.0 + -0.0 = -0.0, the full
+    matrix adds +0.0 * s_1 (s_1 > 0) and gives +0.0. Such a model is left dense."""
+    diag = samples.random_model(1, 2, 1, 4, 5, seed=19, feat_diag=True)
+    diag.weights["feat_w"][:] = [-0.5, 0.25]
+    diag.weights["feat_b"][:] = [-0.0, 0.1]
+    full = _square_diagonal(diag)
+    assert st.diagonal_features(full) is full
+    s = np.array([[0.0, 1.0]], np.float32)
+    z_full, z_diag = reference.features(full, s), reference.features(diag, s)
+    assert z_full[0, 0] == z_diag[0, 0] == 0.0
+    assert np.signbit(z_diag[0, 0]) and not np.signbit(z_full[0, 0])
+    diag.weights["feat_b"][0] = F32(0.0)  # +0.0: converted, and the same bits
+    full = _square_diagonal(diag)
+    assert st.diagonal_features(full).model_id == diag.model_id
+    assert reference.features(full, s).tobytes() == reference.features(diag, s).tobytes()
+
+
+@pytest.mark.parametrize("breakage, message", [
+    (lambda d: _edit_cfg(d, feat_diag="yes"), "feat_diag.*true or false"),
+    (lambda d: _edit_cfg(d, feat_diag=False), r"feat_w.*shape \(4,\), expected \(4, 4\)"),
+    (lambda d: _edit_weights(d, "feat_w", lambda a: np.diag(a).copy()),
+     r"feat_w.*shape \(4, 4\), expected \(4,\).*feat_diag=true"),
+    (lambda d: _edit_cfg(d, filter_tau_s=[300.0, 600.0], n_features=4),
+     r"feat_diag.*is true but n_features = 4 is not 1\+K\+P = 3 \(K=2 filters, P=0"),
+])
+def test_load_refuses_bad_feat_diag(tmp_path, breakage, message) -> None:
+    samples.random_model(3, 4, 1, 6, 5, seed=20, feat_diag=True).save(tmp_path / "m")
     breakage(tmp_path / "m")
     with pytest.raises(UserError, match=message):
         st.StreamModel.load(tmp_path / "m")

@@ -159,9 +159,12 @@ def _seq_matvec(acc: np.ndarray, m: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def features(model: StreamModel, s: np.ndarray) -> np.ndarray:
-    """z = feat_w s + feat_b per step, sequential from the bias: [n_steps, F] float32."""
+    """z = feat_w s + feat_b per step, sequential from the bias: [n_steps, F] float32; with
+    feat_diag (feat_w [F], F == 1+K+P) z_i = feat_b[i] + feat_w[i] * s_i, as the kernel."""
     w, b = model.weights["feat_w"], model.weights["feat_b"]
     s = np.asarray(s, dtype=np.float32)
+    if w.ndim == 1:  # feat_diag (its validated shape; callers may pass only the weights)
+        return (b[None, :] + w[None, :] * s).astype(np.float32)
     z = np.broadcast_to(b, (s.shape[0], b.shape[0])).copy()
     for j in range(w.shape[1]):
         z = z + w[:, j][None, :] * s[:, j][:, None]

@@ -17,7 +17,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                  out_offset: float = 40.0, poly_head: bool = False,
                  lstm_inputs: int | None = None, quad_diag: bool = False,
                  bias_head: bool = False, bias_dph: float = 2.0,
-                 plays: tuple[tuple[tuple[float, ...], float], ...] = ()) -> StreamModel:
+                 plays: tuple[tuple[tuple[float, ...], float], ...] = (),
+                 feat_diag: bool = False) -> StreamModel:
     """A seeded random model in the artifact format.
 
     Scaled so nothing saturates on chamber temperatures: z is O(1) over -45..55 C, every gate's
@@ -31,7 +32,9 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     With `bias_head`, the bias head's arrays come from a third generator (the others stay
     put): bias_b about `bias_dph` and each term O(bias_dph / 3) in deg/h. `plays`
     ((source weights over [Tm, y_1..y_K], width_c) each): play operators in the front end;
-    feat_w is then [F, 1+K+P] (so the draws after it differ).
+    feat_w is then [F, 1+K+P] (so the draws after it differ). `feat_diag` (F must be 1+K+P):
+    feat_w is the diagonal [F] only, from a fourth generator at the scale of a row's sum, so
+    z_i = feat_w[i] * s_i + feat_b[i] is O(1) too (the other arrays stay put).
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
@@ -66,6 +69,9 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
         weights["quad_w"] = (u((f,), 0.3 * math.sqrt(3.0 / f), poly_rng) if quad_diag
                              else u((f, f), 0.3 * math.sqrt(3.0) / f, poly_rng))
         weights["cube_w"] = u((f,), 0.3 * math.sqrt(3.0 / f), poly_rng)
+    if feat_diag:
+        diag_rng = np.random.default_rng([seed, 3])
+        weights["feat_w"] = u((f,), math.sqrt(3.0) / half_span, diag_rng)
     if bias_head:
         bias_rng = np.random.default_rng([seed, 2])
         scale = bias_dph / 3.0 * math.sqrt(3.0 / f)
@@ -78,7 +84,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                         weights=weights, extra={"random_seed": seed}, poly_head=poly_head,
                         lstm_inputs=lstm_inputs, quad_diag=quad_diag, bias_head=bias_head,
                         play_width_c=[float(w) for _, w in plays],
-                        play_source_w=[[float(v) for v in src] for src, _ in plays])
+                        play_source_w=[[float(v) for v in src] for src, _ in plays],
+                        feat_diag=feat_diag)
     model.validate()
     return model
 

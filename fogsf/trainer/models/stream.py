@@ -6,6 +6,7 @@ This module holds what they share:
 
 - `StreamModel`: the artifact (stream.json + stream_weights.npz): load, save, validate,
   `model_id` (a hash of weights and config), re-rating to another sample rate.
+- `diagonal_features`: the same model with a diagonal feat_w stored as its diagonal only.
 - `FrontEnd`, `filter_alpha`, `decimation_for`: the front end's configuration.
 - The status flags (the C kernel's FOGSF_FLAG_* have the same values) and SF_LIMIT_PPM.
 - `torch_to_onnx_lstm`, `onnx_to_torch_lstm`: gate-order converters (torch i,f,g,o with
@@ -157,6 +158,9 @@ BIAS_ARRAYS = ("bias_b", "bias_w", "bias_quad_w", "bias_cube_w")
 PLAY_WIDTH_KEY = "play_width_c"
 PLAY_SOURCE_KEY = "play_source_w"
 MAX_PLAY_WIDTH_C = 200.0
+# optional stream.json key (absent = false; needs F == 1+K+P): feat_w is [F], the diagonal
+# only (z_i = feat_w[i] * s_i + feat_b[i]; `diagonal_features` converts a model to it)
+FEAT_DIAG_KEY = "feat_diag"
 
 
 @dataclass
@@ -182,6 +186,7 @@ class StreamModel:
     bias_head: bool = False  # the bias (deg/h) from z too: bias_b, bias_w, bias_quad_w, ...
     play_width_c: list[float] = field(default_factory=list)  # P plays' widths (C)
     play_source_w: list[list[float]] = field(default_factory=list)  # [P][1+K] sources
+    feat_diag: bool = False  # F == 1+K+P and feat_w [F] is the diagonal of the feature map
 
     def __post_init__(self) -> None:
         extra = dict(self.extra)
@@ -195,6 +200,8 @@ class StreamModel:
             self.poly_head = self.poly_head or extra.pop(POLY_KEY)
         if QUAD_DIAG_KEY in extra:
             self.quad_diag = self.quad_diag or extra.pop(QUAD_DIAG_KEY)
+        if FEAT_DIAG_KEY in extra:
+            self.feat_diag = self.feat_diag or extra.pop(FEAT_DIAG_KEY)
         if LSTM_INPUTS_KEY in extra:
             value = extra.pop(LSTM_INPUTS_KEY)
             self.lstm_inputs = value if self.lstm_inputs is None else self.lstm_inputs
@@ -223,7 +230,8 @@ class StreamModel:
     def expected_shapes(self) -> dict[str, tuple[int, ...]]:
         k, f, h = self.n_filters, self.n_features, self.hidden
         shapes: dict[str, tuple[int, ...]] = {
-            "filter_alpha": (k,), "feat_w": (f, 1 + k + self.n_plays), "feat_b": (f,),
+            "filter_alpha": (k,),
+            "feat_w": (f,) if self.feat_diag else (f, 1 + k + self.n_plays), "feat_b": (f,),
             "head_w": (h,), "head_b": (1,), "skip_w": (f,),
             "out_scale": (1,), "out_offset": (1,),
         }
@@ -254,7 +262,8 @@ class StreamModel:
         poly += " + bias head" if self.bias_head else ""
         plays = (f", {self.n_plays} play(s) of width "
                  f"{', '.join(f'{w:g}' for w in self.play_width_c)} C" if self.n_plays else "")
-        return (f"K={self.n_filters} filters{plays}, F={self.n_features} features, "
+        feats = " (diagonal feat_w)" if self.feat_diag else ""
+        return (f"K={self.n_filters} filters{plays}, F={self.n_features} features{feats}, "
                 f"{self.layers}x{self.hidden} LSTM{reads}{poly}, D={self.decimation}, "
                 f"{self.params} parameters")
 
@@ -307,6 +316,8 @@ class StreamModel:
             cfg[LSTM_INPUTS_KEY] = self.n_lstm_inputs
         if self.quad_diag:
             cfg[QUAD_DIAG_KEY] = True
+        if self.feat_diag:
+            cfg[FEAT_DIAG_KEY] = True
         if self.bias_head:
             cfg[BIAS_KEY] = True
         if self.n_plays:
@@ -318,11 +329,12 @@ class StreamModel:
     def model_id(self) -> str:
         """16 hex digits of SHA-256 over the contract config and the float32 weight bytes.
 
-        `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag` and
-        `bias_head` only when true, the plays only when there are some, so models without
-        them keep the ids they had before the keys existed."""
+        `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag`,
+        `feat_diag` and `bias_head` only when true, the plays only when there are some, so
+        models without them keep the ids they had before the keys existed."""
         optional = {POLY_KEY: self.poly_head, LSTM_INPUTS_KEY: self.lstm_inputs_narrowed,
-                    QUAD_DIAG_KEY: self.quad_diag, BIAS_KEY: self.bias_head,
+                    QUAD_DIAG_KEY: self.quad_diag, FEAT_DIAG_KEY: self.feat_diag,
+                    BIAS_KEY: self.bias_head,
                     PLAY_WIDTH_KEY: self.n_plays > 0, PLAY_SOURCE_KEY: self.n_plays > 0}
         cfg = {k: v for k, v in self.config().items()
                if k in _CONFIG_KEYS or optional.get(k, False)}
@@ -361,6 +373,8 @@ class StreamModel:
             raise bad(f"'{QUAD_DIAG_KEY}' must be true or false, got {self.quad_diag!r}")
         if not isinstance(self.bias_head, bool):
             raise bad(f"'{BIAS_KEY}' must be true or false, got {self.bias_head!r}")
+        if not isinstance(self.feat_diag, bool):
+            raise bad(f"'{FEAT_DIAG_KEY}' must be true or false, got {self.feat_diag!r}")
         if self.quad_diag and not self.poly_head:
             raise bad(f"'{QUAD_DIAG_KEY}' is true but '{POLY_KEY}' is false: a diagonal "
                       f"quadratic needs the polynomial head")
@@ -378,6 +392,11 @@ class StreamModel:
             if not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0):
                 raise bad(f"'filter_tau_s' must hold positive time constants, got {tau!r}")
         self._validate_plays(bad)
+        n_s = 1 + self.n_filters + self.n_plays
+        if self.feat_diag and self.n_features != n_s:
+            raise bad(f"'{FEAT_DIAG_KEY}' is true but n_features = {self.n_features} is not "
+                      f"1+K+P = {n_s} (K={self.n_filters} filters, P={self.n_plays} plays): "
+                      f"a diagonal feat_w maps each entry of s to one feature")
         expected = self.expected_shapes()
         missing = sorted(set(expected) - set(self.weights))
         if missing:
@@ -403,6 +422,7 @@ class StreamModel:
                 extra = (f" {LSTM_INPUTS_KEY}={self.n_lstm_inputs}" if name == "lstm0_w"
                          and self.lstm_inputs_narrowed else "")
                 extra += f" {QUAD_DIAG_KEY}=true" if name == "quad_w" and self.quad_diag else ""
+                extra += f" {FEAT_DIAG_KEY}=true" if name == "feat_w" and self.feat_diag else ""
                 raise bad(f"array '{name}' has shape {arr.shape}, expected {shape} from "
                           f"K={self.n_filters} F={self.n_features} L={self.layers} "
                           f"H={self.hidden}{extra}")
@@ -482,7 +502,7 @@ class StreamModel:
                 weights = {k: npz[k] for k in npz.files}
         except (OSError, ValueError) as e:
             raise UserError(f"{w_path}: cannot read the weights: {e}") from None
-        for key in (POLY_KEY, QUAD_DIAG_KEY, BIAS_KEY):
+        for key in (POLY_KEY, QUAD_DIAG_KEY, BIAS_KEY, FEAT_DIAG_KEY):
             if not isinstance(cfg.get(key, False), bool):
                 raise UserError(f"{cfg_path}: key '{key}' must be true or false, got "
                                 f"{cfg[key]!r}")
@@ -500,9 +520,11 @@ class StreamModel:
             weights=weights, sample_dt_s=float(cfg["sample_dt_s"]),
             extra={k: v for k, v in cfg.items()
                    if k not in _CONFIG_KEYS and k not in (POLY_KEY, LSTM_INPUTS_KEY,
-                                                          QUAD_DIAG_KEY, BIAS_KEY)},
+                                                          QUAD_DIAG_KEY, BIAS_KEY,
+                                                          FEAT_DIAG_KEY)},
             poly_head=cfg.get(POLY_KEY, False), lstm_inputs=n_in,
             quad_diag=cfg.get(QUAD_DIAG_KEY, False), bias_head=cfg.get(BIAS_KEY, False),
+            feat_diag=cfg.get(FEAT_DIAG_KEY, False),
         )
         model.validate(where=str(d))
         return model
@@ -515,6 +537,35 @@ def _trained_kind(directory: Path) -> str | None:
     except (OSError, ValueError, AttributeError):
         return None
     return kind if isinstance(kind, str) else None
+
+
+def diagonal_features(model: StreamModel) -> StreamModel:
+    """The same model with `feat_diag`: feat_w [F] the diagonal of its feat_w (the same
+    float32 bits), when feat_w is square, [F, 1+K+P], with every entry off the diagonal 0
+    (+0.0 or -0.0) and no feat_b entry is -0.0; else `model` itself (also when it already
+    has feat_diag). The result gives every output bit for bit as `model` does.
+
+    Why: the kernel computes z_i = feat_b[i], then + feat_w[i, j] * s_j for j ascending; s is
+    always finite (the front end clamps the temperature), so each off-diagonal term is an
+    exact +0.0 or -0.0, and x + (+-0.0) is x for every x but -0.0 (-0.0 + +0.0 = +0.0). With
+    feat_b[i] not -0.0 the running sum is never -0.0: feat_b[i] before the diagonal term,
+    feat_b[i] + feat_w[i, i] * s_i after it (-0.0 only when both are), so the zero terms
+    change nothing and z_i is the diagonal form's feat_b[i] + feat_w[i] * s_i. With
+    feat_b[i] = -0.0 the sign of a zero z_i would hang on the signs of the other s_j: such
+    a model stays dense."""
+    if model.feat_diag:
+        return model
+    w, b = model.weights["feat_w"], model.weights["feat_b"]
+    f = model.n_features
+    if w.shape != (f, 1 + model.n_filters + model.n_plays) or w.shape != (f, f):
+        return model
+    if np.any(w[~np.eye(f, dtype=bool)] != 0) or np.any((b == 0) & np.signbit(b)):
+        return model
+    weights = dict(model.weights)
+    weights["feat_w"] = np.diagonal(w).astype(np.float32)  # a copy, the same bits
+    out = replace(model, weights=weights, feat_diag=True)
+    out.validate()
+    return out
 
 
 
