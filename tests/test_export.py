@@ -22,15 +22,18 @@ SIZES = [(2, 4, 1, 8, 10, 0), (0, 3, 2, 5, 1, 1), (3, 6, 2, 16, 4, 2)]
 # with the polynomial head: (k, f, layers, hidden, d, seed, poly_head)
 POLY_SIZES = [(*size, False) for size in SIZES] + [(2, 4, 1, 8, 10, 3, True),
                                                     (1, 5, 2, 6, 3, 4, True)]
-# the narrowed forms: (k, f, layers, hidden, d, seed, poly_head, lstm_inputs, quad_diag)
-FORMS = [(11, 12, 1, 16, 50, 5, True, 1, True), (3, 5, 2, 6, 3, 6, True, 2, False),
-         (2, 4, 1, 8, 10, 7, True, None, True), (0, 3, 2, 5, 1, 8, False, 2, False)]
+# the narrowed forms: (k, f, layers, hidden, d, seed, poly_head, lstm_inputs, quad_diag
+# [, feat_diag]); the first is the default model's form
+FORMS = [(11, 12, 1, 16, 50, 5, True, 1, True, True), (3, 5, 2, 6, 3, 6, True, 2, False),
+         (2, 4, 1, 8, 10, 7, True, None, True), (0, 3, 2, 5, 1, 8, False, 2, False),
+         (2, 3, 2, 6, 4, 9, False, None, False, True)]
 
 
 def form_model(k: int, f: int, layers: int, hidden: int, d: int, seed: int, poly: bool,
-               n_in: int | None = None, diag: bool = False) -> st.StreamModel:
+               n_in: int | None = None, diag: bool = False, fdiag: bool = False
+               ) -> st.StreamModel:
     return samples.random_model(k, f, layers, hidden, d, seed=seed, poly_head=poly,
-                           lstm_inputs=n_in, quad_diag=diag)
+                                lstm_inputs=n_in, quad_diag=diag, feat_diag=fdiag)
 
 
 def random_inputs(model: st.StreamModel, seed: int, n: int) -> np.ndarray:
@@ -74,11 +77,14 @@ def test_onnx_step_matches_torch_and_reference(params) -> None:
         np.testing.assert_allclose(ort_h, np.stack(ref_state[0::2])[:, 0], atol=1e-6)
 
 
-@pytest.mark.parametrize("poly, n_in, diag", [(False, None, False), (True, None, False),
-                                              (True, 1, True), (True, 3, False)])
-def test_onnx_step_matches_numpy_reference_over_a_ramp(poly, n_in, diag) -> None:
-    model = samples.random_model(2, 4, 2, 8, 10, seed=7, poly_head=poly, lstm_inputs=n_in,
-                            quad_diag=diag)
+@pytest.mark.parametrize("poly, n_in, diag, fdiag", [
+    (False, None, False, False), (True, None, False, False), (True, 1, True, False),
+    (True, 3, False, False), (True, 1, True, True)])
+def test_onnx_step_matches_numpy_reference_over_a_ramp(poly, n_in, diag, fdiag) -> None:
+    """z from the reference's feature map (full, or diagonal with feat_diag: F = 1+K) into
+    the ONNX step, against the reference's own steps."""
+    model = samples.random_model(3 if fdiag else 2, 4, 2, 8, 10, seed=7, poly_head=poly,
+                                 lstm_inputs=n_in, quad_diag=diag, feat_diag=fdiag)
     temp, _ = samples.chamber_ramp(hours=1.0, seed=7)
     s = reference.frontend(temp, model.front_end).s
     ref = reference.run_steps(model, s)
@@ -129,10 +135,14 @@ def test_header_is_lossless_and_deterministic(params) -> None:
     assert f"#define IMU_X_POLY_HEAD {int(poly)}\n" in header
     assert f"#define IMU_X_LSTM_INPUTS {model.n_lstm_inputs} " in header
     assert f"#define IMU_X_QUAD_DIAG {int(model.quad_diag)} " in header
-    fields = re.search(r"\n    (\d+)u, (\d)u /\* LSTM inputs", text)
+    assert ("#define IMU_X_FEAT_DIAG 1 " in header) == model.feat_diag
+    assert ("FEAT_DIAG" in header) == ("FOGSF_FEAT_DIAG" in text) == model.feat_diag
+    fields = re.search(r"\n    (\d+)u, (\d)u, (\d)u /\* LSTM inputs", text)
     assert fields is not None
-    assert (int(fields[1]), int(fields[2])) == (model.n_lstm_inputs, int(model.quad_diag))
+    assert (int(fields[1]), int(fields[2]), int(fields[3])) == (
+        model.n_lstm_inputs, int(model.quad_diag), int(model.feat_diag))
     assert arrays["lstm0_w"].size == 4 * hidden * model.n_lstm_inputs
+    assert arrays["feat_w"].size == model.n_features * (1 if model.feat_diag else 1 + k)
     assert "extern const fogsf_model imu_x;" in header
 
 

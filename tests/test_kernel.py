@@ -4,6 +4,7 @@ onnxruntime and onnx.reference (tolerances of the issue), totality, determinism.
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,15 +17,20 @@ from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
 from fogsf.trainer.models import f32, reference, samples
 from fogsf.trainer.models import stream as st
 
+F32 = np.float32
+
 # (K filters, F features, L layers, H hidden, D decimation, stuck_samples, seed)
 SIZES = [(3, 4, 1, 16, 10, 600, 0), (0, 3, 2, 5, 1, 0, 1), (2, 5, 2, 12, 7, 30, 2),
          (1, 1, 1, 1, 50, 5, 3)]
 # the same with the polynomial head (a 7-tuple is without it)
 POLY_SIZES = [(3, 4, 1, 16, 10, 600, 4, True), (0, 3, 2, 5, 2, 0, 5, True),
               (1, 1, 1, 1, 50, 5, 6, True)]
-# the narrowed forms: (..., poly, lstm_inputs N, quad_diag); the first is the lag bank's shape
-FORM_SIZES = [(11, 12, 1, 16, 50, 600, 7, True, 1, True), (3, 4, 2, 6, 3, 20, 8, True, 2, False),
-              (2, 5, 1, 8, 1, 0, 9, True, None, True), (0, 3, 2, 5, 4, 5, 10, False, 1, False)]
+# the narrowed forms: (..., poly, lstm_inputs N, quad_diag[, feat_diag]); the first is the
+# lag bank's shape (the default model's form)
+FORM_SIZES = [(11, 12, 1, 16, 50, 600, 7, True, 1, True, True),
+              (3, 4, 2, 6, 3, 20, 8, True, 2, False), (2, 5, 1, 8, 1, 0, 9, True, None, True),
+              (0, 3, 2, 5, 4, 5, 10, False, 1, False), (2, 3, 2, 6, 3, 20, 11, False, None, False,
+                                                        True)]
 
 
 @pytest.fixture(scope="session")
@@ -34,9 +40,11 @@ def kroot(tmp_path_factory):
 
 def model_of(size: tuple) -> st.StreamModel:
     k, f, layers, hidden, d, stuck, seed, *rest = size
-    poly, n_in, diag = (*rest, None, False, False)[:3] if rest else (False, None, False)
+    poly, n_in, diag, fdiag = (*rest, None, False, False, False)[:4] if rest else (
+        False, None, False, False)
     return samples.random_model(k, f, layers, hidden, d, seed=seed, stuck_samples=stuck,
-                           poly_head=bool(poly), lstm_inputs=n_in, quad_diag=bool(diag))
+                                poly_head=bool(poly), lstm_inputs=n_in, quad_diag=bool(diag),
+                                feat_diag=bool(fdiag))
 
 
 @pytest.mark.parametrize("size", SIZES + POLY_SIZES + FORM_SIZES)
@@ -104,8 +112,9 @@ def test_kernel_vs_onnxruntime_on_random_inputs(seed, poly, kroot) -> None:
 
 @pytest.mark.parametrize("size", FORM_SIZES)
 def test_narrowed_forms_kernel_vs_onnxruntime(size, kroot) -> None:
-    """lstm_inputs and quad_diag: the ONNX step (Slice before the first LSTM, the diagonal
-    quadratic) against the kernel within the tolerances of the other models."""
+    """lstm_inputs, quad_diag and feat_diag: the ONNX step (Slice before the first LSTM, the
+    diagonal quadratic; z from the kernel's diagonal feature map) against the kernel within
+    the tolerances of the other models."""
     model = model_of(size)
     temp, gyro = golden_inputs(model, n=400 * model.decimation, seed=size[6])
     compare_with_ort(model, kernel_for(model, kroot), temp, gyro, f"form {size}")
@@ -262,3 +271,56 @@ def test_an_unusable_model_gives_zero_and_only_the_model_flag(kroot) -> None:
         assert (out.sf_ppm, out.flags) == (out_b.sf_ppm, out_b.flags), i
     lib.fogsf_step(kernel.m, state, 20.0, 10.0, out)  # the good model still runs on it
     assert out.flags == 0 and out.corrected_dps != 0.0
+    # feat_diag other than 0/1, or 1 with F != 1+K+P (here F = 4, 1+K = 3)
+    for value in (1, 2):
+        bad = ffi.new("fogsf_model *", kernel.m[0])
+        bad.feat_diag = value
+        assert lib.fogsf_model_check(bad) == 32, value
+        lib.fogsf_step(bad, state, 20.0, 10.0, out)
+        assert (out.corrected_dps, out.sf_ppm, out.flags) == (0.0, 0.0, 32), value
+    square = ffi.new("fogsf_model *", kernel.m[0])  # F = 1+K (only checked, never stepped)
+    square.n_features, square.lstm_inputs, square.feat_diag = 3, 0, 1
+    assert lib.fogsf_model_check(square) == 0
+    square.feat_diag = 2
+    assert lib.fogsf_model_check(square) == 32
+
+
+# (K, F, D, seed, bias head, plays): the default model's shape with a bias head (format 4),
+# a small one with a play and a bias head (format 5)
+DIAG_SIZES = [(11, 12, 5, 51, True, ()), (2, 4, 3, 52, True, (((0.4, 0.6, 0.0), 5.0),))]
+
+
+@pytest.mark.parametrize("size", DIAG_SIZES, ids=["default-form-bias-head", "play-bias-head"])
+def test_diagonal_features_keep_every_kernel_bit(size, kroot) -> None:
+    """A trained-like model whose feat_w is diagonal (the lag bank's: zeros off the diagonal,
+    some of them -0.0, feat_b +0.0 as the bank's normalisation writes it), in the kernel
+    before and after `diagonal_features`: z, the SF, the bias, the corrected rate and the
+    flags the same bits, and both the numpy reference's."""
+    k, f, d, seed, bias, plays = size
+    diag = samples.random_model(k, f, 1, 16, d, seed=seed, poly_head=True,
+                                lstm_inputs=1, quad_diag=True, bias_head=bias, plays=plays,
+                                feat_diag=True)
+    diag.weights["feat_b"][:] = 0.0
+    diag.weights["feat_b"][1] = F32(0.125)
+    diag.weights["feat_w"][2] = F32(0.0)
+    w = np.diag(diag.weights["feat_w"]).astype(np.float32)
+    w[np.arange(f) % 2 == 1, 0] = F32(-0.0)
+    full = replace(diag, weights={**diag.weights, "feat_w": w}, feat_diag=False)
+    full.validate()
+    conv = st.diagonal_features(full)
+    assert conv.feat_diag and conv.model_id == diag.model_id
+    temp, gyro = golden_inputs(full, n=3000, seed=seed)
+    temp[::53] = full.t_ref_c  # s_0 = 0 exactly at some steps
+    ka, kb = kernel_for(full, kroot), kernel_for(conv, kroot)
+    assert kb.m.feat_diag == 1 and ka.m.feat_diag == 0
+    za, _, _ = trace_steps(ka, temp, gyro)
+    zb, _, _ = trace_steps(kb, temp, gyro)
+    assert np.any(za == 0.0) and za.tobytes() == zb.tobytes()
+    a, b = ka.run_bias(temp, gyro), kb.run_bias(temp, gyro)
+    for x, y in zip(a, b, strict=True):
+        assert x.tobytes() == y.tobytes()
+    ref = reference.replay(conv, temp, gyro)
+    assert np.ptp(ref.sf_ppm) > 1.0 and np.ptp(ref.bias_dph) > 0.1
+    assert a[0].tobytes() == ref.corrected_dps.tobytes()
+    assert a[1].tobytes() == ref.sf_ppm.tobytes() and a[2].tobytes() == ref.bias_dph.tobytes()
+    assert np.array_equal(a[3], ref.flags)

@@ -148,18 +148,21 @@ def test_cortex_m4f_two_layers_no_filters_no_stuck_check(poly, tmp_path) -> None
 
 @pytest.mark.skipif(arm_tools_missing() is not None,
                     reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
-@pytest.mark.parametrize("k, f, layers, hidden, d, n_in, diag", [
-    (11, 12, 1, 16, 5, 1, True),   # the default model's shape (the lag bank)
-    (2, 4, 2, 6, 1, 3, False),     # a narrowed input into two layers, the full quadratic
+@pytest.mark.parametrize("k, f, layers, hidden, d, n_in, diag, fdiag", [
+    (11, 12, 1, 16, 5, 1, True, True),   # the default model's shape (the lag bank)
+    (2, 4, 2, 6, 1, 3, False, False),    # a narrowed input into two layers, the full quadratic
 ], ids=["lag-bank-form", "narrowed-2-layers"])
-def test_cortex_m4f_narrowed_forms(k, f, layers, hidden, d, n_in, diag, tmp_path) -> None:
-    """lstm_inputs and quad_diag on target: the golden vectors bit for bit under QEMU."""
+def test_cortex_m4f_narrowed_forms(k, f, layers, hidden, d, n_in, diag, fdiag,
+                                   tmp_path) -> None:
+    """lstm_inputs, quad_diag and feat_diag on target: the golden vectors bit for bit under
+    QEMU."""
     model = samples.random_model(k, f, layers, hidden, decimation=d, seed=78, poly_head=True,
-                            lstm_inputs=n_in, quad_diag=diag)
+                                 lstm_inputs=n_in, quad_diag=diag, feat_diag=fdiag)
     build = build_kernel(model, root=tmp_path / "host")
     text = (build.directory / "bound_model.c").read_text()
     assert f"static const float lstm0_w[{4 * hidden * n_in}]" in text
     assert (f"static const float quad_w[{f}]" in text) == diag
+    assert (f"static const float feat_w[{f}]" in text) == fdiag
     kernel = Kernel(model, build)
     temp, gyro = golden_inputs(model)  # the golden vectors' inputs: numpy = host first
     corrected, sf, flags = kernel.run(temp, gyro)

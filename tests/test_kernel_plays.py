@@ -16,10 +16,12 @@ from fogsf.trainer.errors import UserError
 from fogsf.trainer.models import reference, samples
 from fogsf.trainer.models import stream as st
 
-# (K filters, F features, D decimation, seed, plays ((source weights, width_c), ...), poly)
+# (K filters, F features, D decimation, seed, plays ((source weights, width_c), ...), poly
+# [, feat_diag])
 PLAY_SIZES = [(3, 4, 10, 20, (((1.0, 0.0, 0.0, 0.0), 6.0),), True),
               (2, 5, 7, 21, (((0.0, 0.0, 1.0), 3.5), ((0.3, 0.45, 0.25), 9.25)), False),
-              (1, 2, 1, 22, (((0.0, 1.0), 0.0),), True), (0, 2, 50, 23, (((1.0,), 12.0),), False)]
+              (1, 2, 1, 22, (((0.0, 1.0), 0.0),), True), (0, 2, 50, 23, (((1.0,), 12.0),), False),
+              (2, 5, 5, 25, (((0.0, 1.0, 0.0), 4.0), ((0.5, 0.0, 0.5), 2.0)), True, True)]
 
 
 @pytest.fixture(scope="session")
@@ -28,8 +30,9 @@ def kroot(tmp_path_factory):
 
 
 def model_of(size: tuple) -> st.StreamModel:
-    k, f, d, seed, plays, poly = size
-    return samples.random_model(k, f, 1, 8, d, seed=seed, poly_head=poly, plays=plays)
+    k, f, d, seed, plays, poly, *fdiag = size
+    return samples.random_model(k, f, 1, 8, d, seed=seed, poly_head=poly, plays=plays,
+                                feat_diag=bool(fdiag and fdiag[0]))
 
 
 @pytest.mark.parametrize("size", PLAY_SIZES)
@@ -94,9 +97,11 @@ def test_bad_plays_are_refused(tmp_path, bad) -> None:
         st.StreamModel.load(tmp_path / "m")
 
 
-def test_plays_with_a_bias_head_bit_for_bit(kroot) -> None:
-    model = samples.random_model(2, 3, 1, 8, 10, seed=24, poly_head=True, bias_head=True,
-                                 plays=(((0.5, 0.5, 0.0), 5.0),))
+@pytest.mark.parametrize("feat_diag", [False, True], ids=["full-feat-w", "feat-diag"])
+def test_plays_with_a_bias_head_bit_for_bit(feat_diag, kroot) -> None:
+    model = samples.random_model(2, 3 + feat_diag, 1, 8, 10, seed=24, poly_head=True,
+                                 bias_head=True, plays=(((0.5, 0.5, 0.0), 5.0),),
+                                 feat_diag=feat_diag)
     kernel = kernel_for(model, kroot)
     temp, gyro = golden_inputs(model, n=3000, seed=24)
     temp = temp + 15.0 * np.abs(((np.arange(temp.size) / 400.0) % 2.0) - 1.0)

@@ -2,7 +2,8 @@
  * The fixed-size model path of the kernel: front end (sanitise, clamp, stuck detection,
  * block means, lag filters), model step (features, LSTM layers, head with the optional
  * polynomial terms) and the per-sample correction, exactly in the float32 order of
- * docs/stream-contract.md (with the optional narrowed LSTM input and diagonal quadratic). Sizes and weights come from the model struct at run time; the
+ * docs/stream-contract.md (with the optional narrowed LSTM input, diagonal quadratic and
+ * diagonal feature map). Sizes and weights come from the model struct at run time; the
  * state arrays are sized by FOGSF_MAX_* (fogsf_model_check).
  */
 #include "fogsf.h"
@@ -66,7 +67,7 @@ uint32_t fogsf_model_check(const fogsf_model *m)
         m->feat_b == NULL || m->lstm_w == NULL || m->lstm_r == NULL || m->lstm_b == NULL ||
         m->head_w == NULL || m->skip_w == NULL || (m->quad_w == NULL) != (m->cube_w == NULL) ||
         m->lstm_inputs > m->n_features || m->quad_diag > 1u ||
-        (m->quad_diag != 0u && m->quad_w == NULL)) {
+        (m->quad_diag != 0u && m->quad_w == NULL) || m->feat_diag > 1u) {
         return FOGSF_FLAG_MODEL_INVALID;
     }
     p = plays_of(m);
@@ -90,6 +91,11 @@ uint32_t fogsf_model_check(const fogsf_model *m)
     }
     b = bias_of(m);
     if (b != NULL && (b->bias_w == NULL || b->bias_quad_w == NULL || b->bias_cube_w == NULL)) {
+        return FOGSF_FLAG_MODEL_INVALID;
+    }
+    /* a diagonal feat_w maps s (1+K+P entries, P checked above) onto F features one to one */
+    if (m->feat_diag != 0u &&
+        m->n_features != 1u + m->n_filters + (p != NULL ? p->n_plays : 0u)) {
         return FOGSF_FLAG_MODEL_INVALID;
     }
     return 0u;
@@ -196,12 +202,18 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
         st->p[k] = st->p[k] < lo ? lo : (st->p[k] > hi ? hi : st->p[k]);
         s[1 + nk + k] = st->p[k] - m->t_ref_c;
     }
-    for (f = 0; f < nf; ++f) {
-        float acc = m->feat_b[f];
-        for (j = 0; j < ni; ++j) {
-            acc = acc + m->feat_w[f * ni + j] * s[j];
+    if (m->feat_diag != 0u) { /* the diagonal only: feat_w [F], F == 1+K+P */
+        for (f = 0; f < nf; ++f) {
+            st->z[f] = m->feat_b[f] + m->feat_w[f] * s[f];
         }
-        st->z[f] = acc;
+    } else {
+        for (f = 0; f < nf; ++f) {
+            float acc = m->feat_b[f];
+            for (j = 0; j < ni; ++j) {
+                acc = acc + m->feat_w[f * ni + j] * s[j];
+            }
+            st->z[f] = acc;
+        }
     }
     for (l = 0; l < m->layers; ++l) {
         fogsf_lstm_cell(n_in, nh, m->lstm_w[l], m->lstm_r[l], m->lstm_b[l], NULL, x, st->h[l],

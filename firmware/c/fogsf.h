@@ -65,7 +65,8 @@ extern "C" {
  * Arrays are float32, row-major, in the layout of docs/stream-contract.md. */
 typedef struct fogsf_model {
     const char *model_id;         /* 16 hex digits, the artifact's id */
-    uint32_t format_version;      /* 2: the model as data; 3: + lstm_inputs, quad_diag */
+    uint32_t format_version;      /* 2: the model as data; 3: + lstm_inputs, quad_diag (and
+                                     feat_diag); 4: with a bias head; 5: with plays */
     uint32_t n_filters;           /* K lag filters */
     uint32_t n_features;          /* F features */
     uint32_t layers;              /* L LSTM layers */
@@ -75,7 +76,7 @@ typedef struct fogsf_model {
     float sample_dt_s;            /* sample period the model was exported for */
     float t_ref_c, t_min_c, t_max_c;
     const float *filter_alpha;    /* [K] */
-    const float *feat_w;          /* [F][1+K] */
+    const float *feat_w;          /* [F][1+K+P] ([F] with feat_diag) */
     const float *feat_b;          /* [F] */
     const float *const *lstm_w;   /* [L] -> [4H][n_in], gate order i, o, f, c */
     const float *const *lstm_r;   /* [L] -> [4H][H] */
@@ -88,7 +89,14 @@ typedef struct fogsf_model {
     /* format 3 (both 0 in a model generated before: all features, a full quadratic) */
     uint32_t lstm_inputs;         /* N: LSTM layer 0 reads z[0:N], W is [4H][N]; 0 = all F */
     uint32_t quad_diag;           /* 1: quad_w is the diagonal [F] of the quadratic; 0: [F][F] */
+    /* in every format from 3 on (0 in a model generated before it: the full feat_w) */
+    uint32_t feat_diag;           /* 1: F == 1+K+P and feat_w is the diagonal [F]:
+                                     z_i = feat_b[i] + feat_w[i] * s_i; 0: [F][1+K+P] */
 } fogsf_model;
+
+/* fogsf_model has feat_diag (NAME.c of a model with it checks, so that a kernel from before
+ * it cannot read its [F] feat_w as [F][1+K+P]) */
+#define FOGSF_FEAT_DIAG 1
 
 /* A model with a bias head (format 4): the SF model as its first member, whose
  * format_version is 4, then a polynomial of the same features z giving the bias in deg/h:
@@ -153,8 +161,8 @@ typedef struct fogsf_output {
 } fogsf_output;
 
 /* 0 when m fits fogsf_state (FOGSF_MAX_*) and is complete (lstm_inputs <= F, quad_diag 0 or
- * 1 and only with the polynomial head; a bias model's arrays present), else
- * FOGSF_FLAG_MODEL_INVALID. */
+ * 1 and only with the polynomial head, feat_diag 0 or 1 and only with F == 1+K+P; a bias
+ * model's arrays present), else FOGSF_FLAG_MODEL_INVALID. */
 uint32_t fogsf_model_check(const fogsf_model *m);
 
 /* Start a log: zero LSTM state, filters primed by the first sample. init == reset. Returns

@@ -17,6 +17,7 @@ from fogsf.trainer.models.stream import FORMAT, StreamModel, play_half_c, play_s
 # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
 # also holds lstm_inputs and quad_diag; 4: a model with a bias head, the sf member of a
 # fogsf_bias_model (docs/stream-contract.md). A model without a bias head is format 3.
+# feat_diag, the struct's last member, came later and is in every format (0 = full feat_w).
 FORMAT_VERSION = 3
 FORMAT_VERSION_BIAS = 4
 FORMAT_VERSION_PLAYS = 5  # play operators in the front end (a fogsf_play_model)
@@ -76,6 +77,7 @@ def _context(model: StreamModel, name: str) -> dict:
         "filter_alpha": c_array(w["filter_alpha"]), "feat_w": c_array(w["feat_w"]),
         "feat_b": c_array(w["feat_b"]),
         "lstm_inputs": model.n_lstm_inputs, "quad_diag": model.quad_diag,
+        "feat_diag": model.feat_diag,
         "n_plays": model.n_plays,
         "play_width_c": ", ".join(f"{w:g}" for w in model.play_width_c),
         "play_half_c": c_array(play_half_c(model.play_width_c)) if model.n_plays else "",

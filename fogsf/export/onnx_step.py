@@ -1,8 +1,10 @@
 """The streaming step as an ONNX graph: one call per model step, state passed in and out.
 
-Inputs `z` [1, F] (the features of contract step 4) and, per layer l, `h{l}` and `c{l}`
-[1, H]; outputs `sf_ppm` [1, 1] and the new `h{l}_out`, `c{l}_out` [1, H]. Each layer is an
-ONNX LSTM node over a sequence of length 1, so onnxruntime steps exactly like firmware.
+Inputs `z` [1, F] (the features of contract step 4, computed before the graph from s by
+feat_w, full or diagonal with `feat_diag`: the graph is the same for both) and, per layer
+l, `h{l}` and `c{l}` [1, H]; outputs `sf_ppm` [1, 1] and the new `h{l}_out`, `c{l}_out`
+[1, H]. Each layer is an ONNX LSTM node over a sequence of length 1, so onnxruntime steps
+exactly like firmware.
 A model with the polynomial head gets a few more nodes (z quad_w z^T + (z*z*z) cube_w;
 (z*z) quad_w with the diagonal quadratic); without it the graph is what it was before the
 head existed. A model whose first LSTM layer reads z[0:N] only (`lstm_inputs`) slices z

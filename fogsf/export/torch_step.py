@@ -1,4 +1,6 @@
-"""A torch module of the streaming step built from an artifact (to check ONNX against torch)."""
+"""A torch module of the streaming step built from an artifact (to check ONNX against torch).
+
+Like the ONNX step it takes z, so a model's feature map (full or `feat_diag`) is not in it."""
 
 from __future__ import annotations
 

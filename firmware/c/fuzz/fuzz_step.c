@@ -7,8 +7,9 @@
  *           samples: (temperature bits, gyro bits, repeats) records, so NaN, Inf, denormals,
  *           huge values and stuck thermometers (a record repeated up to 255 times) all occur;
  *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state),
- *           lstm_inputs and quad_diag (sometimes invalid), sometimes a bias head (format 4,
- *           sometimes with a NULL array) and every weight from the fuzz data (NaN, Inf, huge).
+ *           lstm_inputs, quad_diag and feat_diag (sometimes invalid), sometimes a bias head
+ *           (format 4, sometimes with a NULL array), sometimes plays (format 5) and every
+ *           weight from the fuzz data (NaN, Inf, huge).
  * After every step the totality contract is checked (corrected finite, |sf| and |bias| <=
  * their limits, flags known, an invalid model gives 0); a violation aborts, which libFuzzer reports as a crash.
  * The number of fogsf_step calls is printed at exit ("fuzz steps: N") for make fuzz.
@@ -228,10 +229,13 @@ static void fuzz_model_data(reader *r)
         m.cube_w = adv + 9;
     }
     /* format 3, from the same byte (so the older corpus keeps its meaning: 0 and 0): the
-       first layer's inputs (bits 1-3; 0 = all, beyond F invalid) and the diagonal quadratic
-       (bits 4-7; 2 is invalid, so is 1 without the head) */
+       first layer's inputs (bits 1-3; 0 = all, beyond F invalid), the diagonal quadratic
+       (bits 4-7 mod 3; 2 is invalid, so is 1 without the head) and the diagonal feature map
+       (bits 4-7 div 3 mod 3, 0 for the values 0-2 the older corpus holds; 2 is invalid, so
+       is 1 unless F == 1+K+P) */
     m.lstm_inputs = ((uint32_t)(opts >> 1) & 7u) % (FOGSF_MAX_FEATURES + 2u);
     m.quad_diag = (uint32_t)(opts >> 4) % 3u;
+    m.feat_diag = ((uint32_t)(opts >> 4) / 3u) % 3u;
     if ((stuck_byte >> 5) >= 6u) { /* play operators (format 5): 0..MAX+1 of them, source
                                      weights and half widths from the input (any float) */
         uint32_t j;
