@@ -13,8 +13,9 @@ D=50); `--model NAME=DIR`
 adds trained artifacts.
 
 Images: one and three small models (1x16 LSTM with the polynomial head, seeded random weights:
-one-feature models, the lag bank's shape in the default model's form, and the same shape in
-the form before lstm_inputs/quad_diag, for comparison) linked into one Cortex-M4F image
+one-feature models, the lag bank's shape in the default model's form, the same with a full
+12 x 12 quadratic, and the shape in the form before lstm_inputs/quad_diag/feat_diag, for
+comparison) linked into one Cortex-M4F image
 through the model-as-data API (`fogsf export --name`), with its flash, RAM (one state per
 model, sized for the largest, + the step's stack bound) and the instructions of the worst
 sample stepping every model; the target for three is <= 24 KB flash
@@ -48,36 +49,43 @@ AXES = ("imu_x", "imu_y", "imu_z")
 
 
 def small_poly_models(n: int, filters: int = 1, bank_form: bool = True,
-                      bias_head: bool = False, own: int = 0, play: bool = False
-                      ) -> list[st.StreamModel]:
+                      bias_head: bool = False, own: int = 0, play: bool = False,
+                      full_quad: bool = False) -> list[st.StreamModel]:
     """n 1x16 LSTM models with the polynomial head (seeded random weights), one per gyro:
     one filter and feature (one effective node), or `filters` lags plus T (the lag bank's
     shape, the default model: 11 filters, 12 features). The bank's shape is the default
-    model's form: the LSTM reads z[0:BANK_LSTM_INPUTS], the quadratic is diagonal;
-    `bank_form=False` gives the previous form (the LSTM on all 12, a full 12 x 12 quad_w);
-    `bias_head` adds the bias head (the SF weights stay those drawn without it); `own`
-    filters and features more, the bias's own (`lead` on turning logs: one, its coil node);
-    `play` a hysteresis term (one play of a mix of T and the fifth lag, and its feature),
-    which the default takes when its logs turn back in temperature and ask for it."""
+    model's form: the LSTM reads z[0:BANK_LSTM_INPUTS], the quadratic is diagonal and so is
+    the feature map (`feat_diag`: feat_w [F]); `full_quad` keeps the rest of that form with a
+    full 12 x 12 quad_w; `bank_form=False` gives the form before all three (the LSTM on all
+    12, a full quad_w and feat_w); `bias_head` adds the bias head (the SF weights stay those
+    drawn without it); `own` filters and features more, the bias's own (`lead` on turning
+    logs: one, its coil node, whose feature mixes T and its lag, so such a model keeps the
+    full feat_w); `play` a hysteresis term (one play of a mix of T and the fifth lag, and
+    its feature), which the default takes when its logs turn back in temperature and ask
+    for it."""
     bank = filters > 1 and bank_form
     k = filters + own
     plays = (((0.5,) + (0.0,) * 4 + (0.5,) + (0.0,) * (k - 5), 6.0),) if play else ()
     return [samples.random_model(k, filters + (filters > 1) + own + play, 1, 16,
                                  decimation=50, seed=300 + a, poly_head=True,
                                  lstm_inputs=BANK_LSTM_INPUTS if bank else None,
-                                 quad_diag=bank, bias_head=bias_head, plays=plays)
+                                 quad_diag=bank and not full_quad, bias_head=bias_head,
+                                 plays=plays, feat_diag=bank and not own)
             for a in range(n)]
 
 
-# (filters, label, bank_form, bias_head, the bias's own filters, a play) of the image rows
-IMAGES = ((1, "small-lstm-1x16-poly", True, False, 0, False),
-          (11, "lag-bank-1x16", True, False, 0, False),
-          (11, "lag-bank-1x16-bias-head", True, True, 0, False),
-          (11, "lag-bank-1x16-lead-bias-head", True, True, 1, False),
-          (11, "lag-bank-1x16-play", True, False, 0, True),
-          (11, "lag-bank-1x16-bias-head-play", True, True, 0, True),
-          (11, "lag-bank-1x16-lead-bias-head-play", True, True, 1, True),
-          (11, "lag-bank-1x16-all-inputs-full-quad", False, False, 0, False))
+# (filters, label, bank_form, bias_head, the bias's own filters, a play, a full quadratic)
+# of the image rows
+IMAGES = ((1, "small-lstm-1x16-poly", True, False, 0, False, False),
+          (11, "lag-bank-1x16", True, False, 0, False, False),
+          (11, "lag-bank-1x16-bias-head", True, True, 0, False, False),
+          (11, "lag-bank-1x16-lead-bias-head", True, True, 1, False, False),
+          (11, "lag-bank-1x16-play", True, False, 0, True, False),
+          (11, "lag-bank-1x16-bias-head-play", True, True, 0, True, False),
+          (11, "lag-bank-1x16-lead-bias-head-play", True, True, 1, True, False),
+          (11, "lag-bank-1x16-full-quad-bias-head", True, True, 0, False, True),
+          (11, "lag-bank-1x16-full-quad-bias-head-play", True, True, 0, True, True),
+          (11, "lag-bank-1x16-all-inputs-full-quad", False, False, 0, False, False))
 
 
 def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-lstm-1x16-poly"
@@ -220,9 +228,9 @@ def main(argv: list[str] | None = None) -> int:
         rows = [bench_model(n, m, note, args.build.resolve(), args.steps)
                 for n, m, note in models]
         images = [] if arm_tools_missing() else [
-            bench_image(small_poly_models(n, k, form, bias, own, play), args.build.resolve(),
-                        label)
-            for k, label, form, bias, own, play in IMAGES for n in (1, 3)]
+            bench_image(small_poly_models(n, k, form, bias, own, play, full_quad),
+                        args.build.resolve(), label)
+            for k, label, form, bias, own, play, full_quad in IMAGES for n in (1, 3)]
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)
         return 2
