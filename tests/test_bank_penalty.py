@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name, bank_penalty
+from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
 from fogsf.trainer.models.stream import StreamModel
 from fogsf.trainer.training import structure_choice as sc
 from fogsf.trainer.training.options import TrainOptions
@@ -25,11 +25,15 @@ from fogsf.trainer.training.train import run_training
 FAST = {"iters": 30, "hidden": 8, "layers": 1, "batch_size": 8}
 
 
-def test_bank_names_carry_their_penalty() -> None:
+def test_bank_names_carry_their_penalty_and_cross_terms() -> None:
     assert bank_name() == "bank" and bank_penalty("bank") == BANK_LAMBDA
+    assert bank_name(cross=True) == "bankx" and bank_cross("bankx")
     for lam in PENALTIES:
-        assert bank_penalty(bank_name(lam)) == lam and bank_name(lam) != "bank"
-    assert bank_penalty("physics2") is None
+        for cross in (False, True):
+            name = bank_name(lam, cross)
+            assert bank_penalty(name) == lam and bank_cross(name) == cross
+            assert name not in ("bank", "bankx")
+    assert bank_penalty("physics2") is None and not bank_cross("bank:1e-05")
 
 
 def _folds(n: int, per_fold: list[float]) -> list[list[float]]:
@@ -39,25 +43,35 @@ def _folds(n: int, per_fold: list[float]) -> list[list[float]]:
 
 @pytest.mark.parametrize("errors, chosen", [
     # every lower penalty better on most parts: down to the lowest
-    ({"bank:0.0001": 0.9, "bank:1e-05": 0.8, "bank:1e-06": 0.7}, 1e-6),
+    ({"bank:0.0001": 0.9, "bank:1e-05": 0.8, "bank:1e-06": 0.7}, "bank:1e-06"),
     # 1e-5 better in the pooled score but on under two thirds of the parts: stop at 1e-4
-    ({"bank:0.0001": 0.9, "bank:1e-05": "minority", "bank:1e-06": 0.1}, 1e-4),
+    ({"bank:0.0001": 0.9, "bank:1e-05": "minority", "bank:1e-06": 0.1}, "bank:0.0001"),
     # the first lower penalty worse: the prior
-    ({"bank:0.0001": 1.1, "bank:1e-05": 0.1, "bank:1e-06": 0.1}, BANK_LAMBDA),
+    ({"bank:0.0001": 1.1, "bank:1e-05": 0.1, "bank:1e-06": 0.1}, "bank"),
     # 1e-4 better on 13 of 18 parts but a higher pooled score: the prior
-    ({"bank:0.0001": "higher", "bank:1e-05": 0.1, "bank:1e-06": 0.1}, BANK_LAMBDA),
+    ({"bank:0.0001": "higher", "bank:1e-05": 0.1, "bank:1e-06": 0.1}, "bank"),
     # 1e-4 better on exactly 12 of 18 parts (two thirds) and a lower score: taken
-    ({"bank:0.0001": "twelve", "bank:1e-05": 1.1, "bank:1e-06": 0.1}, 1e-4),
+    ({"bank:0.0001": "twelve", "bank:1e-05": 1.1, "bank:1e-06": 0.1}, "bank:0.0001"),
     # 1e-4 better on 11 of 18 parts only, however much lower its score: the prior
-    ({"bank:0.0001": "eleven", "bank:1e-05": 0.1, "bank:1e-06": 0.1}, BANK_LAMBDA),
+    ({"bank:0.0001": "eleven", "bank:1e-05": 0.1, "bank:1e-06": 0.1}, "bank"),
+    # the cross terms at the penalty reached (1e-4), then lower with them while they win
+    ({"bank:0.0001": 0.9, "bank:1e-05": 1.1, "bankx:0.0001": 0.5, "bankx:1e-05": 0.4,
+      "bankx:1e-06": 0.45}, "bankx:1e-05"),
+    # the cross terms at the prior, no lower penalty after them
+    ({"bank:0.0001": 1.1, "bankx": 0.5, "bankx:0.0001": 0.6}, "bankx"),
+    # the cross terms on 11 parts only: not taken
+    ({"bank:0.0001": 0.9, "bank:1e-05": 1.1, "bankx:0.0001": "eleven"}, "bank:0.0001"),
 ])
 def test_a_lower_penalty_must_win_most_parts_and_the_score(
-        monkeypatch: pytest.MonkeyPatch, errors: dict, chosen: float) -> None:
+        monkeypatch: pytest.MonkeyPatch, errors: dict, chosen: str) -> None:
     n = 18
     prior = _folds(n, [1.0] * n)
+    # the error of a bank not named in `errors`: worse than any (so the rule stops there)
+    tried: list[str] = []
 
     def folds(name: str, sd: StepData, **kw: object) -> list[list[float]]:
-        e = errors[name]
+        tried.append(name)
+        e = errors.get(name, 5.0)
         shapes = {
             "minority": [0.1] * 11 + [0.95] * 7,  # 11 of 18 much better than 0.9, 7 worse
             "higher": [0.9] * 13 + [3.0] * 5,  # 13 of 18 better than 1.0, the mean higher
@@ -72,17 +86,21 @@ def test_a_lower_penalty_must_win_most_parts_and_the_score(
     sd = StepData(SimpleNamespace(step_s=5.0), [np.zeros(n)], np.zeros(n),  # type: ignore[arg-type]
                   np.arange(n))
     pc = choose_penalty(sd, prior)
-    assert pc.penalty == chosen and pc.name == bank_name(chosen)
+    assert pc.name == chosen and pc.penalty == bank_penalty(chosen)
+    assert pc.cross == chosen.startswith("bankx")
     assert list(pc.scores)[0] == "bank" and pc.scores["bank"] == pytest.approx(1.0)
-    if chosen != BANK_LAMBDA:
+    # the cross terms are tried once, at the penalty the plain bank reached
+    assert any(t.startswith("bankx") for t in tried)
+    assert next(t for t in tried if t.startswith("bankx")).partition(":")[2] == \
+        pc.against[next(t for t in tried if t.startswith("bankx"))].partition(":")[2]
+    text = sc.penalty_message(pc.as_dict())
+    assert text.endswith(f"kept {'the prior ' if chosen == 'bank' else ''}"
+                         f"{sc.bank_label(chosen)}"), text
+    if chosen != "bank":
         assert pc.wins[pc.name] >= sc.PENALTY_WIN_SHARE * n
-        assert f"the bank's penalty: {chosen:g}, below the prior" in \
-            sc.penalty_message(pc.as_dict())
-    else:
-        text = sc.penalty_message(pc.as_dict())
-        assert text.startswith(f"the bank's penalty: the prior {BANK_LAMBDA:g} (0.0001 "
-                               "predicted"), text
-        assert ("12 needed" in text) == (pc.wins["bank:0.0001"] < 12), text
+        assert f"{sc.bank_label(chosen)} predicted {pc.wins[chosen]} better (held-out RMS" in text
+    assert ("0.0001 predicted 11 better: not taken" in text) == \
+        (pc.wins["bank:0.0001"] == 11), text
 
 
 def test_logs_with_few_parts_keep_the_prior() -> None:
@@ -139,7 +157,7 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
     from fogsf.trainer.commands.train import format_metrics
 
     text = format_metrics(m).replace("\n", " ")
-    assert f"the bank's penalty: {lam:g}, below the prior" in text
+    assert f"kept {sc.bank_label(pen['bank'])}" in text
 
 
 def test_a_play_term_is_fitted_at_the_banks_penalty() -> None:
@@ -159,3 +177,22 @@ def test_a_play_term_is_fitted_at_the_banks_penalty() -> None:
         assert fit.lam == lam
         assert np.allclose(fit.lin, want.coef[:z.shape[1]]) and fit.intercept == want.intercept
     assert not np.allclose(fits[BANK_LAMBDA].lin, fits[1e-5].lin)
+
+
+def test_cross_terms_reach_the_play_terms_head() -> None:
+    """`bankx:LAM` with a play: the head is the ridge fit of the design with the cross terms
+    of the curved features (the play's feature linear), its quadratic the full [F, F]."""
+    from fogsf.trainer.models.hysteresis import ridge_fit_free
+    from fogsf.trainer.models.lag_bank import bank_design, n_curved
+    from fogsf.trainer.models.least_squares import TAU_GRID_S
+    from fogsf.trainer.training.hysteresis_choice import head_fit
+
+    rng = np.random.default_rng(6)
+    z = rng.normal(size=(500, len(TAU_GRID_S) + 2)) * 0.3
+    y = z[:, 0] + 0.8 * z[:, 1] * z[:, 4] + 0.2 * z[:, -1] + 0.01 * rng.normal(size=500)
+    fit = head_fit(bank_name(1e-5, cross=True), z, y, TAU_GRID_S)
+    want = ridge_fit_free(bank_design(z, n_curved(), cross=True), y, 1e-5, [z.shape[1] - 1])
+    assert fit.quad.shape == (z.shape[1], z.shape[1])
+    assert np.allclose(fit.predict(z), want.predict(bank_design(z, n_curved(), cross=True)))
+    assert fit.quad[1, 4] == pytest.approx(0.8, abs=0.05) and fit.quad[4, 1] == 0.0
+    assert not fit.quad[n_curved():].any() and not fit.quad[:, n_curved():].any()

@@ -215,3 +215,25 @@ def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Pat
         ids.append(sm.model_id)
     assert texts[0] == texts[1] and ids[0] == ids[1]
     assert ids[2] != ids[0] and texts[2] != texts[0]
+
+
+def test_cross_terms_are_fitted_and_predicted_as_the_firmware_quadratic() -> None:
+    """With `cross`, the bank's quadratic is the upper-triangular [F, F] of z^T quad z over the
+    curved features: a planted cross term is recovered and the prediction is the design's."""
+    from fogsf.trainer.models.lag_bank import bank_design, n_curved
+
+    rng = np.random.default_rng(3)
+    k, c = 12, n_curved()
+    z = rng.normal(size=(3000, k)) * 0.5
+    truth = 0.5 * z[:, 0] - 0.7 * z[:, 2] * z[:, 5] + 0.3 * z[:, 1] ** 2
+    fit = fit_bank(z, truth + rng.normal(0, 0.01, z.shape[0]), lam=1e-6, curved=c, cross=True)
+    assert fit.quad.shape == (k, k) and np.allclose(np.tril(fit.quad, -1), 0.0)
+    assert fit.quad[2, 5] == pytest.approx(-0.7, abs=0.02)
+    assert fit.quad[1, 1] == pytest.approx(0.3, abs=0.02)
+    q32 = fit.quad.astype(np.float32)
+    assert np.allclose(fit.predict(z), fit.intercept + z @ fit.lin
+                       + np.einsum("ni,ij,nj->n", z, q32.astype(np.float64), z)
+                       + (z ** 3) @ fit.cube, atol=1e-5)
+    assert bank_design(z, c, cross=True).shape[1] == k + 2 * c + c * (c - 1) // 2
+    plain = fit_bank(z, truth, lam=1e-6, curved=c)
+    assert plain.quad.shape == (k,)

@@ -1,11 +1,13 @@
-"""The bank's ridge penalty: the prior, fixed lower penalties and the rule that lowers it.
+"""The bank's ridge penalty and cross terms: the prior, fixed lower penalties, the cross terms
+at each, and the rule that chooses them.
 
 Least squares only (no LSTM). For each gyro and protocol of `benchmarks.population` (and,
 with `--partial`, the partial-cycle programs of `benchmarks.hysteresis`, the hysteresis check
 run for each base), prints the test RMS / noise floor of the lag bank at the prior
-(`lag_bank.BANK_LAMBDA`) and at every penalty of `structure_choice.PENALTIES`, of the
-penalty `structure_choice.choose_penalty` takes ("rule"; the prior where the logs hold fewer
-than PENALTY_MIN_FOLDS held-out parts), the number of held-out parts and the penalty chosen.
+(`lag_bank.BANK_LAMBDA`) and at every penalty of `structure_choice.PENALTIES`, each without
+and with the cross terms ("x" after the penalty), of the bank
+`structure_choice.choose_penalty` takes ("rule"; the prior where the logs hold fewer than
+PENALTY_MIN_FOLDS held-out parts), the number of held-out parts and the bank chosen.
 Every case scores the bank, also where `fogsf train` would take physics nodes instead (on
 these protocols it keeps the bank on every development gyro of (e), (f) and partial cycles).
 Run it on development gyros (the rule is tuned there):
@@ -24,7 +26,7 @@ import numpy as np
 
 from benchmarks.probes import finish, spread_cells
 from benchmarks.probes.physics_nodes import ratio
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name, bank_penalty
+from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
 
 
 def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - ChamberLogs
@@ -41,8 +43,9 @@ def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - Chamber
     sd = sc.step_data(train, step)
     if not sd.one_segment:
         sd.fold = sc.part_folds(sd)
-    lams = (BANK_LAMBDA, *sc.PENALTIES)
-    folds = {f"{lam:g}": sc.heldout_folds(bank_name(lam), sd) for lam in lams}
+    names = {column(lam, x): bank_name(lam, x) for x in (False, True)
+             for lam in (BANK_LAMBDA, *sc.PENALTIES)}
+    folds = {k: sc.heldout_folds(v, sd) for k, v in names.items()}
     rule = bank_name()
     if not sd.one_segment and sd.n_folds >= sc.PENALTY_MIN_FOLDS:
         rule = sc.choose_penalty(sd, folds[f"{BANK_LAMBDA:g}"]).name
@@ -52,14 +55,19 @@ def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - Chamber
     dt = prepare(test, full.fe, None, None)
     nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
     out: dict = {"parts": sd.n_folds, "term": bool(used), "rule_penalty": bank_penalty(rule),
+                 "rule_cross": bank_cross(rule),
                  "part_mse": {k: [float(np.mean(f)) for f in v] for k, v in folds.items()}}
-    for lam in lams:
-        name = bank_name(lam)
+    for key, name in names.items():
         pred = fit_with_term(name, full, every)[0] if used else sc.fit_candidate(name, full,
                                                                                   every)
-        out[f"{lam:g}"] = ratio(test, expand(pred(nt), len(test), dt.decimation))
-    out["rule"] = out[f"{out['rule_penalty']:g}"]
+        out[key] = ratio(test, expand(pred(nt), len(test), dt.decimation))
+    out["rule"] = out[column(out["rule_penalty"], out["rule_cross"])]
     return out
+
+
+def column(lam: float, cross: bool) -> str:
+    """The probe's column of the bank at penalty `lam`, with the cross terms if `cross`."""
+    return f"{lam:g}" + ("x" if cross else "")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -107,12 +115,15 @@ def main(argv: list[str] | None = None) -> int:
                 train, test = protocol_logs(gyro, seed, p)
                 rows.append({"seed": seed, "p": p, **case(train, test, hysteresis=p in "ef")})
                 print(rows[-1], flush=True)
-    names = [f"{lam:g}" for lam in (BANK_LAMBDA, *PENALTIES)] + ["rule"]
+    names = [column(lam, x) for x in (False, True) for lam in (BANK_LAMBDA, *PENALTIES)]
+    names.append("rule")
     for p in sorted({r["p"] for r in rows}):
         sub = [r for r in rows if r["p"] == p]
         cells = spread_cells(sub, names)
         moved = sum(r["rule_penalty"] != BANK_LAMBDA for r in sub)
-        print(f"({p}) {len(sub)} cases, penalty lowered on {moved}; median/p90/worst {cells}")
+        cross = sum(r["rule_cross"] for r in sub)
+        print(f"({p}) {len(sub)} cases, penalty lowered on {moved}, cross terms on {cross}; "
+              f"median/p90/worst {cells}")
     return finish(rows, args.out, t0)
 
 

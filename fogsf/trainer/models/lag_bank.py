@@ -53,20 +53,26 @@ CURVED_MAX_TAU_S = 2000.0
 BANK_LSTM_INPUTS = 1
 
 
-def bank_name(lam: float = BANK_LAMBDA) -> str:
+def bank_name(lam: float = BANK_LAMBDA, cross: bool = False) -> str:
     """The structure name of the bank fitted with penalty `lam`: "bank" at the prior
     BANK_LAMBDA, else "bank:LAM" (a penalty the training logs chose,
-    `training.structure_choice`)."""
-    return "bank" if lam == BANK_LAMBDA else f"bank:{lam!r}"
+    `training.structure_choice`); "bankx", "bankx:LAM" with the cross terms of the curved
+    features in its quadratic (`bank_design`)."""
+    stem = "bankx" if cross else "bank"
+    return stem if lam == BANK_LAMBDA else f"{stem}:{lam!r}"
 
 
 def bank_penalty(name: str) -> float | None:
     """The ridge penalty of a bank structure name (`bank_name`); None for any other."""
-    if name == "bank":
-        return BANK_LAMBDA
-    if name.startswith("bank:"):
-        return float(name.removeprefix("bank:"))
-    return None
+    stem, _, lam = name.partition(":")
+    if stem not in ("bank", "bankx"):
+        return None
+    return float(lam) if lam else BANK_LAMBDA
+
+
+def bank_cross(name: str) -> bool:
+    """Whether the bank structure `name` (`bank_name`) has the cross terms."""
+    return name.partition(":")[0] == "bankx"
 
 
 def bank_spec(grid: tuple[float, ...] = TAU_GRID_S) -> FeatureSpec:
@@ -83,11 +89,37 @@ def n_curved(grid: tuple[float, ...] = TAU_GRID_S) -> int:
     return 1 + sum(1 for t in grid if t <= CURVED_MAX_TAU_S)
 
 
-def bank_design(z: np.ndarray, curved: int | None = None) -> np.ndarray:
-    """Columns z of every feature, then z^2 and z^3 of the first `curved` (default: all)."""
+def bank_design(z: np.ndarray, curved: int | None = None, cross: bool = False) -> np.ndarray:
+    """Columns z of every feature, then z^2 and z^3 of the first `curved` (default: all);
+    with `cross`, then z_i z_j of every pair i < j of them (`cross_pairs`' order)."""
     x = np.asarray(z, dtype=np.float64)
     c = x[:, :x.shape[1] if curved is None else curved]
-    return np.column_stack([x, c * c, c * c * c])
+    cols = [x, c * c, c * c * c]
+    if cross:
+        i, j = cross_pairs(c.shape[1])
+        cols.append(c[:, i] * c[:, j])
+    return np.column_stack(cols)
+
+
+def cross_pairs(curved: int) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (i, j), i < j, of the first `curved` features, row by row."""
+    i, j = np.triu_indices(curved, 1)
+    return i, j
+
+
+def head_terms(coef: np.ndarray, k: int, curved: int, cross: bool = False
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lin, quad, cube) of the coefficients of `bank_design(z, curved, cross)` over k
+    features (extra columns after them, e.g. a free term's, ignored): quad the diagonal [k],
+    or with `cross` the upper-triangular [k, k] (z^T quad z, the firmware's full quad_w)."""
+    quad, cube = np.zeros(k), np.zeros(k)
+    quad[:curved], cube[:curved] = coef[k:k + curved], coef[k + curved:k + 2 * curved]
+    if cross:
+        i, j = cross_pairs(curved)
+        full = np.diag(quad)
+        full[i, j] = coef[k + 2 * curved:k + 2 * curved + i.size]
+        quad = full
+    return coef[:k], quad, cube
 
 
 @dataclass
@@ -104,14 +136,15 @@ class BankFit:
 
     def predict(self, z: np.ndarray) -> np.ndarray:
         x = np.asarray(z, dtype=np.float64)
-        return self.intercept + x @ self.lin + (x * x) @ self.quad + (x * x * x) @ self.cube
+        sq = (x * x) @ self.quad if self.quad.ndim == 1 else np.sum((x @ self.quad) * x, 1)
+        return self.intercept + x @ self.lin + sq + (x * x * x) @ self.cube
 
 
 def fit_bank(z: np.ndarray, y: np.ndarray, lam: float = BANK_LAMBDA,
-             curved: int | None = None) -> BankFit:
-    """Ridge regression of y on bank_design(z, curved), the intercept unpenalised, with
-    penalty `lam` times the centred design's mean diagonal."""
-    x = bank_design(z, curved)
+             curved: int | None = None, cross: bool = False) -> BankFit:
+    """Ridge regression of y on bank_design(z, curved, cross), the intercept unpenalised,
+    with penalty `lam` times the centred design's mean diagonal."""
+    x = bank_design(z, curved, cross)
     y = np.asarray(y, dtype=np.float64)
     mu, ym = x.mean(axis=0), float(np.mean(y))
     xc = x - mu
@@ -121,8 +154,6 @@ def fit_bank(z: np.ndarray, y: np.ndarray, lam: float = BANK_LAMBDA,
     f = sv**2 / (sv**2 + lam * scale)
     coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
     k = z.shape[1]
-    c = k if curved is None else curved
-    quad, cube = np.zeros(k), np.zeros(k)
-    quad[:c], cube[:c] = coef[k:k + c], coef[k + c:]
-    return BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
+    lin, quad, cube = head_terms(coef, k, k if curved is None else curved, cross)
+    return BankFit(intercept=ym - float(mu @ coef), lin=lin, quad=quad, cube=cube,
                    lam=lam, dof=float(f.sum()) + 1.0)

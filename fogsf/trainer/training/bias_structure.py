@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsf.trainer.models.lag_bank import BankFit, bank_design, fit_bank
+from fogsf.trainer.models.lag_bank import BankFit, bank_design, fit_bank, head_terms
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.node_fit import ridge_fit, varpro
 from fogsf.trainer.models.physics_nodes import TAU_MAX_S, TAU_MIN_S
@@ -359,9 +359,8 @@ def fit_gcv(z: np.ndarray, y: np.ndarray, curved: int) -> BankFit:
     for lam in BIAS_LAMBDAS:
         f = sv**2 / (sv**2 + lam * scale)
         coef = vt.T @ (sv / (sv**2 + lam * scale) * uy)
-        quad, cube = np.zeros(k), np.zeros(k)
-        quad[:curved], cube[:curved] = coef[k:k + curved], coef[k + curved:]
-        fit = BankFit(intercept=ym - float(mu @ coef), lin=coef[:k], quad=quad, cube=cube,
+        lin, quad, cube = head_terms(coef, k, curved)
+        fit = BankFit(intercept=ym - float(mu @ coef), lin=lin, quad=quad, cube=cube,
                       lam=lam, dof=float(f.sum()) + 1.0)
         if n - fit.dof <= 0:
             continue

@@ -29,7 +29,14 @@ from fogsf.trainer.models.hysteresis import (
     sources,
     term_column,
 )
-from fogsf.trainer.models.lag_bank import BankFit, bank_design, bank_penalty, n_curved
+from fogsf.trainer.models.lag_bank import (
+    BankFit,
+    bank_cross,
+    bank_design,
+    bank_penalty,
+    head_terms,
+    n_curved,
+)
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.node_fit import RidgeFit, discrete_lag, lag_alpha
 from fogsf.trainer.models.physics_nodes import (
@@ -76,12 +83,14 @@ class Structure:
 
 
 def structure(name: str, sd: StepData, rows: np.ndarray) -> Structure:
-    """The bank (`bank` or `bank:LAM`, `lag_bank.bank_name`) or `physicsN` (time constants
-    identified on `rows`) with a column h."""
+    """The bank (`bank`, `bank:LAM`, `bankx`..., `lag_bank.bank_name`) or `physicsN` (time
+    constants identified on `rows`) with a column h."""
     lam = bank_penalty(name)
     if lam is not None:
+        cross = bank_cross(name)
+
         def bank(nt: NodeTemperatures, h: np.ndarray) -> np.ndarray:
-            return bank_design(np.column_stack([nt.z(TAU_GRID_S), h]), n_curved())
+            return bank_design(np.column_stack([nt.z(TAU_GRID_S), h]), n_curved(), cross)
 
         return Structure(TAU_GRID_S, lam, len(TAU_GRID_S) + 1,
                          float(np.std(sd.y[rows])) or 1.0, bank)
@@ -175,13 +184,11 @@ def choice_line(d: dict) -> str:
             f"({d.get('reason', '')})")
 
 
-def bank_head(z: np.ndarray, fit: RidgeFit, lam: float) -> BankFit:
-    """A ridge fit of bank_design(z, n_curved()) (h the last feature, linear) with penalty
-    `lam` as a BankFit."""
-    k, c = z.shape[1], n_curved()
-    quad, cube = np.zeros(k), np.zeros(k)
-    quad[:c], cube[:c] = fit.coef[k:k + c], fit.coef[k + c:]
-    return BankFit(fit.intercept, fit.coef[:k], quad, cube, lam, fit.dof)
+def bank_head(z: np.ndarray, fit: RidgeFit, lam: float, cross: bool = False) -> BankFit:
+    """A ridge fit of bank_design(z, n_curved(), cross) (h the last feature, linear) with
+    penalty `lam` as a BankFit."""
+    lin, quad, cube = head_terms(fit.coef, z.shape[1], n_curved(), cross)
+    return BankFit(fit.intercept, lin, quad, cube, lam, fit.dof)
 
 
 def node_head(z: np.ndarray, fit: RidgeFit, taus_s: tuple[float, ...]) -> NodeFit:
@@ -195,7 +202,8 @@ def head_fit(name: str, z: np.ndarray, y: np.ndarray, taus_s: tuple[float, ...]
     f = z.shape[1] - 1
     lam = bank_penalty(name)
     if lam is not None:
-        fit = ridge_fit_free(bank_design(z, n_curved()), y, lam, [f])
-        return bank_head(z, fit, lam)
+        cross = bank_cross(name)
+        fit = ridge_fit_free(bank_design(z, n_curved(), cross), y, lam, [f])
+        return bank_head(z, fit, lam, cross)
     fit = ridge_fit_free(node_design(z, taus_s), y, NODE_LAMBDA, [f])
     return node_head(z, fit, taus_s)

@@ -46,7 +46,13 @@ from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.columns import held
 from fogsf.trainer.models.chain_nodes import chain_z, identify_chains, node_taus
 from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for, prepare
-from fogsf.trainer.models.lag_bank import bank_name, bank_penalty, fit_bank, n_curved
+from fogsf.trainer.models.lag_bank import (
+    bank_cross,
+    bank_name,
+    bank_penalty,
+    fit_bank,
+    n_curved,
+)
 from fogsf.trainer.models.least_squares import TAU_GRID_S, fit_candidates, node_candidates
 from fogsf.trainer.models.physics_nodes import (
     NodeTemperatures,
@@ -157,7 +163,7 @@ def fit_candidate(name: str, sd: StepData, rows: np.ndarray) -> Predictor:
     if lam is not None:
         z = sd.nodes.z(TAU_GRID_S)
         scale = float(np.std(y)) or 1.0
-        bank = fit_bank(z[rows], y / scale, lam, curved=n_curved())
+        bank = fit_bank(z[rows], y / scale, lam, curved=n_curved(), cross=bank_cross(name))
         return lambda nt: bank.predict(nt.z(TAU_GRID_S)) * scale
     if name == "node":
         s = sd.nodes.z(TAU_GRID_S) * 50.0
@@ -216,12 +222,13 @@ def heldout_score(name: str, sd: StepData,
 
 @dataclass
 class PenaltyChoice:
-    """The bank's penalty chosen by the held-out parts (module docstring)."""
+    """The bank's penalty and cross terms, chosen by the held-out parts (module docstring)."""
 
     name: str  # the bank's structure name (`lag_bank.bank_name`)
-    scores: dict[str, float]  # held-out RMS (ppm) per penalty tried, prior first
-    wins: dict[str, int]  # per lower penalty: parts it predicts better than the one before
-    folds: int
+    scores: dict[str, float]  # held-out RMS (ppm) per bank tried, in the order tried
+    wins: dict[str, int]  # per bank tried after the prior: parts it predicts better than
+    folds: int  # ... the bank it was tried against (`against`)
+    against: dict[str, str] = field(default_factory=dict)
 
     @property
     def penalty(self) -> float:
@@ -229,28 +236,46 @@ class PenaltyChoice:
         assert lam is not None
         return lam
 
+    @property
+    def cross(self) -> bool:
+        return bank_cross(self.name)
+
     def as_dict(self) -> dict:
-        return {"penalty": self.penalty, "heldout_rms_ppm": self.scores, "wins": self.wins,
+        return {"penalty": self.penalty, "cross_terms": self.cross, "bank": self.name,
+                "heldout_rms_ppm": self.scores, "wins": self.wins, "against": self.against,
                 "parts": self.folds, "min_parts": PENALTY_MIN_FOLDS}
 
 
 def choose_penalty(sd: StepData, prior: list[list[float]],
                    tick: Callable[[], object] | None = None) -> PenaltyChoice:
-    """From the prior's held-out folds `prior`, each of PENALTIES in turn while it predicts
-    at least PENALTY_WIN_SHARE of the parts better than the current one and lowers the
-    score."""
-    cur, cur_folds = bank_name(), prior
-    scores, wins = {cur: pooled_rms(prior)}, {}
-    for lam in PENALTIES:
-        name = bank_name(lam)
+    """From the prior's held-out folds `prior`: each of PENALTIES in turn, then the cross
+    terms at the penalty reached, then (with them) each lower penalty in turn; each step is
+    taken while it predicts at least PENALTY_WIN_SHARE of the parts better than the current
+    bank and lowers the score."""
+    pc = PenaltyChoice(bank_name(), {bank_name(): pooled_rms(prior)}, {}, sd.n_folds)
+    cur_folds = prior
+
+    def step(name: str) -> bool:
+        nonlocal cur_folds
         folds = heldout_folds(name, sd, tick=tick)
-        scores[name] = pooled_rms(folds)
+        pc.scores[name] = pooled_rms(folds)
         better = [np.mean(a) < np.mean(b) for a, b in zip(folds, cur_folds, strict=True)]
-        wins[name] = int(sum(better))
-        if wins[name] < PENALTY_WIN_SHARE * len(folds) or scores[name] >= scores[cur]:
-            break
-        cur, cur_folds = name, folds
-    return PenaltyChoice(cur, scores, wins, sd.n_folds)
+        pc.wins[name], pc.against[name] = int(sum(better)), pc.name
+        if pc.wins[name] < PENALTY_WIN_SHARE * len(folds) or \
+                pc.scores[name] >= pc.scores[pc.name]:
+            return False
+        pc.name, cur_folds = name, folds
+        return True
+
+    def walk(cross: bool) -> None:
+        for lam in PENALTIES:
+            if lam < pc.penalty and not step(bank_name(lam, cross)):
+                return
+
+    walk(False)
+    if step(bank_name(pc.penalty, cross=True)):
+        walk(True)
+    return pc
 
 
 @dataclass
@@ -320,28 +345,31 @@ def choice_message(d: dict) -> str:
     return out
 
 
+def bank_label(name: str) -> str:
+    """A bank structure name (`lag_bank.bank_name`) in words: its penalty, its cross terms."""
+    return f"{bank_penalty(name):g}" + (" with cross terms" if bank_cross(name) else "")
+
+
 def penalty_message(pen: dict) -> str:
-    """The bank's penalty (`PenaltyChoice.as_dict`) in a sentence: what the rule did."""
-    lam, n = pen["penalty"], pen["parts"]
+    """The bank's penalty and cross terms (`PenaltyChoice.as_dict`) in a sentence: every step
+    the rule tried, what it predicted, and what it kept."""
+    n, rms, wins, against = pen["parts"], pen["heldout_rms_ppm"], pen["wins"], pen["against"]
     need = math.ceil(PENALTY_WIN_SHARE * n - 1e-9)
-    rms, wins = pen["heldout_rms_ppm"], pen["wins"]
-    tried = list(rms)  # the prior, then each penalty tried, in order
-    kept = bank_name(lam)
-    lowered = kept != tried[0]
-    if lowered:
-        out = (f"the bank's penalty: {lam:g}, below the prior {bank_penalty(tried[0]):g} (each "
-               f"step down predicted at least {need} of the {n} held-out parts better; "
-               f"held-out RMS {rms[tried[0]]:.1f} -> {rms[kept]:.1f} ppm")
-    else:
-        out = f"the bank's penalty: the prior {lam:g} ("
-    i = tried.index(kept)
-    if i + 1 < len(tried):  # the step that failed
-        nxt = tried[i + 1]
-        lower = f"{'; ' if lowered else ''}{bank_penalty(nxt):g} predicted {wins[nxt]} of " + \
-            (f"{n}" if lowered else f"the {n} held-out parts") + " better"
-        out += (f"{lower}, {need} needed" if wins[nxt] < need else
-                f"{lower} but raised the held-out RMS to {rms[nxt]:.1f} ppm")
-    return out + ")"
+    tried = list(rms)  # the prior first, then each step in the order tried
+    kept = pen["bank"]
+    steps = []
+    for name in tried[1:]:
+        clause = f"{bank_label(name)} predicted {wins[name]} better"
+        if name == kept or name in against.values():
+            clause += f" (held-out RMS {rms[against[name]]:.1f} -> {rms[name]:.1f} ppm): taken"
+        elif wins[name] < need:
+            clause += ": not taken"
+        else:
+            clause += f" but raised the held-out RMS to {rms[name]:.1f} ppm: not taken"
+        steps.append(clause)
+    lowered = "the prior " if kept == tried[0] else ""
+    return (f"the bank's penalty and cross terms, by the {n} held-out parts ({need} needed at "
+            f"each step): {'; '.join(steps)}; kept {lowered}{bank_label(kept)}")
 
 
 def choice_step_s(logs: list[ChamberLog], step_s: float = MODEL_STEP_S) -> float:
@@ -372,7 +400,7 @@ def _scores(order: tuple[str, ...], sd: StepData, progress: bool) -> dict[str, f
 
 def _penalty(sd: StepData, prior: list[list[float]], progress: bool) -> PenaltyChoice:
     """`choose_penalty`, with a bar over its fits if `progress`."""
-    with _bar(len(PENALTIES) * sd.n_folds, "bank penalty", progress) as bar:
+    with _bar((2 * len(PENALTIES) + 1) * sd.n_folds, "bank penalty", progress) as bar:
         return choose_penalty(sd, prior, tick=bar.update)
 
 

@@ -60,6 +60,7 @@ from fogsf.trainer.models.lag_bank import (
     BANK_LAMBDA,
     BANK_LSTM_INPUTS,
     BankFit,
+    bank_cross,
     bank_penalty,
     bank_spec,
     fit_bank,
@@ -232,13 +233,14 @@ def _fit_bank(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = Fal
 
         sd = step_data(logs, opts.model_step_s, opts.latitude_deg)
         return _fit_with_term(opts, logs, name, spec, sd)
-    lam = bank_penalty(name)
+    lam, cross = bank_penalty(name), bank_cross(name)
     assert lam is not None
-    # the bank's quadratic is diagonal: the head carries quad_w [F], not [F, F]
+    # the bank's quadratic is diagonal (the head carries quad_w [F], not [F, F]) unless the
+    # choice took its cross terms
     return _fit_with_spec(opts, logs, spec,
                           _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec),
-                                       quad_diag=True),
-                          head_fn=lambda ti: _fit_bank_head(ti, lam))
+                                       quad_diag=not cross),
+                          head_fn=lambda ti: _fit_bank_head(ti, lam, cross))
 
 
 def _fit_with_term(opts: TrainOptions, logs: list[ChamberLog], base: str, spec: FeatureSpec,
@@ -256,7 +258,8 @@ def _fit_with_term(opts: TrainOptions, logs: list[ChamberLog], base: str, spec: 
 
     fitted = _fit_with_spec(opts, logs, full,
                             _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, full),
-                                         quad_diag=bank_penalty(base) is not None),
+                                         quad_diag=bank_penalty(base) is not None
+                                         and not bank_cross(base)),
                             head_fn=head_fn)
     fitted.info["term"] = term.as_dict()
     return fitted
@@ -314,11 +317,12 @@ def training_inputs(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpe
                           float(y.mean()), float(y.std() or 1.0))
 
 
-def _fit_bank_head(ti: TrainingInputs, lam: float = BANK_LAMBDA) -> BankFit:
-    """The lag bank fitted by ridge (penalty `lam`) to the normalised targets of every step
-    of the training logs (the validation part too: it only picks the LSTM's iteration, and
-    the bank needs every transient the logs hold)."""
-    return fit_bank(*bank_data(ti), lam, curved=n_curved())
+def _fit_bank_head(ti: TrainingInputs, lam: float = BANK_LAMBDA, cross: bool = False
+                   ) -> BankFit:
+    """The lag bank (with its cross terms if `cross`) fitted by ridge (penalty `lam`) to the
+    normalised targets of every step of the training logs (the validation part too: it only
+    picks the LSTM's iteration, and the bank needs every transient the logs hold)."""
+    return fit_bank(*bank_data(ti), lam, curved=n_curved(), cross=cross)
 
 
 def bank_data(ti: TrainingInputs) -> tuple[np.ndarray, np.ndarray]:
@@ -391,7 +395,8 @@ def _fit_with_spec(opts: TrainOptions, logs: list[ChamberLog], spec: FeatureSpec
                                  "dof": head.dof}
     elif head is not None:
         structure = "lag-bank"
-        info["lag_bank"] = {"ridge_lambda": head.lam, "dof": head.dof}
+        info["lag_bank"] = {"ridge_lambda": head.lam, "dof": head.dof,
+                            "cross_terms": bool(head.quad.ndim == 2)}
     sm = to_stream_model(net, kind, spec, norm, fe, offset, scale,
                          extra={"hyper": asdict(lstm_cfg),
                                 **({"structure": structure} if structure else {})})
