@@ -128,6 +128,7 @@ def test_trained_play_model_runs_bit_for_bit_in_c(tmp_path) -> None:
     assert np.array_equal(sf.view(np.uint32), ref.sf_ppm.view(np.uint32))
     # its 18 held-out parts took the bank's cross terms: the full quadratic beside the play
     assert m["structure_choice"]["bank_penalty"]["cross_terms"] and sm.quad_diag is False
+    assert sm.feat_diag  # the bank's feature map, stored as its diagonal
 
     def bank_at_prior(mode: str) -> float:
         o = TrainOptions(model="lag-lstm", seed=0, progress=False, workers=1, iters=5,
@@ -172,3 +173,23 @@ def test_long_logs_are_checked_at_the_choice_step(monkeypatch) -> None:
     train_mod._hysteresis_choice(TrainOptions(model="lag-lstm"), [log], "bank")
     want = structure_choice.choice_step_s([log], TrainOptions(model="lag-lstm").model_step_s)
     assert want > 5.0 and seen == [want]
+
+
+def test_cross_terms_are_left_out_beside_a_play_and_a_bias_head(tmp_path, monkeypatch) -> None:  # noqa: ANN001
+    """Logs that measure the bias give the model a bias head: with a play as well, the bank
+    keeps its diagonal quadratic (three such models with the full one would not fit 24 KB),
+    and `fogsf train` says so."""
+    from fogsf.trainer.commands.train import format_metrics
+    from fogsf.trainer.training import train as train_mod
+
+    monkeypatch.setattr(train_mod, "_measures_bias", lambda opts, logs: True)
+    train = simulate(_partial_run(1)).log
+    opts = TrainOptions(model="lag-lstm", seed=0, progress=False, workers=1, iters=5,
+                        transfer_check=False, hysteresis="on")
+    m, fitted = run_training(opts, [train], None, tmp_path / "m")
+    c = m["structure_choice"]
+    assert c["bank_penalty"]["cross_terms"] and "24 KB" in c["cross_left_out"]
+    sm = fitted.stream_model
+    assert sm is not None and sm.n_plays == 1 and sm.quad_diag and sm.feat_diag
+    assert "the cross terms left out: with a play and a bias head" in \
+        format_metrics(m).replace("\n", " ")

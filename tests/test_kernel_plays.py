@@ -5,6 +5,7 @@ bytes and id."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -110,3 +111,59 @@ def test_plays_with_a_bias_head_bit_for_bit(feat_diag, kroot) -> None:
     np.testing.assert_array_equal(out[0].view(np.uint64), ref.corrected_dps.view(np.uint64))
     np.testing.assert_array_equal(out[1].view(np.uint32), ref.sf_ppm.view(np.uint32))
     np.testing.assert_array_equal(out[2].view(np.uint32), ref.bias_dph.view(np.uint32))
+
+
+def _hysteresis_term_model(seed: int = 26, quad_diag: bool = False) -> st.StreamModel:
+    """A model shaped as the trainer's bank with a play term: T and two lags on their own
+    rows, the play's row play(x) - x (x half of each lag), the play feature linear only
+    (no quadratic, cube or LSTM input), a bias head."""
+    m = samples.random_model(2, 4, 1, 8, 10, seed=seed, poly_head=True, lstm_inputs=1,
+                             quad_diag=quad_diag, bias_head=True,
+                             plays=(((0.0, 0.5, 0.5), 5.0),))
+    w = dict(m.weights)
+    fw = np.diag([0.02, 0.021, 0.019, 0.3]).astype(np.float32)
+    fw[3, 1:3] = -0.15
+    w["feat_w"], w["feat_b"] = fw, np.array([-0.4, 0.1, -0.3, 0.05], np.float32)
+    for name in ("cube_w", "bias_quad_w", "bias_cube_w"):
+        w[name] = w[name].copy()
+        w[name][3] = 0.0
+    w["quad_w"] = w["quad_w"].copy()
+    if quad_diag:
+        w["quad_w"][3] = 0.0
+    else:
+        w["quad_w"][3, :] = 0.0
+        w["quad_w"][:, 3] = 0.0
+    return replace(m, weights=w)
+
+
+@pytest.mark.parametrize("quad_diag", [False, True], ids=["full-quad", "quad-diag"])
+def test_a_play_terms_sources_move_to_the_linear_weights(quad_diag, kroot) -> None:
+    """`pure_play_rows` puts the play's row on its own state (its sources' part in skip_w,
+    bias_w, head_b, bias_b), so the map is diagonal: the outputs stay within float32
+    rounding of the model's and the C kernel runs the result bit for bit."""
+    model = _hysteresis_term_model(quad_diag=quad_diag)
+    model.validate()
+    pure = st.pure_play_rows(model)
+    assert pure is not model and not np.any(pure.weights["feat_w"][3, :3])
+    diag = st.diagonal_features(pure)
+    assert diag.feat_diag and st.diagonal_features(model) is model  # the mixed row: dense
+    temp, gyro = golden_inputs(model, n=3000, seed=26)
+    temp = temp + 15.0 * np.abs(((np.arange(temp.size) / 400.0) % 2.0) - 1.0)
+    a, b = reference.replay(model, temp, gyro), reference.replay(diag, temp, gyro)
+    assert np.max(np.abs(a.sf_ppm - b.sf_ppm)) < 5e-6 * np.max(np.abs(a.sf_ppm))  # rounding
+    assert np.max(np.abs(a.bias_dph - b.bias_dph)) < 5e-6 * np.max(np.abs(a.bias_dph))
+    out = kernel_for(diag, kroot).run_bias(temp, gyro)
+    np.testing.assert_array_equal(out[1].view(np.uint32), b.sf_ppm.view(np.uint32))
+    np.testing.assert_array_equal(out[2].view(np.uint32), b.bias_dph.view(np.uint32))
+
+
+def test_a_play_that_is_not_linear_keeps_its_row() -> None:
+    """A play feature with a cube (or read by the LSTM) cannot move its sources: unchanged."""
+    model = _hysteresis_term_model()
+    w = dict(model.weights)
+    w["cube_w"] = w["cube_w"].copy()
+    w["cube_w"][3] = 0.1
+    cubed = replace(model, weights=w)
+    assert st.pure_play_rows(cubed) is cubed
+    no_play = samples.random_model(2, 3, 1, 8, 10, seed=3, poly_head=True)
+    assert st.pure_play_rows(no_play) is no_play

@@ -569,6 +569,53 @@ def diagonal_features(model: StreamModel) -> StreamModel:
 
 
 
+def pure_play_rows(model: StreamModel) -> StreamModel:
+    """The same model with every play feature's row of feat_w on its own play state only, so
+    that `diagonal_features` applies: a play feature that mixes in other states (the
+    hysteresis term's play(x) - x) has those states' part moved to the linear weights
+    (skip_w, bias_w) of the features that are those states alone, and their offsets to
+    head_b and bias_b. Exact algebra, rounded once to float32 (outputs within float32
+    rounding of the model's, not bit for bit). Applies when every other row of feat_w is
+    diagonal, the play features enter linearly only (no LSTM input, quadratic or cube on
+    them) and feat_w is square; else returns `model` itself."""
+    p = model.n_plays
+    n = 1 + model.n_filters + p
+    w = model.weights["feat_w"]
+    if model.feat_diag or p == 0 or w.shape != (n, n) or model.n_features != n:
+        return model
+    wts = model.weights
+    off = w.astype(np.float64) * (1.0 - np.eye(n))
+    plays, others = np.arange(n - p, n), np.arange(n - p)
+    diag = np.diagonal(w).astype(np.float64)
+    linear_only = model.n_lstm_inputs <= n - p and np.all(diag[others] != 0)
+    if model.poly_head:
+        q = wts["quad_w"]
+        linear_only &= not (q[plays].any() if model.quad_diag else
+                            q[plays].any() or q[:, plays].any()) and not wts["cube_w"][plays].any()
+    if model.bias_head:
+        linear_only &= not (wts["bias_quad_w"][plays].any() or wts["bias_cube_w"][plays].any())
+    if off[others].any() or off[np.ix_(plays, plays)].any() or not linear_only:
+        return model
+    b = wts["feat_b"].astype(np.float64)
+    ratio = off[np.ix_(plays, others)] / diag[others]  # s_j = (z_j - b_j) / w_jj
+    out = dict(wts)
+    for lin, const in (("skip_w", "head_b"), ("bias_w", "bias_b")):
+        if lin not in wts:
+            continue
+        v = wts[lin].astype(np.float64)
+        moved = v[plays] @ ratio
+        v[others] += moved
+        out[lin] = v.astype(np.float32)
+        out[const] = (wts[const].astype(np.float64) - moved @ b[others]).astype(np.float32)
+    fw = w.copy()
+    fw[np.ix_(plays, others)] = 0.0
+    out["feat_w"] = fw
+    res = replace(model, weights=out)
+    res.validate()
+    return res
+
+
+
 
 # --- gate order ----------------------------------------------------------------------------
 # torch.nn.LSTM stacks gates as (i, f, g, o); ONNX as (i, o, f, c) with c == g.

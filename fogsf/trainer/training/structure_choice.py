@@ -287,13 +287,15 @@ class StructureChoice:
     tolerance: float = CHOICE_TOLERANCE
     factor: float | None = None  # several segments: EVIDENCE_FACTOR (None: `candidates=`)
     penalty: PenaltyChoice | None = None  # the bank's, where the rule ran
+    cross_left_out: str | None = None  # why the trained bank lacks the cross terms chosen
 
     def message(self) -> str:
         return choice_message(self.as_dict())
 
     @property
     def bank(self) -> str:
-        """The bank's structure name, its penalty in it (`lag_bank.bank_name`)."""
+        """The bank's structure name, its penalty and cross terms in it (`lag_bank.bank_name`;
+        `fogsf train` may leave the cross terms out: `cross_left_out`)."""
         return self.penalty.name if self.penalty is not None else bank_name()
 
     def structure(self) -> tuple[str, int]:
@@ -306,7 +308,8 @@ class StructureChoice:
         return {"chosen": self.name, "heldout_rms_ppm": self.scores, "segments": self.folds,
                 "one_segment": self.one_segment, "tolerance": self.tolerance,
                 "evidence_factor": self.factor,
-                **({"bank_penalty": self.penalty.as_dict()} if self.penalty else {})}
+                **({"bank_penalty": self.penalty.as_dict()} if self.penalty else {}),
+                **({"cross_left_out": self.cross_left_out} if self.cross_left_out else {})}
 
 
 def choice_message(d: dict) -> str:
@@ -342,6 +345,8 @@ def choice_message(d: dict) -> str:
     pen = d.get("bank_penalty")
     if pen is not None:
         out += "; " + penalty_message(pen)
+    if d.get("cross_left_out"):
+        out += f"; the cross terms left out: {d['cross_left_out']}"
     return out
 
 

@@ -61,6 +61,7 @@ from fogsf.trainer.models.lag_bank import (
     BANK_LSTM_INPUTS,
     BankFit,
     bank_cross,
+    bank_name,
     bank_penalty,
     bank_spec,
     fit_bank,
@@ -68,7 +69,13 @@ from fogsf.trainer.models.lag_bank import (
 )
 from fogsf.trainer.models.physics_nodes import NodeFit
 from fogsf.trainer.models.reference import expand
-from fogsf.trainer.models.stream import FrontEnd, StreamModel, decimation_for
+from fogsf.trainer.models.stream import (
+    FrontEnd,
+    StreamModel,
+    decimation_for,
+    diagonal_features,
+    pure_play_rows,
+)
 from fogsf.trainer.training.options import TrainOptions
 from fogsf.trainer.training.transfer import ramp_segments, training_ramp_rates
 from fogsf.trainer.training.transfer_interval import rate_transfer
@@ -168,11 +175,18 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         # the check runs on the bank at its prior: a lower penalty lets the slow lags mimic a
         # play inside the training program, which the held-out blocks then cannot see
         hyst = _hysteresis_choice(opts, train_logs, base)
+        name = choice.bank if choice is not None else "bank"
+        if choice is not None and hyst["used"] and bank_cross(name) and \
+                _measures_bias(opts, train_logs):
+            # a full quadratic beside a play and a bias head: three such models take 24 680 B
+            # of flash, over the M4F's 24 576 (docs/firmware.md)
+            name = bank_name(bank_penalty(name) or BANK_LAMBDA)
+            choice.cross_left_out = ("with a play and a bias head three models would not fit "
+                                     "24 KB of flash")
         if opts.structure == "physics":
             fitted = _fit_physics(opts, train_logs, hyst["used"])
-        else:  # the bank's name carries its penalty (the prior unless the choice lowered it)
-            fitted = _fit_bank(opts, train_logs, hyst["used"],
-                               choice.bank if choice is not None else "bank")
+        else:  # the bank's name carries its penalty and cross terms (`choose`)
+            fitted = _fit_bank(opts, train_logs, hyst["used"], name)
         if choice is not None:
             fitted.info["structure_choice"] = choice.as_dict()
         if "term" in fitted.info:
@@ -180,6 +194,14 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         fitted.info["hysteresis_choice"] = hyst
         return fitted
     return _fit_gsa(opts, train_logs)
+
+
+def _measures_bias(opts: TrainOptions, logs: list[ChamberLog]) -> bool:
+    """Whether some training log measures the bias (the model will get a bias head)."""
+    from fogsf.trainer.training.bias_model import measured_windows
+
+    return any(measured_windows(lg, opts.window_s, opts.latitude_deg, opts.settle_s)
+               is not None for lg in logs)
 
 
 def _lstm_inputs(opts: TrainOptions, spec: FeatureSpec) -> int:
@@ -526,6 +548,8 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
                        opts.model_step_s, sf_of=sf_of)
     if bias is not None and fitted.stream_model is not None:  # one step corrects both
         fitted.stream_model = bm.with_bias_head(fitted.stream_model, bias)
+    if fitted.stream_model is not None:  # a diagonal feature map (the bank's) as its diagonal
+        fitted.stream_model = diagonal_features(pure_play_rows(fitted.stream_model))
         fitted.params, fitted.weights_bytes = (fitted.stream_model.params,
                                                4 * fitted.stream_model.params)
     train_s = time.perf_counter() - t0
