@@ -4,11 +4,12 @@ A real gyro's SF error is a sum of polynomials of several internal temperatures,
 lagging the board thermometer differently (and with either sign), so no one or two
 effective nodes hold it. The bank holds them all at once: the board temperature T and its
 first-order lag filters at every time constant of `TAU_GRID_S` (60 s .. 2 h), each entering
-on its own (no cross terms): T and the lags up to CURVED_MAX_TAU_S (2000 s) as cubics, the
-slower lags linearly, all fitted together by ridge regression with a penalty that is a
-physics prior chosen on development gyros (BANK_LAMBDA), which logs with many held-out
-parts may lower (`training.structure_choice`: where the data decides, the prior gives
-way). No structure is selected, so there is no selection to get wrong; the penalty shrinks
+on its own: T and the lags up to CURVED_MAX_TAU_S (2000 s) as cubics, the slower lags
+linearly, all fitted together by ridge regression with a penalty that is a physics prior
+chosen on development gyros (BANK_LAMBDA). Logs with many held-out parts may lower it and
+add the cross terms of the curved features (`bankx`: a part's quadratic law is a
+quadratic form in the lags; `training.structure_choice`: where the data decides, the prior
+gives way). No structure is selected, so there is no selection to get wrong; the penalty shrinks
 what the data does not determine.
 
 Chosen over the alternatives on development gyros (docs/decisions.md has the figures):
@@ -18,8 +19,9 @@ least node sensitivity, a quadratic bank with cross terms, varying-coefficient f
 T - lag(T) with block cross-validation.
 
 In the firmware contract the bank is the polynomial head over 1 + K features (T and the K
-filters, normalised): the linear terms in skip_w, the squares in quad_w (its diagonal
-form, `quad_diag`: no cross terms), the cubes in cube_w; the LSTM, reading the first
+filters, normalised: a diagonal feature map, `feat_diag`): the linear terms in skip_w, the
+squares in quad_w (its diagonal form, `quad_diag`, or the full [F, F] with the cross
+terms), the cubes in cube_w; the LSTM, reading the first
 BANK_LSTM_INPUTS features, then learns what the bank leaves, with the bank held fixed.
 """
 

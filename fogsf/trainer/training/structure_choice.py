@@ -24,11 +24,13 @@ held-out fold. The folds and the rule depend on what the logs hold:
   evaluation gyros (docs/decisions.md); it is kept for `choose(candidates=...)` and the
   probes.
 When the bank is chosen from several segments and the logs hold at least
-PENALTY_MIN_FOLDS held-out parts, its ridge penalty may go below the prior (BANK_LAMBDA):
-each of PENALTIES in turn replaces the current one when it predicts at least
-PENALTY_WIN_SHARE of the held-out parts better and lowers the score. With many parts the
-data, not the prior, can say how far the lags' fine structure (a slow chain's delay) is
-determined; with few, a lower penalty chose itself by chance and lost on the tests
+PENALTY_MIN_FOLDS held-out parts, its ridge penalty may go below the prior (BANK_LAMBDA)
+and its quadratic gain cross terms, in steps, each taken when it predicts at least
+PENALTY_WIN_SHARE of the held-out parts better than the current bank and lowers the score:
+each of PENALTIES in turn, then the cross terms at the penalty reached, then with them each
+lower penalty. With many parts the data, not the prior, can say how far the lags' fine
+structure (a slow chain's delay, a part's quadratic law as a form in the lags) is
+determined; with few, the steps chose themselves by chance and lost on the tests
 (docs/decisions.md). The hysteresis check runs on the bank at the prior.
 The orders, the tolerance, the factor and the penalty rule were chosen on development
 gyros.
