@@ -513,3 +513,17 @@ def test_a_stationary_logs_partial_last_step_is_no_target() -> None:
     assert a is not None and b is not None and b.n_targets == a.n_targets
     for name, score in a.choice.scores.items():
         assert b.choice.scores[name] == pytest.approx(score, rel=1e-6), name
+
+
+def test_train_knows_before_the_fit_whether_the_logs_measure_the_bias() -> None:
+    """`train._measures_bias` (what leaves the bank's cross terms out beside a play and a
+    bias head): a stationary log measures the bias, a turning log without pairs does not."""
+    from fogsf.trainer.training.options import TrainOptions
+    from fogsf.trainer.training.train import _measures_bias
+
+    log, _ = soak_log(TRAIN, 5)
+    turning = ChamberLog(log.time_s, log.temp_c, np.full_like(log.time_s, 10.0),
+                         log.gyro_dps + 10.0, log.earth_rate_dps)
+    opts = TrainOptions(model="lag-lstm")
+    assert _measures_bias(opts, [log]) and _measures_bias(opts, [turning, log])
+    assert not _measures_bias(opts, [turning])
