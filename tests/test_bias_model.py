@@ -436,6 +436,28 @@ def test_a_model_with_a_play_leaves_lead_out(tmp_path: Path) -> None:
     assert structure["left_out"] == LEAD_LEFT_OUT
     sm = StreamModel.load(tmp_path / "m")
     assert sm.n_plays == 1 and list(sm.filter_tau_s) == list(bank_spec().taus_s)
+    # the bias head reads the play's feature linearly, as the SF model does: the play's row
+    # moves to its own state and the feature map is stored as its diagonal
+    assert sm.feat_diag and sm.bias_head
+    assert not sm.weights["bias_quad_w"][-1] and not sm.weights["bias_cube_w"][-1]
+
+
+def test_a_bank_with_cross_terms_leaves_lead_out(tmp_path: Path) -> None:
+    """Beside the bank's cross terms (a full quadratic) the bias head does not take `lead`
+    either (three such models would overflow the M4F image), and says why."""
+    from benchmarks.bias_eval import TRAIN_LOOP
+    from fogsf.trainer.logs.dialect import Dialect
+    from fogsf.trainer.logs.logio import read_log, with_mapping_beside
+    from fogsf.trainer.training.bias_model import LEAD_LEFT_OUT_CROSS
+
+    rig = reversal_rig_log(tmp_path / "a" / "log.csv", 3, 2.0, TRAIN_LOOP, 1)
+    log = read_log(rig.path, with_mapping_beside(rig.path, Dialect()))
+    fm = bank_feature_map([log], 5.0)
+    kept = fit_bias(fm, [log])
+    out = fit_bias(fm, [log], full_quad=True)
+    assert kept is not None and "lead" in kept.choice.scores
+    assert out is not None and "lead" not in out.choice.scores
+    assert out.choice.left_out == LEAD_LEFT_OUT_CROSS
 
 
 def test_the_choice_message_says_why_lead_was_taken() -> None:

@@ -189,6 +189,12 @@ def test_cross_terms_are_left_out_beside_a_play_and_a_bias_head(tmp_path, monkey
     m, fitted = run_training(opts, [train], None, tmp_path / "m")
     c = m["structure_choice"]
     assert c["bank_penalty"]["cross_terms"] and "24 KB" in c["cross_left_out"]
+    # trained as the bank the penalty walk reached without the cross terms
+    from fogsf.trainer.models.lag_bank import bank_penalty
+
+    plain = c["bank_penalty"]["without_cross_terms"]
+    assert fitted.info["lag_bank"]["ridge_lambda"] == bank_penalty(plain)
+    assert not fitted.info["lag_bank"]["cross_terms"]
     sm = fitted.stream_model
     assert sm is not None and sm.n_plays == 1 and sm.quad_diag and sm.feat_diag
     assert "the cross terms left out: with a play and a bias head" in \

@@ -49,6 +49,8 @@ MIN_STEP_SHARE = 0.5
 # Cortex-M4F image's 24 KB of flash (`make bench`, docs/firmware.md)
 LEAD_LEFT_OUT = ("lead left out: the SF model carries a hysteresis play, and three models "
                  "with both overflow the 24 KB M4F image")
+LEAD_LEFT_OUT_CROSS = ("lead left out: the SF model's quadratic carries cross terms, and three "
+                       "models with both overflow the 24 KB M4F image")
 
 
 @dataclass(frozen=True)
@@ -72,11 +74,12 @@ class FeatureMap:
         return ref_features(self, s)  # type: ignore[arg-type]
 
 
-def bank_curved(n_features: int) -> int:
-    """Curved features for z of `n_features`: the bank's rule for the lag bank, all else."""
+def bank_curved(n_features: int, n_plays: int = 0) -> int:
+    """Curved features for z of `n_features`: the bank's rule for the lag bank (its plays'
+    features after it linear, as the SF model has them), all else."""
     from fogsf.trainer.models.lag_bank import bank_spec
 
-    return n_curved() if n_features == bank_spec().n_features else n_features
+    return n_curved() if n_features - n_plays == bank_spec().n_features else n_features
 
 
 @dataclass
@@ -151,13 +154,14 @@ def at_targets(x: np.ndarray, kernel: np.ndarray | None) -> np.ndarray:
 def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 100.0,
              latitude_deg: float | None = None, settle_s: float = SETTLE_S,
              step_s: float = MODEL_STEP_S, candidates: tuple[str, ...] | None = None,
-             sf_of: SFOf | None = None) -> BiasModel | None:
+             sf_of: SFOf | None = None, full_quad: bool = False) -> BiasModel | None:
     """The bias model on the logs that measure the bias; None when none does. Its structure
     is chosen by the training targets (`bias_structure`): on `fm`'s features z when the
     bias head shares the SF model's (the node's time constant one of z's lags), on a front
     end of its own when `fm` is None (the time constant by variable projection). `sf_of`:
     the SF model's per-sample prediction of a log, taken off the pairs' plateaus
-    (`measured_windows`)."""
+    (`measured_windows`). `lead` is left out beside an SF model with a play or, `full_quad`,
+    with a full quadratic (the bank's cross terms): three such models would not fit 24 KB."""
     from fogsf.trainer.training import bias_structure as bs
 
     fe0 = fm.fe if fm is not None else front_end_for(logs, step_s, ())
@@ -209,9 +213,9 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
         if i_t is None:
             order = ("bank",)
         left_out = ""
-        if fm.fe.n_plays and "lead" in order:
+        if (fm.fe.n_plays or full_quad) and "lead" in order:
             order = tuple(c for c in order if c != "lead")
-            left_out = LEAD_LEFT_OUT
+            left_out = LEAD_LEFT_OUT if fm.fe.n_plays else LEAD_LEFT_OUT_CROSS
         choice, fit = bs.choose(cols, y, fold, group, order)
         choice.left_out = left_out
         fam = family(cols, y, choice.scores, choice.name, group,
@@ -489,7 +493,7 @@ def feature_map_of(stream_model: StreamModel | None, logs: list[ChamberLog],
         return bank_feature_map(logs, step_s)
     w = stream_model.weights
     return FeatureMap(stream_model.front_end, w["feat_w"], w["feat_b"],
-                      bank_curved(stream_model.n_features))
+                      bank_curved(stream_model.n_features, stream_model.n_plays))
 
 
 def bias_lines(b: dict) -> list[str]:

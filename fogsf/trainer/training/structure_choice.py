@@ -228,9 +228,11 @@ class PenaltyChoice:
 
     name: str  # the bank's structure name (`lag_bank.bank_name`)
     scores: dict[str, float]  # held-out RMS (ppm) per bank tried, in the order tried
-    wins: dict[str, int]  # per bank tried after the prior: parts it predicts better than
-    folds: int  # ... the bank it was tried against (`against`)
+    # per bank tried after the prior: the parts it predicts better than the bank in `against`
+    wins: dict[str, int]
+    folds: int  # held-out parts
     against: dict[str, str] = field(default_factory=dict)
+    plain: str = "bank"  # the bank the penalty walk reached without the cross terms
 
     @property
     def penalty(self) -> float:
@@ -244,8 +246,9 @@ class PenaltyChoice:
 
     def as_dict(self) -> dict:
         return {"penalty": self.penalty, "cross_terms": self.cross, "bank": self.name,
-                "heldout_rms_ppm": self.scores, "wins": self.wins, "against": self.against,
-                "parts": self.folds, "min_parts": PENALTY_MIN_FOLDS}
+                "without_cross_terms": self.plain, "heldout_rms_ppm": self.scores,
+                "wins": self.wins, "against": self.against, "parts": self.folds,
+                "min_parts": PENALTY_MIN_FOLDS}
 
 
 def choose_penalty(sd: StepData, prior: list[list[float]],
@@ -275,6 +278,7 @@ def choose_penalty(sd: StepData, prior: list[list[float]],
                 return
 
     walk(False)
+    pc.plain = pc.name
     if step(bank_name(pc.penalty, cross=True)):
         walk(True)
     return pc

@@ -61,7 +61,6 @@ from fogsf.trainer.models.lag_bank import (
     BANK_LSTM_INPUTS,
     BankFit,
     bank_cross,
-    bank_name,
     bank_penalty,
     bank_spec,
     fit_bank,
@@ -162,7 +161,7 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
     if kind == "lag-lstm":
         choice = None
         if opts.structure == "auto" and opts.node is None and opts.nodes == 1:
-            from fogsf.trainer.training.structure_choice import choose
+            from fogsf.trainer.training.structure_choice import bank_label, choose
 
             choice = choose(train_logs, opts.model_step_s, opts.latitude_deg,
                             progress=opts.progress)
@@ -176,13 +175,14 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         # play inside the training program, which the held-out blocks then cannot see
         hyst = _hysteresis_choice(opts, train_logs, base)
         name = choice.bank if choice is not None else "bank"
-        if choice is not None and hyst["used"] and bank_cross(name) and \
-                _measures_bias(opts, train_logs):
+        if choice is not None and choice.penalty is not None and hyst["used"] and \
+                bank_cross(name) and _measures_bias(opts, train_logs):
             # a full quadratic beside a play and a bias head: three such models take 24 680 B
-            # of flash, over the M4F's 24 576 (docs/firmware.md)
-            name = bank_name(bank_penalty(name) or BANK_LAMBDA)
+            # of flash, over the M4F's 24 576 (docs/firmware.md); the bank the penalty walk
+            # reached without them instead
+            name = choice.penalty.plain
             choice.cross_left_out = ("with a play and a bias head three models would not fit "
-                                     "24 KB of flash")
+                                     f"24 KB of flash; trained at {bank_label(name)}")
         if opts.structure == "physics":
             fitted = _fit_physics(opts, train_logs, hyst["used"])
         else:  # the bank's name carries its penalty and cross terms (`choose`)
@@ -545,10 +545,11 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
         return sf_seen[id(log)]
 
     bias = bm.fit_bias(shared, train_logs, opts.window_s, opts.latitude_deg, opts.settle_s,
-                       opts.model_step_s, sf_of=sf_of)
+                       opts.model_step_s, sf_of=sf_of,
+                       full_quad=fitted.info.get("lag_bank", {}).get("cross_terms", False))
     if bias is not None and fitted.stream_model is not None:  # one step corrects both
         fitted.stream_model = bm.with_bias_head(fitted.stream_model, bias)
-    if fitted.stream_model is not None:  # a diagonal feature map (the bank's) as its diagonal
+    if fitted.stream_model is not None:  # a diagonal feature map as its diagonal
         fitted.stream_model = diagonal_features(pure_play_rows(fitted.stream_model))
         fitted.params, fitted.weights_bytes = (fitted.stream_model.params,
                                                4 * fitted.stream_model.params)
