@@ -15,7 +15,8 @@ what the data does not determine.
 Chosen over the alternatives on development gyros (docs/decisions.md has the figures):
 one effective node with a cubic (`--structure node`), the best of one and two nodes, the
 mean and the median of every lag model consistent with the training data, the lag model of
-least node sensitivity, a quadratic bank with cross terms, varying-coefficient forms in
+least node sensitivity, a quadratic bank with cross terms at the prior on every log (it is
+now a step of the choice on logs of many held-out parts), varying-coefficient forms in
 T - lag(T) with block cross-validation.
 
 In the firmware contract the bank is the polynomial head over 1 + K features (T and the K

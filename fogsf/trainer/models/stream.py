@@ -568,7 +568,6 @@ def diagonal_features(model: StreamModel) -> StreamModel:
     return out
 
 
-
 def pure_play_rows(model: StreamModel) -> StreamModel:
     """The same model with every play feature's row of feat_w on its own play state only, so
     that `diagonal_features` applies: a play feature that mixes in other states (the
@@ -613,8 +612,6 @@ def pure_play_rows(model: StreamModel) -> StreamModel:
     res = replace(model, weights=out)
     res.validate()
     return res
-
-
 
 
 # --- gate order ----------------------------------------------------------------------------

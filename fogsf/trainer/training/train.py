@@ -12,7 +12,8 @@ Models (all causal, all from the board thermometer and time only):
   of their parts among physics nodes with 1-3 nodes and the lag bank), or given: physics nodes
   (`models.physics_nodes`: T and N first-order lags of it with identified time constants,
   a quadratic with cross terms), the lag bank (`models.lag_bank`: T and its lags at 11 time
-  constants, ridge with a fixed prior; in the head's diagonal quadratic) or, with
+  constants, ridge with a prior that logs of many held-out parts may lower; in the head's
+  diagonal quadratic, or the full one with the cross terms those logs may add) or, with
   `structure="node"`, one or two effective sensing temperatures
   T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid; the LSTM reads the
   first BANK_LSTM_INPUTS features (T). A hysteresis (play) term joins the bank or the
@@ -246,9 +247,9 @@ def _fit_physics(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = 
 
 def _fit_bank(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False,
               name: str = "bank") -> Fitted:
-    """The lag bank (ridge, its diagonal quadratic in the head) and the LSTM on what it
-    leaves; with `hysteresis`, a play term too. `name` carries the penalty
-    (`lag_bank.bank_name`)."""
+    """The lag bank (ridge, its quadratic in the head: diagonal, or full with the cross terms)
+    and the LSTM on what it leaves; with `hysteresis`, a play term too. `name` carries the
+    penalty and the cross terms (`lag_bank.bank_name`)."""
     spec = bank_spec()
     if hysteresis:
         from fogsf.trainer.training.structure_choice import step_data
