@@ -144,6 +144,18 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
     assert pen["wins"][bank_name(lam)] >= sc.PENALTY_WIN_SHARE * pen["parts"]
     assert pen["heldout_rms_ppm"][bank_name(lam)] < pen["heldout_rms_ppm"]["bank"]
     assert fitted.info["lag_bank"]["ridge_lambda"] == lam
+    # the cross terms, taken here, run in the C kernel bit for bit (the full quadratic)
+    sm = StreamModel.load(tmp_path / "m")
+    assert pen["cross_terms"] and fitted.info["lag_bank"]["cross_terms"]
+    assert not sm.quad_diag and sm.feat_diag and sm.weights["quad_w"].shape == (12, 12)
+    from kernel_helpers import kernel_for
+
+    from fogsf.trainer.models import reference
+
+    log = envelope[-1]
+    _, sf, _ = kernel_for(sm, tmp_path).run(log.temp_c, log.gyro_dps)
+    ref = reference.replay(sm, log.temp_c, log.gyro_dps)
+    assert np.array_equal(sf.view(np.uint32), ref.sf_ppm.view(np.uint32))
     # the hysteresis check ran on the bank at the prior (the logs turn back)
     assert m["hysteresis_choice"]["base"] == "bank" and "heldout_rms_ppm" in \
         m["hysteresis_choice"]

@@ -48,8 +48,14 @@ def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - Chamber
     folds = {k: sc.heldout_folds(v, sd) for k, v in names.items()}
     rule = bank_name()
     if not sd.one_segment and sd.n_folds >= sc.PENALTY_MIN_FOLDS:
-        rule = sc.choose_penalty(sd, folds[f"{BANK_LAMBDA:g}"]).name
+        pc = sc.choose_penalty(sd, folds[f"{BANK_LAMBDA:g}"])
+        rule = pc.name
     used = hysteresis and decide(train, bank_name(), step)["used"]
+    if used and bank_cross(rule):  # as `fogsf train`: judged again with the term in
+        from fogsf.trainer.training.hysteresis_choice import cross_with_term
+
+        if not cross_with_term(train, pc.plain, rule, step)["kept"]:
+            rule = pc.plain
     full = sc.step_data(train)
     every = np.arange(full.y.size)
     dt = prepare(test, full.fe, None, None)

@@ -175,6 +175,32 @@ def decide(logs: list[ChamberLog], base: str, step_s: float,
     return out
 
 
+def cross_with_term(logs: list[ChamberLog], plain: str, cross: str, step_s: float,
+                    latitude_deg: float | None = None) -> dict:
+    """The bank's cross terms judged again with the hysteresis term in the model: the choice
+    took them (`structure_choice.choose_penalty`) on held-out parts fitted without it, and
+    beside a play they can mimic the same turning. Both banks (`plain`, the one the penalty
+    walk reached, and `cross`) fitted with the term on the same held-out parts; the record,
+    its "kept" true when the cross terms still predict PENALTY_WIN_SHARE of the parts better
+    and lower the score."""
+    from fogsf.trainer.training.structure_choice import (
+        PENALTY_WIN_SHARE,
+        heldout_folds,
+        part_folds,
+        pooled_rms,
+    )
+
+    sd = step_data(logs, step_s, latitude_deg)
+    sd.fold = part_folds(sd)
+    folds = {n: heldout_folds(n, sd, fit=lambda s, r, n=n: fit_with_term(n, s, r)[0])
+             for n in (plain, cross)}
+    wins = int(sum(np.mean(a) < np.mean(b) for a, b in zip(folds[cross], folds[plain],
+                                                          strict=True)))
+    rms = {n: pooled_rms(f) for n, f in folds.items()}
+    kept = wins >= PENALTY_WIN_SHARE * sd.n_folds and rms[cross] < rms[plain]
+    return {"kept": bool(kept), "wins": wins, "parts": sd.n_folds, "heldout_rms_ppm": rms}
+
+
 def choice_line(d: dict) -> str:
     """What `fogsf train` prints about the hysteresis term."""
     term = f" {d['term']['form']}" if d.get("term") else ""

@@ -294,6 +294,7 @@ class StructureChoice:
     factor: float | None = None  # several segments: EVIDENCE_FACTOR (None: `candidates=`)
     penalty: PenaltyChoice | None = None  # the bank's, where the rule ran
     cross_left_out: str | None = None  # why the trained bank lacks the cross terms chosen
+    cross_with_term: dict | None = None  # the cross terms judged with a hysteresis term
 
     def message(self) -> str:
         return choice_message(self.as_dict())
@@ -315,7 +316,8 @@ class StructureChoice:
                 "one_segment": self.one_segment, "tolerance": self.tolerance,
                 "evidence_factor": self.factor,
                 **({"bank_penalty": self.penalty.as_dict()} if self.penalty else {}),
-                **({"cross_left_out": self.cross_left_out} if self.cross_left_out else {})}
+                **({"cross_left_out": self.cross_left_out} if self.cross_left_out else {}),
+                **({"cross_with_term": self.cross_with_term} if self.cross_with_term else {})}
 
 
 def choice_message(d: dict) -> str:
@@ -353,6 +355,10 @@ def choice_message(d: dict) -> str:
         out += "; " + penalty_message(pen)
     if d.get("cross_left_out"):
         out += f"; the cross terms left out: {d['cross_left_out']}"
+    elif d.get("cross_with_term"):
+        c = d["cross_with_term"]
+        out += (f"; with the hysteresis term the cross terms predicted {c['wins']} of the "
+                f"{c['parts']} held-out parts better: kept")
     return out
 
 

@@ -162,7 +162,7 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
     if kind == "lag-lstm":
         choice = None
         if opts.structure == "auto" and opts.node is None and opts.nodes == 1:
-            from fogsf.trainer.training.structure_choice import bank_label, choose
+            from fogsf.trainer.training.structure_choice import choose
 
             choice = choose(train_logs, opts.model_step_s, opts.latitude_deg,
                             progress=opts.progress)
@@ -177,13 +177,9 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         hyst = _hysteresis_choice(opts, train_logs, base)
         name = choice.bank if choice is not None else "bank"
         if choice is not None and choice.penalty is not None and hyst["used"] and \
-                bank_cross(name) and _measures_bias(opts, train_logs):
-            # a full quadratic beside a play and a bias head: three such models take 24 680 B
-            # of flash, over the M4F's 24 576 (docs/firmware.md); the bank the penalty walk
-            # reached without them instead
-            name = choice.penalty.plain
-            choice.cross_left_out = ("with a play and a bias head three models would not fit "
-                                     f"24 KB of flash; trained at {bank_label(name)}")
+                bank_cross(name):
+            name, choice.cross_left_out, choice.cross_with_term = _cross_beside_a_play(
+                opts, train_logs, choice.penalty.plain, name)
         if opts.structure == "physics":
             fitted = _fit_physics(opts, train_logs, hyst["used"])
         else:  # the bank's name carries its penalty and cross terms (`choose`)
@@ -195,6 +191,31 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         fitted.info["hysteresis_choice"] = hyst
         return fitted
     return _fit_gsa(opts, train_logs)
+
+
+def _cross_beside_a_play(opts: TrainOptions, logs: list[ChamberLog], plain: str, cross: str
+                         ) -> tuple[str, str | None, dict | None]:
+    """(the bank to train, why the cross terms are left out or None, the record of
+    `hysteresis_choice.cross_with_term` or None) when the hysteresis
+    term joins a bank the choice gave cross terms: left out beside a bias head too (three
+    such models take 24 680 B of flash, over the M4F's 24 576: docs/firmware.md), or when,
+    with the term in, they no longer predict the held-out parts better
+    (`hysteresis_choice.cross_with_term`); then the bank the penalty walk reached without
+    them."""
+    from fogsf.trainer.training.hysteresis_choice import cross_with_term
+    from fogsf.trainer.training.structure_choice import bank_label, choice_step_s
+
+    why = f"; trained at {bank_label(plain)}"
+    if _measures_bias(opts, logs):
+        return plain, f"with a play and a bias head three models would not fit 24 KB{why}", None
+    rec = cross_with_term(logs, plain, cross, choice_step_s(logs, opts.model_step_s),
+                          opts.latitude_deg)
+    if rec["kept"]:
+        return cross, None, rec
+    rms = rec["heldout_rms_ppm"]
+    return plain, (f"with the hysteresis term they predicted {rec['wins']} of the "
+                   f"{rec['parts']} held-out parts better (held-out RMS {rms[plain]:.1f} -> "
+                   f"{rms[cross]:.1f} ppm){why}"), rec
 
 
 def _measures_bias(opts: TrainOptions, logs: list[ChamberLog]) -> bool:
