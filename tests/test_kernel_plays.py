@@ -113,38 +113,43 @@ def test_plays_with_a_bias_head_bit_for_bit(feat_diag, kroot) -> None:
     np.testing.assert_array_equal(out[2].view(np.uint32), ref.bias_dph.view(np.uint32))
 
 
-def _hysteresis_term_model(seed: int = 26, quad_diag: bool = False) -> st.StreamModel:
-    """A model shaped as the trainer's bank with a play term: T and two lags on their own
-    rows, the play's row play(x) - x (x half of each lag), the play feature linear only
+def _hysteresis_term_model(seed: int = 26, quad_diag: bool = False, n_plays: int = 1
+                           ) -> st.StreamModel:
+    """A model shaped as the trainer's bank with play terms: T and two lags on their own
+    rows, each play's row play(x) - x (x a mix of the lags), the play features linear only
     (no quadratic, cube or LSTM input), a bias head."""
-    m = samples.random_model(2, 4, 1, 8, 10, seed=seed, poly_head=True, lstm_inputs=1,
-                             quad_diag=quad_diag, bias_head=True,
-                             plays=(((0.0, 0.5, 0.5), 5.0),))
+    plays = (((0.0, 0.5, 0.5), 5.0), ((0.0, 0.3, 0.7), 3.0))[:n_plays]
+    m = samples.random_model(2, 3 + n_plays, 1, 8, 10, seed=seed, poly_head=True,
+                             lstm_inputs=1, quad_diag=quad_diag, bias_head=True, plays=plays)
     w = dict(m.weights)
-    fw = np.diag([0.02, 0.021, 0.019, 0.3]).astype(np.float32)
-    fw[3, 1:3] = -0.15
-    w["feat_w"], w["feat_b"] = fw, np.array([-0.4, 0.1, -0.3, 0.05], np.float32)
+    f = 3 + n_plays
+    fw = np.diag([0.02, 0.021, 0.019, 0.3, 0.25][:f]).astype(np.float32)
+    for i, (src, _) in enumerate(plays):
+        fw[3 + i, 1:3] = [-fw[3 + i, 3 + i] * v for v in src[1:]]
+    w["feat_w"], w["feat_b"] = fw, np.array([-0.4, 0.1, -0.3, 0.05, -0.02][:f], np.float32)
+    pl = slice(3, f)
     for name in ("cube_w", "bias_quad_w", "bias_cube_w"):
         w[name] = w[name].copy()
-        w[name][3] = 0.0
+        w[name][pl] = 0.0
     w["quad_w"] = w["quad_w"].copy()
     if quad_diag:
-        w["quad_w"][3] = 0.0
+        w["quad_w"][pl] = 0.0
     else:
-        w["quad_w"][3, :] = 0.0
-        w["quad_w"][:, 3] = 0.0
+        w["quad_w"][pl, :] = 0.0
+        w["quad_w"][:, pl] = 0.0
     return replace(m, weights=w)
 
 
-@pytest.mark.parametrize("quad_diag", [False, True], ids=["full-quad", "quad-diag"])
-def test_a_play_terms_sources_move_to_the_linear_weights(quad_diag, kroot) -> None:
+@pytest.mark.parametrize("quad_diag, n_plays", [(False, 1), (True, 1), (False, 2)],
+                         ids=["full-quad", "quad-diag", "two-plays"])
+def test_a_play_terms_sources_move_to_the_linear_weights(quad_diag, n_plays, kroot) -> None:
     """`pure_play_rows` puts the play's row on its own state (its sources' part in skip_w,
     bias_w, head_b, bias_b), so the map is diagonal: the outputs stay within float32
     rounding of the model's and the C kernel runs the result bit for bit."""
-    model = _hysteresis_term_model(quad_diag=quad_diag)
+    model = _hysteresis_term_model(quad_diag=quad_diag, n_plays=n_plays)
     model.validate()
     pure = st.pure_play_rows(model)
-    assert pure is not model and not np.any(pure.weights["feat_w"][3, :3])
+    assert pure is not model and not np.any(pure.weights["feat_w"][3:, :3])
     diag = st.diagonal_features(pure)
     assert diag.feat_diag and st.diagonal_features(model) is model  # the mixed row: dense
     temp, gyro = golden_inputs(model, n=3000, seed=26)
