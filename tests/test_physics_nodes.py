@@ -132,7 +132,7 @@ def test_physics_model_exports_and_the_reference_matches(tmp_path: Path) -> None
     assert fitted.info["physics_nodes"]["taus_s"] == sm.filter_tau_s
     quad = sm.weights["quad_w"]
     assert quad.shape == (3, 3) and quad[0, 1] != 0 and quad[1, 2] != 0  # cross terms
-    assert np.allclose(sm.weights["feat_w"], np.eye(3) / 50.0)
+    assert sm.feat_diag and np.allclose(sm.weights["feat_w"], np.full(3, 1 / 50.0))
     want = per_sample_prediction(fitted, test, None)
     got = reference.replay(sm, test.temp_c, test.gyro_dps).sf_ppm.astype(np.float64)
     assert np.max(np.abs(got - want)) < 0.01
