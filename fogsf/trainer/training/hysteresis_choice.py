@@ -181,23 +181,21 @@ def cross_with_term(logs: list[ChamberLog], plain: str, cross: str, step_s: floa
     took them (`structure_choice.choose_penalty`) on held-out parts fitted without it, and
     beside a play they can mimic the same turning. Both banks (`plain`, the one the penalty
     walk reached, and `cross`) fitted with the term on the same held-out parts; the record,
-    its "kept" true when the cross terms still predict PENALTY_WIN_SHARE of the parts better
-    and lower the score."""
+    its "kept" true when the cross terms still make a step the rule takes
+    (`structure_choice.step_won`)."""
     from fogsf.trainer.training.structure_choice import (
-        PENALTY_WIN_SHARE,
         heldout_folds,
         part_folds,
         pooled_rms,
+        step_won,
     )
 
     sd = step_data(logs, step_s, latitude_deg)
     sd.fold = part_folds(sd)
     folds = {n: heldout_folds(n, sd, fit=lambda s, r, n=n: fit_with_term(n, s, r)[0])
              for n in (plain, cross)}
-    wins = int(sum(np.mean(a) < np.mean(b) for a, b in zip(folds[cross], folds[plain],
-                                                          strict=True)))
+    wins, kept = step_won(folds[cross], folds[plain])
     rms = {n: pooled_rms(f) for n, f in folds.items()}
-    kept = wins >= PENALTY_WIN_SHARE * sd.n_folds and rms[cross] < rms[plain]
     return {"kept": bool(kept), "wins": wins, "parts": sd.n_folds, "heldout_rms_ppm": rms}
 
 

@@ -251,6 +251,14 @@ class PenaltyChoice:
                 "min_parts": PENALTY_MIN_FOLDS}
 
 
+def step_won(new: list[list[float]], old: list[list[float]]) -> tuple[int, bool]:
+    """(the held-out parts `new` predicts better than `old`, whether that is a step the rule
+    takes: at least PENALTY_WIN_SHARE of the parts and a lower pooled score); both are
+    `heldout_folds` on the same parts."""
+    wins = int(sum(np.mean(a) < np.mean(b) for a, b in zip(new, old, strict=True)))
+    return wins, wins >= PENALTY_WIN_SHARE * len(new) and pooled_rms(new) < pooled_rms(old)
+
+
 def choose_penalty(sd: StepData, prior: list[list[float]],
                    tick: Callable[[], object] | None = None) -> PenaltyChoice:
     """From the prior's held-out folds `prior`: each of PENALTIES in turn, then the cross
@@ -264,10 +272,9 @@ def choose_penalty(sd: StepData, prior: list[list[float]],
         nonlocal cur_folds
         folds = heldout_folds(name, sd, tick=tick)
         pc.scores[name] = pooled_rms(folds)
-        better = [np.mean(a) < np.mean(b) for a, b in zip(folds, cur_folds, strict=True)]
-        pc.wins[name], pc.against[name] = int(sum(better)), pc.name
-        if pc.wins[name] < PENALTY_WIN_SHARE * len(folds) or \
-                pc.scores[name] >= pc.scores[pc.name]:
+        pc.wins[name], taken = step_won(folds, cur_folds)
+        pc.against[name] = pc.name
+        if not taken:
             return False
         pc.name, cur_folds = name, folds
         return True
