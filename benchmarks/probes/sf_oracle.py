@@ -1,0 +1,267 @@
+"""What each population protocol's training logs can pin: the SF oracle.
+
+For each gyro the oracle knows the simulator's TRUE structure: every SF factor's true
+temperature (the weighted mean of its true node temperatures, not the board thermometer),
+its polynomial degree, the bias law's node and degree, and (on gyros that draw one) the
+true SF hysteresis output as one more column. Only the coefficients are fitted on the
+protocol's training logs (the same measured SF targets the trainer fits), and the test log
+is scored as the benchmarks score it (test RMS / noise floor):
+- `lstsq`: least squares;
+- `best`: the best of a few ridge penalties, chosen on the test itself (no method has it).
+No model built on the board thermometer can know more, so where `best` misses a target the
+training logs do not hold the information; where it meets it, the gap is the method's.
+
+`--exact` adds the true SF itself (no fit): near 1.0 x, the floor is the floor. `--bank`
+adds where the default's bank loses: `generic_LAM`, the bank's generic law (every feature
+with its square and cube, ridge) on the TRUE temperatures of every node (the thermal
+network known, the law's form not), and `bank_SOURCE`, the bank at its prior on the
+thermometer, the true board or the true housing temperature. `--partial` runs the
+partial-cycle programs of `make bench-hysteresis` instead of the protocols.
+
+    python -m benchmarks.probes.sf_oracle --first 1 --n 40 --protocols a,b,e --bank
+    python -m benchmarks.probes.sf_oracle --partial --first 1 --n 20 --bank
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.population import PROTOCOLS, run_config
+from benchmarks.probes.physics_nodes import ratio
+from fogsf.trainer.models.features import step_targets
+from fogsf.trainer.models.lag_bank import BANK_LAMBDA, fit_bank
+from fogsf.trainer.sim.config import SimConfig
+from fogsf.trainer.sim.effects import EffectContext, apply_effects
+from fogsf.trainer.sim.gyro import SimResult, simulate
+from fogsf.trainer.sim.population import gyro_for_seed
+from fogsf.trainer.sim.scale_factor import term_temperature
+
+
+def true_design(r: SimResult, cfg: SimConfig) -> np.ndarray:
+    """Columns of the true SF structure: 1, each factor's (T - ref) / 50 to its degree,
+    the bias law's node to its degree (a bias reads as SF on a table turning one way) and
+    the Shupe rate when it has one, and the effects' SF output (the play) when the gyro has
+    one."""
+    cols = [np.ones(r.log.time_s.shape[0])]
+    for term in cfg.sf.terms:
+        d = (term_temperature(r.nodes, term) - term.ref_c) / 50.0
+        degree = 3 if term.cube_ppm_per_c3 else (2 if term.quad_ppm_per_c2 else 1)
+        cols += [d**k for k in range(1, degree + 1)]
+    b = cfg.bias
+    d = (np.asarray(r.nodes[b.node]) - b.ref_c) / 50.0
+    degree = 3 if b.cube_dph_per_c3 else (2 if b.quad_dph_per_c2 else 1)
+    cols += [d**k for k in range(1, degree + 1)]
+    if b.shupe_dph_per_c_per_min:
+        cols.append(np.gradient(np.asarray(r.nodes[b.node]), cfg.dt_s) * 60.0)
+    if cfg.effects:
+        ctx = EffectContext(
+            r.log.time_s, cfg.dt_s, r.log.table_rate_dps, r.nodes, cfg.thermal.board_node
+        )
+        sf_fx, _ = apply_effects(ctx, cfg.effects)
+        if np.ptp(sf_fx) > 0:
+            cols.append(sf_fx / 10.0)
+    return np.column_stack(cols)
+
+
+PENALTIES = (0.0, 1e-10, 1e-8, 1e-6, 1e-4, 1e-2)
+
+
+def ridge(x: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
+    """Least squares with a ridge of lam (relative to each column's mean square) on every
+    column but the constant."""
+    scale = np.sqrt(np.mean(x * x, axis=0))
+    scale[scale == 0] = 1.0
+    xs = x / scale
+    pen = np.full(x.shape[1], lam * x.shape[0])
+    pen[0] = 0.0
+    if lam == 0.0:
+        c, *_ = np.linalg.lstsq(xs, y, rcond=None)
+    else:
+        c = np.linalg.solve(xs.T @ xs + np.diag(pen), xs.T @ y)
+    return c / scale
+
+
+def bank_ratio(train: list[SimResult], test: SimResult, source: str) -> float:
+    """The bank at the prior (least squares, as `fogsf train` fits it), its temperature
+    input the log's thermometer (`source` "thermometer") or a true node's temperature
+    ("board", "housing"): where the bank loses against the oracle."""
+    from dataclasses import replace
+
+    from fogsf.trainer.models.features import prepare
+    from fogsf.trainer.models.lag_bank import bank_name
+    from fogsf.trainer.models.physics_nodes import NodeTemperatures
+    from fogsf.trainer.models.reference import expand
+    from fogsf.trainer.training import structure_choice as sc
+
+    def log_of(r: SimResult):  # noqa: ANN202 - a ChamberLog
+        if source == "thermometer":
+            return r.log
+        return replace(r.log, temp_c=np.asarray(r.nodes[source], dtype=np.float64))
+
+    full = sc.step_data([log_of(r) for r in train])
+    pred = sc.fit_candidate(bank_name(), full, np.arange(full.y.size))
+    log = log_of(test)
+    dt = prepare(log, full.fe, None, None)
+    nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
+    return ratio(log, expand(pred(nt), len(log), dt.decimation))
+
+
+BANK_SOURCES = ("thermometer", "board", "housing")
+
+
+Run = tuple[SimResult, SimConfig]
+
+
+def true_nodes(r: SimResult, cfg: SimConfig) -> np.ndarray:
+    """Every true node temperature of the network, (T - 20) / 50."""
+    return np.column_stack([(np.asarray(r.nodes[n.name]) - 20.0) / 50.0 for n in cfg.thermal.nodes])
+
+
+GENERIC_PENALTIES = (BANK_LAMBDA, 1e-4)
+
+
+def generic_ratio(train: list[Run], test: Run, lam: float) -> float:
+    """The bank's generic law (every feature with its square and cube, ridge at `lam`) on
+    the true temperatures of every node: the thermal network known, the law's form not."""
+    zs, ys = [], []
+    for r, cfg in train:
+        y = step_targets(r.log, 1)
+        ok = np.isfinite(y)
+        zs.append(true_nodes(r, cfg)[ok])
+        ys.append(y[ok])
+    z, y = np.vstack(zs), np.concatenate(ys)
+    s = float(np.std(y)) or 1.0
+    fit = fit_bank(z, y / s, lam)
+    return ratio(test[0].log, fit.predict(true_nodes(*test)) * s)
+
+
+def score(train: list[Run], test: Run, exact: bool, bank: bool) -> dict:
+    """The oracle fitted on `train` and scored on `test` (least squares, and the best of
+    PENALTIES on the test), and the requested comparisons."""
+    xs, ys = [], []
+    for r, cfg in train:
+        y = step_targets(r.log, 1)
+        ok = np.isfinite(y)
+        xs.append(true_design(r, cfg)[ok])
+        ys.append(y[ok])
+    x, y = np.vstack(xs), np.concatenate(ys)
+    r, cfg = test
+    xt = true_design(r, cfg)
+    by_pen = [ratio(r.log, xt @ ridge(x, y, lam)) for lam in PENALTIES]
+    out = {
+        "lstsq": by_pen[0],
+        "best": min(by_pen),
+        "best_penalty": PENALTIES[int(np.argmin(by_pen))],
+    }
+    if exact:
+        turn = r.log.table_rate_dps + r.log.earth_rate_dps
+        out["exact"] = ratio(r.log, r.sf_ppm + r.bias_dps / turn * 1e6)
+    if bank:
+        for lam in GENERIC_PENALTIES:
+            out[f"generic_{lam:g}"] = generic_ratio(train, test, lam)
+        for src in BANK_SOURCES:
+            out[f"bank_{src}"] = bank_ratio([t[0] for t in train], r, src)
+    return out
+
+
+def run(cfg: SimConfig) -> Run:
+    return simulate(cfg), cfg
+
+
+def protocol_cases(seed: int, protocols: list[str]) -> dict[str, tuple[list[Run], Run]]:
+    """The population protocols' runs on gyro `seed` (as `make bench-population`)."""
+    gyro = gyro_for_seed(seed)
+    names = sorted({n for p in protocols for n in (*PROTOCOLS[p][0], PROTOCOLS[p][1])})
+    runs = {n: run(run_config(gyro, n, seed)) for n in names}
+    return {p: ([runs[n] for n in PROTOCOLS[p][0]], runs[PROTOCOLS[p][1]]) for p in protocols}
+
+
+def partial_case(seed: int, group: str) -> tuple[list[Run], Run]:
+    """The partial-cycle programs on gyro `seed`, as `make bench-hysteresis` runs them."""
+    from benchmarks.hysteresis import TEST_OFFSET, TRAIN_OFFSET
+    from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
+    from fogsf.trainer.sim.population import run_on_gyro
+
+    gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
+    train, test = (
+        run(run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name))
+        for prog, off in ((PARTIAL_TRAIN, TRAIN_OFFSET), (PARTIAL_TEST, TEST_OFFSET))
+    )
+    return [train], test
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.probes.sf_oracle",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example: python -m benchmarks.probes.sf_oracle --first 1 --n 20 --protocols a,b,e",
+    )
+    ap.add_argument("--first", type=int, default=1)
+    ap.add_argument("--n", type=int, default=20)
+    ap.add_argument("--protocols", default="a,b,e")
+    ap.add_argument(
+        "--partial",
+        action="store_true",
+        help="the partial-cycle programs of make bench-hysteresis (n gyros with "
+        "and n without SF hysteresis from --first) instead of protocols",
+    )
+    ap.add_argument("--exact", action="store_true", help="also score the true SF itself")
+    ap.add_argument(
+        "--bank",
+        action="store_true",
+        help="also the bank at the prior on the thermometer, the true board and "
+        "the true housing temperature",
+    )
+    ap.add_argument("--out", type=Path, default=Path("out/probe-sf-oracle.json"))
+    args = ap.parse_args(argv)
+    items: list[tuple[int, str]]
+    if args.partial:
+        from benchmarks.hysteresis import pick_seeds
+        from fogsf.trainer.sim.population import DEV_SEEDS, EVAL_SEEDS
+
+        seeds = pick_seeds(
+            args.first, args.n, EVAL_SEEDS if args.first in EVAL_SEEDS else DEV_SEEDS
+        )
+        items = [(s, g) for g in ("hyst", "flat") for s in seeds[g]]
+        cases = sorted({g for _, g in items})
+    else:
+        cases = args.protocols.split(",")
+        items = [(s, "") for s in range(args.first, args.first + args.n)]
+    rows = []
+    for seed, group in items:
+        got = {group: partial_case(seed, group)} if group else protocol_cases(seed, cases)
+        row: dict = {"gyro": seed}
+        for c, (train, test) in got.items():
+            row[c] = score(train, test, args.exact, args.bank)
+        rows.append(row)
+        print(
+            f"gyro {seed:5d} "
+            + " | ".join(
+                f"{c} " + " ".join(f"{k} {v:.2f}" for k, v in sc.items() if k != "best_penalty")
+                for c, sc in row.items()
+                if c != "gyro"
+            ),
+            flush=True,
+        )
+    for c in cases:
+        sub = [r[c] for r in rows if c in r]
+        for key in sub[0]:
+            if key == "best_penalty":
+                continue
+            v = np.array([x[key] for x in sub])
+            print(
+                f"({c}) {key}: median {np.median(v):.2f} / p90 {np.quantile(v, 0.9):.2f} / "
+                f"worst {v.max():.2f}; at or under 1.2 x: {int(np.sum(v <= 1.2))}/{len(v)}"
+            )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
