@@ -175,9 +175,21 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     ref = reference.replay(sm, test.temp_c, test.gyro_dps)
     assert not ref.sf_ppm.any()
     fit = fit_bias(None, [read_log(tmp_path / "a.csv")])  # what train fitted: deterministic
-    assert fit is not None and np.array_equal(fit.fm.feat_w, sm.weights["feat_w"])
+    assert fit is not None
     assert m["bias"]["model"]["structure"]["chosen"] == fit.choice.name
     assert np.max(np.abs(ref.bias_dph - fit.predict(test))) < 1e-3
+    # the feature map written as its diagonal where it is one (as SF models), bit for bit
+    # the dense model's outputs
+    w = fit.fm.feat_w
+    diag = w.shape[0] == w.shape[1] and not np.any(w[~np.eye(w.shape[0], dtype=bool)])
+    assert sm.feat_diag == diag
+    assert np.array_equal(np.diagonal(w) if diag else w, sm.weights["feat_w"])
+    if diag:
+        dense = replace(sm, weights={**sm.weights, "feat_w": w}, feat_diag=False)
+        assert dense.params > sm.params
+        got = reference.replay(dense, test.temp_c, test.gyro_dps)
+        assert np.array_equal(got.bias_dph, ref.bias_dph)
+        assert np.array_equal(got.corrected_dps, ref.corrected_dps)
     capsys.readouterr()
     assert cli.main(["replay", str(out), str(tmp_path / "b.csv"), "--out",
                      str(tmp_path / "r.csv")]) == 0

@@ -35,7 +35,7 @@ from fogsf.trainer.models.physics_nodes import NodeTemperatures
 from fogsf.trainer.models.reference import expand
 from fogsf.trainer.models.reference import features as ref_features
 from fogsf.trainer.models.step_inputs import frontend_s
-from fogsf.trainer.models.stream import FrontEnd, StreamModel
+from fogsf.trainer.models.stream import FrontEnd, StreamModel, diagonal_features
 from fogsf.trainer.training.bias_interval import bias_interval, family, interval_message
 
 MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
@@ -576,7 +576,8 @@ def _widened(sm: StreamModel, fm: FeatureMap) -> StreamModel:
 
 def bias_only_stream_model(model: BiasModel) -> StreamModel:
     """A bias-only artifact: the bias head on the bank's z, and an SF part that is exactly
-    zero (a 1 x 1 LSTM reading z[0:1] with zero weights, zero head: sf_ppm = 0)."""
+    zero (a 1 x 1 LSTM reading z[0:1] with zero weights, zero head: sf_ppm = 0); its feature
+    map as its diagonal (`feat_diag`) where it is one, as `fogsf train` writes SF models."""
     fm, f = model.fm, model.fm.feat_w.shape[0]
     zeros = {"lstm0_w": (4, 1), "lstm0_r": (4, 1), "lstm0_b": (8,), "head_w": (1,),
              "head_b": (1,), "skip_w": (f,), "out_offset": (1,)}
@@ -590,4 +591,4 @@ def bias_only_stream_model(model: BiasModel) -> StreamModel:
                      filter_tau_s=list(fm.fe.filter_tau_s), n_features=f, layers=1, hidden=1,
                      weights=weights, sample_dt_s=fm.fe.sample_dt_s, lstm_inputs=1,
                      extra={"structure": "bias-only"})
-    return with_bias_head(sm, model)
+    return diagonal_features(with_bias_head(sm, model))
