@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -124,16 +125,23 @@ def true_nodes(r: SimResult, cfg: SimConfig) -> np.ndarray:
 GENERIC_PENALTIES = (BANK_LAMBDA, 1e-4)
 
 
-def generic_ratio(train: list[Run], test: Run, lam: float) -> float:
-    """The bank's generic law (every feature with its square and cube, ridge at `lam`) on
-    the true temperatures of every node: the thermal network known, the law's form not."""
-    zs, ys = [], []
+def stacked(train: list[Run], columns: Callable[[SimResult, SimConfig], np.ndarray]
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """`columns` of every training run and its measured SF targets, at the samples that
+    have one, stacked."""
+    xs, ys = [], []
     for r, cfg in train:
         y = step_targets(r.log, 1)
         ok = np.isfinite(y)
-        zs.append(true_nodes(r, cfg)[ok])
+        xs.append(columns(r, cfg)[ok])
         ys.append(y[ok])
-    z, y = np.vstack(zs), np.concatenate(ys)
+    return np.vstack(xs), np.concatenate(ys)
+
+
+def generic_ratio(train: list[Run], test: Run, lam: float) -> float:
+    """The bank's generic law (every feature with its square and cube, ridge at `lam`) on
+    the true temperatures of every node: the thermal network known, the law's form not."""
+    z, y = stacked(train, true_nodes)
     s = float(np.std(y)) or 1.0
     fit = fit_bank(z, y / s, lam)
     return ratio(test[0].log, fit.predict(true_nodes(*test)) * s)
@@ -142,13 +150,7 @@ def generic_ratio(train: list[Run], test: Run, lam: float) -> float:
 def score(train: list[Run], test: Run, exact: bool, bank: bool) -> dict:
     """The oracle fitted on `train` and scored on `test` (least squares, and the best of
     PENALTIES on the test), and the requested comparisons."""
-    xs, ys = [], []
-    for r, cfg in train:
-        y = step_targets(r.log, 1)
-        ok = np.isfinite(y)
-        xs.append(true_design(r, cfg)[ok])
-        ys.append(y[ok])
-    x, y = np.vstack(xs), np.concatenate(ys)
+    x, y = stacked(train, true_design)
     r, cfg = test
     xt = true_design(r, cfg)
     by_pen = [ratio(r.log, xt @ ridge(x, y, lam)) for lam in PENALTIES]
