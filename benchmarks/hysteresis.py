@@ -43,17 +43,25 @@ GROUPS = ("hyst", "same-flat", "flat")
 TRAIN_OFFSET, TEST_OFFSET = 8, 9  # run seeds gyro_seed * 16 + offset (population's: 1-7)
 
 
-def partial_runs(seed: int, group: str) -> tuple:
+def partial_configs(seed: int, group: str) -> tuple:
     """The gyro of `seed` (with its SF hysteresis for group "hyst", without for the others)
-    on the partial-cycle training and test programs: (gyro, train log, test log)."""
-    from fogsf.trainer.sim import simulate
+    and its runs of the partial-cycle training and test programs: (gyro, train config, test
+    config)."""
     from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
     from fogsf.trainer.sim.population import gyro_for_seed, run_on_gyro
 
     gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
-    train, test = (simulate(run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name)).log
+    train, test = (run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name)
                    for prog, off in ((PARTIAL_TRAIN, TRAIN_OFFSET), (PARTIAL_TEST, TEST_OFFSET)))
     return gyro, train, test
+
+
+def partial_runs(seed: int, group: str) -> tuple:
+    """`partial_configs` simulated: (gyro, train log, test log)."""
+    from fogsf.trainer.sim import simulate
+
+    gyro, train, test = partial_configs(seed, group)
+    return gyro, simulate(train).log, simulate(test).log
 
 
 def case(item: tuple[int, str], kernel: bool = False) -> dict:

@@ -1,7 +1,7 @@
 """Other laws on the bank's features, against the bank's own (least squares, no LSTM).
 
 `sf_oracle` shows that on two ramp rates, a loop and partial cycles the training logs hold
-the information to reach 1.03-1.05 x the noise floor, and that the bank's generic law (every
+the information to reach 0.98-1.05 x the noise floor, and that the bank's generic law (every
 feature with its square and cube) spends it on coefficients the gyro does not have. This
 probe scores laws that are sparser or closer to the physics, each fitted on the protocol's
 training logs and scored on its test log:

@@ -25,14 +25,17 @@ partial-cycle programs of `make bench-hysteresis` instead of the protocols.
 from __future__ import annotations
 
 import argparse
-import json
+import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks.population import PROTOCOLS, run_config
+from benchmarks.probes import finish, spread_cells
 from benchmarks.probes.physics_nodes import ratio
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.models.features import step_targets
 from fogsf.trainer.models.lag_bank import BANK_LAMBDA, fit_bank
 from fogsf.trainer.sim.config import SimConfig
@@ -44,9 +47,10 @@ from fogsf.trainer.sim.scale_factor import term_temperature
 
 def true_design(r: SimResult, cfg: SimConfig) -> np.ndarray:
     """Columns of the true SF structure: 1, each factor's (T - ref) / 50 to its degree,
-    the bias law's node to its degree (a bias reads as SF on a table turning one way) and
-    the Shupe rate when it has one, and the effects' SF output (the play) when the gyro has
-    one."""
+    the bias law's node to its degree (a bias reads as SF on a table turning one way at one
+    rate, as every population run does) and the Shupe rate when it has one, and the
+    effects' SF output (the play: the population's only effect; an effect's bias term is
+    not a column)."""
     cols = [np.ones(r.log.time_s.shape[0])]
     for term in cfg.sf.terms:
         d = (term_temperature(r.nodes, term) - term.ref_c) / 50.0
@@ -58,13 +62,12 @@ def true_design(r: SimResult, cfg: SimConfig) -> np.ndarray:
     cols += [d**k for k in range(1, degree + 1)]
     if b.shupe_dph_per_c_per_min:
         cols.append(np.gradient(np.asarray(r.nodes[b.node]), cfg.dt_s) * 60.0)
-    if cfg.effects:
+    if cfg.effects:  # every run of a gyro with effects has the column: one design
         ctx = EffectContext(
             r.log.time_s, cfg.dt_s, r.log.table_rate_dps, r.nodes, cfg.thermal.board_node
         )
         sf_fx, _ = apply_effects(ctx, cfg.effects)
-        if np.ptp(sf_fx) > 0:
-            cols.append(sf_fx / 10.0)
+        cols.append(sf_fx / 10.0)
     return np.column_stack(cols)
 
 
@@ -90,15 +93,13 @@ def bank_ratio(train: list[SimResult], test: SimResult, source: str) -> float:
     """The bank at the prior (least squares, as `fogsf train` fits it), its temperature
     input the log's thermometer (`source` "thermometer") or a true node's temperature
     ("board", "housing"): where the bank loses against the oracle."""
-    from dataclasses import replace
-
     from fogsf.trainer.models.features import prepare
     from fogsf.trainer.models.lag_bank import bank_name
     from fogsf.trainer.models.physics_nodes import NodeTemperatures
     from fogsf.trainer.models.reference import expand
     from fogsf.trainer.training import structure_choice as sc
 
-    def log_of(r: SimResult):  # noqa: ANN202 - a ChamberLog
+    def log_of(r: SimResult) -> ChamberLog:
         if source == "thermometer":
             return r.log
         return replace(r.log, temp_c=np.asarray(r.nodes[source], dtype=np.float64))
@@ -171,6 +172,7 @@ def score(train: list[Run], test: Run, exact: bool, bank: bool) -> dict:
 
 
 def run(cfg: SimConfig) -> Run:
+    """One run simulated, with its configuration."""
     return simulate(cfg), cfg
 
 
@@ -184,16 +186,10 @@ def protocol_cases(seed: int, protocols: list[str]) -> dict[str, tuple[list[Run]
 
 def partial_case(seed: int, group: str) -> tuple[list[Run], Run]:
     """The partial-cycle programs on gyro `seed`, as `make bench-hysteresis` runs them."""
-    from benchmarks.hysteresis import TEST_OFFSET, TRAIN_OFFSET
-    from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
-    from fogsf.trainer.sim.population import run_on_gyro
+    from benchmarks.hysteresis import partial_configs
 
-    gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
-    train, test = (
-        run(run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name))
-        for prog, off in ((PARTIAL_TRAIN, TRAIN_OFFSET), (PARTIAL_TEST, TEST_OFFSET))
-    )
-    return [train], test
+    _, train, test = partial_configs(seed, group)
+    return [run(train)], run(test)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -209,8 +205,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--partial",
         action="store_true",
-        help="the partial-cycle programs of make bench-hysteresis (n gyros with "
-        "and n without SF hysteresis from --first) instead of protocols",
+        help="the partial-cycle programs of make bench-hysteresis instead of protocols: its "
+        "groups from --first (n gyros with SF hysteresis, the same without it, n that draw "
+        "none)",
     )
     ap.add_argument("--exact", action="store_true", help="also score the true SF itself")
     ap.add_argument(
@@ -229,12 +226,13 @@ def main(argv: list[str] | None = None) -> int:
         seeds = pick_seeds(
             args.first, args.n, EVAL_SEEDS if args.first in EVAL_SEEDS else DEV_SEEDS
         )
-        items = [(s, g) for g in ("hyst", "flat") for s in seeds[g]]
+        items = [(s, g) for g in ("hyst", "same-flat", "flat") for s in seeds[g]]
         cases = sorted({g for _, g in items})
     else:
         cases = args.protocols.split(",")
         items = [(s, "") for s in range(args.first, args.first + args.n)]
-    rows = []
+    rows: list[dict] = []
+    t0 = time.perf_counter()
     for seed, group in items:
         got = {group: partial_case(seed, group)} if group else protocol_cases(seed, cases)
         row: dict = {"gyro": seed}
@@ -252,17 +250,10 @@ def main(argv: list[str] | None = None) -> int:
         )
     for c in cases:
         sub = [r[c] for r in rows if c in r]
-        for key in sub[0]:
-            if key == "best_penalty":
-                continue
-            v = np.array([x[key] for x in sub])
-            print(
-                f"({c}) {key}: median {np.median(v):.2f} / p90 {np.quantile(v, 0.9):.2f} / "
-                f"worst {v.max():.2f}; at or under 1.2 x: {int(np.sum(v <= 1.2))}/{len(v)}"
-            )
+        names = [k for k in sub[0] if k != "best_penalty"]
+        print(f"({c}) {len(sub)} gyros; median/p90/worst {spread_cells(sub, names)}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(rows, indent=1))
-    return 0
+    return finish(rows, str(args.out), t0)
 
 
 if __name__ == "__main__":
