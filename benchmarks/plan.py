@@ -27,6 +27,9 @@ from fogsf.trainer.plan.report import as_json, score, table_md, write_outputs
 from fogsf.trainer.plan.search import search
 from fogsf.trainer.sim.population import EVAL_SEEDS
 
+LIMITS = Limits(-40.0, 50.0, 3.0, 4.5)
+RATES = test_rates(0.2, 2.0, 4)
+
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
@@ -38,8 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="out/bench-plan.json")
     add_executor_options(ap)
     args = ap.parse_args(argv)
-    limits = Limits(-40.0, 50.0, 3.0, 4.5)
-    rates = test_rates(0.2, 2.0, 4)
+    limits, rates = LIMITS, RATES
     dev = list(range(1, 1 + args.dev_gyros))
     ev = list(range(EVAL_SEEDS.start, EVAL_SEEDS.start + args.eval_gyros))
     t0 = time.perf_counter()

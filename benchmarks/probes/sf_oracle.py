@@ -16,10 +16,12 @@ adds where the default's bank loses: `generic_LAM`, the bank's generic law (ever
 with its square and cube, ridge) on the TRUE temperatures of every node (the thermal
 network known, the law's form not), and `bank_SOURCE`, the bank at its prior on the
 thermometer, the true board or the true housing temperature. `--partial` runs the
-partial-cycle programs of `make bench-hysteresis` instead of the protocols.
+partial-cycle programs of `make bench-hysteresis` instead of the protocols, `--plan
+PROGRAM` a program of `fogsf plan`'s candidates tested as `make bench-plan` tests it.
 
     python -m benchmarks.probes.sf_oracle --first 1 --n 40 --protocols a,b,e --bank
     python -m benchmarks.probes.sf_oracle --partial --first 1 --n 20 --bank
+    python -m benchmarks.probes.sf_oracle --plan "loop3 up 1 / down 2 / up 3, soaks 30 min"
 """
 
 from __future__ import annotations
@@ -192,6 +194,31 @@ def partial_case(seed: int, group: str) -> tuple[list[Run], Run]:
     return [run(train)], run(test)
 
 
+def plan_cases(seed: int, program: str) -> dict[str, tuple[list[Run], Run]]:
+    """`make bench-plan`'s runs on gyro `seed`: the named program of `fogsf plan`'s
+    candidates (its runs' noise seeds as the bench's) and the test loops at every envelope
+    rate, one case per rate."""
+    from benchmarks.plan import LIMITS, RATES
+    from fogsf.trainer.plan.evaluate import _test_loop
+    from fogsf.trainer.plan.programs import candidates
+    from fogsf.trainer.sim.config import ProfileConfig
+    from fogsf.trainer.sim.population import run_on_gyro
+
+    found = [c for c in candidates(LIMITS) if c.name == program]
+    if not found:
+        raise SystemExit(f"no program {program!r} among fogsf plan's candidates")
+    gyro = gyro_for_seed(seed)
+
+    def sim(points: tuple, noise: int, name: str) -> Run:
+        prof = ProfileConfig(kind="program", points=[list(q) for q in points])
+        return run(run_on_gyro(gyro, prof, noise, name))
+
+    train = [sim(r, seed * 1000 + k, f"plan-run{k}") for k, r in enumerate(found[0].runs)]
+    return {f"{rate:.3g}": (train, sim(_test_loop(LIMITS, rate), seed * 1000 + 900 + i,
+                                       f"plan-test-{rate:.3g}"))
+            for i, rate in enumerate(RATES)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="python -m benchmarks.probes.sf_oracle",
@@ -216,10 +243,16 @@ def main(argv: list[str] | None = None) -> int:
         help="also the bank at the prior on the thermometer, the true board and "
         "the true housing temperature",
     )
+    ap.add_argument("--plan", default=None, metavar="PROGRAM",
+                    help="make bench-plan's runs instead: the program of fogsf plan's "
+                         "candidates by its name, tested on the loops at every envelope rate")
     ap.add_argument("--out", type=Path, default=Path("out/probe-sf-oracle.json"))
     args = ap.parse_args(argv)
     items: list[tuple[int, str]]
-    if args.partial:
+    if args.plan:
+        cases = [c for c in plan_cases(args.first, args.plan)]
+        items = [(s, "plan") for s in range(args.first, args.first + args.n)]
+    elif args.partial:
         from benchmarks.hysteresis import pick_seeds
         from fogsf.trainer.sim.population import DEV_SEEDS, EVAL_SEEDS
 
@@ -234,7 +267,10 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict] = []
     t0 = time.perf_counter()
     for seed, group in items:
-        got = {group: partial_case(seed, group)} if group else protocol_cases(seed, cases)
+        if group == "plan":
+            got = plan_cases(seed, args.plan)
+        else:
+            got = {group: partial_case(seed, group)} if group else protocol_cases(seed, cases)
         row: dict = {"gyro": seed}
         for c, (train, test) in got.items():
             row[c] = score(train, test, args.exact, args.bank)
