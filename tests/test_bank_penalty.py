@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
+from fogsf.trainer.models.lag_bank import (
+    BANK_LAMBDA,
+    LOOP_LAMBDA,
+    bank_cross,
+    bank_name,
+    bank_penalty,
+)
 from fogsf.trainer.models.stream import StreamModel
 from fogsf.trainer.training import structure_choice as sc
 from fogsf.trainer.training.options import TrainOptions
@@ -17,8 +23,10 @@ from fogsf.trainer.training.structure_choice import (
     PENALTY_MIN_FOLDS,
     PHYSICS,
     StepData,
+    bank_prior,
     choose,
     choose_penalty,
+    ramps_both_ways,
 )
 from fogsf.trainer.training.train import run_training
 
@@ -109,6 +117,33 @@ def test_logs_with_few_parts_keep_the_prior() -> None:
     assert 2 * sc.SPLIT_PARTS < PENALTY_MIN_FOLDS
     assert c.name == "bank" and c.penalty is None and c.bank == "bank"
     assert "bank_penalty" not in c.as_dict() and "penalty" not in c.message()
+
+
+def test_logs_that_ramp_both_ways_take_the_loop_prior(tmp_path: Path) -> None:
+    """An up-ramp and a down-ramp (6 held-out parts, under PENALTY_MIN_FOLDS): the bank at
+    LOOP_LAMBDA, said, recorded, and trained; ramps one way keep BANK_LAMBDA."""
+    up = short_ramp(1.2, 61, gyro_seed=4, sample_rate_hz=1.0)
+    down = short_ramp(1.2, 62, gyro_seed=4, sample_rate_hz=1.0, down=True)
+    up2 = short_ramp(2.4, 63, gyro_seed=4, sample_rate_hz=1.0)
+    assert LOOP_LAMBDA < BANK_LAMBDA
+    assert ramps_both_ways([up, down]) and bank_prior([up, down]) == LOOP_LAMBDA
+    # with parts enough for the penalty rule, its walk starts from BANK_LAMBDA
+    assert bank_prior([up, down], n_parts=PENALTY_MIN_FOLDS) == BANK_LAMBDA
+    assert not ramps_both_ways([up, up2]) and bank_prior([up, up2]) == BANK_LAMBDA
+    assert not ramps_both_ways([down]) and bank_prior([down]) == BANK_LAMBDA
+    c = choose([up, down])
+    assert c.name == "bank" and c.penalty is None and c.bank == bank_name(LOOP_LAMBDA)
+    assert c.as_dict()["bank_prior"] == LOOP_LAMBDA
+    assert "the bank's penalty 0.0001, the prior of logs that ramp both up and down" in \
+        " ".join(c.message().split())
+    assert "bank_prior" not in choose([up, up2]).as_dict()
+    for logs, lam in (([up, down], LOOP_LAMBDA), ([up, up2], BANK_LAMBDA)):
+        for structure in ("auto", "bank"):  # chosen, and forced: the same prior
+            opts = TrainOptions(model="lag-lstm", structure=structure, hysteresis="off",
+                                progress=False, **FAST)
+            m, _ = run_training(opts, logs, None, tmp_path / f"{lam}-{structure}")
+            info = (tmp_path / f"{lam}-{structure}" / "train_info.json").read_text()
+            assert f'"ridge_lambda": {lam}' in info, (structure, lam)
 
 
 @pytest.fixture(scope="module")

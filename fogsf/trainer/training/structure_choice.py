@@ -31,7 +31,9 @@ each of PENALTIES in turn, then the cross terms at the penalty reached, then wit
 lower penalty. With many parts the data, not the prior, can say how far the lags' fine
 structure (a slow chain's delay, a part's quadratic law as a form in the lags) is
 determined; with few, the steps chose themselves by chance and lost on the tests
-(docs/decisions.md). The hysteresis check runs on the bank at the prior.
+(docs/decisions.md). With fewer parts the prior is LOOP_LAMBDA where the logs ramp both up
+and down (`bank_prior`), else BANK_LAMBDA. The hysteresis check runs on the bank at
+BANK_LAMBDA.
 The orders, the tolerance, the factor and the penalty rule were chosen on development
 gyros.
 """
@@ -49,6 +51,8 @@ from fogsf.trainer.logs.columns import held
 from fogsf.trainer.models.chain_nodes import chain_z, identify_chains, node_taus
 from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for, prepare
 from fogsf.trainer.models.lag_bank import (
+    BANK_LAMBDA,
+    LOOP_LAMBDA,
     bank_cross,
     bank_name,
     bank_penalty,
@@ -291,6 +295,25 @@ def choose_penalty(sd: StepData, prior: list[list[float]],
     return pc
 
 
+def ramps_both_ways(logs: list[ChamberLog]) -> bool:
+    """Whether the logs, together, hold an up-ramp and a down-ramp (`ramp_segments`)."""
+    signs = {math.copysign(1.0, sg.rate_c_per_min) for log in logs for sg in ramp_segments(log)}
+    return signs == {1.0, -1.0}
+
+
+def bank_prior(logs: list[ChamberLog], n_parts: int | None = None,
+               step_s: float = MODEL_STEP_S) -> float:
+    """The bank's penalty where the penalty rule does not run: LOOP_LAMBDA for logs that ramp
+    both up and down and hold fewer than PENALTY_MIN_FOLDS held-out parts (`n_parts`, counted
+    from the logs when not given), else BANK_LAMBDA (`lag_bank`), where the rule starts."""
+    if not ramps_both_ways(logs):
+        return BANK_LAMBDA
+    if n_parts is None:
+        sd = step_data(logs, choice_step_s(logs, step_s))
+        n_parts = 1 if sd.one_segment else int(part_folds(sd).max()) + 1
+    return LOOP_LAMBDA if n_parts < PENALTY_MIN_FOLDS else BANK_LAMBDA
+
+
 @dataclass
 class StructureChoice:
     name: str
@@ -302,6 +325,7 @@ class StructureChoice:
     penalty: PenaltyChoice | None = None  # the bank's, where the rule ran
     cross_left_out: str | None = None  # why the trained bank lacks the cross terms chosen
     cross_with_term: dict | None = None  # the cross terms judged with a hysteresis term
+    prior: float = BANK_LAMBDA  # the bank's penalty where the rule did not run (`bank_prior`)
 
     def message(self) -> str:
         return choice_message(self.as_dict())
@@ -310,7 +334,7 @@ class StructureChoice:
     def bank(self) -> str:
         """The bank's structure name, its penalty and cross terms in it (`lag_bank.bank_name`;
         `fogsf train` may leave the cross terms out: `cross_left_out`)."""
-        return self.penalty.name if self.penalty is not None else bank_name()
+        return self.penalty.name if self.penalty is not None else bank_name(self.prior)
 
     def structure(self) -> tuple[str, int]:
         """(structure, nodes) of `fogsf train` for the chosen candidate."""
@@ -323,6 +347,7 @@ class StructureChoice:
                 "one_segment": self.one_segment, "tolerance": self.tolerance,
                 "evidence_factor": self.factor,
                 **({"bank_penalty": self.penalty.as_dict()} if self.penalty else {}),
+                **({"bank_prior": self.prior} if self.prior != BANK_LAMBDA else {}),
                 **({"cross_left_out": self.cross_left_out} if self.cross_left_out else {}),
                 **({"cross_with_term": self.cross_with_term} if self.cross_with_term else {})}
 
@@ -360,6 +385,9 @@ def choice_message(d: dict) -> str:
     pen = d.get("bank_penalty")
     if pen is not None:
         out += "; " + penalty_message(pen)
+    elif d.get("bank_prior") is not None and d["chosen"] == "bank":
+        out += (f"; the bank's penalty {d['bank_prior']:g}, the prior of logs that ramp both "
+                "up and down")
     if d.get("cross_left_out"):
         out += f"; the cross terms left out: {d['cross_left_out']}"
     elif d.get("cross_with_term"):
@@ -449,7 +477,7 @@ def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
         if name == "bank" and sd.n_folds >= PENALTY_MIN_FOLDS:
             penalty = _penalty(sd, folds["bank"], progress)
         return StructureChoice(name, scores, segments, False, tolerance, EVIDENCE_FACTOR,
-                               penalty)
+                               penalty, prior=bank_prior(logs, sd.n_folds))
     order = candidates or CANDIDATES
     scores = _scores(order, sd, progress)
     best = min(scores.values())

@@ -62,6 +62,7 @@ from fogsf.trainer.models.lag_bank import (
     BANK_LSTM_INPUTS,
     BankFit,
     bank_cross,
+    bank_name,
     bank_penalty,
     bank_spec,
     fit_bank,
@@ -175,7 +176,12 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         # the check runs on the bank at its prior: a lower penalty lets the slow lags mimic a
         # play inside the training program, which the held-out blocks then cannot see
         hyst = _hysteresis_choice(opts, train_logs, base)
-        name = choice.bank if choice is not None else "bank"
+        if choice is not None:
+            name = choice.bank
+        else:  # the bank forced (`--structure bank`): its prior for these logs (no walk)
+            from fogsf.trainer.training.structure_choice import bank_prior
+
+            name = bank_name(bank_prior(train_logs, step_s=opts.model_step_s))
         if choice is not None and choice.penalty is not None and hyst["used"] and \
                 bank_cross(name):
             name, choice.cross_left_out, choice.cross_with_term = _cross_beside_a_play(
@@ -379,14 +385,16 @@ def bank_data(ti: TrainingInputs) -> tuple[np.ndarray, np.ndarray]:
 
 def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
                       ) -> Callable[[ChamberLog], np.ndarray]:
-    """The lag bank at its prior (least squares; the default model's fixed part wherever the
-    logs hold fewer than PENALTY_MIN_FOLDS held-out parts, `training.structure_choice`)
-    trained on `logs`: a function giving a log's SF error prediction (ppm vs nominal) per
-    sample, held over each model step as the kernel holds it. Fast (no LSTM), for benches
-    and the planner."""
+    """The lag bank at its prior for `logs` (least squares; the default model's fixed part
+    wherever the logs hold fewer than PENALTY_MIN_FOLDS held-out parts,
+    `training.structure_choice.bank_prior`) trained on `logs`: a function giving a log's SF
+    error prediction (ppm vs nominal) per sample, held over each model step as the kernel
+    holds it. Fast (no LSTM), for benches and the planner."""
+    from fogsf.trainer.training.structure_choice import bank_prior
+
     ti = training_inputs(opts or TrainOptions(model="lag-lstm"), logs, bank_spec(),
                          physical=True)
-    bank = _fit_bank_head(ti)
+    bank = _fit_bank_head(ti, bank_prior(logs, step_s=ti.fe.step_s))
 
     def predict(log: ChamberLog) -> np.ndarray:
         d = prepare(log, ti.fe, None, None)
