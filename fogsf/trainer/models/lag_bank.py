@@ -47,8 +47,8 @@ BANK_LAMBDA = 1e-3
 # decide the lags' fine structure better than ramps one way, and a chain of parts' delay
 # is a difference of lags that BANK_LAMBDA shrinks. Development gyros 1-120, protocol (e),
 # least squares: 1.21 / 1.85 / 3.60 -> 1.17 / 1.55 / 3.42 x the floor (59 better by over
-# 5 %, 20 worse, by at most 23 %); 20 gyros with chains of 5+ parts: 1.40 / 2.15 / 3.07 ->
-# 1.22 / 1.49 / 2.39. On two up-ramps (b) 1e-4 lost (1.34 -> 1.42): BANK_LAMBDA there.
+# 5 %, 20 worse, by at most 23 %; docs/decisions.md). On two up-ramps (b) 1e-4 lost (1.34
+# -> 1.42 median, gyros 1-40): BANK_LAMBDA there.
 LOOP_LAMBDA = 1e-4
 # Lags slower than this enter linearly only: the SF's curvature is carried by T and the
 # faster lags, the slow lags carry the hysteresis as a first-order correction. Cubics of slow
