@@ -21,7 +21,7 @@ PROGRAM` a program of `fogsf plan`'s candidates tested as `make bench-plan` test
 
     python -m benchmarks.probes.sf_oracle --first 1 --n 40 --protocols a,b,e --bank
     python -m benchmarks.probes.sf_oracle --partial --first 1 --n 20 --bank
-    python -m benchmarks.probes.sf_oracle --plan "loop3 up 1 / down 2 / up 3, soaks 30 min"
+    python -m benchmarks.probes.sf_oracle --plan "loop3 up 2 / down 1 / up 3, soaks 30 min"
 """
 
 from __future__ import annotations

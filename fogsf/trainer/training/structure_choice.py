@@ -477,7 +477,8 @@ def choose(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
         if name == "bank" and sd.n_folds >= PENALTY_MIN_FOLDS:
             penalty = _penalty(sd, folds["bank"], progress)
         return StructureChoice(name, scores, segments, False, tolerance, EVIDENCE_FACTOR,
-                               penalty, prior=bank_prior(logs, sd.n_folds))
+                               penalty, prior=bank_prior(logs, sd.n_folds) if name == "bank"
+                               else BANK_LAMBDA)
     order = candidates or CANDIDATES
     scores = _scores(order, sd, progress)
     best = min(scores.values())

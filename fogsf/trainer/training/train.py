@@ -173,8 +173,9 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         if opts.structure != "physics" and not bank:
             return _fit_node(opts, train_logs)
         base = "bank" if bank else f"physics{opts.nodes}"
-        # the check runs on the bank at its prior: a lower penalty lets the slow lags mimic a
-        # play inside the training program, which the held-out blocks then cannot see
+        # the check runs on the bank at BANK_LAMBDA (a loop's too): a lower penalty lets the
+        # slow lags mimic a play inside the training program, which the held-out blocks
+        # then cannot see
         hyst = _hysteresis_choice(opts, train_logs, base)
         if choice is not None:
             name = choice.bank
