@@ -179,10 +179,12 @@ def fit_model(opts: TrainOptions, train_logs: list[ChamberLog]) -> Fitted:
         hyst = _hysteresis_choice(opts, train_logs, base)
         if choice is not None:
             name = choice.bank
-        else:  # the bank forced (`--structure bank`): its prior for these logs (no walk)
+        elif bank:  # the bank forced (`--structure bank`): its prior for these logs (no walk)
             from fogsf.trainer.training.structure_choice import bank_prior
 
             name = bank_name(bank_prior(train_logs, step_s=opts.model_step_s))
+        else:  # physics nodes forced: no bank is fitted
+            name = bank_name()
         if choice is not None and choice.penalty is not None and hyst["used"] and \
                 bank_cross(name):
             name, choice.cross_left_out, choice.cross_with_term = _cross_beside_a_play(
