@@ -561,3 +561,32 @@ def test_train_knows_before_the_fit_whether_the_logs_measure_the_bias() -> None:
     opts = TrainOptions(model="lag-lstm")
     assert _measures_bias(opts, [log]) and _measures_bias(opts, [turning, log])
     assert not _measures_bias(opts, [turning])
+
+
+def test_the_bias_interval_spans_the_coil_time_constants_the_pairs_leave_open() -> None:
+    """With `lead` chosen, the interval refits it at every grid point of its time constants
+    that the training targets cannot tell from the best (`bias_structure.lead_set`): the
+    chosen point among them, and their spread from the model larger on a log that ramps
+    three times faster than training (the Shupe term extrapolated) than on one at the
+    training's rate."""
+    from fogsf.trainer.training.bias_interval import bias_interval
+
+    train, _ = soak_log(TRAIN, 41)
+    model = fit_bias(None, [train])
+    assert model is not None and model.choice.name == "lead"
+    fam = model.family
+    chosen = fam.fits["lead"]
+    points = {(f.taus_s[1], f.w) for f in fam.lead_set}
+    assert (chosen.taus_s[1], chosen.w) in points and len(points) >= 2
+    slow, _ = soak_log(TEST, 42)
+    fast, _ = soak_log([(0, 15), (900, 15), (1300, 35), (2500, 35), (2800, 20), (4000, 20)],
+                       43)
+    spreads = []
+    for lg in (slow, fast):
+        iv = bias_interval(fam, lg, model.predict(lg))
+        assert iv is not None and iv["lead_set"]["points"] == len(fam.lead_set)
+        lo, hi = iv["lead_set"]["tau_s"]
+        assert lo <= chosen.taus_s[1] <= hi
+        spreads.append(iv["lead_set"]["spread_dph"])
+        assert iv["rms_interval_dph"][1] >= 1.5 * iv["lead_set"]["spread_dph"]
+    assert spreads[1] > 1.5 * spreads[0], spreads

@@ -9,7 +9,10 @@ the target log's board temperature alone (its gyro output is not used):
    data" (an in-sample sum of squares lets the most flexible structure, the bank, stand for
    the data: it fits the training targets best and extrapolates worst);
 2. their predictions on the target log's bias windows, against the chosen model's: the
-   largest windowed RMS difference is the structural spread;
+   largest windowed RMS difference is the structural spread; when the chosen structure is
+   `lead`, also `lead` at every grid point of its time constants that the training
+   targets cannot tell from the best (`bias_structure.lead_set`): the rate term's spread
+   where the training ramps leave the coil's time constants open;
 3. the chosen structure's own parameter uncertainty there: the RMS over the windows of the
    standard deviation of its window mean (least-squares covariance, the noise variance of
    its own residual, widened by the residual's long-run variance ratio);
@@ -32,7 +35,7 @@ from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.columns import Column, span_means
 from fogsf.trainer.logs.plateaus import SETTLE_S
 from fogsf.trainer.models.reference import expand
-from fogsf.trainer.training.bias_structure import CandidateFit, Columns, fit_candidate
+from fogsf.trainer.training.bias_structure import CandidateFit, Columns, fit_candidate, lead_set
 from fogsf.trainer.training.transfer import INTERVAL_LO, long_run_ratio
 
 # The multiples of the noise figure and of the model's spread and parameter uncertainty in
@@ -61,6 +64,7 @@ class Family:
     gram_inv: np.ndarray  # (X^T X)^-1 of the chosen design with its intercept column
     columns_of: Callable[[ChamberLog], Columns]  # a log's columns at every model step
     decimation_of: Callable[[ChamberLog], int]
+    lead_set: list[CandidateFit]  # lead at the time constants the targets cannot tell apart
 
 
 def family(cols: Columns, y: np.ndarray, scores: dict[str, float], chosen: str,
@@ -80,8 +84,10 @@ def family(cols: Columns, y: np.ndarray, scores: dict[str, float], chosen: str,
     gram_inv = np.linalg.pinv(x.T @ x, rcond=1e-12)
     g = np.unique(group, return_inverse=True)[1]
     window_noise = float(np.sqrt(np.mean((np.bincount(g, r) / np.bincount(g)) ** 2)))
-    return Family(fits, ok, chosen, noise * inflation, window_noise, inflation, gram_inv,
-                  columns_of, decimation_of)
+    sigma2 = noise * inflation
+    near = lead_set(cols, y, sigma2) if chosen == "lead" else []
+    return Family(fits, ok, chosen, sigma2, window_noise, inflation, gram_inv, columns_of,
+                  decimation_of, near)
 
 
 def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
@@ -98,9 +104,13 @@ def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
     dec = fam.decimation_of(log)
     n = len(log)
     ref = span_means(np.asarray(model_pred_dph, dtype=np.float64), w.start, w.stop)
-    spread = {c: float(np.sqrt(np.mean((span_means(expand(fam.fits[c].predict(cols), n,
-                                                                   dec), w.start, w.stop)
-                                          - ref) ** 2))) for c in fam.consistent}
+
+    def rms_from_model(fit: CandidateFit) -> float:
+        pred = span_means(expand(fit.predict(cols), n, dec), w.start, w.stop)
+        return float(np.sqrt(np.mean((pred - ref) ** 2)))
+
+    spread = {c: rms_from_model(fam.fits[c]) for c in fam.consistent}
+    lead_spread = max((rms_from_model(f) for f in fam.lead_set), default=0.0)
     x = fam.fits[fam.chosen].columns(cols)
     xw = span_means(expand(np.column_stack([np.ones(x.shape[0]), x]), n, dec), w.start,
                        w.stop)
@@ -110,8 +120,12 @@ def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
     # the training windows' residual bounds the noise too (a pair's floor, from second
     # differences, assumes white noise on the plateaus)
     lo_floor, hi_floor = sorted((floor, fam.window_noise_dph))
-    top = BIAS_INTERVAL_K * float(np.hypot(max(spread.values(), default=0.0), param))
-    return asdict(BiasInterval(fam.consistent, len(fam.fits), spread, param, floor,
+    widest = max(max(spread.values(), default=0.0), lead_spread)
+    top = BIAS_INTERVAL_K * float(np.hypot(widest, param))
+    taus = [f.taus_s[1] for f in fam.lead_set]
+    lead = ({"points": len(fam.lead_set), "tau_s": [min(taus), max(taus)],
+             "spread_dph": lead_spread} if fam.lead_set else None)
+    return asdict(BiasInterval(fam.consistent, len(fam.fits), spread, lead, param, floor,
                                fam.window_noise_dph, fam.inflation,
                                (INTERVAL_LO * lo_floor,
                                 float(np.hypot(BIAS_NOISE_K * hi_floor, top)))))
@@ -122,11 +136,22 @@ class BiasInterval:
     consistent: list[str]  # structures consistent with the training targets
     candidates: int
     spread_dph: dict[str, float]  # each consistent structure's windowed RMS from the model
+    # lead's time constants the training targets cannot tell apart: how many refitted, their
+    # range (s) and their largest windowed RMS from the model (None unless lead is chosen)
+    lead_set: dict | None
     parameter_dph: float  # the chosen structure's parameter uncertainty (RMS over windows)
     noise_floor_dph: float  # the target's bias windows'
     train_window_noise_dph: float  # the fit's residual over its training windows (RMS)
     residual_long_run_ratio: float
     rms_interval_dph: tuple[float, float]
+
+
+def _lead_clause(lead: dict | None) -> str:
+    if not lead:
+        return ""
+    lo, hi = lead["tau_s"]
+    return (f", lead at any coil time constant the training targets allow ({lo:.0f}-{hi:.0f} "
+            f"s) by up to {lead['spread_dph']:.3f}")
 
 
 def interval_message(d: dict) -> str:
@@ -135,7 +160,8 @@ def interval_message(d: dict) -> str:
     text = (f"bias rate transfer: {len(d['consistent'])} of {d['candidates']} bias structures "
             "predict held-out blocks of the training targets about as well as the best "
             f"({', '.join(d['consistent'])}); on "
-            f"the target they differ from the model by up to {spread:.3f} deg/h RMS, its "
+            f"the target they differ from the model by up to {spread:.3f} deg/h RMS"
+            f"{_lead_clause(d.get('lead_set'))}, its "
             f"parameters are uncertain by {d['parameter_dph']:.3f}. Expected RMS bias error "
             f"on the target: {lo:.3f}-{hi:.3f} deg/h (noise floor {d['noise_floor_dph']:.3f})")
     rr = d.get("ramp_rates") or {}

@@ -85,6 +85,13 @@ LEAD_FAST_S = 20.0
 LEAD_FAST_MAX_S = 60.0
 LEAD_TAU_GRID_S = tuple(float(x) for x in np.round(np.geomspace(100.0, 3000.0, 30), 1))
 LEAD_W_GRID = tuple(float(x) for x in np.round(np.linspace(0.0, 3.0, 31), 2))
+# The rate-transfer interval's `lead` set (`lead_set`): the grid points within the 95 %
+# region of a two-parameter profile (chi-square, 2 degrees of freedom) of the best, at most
+# LEAD_SET_MOST of them refitted. On a loop that ramps slower than the test, the training
+# pairs hold models on both sides of the reversal target (`benchmarks.probes.
+# bias_consistent`, docs/decisions.md).
+LEAD_SET_CHI2 = 5.99
+LEAD_SET_MOST = 12
 
 
 def lead_node(t: np.ndarray, lag_c: np.ndarray, w: float) -> np.ndarray:
@@ -158,21 +165,46 @@ def _lead_columns(cols: Columns) -> Columns:
     return own
 
 
+def lead_profile(cols: Columns, rows: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The least-squares profile of `lead` (its SSE on the targets y at `rows`) over
+    LEAD_TAU_GRID_S x LEAD_W_GRID: the coil's time constant by the lead-lag weight."""
+    cols = _lead_columns(cols)
+    sse = np.empty((len(LEAD_TAU_GRID_S), len(LEAD_W_GRID)))
+    for i, tc in enumerate(LEAD_TAU_GRID_S):
+        taus = (cols.lead_fast_s, tc)
+        n = [cols.lag(tau)[rows] for tau in taus]
+        for j, w in enumerate(LEAD_W_GRID):
+            sse[i, j] = ridge_fit(design("lead", cols.t[rows], n, w, taus), y,
+                                  SMALL_LAMBDA).sse
+    return sse
+
+
 def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
     """The lead candidate: the coil's time constant and the lead-lag weight by the profile
     of the least-squares fit over LEAD_TAU_GRID_S x LEAD_W_GRID (the tied rate column makes
     the profile sharp enough to find the coil; a free derivative column did not)."""
-    cols = _lead_columns(cols)
-    best: tuple[float, float, float] | None = None
-    for tc in LEAD_TAU_GRID_S:
-        taus = (cols.lead_fast_s, tc)
-        n = [cols.lag(tau)[rows] for tau in taus]
-        for w in LEAD_W_GRID:
-            sse = ridge_fit(design("lead", cols.t[rows], n, w, taus), y, SMALL_LAMBDA).sse
-            if best is None or sse < best[0]:
-                best = (sse, tc, w)
-    assert best is not None
-    return _fixed_taus("lead", cols, rows, y, (cols.lead_fast_s, best[1]), best[2])
+    sse = lead_profile(cols, rows, y)
+    i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)  # the first minimum, as before
+    return _fixed_taus("lead", _lead_columns(cols), rows, y,
+                       (_lead_columns(cols).lead_fast_s, LEAD_TAU_GRID_S[i]), LEAD_W_GRID[j])
+
+
+def lead_set(cols: Columns, y: np.ndarray, sigma2: float,
+             most: int = LEAD_SET_MOST) -> list[CandidateFit]:
+    """`lead` at the grid points the training targets cannot tell from its best: SSE
+    within LEAD_SET_CHI2 x sigma2 (one target's noise variance) of the profile's minimum
+    (a two-parameter 95 % region); at most `most`, evenly by SSE rank, the extremes of
+    each parameter among them."""
+    rows = np.arange(y.size)
+    sse = lead_profile(cols, rows, y)
+    ok = np.argwhere(sse <= sse.min() + LEAD_SET_CHI2 * sigma2)
+    ok = ok[np.argsort(sse[ok[:, 0], ok[:, 1]], kind="stable")]
+    keep = set(np.linspace(0, len(ok) - 1, min(most, len(ok))).astype(int).tolist())
+    for axis in (0, 1):  # the set's ends in tau and in w
+        keep |= {int(np.argmin(ok[:, axis])), int(np.argmax(ok[:, axis]))}
+    own = _lead_columns(cols)
+    return [_fixed_taus("lead", own, rows, y, (own.lead_fast_s, LEAD_TAU_GRID_S[i]),
+                        LEAD_W_GRID[j]) for i, j in ok[sorted(keep)]]
 
 
 def fit_candidate(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
