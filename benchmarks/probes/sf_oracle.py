@@ -7,15 +7,21 @@ true SF hysteresis output as one more column. Only the coefficients are fitted o
 protocol's training logs (the same measured SF targets the trainer fits), and the test log
 is scored as the benchmarks score it (test RMS / noise floor):
 - `lstsq`: least squares;
-- `best`: the best of a few ridge penalties, chosen on the test itself (no method has it).
+- `best`: the best of a few ridge penalties, chosen on the test itself (no method has it);
+- `ridge_LAM`: each penalty fixed (a prior, as a method could fix it), and `loo` (protocols
+  of several training runs): the penalty whose fits to all runs but one predict the one left
+  out best, each in turn (a rule on the training logs alone).
 No model built on the board thermometer can know more, so where `best` misses a target the
 training logs do not hold the information; where it meets it, the gap is the method's.
 
 `--exact` adds the true SF itself (no fit): near 1.0 x, the floor is the floor. `--bank`
 adds where the default's bank loses: `generic_LAM`, the bank's generic law (every feature
 with its square and cube, ridge) on the TRUE temperatures of every node (the thermal
-network known, the law's form not), and `bank_SOURCE`, the bank at its prior on the
-thermometer, the true board or the true housing temperature. `--partial` runs the
+network known, the law's form not), `genericx_LAM` the same with every cross term,
+`factors_LAM` the generic law on each SF factor's true temperature (the nodes' mixture
+known, the degrees not), `bank_SOURCE`, the bank at its prior on the thermometer, the true
+board or the true housing temperature, and the bank on the thermometer at lower penalties,
+without and with its cross terms (`bank:LAM`, `bankx:LAM`). `--partial` runs the
 partial-cycle programs of `make bench-hysteresis` instead of the protocols, `--plan
 PROGRAM` a program of `fogsf plan`'s candidates tested as `make bench-plan` tests it.
 
@@ -39,7 +45,7 @@ from benchmarks.probes import finish, spread_cells
 from benchmarks.probes.physics_nodes import ratio
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.models.features import step_targets
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, fit_bank
+from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name, fit_bank
 from fogsf.trainer.sim.config import SimConfig
 from fogsf.trainer.sim.effects import EffectContext, apply_effects
 from fogsf.trainer.sim.gyro import SimResult, simulate
@@ -91,12 +97,12 @@ def ridge(x: np.ndarray, y: np.ndarray, lam: float) -> np.ndarray:
     return c / scale
 
 
-def bank_ratio(train: list[SimResult], test: SimResult, source: str) -> float:
-    """The bank at the prior (least squares, as `fogsf train` fits it), its temperature
-    input the log's thermometer (`source` "thermometer") or a true node's temperature
-    ("board", "housing"): where the bank loses against the oracle."""
+def bank_ratio(train: list[SimResult], test: SimResult, source: str,
+               name: str | None = None) -> float:
+    """The bank `name` (default: at the prior; least squares, as `fogsf train` fits it), its
+    temperature input the log's thermometer (`source` "thermometer") or a true node's
+    temperature ("board", "housing"): where the bank loses against the oracle."""
     from fogsf.trainer.models.features import prepare
-    from fogsf.trainer.models.lag_bank import bank_name
     from fogsf.trainer.models.physics_nodes import NodeTemperatures
     from fogsf.trainer.models.reference import expand
     from fogsf.trainer.training import structure_choice as sc
@@ -107,7 +113,7 @@ def bank_ratio(train: list[SimResult], test: SimResult, source: str) -> float:
         return replace(r.log, temp_c=np.asarray(r.nodes[source], dtype=np.float64))
 
     full = sc.step_data([log_of(r) for r in train])
-    pred = sc.fit_candidate(bank_name(), full, np.arange(full.y.size))
+    pred = sc.fit_candidate(name or bank_name(), full, np.arange(full.y.size))
     log = log_of(test)
     dt = prepare(log, full.fe, None, None)
     nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
@@ -141,18 +147,27 @@ def stacked(train: list[Run], columns: Callable[[SimResult, SimConfig], np.ndarr
     return np.vstack(xs), np.concatenate(ys)
 
 
-def generic_ratio(train: list[Run], test: Run, lam: float) -> float:
-    """The bank's generic law (every feature with its square and cube, ridge at `lam`) on
-    the true temperatures of every node: the thermal network known, the law's form not."""
-    z, y = stacked(train, true_nodes)
+def factor_temps(r: SimResult, cfg: SimConfig) -> np.ndarray:
+    """Every SF factor's true temperature (the weighted mean of its nodes), (T - 20) / 50."""
+    return np.column_stack([(term_temperature(r.nodes, t) - 20.0) / 50.0
+                            for t in cfg.sf.terms])
+
+
+def generic_ratio(train: list[Run], test: Run, lam: float, cross: bool = False,
+                  columns: Callable[[SimResult, SimConfig], np.ndarray] = true_nodes) -> float:
+    """The bank's generic law (every feature with its square and cube, ridge at `lam`;
+    `cross`: with every cross term) on `columns`, by default the true temperatures of every
+    node: the thermal network known, the law's form not."""
+    z, y = stacked(train, columns)
     s = float(np.std(y)) or 1.0
-    fit = fit_bank(z, y / s, lam)
-    return ratio(test[0].log, fit.predict(true_nodes(*test)) * s)
+    fit = fit_bank(z, y / s, lam, cross=cross)
+    return ratio(test[0].log, fit.predict(columns(*test)) * s)
 
 
 def score(train: list[Run], test: Run, exact: bool, bank: bool) -> dict:
-    """The oracle fitted on `train` and scored on `test` (least squares, and the best of
-    PENALTIES on the test), and the requested comparisons."""
+    """The oracle fitted on `train` and scored on `test` (least squares, each of PENALTIES,
+    the best of them on the test, the one the training runs choose), and the requested
+    comparisons."""
     x, y = stacked(train, true_design)
     r, cfg = test
     xt = true_design(r, cfg)
@@ -161,15 +176,33 @@ def score(train: list[Run], test: Run, exact: bool, bank: bool) -> dict:
         "lstsq": by_pen[0],
         "best": min(by_pen),
         "best_penalty": PENALTIES[int(np.argmin(by_pen))],
+        **{f"ridge_{lam:g}": v for lam, v in zip(PENALTIES[1:], by_pen[1:], strict=True)},
     }
+    if len(train) > 1:  # the penalty chosen by the training runs, each held out in turn
+        def held_out(lam: float) -> float:
+            err = 0.0
+            for k in range(len(train)):
+                xk, yk = stacked([t for i, t in enumerate(train) if i != k], true_design)
+                xh, yh = stacked([train[k]], true_design)
+                err += float(np.sum((xh @ ridge(xk, yk, lam) - yh) ** 2))
+            return err
+
+        lam = min(PENALTIES, key=held_out)
+        out["loo"] = by_pen[PENALTIES.index(lam)]
     if exact:
         turn = r.log.table_rate_dps + r.log.earth_rate_dps
         out["exact"] = ratio(r.log, r.sf_ppm + r.bias_dps / turn * 1e6)
     if bank:
         for lam in GENERIC_PENALTIES:
             out[f"generic_{lam:g}"] = generic_ratio(train, test, lam)
+            out[f"genericx_{lam:g}"] = generic_ratio(train, test, lam, cross=True)
+            out[f"factors_{lam:g}"] = generic_ratio(train, test, lam, columns=factor_temps)
         for src in BANK_SOURCES:
             out[f"bank_{src}"] = bank_ratio([t[0] for t in train], r, src)
+        for lam in (1e-4, 1e-5):
+            for cross in (False, True):
+                nm = bank_name(lam, cross)
+                out[nm] = bank_ratio([t[0] for t in train], r, "thermometer", nm)
     return out
 
 
