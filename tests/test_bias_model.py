@@ -148,6 +148,10 @@ def test_train_says_when_the_test_ramps_faster_than_any_training_ramp(
     assert rr["rate_term_extrapolated"]
     assert rr["test_fastest_c_per_min"] > 2.0 * rr["train_fastest_c_per_min"]
     assert "faster than any training ramp" in text and "Shupe term" in text
+    region = m["bias"]["rate_transfer"]["lead_region"]  # lead's time constants left open
+    assert region["tau_s"][0] <= 400.0 <= region["tau_s"][1]  # the coil's true 400 s
+    assert f"lead at the coil time constants the training targets allow ({region['tau_s'][0]:.0f}" \
+        in text
 
 
 def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
@@ -564,29 +568,65 @@ def test_train_knows_before_the_fit_whether_the_logs_measure_the_bias() -> None:
 
 
 def test_the_bias_interval_spans_the_coil_time_constants_the_pairs_leave_open() -> None:
-    """With `lead` chosen, the interval refits it at every grid point of its time constants
+    """With `lead` chosen, the interval refits it at the grid points of its time constants
     that the training targets cannot tell from the best (`bias_structure.lead_set`): the
-    chosen point among them, and their spread from the model larger on a log that ramps
-    three times faster than training (the Shupe term extrapolated) than on one at the
-    training's rate."""
+    chosen fit first; their spread from the model larger on a log that ramps three times
+    faster than training (the Shupe term extrapolated) than on one at the training's rate,
+    and the interval's top wider for it there."""
+    from dataclasses import replace as dc_replace
+
     from fogsf.trainer.training.bias_interval import bias_interval
+    from fogsf.trainer.training.bias_structure import LEAD_SET_MOST
 
     train, _ = soak_log(TRAIN, 41)
     model = fit_bias(None, [train])
     assert model is not None and model.choice.name == "lead"
     fam = model.family
-    chosen = fam.fits["lead"]
-    points = {(f.taus_s[1], f.w) for f in fam.lead_set}
-    assert (chosen.taus_s[1], chosen.w) in points and len(points) >= 2
+    chosen, first = fam.fits["lead"], fam.lead_set[0]
+    assert (first.taus_s, first.w) == (chosen.taus_s, chosen.w)
+    assert np.array_equal(first.coef, chosen.coef)
+    assert 2 <= len(fam.lead_set) <= LEAD_SET_MOST
     slow, _ = soak_log(TEST, 42)
     fast, _ = soak_log([(0, 15), (900, 15), (1300, 35), (2500, 35), (2800, 20), (4000, 20)],
                        43)
-    spreads = []
+    spreads, tops = [], []
     for lg in (slow, fast):
-        iv = bias_interval(fam, lg, model.predict(lg))
-        assert iv is not None and iv["lead_set"]["points"] == len(fam.lead_set)
-        lo, hi = iv["lead_set"]["tau_s"]
-        assert lo <= chosen.taus_s[1] <= hi
-        spreads.append(iv["lead_set"]["spread_dph"])
-        assert iv["rms_interval_dph"][1] >= 1.5 * iv["lead_set"]["spread_dph"]
+        pred = model.predict(lg)
+        iv = bias_interval(fam, lg, pred)
+        bare = bias_interval(dc_replace(fam, lead_set=[]), lg, pred)
+        assert iv is not None and bare is not None and bare["lead_region"] is None
+        region = iv["lead_region"]
+        assert region["points"] == len(fam.lead_set)
+        assert region["tau_s"][0] <= chosen.taus_s[1] <= region["tau_s"][1]
+        spreads.append(region["spread_dph"])
+        tops.append((bare["rms_interval_dph"][1], iv["rms_interval_dph"][1]))
     assert spreads[1] > 1.5 * spreads[0], spreads
+    assert tops[1][1] > tops[1][0], tops  # the fast log's top takes the set's spread
+
+
+def test_the_lead_set_holds_the_points_within_the_allowance() -> None:
+    """`lead_set` on a lead-law bias with noise: its first fit is the profile's minimum (as
+    the lead candidate fits it), each fit's training SSE lies within LEAD_SET_CHI2 x sigma2
+    of that minimum, and a larger sigma2 admits at least as many points."""
+    from fogsf.trainer.models.physics_nodes import NodeTemperatures
+    from fogsf.trainer.training import bias_structure as bs
+
+    step = 5.0
+    t = np.concatenate([np.linspace(-0.6, 0.6, 1500), np.full(300, 0.6),
+                        np.linspace(0.6, -0.6, 700), np.full(300, -0.6)]) * 50.0
+    nodes = NodeTemperatures([t], step)
+    cols = bs.Columns(nodes.z(())[:, 0], nodes.lag, None, nodes.z((60.0,)), 1)
+    c = bs.lead_node(cols.t, cols.lag(600.0), 0.3)
+    rate = bs.lead_rate(cols.t, cols.lag(bs.LEAD_FAST_S), c, (bs.LEAD_FAST_S, 600.0), 0.3)
+    rng = np.random.default_rng(5)
+    y = 0.5 + 0.4 * c + 3.0 * rate + rng.normal(0.0, 0.05, t.size)
+    sse_min = float(np.min(bs.lead_profile(cols, np.arange(y.size), y)))
+    fits = bs.lead_set(cols, y, 0.05 ** 2)
+    best = bs.fit_candidate("lead", cols, np.arange(y.size), y)
+    assert (fits[0].taus_s, fits[0].w) == (best.taus_s, best.w)
+    for f in fits:
+        sse = float(np.sum((y - f.predict(cols)) ** 2))
+        assert sse <= sse_min + bs.LEAD_SET_CHI2 * 0.05 ** 2 + 1e-9 * sse_min, (f.taus_s, f.w)
+    wide = bs.lead_set(cols, y, 0.5 ** 2, most=10_000)
+    narrow = bs.lead_set(cols, y, 0.05 ** 2, most=10_000)
+    assert len(wide) > len(narrow) >= 1

@@ -5,15 +5,16 @@ structure's consistent set.
 board oracle (`benchmarks.bias_oracle`) meets it with the coil's true time constants. This
 probe asks whether the training loop's pairs hold those time constants: the `lead`
 structure's least-squares profile over its grid (the coil's time constant x the lead-lag
-weight, `bias_structure.LEAD_TAU_GRID_S` x `LEAD_W_GRID`) on the training loop's pairs,
-the grid points whose SSE lies within the 95 % allowance of a two-parameter profile
-(SSE_min + 5.99 s^2, s^2 = SSE_min / (n - 5)), and the test loop's error std(predicted -
-true bias) of the bias model trained at each of them (the same `fit_bias` path as the
-bench, `lead` fixed at that point). Where the consistent points' test errors spread across
-the target, the training pairs cannot tell a model that meets it from one that misses it:
-no rule on those pairs can; where they all lie under it, the choice within the set is
-free. Also the point nearest the true (tau_coil, w = tau_board / tau_coil), where the coil
-and the board sit behind the housing, and whether it is in the set.
+weight, `bias_structure.LEAD_TAU_GRID_S` x `LEAD_W_GRID`) on the training loop's pairs, the
+grid points whose SSE lies within the 95 % allowance of a two-parameter profile (SSE_min +
+5.99 s^2, s^2 = SSE_min / (n - 5); the interval's `lead_set` takes the same allowance on the
+long-run-widened noise, so its region is at least as wide), and the test loop's error
+std(predicted - true bias) of the bias model trained at each of them (the same `fit_bias`
+path as the bench, `lead` fixed at that point). Where the consistent points' test errors
+spread across the target, the training pairs cannot tell a model that meets it from one that
+misses it: no rule on those pairs can; where they all lie under it, the choice within the
+set is free. Also the point nearest the true (tau_coil, w = tau_board / tau_coil), where the
+coil and the board sit behind the housing, and whether it is in the set.
 
     python -m benchmarks.probes.bias_consistent --gyros 1:13 --loops slow,fast
 """
@@ -30,16 +31,16 @@ import numpy as np
 
 from benchmarks.bias_eval import FAST_TRAIN_LOOP, SHUPE, TEST_LOOP, TRAIN_LOOP, bias_law, protocol
 from benchmarks.probes import finish
-from fogsf.trainer.logs.bias import bias_windows
+from fogsf.trainer.logs.bias import BiasWindows, bias_windows
+from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.logs.dialect import Dialect
 from fogsf.trainer.logs.logio import read_log, with_mapping_beside
 from fogsf.trainer.sim import rig_logs
 from fogsf.trainer.sim.population import gyro_for_seed
 from fogsf.trainer.training import bias_structure as bs
-from fogsf.trainer.training.bias_model import bank_feature_map, fit_bias
+from fogsf.trainer.training.bias_model import FeatureMap, bank_feature_map, fit_bias
 
 LOOPS = {"slow": TRAIN_LOOP, "fast": FAST_TRAIN_LOOP}
-CHI2_2_95 = 5.99  # chi-square, two degrees of freedom, 95 %
 MAX_POINTS = 40  # consistent points refitted per gyro (evenly by SSE rank)
 
 
@@ -52,13 +53,13 @@ def true_point(gyro: int, node: str) -> tuple[float, float] | None:
     return coil.tau_s, board.tau_s / coil.tau_s
 
 
-def profile(fm, train) -> tuple[np.ndarray, int]:  # noqa: ANN001
+def profile(fm: FeatureMap, train: ChamberLog) -> tuple[np.ndarray, int]:
     """The lead profile's SSE over the grid [tau, w] on the training pairs (the fit on all
     targets, as `_fit_lead` computes it) and the number of targets."""
     seen: dict[str, object] = {}
     orig = bs._fit_lead
 
-    def recording(cols, rows, y):  # noqa: ANN001, ANN202
+    def recording(cols: bs.Columns, rows: np.ndarray, y: np.ndarray) -> bs.CandidateFit:
         if rows.size >= int(seen.get("n", 0)):  # the fit on every target, not a fold's
             seen.update(n=rows.size, sse=bs.lead_profile(cols, rows, y))
         return orig(cols, rows, y)
@@ -68,10 +69,13 @@ def profile(fm, train) -> tuple[np.ndarray, int]:  # noqa: ANN001
         fit_bias(fm, [train], candidates=("lead",))
     finally:
         bs._fit_lead = orig
+    if "sse" not in seen:
+        raise SystemExit("the bias model did not fit lead on these logs")
     return seen["sse"], int(seen["n"])  # type: ignore[return-value]
 
 
-def error_at(fm, train, test, ws, true, tc: float, w: float) -> float:  # noqa: ANN001
+def error_at(fm: FeatureMap, train: ChamberLog, test: ChamberLog, ws: BiasWindows,
+             true: np.ndarray, tc: float, w: float) -> float:
     """The test loop's std(predicted - true) of the bias model with lead fixed at (tc, w)."""
     grid = bs.LEAD_TAU_GRID_S, bs.LEAD_W_GRID
     bs.LEAD_TAU_GRID_S, bs.LEAD_W_GRID = (tc,), (w,)
@@ -99,7 +103,7 @@ def one(gyro: int, loop: str, work: Path) -> dict:
     fm = bank_feature_map([train], 5.0)
     sse, n = profile(fm, train)
     s2 = float(sse.min()) / max(n - 5, 1)
-    ok = np.argwhere(sse <= sse.min() + CHI2_2_95 * s2)
+    ok = np.argwhere(sse <= sse.min() + bs.LEAD_SET_CHI2 * s2)
     ok = ok[np.argsort(sse[ok[:, 0], ok[:, 1]])]
     pick = ok[np.unique(np.linspace(0, len(ok) - 1, min(MAX_POINTS, len(ok))).astype(int))]
     taus, ws_grid = np.asarray(bs.LEAD_TAU_GRID_S), np.asarray(bs.LEAD_W_GRID)
@@ -117,7 +121,7 @@ def one(gyro: int, loop: str, work: Path) -> dict:
         i = int(np.argmin(np.abs(np.log(taus / tp[0]))))
         j = int(np.argmin(np.abs(ws_grid - tp[1])))
         row.update(true_tau_s=tp[0], true_w=tp[1],
-                   true_in_set=bool(sse[i, j] <= sse.min() + CHI2_2_95 * s2),
+                   true_in_set=bool(sse[i, j] <= sse.min() + bs.LEAD_SET_CHI2 * s2),
                    true_delta_sse_s2=float((sse[i, j] - sse.min()) / s2),
                    err_true_dph=error_at(fm, train, test, ws, true, float(taus[i]),
                                          float(ws_grid[j])))

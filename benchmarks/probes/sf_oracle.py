@@ -148,8 +148,8 @@ def stacked(train: list[Run], columns: Callable[[SimResult, SimConfig], np.ndarr
 
 
 def factor_temps(r: SimResult, cfg: SimConfig) -> np.ndarray:
-    """Every SF factor's true temperature (the weighted mean of its nodes), (T - 20) / 50."""
-    return np.column_stack([(term_temperature(r.nodes, t) - 20.0) / 50.0
+    """Every SF factor's true temperature (the weighted mean of its nodes), (T - ref) / 50."""
+    return np.column_stack([(term_temperature(r.nodes, t) - t.ref_c) / 50.0
                             for t in cfg.sf.terms])
 
 
@@ -273,8 +273,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--bank",
         action="store_true",
-        help="also the bank at the prior on the thermometer, the true board and "
-        "the true housing temperature",
+        help="also where the bank loses: the generic law on the true nodes (with and "
+        "without cross terms) and on the true factor temperatures, the bank at the prior on "
+        "the thermometer, the true board and the true housing temperature, and at lower "
+        "penalties with and without cross terms (several times slower)",
     )
     ap.add_argument("--plan", default=None, metavar="PROGRAM",
                     help="make bench-plan's runs instead: the program of fogsf plan's "

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -123,9 +124,9 @@ def bias_interval(fam: Family, log: ChamberLog, model_pred_dph: np.ndarray,
     widest = max(max(spread.values(), default=0.0), lead_spread)
     top = BIAS_INTERVAL_K * float(np.hypot(widest, param))
     taus = [f.taus_s[1] for f in fam.lead_set]
-    lead = ({"points": len(fam.lead_set), "tau_s": [min(taus), max(taus)],
-             "spread_dph": lead_spread} if fam.lead_set else None)
-    return asdict(BiasInterval(fam.consistent, len(fam.fits), spread, lead, param, floor,
+    region = ({"points": len(fam.lead_set), "tau_s": [min(taus), max(taus)],
+               "spread_dph": lead_spread} if fam.lead_set else None)
+    return asdict(BiasInterval(fam.consistent, len(fam.fits), spread, region, param, floor,
                                fam.window_noise_dph, fam.inflation,
                                (INTERVAL_LO * lo_floor,
                                 float(np.hypot(BIAS_NOISE_K * hi_floor, top)))))
@@ -138,7 +139,7 @@ class BiasInterval:
     spread_dph: dict[str, float]  # each consistent structure's windowed RMS from the model
     # lead's time constants the training targets cannot tell apart: how many refitted, their
     # range (s) and their largest windowed RMS from the model (None unless lead is chosen)
-    lead_set: dict | None
+    lead_region: dict[str, Any] | None
     parameter_dph: float  # the chosen structure's parameter uncertainty (RMS over windows)
     noise_floor_dph: float  # the target's bias windows'
     train_window_noise_dph: float  # the fit's residual over its training windows (RMS)
@@ -150,7 +151,7 @@ def _lead_clause(lead: dict | None) -> str:
     if not lead:
         return ""
     lo, hi = lead["tau_s"]
-    return (f", lead at any coil time constant the training targets allow ({lo:.0f}-{hi:.0f} "
+    return (f", lead at the coil time constants the training targets allow ({lo:.0f}-{hi:.0f} "
             f"s) by up to {lead['spread_dph']:.3f}")
 
 
@@ -161,7 +162,7 @@ def interval_message(d: dict) -> str:
             "predict held-out blocks of the training targets about as well as the best "
             f"({', '.join(d['consistent'])}); on "
             f"the target they differ from the model by up to {spread:.3f} deg/h RMS"
-            f"{_lead_clause(d.get('lead_set'))}, its "
+            f"{_lead_clause(d.get('lead_region'))}, the model's "
             f"parameters are uncertain by {d['parameter_dph']:.3f}. Expected RMS bias error "
             f"on the target: {lo:.3f}-{hi:.3f} deg/h (noise floor {d['noise_floor_dph']:.3f})")
     rr = d.get("ramp_rates") or {}

@@ -183,28 +183,34 @@ def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
     """The lead candidate: the coil's time constant and the lead-lag weight by the profile
     of the least-squares fit over LEAD_TAU_GRID_S x LEAD_W_GRID (the tied rate column makes
     the profile sharp enough to find the coil; a free derivative column did not)."""
-    sse = lead_profile(cols, rows, y)
-    i, j = np.unravel_index(int(np.argmin(sse)), sse.shape)  # the first minimum, as before
-    return _fixed_taus("lead", _lead_columns(cols), rows, y,
-                       (_lead_columns(cols).lead_fast_s, LEAD_TAU_GRID_S[i]), LEAD_W_GRID[j])
+    own = _lead_columns(cols)
+    i, j = np.unravel_index(int(np.nanargmin(lead_profile(own, rows, y))),
+                            (len(LEAD_TAU_GRID_S), len(LEAD_W_GRID)))  # the first minimum
+    return _fixed_taus("lead", own, rows, y, (own.lead_fast_s, LEAD_TAU_GRID_S[i]),
+                       LEAD_W_GRID[j])
 
 
 def lead_set(cols: Columns, y: np.ndarray, sigma2: float,
              most: int = LEAD_SET_MOST) -> list[CandidateFit]:
     """`lead` at the grid points the training targets cannot tell from its best: SSE
     within LEAD_SET_CHI2 x sigma2 (one target's noise variance) of the profile's minimum
-    (a two-parameter 95 % region); at most `most`, evenly by SSE rank, the extremes of
-    each parameter among them."""
+    (a two-parameter 95 % region); at most `most` of them: the best, the extremes of each
+    parameter among them, then evenly by SSE rank. Empty where the profile has no finite
+    minimum."""
     rows = np.arange(y.size)
-    sse = lead_profile(cols, rows, y)
-    ok = np.argwhere(sse <= sse.min() + LEAD_SET_CHI2 * sigma2)
-    ok = ok[np.argsort(sse[ok[:, 0], ok[:, 1]], kind="stable")]
-    keep = set(np.linspace(0, len(ok) - 1, min(most, len(ok))).astype(int).tolist())
-    for axis in (0, 1):  # the set's ends in tau and in w
-        keep |= {int(np.argmin(ok[:, axis])), int(np.argmax(ok[:, axis]))}
     own = _lead_columns(cols)
+    sse = lead_profile(own, rows, y)
+    if not np.isfinite(sse).any():
+        return []
+    ok = np.argwhere(sse <= np.nanmin(sse) + LEAD_SET_CHI2 * sigma2)
+    ok = ok[np.argsort(sse[ok[:, 0], ok[:, 1]], kind="stable")]
+    keep = [0]
+    for axis in (0, 1):  # the set's ends in tau and in w
+        keep += [int(np.argmin(ok[:, axis])), int(np.argmax(ok[:, axis]))]
+    keep += np.linspace(0, len(ok) - 1, min(most, len(ok))).astype(int).tolist()
+    chosen = list(dict.fromkeys(keep))[:most]
     return [_fixed_taus("lead", own, rows, y, (own.lead_fast_s, LEAD_TAU_GRID_S[i]),
-                        LEAD_W_GRID[j]) for i, j in ok[sorted(keep)]]
+                        LEAD_W_GRID[j]) for i, j in ok[sorted(chosen)]]
 
 
 def fit_candidate(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
