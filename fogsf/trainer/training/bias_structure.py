@@ -184,8 +184,13 @@ def _fit_lead(cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
     of the least-squares fit over LEAD_TAU_GRID_S x LEAD_W_GRID (the tied rate column makes
     the profile sharp enough to find the coil; a free derivative column did not)."""
     own = _lead_columns(cols)
-    i, j = np.unravel_index(int(np.nanargmin(lead_profile(own, rows, y))),
-                            (len(LEAD_TAU_GRID_S), len(LEAD_W_GRID)))  # the first minimum
+    sse = lead_profile(own, rows, y)
+    i, j = np.unravel_index(int(np.nanargmin(sse)), sse.shape)  # the first minimum
+    return _lead_at(own, rows, y, int(i), int(j))
+
+
+def _lead_at(own: Columns, rows: np.ndarray, y: np.ndarray, i: int, j: int) -> CandidateFit:
+    """`lead` fitted at grid point (LEAD_TAU_GRID_S[i], LEAD_W_GRID[j]) of `own`."""
     return _fixed_taus("lead", own, rows, y, (own.lead_fast_s, LEAD_TAU_GRID_S[i]),
                        LEAD_W_GRID[j])
 
@@ -209,8 +214,7 @@ def lead_set(cols: Columns, y: np.ndarray, sigma2: float,
         keep += [int(np.argmin(ok[:, axis])), int(np.argmax(ok[:, axis]))]
     keep += np.linspace(0, len(ok) - 1, min(most, len(ok))).astype(int).tolist()
     chosen = list(dict.fromkeys(keep))[:most]
-    return [_fixed_taus("lead", own, rows, y, (own.lead_fast_s, LEAD_TAU_GRID_S[i]),
-                        LEAD_W_GRID[j]) for i, j in ok[sorted(chosen)]]
+    return [_lead_at(own, rows, y, int(i), int(j)) for i, j in ok[sorted(chosen)]]
 
 
 def fit_candidate(name: str, cols: Columns, rows: np.ndarray, y: np.ndarray) -> CandidateFit:
