@@ -7,6 +7,8 @@ squares as `fogsf train` fits it, and scored on the test log (test RMS / noise f
 - `ident`: the time constants variable projection identifies (what `fogsf train --structure
   physics --nodes K` trains);
 - `train`: the grid combination with the least training sum of squares;
+- `parts`: the grid combination that predicts the training logs' held-out parts best (each
+  ramp in three parts, as `fogsf train`'s structure choice holds them out);
 - `test`: the grid combination best on the test itself (no method has it: the most the
   family reaches with the time constants the test would pick);
 - `dchi2`: how much worse `test`'s combination fits the training logs than the best
@@ -26,8 +28,10 @@ structure alone, no hysteresis term).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -50,8 +54,9 @@ CHI2_95 = {2: 5.99, 3: 7.81}  # the chi-square 95 % points of 2 and 3 parameters
 
 
 def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
-    """`ident`, `train`, `test` and `dchi2` per node count, `bank` and `mix`."""
+    """`ident`, `train`, `parts`, `test` and `dchi2` per node count, `bank` and `mix`."""
     sd = sc.step_data([r.log for r, _ in train])
+    by_parts = dataclasses.replace(sd, fold=sc.part_folds(sd))
     log = test[0].log
     dt = prepare(log, sd.fe, None, None)
     nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], sd.fe.step_s)
@@ -65,6 +70,12 @@ def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
         p = f.predict(nt.z(taus))
         return float(np.sum((f.predict(z) - sd.y) ** 2)), on_test(p), p
 
+    def fit_at(taus: tuple[float, ...]) -> Callable[[sc.StepData, np.ndarray], sc.Predictor]:
+        def fit(s: sc.StepData, rows: np.ndarray) -> sc.Predictor:
+            f = fit_coefficients(s.nodes.z(taus)[rows], s.y[rows], taus)
+            return lambda nt: f.predict(nt.z(taus))
+        return fit
+
     out: dict = {}
     bank = sc.fit_candidate("bank", sd, np.arange(sd.y.size))(nt)
     out["bank"] = on_test(bank)
@@ -77,6 +88,8 @@ def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
         p = node_design(sd.nodes.z(best_train[0]), best_train[0]).shape[1] + 1
         s2 = best_train[1] / (sd.y.size - p)
         out[f"train{k}"] = best_train[2]
+        held = min(grid, key=lambda g: sc.heldout_score("", by_parts, fit_at(g[0])))
+        out[f"parts{k}"] = held[2]
         out[f"test{k}"] = best_test[2]
         out[f"dchi2_{k}"] = (best_test[1] - best_train[1]) / s2
         out[f"mix{k}"] = on_test(0.5 * (bank + best_train[3]))
