@@ -142,16 +142,20 @@ def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, impor
                         transfer_check=model == "default", **extra)
 
 
-def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ...]) -> dict:
-    """Every model on every protocol for one population gyro (one unit of work)."""
+def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ...],
+               outside: str | None = None) -> dict:
+    """Every model on every protocol for one population gyro (one unit of work); `outside`:
+    the gyro given that form outside the population's (`population.outside_form`)."""
     import torch
 
-    from fogsf.trainer.sim.population import gyro_for_seed
+    from fogsf.trainer.sim.population import gyro_for_seed, outside_form
     from fogsf.trainer.training.train import run_training
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()
     gyro = gyro_for_seed(gyro_seed)
+    if outside:
+        gyro = outside_form(gyro, gyro_seed, outside)
     logs = runs_for(gyro, gyro_seed, protocols)
     out: dict = {"gyro_seed": gyro_seed, "gyro": gyro.scenario, "cases": {}}
     with tempfile.TemporaryDirectory() as tmp:
@@ -328,10 +332,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--magnitudes", action="store_true",
                     help="only print the population's SF error before compensation at 1 C/min "
                          "(RMS, max|e|: 10/50/90th percentiles), noise floor and mix")
+    ap.add_argument("--outside", default=None, metavar="FORM",
+                    help="give every gyro a form outside the population's: sensor (the "
+                         "thermometer behind the board) or vent (an SF-bearing part behind "
+                         "the chamber air), docs/population.md")
     add_executor_options(ap)
     args = ap.parse_args(argv)
 
-    from fogsf.trainer.sim.population import seed_range
+    from fogsf.trainer.sim.population import OUTSIDE_FORMS, seed_range
+
+    if args.outside is not None and args.outside not in OUTSIDE_FORMS:
+        ap.error(f"--outside must be one of {', '.join(OUTSIDE_FORMS)}, got {args.outside!r}")
 
     models = tuple(m for m in args.models.split(",") if m)
     protocols = tuple(p for p in args.protocols.split(",") if p)
@@ -348,8 +359,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     t0 = time.perf_counter()
     with executor_from_args(args) as ex:
-        rows = run_all(ex, bench_gyro, list(seeds), models, protocols, desc="gyros",
-                       unit="gyro")
+        rows = run_all(ex, bench_gyro, list(seeds), models, protocols, args.outside,
+                       desc="gyros", unit="gyro")
     rows.sort(key=lambda r: r["gyro_seed"])
     for g in rows:
         cells = " ".join(f"{p}:{g['cases'][p][m]['ratio']:.2f}"
@@ -359,12 +370,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"gyro {g['gyro_seed']:>5} {g['gyro']:<28} default {cells}")
     summary = summarise(rows, models, protocols)
     print(f"test RMS / noise floor over {len(rows)} {args.seeds} gyros "
-          f"(seeds {seeds[0]}-{seeds[-1]})")
+          f"(seeds {seeds[0]}-{seeds[-1]})"
+          + (f", each with the outside form {args.outside}" if args.outside else ""))
     print_table(summary, models, protocols)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     seconds = time.perf_counter() - t0
     out.write_text(json.dumps({"seeds": args.seeds, "gyro_seeds": seeds, "models": models,
+                               "outside": args.outside,
                                "protocols": {p: PROTOCOLS[p] for p in protocols},
                                "rows": rows, "summary": summary, "seconds": seconds},
                               indent=2) + "\n")

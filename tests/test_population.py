@@ -128,3 +128,64 @@ def test_the_thermal_bias_is_drawn_from_its_own_stream_within_its_ranges() -> No
             <= pop.BIAS_CUBE_DPH_PER_C3[1]
         assert drawn.bias.node.startswith("coil"), seed
         assert pop.gyro_for_seed(seed, thermal_bias=True).bias == drawn.bias  # deterministic
+
+
+@pytest.mark.parametrize("form", pop.OUTSIDE_FORMS)
+def test_outside_forms_change_only_what_they_state(form: str) -> None:
+    """A form outside the population's is drawn from its own stream within its range and
+    changes nothing else of the gyro; the same seed gives the same form."""
+    lo, hi = pop.SENSOR_TAU_S if form == "sensor" else pop.VENT_TAU_S
+    for seed in (1, 7, 123, 20005):
+        plain = pop.gyro_for_seed(seed)
+        g = pop.outside_form(plain, seed, form)
+        validate(g)
+        assert g == pop.outside_form(pop.gyro_for_seed(seed), seed, form)
+        assert plain == pop.gyro_for_seed(seed)  # the gyro it was given is left alone
+        assert (g.sf, g.bias, g.noise, g.effects) == (plain.sf, plain.bias, plain.noise,
+                                                      plain.effects)
+        assert g.scenario == plain.scenario + f":{form}"
+        before = {n.name: n for n in plain.thermal.nodes}
+        changed = [n for n in g.thermal.nodes if before.get(n.name) != n]
+        assert len(changed) == 1, seed
+        n = changed[0]
+        assert lo <= n.tau_s <= hi, seed
+        if form == "sensor":
+            assert n.name == g.thermal.board_node == "sensor"
+            assert n.parent == plain.thermal.board_node and n.self_heat_c == 0.0
+        else:
+            assert g.thermal.board_node == plain.thermal.board_node
+            assert n.name in pop.VENT_PARTS and n.parent == "chamber"
+    with pytest.raises(ValueError, match="outside form"):
+        pop.outside_form(pop.gyro_for_seed(1), 1, "draft")
+
+
+def test_the_thermometer_behind_the_board_reads_it_late() -> None:
+    """On a steady ramp a first-order lag reads tau x rate behind its input: the "sensor"
+    form's thermometer trails the board's true temperature by that much."""
+    from fogsf.trainer.sim.config import ProfileConfig
+
+    g = pop.outside_form(pop.gyro_for_seed(7), 7, "sensor")
+    tau = g.thermal.nodes[-1].tau_s
+    prof = ProfileConfig(kind="ramp", start_c=-10.0, stop_c=40.0, rate_c_per_min=2.0)
+    r = simulate(pop.run_on_gyro(g, prof, 3, "sensor-ramp"))
+    t = r.log.time_s
+    mid = (t > t[0] + 900.0) & (t < t[0] + 1400.0)  # the board ramps steadily here
+    board = np.asarray(r.nodes["board"])[mid]
+    slope = np.polyfit(t[mid], board, 1)[0]  # C/s
+    lag_c = float(np.mean(board - np.asarray(r.log.temp_c)[mid]))
+    assert lag_c == pytest.approx(tau * slope, rel=0.1)
+    assert lag_c > 0.9  # the form is visible: tau >= 30 s at ~2 C/min
+
+
+def test_the_population_bench_runs_gyros_outside_the_forms(capsys) -> None:  # noqa: ANN001
+    """`benchmarks.population --outside FORM` trains and scores the gyros with the form
+    (its scenario says so); an unknown form is refused before any work."""
+    from benchmarks import population as bench
+
+    row = bench.bench_gyro(3, ("poly",), ("a",), "sensor")
+    assert row["gyro"].endswith(":sensor")
+    assert row["cases"]["a"]["poly"]["ratio"] > 0.5
+    with pytest.raises(SystemExit) as e:
+        bench.main(["--outside", "draft", "--n", "1"])
+    assert e.value.code == 2
+    assert "sensor, vent" in capsys.readouterr().err

@@ -17,7 +17,9 @@ What varies (every range is a constant below; docs/population.md lists them):
 - SF hysteresis: a share `HYST_SHARE` of gyros has a play (backlash) operator of the coil
   temperature in its SF (the simulator's `hysteresis` effect), width `HYST_WIDTH_C`,
   strength `HYST_PPM_PER_C`, drawn from a stream of its own (`hysteresis_for_seed`), so
-  every other draw, and every gyro without it, is what it was before hysteresis existed.
+  every other draw, and every gyro without it, is what it was before hysteresis existed;
+- forms outside all of the above, for benches only (`outside_form`: the thermometer behind
+  the board, or a part behind the chamber air), on a stream of their own too.
 
 Seeds: `gyro_for_seed(seed)` is `sample_gyro(default_rng(seed))`, except seed 0, which is the
 default gyro (`SimConfig()`'s). Development seeds (`DEV_SEEDS`) are for tuning; evaluation
@@ -77,6 +79,15 @@ HYST_SHARE = 0.3
 HYST_WIDTH_C = (4.0, 10.0)
 HYST_PPM_PER_C = (3.0, 8.0)
 HYST_STREAM = 0x4857  # the hysteresis draws' own stream: [seed, HYST_STREAM]
+# Forms outside the population's (`outside_form`, benches only): the thermometer behind the
+# board ("sensor", its lag log-uniform over SENSOR_TAU_S), or one SF-bearing internal part
+# behind the chamber air instead of the housing ("vent", VENT_TAU_S): in both the SF moves
+# before the thermometer sees it, which no lag of the thermometer's reading holds exactly.
+OUTSIDE_FORMS = ("sensor", "vent")
+SENSOR_TAU_S = (30.0, 300.0)
+VENT_TAU_S = (100.0, 1500.0)
+VENT_PARTS = ("coil_inner", "source", "preamp")  # always drawn, each carrying an SF factor
+OUTSIDE_STREAM = 0x0F0E
 # effects that are the gyro's own physics (carried by `with_gyro`), not the run's
 GYRO_EFFECTS = ("hysteresis",)
 
@@ -226,6 +237,29 @@ def gyro_for_seed(seed: int, hysteresis: bool = True, thermal_bias: bool = False
             cfg.effects.append(hyst)
             cfg.scenario += ":hyst"
     return with_thermal_bias(cfg, seed) if thermal_bias else cfg
+
+
+def outside_form(cfg: SimConfig, seed: int, form: str) -> SimConfig:
+    """`cfg` (a population gyro) given a form outside the population's (OUTSIDE_FORMS),
+    drawn from a stream of its own (seed, OUTSIDE_STREAM), so its other draws do not move:
+    "sensor" puts the thermometer on a node behind the board, "vent" puts one of
+    VENT_PARTS behind the chamber air (its children follow it)."""
+    import copy
+
+    if form not in OUTSIDE_FORMS:
+        raise ValueError(f"outside form must be one of {', '.join(OUTSIDE_FORMS)}, got {form!r}")
+    rng = np.random.default_rng([seed, OUTSIDE_STREAM])
+    out = copy.deepcopy(cfg)
+    if form == "sensor":
+        tau = round(_log_uniform(rng, SENSOR_TAU_S), 1)
+        out.thermal.nodes.append(NodeConfig("sensor", out.thermal.board_node, tau, 0.0))
+        out.thermal.board_node = "sensor"
+    else:
+        node = [n for n in out.thermal.nodes if n.name in VENT_PARTS][
+            int(rng.integers(len(VENT_PARTS)))]
+        node.parent, node.tau_s = "chamber", round(_log_uniform(rng, VENT_TAU_S), 1)
+    out.scenario += f":{form}"
+    return out
 
 
 def with_thermal_bias(cfg: SimConfig, seed: int) -> SimConfig:
