@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias paper clean
+.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -20,6 +20,7 @@ help:
 	@echo "make bench-transfer  one ramp rate vs two, over seeds -> out/bench-transfer.json"
 	@echo "make bench-diagnose  diagnose success rate over planted effects -> out/bench-diagnose.json"
 	@echo "make bench-population  compensation on evaluation gyros of the population -> out/bench-population.json"
+	@echo "make bench-outside  the default and its rivals on evaluation gyros given forms the population never draws (sensor, vent) -> out/bench-population-{sensor,vent}.json"
 	@echo "make bench-hysteresis  the default with and without its hysteresis term, partial cycles, evaluation gyros -> out/bench-hysteresis.json"
 	@echo "make bench-plan  the planned chamber program vs the paper's on evaluation gyros -> out/bench-plan.json"
 	@echo "make bench-rate  one model at 10/100/1000 Hz; a 24 h 100 Hz replay, time and memory -> out/bench-sample-rate.json"
@@ -77,6 +78,13 @@ bench-transfer: $(STAMP)
 POP_N ?= 24
 bench-population: $(STAMP)
 	$(PY) -m benchmarks.population --seeds eval --n $(POP_N) --out $(OUT)/bench-population.json
+
+# --- the same gyros given each form outside the population's (docs/population.md)
+OUTSIDE_MODELS ?= default,bank,physics2,node,poly
+bench-outside: $(STAMP)
+	for f in sensor vent; do $(PY) -m benchmarks.population --seeds eval --n $(POP_N) \
+	  --models $(OUTSIDE_MODELS) --protocols a,b,e,f --workers 2 --outside $$f \
+	  --out $(OUT)/bench-population-$$f.json || exit 1; done
 
 # --- SF hysteresis: trained on partial cycles, tested on others; HYST_N gyros per group
 # (with hysteresis, the same without it, gyros without it), evaluation seeds, ~9 min ---
