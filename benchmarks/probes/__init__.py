@@ -4,8 +4,41 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 
 import numpy as np
+
+from fogsf.trainer.logs.chamber_log import ChamberLog
+from fogsf.trainer.logs.metrics import log_metrics
+from fogsf.trainer.models.features import FrontEnd, prepare
+from fogsf.trainer.models.physics_nodes import NodeTemperatures
+from fogsf.trainer.models.reference import expand
+
+
+def ratio(log: ChamberLog, pred: np.ndarray) -> float:
+    """Test RMS / noise floor of `log` with `pred` (ppm, one per sample) taken off."""
+    m = log_metrics(log, correction_ppm=pred)
+    return m["rms_ppm"] / m["noise_floor_ppm"]
+
+
+@dataclass
+class StepScorer:
+    """A test log seen through a training set's front end: its node temperatures at any
+    time constant (`nt`), and the score (`ratio`) of a prediction per model step, held over
+    each step's samples as the kernel holds it."""
+
+    log: ChamberLog
+    nt: NodeTemperatures
+    decimation: int
+
+    @classmethod
+    def of(cls, log: ChamberLog, fe: FrontEnd) -> StepScorer:
+        dt = prepare(log, fe, None, None)
+        return cls(log, NodeTemperatures([dt.s[:, 0].astype(np.float64)], fe.step_s),
+                   dt.decimation)
+
+    def __call__(self, pred: np.ndarray) -> float:
+        return ratio(self.log, expand(pred, len(self.log), self.decimation))
 
 
 def finish(rows: list[dict], out: str | None, t0: float) -> int:

@@ -29,10 +29,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from benchmarks.probes import finish, spread_cells
-from benchmarks.probes.physics_nodes import ratio
+from benchmarks.probes import StepScorer, finish, spread_cells
 from benchmarks.probes.sf_oracle import Run, partial_case, protocol_cases
-from fogsf.trainer.models.features import prepare
 from fogsf.trainer.models.lag_bank import (
     BANK_LAMBDA,
     CURVED_MAX_TAU_S,
@@ -42,8 +40,7 @@ from fogsf.trainer.models.lag_bank import (
 )
 from fogsf.trainer.models.least_squares import TAU_GRID_S
 from fogsf.trainer.models.node_fit import varpro
-from fogsf.trainer.models.physics_nodes import NodeTemperatures, identify_taus
-from fogsf.trainer.models.reference import expand
+from fogsf.trainer.models.physics_nodes import identify_taus
 from fogsf.trainer.training import structure_choice as sc
 
 Law = Callable[[np.ndarray], np.ndarray]
@@ -101,13 +98,12 @@ def case(train: list[Run], test: Run) -> dict:
     full = sc.step_data(logs)
     z, y = full.nodes.z(TAU_GRID_S), full.y
     s = float(np.std(y)) or 1.0
-    log = test[0].log
-    dt = prepare(log, full.fe, None, None)
-    nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
+    on_test = StepScorer.of(test[0].log, full.fe)
+    nt = on_test.nt
     zt = nt.z(TAU_GRID_S)
 
     def score(law: Law, zz: np.ndarray = zt) -> float:
-        return ratio(log, expand(law(zz) * s, len(log), dt.decimation))
+        return on_test(law(zz) * s)
 
     out = {"bank": score(fit_bank(z, y / s, BANK_LAMBDA, curved=n_curved()).predict)}
     for w in (0.1, 0.01):

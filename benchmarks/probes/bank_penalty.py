@@ -24,8 +24,7 @@ import time
 
 import numpy as np
 
-from benchmarks.probes import finish, spread_cells
-from benchmarks.probes.physics_nodes import ratio
+from benchmarks.probes import StepScorer, finish, spread_cells
 from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
 
 
@@ -33,9 +32,6 @@ def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - Chamber
     """Every penalty's test ratio (with the hysteresis term where the check keeps it on the
     bank at the prior, as `fogsf train` decides it), the rule's choice, and every penalty's
     held-out parts (mean squared window error per part) for trying other rules."""
-    from fogsf.trainer.models.features import prepare
-    from fogsf.trainer.models.physics_nodes import NodeTemperatures
-    from fogsf.trainer.models.reference import expand
     from fogsf.trainer.training import structure_choice as sc
     from fogsf.trainer.training.hysteresis_choice import decide, fit_with_term
 
@@ -58,15 +54,14 @@ def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - Chamber
             rule = pc.plain
     full = sc.step_data(train)
     every = np.arange(full.y.size)
-    dt = prepare(test, full.fe, None, None)
-    nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
+    on_test = StepScorer.of(test, full.fe)
     out: dict = {"parts": sd.n_folds, "term": bool(used), "rule_penalty": bank_penalty(rule),
                  "rule_cross": bank_cross(rule),
                  "part_mse": {k: [float(np.mean(f)) for f in v] for k, v in folds.items()}}
     for key, name in names.items():
         pred = fit_with_term(name, full, every)[0] if used else sc.fit_candidate(name, full,
                                                                                   every)
-        out[key] = ratio(test, expand(pred(nt), len(test), dt.decimation))
+        out[key] = on_test(pred(on_test.nt))
     out["rule"] = out[column(out["rule_penalty"], out["rule_cross"])]
     return out
 

@@ -22,17 +22,13 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from benchmarks.hysteresis import partial_runs, pick_seeds
-from benchmarks.probes import finish
+from benchmarks.probes import StepScorer, finish
 
 BASE = "bank"
 THRESHOLDS = (0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40)
 
 
 def one(item: tuple[int, str]) -> dict:
-    from fogsf.trainer.logs.metrics import log_metrics
-    from fogsf.trainer.models.features import prepare
-    from fogsf.trainer.models.physics_nodes import NodeTemperatures
-    from fogsf.trainer.models.reference import expand
     from fogsf.trainer.training.hysteresis_choice import decide, fit_with_term
     from fogsf.trainer.training.structure_choice import fit_candidate, step_data
 
@@ -41,14 +37,12 @@ def one(item: tuple[int, str]) -> dict:
     d = decide([train], BASE, 5.0)
     sd = step_data([train])
     every = np.arange(sd.y.size)
-    dt = prepare(test, sd.fe, None, None)
-    nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], sd.fe.step_s)
+    on_test = StepScorer.of(test, sd.fe)
     out = {"seed": seed, "group": group, "without_heldout": d["heldout_rms_ppm"]["without"],
            "with_heldout": d["heldout_rms_ppm"]["with"]}
     for name, pred in (("without", fit_candidate(BASE, sd, every)),
                        ("with", fit_with_term(BASE, sd, every)[0])):
-        m = log_metrics(test, correction_ppm=expand(pred(nt), len(test), dt.decimation))
-        out[name] = m["rms_ppm"] / m["noise_floor_ppm"]
+        out[name] = on_test(pred(on_test.nt))
     print(out, flush=True)
     return out
 

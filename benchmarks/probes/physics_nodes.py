@@ -20,16 +20,9 @@ import time
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from benchmarks.probes import finish, spread_cells
-from fogsf.trainer.logs.metrics import log_metrics
+from benchmarks.probes import finish, ratio, spread_cells
 from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
 from fogsf.trainer.training.structure_choice import CANDIDATES, candidate_compensation, choose
-
-
-def ratio(log, pred: np.ndarray) -> float:  # noqa: ANN001 - a ChamberLog
-    m = log_metrics(log, correction_ppm=pred)
-    return m["rms_ppm"] / m["noise_floor_ppm"]
-
 
 CANDS = CANDIDATES
 

@@ -41,8 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import PROTOCOLS, run_config
-from benchmarks.probes import finish, spread_cells
-from benchmarks.probes.physics_nodes import ratio
+from benchmarks.probes import StepScorer, finish, ratio, spread_cells
 from fogsf.trainer.logs.chamber_log import ChamberLog
 from fogsf.trainer.models.features import step_targets
 from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name, fit_bank
@@ -102,9 +101,6 @@ def bank_ratio(train: list[SimResult], test: SimResult, source: str,
     """The bank `name` (default: at the prior; least squares, as `fogsf train` fits it), its
     temperature input the log's thermometer (`source` "thermometer") or a true node's
     temperature ("board", "housing"): where the bank loses against the oracle."""
-    from fogsf.trainer.models.features import prepare
-    from fogsf.trainer.models.physics_nodes import NodeTemperatures
-    from fogsf.trainer.models.reference import expand
     from fogsf.trainer.training import structure_choice as sc
 
     def log_of(r: SimResult) -> ChamberLog:
@@ -114,10 +110,8 @@ def bank_ratio(train: list[SimResult], test: SimResult, source: str,
 
     full = sc.step_data([log_of(r) for r in train])
     pred = sc.fit_candidate(name or bank_name(), full, np.arange(full.y.size))
-    log = log_of(test)
-    dt = prepare(log, full.fe, None, None)
-    nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], full.fe.step_s)
-    return ratio(log, expand(pred(nt), len(log), dt.decimation))
+    on_test = StepScorer.of(log_of(test), full.fe)
+    return on_test(pred(on_test.nt))
 
 
 BANK_SOURCES = ("thermometer", "board", "housing")

@@ -36,18 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.probes import finish, spread_cells
-from benchmarks.probes.physics_nodes import ratio
+from benchmarks.probes import StepScorer, finish, spread_cells
 from benchmarks.probes.sf_oracle import Run, partial_case, protocol_cases
-from fogsf.trainer.models.features import prepare
 from fogsf.trainer.models.least_squares import TAU_GRID_S
-from fogsf.trainer.models.physics_nodes import (
-    NodeTemperatures,
-    fit_coefficients,
-    identify_taus,
-    node_design,
-)
-from fogsf.trainer.models.reference import expand
+from fogsf.trainer.models.physics_nodes import fit_coefficients, identify_taus, node_design
 from fogsf.trainer.training import structure_choice as sc
 
 CHI2_95 = {2: 5.99, 3: 7.81}  # the chi-square 95 % points of 2 and 3 parameters
@@ -57,12 +49,8 @@ def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
     """`ident`, `train`, `parts`, `test` and `dchi2` per node count, `bank` and `mix`."""
     sd = sc.step_data([r.log for r, _ in train])
     by_parts = dataclasses.replace(sd, fold=sc.part_folds(sd))
-    log = test[0].log
-    dt = prepare(log, sd.fe, None, None)
-    nt = NodeTemperatures([dt.s[:, 0].astype(np.float64)], sd.fe.step_s)
-
-    def on_test(pred: np.ndarray) -> float:
-        return ratio(log, expand(pred, len(log), dt.decimation))
+    on_test = StepScorer.of(test[0].log, sd.fe)
+    nt = on_test.nt
 
     def fitted(taus: tuple[float, ...]) -> tuple[float, float, np.ndarray]:
         z = sd.nodes.z(taus)
