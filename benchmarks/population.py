@@ -45,6 +45,7 @@ import numpy as np
 
 from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
 from fogsf.trainer.sim.config import ProfileConfig, SimConfig
+from fogsf.trainer.sim.population import OUTSIDE_FORMS
 
 PROTOCOLS = {
     "a": (("up05",), "up10"),
@@ -332,17 +333,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--magnitudes", action="store_true",
                     help="only print the population's SF error before compensation at 1 C/min "
                          "(RMS, max|e|: 10/50/90th percentiles), noise floor and mix")
-    ap.add_argument("--outside", default=None, metavar="FORM",
+    ap.add_argument("--outside", default=None, choices=OUTSIDE_FORMS,
                     help="give every gyro a form outside the population's: sensor (the "
-                         "thermometer behind the board) or vent (an SF-bearing part behind "
-                         "the chamber air), docs/population.md")
+                         "thermometer behind the board) or vent (a part an SF factor reads "
+                         "behind the chamber air), docs/population.md")
     add_executor_options(ap)
     args = ap.parse_args(argv)
 
-    from fogsf.trainer.sim.population import OUTSIDE_FORMS, seed_range
+    from fogsf.trainer.sim.population import seed_range
 
-    if args.outside is not None and args.outside not in OUTSIDE_FORMS:
-        ap.error(f"--outside must be one of {', '.join(OUTSIDE_FORMS)}, got {args.outside!r}")
+    if args.outside and args.magnitudes:
+        ap.error("--magnitudes describes the population as drawn: drop --outside")
 
     models = tuple(m for m in args.models.split(",") if m)
     protocols = tuple(p for p in args.protocols.split(",") if p)

@@ -132,8 +132,10 @@ def test_the_thermal_bias_is_drawn_from_its_own_stream_within_its_ranges() -> No
 
 @pytest.mark.parametrize("form", pop.OUTSIDE_FORMS)
 def test_outside_forms_change_only_what_they_state(form: str) -> None:
-    """A form outside the population's is drawn from its own stream within its range and
-    changes nothing else of the gyro; the same seed gives the same form."""
+    """A form outside the population's is drawn within its range and changes nothing else
+    of the gyro: one node (the thermometer's new one, or the vented part with the parts
+    behind it still behind it), never the SF law, bias, noise or effects; the same seed
+    gives the same form."""
     lo, hi = pop.SENSOR_TAU_S if form == "sensor" else pop.VENT_TAU_S
     for seed in (1, 7, 123, 20005):
         plain = pop.gyro_for_seed(seed)
@@ -154,7 +156,9 @@ def test_outside_forms_change_only_what_they_state(form: str) -> None:
             assert n.parent == plain.thermal.board_node and n.self_heat_c == 0.0
         else:
             assert g.thermal.board_node == plain.thermal.board_node
-            assert n.name in pop.VENT_PARTS and n.parent == "chamber"
+            assert n.parent == "chamber" and before[n.name].parent != "chamber"
+            assert n.name in pop.sf_parts(plain)  # a part an SF factor reads
+            assert any(n.name in t.nodes for t in g.sf.terms)
     with pytest.raises(ValueError, match="outside form"):
         pop.outside_form(pop.gyro_for_seed(1), 1, "draft")
 
@@ -177,15 +181,22 @@ def test_the_thermometer_behind_the_board_reads_it_late() -> None:
     assert lag_c > 0.9  # the form is visible: tau >= 30 s at ~2 C/min
 
 
-def test_the_population_bench_runs_gyros_outside_the_forms(capsys) -> None:  # noqa: ANN001
-    """`benchmarks.population --outside FORM` trains and scores the gyros with the form
-    (its scenario says so); an unknown form is refused before any work."""
+def test_the_population_bench_runs_gyros_outside_the_forms(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`benchmarks.population --outside FORM` trains and scores the gyros with the form (its
+    scenario says so, and the figures differ from the gyro as drawn); an unknown form, or
+    one with --magnitudes (which would ignore it), is refused before any work."""
     from benchmarks import population as bench
 
     row = bench.bench_gyro(3, ("poly",), ("a",), "sensor")
-    assert row["gyro"].endswith(":sensor")
-    assert row["cases"]["a"]["poly"]["ratio"] > 0.5
-    with pytest.raises(SystemExit) as e:
-        bench.main(["--outside", "draft", "--n", "1"])
-    assert e.value.code == 2
-    assert "sensor, vent" in capsys.readouterr().err
+    plain = bench.bench_gyro(3, ("poly",), ("a",))
+    assert row["gyro"] == plain["gyro"] + ":sensor"
+    a, b = row["cases"]["a"]["poly"], plain["cases"]["a"]["poly"]
+    assert a["ratio"] != pytest.approx(b["ratio"], rel=1e-3)
+    for argv in (["--outside", "draft", "--n", "1"],
+                 ["--outside", "vent", "--magnitudes", "--n", "1"]):
+        with pytest.raises(SystemExit) as e:
+            bench.main(argv)
+        assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "sensor" in err and "vent" in err and "--magnitudes" in err

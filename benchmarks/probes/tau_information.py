@@ -11,10 +11,12 @@ squares as `fogsf train` fits it, and scored on the test log (test RMS / noise f
   ramp in three parts, as `fogsf train`'s structure choice holds them out);
 - `test`: the grid combination best on the test itself (no method has it: the most the
   family reaches with the time constants the test would pick);
-- `dchi2`: how much worse `test`'s combination fits the training logs than the best
-  combination does, in units of the residual variance (SSE_min / (n - p), n model steps,
-  p the structure's coefficients): under the chi-square 95 % point of K parameters (5.99
-  for 2, 7.81 for 3), the training logs cannot tell the two apart even with white noise;
+- `dchi2`: how much worse `test`'s combination fits the training logs than the best fit
+  does (the best grid combination or `ident`, whichever fits better), in units of the
+  residual variance (SSE_min / (n - p), n model steps, p the structure's coefficients; the
+  ridge's effective degrees of freedom and the K time constants are left out, negligible
+  with thousands of steps): under the chi-square 95 % point of K parameters (5.99 for 2,
+  7.81 for 3), the training logs cannot tell the two apart even with white noise;
 - `bank`: the lag bank at its prior, and `mix`: the mean of the bank's and `train`'s
   predictions (a two-structure average).
 `--partial` runs the partial-cycle programs of `make bench-hysteresis` instead of the
@@ -69,17 +71,18 @@ def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
     out["bank"] = on_test(bank)
     for k in nodes:
         ident = identify_taus(sd.nodes, sd.y, k)
-        out[f"ident{k}"] = fitted(ident)[1]
+        sse_ident, out[f"ident{k}"], _ = fitted(ident)
         grid = [(c, *fitted(c)) for c in itertools.combinations(TAU_GRID_S, k)]
         best_train = min(grid, key=lambda g: g[1])
         best_test = min(grid, key=lambda g: g[2])
+        sse_min = min(best_train[1], sse_ident)  # variable projection may beat the grid
         p = node_design(sd.nodes.z(best_train[0]), best_train[0]).shape[1] + 1
-        s2 = best_train[1] / (sd.y.size - p)
+        s2 = sse_min / (sd.y.size - p)
         out[f"train{k}"] = best_train[2]
         held = min(grid, key=lambda g: sc.heldout_score("", by_parts, fit_at(g[0])))
         out[f"parts{k}"] = held[2]
         out[f"test{k}"] = best_test[2]
-        out[f"dchi2_{k}"] = (best_test[1] - best_train[1]) / s2
+        out[f"dchi2_{k}"] = (best_test[1] - sse_min) / s2
         out[f"mix{k}"] = on_test(0.5 * (bank + best_train[3]))
     return out
 

@@ -28,6 +28,7 @@ seeds (`EVAL_SEEDS`) are for reporting only: no threshold or default may be tune
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -80,13 +81,13 @@ HYST_WIDTH_C = (4.0, 10.0)
 HYST_PPM_PER_C = (3.0, 8.0)
 HYST_STREAM = 0x4857  # the hysteresis draws' own stream: [seed, HYST_STREAM]
 # Forms outside the population's (`outside_form`, benches only): the thermometer behind the
-# board ("sensor", its lag log-uniform over SENSOR_TAU_S), or one SF-bearing internal part
-# behind the chamber air instead of the housing ("vent", VENT_TAU_S): in both the SF moves
-# before the thermometer sees it, which no lag of the thermometer's reading holds exactly.
+# board ("sensor", its lag log-uniform over SENSOR_TAU_S), or one internal part that carries
+# an SF factor moved behind the chamber air ("vent", VENT_TAU_S; the parts behind it follow
+# it): in both the SF moves before the thermometer sees it, which no lag of the
+# thermometer's reading holds exactly.
 OUTSIDE_FORMS = ("sensor", "vent")
 SENSOR_TAU_S = (30.0, 300.0)
 VENT_TAU_S = (100.0, 1500.0)
-VENT_PARTS = ("coil_inner", "source", "preamp")  # always drawn, each carrying an SF factor
 OUTSIDE_STREAM = 0x0F0E
 # effects that are the gyro's own physics (carried by `with_gyro`), not the run's
 GYRO_EFFECTS = ("hysteresis",)
@@ -239,13 +240,18 @@ def gyro_for_seed(seed: int, hysteresis: bool = True, thermal_bias: bool = False
     return with_thermal_bias(cfg, seed) if thermal_bias else cfg
 
 
+def sf_parts(cfg: SimConfig) -> list[str]:
+    """The internal parts (not housing or board) whose temperature an SF factor reads, in
+    the network's order."""
+    read = {name for t in cfg.sf.terms for name in t.nodes}
+    return [n.name for n in cfg.thermal.nodes[2:] if n.name in read]
+
+
 def outside_form(cfg: SimConfig, seed: int, form: str) -> SimConfig:
     """`cfg` (a population gyro) given a form outside the population's (OUTSIDE_FORMS),
-    drawn from a stream of its own (seed, OUTSIDE_STREAM), so its other draws do not move:
-    "sensor" puts the thermometer on a node behind the board, "vent" puts one of
-    VENT_PARTS behind the chamber air (its children follow it)."""
-    import copy
-
+    drawn from (seed, OUTSIDE_STREAM), not from the gyro's own stream: "sensor" puts the
+    thermometer on a node behind the board; "vent" moves one of `sf_parts` behind the
+    chamber air, with its own time constant (the parts behind it follow it)."""
     if form not in OUTSIDE_FORMS:
         raise ValueError(f"outside form must be one of {', '.join(OUTSIDE_FORMS)}, got {form!r}")
     rng = np.random.default_rng([seed, OUTSIDE_STREAM])
@@ -255,8 +261,9 @@ def outside_form(cfg: SimConfig, seed: int, form: str) -> SimConfig:
         out.thermal.nodes.append(NodeConfig("sensor", out.thermal.board_node, tau, 0.0))
         out.thermal.board_node = "sensor"
     else:
-        node = [n for n in out.thermal.nodes if n.name in VENT_PARTS][
-            int(rng.integers(len(VENT_PARTS)))]
+        parts = sf_parts(out)
+        name = parts[int(rng.integers(len(parts)))]
+        node = next(n for n in out.thermal.nodes if n.name == name)
         node.parent, node.tau_s = "chamber", round(_log_uniform(rng, VENT_TAU_S), 1)
     out.scenario += f":{form}"
     return out
@@ -268,8 +275,6 @@ def with_thermal_bias(cfg: SimConfig, seed: int) -> SimConfig:
     gyro's thermal network, SF law, bias offset and slope and noise are those of
     `gyro_for_seed(seed)`. Not drawn by default: the SF benches run at a constant table
     rate, where a bias is an apparent SF (bias / rate), and their figures would move."""
-    import copy
-
     rng = np.random.default_rng([seed, 0xB1A5])
     out = copy.deepcopy(cfg)
     coils = [n.name for n in out.thermal.nodes if n.name.startswith("coil")]
@@ -285,8 +290,6 @@ def with_gyro(run: SimConfig, gyro: SimConfig) -> SimConfig:
     """`run`'s chamber program, table, seed and effects on `gyro`'s physics (a new config):
     its thermal network, SF law, bias, noise and SF hysteresis (GYRO_EFFECTS, unless the
     run plants its own)."""
-    import copy
-
     out = copy.deepcopy(run)
     out.thermal = copy.deepcopy(gyro.thermal)
     out.thermal.start = run.thermal.start
