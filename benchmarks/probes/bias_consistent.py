@@ -103,8 +103,7 @@ def one(gyro: int, loop: str, work: Path) -> dict:
     fm = bank_feature_map([train], 5.0)
     sse, n = profile(fm, train)
     s2 = float(sse.min()) / max(n - 5, 1)
-    ok = np.argwhere(sse <= sse.min() + bs.LEAD_SET_CHI2 * s2)
-    ok = ok[np.argsort(sse[ok[:, 0], ok[:, 1]])]
+    ok = bs.lead_allowed(sse, s2)
     pick = ok[np.unique(np.linspace(0, len(ok) - 1, min(MAX_POINTS, len(ok))).astype(int))]
     taus, ws_grid = np.asarray(bs.LEAD_TAU_GRID_S), np.asarray(bs.LEAD_W_GRID)
     errs = np.array([error_at(fm, train, test, ws, true, float(taus[i]), float(ws_grid[j]))
@@ -121,7 +120,7 @@ def one(gyro: int, loop: str, work: Path) -> dict:
         i = int(np.argmin(np.abs(np.log(taus / tp[0]))))
         j = int(np.argmin(np.abs(ws_grid - tp[1])))
         row.update(true_tau_s=tp[0], true_w=tp[1],
-                   true_in_set=bool(sse[i, j] <= sse.min() + bs.LEAD_SET_CHI2 * s2),
+                   true_in_set=bool(np.all(ok == (i, j), axis=1).any()),
                    true_delta_sse_s2=float((sse[i, j] - sse.min()) / s2),
                    err_true_dph=error_at(fm, train, test, ws, true, float(taus[i]),
                                          float(ws_grid[j])))

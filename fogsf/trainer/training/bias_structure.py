@@ -195,6 +195,13 @@ def _lead_at(own: Columns, rows: np.ndarray, y: np.ndarray, i: int, j: int) -> C
                        LEAD_W_GRID[j])
 
 
+def lead_allowed(sse: np.ndarray, sigma2: float) -> np.ndarray:
+    """The grid points [i, j] of a `lead_profile` whose SSE lies within LEAD_SET_CHI2 x
+    sigma2 of its minimum (a two-parameter 95 % region), by SSE, the best first."""
+    ok = np.argwhere(sse <= np.nanmin(sse) + LEAD_SET_CHI2 * sigma2)
+    return ok[np.argsort(sse[ok[:, 0], ok[:, 1]], kind="stable")]
+
+
 def lead_set(cols: Columns, y: np.ndarray, sigma2: float,
              most: int = LEAD_SET_MOST) -> list[CandidateFit]:
     """`lead` at the grid points the training targets cannot tell from its best: SSE
@@ -207,8 +214,7 @@ def lead_set(cols: Columns, y: np.ndarray, sigma2: float,
     sse = lead_profile(own, rows, y)
     if not np.isfinite(sse).any():
         return []
-    ok = np.argwhere(sse <= np.nanmin(sse) + LEAD_SET_CHI2 * sigma2)
-    ok = ok[np.argsort(sse[ok[:, 0], ok[:, 1]], kind="stable")]
+    ok = lead_allowed(sse, sigma2)
     keep = [0]
     for axis in (0, 1):  # the set's ends in tau and in w
         keep += [int(np.argmin(ok[:, axis])), int(np.argmax(ok[:, axis]))]
