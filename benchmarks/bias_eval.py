@@ -24,15 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.logs.bias import before_after, bias_windows
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import read_log, with_mapping_beside
-from fogsf.trainer.sim import rig_logs, rigs
-from fogsf.trainer.sim.config import BiasConfig
-from fogsf.trainer.sim.population import gyro_for_seed
-from fogsf.trainer.training.bias_interval import bias_interval
-from fogsf.trainer.training.bias_model import bank_feature_map, fit_bias
-from fogsf.trainer.training.bias_structure import CANDIDATES
+from fogsf.logs.bias import before_after, bias_windows
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import read_log, with_mapping_beside
+from fogsf.sim import rig_logs, rigs
+from fogsf.sim.config import BiasConfig
+from fogsf.sim.population import gyro_for_seed
+from fogsf.training.bias_interval import bias_interval
+from fogsf.training.bias_model import bank_feature_map, fit_bias
+from fogsf.training.bias_structure import CANDIDATES
 
 TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)  # lo, hi C, up, down C/min, soak s
 # reversals-fast: the same reversals from a loop that ramps down faster than the test

@@ -29,13 +29,13 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.bias_eval import CASES, SHUPE, TEST_LOOP, TRAIN_LOOP, bias_law, protocol
-from fogsf.trainer.logs.bias import bias_windows
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import read_log, with_mapping_beside
-from fogsf.trainer.sim import rig_logs
-from fogsf.trainer.sim.config import BiasConfig
-from fogsf.trainer.sim.lag import first_order_lag
-from fogsf.trainer.sim.population import gyro_for_seed
+from fogsf.logs.bias import bias_windows
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import read_log, with_mapping_beside
+from fogsf.sim import rig_logs
+from fogsf.sim.config import BiasConfig
+from fogsf.sim.lag import first_order_lag
+from fogsf.sim.population import gyro_for_seed
 
 FAST_S = 20.0  # the board derivative's lag (board oracle)
 BASIS = ("lin_dph_per_c", "quad_dph_per_c2", "cube_dph_per_c3", "shupe_dph_per_c_per_min")

@@ -1,12 +1,12 @@
 """Success rate of `fogsf diagnose` over many seeded cases (make bench-diagnose).
 
-Cases (fogsf.trainer.diagnose.cases, ranges stated there), on the gyro population
-(fogsf.trainer.sim.population; `--gyros default`: the default gyro only, as before): every form
+Cases (fogsf.diagnose.cases, ranges stated there), on the gyro population
+(fogsf.sim.population; `--gyros default`: the default gyro only, as before): every form
 variant of the catalogue effects (cases.VARIANTS) and the lag / dT/dt terms planted at 3-20x
 the noise floor (visible part), two effects at once (cases.PAIRS), nulls (one of the
 effects' setups, and a +/- 10, 50, 100, 200 deg/s table), out-of-catalogue effects
 (humidity, supply step, periodic), ramp-only and short-soak lag / dT/dt runs; half the logs
-without chamber_c. Seeds: `--seeds-from dev` (fogsf.trainer.sim.population.DEV_SEEDS, for tuning)
+without chamber_c. Seeds: `--seeds-from dev` (fogsf.sim.population.DEV_SEEDS, for tuning)
 or `eval` (EVAL_SEEDS, for reporting only). For each case: right or wrong by `cases.judge`,
 and the figures behind it. Prints a table and writes JSON.
 
@@ -24,13 +24,13 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from fogsf.trainer.diagnose import cases
+from fogsf.diagnose import cases
 
 Job = tuple[str, str, str, int, bool]  # kind, name, variant, seed, population gyro
 
 
 def one(job: Job) -> dict[str, Any]:
-    from fogsf.trainer.diagnose import report, verdict
+    from fogsf.diagnose import report, verdict
 
     kind, name, variant, seed, population = job
     t0 = time.time()
@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.gyros == "default":
         todo = jobs(args.seeds, 100 if args.first_seed is None else args.first_seed)
     else:
-        from fogsf.trainer.sim.population import seed_range
+        from fogsf.sim.population import seed_range
 
         rng = seed_range(args.seeds_from)
         first = args.first_seed if args.first_seed is not None else (

@@ -36,12 +36,12 @@ import numpy as np
 
 from fogsf.bindings.firmware import arm_size, arm_tools_missing, build_arm, qemu_cmd
 from fogsf.bindings.kernel import Kernel, build_kernel, state_sizes
+from fogsf.errors import UserError
 from fogsf.export.header import write_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.models import samples
-from fogsf.trainer.models import stream as st
-from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS
+from fogsf.models import samples
+from fogsf.models import stream as st
+from fogsf.models.lag_bank import BANK_LSTM_INPUTS
 
 TARGET = {"flash_bytes": 32 * 1024, "ram_bytes": 2 * 1024, "instructions_per_step": 50_000}
 IMAGE_TARGET = {"flash_bytes": 24 * 1024, "ram_bytes": 1536}  # three small models, one image

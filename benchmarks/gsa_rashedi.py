@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.gsa.executors import add_executor_options, default_workers, executor_from_args
-from fogsf.trainer.gsa.optimizer import BOUNDS, Param, minimize
-from fogsf.trainer.gsa.testfunctions import FUNCTIONS
+from fogsf.gsa.executors import add_executor_options, default_workers, executor_from_args
+from fogsf.gsa.optimizer import BOUNDS, Param, minimize
+from fogsf.gsa.testfunctions import FUNCTIONS
 
 
 def one_run(key: str, run: int, seed: int, n_agents: int, dim: int, n_iters: int,

@@ -1,11 +1,11 @@
 """SF hysteresis: the default (its hysteresis term when the logs ask for it) against the same
 model without the term and with it always (`make bench-hysteresis`).
 
-Gyros come from the population (`fogsf.trainer.sim.population`): a share draws a play
+Gyros come from the population (`fogsf.sim.population`): a share draws a play
 operator of the coil temperature in its SF (`hysteresis_for_seed`: widths 4-10 C,
 strengths 3-8 ppm/C). Every model trains on the partial-cycle program `partial_train`
 (reversals inside -40..50 C, legs at 2 and 0.75 C/min, 6.3 h) and is tested on
-`partial_test` (other turns, 1 C/min, 5.8 h; `fogsf.trainer.sim.partial_cycles`), scored as
+`partial_test` (other turns, 1 C/min, 5.8 h; `fogsf.sim.partial_cycles`), scored as
 the test RMS after compensation over the noise floor. Three groups of gyros:
 
   hyst       the first N gyros from --first that draw hysteresis
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
+from fogsf.gsa.executors import add_executor_options, executor_from_args, run_all
 
 MODELS = {"auto": "auto", "off": "off", "on": "on"}
 GROUPS = ("hyst", "same-flat", "flat")
@@ -47,8 +47,8 @@ def partial_configs(seed: int, group: str) -> tuple:
     """The gyro of `seed` (with its SF hysteresis for group "hyst", without for the others)
     and its runs of the partial-cycle training and test programs: (gyro, train config, test
     config)."""
-    from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
-    from fogsf.trainer.sim.population import gyro_for_seed, run_on_gyro
+    from fogsf.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
+    from fogsf.sim.population import gyro_for_seed, run_on_gyro
 
     gyro = gyro_for_seed(seed, hysteresis=group == "hyst")
     train, test = (run_on_gyro(gyro, prog.profile(), seed * 16 + off, prog.name)
@@ -58,7 +58,7 @@ def partial_configs(seed: int, group: str) -> tuple:
 
 def partial_runs(seed: int, group: str) -> tuple:
     """`partial_configs` simulated: (gyro, train log, test log)."""
-    from fogsf.trainer.sim import simulate
+    from fogsf.sim import simulate
 
     gyro, train, test = partial_configs(seed, group)
     return gyro, simulate(train).log, simulate(test).log
@@ -68,9 +68,9 @@ def case(item: tuple[int, str], kernel: bool = False) -> dict:
     """Every model on one (gyro seed, group) (one unit of work)."""
     import torch
 
-    from fogsf.trainer.sim.population import hysteresis_for_seed
-    from fogsf.trainer.training.options import TrainOptions
-    from fogsf.trainer.training.train import run_training
+    from fogsf.sim.population import hysteresis_for_seed
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import run_training
 
     torch.set_num_threads(1)
     seed, group = item
@@ -102,8 +102,8 @@ def kernel_check(model, log, floor: float) -> dict:  # noqa: ANN001 - StreamMode
     """The model through the C kernel over the test log: bit-for-bit SF against the numpy
     reference, and the test ratio from the kernel's own SF output."""
     from fogsf.bindings.kernel import Kernel
-    from fogsf.trainer.logs.metrics import log_metrics
-    from fogsf.trainer.models import reference
+    from fogsf.logs.metrics import log_metrics
+    from fogsf.models import reference
 
     kern = Kernel(model)
     corrected, sf, _ = kern.run(log.temp_c, log.gyro_dps)
@@ -115,7 +115,7 @@ def kernel_check(model, log, floor: float) -> dict:  # noqa: ANN001 - StreamMode
 
 def pick_seeds(first: int, n: int, rng: range) -> dict[str, list[int]]:
     """The first n gyros from `first` with hysteresis, and the first n without."""
-    from fogsf.trainer.sim.population import hysteresis_for_seed
+    from fogsf.sim.population import hysteresis_for_seed
 
     with_h: list[int] = []
     without: list[int] = []
@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     add_executor_options(ap, "gyros")
     args = ap.parse_args(argv)
 
-    from fogsf.trainer.sim.population import seed_range
+    from fogsf.sim.population import seed_range
 
     groups = [g for g in args.groups.split(",") if g]
     if any(g not in GROUPS for g in groups) or args.n < 1:

@@ -25,14 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.logs.logio import write_log
-from fogsf.trainer.logs.metrics import reference_sf_of_logs, sf_error_ppm, sf_windows
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.scenarios import paper
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.structure_choice import choice_message
-from fogsf.trainer.training.train import DEFAULT_MODEL, MODELS, per_sample_prediction, run_training
-from fogsf.trainer.training.transfer import RateTransfer
+from fogsf.logs.logio import write_log
+from fogsf.logs.metrics import reference_sf_of_logs, sf_error_ppm, sf_windows
+from fogsf.sim.gyro import simulate
+from fogsf.sim.scenarios import paper
+from fogsf.training.options import TrainOptions
+from fogsf.training.structure_choice import choice_message
+from fogsf.training.train import DEFAULT_MODEL, MODELS, per_sample_prediction, run_training
+from fogsf.training.transfer import RateTransfer
 
 # The paper's Table 2 (1e-6); 450.24 is read as the RMS about the 20 C reference.
 PAPER = {"before": 450.24, "mlp": 32.46, "lstm": 13.02, "gsa-lstm": 11.23}

@@ -20,12 +20,12 @@ import sys
 import time
 from pathlib import Path
 
-from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
-from fogsf.trainer.plan.evaluate import envelope_program, evaluate_gyro, test_rates
-from fogsf.trainer.plan.programs import Limits
-from fogsf.trainer.plan.report import as_json, score, table_md, write_outputs
-from fogsf.trainer.plan.search import search
-from fogsf.trainer.sim.population import EVAL_SEEDS
+from fogsf.gsa.executors import add_executor_options, executor_from_args, run_all
+from fogsf.plan.evaluate import envelope_program, evaluate_gyro, test_rates
+from fogsf.plan.programs import Limits
+from fogsf.plan.report import as_json, score, table_md, write_outputs
+from fogsf.plan.search import search
+from fogsf.sim.population import EVAL_SEEDS
 
 LIMITS = Limits(-40.0, 50.0, 3.0, 4.5)
 RATES = test_rates(0.2, 2.0, 4)

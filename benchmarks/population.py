@@ -1,6 +1,6 @@
 """Compensation on gyros it was not tuned on (`make bench-population`).
 
-Gyros come from the population (`fogsf.trainer.sim.population`): development seeds 0-9999 (tune
+Gyros come from the population (`fogsf.sim.population`): development seeds 0-9999 (tune
 there), evaluation seeds 20000-29999 (report there, never tune). For each gyro and each
 protocol, every model is trained on the protocol's training logs and scored on its test log
 (RMS and STD after compensation as multiples of the test log's noise floor); gsa-lstm, at a
@@ -43,9 +43,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
-from fogsf.trainer.sim.config import ProfileConfig, SimConfig
-from fogsf.trainer.sim.population import OUTSIDE_FORMS
+from fogsf.gsa.executors import add_executor_options, executor_from_args, run_all
+from fogsf.sim.config import ProfileConfig, SimConfig
+from fogsf.sim.population import OUTSIDE_FORMS
 
 PROTOCOLS = {
     "a": (("up05",), "up10"),
@@ -111,7 +111,7 @@ RUN_SEED_OFFSET = {"up05": 1, "up10": 2, "up20": 3, "down10": 4, "slowcycle": 5,
 
 
 def run_config(gyro: SimConfig, name: str, gyro_seed: int) -> SimConfig:
-    from fogsf.trainer.sim.population import run_on_gyro
+    from fogsf.sim.population import run_on_gyro
 
     return run_on_gyro(gyro, run_profile(name), gyro_seed * 16 + RUN_SEED_OFFSET[name], name)
 
@@ -119,7 +119,7 @@ def run_config(gyro: SimConfig, name: str, gyro_seed: int) -> SimConfig:
 def runs_for(gyro: SimConfig, gyro_seed: int, protocols: tuple[str, ...] | list[str]
              ) -> dict:
     """Every run the protocols need (training and test), simulated once on `gyro`."""
-    from fogsf.trainer.sim import simulate
+    from fogsf.sim import simulate
 
     needed = sorted({r for p in protocols for r in (*PROTOCOLS[p][0], PROTOCOLS[p][1])})
     return {r: simulate(run_config(gyro, r, gyro_seed)).log for r in needed}
@@ -133,8 +133,8 @@ def protocol_logs(gyro: SimConfig, gyro_seed: int, protocol: str) -> tuple[list,
 
 
 def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, imported late
-    from fogsf.trainer.training.options import TrainOptions
-    from fogsf.trainer.training.train import DEFAULT_MODEL
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import DEFAULT_MODEL
 
     kind = DEFAULT_MODEL if model == "default" or model in FORCED else model
     extra: dict = GSA_SMALL if kind == "gsa-lstm" else dict(FORCED.get(model, {}))
@@ -149,8 +149,8 @@ def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ..
     the gyro given that form outside the population's (`population.outside_form`)."""
     import torch
 
-    from fogsf.trainer.sim.population import gyro_for_seed, outside_form
-    from fogsf.trainer.training.train import run_training
+    from fogsf.sim.population import gyro_for_seed, outside_form
+    from fogsf.training.train import run_training
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()
@@ -296,9 +296,9 @@ def print_table(summary: dict, models: tuple[str, ...], protocols: tuple[str, ..
 def magnitudes(seeds: list[int]) -> dict:
     """The population's SF error before compensation on the paper's 1 C/min run (RMS and
     max|e| about the SF at 20 C) and its noise floor, and its structural mix."""
-    from fogsf.trainer.logs.metrics import log_metrics
-    from fogsf.trainer.sim import simulate
-    from fogsf.trainer.sim.population import gyro_for_seed
+    from fogsf.logs.metrics import log_metrics
+    from fogsf.sim import simulate
+    from fogsf.sim.population import gyro_for_seed
 
     rms, peak, floor, kinds = [], [], [], []
     for s in seeds:
@@ -340,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
     add_executor_options(ap)
     args = ap.parse_args(argv)
 
-    from fogsf.trainer.sim.population import seed_range
+    from fogsf.sim.population import seed_range
 
     if args.outside and args.magnitudes:
         ap.error("--magnitudes describes the population as drawn: drop --outside")

@@ -29,12 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.models.features import step_targets
-from fogsf.trainer.sim.gyro import SimResult, simulate
-from fogsf.trainer.sim.scenarios import paper
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.train import run_training
+from fogsf.logs.metrics import log_metrics
+from fogsf.models.features import step_targets
+from fogsf.sim.gyro import SimResult, simulate
+from fogsf.sim.scenarios import paper
+from fogsf.training.options import TrainOptions
+from fogsf.training.train import run_training
 
 
 def true_structure(r: SimResult) -> np.ndarray:

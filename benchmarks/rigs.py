@@ -1,6 +1,6 @@
 """Logs the way calibration rigs write them, end to end (`make bench-rigs`).
 
-For each rig case of `fogsf.trainer.sim.rig_logs.bench_cases` (a ROS-logged staircase with a
+For each rig case of `fogsf.sim.rig_logs.bench_cases` (a ROS-logged staircase with a
 slewing, stalling table; +/-100 deg/s reversals in a plain rad/s log with an epoch time base;
 a skew-mounted 3-axis IMU; quantised thermometers; ...) and each gyro drawn from the
 population, the case's training and held-out test logs are written with their column map
@@ -51,7 +51,7 @@ def score_bias(train_log, log, bias_dph: np.ndarray, truth,  # noqa: ANN001
     against max(0.1 deg/h, 5 % of the true bias' std), beside a PX4-style cubic in board
     temperature fitted to the training log's windows (the pairs measured as `train` measures
     them: the SF model's prediction `sf_train`, `sf_test` taken off their plateaus)."""
-    from fogsf.trainer.logs.bias import bias_windows
+    from fogsf.logs.bias import bias_windows
 
     wt, ws = bias_windows(train_log, sf_ppm=sf_train), bias_windows(log, sf_ppm=sf_test)
     if wt is None or ws is None:
@@ -69,11 +69,11 @@ def score_bias(train_log, log, bias_dph: np.ndarray, truth,  # noqa: ANN001
 def score_axis(model_dir: Path, train_path: Path, test_path: Path, axis: str, truth,  # noqa: ANN001 - rigs.Truth
                model: str) -> dict:
     """The trained model of one axis on its test log, against the truth."""
-    from fogsf.trainer.logs.dialect import Dialect
-    from fogsf.trainer.logs.logio import read_log
-    from fogsf.trainer.logs.pairs import find_pairs
-    from fogsf.trainer.models.reference import replay
-    from fogsf.trainer.models.stream import StreamModel
+    from fogsf.logs.dialect import Dialect
+    from fogsf.logs.logio import read_log
+    from fogsf.logs.pairs import find_pairs
+    from fogsf.models.reference import replay
+    from fogsf.models.stream import StreamModel
 
     log = read_log(test_path, Dialect(axis=axis or None))
     sm = StreamModel.load(model_dir).at_rate(log.sample_dt_s)
@@ -103,7 +103,7 @@ def score_axis(model_dir: Path, train_path: Path, test_path: Path, axis: str, tr
 
 def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> list[dict]:
     """Write the case's logs for one gyro (three for an IMU), train, score every axis."""
-    from fogsf.trainer.sim import rig_logs
+    from fogsf.sim import rig_logs
 
     case = rig_logs.bench_cases()[name]
     seeds = (gyro, gyro + 1, gyro + 2) if case.kind == "imu3" else (gyro,)
@@ -132,7 +132,7 @@ def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from fogsf.trainer.sim import rig_logs
+    from fogsf.sim import rig_logs
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter,

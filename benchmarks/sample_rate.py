@@ -31,14 +31,14 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.bindings.kernel import Kernel, build_kernel
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.logio import read_log, write_log
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.models.stream import StreamModel
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.scenarios import paper
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.train import run_training
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.logio import read_log, write_log
+from fogsf.logs.metrics import log_metrics
+from fogsf.models.stream import StreamModel
+from fogsf.sim.gyro import simulate
+from fogsf.sim.scenarios import paper
+from fogsf.training.options import TrainOptions
+from fogsf.training.train import run_training
 
 RATES_HZ = (10.0, 100.0, 1000.0)
 TRAIN_SEED, TEST_SEED, DAY_SEED = 1, 2, 3

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.logs.logio import write_log
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.sim import simulate
-from fogsf.trainer.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper
+from fogsf.logs.logio import write_log
+from fogsf.logs.metrics import log_metrics
+from fogsf.sim import simulate
+from fogsf.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper
 
 
 def main(argv: list[str] | None = None) -> int:

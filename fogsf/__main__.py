@@ -2,7 +2,7 @@
 
 import sys
 
-from fogsf.trainer.cli import main
+from fogsf.cli.main import main
 
 if __name__ == "__main__":
     sys.exit(main())

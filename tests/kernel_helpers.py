@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from fogsf.bindings.kernel import Kernel, build_kernel
-from fogsf.trainer.models.stream import StreamModel
+from fogsf.models.stream import StreamModel
 
 _KERNELS: dict[tuple[str, str], Kernel] = {}
 

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.scenarios import paper
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.sim.gyro import simulate
+from fogsf.sim.scenarios import paper
 
 
 def short_ramp(rate: float, seed: int, gyro_seed: int | None = None,
@@ -16,7 +16,7 @@ def short_ramp(rate: float, seed: int, gyro_seed: int | None = None,
     cfg = paper(rate, seed)
     cfg.dt_s = 1.0 / sample_rate_hz
     if gyro_seed is not None:
-        from fogsf.trainer.sim.population import gyro_for_seed, with_gyro
+        from fogsf.sim.population import gyro_for_seed, with_gyro
 
         cfg = with_gyro(cfg, gyro_for_seed(gyro_seed, hysteresis=False))
     cfg.profile.start_c, cfg.profile.stop_c = (40.0, -20.0) if down else (-20.0, 40.0)

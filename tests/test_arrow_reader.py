@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.arrow_csv import NotFast, read_numbers
-from fogsf.trainer.logs.chamber_log import LogError
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import _read_plain, parse_log, read_log
+from fogsf.logs.arrow_csv import NotFast, read_numbers
+from fogsf.logs.chamber_log import LogError
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import _read_plain, parse_log, read_log
 
 HEADER = "time_s,temp_c,table_rate_dps,gyro_dps"
 
@@ -159,7 +159,7 @@ def test_read_numbers_wants_the_line_count(tmp_path: Path) -> None:
 def test_fast_path_reads_across_blocks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
                                        ) -> None:
     """Many small blocks (as a long log is read): the same numbers, a bad cell still named."""
-    import fogsf.trainer.logs.arrow_csv as arrow_csv
+    import fogsf.logs.arrow_csv as arrow_csv
 
     monkeypatch.setattr(arrow_csv, "BLOCK_BYTES", 256)
     body = text(rows(3000))
@@ -176,7 +176,7 @@ def test_a_bad_row_is_named_without_the_general_path(name: str, tmp_path: Path,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     """The line scan names the bad row reading line by line: the general path (which holds
     the whole text) is not needed, and the refusal is the general path's."""
-    from fogsf.trainer.logs import logio
+    from fogsf.logs import logio
 
     body, dialect, start = BAD[name]
     _, general = _both(tmp_path, body, dialect)
@@ -204,8 +204,8 @@ def test_rows_read_before_a_bad_block_are_not_parsed_again(
     """The scan skips the rows pyarrow read (its blank lines still count): a late bad cell
     is named parsing only the rows from the failed block on; a blank line in an early block
     is named before it."""
-    import fogsf.trainer.logs.arrow_csv as arrow_csv
-    from fogsf.trainer.logs import line_scan, logio
+    import fogsf.logs.arrow_csv as arrow_csv
+    from fogsf.logs import line_scan, logio
 
     monkeypatch.setattr(arrow_csv, "BLOCK_BYTES", 512)
     lines = text(rows(3000)).split("\n")

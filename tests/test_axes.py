@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer import cli
-from fogsf.trainer.logs.chamber_log import EARTH_RATE_DPS, ChamberLog
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.scenarios import paper
+from fogsf.cli import main as cli
+from fogsf.logs.chamber_log import EARTH_RATE_DPS, ChamberLog
+from fogsf.sim.gyro import simulate
+from fogsf.sim.scenarios import paper
 
 AXES = "xyz"
 GAINS = (1.0, -0.5, 2.0)  # each axis' SF temperature law, times the default gyro's
@@ -137,7 +137,7 @@ def test_all_is_refused_by_commands_that_do_not_take_it(
 
 def test_export_all_names_each_c_model_after_its_axis(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from fogsf.trainer.models import samples
+    from fogsf.models import samples
 
     for i, a in enumerate(AXES):
         samples.random_model(1, 1, 1, 8, decimation=10, seed=40 + i).save(tmp_path / "m" / a)
@@ -167,7 +167,7 @@ def test_inspect_all_json_is_one_object_keyed_by_axis(
 
 def test_replay_all_writes_one_output_per_axis(
         imu_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from fogsf.trainer.models import samples
+    from fogsf.models import samples
 
     for i, a in enumerate(AXES):
         samples.random_model(1, 1, 1, 4, decimation=10, seed=70 + i).save(tmp_path / "m" / a)
@@ -268,7 +268,7 @@ def test_latitude_help_states_the_vertical_assumption(command: str) -> None:
 
 def test_plan_from_logs_takes_latitude_to_the_fit(
         imu_log: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from fogsf.trainer.diagnose import verdict
+    from fogsf.diagnose import verdict
 
     seen = {}
 
@@ -317,7 +317,7 @@ def test_a_stationary_imu_trains_a_bias_only_model_per_axis_titled_as_the_bias(
     of one axis's model over its log reports the bias too."""
     from dataclasses import replace
 
-    from fogsf.trainer.sim import rig_logs, rigs
+    from fogsf.sim import rig_logs, rigs
 
     still = rigs.stationary_protocol(chamber=rigs.loop(-10.0, 20.0, 2.0, 2.0, 300.0),
                                      bias=None, thermal_bias=True)
@@ -343,8 +343,8 @@ def test_a_stationary_imu_trains_a_bias_only_model_per_axis_titled_as_the_bias(
 def test_the_summary_is_titled_as_the_bias_only_when_every_row_is_the_bias_alone() -> None:
     """A replay row with no SF figures (its log never passes 20 C) is still an SF model's:
     the bias title needs every row marked bias-only (a bias-only model, a stationary log)."""
-    from fogsf.trainer.commands.axes import BIAS_ONLY, BIAS_TITLE, SF_TITLE, summary_table
-    from fogsf.trainer.commands.axes import summary_title as title
+    from fogsf.cli.axes import BIAS_ONLY, BIAS_TITLE, SF_TITLE, summary_table
+    from fogsf.cli.axes import summary_title as title
 
     sf_row = {"model": "abc", "out": "r.csv", "flags": "none"}
     bias_row = {"model": "def", "bias before deg/h": "0.5", BIAS_ONLY: True}

@@ -8,17 +8,17 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from fogsf.trainer.models.lag_bank import (
+from fogsf.models.lag_bank import (
     BANK_LAMBDA,
     LOOP_LAMBDA,
     bank_cross,
     bank_name,
     bank_penalty,
 )
-from fogsf.trainer.models.stream import StreamModel
-from fogsf.trainer.training import structure_choice as sc
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.structure_choice import (
+from fogsf.models.stream import StreamModel
+from fogsf.training import structure_choice as sc
+from fogsf.training.options import TrainOptions
+from fogsf.training.structure_choice import (
     PENALTIES,
     PENALTY_MIN_FOLDS,
     PHYSICS,
@@ -28,7 +28,7 @@ from fogsf.trainer.training.structure_choice import (
     choose_penalty,
     ramps_both_ways,
 )
-from fogsf.trainer.training.train import run_training
+from fogsf.training.train import run_training
 
 FAST = {"iters": 30, "hidden": 8, "layers": 1, "batch_size": 8}
 
@@ -152,8 +152,8 @@ def envelope() -> list:
     and the test loop, 18 held-out parts) of development gyro 19 without hysteresis, at 1 Hz:
     a penalty of 1e-4 predicts 15 of the 18 parts better than the prior."""
     from benchmarks.population import PROTOCOLS, run_config
-    from fogsf.trainer.sim import simulate
-    from fogsf.trainer.sim.population import gyro_for_seed
+    from fogsf.sim import simulate
+    from fogsf.sim.population import gyro_for_seed
 
     gyro = gyro_for_seed(19, hysteresis=False)
     logs = []
@@ -185,7 +185,7 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
     assert not sm.quad_diag and sm.feat_diag and sm.weights["quad_w"].shape == (12, 12)
     from kernel_helpers import kernel_for
 
-    from fogsf.trainer.models import reference
+    from fogsf.models import reference
 
     log = envelope[-1]
     _, sf, _ = kernel_for(sm, tmp_path).run(log.temp_c, log.gyro_dps)
@@ -201,7 +201,7 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
     a = StreamModel.load(tmp_path / "m").weights["skip_w"]
     b = StreamModel.load(tmp_path / "p").weights["skip_w"]
     assert not np.array_equal(a, b)  # the lower penalty gives another bank
-    from fogsf.trainer.commands.train import format_metrics
+    from fogsf.cli.train import format_metrics
 
     text = format_metrics(m).replace("\n", " ")
     assert f"kept {sc.bank_label(pen['bank'])}" in text
@@ -210,10 +210,10 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
 def test_a_play_term_is_fitted_at_the_banks_penalty() -> None:
     """With a hysteresis term the bank's head is the ridge fit at the penalty its name
     carries (the term's coefficient free), not at the prior."""
-    from fogsf.trainer.models.hysteresis import ridge_fit_free
-    from fogsf.trainer.models.lag_bank import bank_design, n_curved
-    from fogsf.trainer.models.least_squares import TAU_GRID_S
-    from fogsf.trainer.training.hysteresis_choice import head_fit
+    from fogsf.models.hysteresis import ridge_fit_free
+    from fogsf.models.lag_bank import bank_design, n_curved
+    from fogsf.models.least_squares import TAU_GRID_S
+    from fogsf.training.hysteresis_choice import head_fit
 
     rng = np.random.default_rng(5)
     z = rng.normal(size=(400, len(TAU_GRID_S) + 2)) * 0.3
@@ -229,10 +229,10 @@ def test_a_play_term_is_fitted_at_the_banks_penalty() -> None:
 def test_cross_terms_reach_the_play_terms_head() -> None:
     """`bankx:LAM` with a play: the head is the ridge fit of the design with the cross terms
     of the curved features (the play's feature linear), its quadratic the full [F, F]."""
-    from fogsf.trainer.models.hysteresis import ridge_fit_free
-    from fogsf.trainer.models.lag_bank import bank_design, n_curved
-    from fogsf.trainer.models.least_squares import TAU_GRID_S
-    from fogsf.trainer.training.hysteresis_choice import head_fit
+    from fogsf.models.hysteresis import ridge_fit_free
+    from fogsf.models.lag_bank import bank_design, n_curved
+    from fogsf.models.least_squares import TAU_GRID_S
+    from fogsf.training.hysteresis_choice import head_fit
 
     rng = np.random.default_rng(6)
     z = rng.normal(size=(500, len(TAU_GRID_S) + 2)) * 0.3

@@ -9,14 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer import cli
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.bias import bias_windows, is_stationary
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import read_log, with_mapping_beside
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.sim import rig_logs, rigs
-from fogsf.trainer.sim.config import BiasConfig
+from fogsf.cli import main as cli
+from fogsf.errors import UserError
+from fogsf.logs.bias import bias_windows, is_stationary
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import read_log, with_mapping_beside
+from fogsf.logs.metrics import log_metrics
+from fogsf.sim import rig_logs, rigs
+from fogsf.sim.config import BiasConfig
 
 BIAS = BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05, quad_dph_per_c2=0.002)
 CHAMBER = (10.0, 40.0, 1.0, 0.7, 300.0)  # loop: lo, hi, up, down C/min, soak s
@@ -108,8 +108,8 @@ def test_inspect_shows_the_pairs_bias_series(reversals: rig_logs.RigLog,
 
 
 def test_the_simulated_bias_has_a_coil_polynomial_and_a_shupe_term() -> None:
-    from fogsf.trainer.sim.gyro import simulate
-    from fogsf.trainer.sim.scenarios import paper
+    from fogsf.sim.gyro import simulate
+    from fogsf.sim.scenarios import paper
 
     cfg = paper(1.0, seed=3)
     cfg.bias = BiasConfig(bias_dph=0.5, lin_dph_per_c=0.03, quad_dph_per_c2=0.001,

@@ -23,12 +23,12 @@ from fogsf.bindings.firmware import (
     write_golden,
 )
 from fogsf.bindings.kernel import build_kernel
+from fogsf.errors import UserError
 from fogsf.export.header import render_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.models import reference, samples
-from fogsf.trainer.models import stream as st
-from fogsf.trainer.models.f32 import F32
+from fogsf.models import reference, samples
+from fogsf.models import stream as st
+from fogsf.models.f32 import F32
 
 FIXTURE = "tests/fixtures/small_model"
 # (K, F, L, H, D, seed, poly, lstm_inputs, quad_diag, feat_diag): the first is the lag

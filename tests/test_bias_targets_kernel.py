@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.trainer.logs.bias import BiasWindows
-from fogsf.trainer.training.bias_model import at_targets, target_kernel
+from fogsf.logs.bias import BiasWindows
+from fogsf.training.bias_model import at_targets, target_kernel
 
 
 def _windows(source: str, window_s: float) -> BiasWindows:

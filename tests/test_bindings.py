@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from fogsf.bindings.kernel import Kernel, build_kernel
-from fogsf.trainer.cli import main
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.logio import read_log, write_log
-from fogsf.trainer.models import reference, samples
+from fogsf.cli.main import main
+from fogsf.errors import UserError
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.logio import read_log, write_log
+from fogsf.models import reference, samples
 
 
 def small_log(path, seed: int = 0, hours: float = 1.0) -> ChamberLog:

@@ -27,7 +27,7 @@ def test_a_value_led_by_a_negative_number_reaches_the_command(
     """Through `fogsf`'s main as a user types it: the command gets the value."""
     import importlib
 
-    from fogsf.trainer import cli
+    from fogsf.cli import main as cli
 
     seen = {}
     mod = importlib.import_module(cli.COMMANDS[command][0])
@@ -37,10 +37,10 @@ def test_a_value_led_by_a_negative_number_reaches_the_command(
 
 
 def test_train_help_describes_the_bank_the_code_fits() -> None:
-    from fogsf.trainer.cli import build_parser
-    from fogsf.trainer.models.lag_bank import CURVED_MAX_TAU_S
-    from fogsf.trainer.models.least_squares import TAU_GRID_S
-    from fogsf.trainer.training.structure_choice import CANDIDATES
+    from fogsf.cli.main import build_parser
+    from fogsf.models.lag_bank import CURVED_MAX_TAU_S
+    from fogsf.models.least_squares import TAU_GRID_S
+    from fogsf.training.structure_choice import CANDIDATES
 
     train = build_parser()._subparsers._group_actions[0].choices["train"]
     text = " ".join(train.format_help().split())
@@ -60,7 +60,7 @@ def test_train_help_describes_the_bank_the_code_fits() -> None:
 ])
 def test_option_refusals_are_one_line(argv: list[str], says: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:
-    from fogsf.trainer import cli
+    from fogsf.cli import main as cli
 
     with pytest.raises(SystemExit) as e:
         cli.main(argv)

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from fogsf.trainer import cli
-from fogsf.trainer.diagnose import cases, report
-from fogsf.trainer.logs.logio import read_log, write_log
-from fogsf.trainer.sim.config import SimConfig
+from fogsf.cli import main as cli
+from fogsf.diagnose import cases, report
+from fogsf.logs.logio import read_log, write_log
+from fogsf.sim.config import SimConfig
 
 CONTRACT_CANDIDATE = {"effect", "params", "heldout_rms_before_ppm", "heldout_rms_after_ppm",
                       "gain_pct", "evidence"}

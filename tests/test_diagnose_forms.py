@@ -1,6 +1,6 @@
 """Diagnose on gyros it was not written for: every form variant of the catalogue effects, two
 effects at once, a mixed-rate null and a power-on without chamber_c, each on a gyro of the
-population (fogsf.trainer.sim.population, development seeds) with its chamber program, table and
+population (fogsf.sim.population, development seeds) with its chamber program, table and
 strength drawn from the ranges stated in `cases.draw_population` (strength: 3-20x the noise
 floor of the part the base cannot absorb). Judged by `cases.judge`. And bad input: refused
 with one clear line."""
@@ -12,10 +12,10 @@ import copy
 import numpy as np
 import pytest
 
-from fogsf.trainer.diagnose import case_programs, cases, driver, extend, report, verdict
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.population import DEV_SEEDS
+from fogsf.diagnose import case_programs, cases, driver, extend, report, verdict
+from fogsf.errors import UserError
+from fogsf.sim.gyro import simulate
+from fogsf.sim.population import DEV_SEEDS
 
 SEED = 300  # first development gyro of these tests (DEV_SEEDS)
 VARIANTS = [(e, v) for e, vs in cases.VARIANTS.items() for v in vs]

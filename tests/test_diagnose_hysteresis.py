@@ -1,7 +1,7 @@
 """A hidden SF hysteresis planted in simulated logs: does diagnose name it `hysteresis`?
 
 Cases (`cases.draw_population("effect", "hysteresis", "", seed)`, ranges stated in
-fogsf.trainer.diagnose.cases): a population gyro (without its own hysteresis), a play of its
+fogsf.diagnose.cases): a population gyro (without its own hysteresis), a play of its
 coil temperature of width 4-10 C and strength 3-8 ppm/C, partial cycles of 3.5-5 h (turns,
 rate, soaks drawn), table and simulator seed, all from a seeded generator. CI runs the fixed
 small sample below; `make bench-diagnose` states the rate over many. A failure prints the
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.trainer.diagnose import cases, report, verdict
-from fogsf.trainer.sim.population import DEV_SEEDS
+from fogsf.diagnose import cases, report, verdict
+from fogsf.sim.population import DEV_SEEDS
 
 MASTER_SEED = 20261123
 N_CASES = 4

@@ -20,7 +20,7 @@ import json
 import numpy as np
 import pytest
 
-from fogsf.trainer.diagnose import (
+from fogsf.diagnose import (
     cases,
     catalogue,
     design,
@@ -32,9 +32,9 @@ from fogsf.trainer.diagnose import (
     selection,
     verdict,
 )
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.sim.config import SimConfig
-from fogsf.trainer.sim.gyro import simulate
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.sim.config import SimConfig
+from fogsf.sim.gyro import simulate
 
 MASTER_SEED = 20261122
 STRONG = (15.0, 20.0)
@@ -170,9 +170,9 @@ def test_short_soak_dtdt_seed_711_is_not_named_extra_lag() -> None:
 
 
 def _population_dtdt_gyros(n: int) -> list[int]:
-    """Development gyros (seeded draws from fogsf.trainer.sim.population.DEV_SEEDS, above the
+    """Development gyros (seeded draws from fogsf.sim.population.DEV_SEEDS, above the
     bench's tuning ranges) with at least one coil node right behind the housing."""
-    from fogsf.trainer.sim.population import gyro_for_seed
+    from fogsf.sim.population import gyro_for_seed
 
     rng = np.random.default_rng([MASTER_SEED, 11])
     out: list[int] = []

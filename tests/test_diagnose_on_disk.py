@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.diagnose import cases, driver, hysteresis_form, runs
-from fogsf.trainer.logs import columns, stream_read
-from fogsf.trainer.logs.logio import read_log, write_log
+from fogsf.cli.main import main
+from fogsf.diagnose import cases, driver, hysteresis_form, runs
+from fogsf.logs import columns, stream_read
+from fogsf.logs.logio import read_log, write_log
 
 
 def _outputs(tmp: Path, log: Path, earlier: Path, monkeypatch: pytest.MonkeyPatch, how: str

@@ -1,6 +1,6 @@
 """Hidden effects planted in simulated logs: does diagnose name them, and only them?
 
-Cases come from `fogsf.trainer.diagnose.cases` (ranges stated there): profile, table schedule,
+Cases come from `fogsf.diagnose.cases` (ranges stated there): profile, table schedule,
 start, strength (3-20x the noise floor of the part the base model cannot absorb) and the
 simulator seed are drawn from a seeded generator; the sample here is fixed and small (the
 rates over many seeds are `make bench-diagnose`). A failure prints the case and its seed:
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.diagnose import cases, report, verdict
+from fogsf.diagnose import cases, report, verdict
 
 MASTER_SEED = 20261122
 PER_EFFECT = 3

@@ -7,8 +7,8 @@ import copy
 
 import pytest
 
-from fogsf.trainer.diagnose import cases, driver
-from fogsf.trainer.diagnose.verdict import diagnose
+from fogsf.diagnose import cases, driver
+from fogsf.diagnose.verdict import diagnose
 
 
 def test_every_is_in_seconds() -> None:

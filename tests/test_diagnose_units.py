@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.diagnose import crossval, driver, stats, verdict
-from fogsf.trainer.logs.chamber_log import ChamberLog, earth_rate_vertical_dps
-from fogsf.trainer.sim.lag import first_order_lag
+from fogsf.diagnose import crossval, driver, stats, verdict
+from fogsf.logs.chamber_log import ChamberLog, earth_rate_vertical_dps
+from fogsf.sim.lag import first_order_lag
 
 DT = 0.1
 
@@ -168,8 +168,8 @@ def test_housing_coupling_of_a_dtdt_term() -> None:
     S * dT_coil/dt (C/min) holds the housing with S * 60 * mean(1/tau); a coil node behind
     another internal node holds it with nothing (cases.housing_coupling, the bench's
     truth, and catalogue.housing_coupling, the diagnosis's, agree on a two-layer coil)."""
-    from fogsf.trainer.diagnose import cases, catalogue
-    from fogsf.trainer.sim.config import NodeConfig, SimConfig
+    from fogsf.diagnose import cases, catalogue
+    from fogsf.sim.config import NodeConfig, SimConfig
 
     rng = np.random.default_rng(20261123)
     s, tau = float(rng.uniform(10.0, 3000.0)), round(float(rng.uniform(150.0, 1500.0)), 1)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs import columns, exact_stats
+from fogsf.logs import columns, exact_stats
 
 
 def _series(kind: int, n: int, rng: np.random.Generator) -> np.ndarray:

@@ -10,13 +10,13 @@ import pytest
 import torch
 from onnx.reference import ReferenceEvaluator
 
+from fogsf.cli.main import main
 from fogsf.export import export_model
 from fogsf.export.header import c_float, check_name, render_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
 from fogsf.export.torch_step import TorchStep
-from fogsf.trainer.cli import main
-from fogsf.trainer.models import reference, samples
-from fogsf.trainer.models import stream as st
+from fogsf.models import reference, samples
+from fogsf.models import stream as st
 
 SIZES = [(2, 4, 1, 8, 10, 0), (0, 3, 2, 5, 1, 1), (3, 6, 2, 16, 4, 2)]
 # with the polynomial head: (k, f, layers, hidden, d, seed, poly_head)

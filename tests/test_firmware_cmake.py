@@ -1,7 +1,7 @@
 """CMake integration: the `fogsf` library target, fogsf_add_model(), and the three-axis example
 firmware/examples/imu3 built for Cortex-M4F (its models re-rated by SAMPLE_RATE_HZ) and run
 under QEMU, every output of every axis compared bit for bit with the numpy reference
-(fogsf/trainer/models/reference.py)."""
+(fogsf/models/reference.py)."""
 
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import pytest
 
 from fogsf.bindings.firmware import arm_tools_missing, qemu_cmd, run_cmd
 from fogsf.bindings.kernel import ROOT
-from fogsf.trainer.models import reference, samples
-from fogsf.trainer.models import stream as st
+from fogsf.models import reference, samples
+from fogsf.models import stream as st
 
 EXAMPLE = ROOT / "firmware" / "examples" / "imu3"
 TOOLCHAIN = ROOT / "firmware" / "cmake" / "cortex-m4f.cmake"

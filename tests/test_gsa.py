@@ -9,8 +9,8 @@ from functools import partial
 import numpy as np
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.gsa.optimizer import (
+from fogsf.errors import UserError
+from fogsf.gsa.optimizer import (
     SHORT_BUDGET,
     Param,
     Space,
@@ -22,7 +22,7 @@ from fogsf.trainer.gsa.optimizer import (
     masses,
     minimize,
 )
-from fogsf.trainer.gsa.testfunctions import f1_sphere, f6_step, shifted_sphere
+from fogsf.gsa.testfunctions import f1_sphere, f6_step, shifted_sphere
 
 # Seeds for the randomised tests come from one seeded generator; failures print theirs.
 SEEDS = [int(s) for s in np.random.default_rng(20260522).integers(0, 2**31, size=3)]
@@ -55,7 +55,7 @@ def test_kbest_falls_linearly_from_n_to_1() -> None:
 
 
 def test_a_run_uses_both_schedules_at_every_iteration(monkeypatch) -> None:
-    import fogsf.trainer.gsa.optimizer as gsa
+    import fogsf.gsa.optimizer as gsa
 
     g_calls, k_calls, k_used = [], [], []
     real_gravity, real_kbest, real_acc = gsa.gravity, gsa.kbest, gsa.accelerations

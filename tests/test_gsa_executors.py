@@ -10,10 +10,10 @@ from functools import partial
 
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.gsa.executors import dask_executor, default_workers, open_executor
-from fogsf.trainer.gsa.optimizer import Param, minimize
-from fogsf.trainer.gsa.testfunctions import shifted_sphere
+from fogsf.errors import UserError
+from fogsf.gsa.executors import dask_executor, default_workers, open_executor
+from fogsf.gsa.optimizer import Param, minimize
+from fogsf.gsa.testfunctions import shifted_sphere
 
 SPACE = [Param("a", -2, 2), Param("n", 1, 30, "int"), Param("lr", 1e-4, 1e-1, "log-real")]
 FITNESS = partial(shifted_sphere, target={"a": 0.7, "n": 11, "lr": 0.02})

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 from kernel_helpers import kernel_for
 
-from fogsf.trainer.models import reference
-from fogsf.trainer.models.features import front_end_for, physical_normaliser
-from fogsf.trainer.models.hysteresis import (
+from fogsf.models import reference
+from fogsf.models.features import front_end_for, physical_normaliser
+from fogsf.models.hysteresis import (
     HystTerm,
     _sse_batch,
     choose_term,
@@ -17,16 +17,16 @@ from fogsf.trainer.models.hysteresis import (
     spec_with_play,
     term_column,
 )
-from fogsf.trainer.models.lag_bank import bank_penalty, bank_spec
-from fogsf.trainer.models.node_fit import discrete_lag, lag_alpha
-from fogsf.trainer.sim import simulate
-from fogsf.trainer.sim.config import EffectConfig
-from fogsf.trainer.sim.effects import play_operator
-from fogsf.trainer.sim.partial_cycles import PartialCycle
-from fogsf.trainer.sim.population import gyro_for_seed, run_on_gyro
-from fogsf.trainer.training.hysteresis_choice import decide, has_reversal
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.train import run_training
+from fogsf.models.lag_bank import bank_penalty, bank_spec
+from fogsf.models.node_fit import discrete_lag, lag_alpha
+from fogsf.sim import simulate
+from fogsf.sim.config import EffectConfig
+from fogsf.sim.effects import play_operator
+from fogsf.sim.partial_cycles import PartialCycle
+from fogsf.sim.population import gyro_for_seed, run_on_gyro
+from fogsf.training.hysteresis_choice import decide, has_reversal
+from fogsf.training.options import TrainOptions
+from fogsf.training.train import run_training
 
 STEP_S = 5.0
 
@@ -108,7 +108,7 @@ def test_reversals_and_the_check() -> None:
 
 
 def _ramp():  # noqa: ANN202
-    from fogsf.trainer.sim.config import ProfileConfig
+    from fogsf.sim.config import ProfileConfig
 
     return ProfileConfig(kind="ramp", start_c=-20.0, stop_c=40.0, rate_c_per_min=2.0)
 
@@ -152,7 +152,7 @@ def test_the_check_is_the_default(tmp_path) -> None:
     ppm/C, 9 C wide, on the partial-cycle program): the check runs and keeps the term."""
     import json
 
-    from fogsf.trainer.cli import main
+    from fogsf.cli.main import main
 
     assert TrainOptions(model="lag-lstm").hysteresis == "auto"
     log = tmp_path / "train.csv"
@@ -167,8 +167,8 @@ def test_the_check_is_the_default(tmp_path) -> None:
 
 
 def test_long_logs_are_checked_at_the_choice_step(monkeypatch) -> None:
-    from fogsf.trainer.training import hysteresis_choice, structure_choice
-    from fogsf.trainer.training import train as train_mod
+    from fogsf.training import hysteresis_choice, structure_choice
+    from fogsf.training import train as train_mod
 
     seen: list[float] = []
     monkeypatch.setattr(structure_choice, "MAX_CHOICE_STEPS", 100)
@@ -184,8 +184,8 @@ def test_cross_terms_are_left_out_beside_a_play_and_a_bias_head(tmp_path, monkey
     """Logs that measure the bias give the model a bias head: with a play as well, the bank
     keeps its diagonal quadratic (three such models with the full one would not fit 24 KB),
     and `fogsf train` says so."""
-    from fogsf.trainer.commands.train import format_metrics
-    from fogsf.trainer.training import train as train_mod
+    from fogsf.cli.train import format_metrics
+    from fogsf.training import train as train_mod
 
     monkeypatch.setattr(train_mod, "_measures_bias", lambda opts, logs: True)
     train = simulate(_partial_run(1)).log

@@ -29,7 +29,7 @@ def test_every_package_is_in_pyproject() -> None:
     assert {name.split(".")[0] for name in listed} == {"fogsf"}, "one top-level package"
 
 
-DECOYS = ("export", "trainer", "bindings", "stream", "logio", "metrics")
+DECOYS = ("export", "cli", "logs", "sim", "bindings", "stream", "logio", "metrics")
 
 
 def plant_decoys(folder: Path) -> None:

@@ -14,8 +14,8 @@ from onnx.reference import ReferenceEvaluator
 from fogsf.bindings.firmware import golden_inputs
 from fogsf.bindings.kernel import trace_steps
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
-from fogsf.trainer.models import f32, reference, samples
-from fogsf.trainer.models import stream as st
+from fogsf.models import f32, reference, samples
+from fogsf.models import stream as st
 
 F32 = np.float32
 
@@ -65,8 +65,8 @@ def test_kernel_equals_numpy_reference_bit_for_bit(size, kroot) -> None:
 def simulated_ramp(seed: int) -> tuple[np.ndarray, np.ndarray]:
     """The simulator's paper run at 1 C/min (54,001 samples), else a numpy ramp."""
     try:
-        from fogsf.trainer.sim.gyro import simulate
-        from fogsf.trainer.sim.scenarios import paper
+        from fogsf.sim.gyro import simulate
+        from fogsf.sim.scenarios import paper
     except ImportError:  # the simulator is another branch's work
         return samples.chamber_ramp(hours=1.6, seed=seed)
     log = simulate(paper(1.0, seed=seed)).log

@@ -21,8 +21,8 @@ from fogsf.bindings.firmware import (
 )
 from fogsf.bindings.kernel import C_DIR, STRICT, Kernel, build_kernel, max_defines
 from fogsf.export.header import write_model
-from fogsf.trainer.models import reference, samples
-from fogsf.trainer.models import stream as st
+from fogsf.models import reference, samples
+from fogsf.models import stream as st
 
 FIXTURE = "tests/fixtures/small_model"
 

@@ -14,7 +14,7 @@ from kernel_helpers import kernel_for
 from onnx import helper
 from onnx.backend.test.case.node import lstm as onnx_lstm
 
-from fogsf.trainer.models import samples
+from fogsf.models import samples
 
 CASES = ["export_defaults", "export_initial_bias", "export_peepholes", "export_batchwise",
          "export_reverse", "export_bidirectional"]

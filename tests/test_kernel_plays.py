@@ -12,10 +12,10 @@ import pytest
 from kernel_helpers import kernel_for
 
 from fogsf.bindings.firmware import golden_inputs, state_bytes
+from fogsf.errors import UserError
 from fogsf.export.header import render_model
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.models import reference, samples
-from fogsf.trainer.models import stream as st
+from fogsf.models import reference, samples
+from fogsf.models import stream as st
 
 # (K filters, F features, D decimation, seed, plays ((source weights, width_c), ...), poly
 # [, feat_diag])

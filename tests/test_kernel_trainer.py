@@ -9,12 +9,12 @@ import torch
 from kernel_helpers import kernel_for
 
 from fogsf.bindings.kernel import trace_steps
-from fogsf.trainer.models import reference, samples
-from fogsf.trainer.models import stream as st
+from fogsf.models import reference, samples
+from fogsf.models import stream as st
 
-features = pytest.importorskip("fogsf.trainer.models.features")
-nets = pytest.importorskip("fogsf.trainer.models.nets")
-fit = pytest.importorskip("fogsf.trainer.training.fit")
+features = pytest.importorskip("fogsf.models.features")
+nets = pytest.importorskip("fogsf.models.nets")
+fit = pytest.importorskip("fogsf.training.fit")
 
 
 @pytest.fixture(scope="session")

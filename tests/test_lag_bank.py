@@ -9,12 +9,12 @@ import pytest
 from ramp_logs import short_ramp
 
 from benchmarks.population import PROTOCOLS, run_profile, summarise
-from fogsf.trainer.models.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, bank_spec, fit_bank
-from fogsf.trainer.models.least_squares import TAU_GRID_S
-from fogsf.trainer.models.stream import StreamModel
-from fogsf.trainer.sim.profiles import breakpoints
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.train import run_training
+from fogsf.models.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, bank_spec, fit_bank
+from fogsf.models.least_squares import TAU_GRID_S
+from fogsf.models.stream import StreamModel
+from fogsf.sim.profiles import breakpoints
+from fogsf.training.options import TrainOptions
+from fogsf.training.train import run_training
 
 FAST = {"iters": 30, "hidden": 8, "layers": 1, "batch_size": 8}
 
@@ -85,8 +85,8 @@ def test_bank_artifact_carries_the_fixed_bank(two_rates_gyro, tmp_path: Path) ->
 def test_lstm_inputs_option(two_rates_gyro, tmp_path: Path) -> None:
     """--lstm-inputs N narrows the bank's LSTM to z[0:N] (N = F: every feature); outside
     1..F, or for another structure, it is refused."""
-    from fogsf.trainer.errors import UserError
-    from fogsf.trainer.training.train import fit_model
+    from fogsf.errors import UserError
+    from fogsf.training.train import fit_model
 
     logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
     f = 1 + len(TAU_GRID_S)
@@ -145,7 +145,7 @@ def test_bench_population_forces_the_structures_it_names(model: str, structure: 
     """bench-population's bank, node and physics2 are the default model with its physics
     part forced (`fogsf train --structure ...`), the default model its own choice."""
     from benchmarks.population import _train_options
-    from fogsf.trainer.training.train import DEFAULT_MODEL
+    from fogsf.training.train import DEFAULT_MODEL
 
     opts = _train_options(model, 3)
     assert (opts.model, opts.structure, opts.nodes) == (DEFAULT_MODEL, structure, nodes)
@@ -155,8 +155,8 @@ def test_bench_population_forces_the_structures_it_names(model: str, structure: 
 def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> None:  # noqa: ANN001
     import json
 
-    from fogsf.trainer.cli import main
-    from fogsf.trainer.logs.logio import write_log
+    from fogsf.cli.main import main
+    from fogsf.logs.logio import write_log
 
     paths = {}
     for k, lg in two_rates_gyro.items():
@@ -221,7 +221,7 @@ def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Pat
 def test_cross_terms_are_fitted_and_predicted_as_the_firmware_quadratic() -> None:
     """With `cross`, the bank's quadratic is the upper-triangular [F, F] of z^T quad z over the
     curved features: a planted cross term is recovered and the prediction is the design's."""
-    from fogsf.trainer.models.lag_bank import bank_design, n_curved
+    from fogsf.models.lag_bank import bank_design, n_curved
 
     rng = np.random.default_rng(3)
     k, c = 12, n_curved()

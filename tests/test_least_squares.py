@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from fogsf.trainer.models.features import front_end_for
-from fogsf.trainer.models.least_squares import (
+from fogsf.models.features import front_end_for
+from fogsf.models.least_squares import (
     MAX_NODE_SLOPE_PPM_PER_C,
     node_candidates,
     profile_effective_node,
 )
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.scenarios import paper
+from fogsf.sim.gyro import simulate
+from fogsf.sim.scenarios import paper
 
 
 def test_profile_when_every_candidate_is_plausible() -> None:
@@ -28,7 +28,7 @@ def test_profile_prefers_a_plausible_candidate() -> None:
     stays under the bound, although the grid holds implausible ones."""
     import numpy as np
 
-    from fogsf.trainer.models.least_squares import grid_data
+    from fogsf.models.least_squares import grid_data
 
     cfg = paper(1.0, seed=4)
     cfg.profile.start_c, cfg.profile.stop_c = 0.0, 30.0

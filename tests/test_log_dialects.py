@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.chamber_log import LogError
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import read_log
+from fogsf.cli.main import main
+from fogsf.errors import UserError
+from fogsf.logs.chamber_log import LogError
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import read_log
 
 SHORT = ["--scenario", "paper", "--start-c", "15", "--stop-c", "25", "--ramp-rate", "1",
          "--seed", "3"]
@@ -237,7 +237,7 @@ def test_refusals_name_the_option_that_fixes_them(body: str, opts: list[str], ne
 
 def test_ref_sf_from_a_longer_run_makes_a_cold_log_usable(plain: Path, tmp_path: Path,
                                                           capsys) -> None:
-    from fogsf.trainer.models import samples
+    from fogsf.models import samples
 
     cold = tmp_path / "cold.csv"
     assert main(["simulate", "--scenario", "paper", "--start-c", "-30", "--stop-c", "-10",
@@ -279,7 +279,7 @@ def test_version(capsys) -> None:
 def test_every_help_ends_with_examples_that_parse(capsys) -> None:
     import shlex
 
-    from fogsf.trainer.cli import COMMANDS, build_parser
+    from fogsf.cli.main import COMMANDS, build_parser
 
     parser = build_parser()
     for argv in ([], *([c] for c in COMMANDS)):

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from test_arrow_reader import BAD, GOOD, SCANNED, _both, _quoted, rows, text
 
-from fogsf.trainer.logs import arrow_csv, columns, parquet_log
-from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import read_log, write_log
-from fogsf.trainer.logs.stream_read import read_log_on_disk
+from fogsf.logs import arrow_csv, columns, parquet_log
+from fogsf.logs.chamber_log import ChamberLog, LogError
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import read_log, write_log
+from fogsf.logs.stream_read import read_log_on_disk
 
 
 def _read(f) -> ChamberLog | str:  # noqa: ANN001
@@ -107,7 +107,7 @@ def test_parquet_on_disk_as_in_memory(tmp_path: Path, small_blocks: int) -> None
 
 
 def test_a_log_read_in_blocks_then_held_is_read_logs(tmp_path: Path) -> None:
-    from fogsf.trainer.logs.stream_read import in_memory
+    from fogsf.logs.stream_read import in_memory
 
     p = tmp_path / "log.csv"
     p.write_text(text(rows(300)).replace("time_s,", "time_s,").replace(",10,", ",10,", 1))
@@ -130,7 +130,7 @@ def test_a_quoted_file_is_refused_without_the_general_path(name: str, tmp_path: 
     """Quoted cells: the scan checks every row's quoting, then the cells, row by row (the
     general path, which holds the whole text, is not used), and names the general path's
     line."""
-    from fogsf.trainer.logs import logio
+    from fogsf.logs import logio
 
     _, general = _both(tmp_path, QUOTED[name], Dialect())
     assert isinstance(general, str), general
@@ -146,7 +146,7 @@ def test_a_quoted_file_is_refused_without_the_general_path(name: str, tmp_path: 
 def test_a_full_disk_is_one_line(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import errno
 
-    from fogsf.trainer.errors import UserError
+    from fogsf.errors import UserError
 
     p = tmp_path / "log.csv"
     p.write_text(text(rows(300)))

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
-from fogsf.trainer.logs.logio import parse_log, read_log, write_log
+from fogsf.logs.chamber_log import ChamberLog, LogError
+from fogsf.logs.logio import parse_log, read_log, write_log
 
 HEADER = "time_s,temp_c,table_rate_dps,gyro_dps"
 
@@ -191,7 +191,7 @@ def test_a_quantised_thermometer_reads_as_written(step_c: float, tmp_path: Path)
 
 def test_replay_csv_keeps_an_epoch_time_base(tmp_path: Path) -> None:
     """At 1 kHz on a 1.7e9 s epoch the replay CSV keeps every step (12 digits would not)."""
-    from fogsf.trainer.commands.replay import write_corrected
+    from fogsf.cli.replay import write_corrected
 
     t = 1.7e9 + np.arange(5) * 1e-3
     z = np.zeros(5)

@@ -8,12 +8,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs import logio, metrics, pairs, plateaus
-from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
-from fogsf.trainer.logs.logio import parse_log
-from fogsf.trainer.sim.config import TableConfig
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.scenarios import paper
+from fogsf.logs import logio, metrics, pairs, plateaus
+from fogsf.logs.chamber_log import ChamberLog, LogError
+from fogsf.logs.logio import parse_log
+from fogsf.sim.config import TableConfig
+from fogsf.sim.gyro import simulate
+from fogsf.sim.scenarios import paper
 
 
 def reversals() -> ChamberLog:

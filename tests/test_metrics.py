@@ -6,17 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.metrics import (
+from fogsf.errors import UserError
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.metrics import (
     log_metrics,
     metrics_block,
     reference_sf,
     sf_error_ppm,
     sf_windows,
 )
-from fogsf.trainer.logs.pairs import plateau_pairs
-from fogsf.trainer.logs.plateaus import plateaus
+from fogsf.logs.pairs import plateau_pairs
+from fogsf.logs.plateaus import plateaus
 
 
 def ramp_log(n: int, sf_ppm: np.ndarray, rate: np.ndarray | float = 10.0, noise_dps: float = 0.0,

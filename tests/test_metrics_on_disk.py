@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 from test_metric_blocks import reversals
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.commands.inspect import summary
-from fogsf.trainer.logs import bias as bias_mod
-from fogsf.trainer.logs import columns, metrics
-from fogsf.trainer.logs.bias import before_after, bias_windows
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.logio import read_log, write_log
-from fogsf.trainer.logs.stream_read import read_log_on_disk
+from fogsf.cli.inspect import summary
+from fogsf.cli.main import main
+from fogsf.logs import bias as bias_mod
+from fogsf.logs import columns, metrics
+from fogsf.logs.bias import before_after, bias_windows
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.logio import read_log, write_log
+from fogsf.logs.stream_read import read_log_on_disk
 
 
 def _stalled(log: ChamberLog) -> ChamberLog:
@@ -86,9 +86,9 @@ def test_replay_on_disk_is_the_replay_in_memory(tmp_path: Path, monkeypatch: pyt
     """The replay command end to end: the output file and the JSON (metrics before and
     after, the bias of a bias head over the pairs) of a log read onto disk are those of
     the log read into memory."""
-    import fogsf.trainer.commands.replay as replay
-    from fogsf.trainer.logs import stream_read
-    from fogsf.trainer.models import samples
+    import fogsf.cli.replay as replay
+    from fogsf.logs import stream_read
+    from fogsf.models import samples
 
     monkeypatch.setenv("FOGSF_BUILD_DIR", str(tmp_path / "kernels"))
     monkeypatch.setattr(replay, "REPLAY_BLOCK", 1001)

@@ -11,11 +11,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import log_axes_of, read_log, write_log
-from fogsf.trainer.models import samples
+from fogsf.cli.main import main
+from fogsf.logs.chamber_log import ChamberLog, LogError
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import log_axes_of, read_log, write_log
+from fogsf.models import samples
 
 
 def a_log(n: int = 3000, seed: int = 1) -> ChamberLog:
@@ -125,7 +125,7 @@ def test_parquet_ignores_csv_options_and_says_so(tmp_path: Path) -> None:
 def test_replay_writes_parquet_as_its_csv(tmp_path: Path, capsys, monkeypatch) -> None:
     """`replay --out x.parquet`: the numbers of the CSV output, every bit (float32 sf), the
     same metrics; a Parquet log replays as its CSV; blocks of the kernel carry its state."""
-    import fogsf.trainer.commands.replay as replay
+    import fogsf.cli.replay as replay
 
     monkeypatch.setenv("FOGSF_BUILD_DIR", str(tmp_path / "kernels"))
     monkeypatch.setattr(replay, "REPLAY_BLOCK", 777)  # many blocks
@@ -176,7 +176,7 @@ def test_simulate_writes_a_parquet_log(tmp_path: Path, capsys) -> None:
 def test_replay_of_a_bias_head_model_in_blocks(tmp_path: Path, monkeypatch) -> None:
     """A model with a bias head: bias_dph written block by block (the kernel's state carried)
     to CSV and Parquet, every sample that of one run from reset."""
-    import fogsf.trainer.commands.replay as replay
+    import fogsf.cli.replay as replay
     from fogsf.bindings.kernel import Kernel
 
     monkeypatch.setenv("FOGSF_BUILD_DIR", str(tmp_path / "kernels"))

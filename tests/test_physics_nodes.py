@@ -10,17 +10,17 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from fogsf.trainer.models import reference
-from fogsf.trainer.models.node_fit import discrete_lag, lag_alpha, ridge_fit
-from fogsf.trainer.models.physics_nodes import (
+from fogsf.models import reference
+from fogsf.models.node_fit import discrete_lag, lag_alpha, ridge_fit
+from fogsf.models.physics_nodes import (
     NodeTemperatures,
     fit_coefficients,
     identify_taus,
     node_design,
 )
-from fogsf.trainer.models.stream import StreamModel
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.structure_choice import (
+from fogsf.models.stream import StreamModel
+from fogsf.training.options import TrainOptions
+from fogsf.training.structure_choice import (
     CANDIDATES,
     EVIDENCE_FACTOR,
     MAX_CHOICE_STEPS,
@@ -35,7 +35,7 @@ from fogsf.trainer.training.structure_choice import (
     heldout_score,
     part_folds,
 )
-from fogsf.trainer.training.train import per_sample_prediction, run_training
+from fogsf.training.train import per_sample_prediction, run_training
 
 FAST = {"iters": 20, "hidden": 8, "layers": 1, "batch_size": 8}
 STEP_S = 5.0
@@ -107,7 +107,7 @@ def test_heldout_score_prefers_the_true_structure() -> None:
     y = 300.0 * z[:, 1] - 250.0 * z[:, 2] + 100.0 * z[:, 1] ** 2 \
         + np.random.default_rng(3).normal(0.0, 0.5, t.size)
     fold = np.searchsorted([1480, 2110, 2840], np.arange(t.size), side="right")
-    from fogsf.trainer.models.features import front_end_for
+    from fogsf.models.features import front_end_for
 
     fe = front_end_for([short_ramp(1.0, 1)], STEP_S, ())
     sd = StepData(fe, [t], y, fold)
@@ -179,8 +179,8 @@ def test_two_rates_on_the_default_gyro_take_physics_nodes() -> None:
     several times better than the lag bank (which interpolates in rate worse: 1.64 x the
     noise floor on the 1 C/min test against 1.17-1.44 x, docs/decisions.md), so the rule
     takes one, and says so."""
-    from fogsf.trainer.sim.gyro import simulate
-    from fogsf.trainer.sim.scenarios import paper
+    from fogsf.sim.gyro import simulate
+    from fogsf.sim.scenarios import paper
 
     logs = [simulate(paper(0.5, seed=1002)).log, simulate(paper(2.0, seed=4002)).log]
     c = choose(logs)
@@ -244,7 +244,7 @@ def test_several_ramps_keep_the_bank_unless_physics_is_evident(
         chosen: str) -> None:
     """The several-ramp rule on given held-out scores: the bank unless the best physics
     structure scores EVIDENCE_FACTOR x better, then the smallest within the tolerance."""
-    import fogsf.trainer.training.structure_choice as sc
+    import fogsf.training.structure_choice as sc
 
     scores = {"bank": bank, **dict(zip(PHYSICS, phys, strict=True))}
     monkeypatch.setattr(sc, "heldout_folds", lambda name, sd, **kw: [[scores[name] ** 2]])
@@ -257,7 +257,7 @@ def test_several_ramps_keep_the_bank_unless_physics_is_evident(
 def test_choose_scores_long_logs_at_the_coarser_step(monkeypatch: pytest.MonkeyPatch) -> None:
     """`choose` builds its steps at `choice_step_s` (here forced coarse by a small
     MAX_CHOICE_STEPS) and still chooses among every candidate."""
-    import fogsf.trainer.training.structure_choice as sc
+    import fogsf.training.structure_choice as sc
 
     logs = [short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)]
     seen: list[float] = []

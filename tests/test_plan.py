@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import read_log
-from fogsf.trainer.plan.evaluate import evaluate_gyro
-from fogsf.trainer.plan.programs import Limits, Program, _path, candidates, violations
-from fogsf.trainer.plan.report import score
+from fogsf.cli.main import main
+from fogsf.errors import UserError
+from fogsf.logs.logio import read_log
+from fogsf.plan.evaluate import evaluate_gyro
+from fogsf.plan.programs import Limits, Program, _path, candidates, violations
+from fogsf.plan.report import score
 
 
 @pytest.mark.parametrize("seed", range(6))

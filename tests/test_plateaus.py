@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.logio import write_log
-from fogsf.trainer.logs.metrics import (
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.logio import write_log
+from fogsf.logs.metrics import (
     log_metrics,
     sf_spans,
     sf_windows,
@@ -25,11 +25,11 @@ from fogsf.trainer.logs.metrics import (
     step_windows,
     windows_rms,
 )
-from fogsf.trainer.logs.pairs import find_pairs, plateau_pairs, rate_steps
-from fogsf.trainer.models.features import step_targets
-from fogsf.trainer.sim.config import TableConfig
-from fogsf.trainer.sim.gyro import SimResult, simulate
-from fogsf.trainer.sim.scenarios import paper
+from fogsf.logs.pairs import find_pairs, plateau_pairs, rate_steps
+from fogsf.models.features import step_targets
+from fogsf.sim.config import TableConfig
+from fogsf.sim.gyro import SimResult, simulate
+from fogsf.sim.scenarios import paper
 
 EARTH_DPS = 0.0023
 
@@ -296,7 +296,7 @@ def test_inspect_reports_pairs_rate_steps_and_a_moving_start(tmp_path: Path) -> 
 
 
 def test_diagnose_runs_on_staircase_and_reversal_logs(tmp_path: Path) -> None:
-    from fogsf.trainer import cli
+    from fogsf.cli import main as cli
 
     log, _ = staircase()
     rng = np.random.default_rng(0)

@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.sim import SimConfig, simulate
-from fogsf.trainer.sim import population as pop
-from fogsf.trainer.sim.config import SF_FACTORS, validate
-from fogsf.trainer.sim.scenarios import paper
-from fogsf.trainer.sim.thermal import effective_tau_s
+from fogsf.cli.main import main
+from fogsf.logs.metrics import log_metrics
+from fogsf.sim import SimConfig, simulate
+from fogsf.sim import population as pop
+from fogsf.sim.config import SF_FACTORS, validate
+from fogsf.sim.scenarios import paper
+from fogsf.sim.thermal import effective_tau_s
 
 DRAWS = [pop.gyro_for_seed(s) for s in range(1, 81)]
 
@@ -110,7 +110,7 @@ def test_the_thermal_bias_is_drawn_from_its_own_stream_within_its_ranges() -> No
     """`thermal_bias` adds a Shupe term, a quadratic and a cubic on the coil and changes
     nothing else: the thermal network, SF law, noise, bias offset and slope are the gyro's
     (its other draws do not move), and the default stays without them."""
-    from fogsf.trainer.sim import population as pop
+    from fogsf.sim import population as pop
 
     rng = np.random.default_rng(2022)
     for seed in [0, *(int(s) for s in rng.integers(1, 10_000, 6))]:
@@ -166,7 +166,7 @@ def test_outside_forms_change_only_what_they_state(form: str) -> None:
 def test_the_thermometer_behind_the_board_reads_it_late() -> None:
     """On a steady ramp a first-order lag reads tau x rate behind its input: the "sensor"
     form's thermometer trails the board's true temperature by that much."""
-    from fogsf.trainer.sim.config import ProfileConfig
+    from fogsf.sim.config import ProfileConfig
 
     g = pop.outside_form(pop.gyro_for_seed(7), 7, "sensor")
     tau = g.thermal.nodes[-1].tau_s

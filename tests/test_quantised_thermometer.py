@@ -16,12 +16,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.metrics import log_metrics, sf_windows
-from fogsf.trainer.sim.config import TableConfig
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.scenarios import paper
-from fogsf.trainer.training.train import bank_compensation
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.metrics import log_metrics, sf_windows
+from fogsf.sim.config import TableConfig
+from fogsf.sim.gyro import simulate
+from fogsf.sim.scenarios import paper
+from fogsf.training.train import bank_compensation
 
 
 def run(seed: int, lsb_c: float) -> ChamberLog:

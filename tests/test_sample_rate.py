@@ -14,14 +14,14 @@ import pytest
 from ramp_logs import short_ramp
 
 from fogsf.bindings.kernel import Kernel, build_kernel
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.chamber_log import ChamberLog, LogError
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import _read_plain, parse_log, read_log, write_log
-from fogsf.trainer.logs.metrics import sf_windows
-from fogsf.trainer.models import reference, samples
-from fogsf.trainer.models import stream as st
-from fogsf.trainer.models.features import front_end_for
+from fogsf.errors import UserError
+from fogsf.logs.chamber_log import ChamberLog, LogError
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import _read_plain, parse_log, read_log, write_log
+from fogsf.logs.metrics import sf_windows
+from fogsf.models import reference, samples
+from fogsf.models import stream as st
+from fogsf.models.features import front_end_for
 
 
 def rows(rate_hz: float, n: int, t0: float = 0.0) -> list[str]:
@@ -111,7 +111,7 @@ def test_fast_and_general_readers_agree(tmp_path: Path) -> None:
 def test_write_rows_writes_what_savetxt_writes(tmp_path: Path) -> None:
     import io
 
-    from fogsf.trainer.logs.logio import write_rows
+    from fogsf.logs.logio import write_rows
 
     rng = np.random.default_rng(3)
     data = rng.normal(size=(1234, 3)) * np.array([1e-9, 1.0, 1e6])
@@ -242,8 +242,8 @@ def test_train_at_100hz_runs_at_10_and_1000hz(tmp_path: Path) -> None:
 def test_model_step_and_test_log_at_a_rate_5s_does_not_divide(tmp_path: Path) -> None:
     """At 7.5 Hz a 5 s step is 37.5 samples: refused before any fitting, naming the log;
     --model-step-s 4 (30 samples) trains and checks the rate transfer at that step."""
-    from fogsf.trainer.training.options import TrainOptions
-    from fogsf.trainer.training.train import run_training
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import run_training
 
     train = short_ramp(2.0, 31, sample_rate_hz=7.5)
     test = short_ramp(3.0, 32, sample_rate_hz=7.5)

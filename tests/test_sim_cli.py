@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.logs.logio import read_log
-from fogsf.trainer.sim import SimConfig
+from fogsf.cli.main import main
+from fogsf.logs.logio import read_log
+from fogsf.sim import SimConfig
 
 SHORT = ["--scenario", "paper", "--start-c", "15", "--stop-c", "25", "--ramp-rate", "1"]
 
@@ -87,7 +87,7 @@ def test_thermal_bias_of_the_population(tmp_path, capsys) -> None:
     it (a Shupe term on its coil); refused without --random-gyro and for three gyros."""
     from dataclasses import asdict
 
-    from fogsf.trainer.sim.population import gyro_for_seed
+    from fogsf.sim.population import gyro_for_seed
 
     plain, shupe = tmp_path / "plain.json", tmp_path / "shupe.json"
     for path, flag in ((plain, []), (shupe, ["--thermal-bias"])):

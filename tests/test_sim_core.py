@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.logio import read_log, write_log
-from fogsf.trainer.sim import SimConfig, simulate
-from fogsf.trainer.sim.config import (
+from fogsf.errors import UserError
+from fogsf.logs.logio import read_log, write_log
+from fogsf.sim import SimConfig, simulate
+from fogsf.sim.config import (
     EffectConfig,
     NodeConfig,
     ProfileConfig,
@@ -19,10 +19,10 @@ from fogsf.trainer.sim.config import (
     SFTermConfig,
     ThermalConfig,
 )
-from fogsf.trainer.sim.gyro import arw_noise, quantize_pulses
-from fogsf.trainer.sim.lag import first_order_lag
-from fogsf.trainer.sim.scale_factor import sf_error_ppm
-from fogsf.trainer.sim.thermal import effective_tau_s, equilibrium, network
+from fogsf.sim.gyro import arw_noise, quantize_pulses
+from fogsf.sim.lag import first_order_lag
+from fogsf.sim.scale_factor import sf_error_ppm
+from fogsf.sim.thermal import effective_tau_s, equilibrium, network
 
 
 def short_cfg(seed: int = 3, minutes: float = 20.0) -> SimConfig:
@@ -194,7 +194,7 @@ def test_arw_and_quantization() -> None:
 
 
 def test_noise_floor_of_a_window_is_near_8_ppm_at_10_dps() -> None:
-    from fogsf.trainer.logs.metrics import noise_floor_ppm, sf_windows
+    from fogsf.logs.metrics import noise_floor_ppm, sf_windows
 
     cfg = SimConfig(seed=4)
     cfg.profile = ProfileConfig(kind="soak", start_c=20.0, duration_s=3 * 3600.0)
@@ -206,7 +206,7 @@ def test_noise_floor_of_a_window_is_near_8_ppm_at_10_dps() -> None:
 
 
 def test_bias_leaks_into_the_apparent_sf_as_bias_over_rate() -> None:
-    from fogsf.trainer.logs.metrics import sf_windows
+    from fogsf.logs.metrics import sf_windows
 
     cfg = SimConfig(seed=0)
     cfg.profile = ProfileConfig(kind="soak", start_c=20.0, duration_s=1000.0)

@@ -3,7 +3,7 @@
 Planted effects: strength, ramp rate and seed are drawn from the stated ranges with a seeded
 generator (DRAW_SEEDS); every assertion message carries the draw seed. Each check compares a
 run with the effect against the same run (same seed, so the same noise) without it, on the
-apparent SF of 100 s windows computed from the gyro output (fogsf.trainer.logs.metrics.sf_windows).
+apparent SF of 100 s windows computed from the gyro output (fogsf.logs.metrics.sf_windows).
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ import copy
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.metrics import sf_windows
-from fogsf.trainer.logs.pairs import plateau_pairs, rate_steps
-from fogsf.trainer.sim import SimConfig, simulate
-from fogsf.trainer.sim.config import ProfileConfig, TableConfig
-from fogsf.trainer.sim.effects import EFFECTS, EffectConfig, describe, parse_effect
+from fogsf.logs.metrics import sf_windows
+from fogsf.logs.pairs import plateau_pairs, rate_steps
+from fogsf.sim import SimConfig, simulate
+from fogsf.sim.config import ProfileConfig, TableConfig
+from fogsf.sim.effects import EFFECTS, EffectConfig, describe, parse_effect
 
 DRAW_SEEDS = (11, 12)
 
@@ -198,14 +198,14 @@ def test_every_effect_is_listed_with_unit_and_meaning() -> None:
     assert required <= set(EFFECTS)
     for name, info in EFFECTS.items():
         assert name in text and info.unit in text and info.meaning
-        import fogsf.trainer.sim.effects as mod
+        import fogsf.sim.effects as mod
         assert f"{name}=" in (mod.__doc__ or "")
 
 
 def test_parse_effect_and_its_refusals() -> None:
     e = parse_effect("extra_lag=3600,sens_ppm_per_c=5")
     assert (e.name, e.strength, e.params) == ("extra_lag", 3600.0, {"sens_ppm_per_c": 5.0})
-    from fogsf.trainer.errors import UserError
+    from fogsf.errors import UserError
     for bad in ("temp_rate", "nope=1", "temp_rate=abc", "extra_lag=-5", "aging=1,foo=2",
                 "warmup=10,tau_s"):
         with pytest.raises(UserError):

@@ -6,19 +6,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.sim import simulate
-from fogsf.trainer.sim.config import ProfileConfig, SimConfig
-from fogsf.trainer.sim.effects import parse_effect, play_operator, preisach_offset
-from fogsf.trainer.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
-from fogsf.trainer.sim.population import (
+from fogsf.errors import UserError
+from fogsf.sim import simulate
+from fogsf.sim.config import ProfileConfig, SimConfig
+from fogsf.sim.effects import parse_effect, play_operator, preisach_offset
+from fogsf.sim.partial_cycles import PARTIAL_TEST, PARTIAL_TRAIN
+from fogsf.sim.population import (
     HYST_PPM_PER_C,
     HYST_WIDTH_C,
     gyro_for_seed,
     hysteresis_for_seed,
     run_on_gyro,
 )
-from fogsf.trainer.sim.scenarios import scenario
+from fogsf.sim.scenarios import scenario
 
 
 def test_play_follows_with_backlash_and_holds() -> None:

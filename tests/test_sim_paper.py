@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs.metrics import log_metrics, reference_sf, sf_error_ppm, sf_windows
-from fogsf.trainer.sim import simulate
-from fogsf.trainer.sim.calibrate import noiseless
-from fogsf.trainer.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper
+from fogsf.logs.metrics import log_metrics, reference_sf, sf_error_ppm, sf_windows
+from fogsf.sim import simulate
+from fogsf.sim.calibrate import noiseless
+from fogsf.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper
 
 
 @pytest.mark.parametrize("seed", [7, 21])

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.plateaus import plateaus
-from fogsf.trainer.sim.config import ProfileConfig, TableConfig
-from fogsf.trainer.sim.profiles import breakpoints, chamber_series, read_program, table_series
+from fogsf.errors import UserError
+from fogsf.logs.plateaus import plateaus
+from fogsf.sim.config import ProfileConfig, TableConfig
+from fogsf.sim.profiles import breakpoints, chamber_series, read_program, table_series
 
 
 def test_soak() -> None:

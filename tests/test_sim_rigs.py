@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import read_log
-from fogsf.trainer.sim import rig_logs, rigs
-from fogsf.trainer.sim.config import BiasConfig, SimConfig
-from fogsf.trainer.sim.gyro import simulate
-from fogsf.trainer.sim.profiles import chamber_series, table_series
+from fogsf.errors import UserError
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import read_log
+from fogsf.sim import rig_logs, rigs
+from fogsf.sim.config import BiasConfig, SimConfig
+from fogsf.sim.gyro import simulate
+from fogsf.sim.profiles import chamber_series, table_series
 
 
 def small_staircase(rate_hz: float = 10.0, **kw: object) -> rigs.RigProtocol:
@@ -321,7 +321,7 @@ def test_rig_log_in_one_call(tmp_path: Path, kind: str) -> None:
 
 
 def test_simulate_rig_cli(tmp_path: Path) -> None:
-    from fogsf.trainer.cli import main
+    from fogsf.cli.main import main
 
     out = tmp_path / "ros" / "ros.csv"
     assert main(["simulate", "--rig", "ros", "--random-gyro", "3", "--out", str(out),
@@ -337,7 +337,7 @@ def test_simulate_rig_cli(tmp_path: Path) -> None:
 
 
 def test_rate_effects_see_the_axis_rate() -> None:
-    from fogsf.trainer.sim.effects import EffectConfig
+    from fogsf.sim.effects import EffectConfig
 
     fx = [EffectConfig("asymmetry", 20.0), EffectConfig("rate_nonlinearity", 10.0)]
     base = rigs.run_rig(small_staircase(), gyro_seed=2, seed=0)
@@ -383,7 +383,7 @@ def test_bad_protocols_refused(change: dict[str, object], word: str) -> None:
 def test_thermal_bias_is_each_gyros_own() -> None:
     """thermal_bias: each gyro's bias law from the population (its coil, a Shupe term, a
     quadratic, a cubic); the bench cases use it."""
-    from fogsf.trainer.sim.population import gyro_for_seed
+    from fogsf.sim.population import gyro_for_seed
 
     p = small_reversals(bias=None, thermal_bias=True)
     run = rigs.run_rig(p, gyro_seed=20003, seed=1)

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 from test_metric_blocks import reversals
 
-from fogsf.trainer.logs import columns, metrics
-from fogsf.trainer.logs.logio import write_log
-from fogsf.trainer.logs.plateaus import measuring_mask
-from fogsf.trainer.logs.stream_read import read_log_on_disk
-from fogsf.trainer.models.features import front_end_for
-from fogsf.trainer.models.reference import frontend
-from fogsf.trainer.models.step_inputs import frontend_s, step_targets
+from fogsf.logs import columns, metrics
+from fogsf.logs.logio import write_log
+from fogsf.logs.plateaus import measuring_mask
+from fogsf.logs.stream_read import read_log_on_disk
+from fogsf.models.features import front_end_for
+from fogsf.models.reference import frontend
+from fogsf.models.step_inputs import frontend_s, step_targets
 
 
 def whole_targets(log, decimation: int) -> np.ndarray:  # noqa: ANN001 - the code it replaces
@@ -47,7 +47,7 @@ def test_step_inputs_in_blocks_are_the_same_bits(read: int, plays, tmp_path,  # 
     disk = read_log_on_disk(tmp_path / "log.csv")
     monkeypatch.setattr(columns, "STRICT", True)
     assert np.array_equal(frontend_s(disk.temp_c, fe), frontend(disk.temp_c[:], fe).s)
-    from fogsf.trainer.logs.logio import read_log
+    from fogsf.logs.logio import read_log
 
     assert np.array_equal(step_targets(disk, fe.decimation),
                           whole_targets(read_log(tmp_path / "log.csv"), fe.decimation),

@@ -1,4 +1,4 @@
-"""The numpy reference of the streaming contract (fogsf/trainer/models/: stream, reference, f32)."""
+"""The numpy reference of the streaming contract (fogsf/models/: stream, reference, f32)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.models import f32, reference, samples
-from fogsf.trainer.models import stream as st
+from fogsf.errors import UserError
+from fogsf.models import f32, reference, samples
+from fogsf.models import stream as st
 
 F32 = np.float32
 

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.trainer.logs import columns
-from fogsf.trainer.logs.columns import LazyColumn, block_means, cumsum_at, cumsum_blocks_at
-from fogsf.trainer.logs.exact_stats import median_step
-from fogsf.trainer.sim.lag import first_order_lag, lag_blocks
+from fogsf.logs import columns
+from fogsf.logs.columns import LazyColumn, block_means, cumsum_at, cumsum_blocks_at
+from fogsf.logs.exact_stats import median_step
+from fogsf.sim.lag import first_order_lag, lag_blocks
 
 
 def _lazy(x: np.ndarray) -> LazyColumn:
@@ -82,7 +82,7 @@ def test_median_step_on_disk(monkeypatch: pytest.MonkeyPatch) -> None:
 @pytest.mark.parametrize("n", [17, 480, 1201])
 def test_sign_flip_in_chunks(n: int, monkeypatch: pytest.MonkeyPatch) -> None:
     """The sign-flip test draws its signs a chunk at a time: the p-value of one draw of all."""
-    from fogsf.trainer.diagnose import stats
+    from fogsf.diagnose import stats
 
     d = np.random.default_rng(n).normal(0.1, 1.0, n)
     whole = stats.sign_flip_p(d, draws=3000)
@@ -95,7 +95,7 @@ def test_sign_flip_in_chunks(n: int, monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_profile_solve_in_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
     """The profile over a grid, a few combinations at a time: the bits of all at once."""
-    from fogsf.trainer.models import node_fit
+    from fogsf.models import node_fit
 
     rng = np.random.default_rng(5)
     x = rng.normal(size=(23, 300, 6))
@@ -114,7 +114,7 @@ def test_profile_solve_in_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
 def test_held_steps_on_disk_are_the_expanded_steps() -> None:
     """Step values held over their samples: a column on disk gets a derived column with the
     same samples, read in any block; one in memory the array itself."""
-    from fogsf.trainer.models.reference import expand
+    from fogsf.models.reference import expand
 
     steps = _series(101, 5)
     x = _series(1003, 6)

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.models.reference import replay
-from fogsf.trainer.models.stream import StreamModel
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.train import per_sample_prediction, run_training
+from fogsf.errors import UserError
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.models.reference import replay
+from fogsf.models.stream import StreamModel
+from fogsf.training.options import TrainOptions
+from fogsf.training.train import per_sample_prediction, run_training
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +49,7 @@ def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path)
 def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="lag-lstm", progress=False, **FAST)
-    from fogsf.trainer.training.train import fit_model
+    from fogsf.training.train import fit_model
 
     fitted = fit_model(opts, [train])
     torch_pred = per_sample_prediction(fitted, test, None)
@@ -64,8 +64,8 @@ def test_no_start_up_transient_after_reset(logs) -> None:
     """Firmware starts from reset at power-on: the exported model's first 10 minutes on an
     unseen run (the soak before its ramp) are no worse than the run as a whole, and within
     twice the noise floor (the LSTM state starting from zero once left ~200 ppm there)."""
-    from fogsf.trainer.logs.metrics import noise_floor_ppm, sf_error_ppm, sf_windows
-    from fogsf.trainer.training.train import fit_model
+    from fogsf.logs.metrics import noise_floor_ppm, sf_error_ppm, sf_windows
+    from fogsf.training.train import fit_model
 
     train, test = logs
     fitted = fit_model(TrainOptions(model="lag-lstm", progress=False, **FAST), [train])
@@ -125,9 +125,9 @@ def test_gsa_fitness_is_the_same_in_worker_processes(logs) -> None:
     """The fitness pickles to worker processes and gives the same value there as inline."""
     import functools
 
-    from fogsf.trainer.gsa.executors import open_executor
-    from fogsf.trainer.models.features import step_targets
-    from fogsf.trainer.training.train import gsa_fitness
+    from fogsf.gsa.executors import open_executor
+    from fogsf.models.features import step_targets
+    from fogsf.training.train import gsa_fitness
 
     train, _ = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_fitness_iters=4)
@@ -154,7 +154,7 @@ def test_static_models_are_refused_by_export_with_a_reason(logs, tmp_path: Path)
 
 def test_bad_options_refused(logs) -> None:
     train, _ = logs
-    from fogsf.trainer.training.train import fit_model
+    from fogsf.training.train import fit_model
 
     with pytest.raises(UserError, match="unknown model"):
         fit_model(TrainOptions(model="svm"), [train])

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from fogsf.trainer.cli import main
-from fogsf.trainer.logs import columns, stream_read
-from fogsf.trainer.logs.logio import read_log
+from fogsf.cli.main import main
+from fogsf.logs import columns, stream_read
+from fogsf.logs.logio import read_log
 
 
 def _trained(tmp: Path, logs: list[Path], model: str, monkeypatch: pytest.MonkeyPatch,

@@ -8,11 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.models.features import FrontEnd, prepare
-from fogsf.trainer.models.physics_nodes import NodeTemperatures
-from fogsf.trainer.models.reference import expand
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.metrics import log_metrics
+from fogsf.models.features import FrontEnd, prepare
+from fogsf.models.physics_nodes import NodeTemperatures
+from fogsf.models.reference import expand
 
 
 def ratio(log: ChamberLog, pred: np.ndarray) -> float:

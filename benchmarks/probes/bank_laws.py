@@ -31,17 +31,17 @@ import numpy as np
 
 from benchmarks.probes import StepScorer, finish, spread_cells
 from benchmarks.probes.sf_oracle import Run, partial_case, protocol_cases
-from fogsf.trainer.models.lag_bank import (
+from fogsf.models.lag_bank import (
     BANK_LAMBDA,
     CURVED_MAX_TAU_S,
     bank_design,
     fit_bank,
     n_curved,
 )
-from fogsf.trainer.models.least_squares import TAU_GRID_S
-from fogsf.trainer.models.node_fit import varpro
-from fogsf.trainer.models.physics_nodes import identify_taus
-from fogsf.trainer.training import structure_choice as sc
+from fogsf.models.least_squares import TAU_GRID_S
+from fogsf.models.node_fit import varpro
+from fogsf.models.physics_nodes import identify_taus
+from fogsf.training import structure_choice as sc
 
 Law = Callable[[np.ndarray], np.ndarray]
 
@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="the partial-cycle programs, gyros without SF hysteresis")
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
-    from fogsf.trainer.sim.population import DEV_SEEDS
+    from fogsf.sim.population import DEV_SEEDS
 
     t0 = time.perf_counter()
     rows: list[dict] = []

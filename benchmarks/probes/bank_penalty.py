@@ -25,15 +25,15 @@ import time
 import numpy as np
 
 from benchmarks.probes import StepScorer, finish, spread_cells
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
+from fogsf.models.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
 
 
 def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - ChamberLogs
     """Every penalty's test ratio (with the hysteresis term where the check keeps it on the
     bank at the prior, as `fogsf train` decides it), the rule's choice, and every penalty's
     held-out parts (mean squared window error per part) for trying other rules."""
-    from fogsf.trainer.training import structure_choice as sc
-    from fogsf.trainer.training.hysteresis_choice import decide, fit_with_term
+    from fogsf.training import structure_choice as sc
+    from fogsf.training.hysteresis_choice import decide, fit_with_term
 
     step = sc.choice_step_s(train)
     sd = sc.step_data(train, step)
@@ -48,7 +48,7 @@ def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - Chamber
         rule = pc.name
     used = hysteresis and decide(train, bank_name(), step)["used"]
     if used and bank_cross(rule):  # as `fogsf train`: judged again with the term in
-        from fogsf.trainer.training.hysteresis_choice import cross_with_term
+        from fogsf.training.hysteresis_choice import cross_with_term
 
         if not cross_with_term(train, pc.plain, rule, step)["kept"]:
             rule = pc.plain
@@ -85,9 +85,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="PENALTY_WIN_SHARE for this run")
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
-    from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
-    from fogsf.trainer.training import structure_choice
-    from fogsf.trainer.training.structure_choice import PENALTIES
+    from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
+    from fogsf.training import structure_choice
+    from fogsf.training.structure_choice import PENALTIES
 
     if args.min_parts is not None:
         structure_choice.PENALTY_MIN_FOLDS = args.min_parts

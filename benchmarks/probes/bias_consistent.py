@@ -31,14 +31,14 @@ import numpy as np
 
 from benchmarks.bias_eval import FAST_TRAIN_LOOP, SHUPE, TEST_LOOP, TRAIN_LOOP, bias_law, protocol
 from benchmarks.probes import finish
-from fogsf.trainer.logs.bias import BiasWindows, bias_windows
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.logs.dialect import Dialect
-from fogsf.trainer.logs.logio import read_log, with_mapping_beside
-from fogsf.trainer.sim import rig_logs
-from fogsf.trainer.sim.population import gyro_for_seed
-from fogsf.trainer.training import bias_structure as bs
-from fogsf.trainer.training.bias_model import FeatureMap, bank_feature_map, fit_bias
+from fogsf.logs.bias import BiasWindows, bias_windows
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.dialect import Dialect
+from fogsf.logs.logio import read_log, with_mapping_beside
+from fogsf.sim import rig_logs
+from fogsf.sim.population import gyro_for_seed
+from fogsf.training import bias_structure as bs
+from fogsf.training.bias_model import FeatureMap, bank_feature_map, fit_bias
 
 LOOPS = {"slow": TRAIN_LOOP, "fast": FAST_TRAIN_LOOP}
 MAX_POINTS = 40  # consistent points refitted per gyro (evenly by SSE rank)

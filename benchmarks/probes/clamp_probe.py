@@ -19,8 +19,8 @@ import numpy as np
 
 from benchmarks.population import protocol_logs
 from benchmarks.probes.structure_rules import bank_inputs, ratio
-from fogsf.trainer.models.lag_bank import fit_bank, n_curved
-from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
+from fogsf.models.lag_bank import fit_bank, n_curved
+from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.gsa.optimizer import Param, Space, minimize
+from fogsf.gsa.optimizer import Param, Space, minimize
 
 SPACE = [Param("batch_size", 8, 256, "int"), Param("layers", 1, 4, "int"),
          Param("hidden", 8, 256, "int"), Param("lr", 1e-4, 1e-1, "log-real")]

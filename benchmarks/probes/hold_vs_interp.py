@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.trainer.logs.logio import read_log
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.models import reference
-from fogsf.trainer.models import stream as st
+from fogsf.logs.logio import read_log
+from fogsf.logs.metrics import log_metrics
+from fogsf.models import reference
+from fogsf.models import stream as st
 
 
 def variants(model: st.StreamModel, log) -> dict[str, np.ndarray]:  # noqa: ANN001

@@ -29,8 +29,8 @@ THRESHOLDS = (0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40)
 
 
 def one(item: tuple[int, str]) -> dict:
-    from fogsf.trainer.training.hysteresis_choice import decide, fit_with_term
-    from fogsf.trainer.training.structure_choice import fit_candidate, step_data
+    from fogsf.training.hysteresis_choice import decide, fit_with_term
+    from fogsf.training.structure_choice import fit_candidate, step_data
 
     seed, group = item
     _, train, test = partial_runs(seed, group)

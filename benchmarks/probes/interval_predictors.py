@@ -28,15 +28,15 @@ import numpy as np
 
 from benchmarks.population import protocol_logs
 from benchmarks.probes import finish
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.trainer.training.structure_choice import (
+from fogsf.logs.metrics import log_metrics
+from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
+from fogsf.training.structure_choice import (
     CANDIDATES,
     candidate_compensations,
     choose,
     heldout_score,
 )
-from fogsf.trainer.training.transfer import target_spreads
+from fogsf.training.transfer import target_spreads
 
 QUANTILES = (50, 75, 90, 100)
 EXTRA = ("chain1", "chain2")  # more structures for the disagreement (`cand_max_extra`)

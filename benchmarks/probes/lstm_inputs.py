@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import PROTOCOLS, runs_for
-from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
+from fogsf.gsa.executors import add_executor_options, executor_from_args, run_all
 
 
 def parse_variant(text: str) -> tuple[int, int]:
@@ -37,9 +37,9 @@ def bench_gyro(gyro_seed: int, variants: tuple[str, ...], protocols: tuple[str, 
     """Every variant on every protocol for one development gyro."""
     import torch
 
-    from fogsf.trainer.sim.population import gyro_for_seed
-    from fogsf.trainer.training.options import TrainOptions
-    from fogsf.trainer.training.train import run_training
+    from fogsf.sim.population import gyro_for_seed
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import run_training
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     add_executor_options(ap)
     args = ap.parse_args(argv)
 
-    from fogsf.trainer.sim.population import seed_range
+    from fogsf.sim.population import seed_range
 
     seeds = list(range(args.first, args.first + args.n))
     dev = seed_range("dev")

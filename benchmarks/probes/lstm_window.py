@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from fogsf.trainer.gsa.executors import add_executor_options, executor_from_args, run_all
-from fogsf.trainer.sim.population import DEV_SEEDS
+from fogsf.gsa.executors import add_executor_options, executor_from_args, run_all
+from fogsf.sim.population import DEV_SEEDS
 
 VARIANTS = {"node/256": ("node", 256), "node/whole": ("node", 100_000),
             "bank/256": ("bank", 256), "bank/whole": ("bank", 100_000)}
@@ -32,9 +32,9 @@ VARIANTS = {"node/256": ("node", 256), "node/whole": ("node", 100_000),
 def one_gyro(seed: int, protocols: tuple[str, ...]) -> dict:
     import torch
 
-    from fogsf.trainer.sim.population import gyro_for_seed
-    from fogsf.trainer.training.options import TrainOptions
-    from fogsf.trainer.training.train import run_training
+    from fogsf.sim.population import gyro_for_seed
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import run_training
 
     torch.set_num_threads(1)
     gyro = gyro_for_seed(seed)

@@ -23,9 +23,9 @@ import time
 
 from benchmarks.population import protocol_logs
 from benchmarks.probes import finish
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.trainer.training.structure_choice import (
+from fogsf.logs.metrics import log_metrics
+from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
+from fogsf.training.structure_choice import (
     candidate_compensations,
     choose,
     heldout_score,
@@ -66,8 +66,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     for seed in range(args.first, args.first + args.n):
         if args.paper:
-            from fogsf.trainer.sim.gyro import simulate
-            from fogsf.trainer.sim.scenarios import paper
+            from fogsf.sim.gyro import simulate
+            from fogsf.sim.scenarios import paper
 
             cases = [("paper2", [simulate(paper(0.5, seed=1000 + seed)).log,
                                  simulate(paper(2.0, seed=4000 + seed)).log],

@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.sim.population import gyro_for_seed
-from fogsf.trainer.training.structure_choice import (
+from fogsf.logs.metrics import log_metrics
+from fogsf.sim.population import gyro_for_seed
+from fogsf.training.structure_choice import (
     CANDIDATES,
     candidate_compensation,
     choose,

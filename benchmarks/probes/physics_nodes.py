@@ -21,8 +21,8 @@ import numpy as np
 
 from benchmarks.population import protocol_logs
 from benchmarks.probes import finish, ratio, spread_cells
-from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.trainer.training.structure_choice import CANDIDATES, candidate_compensation, choose
+from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
+from fogsf.training.structure_choice import CANDIDATES, candidate_compensation, choose
 
 CANDS = CANDIDATES
 
@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-cube", action="store_true", help="no cube of T in the node law")
     ap.add_argument("--candidates", default=None, help="comma list (default CANDIDATES)")
     args = ap.parse_args(argv)
-    from fogsf.trainer.models import physics_nodes
+    from fogsf.models import physics_nodes
 
     if args.lam is not None:
         physics_nodes.NODE_LAMBDA = args.lam
@@ -73,8 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     t0 = time.perf_counter()
     if args.paper:
-        from fogsf.trainer.sim.gyro import simulate
-        from fogsf.trainer.sim.scenarios import paper
+        from fogsf.sim.gyro import simulate
+        from fogsf.sim.scenarios import paper
 
         for seed in range(args.first, args.first + args.n):
             tr = simulate(paper(0.5, seed=1000 + seed)).log

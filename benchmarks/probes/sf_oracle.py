@@ -42,14 +42,14 @@ import numpy as np
 
 from benchmarks.population import PROTOCOLS, run_config
 from benchmarks.probes import StepScorer, finish, ratio, spread_cells
-from fogsf.trainer.logs.chamber_log import ChamberLog
-from fogsf.trainer.models.features import step_targets
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_name, fit_bank
-from fogsf.trainer.sim.config import SimConfig
-from fogsf.trainer.sim.effects import EffectContext, apply_effects
-from fogsf.trainer.sim.gyro import SimResult, simulate
-from fogsf.trainer.sim.population import gyro_for_seed
-from fogsf.trainer.sim.scale_factor import term_temperature
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.models.features import step_targets
+from fogsf.models.lag_bank import BANK_LAMBDA, bank_name, fit_bank
+from fogsf.sim.config import SimConfig
+from fogsf.sim.effects import EffectContext, apply_effects
+from fogsf.sim.gyro import SimResult, simulate
+from fogsf.sim.population import gyro_for_seed
+from fogsf.sim.scale_factor import term_temperature
 
 
 def true_design(r: SimResult, cfg: SimConfig) -> np.ndarray:
@@ -101,7 +101,7 @@ def bank_ratio(train: list[SimResult], test: SimResult, source: str,
     """The bank `name` (default: at the prior; least squares, as `fogsf train` fits it), its
     temperature input the log's thermometer (`source` "thermometer") or a true node's
     temperature ("board", "housing"): where the bank loses against the oracle."""
-    from fogsf.trainer.training import structure_choice as sc
+    from fogsf.training import structure_choice as sc
 
     def log_of(r: SimResult) -> ChamberLog:
         if source == "thermometer":
@@ -226,10 +226,10 @@ def plan_cases(seed: int, program: str) -> dict[str, tuple[list[Run], Run]]:
     candidates (its runs' noise seeds as the bench's) and the test loops at every envelope
     rate, one case per rate."""
     from benchmarks.plan import LIMITS, RATES
-    from fogsf.trainer.plan.evaluate import _test_loop
-    from fogsf.trainer.plan.programs import candidates
-    from fogsf.trainer.sim.config import ProfileConfig
-    from fogsf.trainer.sim.population import run_on_gyro
+    from fogsf.plan.evaluate import _test_loop
+    from fogsf.plan.programs import candidates
+    from fogsf.sim.config import ProfileConfig
+    from fogsf.sim.population import run_on_gyro
 
     found = [c for c in candidates(LIMITS) if c.name == program]
     if not found:
@@ -283,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         items = [(s, "plan") for s in range(args.first, args.first + args.n)]
     elif args.partial:
         from benchmarks.hysteresis import pick_seeds
-        from fogsf.trainer.sim.population import DEV_SEEDS, EVAL_SEEDS
+        from fogsf.sim.population import DEV_SEEDS, EVAL_SEEDS
 
         seeds = pick_seeds(
             args.first, args.n, EVAL_SEEDS if args.first in EVAL_SEEDS else DEV_SEEDS

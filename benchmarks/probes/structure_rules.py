@@ -31,20 +31,20 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from fogsf.trainer.logs.metrics import log_metrics
-from fogsf.trainer.models.features import MODEL_STEP_S, front_end_for, prepare
-from fogsf.trainer.models.lag_bank import BANK_LAMBDA, bank_design, bank_spec, fit_bank, n_curved
-from fogsf.trainer.models.least_squares import (
+from fogsf.logs.metrics import log_metrics
+from fogsf.models.features import MODEL_STEP_S, front_end_for, prepare
+from fogsf.models.lag_bank import BANK_LAMBDA, bank_design, bank_spec, fit_bank, n_curved
+from fogsf.models.least_squares import (
     TAU_GRID_S,
     fit_candidates,
     grid_data,
     node_candidates,
 )
-from fogsf.trainer.models.reference import expand
-from fogsf.trainer.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.trainer.training.options import TrainOptions
-from fogsf.trainer.training.train import bank_data, training_inputs
-from fogsf.trainer.training.transfer import CHI2_ALLOWANCE, long_run_ratio
+from fogsf.models.reference import expand
+from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
+from fogsf.training.options import TrainOptions
+from fogsf.training.train import bank_data, training_inputs
+from fogsf.training.transfer import CHI2_ALLOWANCE, long_run_ratio
 
 BANK_LAMBDAS = (1e-4, 1e-3, 1e-2)
 GCV_GRID = tuple(float(x) for x in np.geomspace(1e-8, 1e2, 41))

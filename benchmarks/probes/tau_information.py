@@ -40,9 +40,9 @@ import numpy as np
 
 from benchmarks.probes import StepScorer, finish, spread_cells
 from benchmarks.probes.sf_oracle import Run, partial_case, protocol_cases
-from fogsf.trainer.models.least_squares import TAU_GRID_S
-from fogsf.trainer.models.physics_nodes import fit_coefficients, identify_taus, node_design
-from fogsf.trainer.training import structure_choice as sc
+from fogsf.models.least_squares import TAU_GRID_S
+from fogsf.models.physics_nodes import fit_coefficients, identify_taus, node_design
+from fogsf.training import structure_choice as sc
 
 CHI2_95 = {2: 5.99, 3: 7.81}  # the chi-square 95 % points of 2 and 3 parameters
 
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--nodes: each of {sorted(CHI2_95)}")
     if args.partial:
         from benchmarks.hysteresis import pick_seeds
-        from fogsf.trainer.sim.population import DEV_SEEDS, EVAL_SEEDS
+        from fogsf.sim.population import DEV_SEEDS, EVAL_SEEDS
 
         pool = EVAL_SEEDS if args.first in EVAL_SEEDS else DEV_SEEDS
         seeds = pick_seeds(args.first, args.n, pool)["same-flat"]

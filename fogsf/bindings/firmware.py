@@ -25,8 +25,8 @@ from fogsf.bindings.kernel import (
     KernelBuild,
     build_kernel,
 )
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.models.stream import StreamModel
+from fogsf.errors import UserError
+from fogsf.models.stream import StreamModel
 
 ARM_CC = "arm-none-eabi-gcc"
 ARM_SIZE = "arm-none-eabi-size"

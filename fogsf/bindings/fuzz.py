@@ -18,10 +18,10 @@ import sys
 from pathlib import Path
 
 from fogsf.bindings.kernel import C_DIR, STRICT
+from fogsf.errors import UserError
 from fogsf.export.header import write_model
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.models import samples
-from fogsf.trainer.models import stream as st
+from fogsf.models import samples
+from fogsf.models import stream as st
 
 FUZZ_DIR = C_DIR / "fuzz"
 CORPUS = FUZZ_DIR / "corpus"

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 import fogsf
-from fogsf.trainer.errors import UserError
-from fogsf.trainer.models.stream import StreamModel
+from fogsf.errors import UserError
+from fogsf.models.stream import StreamModel
 
 C_DIR = Path(fogsf.cmake_dir)
 """The kernel's C sources: firmware/c in a checkout, fogsf/firmware/c in an installed wheel."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fogsf.trainer.models.stream import StreamModel
+from fogsf.models.stream import StreamModel
 
 ONNX_NAME = "model.onnx"
 

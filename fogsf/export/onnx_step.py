@@ -19,7 +19,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from fogsf.trainer.models.stream import StreamModel
+from fogsf.models.stream import StreamModel
 
 OPSET = 17
 IR_VERSION = 8

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import torch
 
-from fogsf.trainer.models.stream import StreamModel, onnx_to_torch_lstm
+from fogsf.models.stream import StreamModel, onnx_to_torch_lstm
 
 
 class TorchStep(torch.nn.Module):

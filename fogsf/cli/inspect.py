@@ -1,0 +1,274 @@
+"""fogsf inspect: a chamber log's summary and its SF-error metrics block.
+
+The first thing to run on a new chamber log. The log is read with every check of the
+format (a bad file is refused with its file, line and rule), then summarised: samples,
+duration, board-temperature range, table rates, and the SF error about the SF at 20 C
+(board thermometer) in windows of --window-s: max|e|, peak-to-peak, RMS (about the 20 C
+reference) and STD (about the mean), beside the noise floor (what the gyro's own noise
+leaves in one window). SF comes from plateaus of constant commanded table rate, each
+after a settle margin (--settle-s); a log with +/- pairs (adjacent plateaus of opposite
+sign and equal |rate|) shows the gyro's bias and its drift with temperature, a log with the
+table stopped throughout (stationary, earth rate known) shows its bias (output - earth rate)
+in windows of --window-s and no SF, and a
+staircase (three or more |rates|) the SF per rate step, its nonlinearity and asymmetry
+(IEEE Std 952). A log that starts while the temperature moves is said so (--skip-s).
+
+Example:
+  fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv && fogsf inspect run10.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from fogsf.cli.arguments import add_log_options, add_metric_options, positive_float, read_logs
+from fogsf.cli.axes import run_all, wants_all
+from fogsf.logs.bias import BiasWindows, bias_summary, bias_windows
+from fogsf.logs.chamber_log import ChamberLog, is_stationary, rate_text
+from fogsf.logs.columns import col_max, col_min
+from fogsf.logs.metrics import (
+    log_metrics,
+    noise_floor_ppm,
+    reference_sf,
+    sf_error_ppm,
+    sf_windows,
+    start_note,
+    start_ramp_c_per_min,
+)
+from fogsf.logs.pairs import find_pairs, rate_steps
+from fogsf.logs.plateaus import DPS_TO_DPH, SETTLE_S, plateaus
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", help="chamber log, CSV or Parquet (format: docs/logs.md)")
+    parser.add_argument("--json", action="store_true",
+                        help="print the summary as JSON (samples, duration_s, sample_rate_hz, "
+                             "temp_range_c, table_rates_dps, metrics, settle_s, skip_s, "
+                             "start_ramp_c_per_min, pairs, rate_steps, stationary, bias)")
+    add_metric_options(parser, skip=True)
+    add_log_options(parser)
+    parser.add_argument("--ref-sf", type=positive_float, default=None,
+                        help="reference SF ratio (vs nominal) instead of the log's own at 20 C "
+                             "(needed when the log never passes 20 C: take ref_sf_ratio from "
+                             "`fogsf inspect --json` of a run of the same gyro that does)")
+    parser.add_argument("--plot", metavar="PNG", default=None,
+                        help="write a plot of the SF error vs board temperature and time "
+                             "(and of the bias, when the log measures it)")
+
+
+def pairs_summary(log: ChamberLog, latitude_deg: float | None, settle_s: float
+                  ) -> dict | None:
+    """The +/- pairs' bias (deg/h), its spread and thermal drift; None without pairs."""
+    pp = find_pairs(log, latitude_deg, settle_s)
+    if pp is None:
+        return None
+    bias = pp.bias_dps * DPS_TO_DPH
+    alone = sum(idx.size == 2 for idx, _ in pp.bias_weights)  # no neighbour at their rate
+    return {"count": len(pp), "rates_dps": sorted({round(float(r), 6) for r in pp.rate_dps}),
+            "without_neighbours": int(alone),
+            "bias_dph": float(bias.mean()), "bias_std_dph": float(bias.std()),
+            "bias_range_dph": [float(bias.min()), float(bias.max())],
+            "bias_drift_dph_per_c": pp.bias_drift_dph_per_c(),
+            "sf_ppm": float((pp.sf_ratio.mean() - 1.0) * 1e6)}
+
+
+def stationary_summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
+                       skip_s: float = 0.0) -> dict:
+    """A stationary log's summary: no SF figures (null), its bias."""
+    w = bias_windows(log, window_s, latitude_deg, skip_s=skip_s)
+    assert w is not None  # a stationary log always has windows (or refuses)
+    return {
+        "samples": len(log), "duration_s": log.duration_s,
+        "sample_rate_hz": log.sample_rate_hz,
+        "temp_range_c": [col_min(log.temp_c), col_max(log.temp_c)],
+        "table_rates_dps": [], "metrics": None, "ref_sf_ratio": None, "settle_s": None,
+        "skip_s": skip_s, "start_ramp_c_per_min": start_ramp_c_per_min(log), "pairs": None,
+        "rate_steps": None, "stationary": True, "bias": bias_summary(w),
+    }
+
+
+def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
+            ref: float | None, settle_s: float = SETTLE_S, skip_s: float = 0.0) -> dict:
+    if is_stationary(log):
+        return stationary_summary(log, window_s, latitude_deg, skip_s)
+    bias = bias_windows(log, window_s, latitude_deg, settle_s, skip_s)
+    rates = sorted({round(float(log.table_rate_dps[a]), 9)
+                    for a, _ in plateaus(log.table_rate_dps, log.measures)})
+    if ref is None:
+        ref = reference_sf(sf_windows(log, window_s, latitude_deg, settle_s=settle_s,
+                                      skip_s=skip_s))
+    steps = rate_steps(log, latitude_deg, settle_s)
+    return {
+        "samples": len(log),
+        "duration_s": log.duration_s,
+        "sample_rate_hz": log.sample_rate_hz,
+        "temp_range_c": [col_min(log.temp_c), col_max(log.temp_c)],
+        "table_rates_dps": rates,
+        "metrics": log_metrics(log, window_s, ref=ref, latitude_deg=latitude_deg,
+                               settle_s=settle_s, skip_s=skip_s),
+        "ref_sf_ratio": ref,
+        "settle_s": settle_s,
+        "skip_s": skip_s,
+        "start_ramp_c_per_min": start_ramp_c_per_min(log),
+        "pairs": pairs_summary(log, latitude_deg, settle_s),
+        "rate_steps": None if steps is None else steps.as_dict(),
+        "stationary": False,
+        "bias": None if bias is None else bias_summary(bias),
+    }
+
+
+def print_plateau_figures(s: dict) -> None:
+    """The pairs' bias and the staircase's figures, when the log has them."""
+    p = s["pairs"]
+    if p is not None:
+        drift = ("" if p["bias_drift_dph_per_c"] is None
+                 else f", drift {p['bias_drift_dph_per_c']:+.4f} deg/h/C")
+        lo, hi = p["bias_range_dph"]
+        print(f"  bias from {p['count']} +/- pairs: {p['bias_dph']:+.4f} deg/h (std "
+              f"{p['bias_std_dph']:.4f}, {lo:+.4f} .. {hi:+.4f}){drift}; taken off before SF")
+        if 2 * p.get("without_neighbours", 0) > p["count"]:
+            print(f"    {p['without_neighbours']} of them have no neighbour at their own rate "
+                  "(a staircase): the SF moving between a pair's plateaus reads as bias here; "
+                  "train and replay take the SF model's prediction off first")
+    st = s["rate_steps"]
+    if st is not None:
+        print(f"  rate steps: SF nonlinearity {st['sf_nonlinearity_ppm_fs']:.1f} ppm of full "
+              f"scale, asymmetry {st['sf_asymmetry_ppm']:+.1f} ppm (IEEE Std 952); bias "
+              f"{st['bias_dph']:+.4f} deg/h (a +/- pair's bias holds asymmetry x rate / 2, "
+              "this one does not)")
+        print(f"    SF per rate step vs nominal, at {st['temp_c']:.1f} C board temperature:")
+        for r, a, b in zip(st["rates_dps"], st["sf_pos_ppm"], st["sf_neg_ppm"], strict=True):
+            pos = "   -   " if a is None else f"{a:+9.1f}"
+            neg = "   -   " if b is None else f"{b:+9.1f}"
+            print(f"    |rate| {r:8.3f} deg/s   SF+ {pos} ppm   SF- {neg} ppm")
+
+
+def print_bias(b: dict) -> None:
+    """The bias block: its figures, then a few windows over the log (time, T, bias)."""
+    where = ("stationary log, output - earth rate" if b["source"] == "stationary"
+             else "+/- pairs")
+    drift = ("" if b["drift_dph_per_c"] is None
+             else f", drift {b['drift_dph_per_c']:+.4f} deg/h/C")
+    lo, hi = b["range_dph"]
+    print(f"  bias ({where}), {b['count']} windows of {b['window_s']:g} s: mean "
+          f"{b['bias_dph']:+.4f} deg/h, std {b['std_dph']:.4f}, {lo:+.4f} .. {hi:+.4f}"
+          f"{drift}; noise floor {b['noise_floor_dph']:.4f} deg/h (1 sigma of one window)")
+    print("    time (min)   board T (C)   bias (deg/h)")
+    for r in b["series"]:
+        print(f"    {r['t_s'] / 60.0:10.1f}   {r['temp_c']:11.2f}   {r['bias_dph']:+12.4f}")
+
+
+def print_stationary(log: ChamberLog, s: dict) -> None:
+    lo, hi = s["temp_range_c"]
+    print(f"{log.path}: {s['samples']} samples, {s['duration_s']:.1f} s "
+          f"({s['duration_s'] / 3600:.2f} h) at {rate_text(log.sample_dt_s)}")
+    print(f"  board temperature {lo:.2f} .. {hi:.2f} C; the table stopped throughout: "
+          "the log measures the bias, not the SF")
+    print_bias(s["bias"])
+
+
+def run(args: argparse.Namespace) -> int:
+    if wants_all(args):  # --plot NAME_A.png per axis, then one summary
+        return run_all(args, run, "inspect")
+    log = read_logs(args, [args.log], on_disk=True)[0]
+    s = summary(log, args.window_s, args.latitude_deg, args.ref_sf, args.settle_s, args.skip_s)
+    note = start_note(log, args.skip_s)  # after the summary: a refused log is one line
+    if note:
+        print(f"fogsf: {note}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(s, indent=2))
+    elif s["stationary"]:
+        print_stationary(log, s)
+    else:
+        m = s["metrics"]
+        lo, hi = s["temp_range_c"]
+        rates = ", ".join(f"{r:+g}" for r in s["table_rates_dps"][:8])
+        more = " ..." if len(s["table_rates_dps"]) > 8 else ""
+        print(f"{log.path}: {s['samples']} samples, {s['duration_s']:.1f} s "
+              f"({s['duration_s'] / 3600:.2f} h) at {rate_text(log.sample_dt_s)}")
+        print(f"  board temperature {lo:.2f} .. {hi:.2f} C; table rates {rates}{more} deg/s")
+        extra = [k for k in log.extra]
+        if extra:
+            print(f"  extra columns: {', '.join(extra)}")
+        ref = "the given reference" if args.ref_sf is not None else "the SF at 20 C"
+        print(f"  SF error about {ref}, {m['window_s']:g} s windows (settle "
+              f"{s['settle_s']:g} s{f', first {args.skip_s:g} s skipped' if args.skip_s else ''}):")
+        print(f"    max|e| {m['max_abs_ppm']:.2f} ppm   p-p {m['pp_ppm']:.2f} ppm   "
+              f"RMS {m['rms_ppm']:.2f} ppm   STD {m['std_ppm']:.2f} ppm")
+        print(f"    noise floor {m['noise_floor_ppm']:.2f} ppm (1 sigma of one window)")
+        print(f"  reference SF ratio {s['ref_sf_ratio']:.9f} (vs nominal; --ref-sf)")
+        print_plateau_figures(s)
+        if s["bias"] is not None:
+            print_bias(s["bias"])
+    if args.plot:
+        plot(log, args.window_s, args.latitude_deg, args.ref_sf, args.plot, args.settle_s,
+             args.skip_s)
+        if not args.json:
+            print(f"  plot: {args.plot}")
+    args.axis_result = s  # the summary row of --axis all
+    return 0
+
+
+def plot(log: ChamberLog, window_s: float, latitude_deg: float | None, ref: float | None,
+         path: str, settle_s: float = SETTLE_S, skip_s: float = 0.0) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    bias = bias_windows(log, window_s, latitude_deg, settle_s, skip_s)
+    if is_stationary(log):
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4), squeeze=False)
+        assert bias is not None
+        plot_bias(axes[0], bias, log.path)
+    else:
+        fig, axes = plt.subplots(2 if bias is not None else 1, 2, figsize=(11, 8 if bias
+                                                                           else 4),
+                                 squeeze=False)
+        plot_sf(axes[0], log, window_s, latitude_deg, ref, settle_s, skip_s)
+        if bias is not None:
+            plot_bias(axes[1], bias, log.path)
+    for a in axes.ravel():
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_bias(row, w: BiasWindows, name: str) -> None:  # noqa: ANN001 - matplotlib axes
+    """The bias windows vs board temperature and time, with the noise floor."""
+    a1, a2 = row
+    a1.plot(w.temp_c, w.bias_dph, ".-", ms=3, lw=0.8)
+    a1.set_xlabel("board temperature (C)")
+    a1.set_ylabel("bias (deg/h)")
+    a1.set_title(f"{name}: bias vs temperature ({w.source})")
+    t_min = (w.t_s - w.t0_s) / 60.0
+    a2.plot(t_min, w.bias_dph, ".-", ms=3, lw=0.8)
+    m, floor = float(w.bias_dph.mean()), w.noise_floor_dph
+    if floor == floor:  # not NaN
+        a2.fill_between(t_min, m - floor, m + floor, color="0.85",
+                        label=f"mean +/- noise floor {floor:.3f}")
+        a2.legend(loc="best")
+    a2.set_xlabel("time since the log's first sample (min)")
+    a2.set_ylabel("bias (deg/h)")
+
+
+def plot_sf(row, log: ChamberLog, window_s: float,  # noqa: ANN001 - matplotlib axes
+            latitude_deg: float | None, ref: float | None, settle_s: float,
+            skip_s: float) -> None:
+    w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
+    e = sf_error_ppm(w, ref if ref is not None else reference_sf(w))
+    floor = noise_floor_ppm(w)
+    a1, a2 = row
+    a1.plot(w.temp_c, e, ".-", ms=3, lw=0.8)
+    a1.set_xlabel("board temperature (C)")
+    a1.set_ylabel("SF error (ppm)")
+    a1.set_title(f"{log.path}: SF error vs temperature")
+    t_min = (w.t_s - log.time_s[0]) / 60.0  # an epoch time base reads from the log's start
+    a2.plot(t_min, e, ".-", ms=3, lw=0.8)
+    a2.fill_between(t_min, -floor, floor, color="0.85", label=f"noise floor {floor:.1f}")
+    a2.set_xlabel("time since the log's first sample (min)")
+    a2.set_ylabel("SF error (ppm)")
+    a2.legend(loc="best")

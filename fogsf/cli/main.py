@@ -1,0 +1,106 @@
+"""The `fogsf` entry point: one sub-command per module in fogsf.cli."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import re
+import sys
+from typing import NoReturn
+
+from fogsf import __version__
+from fogsf.errors import UserError
+
+# name -> (module, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("fogsf.cli.simulate",
+                 "simulate a FOG on a rate table in a temperature chamber (writes a log)"),
+    "inspect": ("fogsf.cli.inspect",
+                "a chamber log's summary and SF-error metrics: run this first on a new log"),
+    "train": ("fogsf.cli.train",
+              "train a compensation model (default lag-lstm; poly, polyrate, mlp, lstm, "
+              "gsa-lstm)"),
+    "export": ("fogsf.cli.export", "export a trained model to ONNX and C headers"),
+    "replay": ("fogsf.cli.replay",
+               "run the compiled C kernel over a log, sample by sample"),
+    "diagnose": ("fogsf.cli.diagnose",
+                 "fit the simulator to measured logs, name what it misses, extend it"),
+    "plan": ("fogsf.cli.plan",
+             "the chamber program that buys the most accuracy per chamber hour"),
+}
+
+
+# A value that starts with a negative number but is not one (LO:HI such as -20:60, a list
+# such as -20,40,5) is taken by argparse for an option: it is joined to its option
+# (--range -20:60 -> --range=-20:60).
+_UNSIGNED = r"\d*\.?\d+(?:[eE][-+]?\d+)?"
+NEGATIVE_RANGE = re.compile(rf"^-{_UNSIGNED}(?:[:,][-+]?{_UNSIGNED})+$")
+
+
+def join_negative_ranges(argv: list[str]) -> list[str]:
+    """`--opt -20:60` -> `--opt=-20:60` (and -20,40,5), so argparse reads it as a value."""
+    out: list[str] = []
+    for arg in argv:
+        prev = out[-1] if out else ""
+        if (NEGATIVE_RANGE.match(arg) and prev.startswith("--") and "=" not in prev
+                and prev != "--"):
+            out[-1] = f"{prev}={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
+EXAMPLE_HEAD = re.compile(r"^(examples?):", re.IGNORECASE | re.MULTILINE)
+
+
+def split_doc(doc: str) -> tuple[str, str | None]:
+    """A command's docstring as (description, epilog): the examples go last in --help."""
+    starts = [m.start() for m in EXAMPLE_HEAD.finditer(doc)]
+    if not starts:
+        return doc.strip(), None
+    return doc[:starts[-1]].strip(), doc[starts[-1]:].strip()
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's refusals in one line, as every other refusal of fogsf (exit status 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(
+        prog="fogsf",
+        description="Fiber-optic gyro thermal scale-factor error: from chamber logs to "
+                    "firmware. Run `fogsf COMMAND --help` for each command.",
+        epilog="Example:\n  fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv"
+               " && fogsf inspect run10.csv",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"fogsf {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (module, help_text) in COMMANDS.items():
+        mod = importlib.import_module(module)
+        desc, epilog = split_doc(mod.__doc__ or help_text)
+        p = sub.add_parser(name, help=help_text, description=desc, epilog=epilog,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        mod.configure(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = join_negative_ranges(sys.argv[1:] if argv is None else list(argv))
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except UserError as e:
+        print(f"fogsf {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fogsf: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

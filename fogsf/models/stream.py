@@ -1,0 +1,646 @@
+"""The streaming model artifact "fogsf-stream-1" (docs/stream-contract.md).
+
+One computation, three implementations: the trainer (torch), the ONNX step (onnxruntime) and
+the C kernel (firmware/c), all checked against the numpy reference (`models.reference`).
+This module holds what they share:
+
+- `StreamModel`: the artifact (stream.json + stream_weights.npz): load, save, validate,
+  `model_id` (a hash of weights and config), re-rating to another sample rate.
+- `diagonal_features`: the same model with a diagonal feat_w stored as its diagonal only.
+- `FrontEnd`, `filter_alpha`, `decimation_for`: the front end's configuration.
+- The status flags (the C kernel's FOGSF_FLAG_* have the same values) and SF_LIMIT_PPM.
+- `torch_to_onnx_lstm`, `onnx_to_torch_lstm`: gate-order converters (torch i,f,g,o with
+  weight_ih, weight_hh, bias_ih, bias_hh <-> ONNX i,o,f,c with W, R, B).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from fogsf.errors import UserError
+
+FORMAT = "fogsf-stream-1"
+CONFIG_FILE = "stream.json"
+WEIGHTS_FILE = "stream_weights.npz"
+
+# Status flags, one bit each (the C kernel's FOGSF_FLAG_* have the same values).
+FLAG_TEMP_INVALID = 1  # temperature not finite: last good value (or t_ref) used
+FLAG_TEMP_CLAMPED = 2  # temperature outside [t_min, t_max]: clamped
+FLAG_TEMP_STUCK = 4  # raw temperature bitwise unchanged for >= stuck_samples samples
+FLAG_GYRO_INVALID = 8  # gyro input (or corrected output) not finite: corrected = 0.0
+FLAG_SF_CLAMPED = 16  # model output not finite or beyond +-SF_LIMIT_PPM: clamped
+FLAG_BIAS_CLAMPED = 64  # bias head output not finite or beyond +-BIAS_LIMIT_DPH: clamped
+FLAG_NAMES = {FLAG_TEMP_INVALID: "TEMP_INVALID", FLAG_TEMP_CLAMPED: "TEMP_CLAMPED",
+              FLAG_TEMP_STUCK: "TEMP_STUCK", FLAG_GYRO_INVALID: "GYRO_INVALID",
+              FLAG_SF_CLAMPED: "SF_CLAMPED", FLAG_BIAS_CLAMPED: "BIAS_CLAMPED"}
+SF_LIMIT_PPM = 1.0e5  # |predicted SF error| beyond 10 % is a broken model, never a gyro
+BIAS_LIMIT_DPH = 3.6e4  # |predicted bias| beyond 10 deg/s is a broken model
+
+
+
+# --- the artifact --------------------------------------------------------------------------
+
+def play_half_c(widths_c: tuple[float, ...] | list[float]) -> np.ndarray:
+    """float32(width / 2) per play: what the header prints and the reference uses."""
+    return (np.asarray(widths_c, dtype=np.float64).reshape(-1) * 0.5).astype(np.float32)
+
+
+def play_source_w(weights: tuple | list, n_filters: int) -> np.ndarray:
+    """The plays' source weights as float32 [P, 1+K] (what the header prints)."""
+    return np.asarray(weights, dtype=np.float64).reshape(-1, 1 + n_filters).astype(np.float32)
+
+
+def filter_alpha(filter_tau_s: list[float], decimation: int, sample_dt_s: float = 0.1
+                 ) -> np.ndarray:
+    """alpha_k = 1 - exp(-D*dt/tau_k), computed in float64, stored as float32."""
+    return np.array([1.0 - math.exp(-decimation * sample_dt_s / tau) for tau in filter_tau_s],
+                    dtype=np.float32)
+
+
+# A model step may differ from D * dt by this fraction at most (D an integer of samples)
+STEP_TOLERANCE = 0.01
+
+
+def decimation_for(step_s: float, sample_dt_s: float, where: str | None = None) -> int:
+    """Samples per model step: step_s / sample_dt_s, which must be (within STEP_TOLERANCE)
+    a whole number >= 1; `where` (a log's path) starts the refusal."""
+    d = max(1, int(round(step_s / sample_dt_s)))
+    if abs(d * sample_dt_s - step_s) > STEP_TOLERANCE * step_s:
+        raise UserError(f"{where + ': ' if where else ''}a model step of {step_s:g} s is "
+                        f"{step_s / sample_dt_s:.4g} samples at {1.0 / sample_dt_s:.6g} Hz, "
+                        "not a whole number: the step must be a multiple of "
+                        f"{sample_dt_s:.6g} s at this rate (`fogsf train --model-step-s`)")
+    return d
+
+
+@dataclass(frozen=True)
+class FrontEnd:
+    """What the front end needs (a subset of the artifact; the trainer can build one alone)."""
+
+    t_ref_c: float
+    t_min_c: float
+    t_max_c: float
+    decimation: int
+    stuck_samples: int
+    filter_alpha: np.ndarray  # [K] float32
+    sample_dt_s: float = 0.1
+    filter_tau_s: tuple[float, ...] = ()  # () : unknown (the alphas are then rescaled)
+    # play (backlash) operators after the lag filters: width (C) and source weights over
+    # [Tm, y_1..y_K] (the play's input x = w . [Tm, y]); rate-independent, so the same at any
+    # sample rate
+    play_width_c: tuple[float, ...] = ()
+    play_source_w: tuple[tuple[float, ...], ...] = ()
+
+    @property
+    def n_plays(self) -> int:
+        return len(self.play_width_c)
+
+    def play_half_c(self) -> np.ndarray:
+        """The plays' half widths as the kernel holds them (float32 of width / 2)."""
+        return play_half_c(self.play_width_c)
+
+    @property
+    def step_s(self) -> float:
+        """The model step in seconds: D samples."""
+        return self.decimation * self.sample_dt_s
+
+    def at_rate(self, sample_dt_s: float) -> FrontEnd:
+        """The same front end for samples every `sample_dt_s`: the model step (s), the lag
+        filters' time constants (s) and the stuck-thermometer time (s) kept, in samples."""
+        d = decimation_for(self.step_s, sample_dt_s)
+        if d == self.decimation:  # the same samples per step, a step within 1 %: the same
+            return self
+        return replace(self, decimation=d, sample_dt_s=sample_dt_s,
+                       stuck_samples=int(round(self.stuck_samples * self.sample_dt_s
+                                               / sample_dt_s)),
+                       filter_alpha=self._alpha_at(d, sample_dt_s))
+
+    def _alpha_at(self, decimation: int, sample_dt_s: float) -> np.ndarray:
+        """Filter coefficients for D samples of sample_dt_s: the same bits when the step is
+        the same (to 1e-9), else `filter_alpha` afresh (rescaled when tau is unknown)."""
+        new_step_s = decimation * sample_dt_s
+        if abs(new_step_s - self.step_s) <= 1e-9 * self.step_s:
+            return np.asarray(self.filter_alpha, dtype=np.float32)
+        if len(self.filter_tau_s):
+            return filter_alpha(list(self.filter_tau_s), decimation, sample_dt_s)
+        keep = 1.0 - np.asarray(self.filter_alpha, dtype=np.float64)
+        return (1.0 - keep ** (new_step_s / self.step_s)).astype(np.float32)
+
+
+_CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {
+    "format": str, "model": str, "decimation": int, "sample_dt_s": (int, float),
+    "t_ref_c": (int, float), "t_min_c": (int, float), "t_max_c": (int, float),
+    "stuck_samples": int, "filter_tau_s": list, "n_features": int, "layers": int,
+    "hidden": int,
+}
+POLY_KEY = "poly_head"  # optional stream.json key (absent = false): quad_w and cube_w present
+POLY_ARRAYS = ("quad_w", "cube_w")
+# optional stream.json key (absent = n_features): the first LSTM layer reads z[0:N] only
+LSTM_INPUTS_KEY = "lstm_inputs"
+# optional stream.json key (absent = false; needs the polynomial head): quad_w is [F], the
+# diagonal only (y += quad_w[i] * (z_i * z_i))
+QUAD_DIAG_KEY = "quad_diag"
+# optional stream.json key (absent = false): the bias head over the same z, in deg/h:
+# bias = bias_b + bias_w.z + bias_quad_w.z^2 + bias_cube_w.z^3 (each [F], bias_b [1])
+BIAS_KEY = "bias_head"
+BIAS_ARRAYS = ("bias_b", "bias_w", "bias_quad_w", "bias_cube_w")
+# optional stream.json keys (absent = no plays): play (backlash) operators in the front end,
+# p_j = min(max(p_j, x_j - w_j/2), x_j + w_j/2), x_j = v_j . [Tm, y_1, ..., y_K] (the
+# source weights v_j, float32, summed in index order); s gains p_j - t_ref after the
+# filters, so feat_w is [F, 1+K+P]
+PLAY_WIDTH_KEY = "play_width_c"
+PLAY_SOURCE_KEY = "play_source_w"
+MAX_PLAY_WIDTH_C = 200.0
+# optional stream.json key (absent = false; needs F == 1+K+P): feat_w is [F], the diagonal
+# only (z_i = feat_w[i] * s_i + feat_b[i]; `diagonal_features` converts a model to it)
+FEAT_DIAG_KEY = "feat_diag"
+
+
+@dataclass
+class StreamModel:
+    """A streaming model artifact (docs/stream-contract.md). Weights are float32 arrays."""
+
+    model: str
+    decimation: int
+    t_ref_c: float
+    t_min_c: float
+    t_max_c: float
+    stuck_samples: int
+    filter_tau_s: list[float]
+    n_features: int
+    layers: int
+    hidden: int
+    weights: dict[str, np.ndarray]
+    sample_dt_s: float = 0.1
+    extra: dict = field(default_factory=dict)  # unknown stream.json keys, kept on save
+    poly_head: bool = False  # y also carries sum quad_w[i,j] z_i z_j + sum cube_w[i] z_i^3
+    lstm_inputs: int | None = None  # the first LSTM layer reads z[0:N]; None: all F
+    quad_diag: bool = False  # with poly_head: quad_w [F] is the diagonal of the quadratic
+    bias_head: bool = False  # the bias (deg/h) from z too: bias_b, bias_w, bias_quad_w, ...
+    play_width_c: list[float] = field(default_factory=list)  # P plays' widths (C)
+    play_source_w: list[list[float]] = field(default_factory=list)  # [P][1+K] sources
+    feat_diag: bool = False  # F == 1+K+P and feat_w [F] is the diagonal of the feature map
+
+    def __post_init__(self) -> None:
+        extra = dict(self.extra)
+        if PLAY_WIDTH_KEY in extra:
+            self.play_width_c = self.play_width_c or extra.pop(PLAY_WIDTH_KEY)
+        if PLAY_SOURCE_KEY in extra:
+            self.play_source_w = self.play_source_w or extra.pop(PLAY_SOURCE_KEY)
+        if BIAS_KEY in extra:
+            self.bias_head = self.bias_head or extra.pop(BIAS_KEY)
+        if POLY_KEY in extra:  # given as a stream.json key: it is the field
+            self.poly_head = self.poly_head or extra.pop(POLY_KEY)
+        if QUAD_DIAG_KEY in extra:
+            self.quad_diag = self.quad_diag or extra.pop(QUAD_DIAG_KEY)
+        if FEAT_DIAG_KEY in extra:
+            self.feat_diag = self.feat_diag or extra.pop(FEAT_DIAG_KEY)
+        if LSTM_INPUTS_KEY in extra:
+            value = extra.pop(LSTM_INPUTS_KEY)
+            self.lstm_inputs = value if self.lstm_inputs is None else self.lstm_inputs
+        self.extra = extra
+
+    @property
+    def n_lstm_inputs(self) -> int:
+        """N: how many features (z[0:N]) the first LSTM layer reads (F unless narrowed)."""
+        return self.n_features if self.lstm_inputs is None else self.lstm_inputs
+
+    @property
+    def lstm_inputs_narrowed(self) -> bool:
+        """True when the first layer reads fewer than all F features (the key is written
+        and enters the model id only then)."""
+        return self.n_lstm_inputs != self.n_features
+
+    # -- shape bookkeeping
+    @property
+    def n_filters(self) -> int:
+        return len(self.filter_tau_s)
+
+    @property
+    def n_plays(self) -> int:
+        return len(self.play_width_c)
+
+    def expected_shapes(self) -> dict[str, tuple[int, ...]]:
+        k, f, h = self.n_filters, self.n_features, self.hidden
+        shapes: dict[str, tuple[int, ...]] = {
+            "filter_alpha": (k,),
+            "feat_w": (f,) if self.feat_diag else (f, 1 + k + self.n_plays), "feat_b": (f,),
+            "head_w": (h,), "head_b": (1,), "skip_w": (f,),
+            "out_scale": (1,), "out_offset": (1,),
+        }
+        if self.poly_head:
+            shapes["quad_w"] = (f,) if self.quad_diag else (f, f)
+            shapes["cube_w"] = (f,)
+        if self.bias_head:
+            shapes.update({"bias_b": (1,), "bias_w": (f,), "bias_quad_w": (f,),
+                           "bias_cube_w": (f,)})
+        for layer in range(self.layers):
+            n_in = self.n_lstm_inputs if layer == 0 else h
+            shapes[f"lstm{layer}_w"] = (4 * h, n_in)
+            shapes[f"lstm{layer}_r"] = (4 * h, h)
+            shapes[f"lstm{layer}_b"] = (8 * h,)
+        return shapes
+
+    @property
+    def params(self) -> int:
+        """Trainable parameters (filter alphas included, they are part of the model)."""
+        return int(sum(a.size for a in self.weights.values()))
+
+    @property
+    def summary(self) -> str:
+        """One line for people: sizes, head, decimation, parameters."""
+        poly = ((" + polynomial head (diagonal quadratic)" if self.quad_diag
+                 else " + polynomial head") if self.poly_head else "")
+        reads = (f" on z[0:{self.n_lstm_inputs}]" if self.lstm_inputs_narrowed else "")
+        poly += " + bias head" if self.bias_head else ""
+        plays = (f", {self.n_plays} play(s) of width "
+                 f"{', '.join(f'{w:g}' for w in self.play_width_c)} C" if self.n_plays else "")
+        feats = " (diagonal feat_w)" if self.feat_diag else ""
+        return (f"K={self.n_filters} filters{plays}, F={self.n_features} features{feats}, "
+                f"{self.layers}x{self.hidden} LSTM{reads}{poly}, D={self.decimation}, "
+                f"{self.params} parameters")
+
+    @property
+    def front_end(self) -> FrontEnd:
+        return FrontEnd(t_ref_c=self.t_ref_c, t_min_c=self.t_min_c, t_max_c=self.t_max_c,
+                        decimation=self.decimation, stuck_samples=self.stuck_samples,
+                        filter_alpha=self.weights["filter_alpha"],
+                        sample_dt_s=self.sample_dt_s,
+                        filter_tau_s=tuple(float(t) for t in self.filter_tau_s),
+                        play_width_c=tuple(float(w) for w in self.play_width_c),
+                        play_source_w=tuple(tuple(float(v) for v in r)
+                                            for r in self.play_source_w))
+
+    @property
+    def step_s(self) -> float:
+        """The model step in seconds (D samples of sample_dt_s)."""
+        return self.decimation * self.sample_dt_s
+
+    def at_rate(self, sample_dt_s: float) -> StreamModel:
+        """The same model for samples every `sample_dt_s` (docs/stream-contract.md, "Sample
+        rate"): D = step / dt (the step in seconds kept), filter alphas for that step (the
+        same bits when it is the same), stuck_samples for the same time. The weights are
+        unchanged; the model id changes (D and dt are part of it) and the result records
+        the id it was re-rated from as `rated_from`."""
+        fe = self.front_end.at_rate(sample_dt_s)
+        if fe.decimation == self.decimation:
+            return self
+        weights = dict(self.weights)
+        weights["filter_alpha"] = fe.filter_alpha
+        extra = dict(self.extra)
+        extra.setdefault("rated_from", self.model_id)
+        model = replace(self, decimation=fe.decimation, sample_dt_s=float(sample_dt_s),
+                        stuck_samples=fe.stuck_samples, weights=weights, extra=extra)
+        model.validate()
+        return model
+
+    def config(self) -> dict:
+        cfg = dict(self.extra)
+        cfg.update({
+            "format": FORMAT, "model": self.model, "decimation": self.decimation,
+            "sample_dt_s": self.sample_dt_s, "t_ref_c": self.t_ref_c, "t_min_c": self.t_min_c,
+            "t_max_c": self.t_max_c, "stuck_samples": self.stuck_samples,
+            "filter_tau_s": list(self.filter_tau_s), "n_features": self.n_features,
+            "layers": self.layers, "hidden": self.hidden, POLY_KEY: self.poly_head,
+        })
+        # the extensions after poly_head are written only when they change something, so
+        # an artifact without them saves as it did before they existed
+        if self.lstm_inputs_narrowed:
+            cfg[LSTM_INPUTS_KEY] = self.n_lstm_inputs
+        if self.quad_diag:
+            cfg[QUAD_DIAG_KEY] = True
+        if self.feat_diag:
+            cfg[FEAT_DIAG_KEY] = True
+        if self.bias_head:
+            cfg[BIAS_KEY] = True
+        if self.n_plays:
+            cfg[PLAY_WIDTH_KEY] = [float(w) for w in self.play_width_c]
+            cfg[PLAY_SOURCE_KEY] = [[float(v) for v in r] for r in self.play_source_w]
+        return cfg
+
+    @property
+    def model_id(self) -> str:
+        """16 hex digits of SHA-256 over the contract config and the float32 weight bytes.
+
+        `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag`,
+        `feat_diag` and `bias_head` only when true, the plays only when there are some, so
+        models without them keep the ids they had before the keys existed."""
+        optional = {POLY_KEY: self.poly_head, LSTM_INPUTS_KEY: self.lstm_inputs_narrowed,
+                    QUAD_DIAG_KEY: self.quad_diag, FEAT_DIAG_KEY: self.feat_diag,
+                    BIAS_KEY: self.bias_head,
+                    PLAY_WIDTH_KEY: self.n_plays > 0, PLAY_SOURCE_KEY: self.n_plays > 0}
+        cfg = {k: v for k, v in self.config().items()
+               if k in _CONFIG_KEYS or optional.get(k, False)}
+        digest = hashlib.sha256(json.dumps(cfg, sort_keys=True, separators=(",", ":")).encode())
+        for name in sorted(self.weights):
+            arr = np.ascontiguousarray(self.weights[name], dtype="<f4")
+            digest.update(f"{name}:{arr.shape}".encode())
+            digest.update(arr.tobytes())
+        return digest.hexdigest()[:16]
+
+    # -- validation
+    def validate(self, where: str = "model") -> None:
+        """Refuse an inconsistent artifact with one message naming what is wrong."""
+        def bad(msg: str) -> UserError:
+            return UserError(f"{where}: {msg}")
+
+        for name, value in (("decimation", self.decimation), ("layers", self.layers),
+                            ("hidden", self.hidden), ("n_features", self.n_features)):
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise bad(f"'{name}' must be an integer >= 1, got {value!r}")
+        if not isinstance(self.stuck_samples, int) or not 0 <= self.stuck_samples < 2**31:
+            raise bad(f"'stuck_samples' must be an integer in [0, 2^31), got "
+                      f"{self.stuck_samples!r}")
+        if self.decimation >= 2**31:  # the kernel counts samples in uint32
+            raise bad(f"'decimation' must be below 2^31, got {self.decimation}")
+        if not (isinstance(self.sample_dt_s, (int, float)) and self.sample_dt_s > 0):
+            raise bad(f"'sample_dt_s' must be > 0, got {self.sample_dt_s!r}")
+        temps = {"t_ref_c": self.t_ref_c, "t_min_c": self.t_min_c, "t_max_c": self.t_max_c}
+        for name, value in temps.items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value)
+                    and -273.15 < value < 1000.0):
+                raise bad(f"'{name}' must be a finite temperature in C, got {value!r}")
+        if not isinstance(self.poly_head, bool):
+            raise bad(f"'{POLY_KEY}' must be true or false, got {self.poly_head!r}")
+        if not isinstance(self.quad_diag, bool):
+            raise bad(f"'{QUAD_DIAG_KEY}' must be true or false, got {self.quad_diag!r}")
+        if not isinstance(self.bias_head, bool):
+            raise bad(f"'{BIAS_KEY}' must be true or false, got {self.bias_head!r}")
+        if not isinstance(self.feat_diag, bool):
+            raise bad(f"'{FEAT_DIAG_KEY}' must be true or false, got {self.feat_diag!r}")
+        if self.quad_diag and not self.poly_head:
+            raise bad(f"'{QUAD_DIAG_KEY}' is true but '{POLY_KEY}' is false: a diagonal "
+                      f"quadratic needs the polynomial head")
+        n_in = self.lstm_inputs
+        if n_in is not None and (not isinstance(n_in, int) or isinstance(n_in, bool)
+                                 or not 1 <= n_in <= self.n_features):
+            raise bad(f"'{LSTM_INPUTS_KEY}' must be an integer in [1, n_features = "
+                      f"{self.n_features}], got {n_in!r}")
+        if not self.t_min_c < self.t_max_c:
+            raise bad(f"t_min_c ({self.t_min_c}) must be below t_max_c ({self.t_max_c})")
+        if not self.t_min_c <= self.t_ref_c <= self.t_max_c:
+            raise bad(f"t_ref_c ({self.t_ref_c}) must lie in [t_min_c, t_max_c] = "
+                      f"[{self.t_min_c}, {self.t_max_c}]")
+        for tau in self.filter_tau_s:
+            if not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0):
+                raise bad(f"'filter_tau_s' must hold positive time constants, got {tau!r}")
+        self._validate_plays(bad)
+        n_s = 1 + self.n_filters + self.n_plays
+        if self.feat_diag and self.n_features != n_s:
+            raise bad(f"'{FEAT_DIAG_KEY}' is true but n_features = {self.n_features} is not "
+                      f"1+K+P = {n_s} (K={self.n_filters} filters, P={self.n_plays} plays): "
+                      f"a diagonal feat_w maps each entry of s to one feature")
+        expected = self.expected_shapes()
+        missing = sorted(set(expected) - set(self.weights))
+        if missing:
+            quad = "[F]" if self.quad_diag else "[F, F]"
+            why = (f" ({POLY_KEY} is true: the polynomial head needs quad_w {quad} and cube_w "
+                   f"[F])" if self.poly_head and set(missing) & set(POLY_ARRAYS) else "")
+            why += (f" ({BIAS_KEY} is true: the bias head needs {', '.join(BIAS_ARRAYS)})"
+                    if self.bias_head and set(missing) & set(BIAS_ARRAYS) else "")
+            raise bad(f"{WEIGHTS_FILE} lacks array(s) {', '.join(missing)}{why}")
+        stray = sorted(set(POLY_ARRAYS) & set(self.weights) - set(expected))
+        if stray:
+            raise bad(f"{WEIGHTS_FILE} holds {', '.join(stray)} but {POLY_KEY} is false: set "
+                      f"\"{POLY_KEY}\": true in {CONFIG_FILE} or drop the array(s)")
+        stray = sorted(set(BIAS_ARRAYS) & set(self.weights) - set(expected))
+        if stray:
+            raise bad(f"{WEIGHTS_FILE} holds {', '.join(stray)} but {BIAS_KEY} is false: set "
+                      f"\"{BIAS_KEY}\": true in {CONFIG_FILE} or drop the array(s)")
+        for name, shape in expected.items():
+            arr = self.weights[name]
+            if arr.dtype != np.float32:
+                raise bad(f"array '{name}' must be float32, got {arr.dtype}")
+            if arr.shape != shape:
+                extra = (f" {LSTM_INPUTS_KEY}={self.n_lstm_inputs}" if name == "lstm0_w"
+                         and self.lstm_inputs_narrowed else "")
+                extra += f" {QUAD_DIAG_KEY}=true" if name == "quad_w" and self.quad_diag else ""
+                extra += f" {FEAT_DIAG_KEY}=true" if name == "feat_w" and self.feat_diag else ""
+                raise bad(f"array '{name}' has shape {arr.shape}, expected {shape} from "
+                          f"K={self.n_filters} F={self.n_features} L={self.layers} "
+                          f"H={self.hidden}{extra}")
+            if not np.all(np.isfinite(arr)):
+                raise bad(f"array '{name}' holds NaN or Inf")
+        alpha = self.weights["filter_alpha"].astype(np.float64)
+        if np.any(alpha <= 0) or np.any(alpha > 1):
+            raise bad(f"filter_alpha must lie in (0, 1], got {alpha.tolist()}")
+        want = filter_alpha(self.filter_tau_s, self.decimation, self.sample_dt_s)
+        if not np.allclose(alpha, want, rtol=1e-5, atol=0):
+            raise bad(f"filter_alpha {alpha.tolist()} does not match 1-exp(-D*dt/tau) = "
+                      f"{want.tolist()} for filter_tau_s={self.filter_tau_s}, D={self.decimation}")
+
+    def _validate_plays(self, bad: Callable[[str], UserError]) -> None:
+        widths, sources = self.play_width_c, self.play_source_w
+        if not isinstance(widths, list) or not isinstance(sources, list) \
+                or len(widths) != len(sources):
+            raise bad(f"'{PLAY_WIDTH_KEY}' and '{PLAY_SOURCE_KEY}' must be lists of one "
+                      f"length, got {widths!r} and {sources!r}")
+        for w in widths:
+            if not (isinstance(w, (int, float)) and not isinstance(w, bool)
+                    and math.isfinite(w) and 0 <= w <= MAX_PLAY_WIDTH_C):
+                raise bad(f"'{PLAY_WIDTH_KEY}' must hold widths in [0, {MAX_PLAY_WIDTH_C:g}] "
+                          f"C, got {w!r}")
+        for r in sources:
+            if not (isinstance(r, list) and len(r) == 1 + self.n_filters
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                            and math.isfinite(v) and abs(v) <= 1e3 for v in r)):
+                raise bad(f"'{PLAY_SOURCE_KEY}' must hold one row of 1+K = "
+                          f"{1 + self.n_filters} finite weights (|w| <= 1000) per play over "
+                          f"[Tm, y_1..y_K], got {r!r}")
+
+    # -- I/O
+    def save(self, directory: str | Path) -> Path:
+        """Write stream.json and stream_weights.npz into `directory` (created if needed)."""
+        self.validate()
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / CONFIG_FILE).write_text(json.dumps(self.config(), indent=2) + "\n")
+        np.savez(out / WEIGHTS_FILE, **{k: np.asarray(v, np.float32)
+                                        for k, v in sorted(self.weights.items())})
+        return out
+
+    @classmethod
+    def load(cls, directory: str | Path) -> StreamModel:
+        """Read and validate a model directory; every problem is a UserError naming the file."""
+        d = Path(directory)
+        if not d.is_dir():
+            raise UserError(f"{d}: no such model directory (train one with `fogsf train ... "
+                            f"--out {d}`)")
+        cfg_path, w_path = d / CONFIG_FILE, d / WEIGHTS_FILE
+        kind = _trained_kind(d)
+        if not cfg_path.is_file() and kind is not None:
+            raise UserError(f"{d}: a '{kind}' model has no firmware form; export and replay "
+                            "take the LSTM models (lstm, lag-lstm, gsa-lstm)")
+        for p in (cfg_path, w_path):
+            if not p.is_file():
+                raise UserError(f"{p}: missing; a model directory holds {CONFIG_FILE} and "
+                                f"{WEIGHTS_FILE} (docs/stream-contract.md)")
+        try:
+            cfg = json.loads(cfg_path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as e:
+            raise UserError(f"{cfg_path}: not valid JSON: {e}") from None
+        if not isinstance(cfg, dict):
+            raise UserError(f"{cfg_path}: must hold a JSON object")
+        if cfg.get("format") != FORMAT:
+            raise UserError(f"{cfg_path}: format is {cfg.get('format')!r}, this fogsf reads "
+                            f"{FORMAT!r}")
+        for key, typ in _CONFIG_KEYS.items():
+            if key not in cfg:
+                raise UserError(f"{cfg_path}: missing key '{key}'")
+            if not isinstance(cfg[key], typ) or isinstance(cfg[key], bool):
+                raise UserError(f"{cfg_path}: key '{key}' has the wrong type "
+                                f"({type(cfg[key]).__name__}): {cfg[key]!r}")
+        try:
+            with np.load(w_path, allow_pickle=False) as npz:
+                weights = {k: npz[k] for k in npz.files}
+        except (OSError, ValueError) as e:
+            raise UserError(f"{w_path}: cannot read the weights: {e}") from None
+        for key in (POLY_KEY, QUAD_DIAG_KEY, BIAS_KEY, FEAT_DIAG_KEY):
+            if not isinstance(cfg.get(key, False), bool):
+                raise UserError(f"{cfg_path}: key '{key}' must be true or false, got "
+                                f"{cfg[key]!r}")
+        n_in = cfg.get(LSTM_INPUTS_KEY)
+        if n_in is not None and (not isinstance(n_in, int) or isinstance(n_in, bool)):
+            raise UserError(f"{cfg_path}: key '{LSTM_INPUTS_KEY}' must be an integer (the "
+                            f"features z[0:N] the first LSTM layer reads), got {n_in!r}")
+        model = cls(
+            model=cfg["model"], decimation=cfg["decimation"], t_ref_c=float(cfg["t_ref_c"]),
+            t_min_c=float(cfg["t_min_c"]), t_max_c=float(cfg["t_max_c"]),
+            stuck_samples=cfg["stuck_samples"],
+            filter_tau_s=[float(t) if isinstance(t, (int, float)) else t
+                          for t in cfg["filter_tau_s"]],
+            n_features=cfg["n_features"], layers=cfg["layers"], hidden=cfg["hidden"],
+            weights=weights, sample_dt_s=float(cfg["sample_dt_s"]),
+            extra={k: v for k, v in cfg.items()
+                   if k not in _CONFIG_KEYS and k not in (POLY_KEY, LSTM_INPUTS_KEY,
+                                                          QUAD_DIAG_KEY, BIAS_KEY,
+                                                          FEAT_DIAG_KEY)},
+            poly_head=cfg.get(POLY_KEY, False), lstm_inputs=n_in,
+            quad_diag=cfg.get(QUAD_DIAG_KEY, False), bias_head=cfg.get(BIAS_KEY, False),
+            feat_diag=cfg.get(FEAT_DIAG_KEY, False),
+        )
+        model.validate(where=str(d))
+        return model
+
+
+def _trained_kind(directory: Path) -> str | None:
+    """The model kind `fogsf train` recorded in the directory's metrics.json, if any."""
+    try:
+        kind = json.loads((directory / "metrics.json").read_text()).get("model")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return kind if isinstance(kind, str) else None
+
+
+def diagonal_features(model: StreamModel) -> StreamModel:
+    """The same model with `feat_diag`: feat_w [F] the diagonal of its feat_w (the same
+    float32 bits), when feat_w is square, [F, 1+K+P], with every entry off the diagonal 0
+    (+0.0 or -0.0) and no feat_b entry is -0.0; else `model` itself (also when it already
+    has feat_diag). The result gives every output bit for bit as `model` does.
+
+    Why: the kernel computes z_i = feat_b[i], then + feat_w[i, j] * s_j for j ascending; s is
+    always finite (the front end clamps the temperature), so each off-diagonal term is an
+    exact +0.0 or -0.0, and x + (+-0.0) is x for every x but -0.0 (-0.0 + +0.0 = +0.0). With
+    feat_b[i] not -0.0 the running sum is never -0.0: feat_b[i] before the diagonal term,
+    feat_b[i] + feat_w[i, i] * s_i after it (-0.0 only when both are), so the zero terms
+    change nothing and z_i is the diagonal form's feat_b[i] + feat_w[i] * s_i. With
+    feat_b[i] = -0.0 the sign of a zero z_i would hang on the signs of the other s_j: such
+    a model stays dense."""
+    if model.feat_diag:
+        return model
+    w, b = model.weights["feat_w"], model.weights["feat_b"]
+    f = model.n_features
+    if w.shape != (f, 1 + model.n_filters + model.n_plays) or w.shape != (f, f):
+        return model
+    if np.any(w[~np.eye(f, dtype=bool)] != 0) or np.any((b == 0) & np.signbit(b)):
+        return model
+    weights = dict(model.weights)
+    weights["feat_w"] = np.diagonal(w).astype(np.float32)  # a copy, the same bits
+    out = replace(model, weights=weights, feat_diag=True)
+    out.validate()
+    return out
+
+
+def pure_play_rows(model: StreamModel) -> StreamModel:
+    """The same model with every play feature's row of feat_w on its own play state only, so
+    that `diagonal_features` applies: a play feature that mixes in other states (the
+    hysteresis term's play(x) - x) has those states' part moved to the linear weights
+    (skip_w, bias_w) of the features that are those states alone, and their offsets to
+    head_b and bias_b. Exact algebra, rounded once to float32 (outputs within float32
+    rounding of the model's, not bit for bit). Applies when every other row of feat_w is
+    diagonal, the play features enter linearly only (no LSTM input, quadratic or cube on
+    them) and feat_w is square; else returns `model` itself."""
+    p = model.n_plays
+    n = 1 + model.n_filters + p
+    w = model.weights["feat_w"]
+    if model.feat_diag or p == 0 or w.shape != (n, n) or model.n_features != n:
+        return model
+    wts = model.weights
+    off = w.astype(np.float64) * (1.0 - np.eye(n))
+    plays, others = np.arange(n - p, n), np.arange(n - p)
+    diag = np.diagonal(w).astype(np.float64)
+    linear_only = model.n_lstm_inputs <= n - p and np.all(diag[others] != 0)
+    if model.poly_head:
+        q = wts["quad_w"]
+        linear_only &= not (q[plays].any() if model.quad_diag else
+                            q[plays].any() or q[:, plays].any()) and not wts["cube_w"][plays].any()
+    if model.bias_head:
+        linear_only &= not (wts["bias_quad_w"][plays].any() or wts["bias_cube_w"][plays].any())
+    if off[others].any() or off[np.ix_(plays, plays)].any() or not linear_only:
+        return model
+    b = wts["feat_b"].astype(np.float64)
+    ratio = off[np.ix_(plays, others)] / diag[others]  # s_j = (z_j - b_j) / w_jj
+    out = dict(wts)
+    for lin, const in (("skip_w", "head_b"), ("bias_w", "bias_b")):
+        if lin not in wts:
+            continue
+        v = wts[lin].astype(np.float64)
+        moved = v[plays] @ ratio
+        v[others] += moved
+        out[lin] = v.astype(np.float32)
+        out[const] = (wts[const].astype(np.float64) - moved @ b[others]).astype(np.float32)
+    fw = w.copy()
+    fw[np.ix_(plays, others)] = 0.0
+    out["feat_w"] = fw
+    res = replace(model, weights=out)
+    res.validate()
+    return res
+
+
+# --- gate order ----------------------------------------------------------------------------
+# torch.nn.LSTM stacks gates as (i, f, g, o); ONNX as (i, o, f, c) with c == g.
+_TORCH_TO_ONNX = (0, 3, 1, 2)
+_ONNX_TO_TORCH = (0, 2, 3, 1)
+
+
+def _reorder(a: np.ndarray, order: tuple[int, ...]) -> np.ndarray:
+    a = np.asarray(a)
+    blocks = np.split(a, 4, axis=0)
+    return np.concatenate([blocks[k] for k in order], axis=0)
+
+
+def torch_to_onnx_lstm(weight_ih: np.ndarray, weight_hh: np.ndarray, bias_ih: np.ndarray,
+                       bias_hh: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """torch (i,f,g,o) -> ONNX (W [4H,in], R [4H,H], B [8H]) in gate order (i,o,f,c)."""
+    w = _reorder(weight_ih, _TORCH_TO_ONNX)
+    r = _reorder(weight_hh, _TORCH_TO_ONNX)
+    b = np.concatenate([_reorder(bias_ih, _TORCH_TO_ONNX), _reorder(bias_hh, _TORCH_TO_ONNX)])
+    return w.astype(np.float32), r.astype(np.float32), b.astype(np.float32)
+
+
+def onnx_to_torch_lstm(w: np.ndarray, r: np.ndarray, b: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """ONNX (W, R, B) -> torch (weight_ih, weight_hh, bias_ih, bias_hh)."""
+    hid4 = np.asarray(w).shape[0]
+    b = np.asarray(b)
+    return (_reorder(w, _ONNX_TO_TORCH).astype(np.float32),
+            _reorder(r, _ONNX_TO_TORCH).astype(np.float32),
+            _reorder(b[:hid4], _ONNX_TO_TORCH).astype(np.float32),
+            _reorder(b[hid4:], _ONNX_TO_TORCH).astype(np.float32))

@@ -1,0 +1,47 @@
+"""The options of one training run (`fogsf train`'s, as data): what `run_training` and the
+modules it calls read."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from fogsf.logs.plateaus import SETTLE_S
+from fogsf.models.features import MODEL_STEP_S
+
+
+@dataclass
+class TrainOptions:
+    model: str
+    model_step_s: float = MODEL_STEP_S  # one model step per this many seconds of samples
+    seed: int = 0
+    val_chunk: tuple[float, float] = (0.4, 0.6)
+    window_s: float = 100.0
+    settle_s: float = SETTLE_S  # left out after each change of table rate (logs.metrics)
+    latitude_deg: float | None = None
+    rate_tau_s: float = 120.0
+    poly_degree: int = 3
+    node: tuple[float, float] | None = None  # (tau_s, w) of T_eff; None: identified
+    nodes: int = 1  # nodes of lag-lstm's node (1-2) or physics (1-3) structure
+    structure: str = "auto"  # lag-lstm: "auto" (chosen by the logs), "physics", "bank", "node"
+    # lag-lstm (bank, physics): a play (hysteresis) term: "auto" (when the training logs'
+    # held-out blocks say it helps, `training.hysteresis_choice`), "on", "off"
+    hysteresis: str = "auto"
+    layers: int | None = None
+    hidden: int | None = None
+    batch_size: int | None = None
+    lr: float | None = None
+    iters: int | None = None
+    lstm_window: int | None = None  # model steps per LSTM training window (default 256)
+    # the lag bank's LSTM reads z[0:N] (T first, then the fastest lags); None: BANK_LSTM_INPUTS
+    lstm_inputs: int | None = None
+    gsa_agents: int = 8
+    gsa_iters: int = 8
+    gsa_fitness_iters: int = 80
+    gsa_space: str = "extended"  # "paper": Table 1's four only
+    gsa_paper_constants: bool = False  # G0=100, alpha=20 as in the paper; else SHORT_BUDGET
+    workers: int | None = None
+    dask: str | None = None
+    progress: bool = True
+    transfer_check: bool = True  # with a test log: the rate-transfer check and its interval
+    ref_sf: float | None = None  # reference SF of the before-metrics; None: measured at 20 C
+    extra: dict = field(default_factory=dict)
