@@ -15,3 +15,14 @@ def kernel_for(model: StreamModel, root: Path, cc: str = "gcc") -> Kernel:
     if key not in _KERNELS:
         _KERNELS[key] = Kernel(model, build_kernel(model, root=root, cc=cc))
     return _KERNELS[key]
+
+
+def seal(lib, m, **fields: int):  # noqa: ANN001, ANN201 - cffi objects
+    """Set the given fields of the cffi fogsf_model `m`, then its two CRCs as `fogsf export`
+    would write them for the result (fogsf_model_crc32); returns m. Only for changes that do
+    not lengthen a table: the CRC reads the tables at the sizes the fields give."""
+    for name, value in fields.items():
+        setattr(m, name, value)
+    m.crc32_sizes = lib.fogsf_model_crc32(m, 1)
+    m.crc32 = lib.fogsf_model_crc32(m, 0)
+    return m

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,7 @@ from fogsf.bindings.firmware import (
 )
 from fogsf.bindings.kernel import build_kernel
 from fogsf.errors import UserError
-from fogsf.export.header import render_model
+from fogsf.export.header import model_crc32, render_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx
 from fogsf.models import reference, samples
 from fogsf.models import stream as st
@@ -56,6 +57,25 @@ def sha(text: str) -> str:
 
 
 FEAT_DIAG_INIT = "u, 0u /* LSTM inputs z[0:N], diagonal quadratic, diagonal feat_w */"
+FORMAT_6_TAIL = re.compile(
+    r"u, 0u, /\* LSTM inputs z\[0:N\], diagonal quadratic, diagonal feat_w \*/\n"
+    r"    NULL, NULL, /\* bias head, backlash operators \*/\n"
+    r"    0x[0-9a-f]{8}u, 0x[0-9a-f]{8}u /\* CRC-32 of the sizes and scalars; of those and every "
+    r"table \*/\n")
+FORMAT_6_NOTE = "\n/* the model; its optional parts through their own pointers (NULL: absent) */\n"
+
+
+def before_format_6(files: dict[str, str], model: st.StreamModel) -> tuple[str, str]:
+    """NAME.h and NAME.c as the generator wrote them before format 6 (the bias head and plays
+    behind pointers, the CRCs) for a model without either: the version, the comment above the
+    struct and the struct's last three fields are the only changes."""
+    header, text = files["imu_x.h"], files["imu_x.c"]
+    crc = "0x{:08x}u, 0x{:08x}u".format(*model_crc32(model))
+    assert crc in text and text.count(FORMAT_6_NOTE) == 1
+    text, n = FORMAT_6_TAIL.subn(FEAT_DIAG_INIT + "\n", text.replace(FORMAT_6_NOTE, "\n"))
+    assert n == 1
+    text = text.replace("    6u, /* format version */", "    3u, /* format version */")
+    return header.replace("_FORMAT_VERSION 6\n", "_FORMAT_VERSION 3\n"), text
 
 
 def before_feat_diag(c_text: str) -> str:
@@ -67,17 +87,16 @@ def before_feat_diag(c_text: str) -> str:
 
 def test_without_a_bias_head_ids_and_generated_bytes_are_unchanged() -> None:
     """Pinned from the generator before the bias head existed (NAME.c less the feat_diag
-    field every model's struct has since)."""
+    field every model's struct has since, and less format 6's changes)."""
     fixture = st.StreamModel.load(FIXTURE)
-    files = render_model(fixture, "imu_x")
+    header, text = before_format_6(render_model(fixture, "imu_x"), fixture)
     assert fixture.model_id == "0b2dac94ba9001c1"
-    assert (sha(files["imu_x.h"]), sha(before_feat_diag(files["imu_x.c"]))) == (
-        "5ff9f30b16bb", "e3afda00fec5")
+    assert (sha(header), sha(before_feat_diag(text))) == ("5ff9f30b16bb", "e3afda00fec5")
     bank = samples.random_model(11, 12, 1, 16, 10, seed=1, poly_head=True, lstm_inputs=1,
                                 quad_diag=True)
-    files = render_model(bank, "imu_x")
+    header, text = before_format_6(render_model(bank, "imu_x"), bank)
     assert bank.model_id == "329bec87215e0bdb"
-    assert (sha(files["imu_x.h"]), sha(before_feat_diag(files["imu_x.c"]))) == (
+    assert (sha(header), sha(before_feat_diag(text))) == (
         "84cef9ee17b9", "af9045995521")
     proto = build_step_onnx(bank)
     assert [o.name for o in proto.graph.output] == ["sf_ppm", "h0_out", "c0_out"]
@@ -159,14 +178,16 @@ def test_a_broken_bias_head_is_clamped_and_flagged(kroot: Path) -> None:
     assert bias.tobytes() == out.bias_dph.tobytes() and np.array_equal(flags, out.flags)
 
 
-def test_a_format_4_model_without_its_bias_arrays_is_invalid(kroot: Path) -> None:
+def test_a_model_whose_bias_head_lacks_an_array_is_invalid(kroot: Path) -> None:
     kernel = kernel_for(bias_model(SIZES[1]), kroot)
     ffi, lib = kernel.ffi, kernel.lib
-    broken = ffi.new("fogsf_bias_model *")
-    broken.sf = kernel.m[0]
-    broken.bias_w, broken.bias_quad_w, broken.bias_cube_w = (kernel.m[0].feat_b, ffi.NULL,
-                                                              kernel.m[0].feat_b)
-    assert lib.fogsf_model_check(ffi.addressof(broken[0], "sf")) == 32
+    head = ffi.new("fogsf_bias_head *")
+    head[0] = kernel.m.bias[0]
+    head.quad_w = ffi.NULL
+    broken = ffi.new("fogsf_model *")
+    broken[0] = kernel.m[0]
+    broken.bias = head
+    assert lib.fogsf_model_check(broken) == 32
     assert lib.fogsf_model_check(kernel.m) == 0
 
 

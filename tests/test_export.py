@@ -137,7 +137,7 @@ def test_header_is_lossless_and_deterministic(params) -> None:
     assert f"#define IMU_X_QUAD_DIAG {int(model.quad_diag)} " in header
     assert ("#define IMU_X_FEAT_DIAG 1 " in header) == model.feat_diag
     assert ("FEAT_DIAG" in header) == ("FOGSF_FEAT_DIAG" in text) == model.feat_diag
-    fields = re.search(r"\n    (\d+)u, (\d)u, (\d)u /\* LSTM inputs", text)
+    fields = re.search(r"\n    (\d+)u, (\d)u, (\d)u, /\* LSTM inputs", text)
     assert fields is not None
     assert (int(fields[1]), int(fields[2]), int(fields[3])) == (
         model.n_lstm_inputs, int(model.quad_diag), int(model.feat_diag))

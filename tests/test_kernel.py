@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from kernel_helpers import kernel_for
+from kernel_helpers import kernel_for, seal
 from onnx.reference import ReferenceEvaluator
 
 from fogsf.bindings.firmware import golden_inputs
@@ -225,23 +225,43 @@ def test_gcc_and_clang_builds_give_the_same_bits(kroot) -> None:
 
 def test_an_unusable_model_gives_zero_and_only_the_model_flag(kroot) -> None:
     """A model larger than the state (or NULL, or with D = 0) is refused by init and gives
-    corrected = 0, sf = 0 and MODEL_INVALID from step, without touching the state."""
+    corrected = 0, sf = 0 and MODEL_INVALID from step, without touching the state; so does a
+    model the state was started with that changes afterwards (a model in RAM)."""
     model = samples.random_model(2, 4, 1, 8, 10, seed=21)
     kernel = kernel_for(model, kroot)
     ffi, lib = kernel.ffi, kernel.lib
     assert lib.fogsf_model_check(kernel.m) == 0
     state = kernel.new_state()
     out = ffi.new("fogsf_output *")
-    for field, value in (("hidden", model.hidden + 1), ("layers", 0), ("decimation", 0),
-                         ("n_features", model.n_features + 1)):
+
+    def refused_by_step(field: str, value: int) -> None:
+        live = ffi.new("fogsf_model *", kernel.m[0])
+        st2 = ffi.new("fogsf_state *")
+        assert lib.fogsf_init(live, st2) == 0
+        lib.fogsf_step(live, st2, 20.0, 10.0, out)
+        assert out.flags == 0, field
+        setattr(live, field, value)
+        before = bytes(ffi.buffer(st2))
+        lib.fogsf_step(live, st2, 20.0, 10.0, out)
+        assert (out.corrected_dps, out.sf_ppm, out.flags) == (0.0, 0.0, 32), field
+        assert bytes(ffi.buffer(st2)) == before, field
+
+    # sealed (CRCs recomputed) where the change cannot lengthen a table the CRC reads, so
+    # the size checks themselves refuse it
+    for field, value, reseal in (("hidden", model.hidden + 1, False), ("layers", 0, True),
+                                 ("decimation", 0, True),
+                                 ("n_features", model.n_features + 1, False)):
         bad = ffi.new("fogsf_model *", kernel.m[0])
         setattr(bad, field, value)
+        if reseal:
+            seal(lib, bad)
         assert lib.fogsf_model_check(bad) == 32, field
         assert lib.fogsf_init(bad, ffi.new("fogsf_state *")) == 32, field
         before = bytes(ffi.buffer(state))
         lib.fogsf_step(bad, state, 20.0, 10.0, out)
         assert (out.corrected_dps, out.sf_ppm, out.flags) == (0.0, 0.0, 32), field
         assert bytes(ffi.buffer(state)) == before, field
+        refused_by_step(field, value)
     lib.fogsf_step(ffi.NULL, state, 20.0, 10.0, out)
     assert out.flags == 32 and out.corrected_dps == 0.0
     # format 3's fields: lstm_inputs beyond F, quad_diag other than 0/1 or without the head
@@ -249,21 +269,21 @@ def test_an_unusable_model_gives_zero_and_only_the_model_flag(kroot) -> None:
                          ("quad_diag", 1)):
         bad = ffi.new("fogsf_model *", kernel.m[0])
         setattr(bad, field, value)
+        if field == "quad_diag":
+            seal(lib, bad)
         assert lib.fogsf_model_check(bad) == 32, (field, value)
         before = bytes(ffi.buffer(state))
         lib.fogsf_step(bad, state, 20.0, 10.0, out)
         assert (out.corrected_dps, out.sf_ppm, out.flags) == (0.0, 0.0, 32), field
         assert bytes(ffi.buffer(state)) == before, field
+        refused_by_step(field, value)
     for value in (0, 1, model.n_features):  # 0 = all features (a model generated before)
-        ok = ffi.new("fogsf_model *", kernel.m[0])
-        ok.lstm_inputs = value
+        ok = seal(lib, ffi.new("fogsf_model *", kernel.m[0]), lstm_inputs=value)
         assert lib.fogsf_model_check(ok) == 0, value
     # a model struct from before format 3 (both fields 0) computes what it did
-    old = ffi.new("fogsf_model *", kernel.m[0])
-    old.lstm_inputs, old.quad_diag = 0, 0
+    old = seal(lib, ffi.new("fogsf_model *", kernel.m[0]), lstm_inputs=0, quad_diag=0)
     a, b = ffi.new("fogsf_state *"), ffi.new("fogsf_state *")
-    lib.fogsf_init(kernel.m, a)
-    lib.fogsf_init(old, b)
+    assert lib.fogsf_init(kernel.m, a) == lib.fogsf_init(old, b) == 0
     out_b = ffi.new("fogsf_output *")
     for i, t in enumerate(np.linspace(-40.0, 50.0, 60).tolist()):
         lib.fogsf_step(kernel.m, a, t, 10.0, out)
@@ -273,15 +293,16 @@ def test_an_unusable_model_gives_zero_and_only_the_model_flag(kroot) -> None:
     assert out.flags == 0 and out.corrected_dps != 0.0
     # feat_diag other than 0/1, or 1 with F != 1+K+P (here F = 4, 1+K = 3)
     for value in (1, 2):
-        bad = ffi.new("fogsf_model *", kernel.m[0])
-        bad.feat_diag = value
+        bad = seal(lib, ffi.new("fogsf_model *", kernel.m[0]), feat_diag=value)
         assert lib.fogsf_model_check(bad) == 32, value
         lib.fogsf_step(bad, state, 20.0, 10.0, out)
         assert (out.corrected_dps, out.sf_ppm, out.flags) == (0.0, 0.0, 32), value
-    square = ffi.new("fogsf_model *", kernel.m[0])  # F = 1+K (only checked, never stepped)
-    square.n_features, square.lstm_inputs, square.feat_diag = 3, 0, 1
+        refused_by_step("feat_diag", value)
+    # F = 1+K (only checked, never stepped)
+    square = seal(lib, ffi.new("fogsf_model *", kernel.m[0]), n_features=3, lstm_inputs=0,
+                  feat_diag=1)
     assert lib.fogsf_model_check(square) == 0
-    square.feat_diag = 2
+    square = seal(lib, square, feat_diag=2)
     assert lib.fogsf_model_check(square) == 32
 
 

@@ -6,16 +6,12 @@
  * diagonal feature map). Sizes and weights come from the model struct at run time; the
  * state arrays are sized by FOGSF_MAX_* (fogsf_model_check).
  */
+#include "fogsf_fp.h" /* first: the floating-point build checks */
 #include "fogsf.h"
-
-typedef union {
-    float f;
-    uint32_t u;
-} f32_bits;
 
 static uint32_t float_bits(float v)
 {
-    f32_bits b;
+    fogsf_f32_bits b;
     b.f = v;
     return b.u;
 }
@@ -30,79 +26,174 @@ static int double_finite(double v)
     return v - v == 0.0; /* Inf - Inf and NaN - NaN are NaN */
 }
 
-/* The plays of m: its fogsf_play_model when m is the sf member of one's base, else NULL. */
-static const fogsf_play_model *plays_of(const fogsf_model *m)
-{
-    return m->format_version == FOGSF_FORMAT_PLAYS ? (const fogsf_play_model *)(const void *)m
-                                                   : NULL;
-}
-
-/* The bias head of m: its fogsf_bias_model when m is the sf member of one with a bias head
- * (format 4, or format 5 with the bias arrays set), else NULL. */
-static const fogsf_bias_model *bias_of(const fogsf_model *m)
-{
-    const fogsf_bias_model *b;
-    if (m->format_version != FOGSF_FORMAT_BIAS && m->format_version != FOGSF_FORMAT_PLAYS) {
-        return NULL;
-    }
-    b = (const fogsf_bias_model *)(const void *)m;
-    return m->format_version == FOGSF_FORMAT_PLAYS && b->bias_w == NULL ? NULL : b;
-}
-
 static uint32_t n_plays_of(const fogsf_model *m)
 {
-    const fogsf_play_model *p = plays_of(m);
-    return p != NULL ? p->n_plays : 0u;
+    return m->plays != NULL ? m->plays->n_plays : 0u;
+}
+
+/* The sizes and pointers fogsf_step relies on: 0 when m can be stepped with a fogsf_state
+ * without reading past an array of the state or through NULL. */
+static uint32_t model_fits(const fogsf_model *m)
+{
+    uint32_t bad = 0u;
+    if (m == NULL) {
+        bad = FOGSF_FLAG_MODEL_INVALID;
+    } else if ((m->format_version != FOGSF_FORMAT_VERSION) ||
+               (m->n_filters > (uint32_t)FOGSF_MAX_FILTERS) ||
+               (m->n_features > (uint32_t)FOGSF_MAX_FEATURES) || (m->n_features < 1u) ||
+               (m->layers > (uint32_t)FOGSF_MAX_LAYERS) || (m->layers < 1u) ||
+               (m->hidden > (uint32_t)FOGSF_MAX_HIDDEN) || (m->hidden < 1u) ||
+               (m->decimation < 1u) || ((m->n_filters > 0u) && (m->filter_alpha == NULL)) ||
+               (m->feat_w == NULL) || (m->feat_b == NULL) || (m->lstm_w == NULL) ||
+               (m->lstm_r == NULL) || (m->lstm_b == NULL) || (m->head_w == NULL) ||
+               (m->skip_w == NULL) || ((m->quad_w == NULL) != (m->cube_w == NULL)) ||
+               (m->lstm_inputs > m->n_features) || (m->quad_diag > 1u) ||
+               ((m->quad_diag != 0u) && (m->quad_w == NULL)) || (m->feat_diag > 1u)) {
+        bad = FOGSF_FLAG_MODEL_INVALID;
+    } else if ((m->plays != NULL) &&
+               ((m->plays->n_plays < 1u) || (m->plays->n_plays > (uint32_t)FOGSF_MAX_PLAYS) ||
+                (m->plays->half_c == NULL) || (m->plays->source_w == NULL))) {
+        bad = FOGSF_FLAG_MODEL_INVALID;
+    } else if ((m->bias != NULL) &&
+               ((m->bias->w == NULL) || (m->bias->quad_w == NULL) ||
+                (m->bias->cube_w == NULL))) {
+        bad = FOGSF_FLAG_MODEL_INVALID;
+    } else if ((m->feat_diag != 0u) && (m->n_features != (1u + m->n_filters + n_plays_of(m)))) {
+        /* a diagonal feat_w maps s (1+K+P entries) onto F features one to one */
+        bad = FOGSF_FLAG_MODEL_INVALID;
+    } else {
+        bad = 0u;
+    }
+    return bad;
+}
+
+/* The plays' half widths (finite, >= 0) and source weights (finite). */
+static uint32_t plays_finite(const fogsf_plays *p, uint32_t n_filters)
+{
+    uint32_t bad = 0u;
+    uint32_t j;
+    uint32_t i;
+    for (j = 0u; j < p->n_plays; ++j) {
+        if ((!(p->half_c[j] >= 0.0f)) || (!float_finite(p->half_c[j]))) {
+            bad = FOGSF_FLAG_MODEL_INVALID;
+        }
+        for (i = 0u; i <= n_filters; ++i) {
+            if (!float_finite(p->source_w[(j * (n_filters + 1u)) + i])) {
+                bad = FOGSF_FLAG_MODEL_INVALID;
+            }
+        }
+    }
+    return bad;
+}
+
+/* CRC-32 (reflected 0xEDB88320), four bits at a time: 16 words of table. */
+static uint32_t crc_word(uint32_t crc, uint32_t v)
+{
+    static const uint32_t nibble[16] = {
+        0x00000000u, 0x1db71064u, 0x3b6e20c8u, 0x26d930acu, 0x76dc4190u, 0x6b6b51f4u,
+        0x4db26158u, 0x5005713cu, 0xedb88320u, 0xf00f9344u, 0xd6d6a3e8u, 0xcb61b38cu,
+        0x9b64c2b0u, 0x86d3d2d4u, 0xa00ae278u, 0xbdbdf21cu};
+    uint32_t c = crc;
+    uint32_t k;
+    for (k = 0u; k < 32u; k += 4u) { /* the word's bytes least significant first */
+        c = (c >> 4u) ^ nibble[(c ^ (v >> k)) & 0xfu];
+    }
+    return c;
+}
+
+/* a NULL table adds nothing (fogsf_model_check refuses the model anyway) */
+static uint32_t crc_floats(uint32_t crc, const float *a, uint32_t n)
+{
+    uint32_t c = crc;
+    uint32_t i;
+    if (a != NULL) {
+        for (i = 0u; i < n; ++i) {
+            c = crc_word(c, float_bits(a[i]));
+        }
+    }
+    return c;
+}
+
+uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only)
+{
+    const uint32_t nk = m->n_filters;
+    const uint32_t nf = m->n_features;
+    const uint32_t nh = m->hidden;
+    const uint32_t np = n_plays_of(m);
+    uint32_t c = 0xffffffffu;
+    uint32_t l;
+    c = crc_word(c, m->format_version);
+    c = crc_word(c, nk);
+    c = crc_word(c, nf);
+    c = crc_word(c, m->layers);
+    c = crc_word(c, nh);
+    c = crc_word(c, m->decimation);
+    c = crc_word(c, m->stuck_samples);
+    c = crc_word(c, float_bits(m->sample_dt_s));
+    c = crc_word(c, float_bits(m->t_ref_c));
+    c = crc_word(c, float_bits(m->t_min_c));
+    c = crc_word(c, float_bits(m->t_max_c));
+    c = crc_word(c, float_bits(m->head_b));
+    c = crc_word(c, float_bits(m->out_scale));
+    c = crc_word(c, float_bits(m->out_offset));
+    c = crc_word(c, m->lstm_inputs);
+    c = crc_word(c, m->quad_diag);
+    c = crc_word(c, m->feat_diag);
+    c = crc_word(c, (m->quad_w != NULL) ? 1u : 0u);
+    c = crc_word(c, (m->bias != NULL) ? 1u : 0u);
+    c = crc_word(c, np);
+    if (m->bias != NULL) {
+        c = crc_word(c, float_bits(m->bias->b));
+    }
+    if (sizes_only == 0u) {
+        const uint32_t n_in0 = (m->lstm_inputs != 0u) ? m->lstm_inputs : nf;
+        c = crc_floats(c, m->filter_alpha, nk);
+        c = crc_floats(c, m->feat_w, (m->feat_diag != 0u) ? nf : (nf * (1u + nk + np)));
+        c = crc_floats(c, m->feat_b, nf);
+        for (l = 0u; (l < m->layers) && (m->lstm_w != NULL) && (m->lstm_r != NULL) &&
+                     (m->lstm_b != NULL); ++l) {
+            c = crc_floats(c, m->lstm_w[l], 4u * nh * ((l == 0u) ? n_in0 : nh));
+            c = crc_floats(c, m->lstm_r[l], 4u * nh * nh);
+            c = crc_floats(c, m->lstm_b[l], 8u * nh);
+        }
+        c = crc_floats(c, m->head_w, nh);
+        c = crc_floats(c, m->skip_w, nf);
+        if (m->quad_w != NULL) {
+            c = crc_floats(c, m->quad_w, (m->quad_diag != 0u) ? nf : (nf * nf));
+            c = crc_floats(c, m->cube_w, nf);
+        }
+        if (m->bias != NULL) {
+            c = crc_floats(c, m->bias->w, nf);
+            c = crc_floats(c, m->bias->quad_w, nf);
+            c = crc_floats(c, m->bias->cube_w, nf);
+        }
+        if (m->plays != NULL) {
+            c = crc_floats(c, m->plays->half_c, np);
+            c = crc_floats(c, m->plays->source_w, np * (1u + nk));
+        }
+    }
+    return c ^ 0xffffffffu;
 }
 
 uint32_t fogsf_model_check(const fogsf_model *m)
 {
-    const fogsf_bias_model *b;
-    const fogsf_play_model *p;
-    uint32_t j;
-    if (m == NULL || m->n_filters > FOGSF_MAX_FILTERS || m->n_features > FOGSF_MAX_FEATURES ||
-        m->n_features < 1u || m->layers > FOGSF_MAX_LAYERS || m->layers < 1u ||
-        m->hidden > FOGSF_MAX_HIDDEN || m->hidden < 1u || m->decimation < 1u ||
-        (m->n_filters > 0u && m->filter_alpha == NULL) || m->feat_w == NULL ||
-        m->feat_b == NULL || m->lstm_w == NULL || m->lstm_r == NULL || m->lstm_b == NULL ||
-        m->head_w == NULL || m->skip_w == NULL || (m->quad_w == NULL) != (m->cube_w == NULL) ||
-        m->lstm_inputs > m->n_features || m->quad_diag > 1u ||
-        (m->quad_diag != 0u && m->quad_w == NULL) || m->feat_diag > 1u) {
-        return FOGSF_FLAG_MODEL_INVALID;
+    uint32_t bad = model_fits(m);
+    /* the sizes first: the tables' lengths come from them */
+    if ((bad == 0u) && (fogsf_model_crc32(m, 1u) != m->crc32_sizes)) {
+        bad = FOGSF_FLAG_MODEL_INVALID;
     }
-    p = plays_of(m);
-    if (p != NULL) {
-        if (p->n_plays < 1u || p->n_plays > FOGSF_MAX_PLAYS || p->play_half_c == NULL ||
-            p->play_source_w == NULL || (p->base.bias_w == NULL) != (p->base.bias_quad_w == NULL) ||
-            (p->base.bias_w == NULL) != (p->base.bias_cube_w == NULL)) {
-            return FOGSF_FLAG_MODEL_INVALID;
-        }
-        for (j = 0; j < p->n_plays; ++j) {
-            uint32_t i;
-            if (!(p->play_half_c[j] >= 0.0f) || !float_finite(p->play_half_c[j])) {
-                return FOGSF_FLAG_MODEL_INVALID;
-            }
-            for (i = 0; i <= m->n_filters; ++i) {
-                if (!float_finite(p->play_source_w[j * (m->n_filters + 1u) + i])) {
-                    return FOGSF_FLAG_MODEL_INVALID;
-                }
-            }
-        }
+    if ((bad == 0u) && (fogsf_model_crc32(m, 0u) != m->crc32)) {
+        bad = FOGSF_FLAG_MODEL_INVALID;
     }
-    b = bias_of(m);
-    if (b != NULL && (b->bias_w == NULL || b->bias_quad_w == NULL || b->bias_cube_w == NULL)) {
-        return FOGSF_FLAG_MODEL_INVALID;
+    if ((bad == 0u) && (m->plays != NULL)) {
+        bad = plays_finite(m->plays, m->n_filters);
     }
-    /* a diagonal feat_w maps s (1+K+P entries, P checked above) onto F features one to one */
-    if (m->feat_diag != 0u &&
-        m->n_features != 1u + m->n_filters + (p != NULL ? p->n_plays : 0u)) {
-        return FOGSF_FLAG_MODEL_INVALID;
-    }
-    return 0u;
+    return bad;
 }
 
 uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
 {
+    uint32_t bad;
     int l, j;
     for (l = 0; l < FOGSF_MAX_LAYERS; ++l) {
         for (j = 0; j < FOGSF_MAX_HIDDEN; ++j) {
@@ -132,7 +223,9 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
     st->stuck_run = 0u;
     st->n_acc = 0u;
     st->started = 0u;
-    return fogsf_model_check(m);
+    bad = fogsf_model_check(m);
+    st->model = (bad == 0u) ? m : NULL;
+    return bad;
 }
 
 uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st)
@@ -144,7 +237,7 @@ uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st)
  * the cubes, index order; NaN or beyond +-FOGSF_BIAS_LIMIT_DPH is clamped and flagged. */
 static void bias_step(const fogsf_model *m, fogsf_state *st)
 {
-    const fogsf_bias_model *b = bias_of(m);
+    const fogsf_bias_head *b = m->bias;
     const uint32_t nf = m->n_features;
     float y, mag;
     uint32_t i;
@@ -152,15 +245,15 @@ static void bias_step(const fogsf_model *m, fogsf_state *st)
     if (b == NULL) {
         return; /* bias_dph stays 0 */
     }
-    y = b->bias_b;
+    y = b->b;
     for (i = 0; i < nf; ++i) {
-        y = y + b->bias_w[i] * st->z[i];
+        y = y + b->w[i] * st->z[i];
     }
     for (i = 0; i < nf; ++i) {
-        y = y + b->bias_quad_w[i] * (st->z[i] * st->z[i]);
+        y = y + b->quad_w[i] * (st->z[i] * st->z[i]);
     }
     for (i = 0; i < nf; ++i) {
-        y = y + b->bias_cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
+        y = y + b->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
     }
     mag = y < 0.0f ? -y : y;
     if (!(mag <= FOGSF_BIAS_LIMIT_DPH)) {
@@ -177,9 +270,9 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
     float s[1 + FOGSF_MAX_FILTERS + FOGSF_MAX_PLAYS];
     float y, sf, mag;
     const float *x = st->z;
-    const fogsf_play_model *pm = plays_of(m);
+    const fogsf_plays *pm = m->plays;
     const uint32_t nk = m->n_filters, nf = m->n_features, nh = m->hidden,
-                   np = pm != NULL ? pm->n_plays : 0u, ni = 1u + nk + np;
+                   np = n_plays_of(m), ni = 1u + nk + np;
     size_t n_in = m->lstm_inputs != 0u ? m->lstm_inputs : nf; /* layer 0 reads z[0:n_in] */
     uint32_t k, f, l, j;
 
@@ -191,14 +284,14 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
         s[1 + k] = st->y[k] - m->t_ref_c;
     }
     for (k = 0; k < np; ++k) { /* the play operators, after the filters */
-        const float *v = pm->play_source_w + k * (nk + 1u);
+        const float *v = pm->source_w + k * (nk + 1u);
         float xin = 0.0f, lo, hi;
         xin = xin + v[0] * tm;
         for (j = 0; j < nk; ++j) {
             xin = xin + v[1u + j] * st->y[j];
         }
-        lo = xin - pm->play_half_c[k];
-        hi = xin + pm->play_half_c[k];
+        lo = xin - pm->half_c[k];
+        hi = xin + pm->half_c[k];
         st->p[k] = st->p[k] < lo ? lo : (st->p[k] > hi ? hi : st->p[k]);
         s[1 + nk + k] = st->p[k] - m->t_ref_c;
     }
@@ -264,7 +357,8 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
     float tc;
     double corrected;
 
-    if (fogsf_model_check(m) != 0u) { /* never index past the state or through NULL */
+    /* only the model the reset accepted, and never index past the state or through NULL */
+    if ((m != st->model) || (model_fits(m) != 0u)) {
         out->corrected_dps = 0.0;
         out->sf_ppm = 0.0f;
         out->bias_dph = 0.0f;

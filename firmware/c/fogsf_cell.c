@@ -6,18 +6,14 @@
  * machine (x86-64 SSE, Cortex-M4F FPv4-SP) gives the same bits, and exp_f32, sigmoid_f32 and
  * tanh_f32 of fogsf/trainer/models/f32.py reproduce them op for op in numpy.
  */
+#include "fogsf_fp.h" /* first: the floating-point build checks */
 #include "fogsf.h"
-
-typedef union {
-    float f;
-    uint32_t u;
-} f32_bits;
 
 float fogsf_expf(float x)
 {
     float t, nf, r, z, p, e;
     int32_t n;
-    f32_bits scale;
+    fogsf_f32_bits scale;
 
     if (!(x > -87.0f)) { /* also NaN: exp stays finite and the cast below defined */
         x = -87.0f;

@@ -20,6 +20,7 @@ from fogsf.bindings.kernel import (
     BOUND_NAME,
     C_DIR,
     SANITIZE,
+    SOURCES,
     STRICT,
     Kernel,
     KernelBuild,
@@ -114,7 +115,7 @@ def build_host_driver(build: KernelBuild, golden_dir: Path, out: Path, cc: str =
     """The golden-vector check as a host program (optionally with ASan + UBSan)."""
     flags = [*STRICT, "-O1" if sanitize else "-O2", *build.defines,
              *(SANITIZE if sanitize else ())]
-    srcs = [C_DIR / "fogsf.c", C_DIR / "fogsf_cell.c", C_DIR / "test" / "golden_check.c",
+    srcs = [*(C_DIR / name for name in SOURCES), C_DIR / "test" / "golden_check.c",
             C_DIR / "test" / "host_main.c", build.directory / f"{BOUND_NAME}.c"]
     run_cmd([cc, *flags, "-I", str(golden_dir), "-I", str(build.directory), "-I", str(C_DIR),
              "-I", str(C_DIR / "test"), *map(str, srcs), "-o", str(out)],
@@ -174,7 +175,7 @@ def build_arm(model_dir: Path, golden_dir: Path | None, out: Path,
                 f"compiling {src.name} for Cortex-M4F")
         return o
 
-    kernel = [obj(C_DIR / "fogsf.c", True), obj(C_DIR / "fogsf_cell.c", True),
+    kernel = [*(obj(C_DIR / name, True) for name in SOURCES),
               *(obj(model_dir / f"{n}.c", True) for n in names)]
     startup = obj(C_DIR / "arm" / "startup.c", False)
     mains = {name: obj(C_DIR / "arm" / f"{name}_main.c", False)

@@ -17,7 +17,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from fogsf.bindings.kernel import C_DIR, STRICT
+from fogsf.bindings.kernel import C_DIR, SOURCES, STRICT
 from fogsf.errors import UserError
 from fogsf.export.header import write_model
 from fogsf.models import samples
@@ -44,7 +44,7 @@ def build_fuzzer(out: Path, cc: str = "clang") -> Path:
     out.mkdir(parents=True, exist_ok=True)
     write_model(fuzz_model(), out, "fuzz_model")
     exe = out / "fuzz_step"
-    srcs = [FUZZ_DIR / "fuzz_step.c", C_DIR / "fogsf.c", C_DIR / "fogsf_cell.c",
+    srcs = [FUZZ_DIR / "fuzz_step.c", *(C_DIR / name for name in SOURCES),
             out / "fuzz_model.c"]
     cmd = [cc, *STRICT, *FUZZ_FLAGS, *FUZZ_MAX, "-I", str(out), "-I", str(C_DIR),
            *map(str, srcs), "-o", str(exe)]

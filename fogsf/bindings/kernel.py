@@ -28,8 +28,8 @@ from fogsf.models.stream import StreamModel
 C_DIR = Path(fogsf.cmake_dir)
 """The kernel's C sources: firmware/c in a checkout, fogsf/firmware/c in an installed wheel."""
 ROOT = Path(fogsf.firmware_dir).parent  # the checkout's root when fogsf.in_checkout
-SOURCES = ("fogsf.c", "fogsf_cell.c")
-HEADERS = ("fogsf.h",)
+SOURCES = ("fogsf.c", "fogsf_cell.c", "fogsf_selftest.c")
+HEADERS = ("fogsf.h", "fogsf_fp.h")
 # The flags of the issue: strict C99, warnings are errors, no contraction into FMA (bit-exact
 # float32 order on every target).
 STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-ffp-contract=off")
@@ -172,10 +172,6 @@ def cdef(model: StreamModel) -> str:
     if unknown:
         raise RuntimeError(f"fogsf.h declarations use macros cdef() does not know: {unknown}")
     body = re.sub(r"\bFOGSF_[A-Z_0-9]+\b", lambda m: str(sizes[m.group(0)]), body)
-    if model.n_plays:  # the model is the sf member of NAME_with_plays.base
-        return body + f"\nextern fogsf_play_model {BOUND_NAME}_with_plays;\n"
-    if model.bias_head:  # the model is the sf member of NAME_with_bias (NAME.h's macro)
-        return body + f"\nextern fogsf_bias_model {BOUND_NAME}_with_bias;\n"
     return body + f"\nextern fogsf_model {BOUND_NAME};\n"  # cffi: a const is a constant
 
 
@@ -190,14 +186,7 @@ class Kernel:
         self.ffi = cffi.FFI()
         self.ffi.cdef(cdef(model))
         self.lib = self.ffi.dlopen(str(self.build.shared))
-        if model.n_plays:
-            wrapper = self.ffi.addressof(self.lib, f"{BOUND_NAME}_with_plays")[0]
-            self.m = self.ffi.addressof(wrapper.base, "sf")
-        elif model.bias_head:
-            self.m = self.ffi.addressof(self.ffi.addressof(self.lib, f"{BOUND_NAME}_with_bias")
-                                        [0], "sf")
-        else:
-            self.m = self.ffi.addressof(self.lib, BOUND_NAME)
+        self.m = self.ffi.addressof(self.lib, BOUND_NAME)
         got = self.ffi.string(self.m.model_id).decode()
         if got != model.model_id:
             raise UserError(f"{self.build.shared}: kernel of model {got}, expected "

@@ -7,6 +7,8 @@ as `static const` float32 arrays and the model struct, so several models link in
 from __future__ import annotations
 
 import re
+import struct
+import zlib
 from pathlib import Path
 
 import jinja2
@@ -15,12 +17,11 @@ import numpy as np
 from fogsf.models.stream import FORMAT, StreamModel, play_half_c, play_source_w
 
 # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
-# also holds lstm_inputs and quad_diag; 4: a model with a bias head, the sf member of a
-# fogsf_bias_model (docs/stream-contract.md). A model without a bias head is format 3.
-# feat_diag, the struct's last member, came later and is in every format (0 = full feat_w).
-FORMAT_VERSION = 3
-FORMAT_VERSION_BIAS = 4
-FORMAT_VERSION_PLAYS = 5  # play operators in the front end (a fogsf_play_model)
+# also holds lstm_inputs and quad_diag (and feat_diag); 4 and 5: the model as the first
+# member of a larger struct with a bias head or plays; 6: one fogsf_model for every model, its
+# bias head and plays through their own pointers (NULL when absent), and two CRC-32s of its
+# sizes and tables (fogsf_model_check). The kernel accepts its own version only.
+FORMAT_VERSION = 6
 DEFAULT_NAME = "gyro_model"
 NAME_RULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
 PER_LINE = 6
@@ -65,8 +66,9 @@ def _context(model: StreamModel, name: str) -> dict:
     return {
         "name": name, "upper": name.upper(), "guard": f"{name.upper()}_FOGSF_MODEL_H",
         "format": FORMAT, "model_id": model.model_id,
-        "format_version": (FORMAT_VERSION_PLAYS if model.n_plays else
-                           FORMAT_VERSION_BIAS if model.bias_head else FORMAT_VERSION),
+        "format_version": FORMAT_VERSION, "embedded": False,
+        **{key: f"0x{value:08x}u" for key, value in
+           zip(("crc32_sizes", "crc32"), model_crc32(model), strict=True)},
         "kind": model.model.replace('"', "'").replace("*/", "* /"), "params": model.params,
         "k": model.n_filters, "k_alloc": max(model.n_filters, 1), "f": model.n_features,
         "layers": model.layers, "hidden": model.hidden, "decimation": model.decimation,
@@ -99,6 +101,43 @@ def _context(model: StreamModel, name: str) -> dict:
             "bias_quad_w": c_array(w["bias_quad_w"]),
             "bias_cube_w": c_array(w["bias_cube_w"])} if model.bias_head else {}),
     }
+
+
+def _words(values: list[int]) -> bytes:
+    return b"".join(struct.pack("<I", v) for v in values)
+
+
+def _floats(values: np.ndarray | float) -> bytes:
+    return np.asarray(values, np.float32).astype("<f4").ravel().tobytes()
+
+
+def model_crc32(model: StreamModel) -> tuple[int, int]:
+    """(crc32_sizes, crc32) of the generated C model, as fogsf_model_crc32 computes them:
+    zlib's CRC-32 of the sizes and scalars (each as 32 bits, least significant byte first),
+    then of every table in the struct's order (docs/firmware.md, "Model integrity")."""
+    w = model.weights
+    k, f, h, p = model.n_filters, model.n_features, model.hidden, model.n_plays
+    head = _words([FORMAT_VERSION, k, f, model.layers, h, model.decimation,
+                   model.stuck_samples])
+    head += _floats([model.sample_dt_s, model.t_ref_c, model.t_min_c, model.t_max_c,
+                     w["head_b"][0], w["out_scale"][0], w["out_offset"][0]])
+    head += _words([model.n_lstm_inputs, int(model.quad_diag), int(model.feat_diag),
+                    int(model.poly_head), int(model.bias_head), p])
+    if model.bias_head:
+        head += _floats(w["bias_b"][0])
+    tables = [w["filter_alpha"][:k], w["feat_w"], w["feat_b"]]
+    for layer in range(model.layers):
+        tables += [w[f"lstm{layer}_w"], w[f"lstm{layer}_r"], w[f"lstm{layer}_b"]]
+    tables += [w["head_w"], w["skip_w"]]
+    if model.poly_head:
+        tables += [w["quad_w"], w["cube_w"]]
+    if model.bias_head:
+        tables += [w["bias_w"], w["bias_quad_w"], w["bias_cube_w"]]
+    if p:
+        tables += [play_half_c(model.play_width_c),
+                   play_source_w(model.play_source_w, model.n_filters)]
+    sizes = zlib.crc32(head)
+    return sizes, zlib.crc32(b"".join(_floats(t) for t in tables), sizes)
 
 
 def render_model(model: StreamModel, name: str = DEFAULT_NAME) -> dict[str, str]:

@@ -8,10 +8,12 @@
  *           huge values and stuck thermometers (a record repeated up to 255 times) all occur;
  *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state),
  *           lstm_inputs, quad_diag and feat_diag (sometimes invalid), sometimes a bias head
- *           (format 4, sometimes with a NULL array), sometimes plays (format 5) and every
- *           weight from the fuzz data (NaN, Inf, huge).
+ *           (sometimes with a NULL array), sometimes plays, every weight from the fuzz data
+ *           (NaN, Inf, huge), the CRCs mostly right (so the model runs) and sometimes wrong,
+ *           the format version sometimes forged.
  * After every step the totality contract is checked (corrected finite, |sf| and |bias| <=
- * their limits, flags known, an invalid model gives 0); a violation aborts, which libFuzzer reports as a crash.
+ * their limits, flags known, a model fogsf_init refused gives 0 and MODEL_INVALID); a
+ * violation aborts, which libFuzzer reports as a crash.
  * The number of fogsf_step calls is printed at exit ("fuzz steps: N") for make fuzz.
  */
 #include <stdio.h>
@@ -86,7 +88,7 @@ static double next_f64(reader *r)
     return d;
 }
 
-static void check(const fogsf_model *m, const fogsf_output *out)
+static void check(uint32_t refused, const fogsf_output *out)
 {
     const float sf = out->sf_ppm < 0.0f ? -out->sf_ppm : out->sf_ppm;
     const float b = out->bias_dph < 0.0f ? -out->bias_dph : out->bias_dph;
@@ -97,9 +99,9 @@ static void check(const fogsf_model *m, const fogsf_output *out)
                 (double)out->sf_ppm, (unsigned)out->flags);
         abort();
     }
-    if (fogsf_model_check(m) != 0u &&
+    if (refused != 0u &&
         (out->corrected_dps != 0.0 || out->flags != FOGSF_FLAG_MODEL_INVALID)) {
-        fprintf(stderr, "an invalid model must give 0 and MODEL_INVALID only\n");
+        fprintf(stderr, "a model fogsf_init refused must give 0 and MODEL_INVALID only\n");
         abort();
     }
 }
@@ -108,14 +110,14 @@ static void run_samples(const fogsf_model *m, reader *r)
 {
     fogsf_state st;
     fogsf_output out;
-    (void)fogsf_init(m, &st);
+    const uint32_t refused = fogsf_init(m, &st);
     while (r->at < r->n) {
         const float t = next_f32(r);
         const double g = next_f64(r);
         unsigned rep = next_u8(r);
         do {
             fogsf_step(m, &st, t, g, &out);
-            check(m, &out);
+            check(refused, &out);
         } while (rep-- > 0u);
     }
 }
@@ -174,8 +176,8 @@ static void fuzz_cell(reader *r)
 #define ADV_FLOATS 4096
 static float adv[ADV_FLOATS];
 
-static fogsf_bias_model adv_bias; /* the adversarial model with a bias head */
-static fogsf_play_model adv_plays; /* the adversarial model with play operators */
+static fogsf_bias_head adv_bias; /* the adversarial model's bias head */
+static fogsf_plays adv_plays; /* the adversarial model's play operators */
 static float adv_play_source_w[(FOGSF_MAX_PLAYS + 1) * (FOGSF_MAX_FILTERS + 2)];
 
 static void fuzz_model_data(reader *r)
@@ -236,34 +238,33 @@ static void fuzz_model_data(reader *r)
     m.lstm_inputs = ((uint32_t)(opts >> 1) & 7u) % (FOGSF_MAX_FEATURES + 2u);
     m.quad_diag = (uint32_t)(opts >> 4) % 3u;
     m.feat_diag = ((uint32_t)(opts >> 4) / 3u) % 3u;
-    if ((stuck_byte >> 5) >= 6u) { /* play operators (format 5): 0..MAX+1 of them, source
-                                     weights and half widths from the input (any float) */
+    m.format_version = FOGSF_FORMAT_VERSION;
+    if ((stuck_byte >> 5) >= 6u) { /* play operators: 0..MAX+1 of them, source weights and
+                                     half widths from the input (any float) */
         uint32_t j;
-        adv_plays.base.sf = m;
-        adv_plays.base.sf.format_version = FOGSF_FORMAT_PLAYS;
-        adv_plays.base.bias_w = bias_mode == 1u ? adv + 10 : NULL;
-        adv_plays.base.bias_quad_w = bias_mode == 1u ? adv + 11 : NULL;
-        adv_plays.base.bias_cube_w = bias_mode == 2u ? adv + 12 : (bias_mode == 1u ? adv + 12
-                                                                                 : NULL);
-        adv_plays.base.bias_b = adv[13];
         adv_plays.n_plays = (uint32_t)stuck_byte % (FOGSF_MAX_PLAYS + 2u);
         for (j = 0; j < (FOGSF_MAX_PLAYS + 1u) * (FOGSF_MAX_FILTERS + 2u); ++j) {
             adv_play_source_w[j] = next_f32(r); /* any float, NaN and Inf too */
         }
-        adv_plays.play_half_c = adv + 14;
-        adv_plays.play_source_w = adv_play_source_w;
-        run_samples(&adv_plays.base.sf, r);
-        return;
+        adv_plays.half_c = adv + 14;
+        adv_plays.source_w = adv_play_source_w;
+        m.plays = &adv_plays;
     }
     if (bias_mode != 0u) {
-        adv_bias.sf = m;
-        adv_bias.sf.format_version = FOGSF_FORMAT_BIAS;
-        adv_bias.bias_w = adv + 10;
-        adv_bias.bias_quad_w = bias_mode == 2u ? NULL : adv + 11;
-        adv_bias.bias_cube_w = adv + 12;
-        adv_bias.bias_b = adv[13];
-        run_samples(&adv_bias.sf, r);
-        return;
+        adv_bias.w = adv + 10;
+        adv_bias.quad_w = bias_mode == 2u ? NULL : adv + 11;
+        adv_bias.cube_w = adv + 12;
+        adv_bias.b = adv[13];
+        m.bias = &adv_bias;
+    }
+    /* the CRCs as fogsf export writes them (every table is a window of adv, long enough for
+       any size up to FOGSF_MAX_* + 1), unless the next byte says otherwise (mod 8): 1 a wrong
+       sizes CRC, 2 a wrong tables CRC, 3 a forged format version */
+    opts = next_u8(r);
+    m.crc32_sizes = fogsf_model_crc32(&m, 1u) ^ ((opts % 8u) == 1u ? 1u : 0u);
+    m.crc32 = fogsf_model_crc32(&m, 0u) ^ ((opts % 8u) == 2u ? 0x100u : 0u);
+    if ((opts % 8u) == 3u) {
+        m.format_version = 4u + (uint32_t)(opts >> 3) % 3u;
     }
     run_samples(&m, r);
 }
