@@ -4,7 +4,7 @@
  * The activations are Cephes-style (range reduction + polynomial) in float32 only, written
  * so that every operation is a single IEEE float32 op: with -ffp-contract=off any IEEE
  * machine (x86-64 SSE, Cortex-M4F FPv4-SP) gives the same bits, and exp_f32, sigmoid_f32 and
- * tanh_f32 of fogsf/trainer/models/f32.py reproduce them op for op in numpy.
+ * tanh_f32 of fogsf/models/f32.py reproduce them op for op in numpy.
  */
 #include "fogsf_fp.h" /* first: the floating-point build checks */
 #include "fogsf.h"

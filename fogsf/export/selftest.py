@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.export.header import _context, _environment
-from fogsf.trainer.models import f32, reference, samples
-from fogsf.trainer.models.stream import StreamModel
+from fogsf.models import f32, reference, samples
+from fogsf.models.stream import StreamModel
 
 NAME = "selftest_model"
 SEED = 40
