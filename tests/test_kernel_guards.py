@@ -1,0 +1,252 @@
+"""The kernel's floating-point guards (fogsf_fp.h), its power-on self-test and the model's
+integrity check: fast-math builds stop at compile time, fogsf_selftest passes on a good build
+and fails on an FMA-contracted one, a flipped byte or a forged version is refused."""
+
+from __future__ import annotations
+
+import platform
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from kernel_helpers import kernel_for, seal
+
+from fogsf.bindings.kernel import C_DIR, SOURCES, STRICT
+from fogsf.export.header import model_crc32
+from fogsf.export.selftest import render_selftest
+from fogsf.models import samples
+
+COMPILERS = [cc for cc in ("gcc", "clang") if shutil.which(cc)]
+FMA_HOST = platform.machine() in ("x86_64", "AMD64") and " fma " in (
+    Path("/proc/cpuinfo").read_text() if Path("/proc/cpuinfo").is_file() else "")
+
+
+@pytest.fixture(scope="module")
+def kroot(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("guard-kernels")
+
+
+def compile_kernel(cc: str, extra: list[str], out: Path) -> subprocess.CompletedProcess:
+    """Each kernel source compiled with the strict flags plus `extra` (stops at the first
+    that fails)."""
+    proc = None
+    for name in SOURCES:
+        proc = subprocess.run([cc, *STRICT, "-O2", *extra, "-I", str(C_DIR), "-c",
+                               str(C_DIR / name), "-o", str(out / f"{name}.o")],
+                              capture_output=True, text=True)
+        if proc.returncode != 0:
+            return proc
+    assert proc is not None
+    return proc
+
+
+@pytest.mark.parametrize("cc", COMPILERS)
+@pytest.mark.parametrize("flag, message", [
+    ("-ffast-math", "built with -ffast-math"),
+    ("-ffinite-math-only", "built with -ffinite-math-only"),
+    ("-fno-signed-zeros", "-fno-signed-zeros"),
+], ids=["fast-math", "finite-math-only", "no-signed-zeros"])
+def test_a_fast_math_build_does_not_compile(cc, flag, message, tmp_path) -> None:
+    if flag == "-fno-signed-zeros" and cc == "clang":
+        pytest.skip("clang announces -fno-signed-zeros by no macro")
+    assert compile_kernel(cc, [], tmp_path).returncode == 0  # the same build without the flag
+    proc = compile_kernel(cc, [flag], tmp_path)
+    assert proc.returncode != 0 and message in proc.stderr, proc.stderr
+
+
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64") or shutil.which("gcc") is None,
+                    reason="x87 evaluation (FLT_EVAL_METHOD 2) needs gcc on x86-64")
+def test_x87_excess_precision_does_not_compile(tmp_path) -> None:
+    proc = compile_kernel("gcc", ["-mfpmath=387"], tmp_path)
+    assert proc.returncode != 0 and "FLT_EVAL_METHOD is not 0" in proc.stderr, proc.stderr
+
+
+def test_the_contraction_pragma_is_clang_only() -> None:
+    """gcc warns that it ignores `#pragma STDC FP_CONTRACT` (an error under -Werror): the
+    pragma sits behind __clang__; gcc builds rely on -ffp-contract=off (in STRICT)."""
+    text = (C_DIR / "fogsf_fp.h").read_text()
+    assert re.search(r"#if defined\(__clang__\)\n#pragma STDC FP_CONTRACT OFF\n#endif", text)
+    assert "-ffp-contract=off" in STRICT
+    cmake = (C_DIR / "CMakeLists.txt").read_text()
+    assert "target_compile_options(fogsf PUBLIC -ffp-contract=off)" in cmake
+    for name in SOURCES:
+        first = re.search(r'#include "([^"]+)"', (C_DIR / name).read_text())
+        assert first is not None and first[1] == "fogsf_fp.h", name
+
+
+def test_the_committed_selftest_is_what_the_reference_gives() -> None:
+    """fogsf_selftest.c holds the numpy reference's bits for its model and inputs (regenerate
+    with `python -m fogsf.export.selftest` after a change to either)."""
+    assert (C_DIR / "fogsf_selftest.c").read_text() == render_selftest()
+
+
+@pytest.mark.parametrize("cc", COMPILERS)
+def test_selftest_passes_on_a_good_build(cc, kroot) -> None:
+    kernel = kernel_for(samples.random_model(3, 4, 1, 16, 10, seed=2026), kroot, cc)
+    assert kernel.lib.fogsf_selftest(kernel.ffi.new("fogsf_state *")) == 0
+    assert kernel.lib.fogsf_selftest(kernel.ffi.NULL) == 2  # no scratch state: the model part
+
+
+SELFTEST_MAIN = """#include <stdio.h>
+#include "fogsf.h"
+int main(void) { static fogsf_state s; unsigned r = fogsf_selftest(&s); printf("%u\\n", r);
+                 return 0; }
+"""
+
+
+@pytest.mark.skipif(not FMA_HOST or shutil.which("gcc") is None,
+                    reason="needs gcc on an x86-64 CPU with FMA")
+@pytest.mark.parametrize("contract", ["off", "fast"])
+def test_selftest_catches_fma_contraction(contract, tmp_path) -> None:
+    """The build the guards cannot see (gcc, -mfma -ffp-contract=fast): fogsf_selftest says
+    both the activations and the model are off; the same build with contraction off passes."""
+    (tmp_path / "main.c").write_text(SELFTEST_MAIN)
+    exe = tmp_path / "selftest"
+    flags = [f for f in STRICT if not f.startswith("-ffp-contract")]
+    subprocess.run(["gcc", *flags, "-O2", "-mfma", f"-ffp-contract={contract}", "-I",
+                    str(C_DIR), str(tmp_path / "main.c"), *(str(C_DIR / n) for n in SOURCES),
+                    "-o", str(exe)], check=True, capture_output=True)
+    got = int(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout)
+    assert got == (0 if contract == "off" else 3)
+
+
+# (K, F, L, H, D, seed, poly, quad_diag, bias head, plays)
+SHAPES = [(3, 4, 1, 16, 10, 2026, False, False, False, ()),
+          (2, 4, 1, 8, 10, 5, True, True, True, ()),
+          (2, 4, 2, 6, 3, 6, True, False, False, (((0.2, 0.5, 0.3), 2.0),)),
+          (1, 3, 1, 4, 5, 7, True, True, True, (((1.0, 0.0), 0.5),))]
+
+
+def shape_model(k, f, layers, hidden, d, seed, poly, diag, bias, plays):  # noqa: ANN001, ANN201
+    return samples.random_model(k, f, layers, hidden, d, seed=seed, poly_head=poly,
+                                quad_diag=diag, bias_head=bias, plays=plays)
+
+
+def tables(model) -> list[tuple[str, int]]:  # noqa: ANN001
+    """(field path, float count) of every table of the C model."""
+    k, f, h, p = model.n_filters, model.n_features, model.hidden, model.n_plays
+    out = [("filter_alpha", k), ("feat_w", f * (1 + k + p)), ("feat_b", f),
+           ("head_w", h), ("skip_w", f)]
+    out += [(f"lstm_{g}.{layer}", 4 * h * (model.n_lstm_inputs if layer == 0 else h))
+            if g == "w" else (f"lstm_{g}.{layer}", 4 * h * h if g == "r" else 8 * h)
+            for layer in range(model.layers) for g in "wrb"]
+    if model.poly_head:
+        out += [("quad_w", f if model.quad_diag else f * f), ("cube_w", f)]
+    if model.bias_head:
+        out += [("bias.w", f), ("bias.quad_w", f), ("bias.cube_w", f)]
+    if p:
+        out += [("plays.half_c", p), ("plays.source_w", p * (1 + k))]
+    return [(name, n) for name, n in out if n > 0]
+
+
+@pytest.mark.parametrize("shape", SHAPES, ids=["plain", "bias-head", "play", "play-bias"])
+def test_every_flipped_byte_of_every_table_is_refused(shape, kroot) -> None:
+    """The export's CRCs are zlib's; a copy of the model whose tables are copies passes;
+    one flipped bit in any byte of any table, or in a scalar, is refused by
+    fogsf_model_check and fogsf_init, and the state it started gives MODEL_INVALID."""
+    model = shape_model(*shape)
+    kernel = kernel_for(model, kroot)
+    ffi, lib = kernel.ffi, kernel.lib
+    assert (lib.fogsf_model_crc32(kernel.m, 1), lib.fogsf_model_crc32(kernel.m, 0)) == \
+        model_crc32(model) == (kernel.m.crc32_sizes, kernel.m.crc32)
+    keep = []
+
+    def copy_model():  # noqa: ANN202 - the model with every table copied into writable memory
+        m = ffi.new("fogsf_model *", kernel.m[0])
+        for part, n in (("bias", "fogsf_bias_head *"), ("plays", "fogsf_plays *")):
+            if getattr(kernel.m, part) != ffi.NULL:
+                owned = ffi.new(n, getattr(kernel.m, part)[0])
+                keep.append(owned)  # the owning cdata: freed when dropped
+                setattr(m, part, owned)
+        for name in ("lstm_w", "lstm_r", "lstm_b"):
+            arr = ffi.new("float *[]", [getattr(kernel.m, name)[i] for i in range(model.layers)])
+            keep.append(arr)
+            setattr(m, name, arr)
+        fields = {}
+        for path, n in tables(model):
+            owner, attr = _owner(m, path)
+            arr = ffi.new("float[]", n)
+            ffi.memmove(arr, _get(owner, attr), 4 * n)
+            _set(owner, attr, arr)
+            keep.append(arr)
+            fields[path] = arr
+        return m, fields
+
+    m, fields = copy_model()
+    assert lib.fogsf_model_check(m) == 0
+    out = ffi.new("fogsf_output *")
+    rng = np.random.default_rng(shape[5])
+    for path, arr in fields.items():
+        raw = ffi.buffer(arr)
+        for byte in sorted({0, len(raw) - 1, *rng.integers(0, len(raw), 3).tolist()}):
+            bit = 1 << int(rng.integers(0, 8))
+            raw[byte] = bytes([raw[byte][0] ^ bit])
+            assert lib.fogsf_model_check(m) == 32, (path, byte)
+            state = ffi.new("fogsf_state *")
+            assert lib.fogsf_init(m, state) == 32, (path, byte)
+            lib.fogsf_step(m, state, 20.0, 10.0, out)
+            assert (out.corrected_dps, out.flags) == (0.0, 32), (path, byte)
+            raw[byte] = bytes([raw[byte][0] ^ bit])
+            assert lib.fogsf_model_check(m) == 0, (path, byte)
+    for field in ("t_ref_c", "out_scale", "head_b", "stuck_samples"):
+        bad = ffi.new("fogsf_model *", m[0])
+        raw = ffi.buffer(ffi.addressof(bad[0], field), 4)
+        raw[1] = bytes([raw[1][0] ^ 0x10])
+        assert lib.fogsf_model_check(bad) == 32, field
+
+
+def _owner(m, path: str):  # noqa: ANN001, ANN202
+    parts = path.split(".")
+    if parts[0] in ("bias", "plays"):
+        return getattr(m, parts[0]), parts[1]
+    return m, parts[0] if len(parts) == 1 else (parts[0], int(parts[1]))
+
+
+def _get(owner, attr):  # noqa: ANN001, ANN202
+    return owner.__getattribute__(attr) if isinstance(attr, str) else getattr(
+        owner, attr[0])[attr[1]]
+
+
+def _set(owner, attr, value) -> None:  # noqa: ANN001
+    if isinstance(attr, str):
+        setattr(owner, attr, value)
+    else:
+        getattr(owner, attr[0])[attr[1]] = value
+
+
+@pytest.mark.parametrize("shape", SHAPES[:3], ids=["plain", "bias-head", "play"])
+def test_a_forged_version_is_refused(shape, kroot) -> None:
+    """Only this kernel's FOGSF_FORMAT_VERSION is accepted, even with CRCs recomputed for
+    the forged value: a plain model that claims the bias or play format of before (4, 5)
+    is never read as a larger struct (the kernel has no such cast left)."""
+    model = shape_model(*shape)
+    kernel = kernel_for(model, kroot)
+    ffi, lib = kernel.ffi, kernel.lib
+    assert kernel.m.format_version == 6
+    for version in (0, 2, 3, 4, 5, 7, 0xFFFFFFFF):
+        forged = seal(lib, ffi.new("fogsf_model *", kernel.m[0]), format_version=version)
+        assert lib.fogsf_model_check(forged) == 32, version
+        state = ffi.new("fogsf_state *")
+        assert lib.fogsf_init(forged, state) == 32
+        out = ffi.new("fogsf_output *")
+        lib.fogsf_step(forged, state, 20.0, 10.0, out)
+        assert (out.corrected_dps, out.flags) == (0.0, 32)
+    assert lib.fogsf_model_check(seal(lib, ffi.new("fogsf_model *", kernel.m[0]))) == 0
+    source = (C_DIR / "fogsf.c").read_text()
+    assert not re.search(r"\(const fogsf_\w+ \*\)", source)  # no cast between model structs
+
+
+def test_a_state_steps_only_the_model_it_was_started_with(kroot) -> None:
+    a = kernel_for(samples.random_model(3, 4, 1, 16, 10, seed=2026), kroot)
+    ffi, lib = a.ffi, a.lib
+    other = seal(lib, ffi.new("fogsf_model *", a.m[0]), t_ref_c=21.0)
+    assert lib.fogsf_model_check(other) == 0
+    state = a.new_state()
+    out = ffi.new("fogsf_output *")
+    lib.fogsf_step(other, state, 20.0, 10.0, out)
+    assert (out.corrected_dps, out.flags) == (0.0, 32)
+    lib.fogsf_step(a.m, state, 20.0, 10.0, out)
+    assert out.flags == 0 and out.corrected_dps != 0.0
