@@ -6,15 +6,17 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias paper clean
+.PHONY: help venv test lint demo firmware firmware-cores misra export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
 	@echo "make test      create .venv and run the whole test suite"
 	@echo "make firmware  build the C kernel (host library; Cortex-M4F image + size if arm-none-eabi-gcc exists)"
+	@echo "make firmware-cores  golden vectors under QEMU on Cortex-M4F, M3 and M0: PASS/FAIL per core, flash, RAM, stack bound"
 	@echo "make export    export the demo model to ONNX and C headers"
-	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang, cmake (root only)"
+	@echo "make toolchain apt-install gcc-arm-none-eabi, libnewlib-arm-none-eabi, qemu-system-arm, clang, cmake, cppcheck (root only)"
 	@echo "make bench     speed / size benchmarks (one and three models per image) -> out/bench.json"
+	@echo "make misra     cppcheck's MISRA C:2012 addon on the kernel and generated models; fails on Mandatory/Required"
 	@echo "make fuzz      libFuzzer + ASan + UBSan over the kernel until FUZZ_STEPS (1e7) steps"
 	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
 	@echo "make bench-transfer  one ramp rate vs two, over seeds -> out/bench-transfer.json"
@@ -45,7 +47,7 @@ lint: $(STAMP)
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check fogsf tests benchmarks
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -rs tests
 
 demo: $(STAMP)
 	bash scripts/demo.sh $(OUT)/demo
@@ -56,6 +58,12 @@ toolchain:
 # --- firmware: the C kernel, its export, speed and size, fuzzing ---
 firmware: $(STAMP)
 	bash scripts/firmware.sh
+
+firmware-cores: $(STAMP)
+	bash scripts/firmware_cores.sh
+
+misra: $(STAMP)
+	bash scripts/misra.sh
 
 export: $(STAMP)
 	bash scripts/export.sh $(OUT)/demo

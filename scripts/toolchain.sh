@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Install the Cortex-M4F cross toolchain, QEMU, clang (the kernel is checked with gcc and
-# clang; clang's libFuzzer runs make fuzz) and cmake (firmware/c/CMakeLists.txt, the imu3
-# example) when missing (Debian, root only).
+# Install the Cortex-M cross toolchain, QEMU, clang (the kernel is checked with gcc and
+# clang; clang's libFuzzer runs make fuzz), cmake (firmware/c/CMakeLists.txt, the imu3
+# example) and cppcheck (make misra: its MISRA C:2012 addon) when missing (Debian, root only).
 set -u
 need=()
 command -v arm-none-eabi-gcc >/dev/null 2>&1 || need+=(gcc-arm-none-eabi)
@@ -9,8 +9,9 @@ command -v arm-none-eabi-gcc >/dev/null 2>&1 || need+=(gcc-arm-none-eabi)
 command -v qemu-system-arm >/dev/null 2>&1 || need+=(qemu-system-arm)
 command -v clang >/dev/null 2>&1 || need+=(clang)
 command -v cmake >/dev/null 2>&1 || need+=(cmake)
+command -v cppcheck >/dev/null 2>&1 || need+=(cppcheck)
 if [ ${#need[@]} -eq 0 ]; then
-    echo "toolchain: arm-none-eabi-gcc, qemu-system-arm, clang and cmake present"
+    echo "toolchain: arm-none-eabi-gcc, qemu-system-arm, clang, cmake and cppcheck present"
     exit 0
 fi
 if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then

@@ -9,6 +9,8 @@
 #include "fogsf_fp.h" /* first: the floating-point build checks */
 #include "fogsf.h"
 
+#include <stdbool.h>
+
 static uint32_t float_bits(float v)
 {
     fogsf_f32_bits b;
@@ -16,14 +18,14 @@ static uint32_t float_bits(float v)
     return b.u;
 }
 
-static int float_finite(float v)
+static bool float_finite(float v)
 {
     return (float_bits(v) & 0x7f800000u) != 0x7f800000u;
 }
 
-static int double_finite(double v)
+static bool double_finite(double v)
 {
-    return v - v == 0.0; /* Inf - Inf and NaN - NaN are NaN */
+    return (v - v) == 0.0; /* Inf - Inf and NaN - NaN are NaN */
 }
 
 static uint32_t n_plays_of(const fogsf_model *m)
@@ -101,15 +103,18 @@ static uint32_t crc_word(uint32_t crc, uint32_t v)
     return c;
 }
 
-/* a NULL table adds nothing (fogsf_model_check refuses the model anyway) */
-static uint32_t crc_floats(uint32_t crc, const float *a, uint32_t n)
+/* the most tables a model has: filter_alpha, feat_w, feat_b, W/R/B per layer, head_w,
+ * skip_w, quad_w, cube_w, the bias head's three, the plays' two */
+#define CRC_TABLES (3u + (3u * (uint32_t)FOGSF_MAX_LAYERS) + 9u)
+#define CRC_HEAD_WORDS 21u
+
+/* the CRC register over n words, each least significant byte first */
+static uint32_t crc_words(uint32_t crc, const uint32_t *w, uint32_t n)
 {
     uint32_t c = crc;
     uint32_t i;
-    if (a != NULL) {
-        for (i = 0u; i < n; ++i) {
-            c = crc_word(c, float_bits(a[i]));
-        }
+    for (i = 0u; i < n; ++i) {
+        c = crc_word(c, w[i]);
     }
     return c;
 }
@@ -120,56 +125,93 @@ uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only)
     const uint32_t nf = m->n_features;
     const uint32_t nh = m->hidden;
     const uint32_t np = n_plays_of(m);
-    uint32_t c = 0xffffffffu;
+    const float *tab[CRC_TABLES];
+    uint32_t len[CRC_TABLES];
+    uint32_t head[CRC_HEAD_WORDS];
+    uint32_t n_head = 20u;
+    uint32_t n_tab = 0u;
+    uint32_t c;
     uint32_t l;
-    c = crc_word(c, m->format_version);
-    c = crc_word(c, nk);
-    c = crc_word(c, nf);
-    c = crc_word(c, m->layers);
-    c = crc_word(c, nh);
-    c = crc_word(c, m->decimation);
-    c = crc_word(c, m->stuck_samples);
-    c = crc_word(c, float_bits(m->sample_dt_s));
-    c = crc_word(c, float_bits(m->t_ref_c));
-    c = crc_word(c, float_bits(m->t_min_c));
-    c = crc_word(c, float_bits(m->t_max_c));
-    c = crc_word(c, float_bits(m->head_b));
-    c = crc_word(c, float_bits(m->out_scale));
-    c = crc_word(c, float_bits(m->out_offset));
-    c = crc_word(c, m->lstm_inputs);
-    c = crc_word(c, m->quad_diag);
-    c = crc_word(c, m->feat_diag);
-    c = crc_word(c, (m->quad_w != NULL) ? 1u : 0u);
-    c = crc_word(c, (m->bias != NULL) ? 1u : 0u);
-    c = crc_word(c, np);
+    uint32_t t;
+    head[0] = m->format_version;
+    head[1] = nk;
+    head[2] = nf;
+    head[3] = m->layers;
+    head[4] = nh;
+    head[5] = m->decimation;
+    head[6] = m->stuck_samples;
+    head[7] = float_bits(m->sample_dt_s);
+    head[8] = float_bits(m->t_ref_c);
+    head[9] = float_bits(m->t_min_c);
+    head[10] = float_bits(m->t_max_c);
+    head[11] = float_bits(m->head_b);
+    head[12] = float_bits(m->out_scale);
+    head[13] = float_bits(m->out_offset);
+    head[14] = m->lstm_inputs;
+    head[15] = m->quad_diag;
+    head[16] = m->feat_diag;
+    head[17] = (m->quad_w != NULL) ? 1u : 0u;
+    head[18] = (m->bias != NULL) ? 1u : 0u;
+    head[19] = np;
     if (m->bias != NULL) {
-        c = crc_word(c, float_bits(m->bias->b));
+        head[20] = float_bits(m->bias->b);
+        n_head = 21u;
     }
+    c = crc_words(0xffffffffu, head, n_head);
     if (sizes_only == 0u) {
         const uint32_t n_in0 = (m->lstm_inputs != 0u) ? m->lstm_inputs : nf;
-        c = crc_floats(c, m->filter_alpha, nk);
-        c = crc_floats(c, m->feat_w, (m->feat_diag != 0u) ? nf : (nf * (1u + nk + np)));
-        c = crc_floats(c, m->feat_b, nf);
-        for (l = 0u; (l < m->layers) && (m->lstm_w != NULL) && (m->lstm_r != NULL) &&
+        const uint32_t layers = (m->layers <= (uint32_t)FOGSF_MAX_LAYERS) ? m->layers : 0u;
+        tab[0] = m->filter_alpha;
+        len[0] = nk;
+        tab[1] = m->feat_w;
+        len[1] = (m->feat_diag != 0u) ? nf : (nf * (1u + nk + np));
+        tab[2] = m->feat_b;
+        len[2] = nf;
+        n_tab = 3u;
+        for (l = 0u; (l < layers) && (m->lstm_w != NULL) && (m->lstm_r != NULL) &&
                      (m->lstm_b != NULL); ++l) {
-            c = crc_floats(c, m->lstm_w[l], 4u * nh * ((l == 0u) ? n_in0 : nh));
-            c = crc_floats(c, m->lstm_r[l], 4u * nh * nh);
-            c = crc_floats(c, m->lstm_b[l], 8u * nh);
+            tab[n_tab] = m->lstm_w[l];
+            len[n_tab] = 4u * nh * ((l == 0u) ? n_in0 : nh);
+            tab[n_tab + 1u] = m->lstm_r[l];
+            len[n_tab + 1u] = 4u * nh * nh;
+            tab[n_tab + 2u] = m->lstm_b[l];
+            len[n_tab + 2u] = 8u * nh;
+            n_tab += 3u;
         }
-        c = crc_floats(c, m->head_w, nh);
-        c = crc_floats(c, m->skip_w, nf);
+        tab[n_tab] = m->head_w;
+        len[n_tab] = nh;
+        tab[n_tab + 1u] = m->skip_w;
+        len[n_tab + 1u] = nf;
+        n_tab += 2u;
         if (m->quad_w != NULL) {
-            c = crc_floats(c, m->quad_w, (m->quad_diag != 0u) ? nf : (nf * nf));
-            c = crc_floats(c, m->cube_w, nf);
+            tab[n_tab] = m->quad_w;
+            len[n_tab] = (m->quad_diag != 0u) ? nf : (nf * nf);
+            tab[n_tab + 1u] = m->cube_w;
+            len[n_tab + 1u] = nf;
+            n_tab += 2u;
         }
         if (m->bias != NULL) {
-            c = crc_floats(c, m->bias->w, nf);
-            c = crc_floats(c, m->bias->quad_w, nf);
-            c = crc_floats(c, m->bias->cube_w, nf);
+            tab[n_tab] = m->bias->w;
+            tab[n_tab + 1u] = m->bias->quad_w;
+            tab[n_tab + 2u] = m->bias->cube_w;
+            len[n_tab] = nf;
+            len[n_tab + 1u] = nf;
+            len[n_tab + 2u] = nf;
+            n_tab += 3u;
         }
         if (m->plays != NULL) {
-            c = crc_floats(c, m->plays->half_c, np);
-            c = crc_floats(c, m->plays->source_w, np * (1u + nk));
+            tab[n_tab] = m->plays->half_c;
+            len[n_tab] = np;
+            tab[n_tab + 1u] = m->plays->source_w;
+            len[n_tab + 1u] = np * (1u + nk);
+            n_tab += 2u;
+        }
+    }
+    for (t = 0u; t < n_tab; ++t) { /* a NULL table adds nothing (the model is refused) */
+        const float *a = tab[t];
+        uint32_t i;
+        for (i = 0u; (a != NULL) && (i < len[t]); ++i) {
+            c = crc_word(c, float_bits(a[i]));
         }
     }
     return c ^ 0xffffffffu;
@@ -194,27 +236,28 @@ uint32_t fogsf_model_check(const fogsf_model *m)
 uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
 {
     uint32_t bad;
-    int l, j;
-    for (l = 0; l < FOGSF_MAX_LAYERS; ++l) {
-        for (j = 0; j < FOGSF_MAX_HIDDEN; ++j) {
+    uint32_t l;
+    uint32_t j;
+    for (l = 0u; l < (uint32_t)FOGSF_MAX_LAYERS; ++l) {
+        for (j = 0u; j < (uint32_t)FOGSF_MAX_HIDDEN; ++j) {
             st->h[l][j] = 0.0f;
             st->c[l][j] = 0.0f;
         }
     }
-    for (j = 0; j < FOGSF_MAX_HIDDEN; ++j) {
+    for (j = 0u; j < (uint32_t)FOGSF_MAX_HIDDEN; ++j) {
         st->h_prev[j] = 0.0f;
     }
-    for (j = 0; j < FOGSF_MAX_FEATURES; ++j) {
+    for (j = 0u; j < (uint32_t)FOGSF_MAX_FEATURES; ++j) {
         st->z[j] = 0.0f;
     }
-    for (j = 0; j < FOGSF_MAX_FILTERS; ++j) {
+    for (j = 0u; j < (uint32_t)FOGSF_MAX_FILTERS; ++j) {
         st->y[j] = 0.0f;
     }
-    for (j = 0; j < FOGSF_MAX_PLAYS; ++j) {
+    for (j = 0u; j < (uint32_t)FOGSF_MAX_PLAYS; ++j) {
         st->p[j] = 0.0f;
     }
     st->acc = 0.0f;
-    st->t_last_good = m != NULL ? m->t_ref_c : 0.0f;
+    st->t_last_good = (m != NULL) ? m->t_ref_c : 0.0f;
     st->sf_ppm = 0.0f;
     st->bias_dph = 0.0f;
     st->bias_dps = 0.0;
@@ -242,26 +285,25 @@ static void bias_step(const fogsf_model *m, fogsf_state *st)
     float y, mag;
     uint32_t i;
 
-    if (b == NULL) {
-        return; /* bias_dph stays 0 */
+    if (b != NULL) { /* without a bias head bias_dph stays 0 */
+        y = b->b;
+        for (i = 0; i < nf; ++i) {
+            y = y + (b->w[i] * st->z[i]);
+        }
+        for (i = 0; i < nf; ++i) {
+            y = y + (b->quad_w[i] * (st->z[i] * st->z[i]));
+        }
+        for (i = 0; i < nf; ++i) {
+            y = y + (b->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]));
+        }
+        mag = (y < 0.0f) ? -y : y;
+        if (!(mag <= FOGSF_BIAS_LIMIT_DPH)) {
+            y = (y > 0.0f) ? FOGSF_BIAS_LIMIT_DPH : ((y < 0.0f) ? -FOGSF_BIAS_LIMIT_DPH : 0.0f);
+            st->sf_flags |= FOGSF_FLAG_BIAS_CLAMPED;
+        }
+        st->bias_dph = y;
+        st->bias_dps = (double)y / 3600.0; /* once per model step, not per sample */
     }
-    y = b->b;
-    for (i = 0; i < nf; ++i) {
-        y = y + b->w[i] * st->z[i];
-    }
-    for (i = 0; i < nf; ++i) {
-        y = y + b->quad_w[i] * (st->z[i] * st->z[i]);
-    }
-    for (i = 0; i < nf; ++i) {
-        y = y + b->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
-    }
-    mag = y < 0.0f ? -y : y;
-    if (!(mag <= FOGSF_BIAS_LIMIT_DPH)) {
-        y = y > 0.0f ? FOGSF_BIAS_LIMIT_DPH : (y < 0.0f ? -FOGSF_BIAS_LIMIT_DPH : 0.0f);
-        st->sf_flags |= FOGSF_FLAG_BIAS_CLAMPED;
-    }
-    st->bias_dph = y;
-    st->bias_dps = (double)y / 3600.0; /* once per model step, not per sample */
 }
 
 /* Contract step 4: one model step on the block-mean temperature tm. */
@@ -281,7 +323,7 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
     }
     s[0] = tm - m->t_ref_c;
     for (k = 0; k < nk; ++k) {
-        s[1 + k] = st->y[k] - m->t_ref_c;
+        s[1u + k] = st->y[k] - m->t_ref_c;
     }
     for (k = 0; k < np; ++k) { /* the play operators, after the filters */
         const float *v = pm->source_w + k * (nk + 1u);
@@ -293,7 +335,7 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
         lo = xin - pm->half_c[k];
         hi = xin + pm->half_c[k];
         st->p[k] = st->p[k] < lo ? lo : (st->p[k] > hi ? hi : st->p[k]);
-        s[1 + nk + k] = st->p[k] - m->t_ref_c;
+        s[1u + nk + k] = st->p[k] - m->t_ref_c;
     }
     if (m->feat_diag != 0u) { /* the diagonal only: feat_w [F], F == 1+K+P */
         for (f = 0; f < nf; ++f) {
@@ -349,25 +391,17 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
     bias_step(m, st);
 }
 
-void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
-                fogsf_output *out)
+/* One sample with a model that fits the state (contract steps 1-5). */
+static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+                        fogsf_output *out)
 {
     uint32_t flags = 0u;
     const uint32_t bits = float_bits(temp_c);
     float tc;
     double corrected;
 
-    /* only the model the reset accepted, and never index past the state or through NULL */
-    if ((m != st->model) || (model_fits(m) != 0u)) {
-        out->corrected_dps = 0.0;
-        out->sf_ppm = 0.0f;
-        out->bias_dph = 0.0f;
-        out->flags = FOGSF_FLAG_MODEL_INVALID;
-        return;
-    }
-
     /* 1. temperature: stuck run on the raw bits, then sanitise and clamp */
-    if (st->started != 0u && bits == st->raw_prev_bits) {
+    if ((st->started != 0u) && (bits == st->raw_prev_bits)) {
         if (st->stuck_run < m->stuck_samples) {
             st->stuck_run += 1u;
         }
@@ -375,7 +409,7 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
         st->stuck_run = 0u;
     }
     st->raw_prev_bits = bits;
-    if (m->stuck_samples > 0u && st->stuck_run >= m->stuck_samples) {
+    if ((m->stuck_samples > 0u) && (st->stuck_run >= m->stuck_samples)) {
         flags |= FOGSF_FLAG_TEMP_STUCK;
     }
     if (!float_finite(temp_c)) {
@@ -389,6 +423,8 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
         } else if (tc > m->t_max_c) {
             tc = m->t_max_c;
             flags |= FOGSF_FLAG_TEMP_CLAMPED;
+        } else {
+            /* within [t_min, t_max]: as it is */
         }
         st->t_last_good = tc;
     }
@@ -428,6 +464,20 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
     out->sf_ppm = st->sf_ppm;
     out->bias_dph = st->bias_dph;
     out->flags = flags | st->sf_flags;
+}
+
+void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+                fogsf_output *out)
+{
+    /* only the model the reset accepted, and never index past the state or through NULL */
+    if ((m != st->model) || (model_fits(m) != 0u)) {
+        out->corrected_dps = 0.0;
+        out->sf_ppm = 0.0f;
+        out->bias_dph = 0.0f;
+        out->flags = FOGSF_FLAG_MODEL_INVALID;
+    } else {
+        sample_step(m, st, temp_c, gyro_dps, out);
+    }
 }
 
 uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,

@@ -9,8 +9,9 @@
 #include "fogsf_fp.h" /* first: the floating-point build checks */
 #include "fogsf.h"
 
-float fogsf_expf(float x)
+float fogsf_expf(float x_in)
 {
+    float x = x_in;
     float t, nf, r, z, p, e;
     int32_t n;
     fogsf_f32_bits scale;
@@ -34,7 +35,8 @@ float fogsf_expf(float x)
     p = p * r + 0.166666657f;
     p = p * r + 0.5f;
     e = (p * z + r) + 1.0f;
-    scale.u = (uint32_t)(n + 127) << 23; /* 2^n, n in [-126, 127] */
+    n = n + 127; /* the biased exponent of 2^n, n in [-126, 127]: 1 .. 254 */
+    scale.u = (uint32_t)n << 23u;
     return e * scale.f;
 }
 
@@ -43,9 +45,10 @@ float fogsf_sigmoidf(float x)
     return 1.0f / (1.0f + fogsf_expf(-x));
 }
 
-float fogsf_tanhf(float x)
+float fogsf_tanhf(float x_in)
 {
-    float a, z, p;
+    float x = x_in;
+    float a, z, p, y;
 
     if (!(x >= -10.0f)) { /* tanh(10) rounds to 1.0f; NaN counts as -10 */
         x = -10.0f;
@@ -53,18 +56,20 @@ float fogsf_tanhf(float x)
     if (x > 10.0f) {
         x = 10.0f;
     }
-    a = x < 0.0f ? -x : x;
+    a = (x < 0.0f) ? -x : x;
     if (a > 0.625f) {
-        float big = 1.0f - 2.0f / (fogsf_expf(a + a) + 1.0f);
-        return x < 0.0f ? -big : big;
+        const float big = 1.0f - (2.0f / (fogsf_expf(a + a) + 1.0f));
+        y = (x < 0.0f) ? -big : big;
+    } else {
+        z = x * x;
+        p = -0.00570498873f;
+        p = (p * z) + 0.020639088f;
+        p = (p * z) + -0.0537397154f;
+        p = (p * z) + 0.133314416f;
+        p = (p * z) + -0.333332807f;
+        y = ((p * z) * x) + x;
     }
-    z = x * x;
-    p = -0.00570498873f;
-    p = p * z + 0.020639088f;
-    p = p * z + -0.0537397154f;
-    p = p * z + 0.133314416f;
-    p = p * z + -0.333332807f;
-    return (p * z) * x + x;
+    return y;
 }
 
 /* pre[g] += rows[g] . v for the four gate rows at once, each accumulated in index order (the
@@ -102,14 +107,14 @@ void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
     /* unit by unit: its four gate rows (i, o, f, c) read only the previous h */
     for (j = 0; j < hidden; ++j) {
         float gi, go, gf, gc, ci, cf, cn;
-        for (gate = 0; gate < 4; ++gate) {
-            const size_t row = gate * hidden + j;
-            pre[gate] = b != NULL ? b[row] + b[4 * hidden + row] : 0.0f;
+        for (gate = 0u; gate < 4u; ++gate) {
+            const size_t row = (gate * hidden) + j;
+            pre[gate] = (b != NULL) ? (b[row] + b[(4u * hidden) + row]) : 0.0f;
             rows[gate] = w + row * n_in;
         }
         dot4_from(pre, rows, x, n_in);
-        for (gate = 0; gate < 4; ++gate) {
-            rows[gate] = r + (gate * hidden + j) * hidden;
+        for (gate = 0u; gate < 4u; ++gate) {
+            rows[gate] = r + (((gate * hidden) + j) * hidden);
         }
         dot4_from(pre, rows, h_prev, hidden);
         gi = pre[0];
@@ -118,7 +123,7 @@ void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
         gc = pre[3];
         if (p != NULL) { /* peepholes see the previous cell state (i, f), the new one (o) */
             gi = gi + p[j] * c[j];
-            gf = gf + p[2 * hidden + j] * c[j];
+            gf = gf + (p[(2u * hidden) + j] * c[j]);
         }
         ci = fogsf_sigmoidf(gi) * fogsf_tanhf(gc);
         cf = fogsf_sigmoidf(gf) * c[j];

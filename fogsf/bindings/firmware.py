@@ -33,6 +33,27 @@ ARM_CC = "arm-none-eabi-gcc"
 ARM_SIZE = "arm-none-eabi-size"
 QEMU = "qemu-system-arm"
 ARM_FLAGS = ("-mcpu=cortex-m4", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-mthumb")
+
+
+@dataclass(frozen=True)
+class Core:
+    """A Cortex-M core as the firmware builds target it and QEMU runs it."""
+    name: str
+    flags: tuple[str, ...]  # compiler and linker flags
+    machine: str  # qemu-system-arm -M
+    linker_script: str  # in firmware/c/arm
+    label: str  # for reports
+
+
+CORES = {
+    "cortex-m4f": Core("cortex-m4f", ARM_FLAGS, "mps2-an386", "mps2_an386.ld",
+                       "Cortex-M4F (FPv4-SP hard float)"),
+    "cortex-m3": Core("cortex-m3", ("-mcpu=cortex-m3", "-mthumb", "-mfloat-abi=soft"),
+                      "mps2-an385", "mps2_an386.ld", "Cortex-M3 (soft float)"),
+    "cortex-m0": Core("cortex-m0", ("-mcpu=cortex-m0", "-mthumb", "-mfloat-abi=soft"),
+                      "microbit", "microbit.ld", "Cortex-M0 (soft float)"),
+}
+M4F = CORES["cortex-m4f"]
 TEST_FLAGS = ("-std=gnu99", "-Wall", "-Wextra", "-Werror", "-ffp-contract=off",
               "-fno-tree-loop-distribute-patterns")  # memset must not call itself
 GOLDEN_SAMPLES = 6000
@@ -157,8 +178,8 @@ def image_models_header(names: list[str]) -> str:
 
 
 def build_arm(model_dir: Path, golden_dir: Path | None, out: Path,
-              names: tuple[str, ...] = (BOUND_NAME,), defines: tuple[str, ...] = ()
-              ) -> ArmBuild:
+              names: tuple[str, ...] = (BOUND_NAME,), defines: tuple[str, ...] = (),
+              core: Core = M4F) -> ArmBuild:
     """Kernel and model objects (model_dir/NAME.c for each name) with the strict flags and the
     state sized by `defines` (FOGSF_MAX_*), then the golden (unless golden_dir is None; it
     checks the first model), size and bench images stepping every model."""
@@ -166,13 +187,13 @@ def build_arm(model_dir: Path, golden_dir: Path | None, out: Path,
     (out / "image_models.h").write_text(image_models_header(list(names)))
     inc = ["-I", str(out), "-I", str(model_dir), "-I", str(C_DIR), "-I", str(C_DIR / "test"),
            "-I", str(C_DIR / "arm"), *(["-I", str(golden_dir)] if golden_dir else [])]
-    common = [*ARM_FLAGS, "-O2", "-ffunction-sections", "-fdata-sections", *defines]
+    common = [*core.flags, "-O2", "-ffunction-sections", "-fdata-sections", *defines]
 
     def obj(src: Path, strict: bool) -> Path:
         o = out / (src.stem + ".o")
         flags = [*STRICT] if strict else [*TEST_FLAGS]
         run_cmd([ARM_CC, *flags, *common, "-fstack-usage", *inc, "-c", str(src), "-o", str(o)],
-                f"compiling {src.name} for Cortex-M4F")
+                f"compiling {src.name} for {core.name}")
         return o
 
     kernel = [*(obj(C_DIR / name, True) for name in SOURCES),
@@ -183,8 +204,8 @@ def build_arm(model_dir: Path, golden_dir: Path | None, out: Path,
 
     def link(name: str, objs: list[Path]) -> Path:
         elf = out / f"{name}.elf"
-        run_cmd([ARM_CC, *ARM_FLAGS, "-nostdlib", "-nostartfiles", "-Wl,--gc-sections",
-                 "-T", str(C_DIR / "arm" / "mps2_an386.ld"), *map(str, objs), "-lgcc",
+        run_cmd([ARM_CC, *core.flags, "-nostdlib", "-nostartfiles", "-Wl,--gc-sections",
+                 "-T", str(C_DIR / "arm" / core.linker_script), *map(str, objs), "-lgcc",
                  "-o", str(elf)], f"linking {elf.name}")
         return elf
 
@@ -196,14 +217,16 @@ def build_arm(model_dir: Path, golden_dir: Path | None, out: Path,
                     link("bench", [startup, mains["bench"], *kernel]), kernel)
 
 
-def qemu_cmd(elf: Path, *extra: str) -> list[str]:
-    return [QEMU, "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
+def qemu_cmd(elf: Path, *extra: str, machine: str = M4F.machine) -> list[str]:
+    return [QEMU, "-M", machine, "-nographic", "-monitor", "none", "-serial", "none",
             "-semihosting-config", "enable=on,target=native", *extra, "-kernel", str(elf)]
 
 
-def run_qemu(elf: Path, timeout: float = 120.0) -> tuple[bool, str]:
+def run_qemu(elf: Path, timeout: float = 120.0, machine: str = M4F.machine
+             ) -> tuple[bool, str]:
     try:
-        proc = subprocess.run(qemu_cmd(elf), capture_output=True, text=True, timeout=timeout)
+        proc = subprocess.run(qemu_cmd(elf, machine=machine), capture_output=True, text=True,
+                              timeout=timeout)
     except subprocess.TimeoutExpired:
         return False, f"FAIL: QEMU did not finish within {timeout:g} s"
     out = proc.stdout + proc.stderr

@@ -1,6 +1,7 @@
 /*
- * Minimal bare-metal start-up for QEMU's mps2-an386 (Cortex-M4F): vector table, .data/.bss
- * set-up, FPU enable, and ARM semihosting (SYS_WRITE0 to print, SYS_EXIT to stop QEMU with
+ * Minimal bare-metal start-up for QEMU's Cortex-M boards (mps2-an386 Cortex-M4F, mps2-an385
+ * Cortex-M3, microbit Cortex-M0): vector table, .data/.bss set-up, FPU enable (hard-float
+ * builds), and ARM semihosting (SYS_WRITE0 to print, SYS_EXIT to stop QEMU with
  * a status). No newlib start-up: its rdimon crt0 is not needed for a test that only prints.
  */
 #include <stddef.h>
@@ -51,9 +52,11 @@ void reset_handler(void)
     for (dst = &_sbss; dst < &_ebss; ++dst) {
         *dst = 0u;
     }
+#if defined(__ARM_FP)
     /* CPACR: full access to CP10/CP11 (the FPU) before any float instruction */
     *(volatile uint32_t *)0xE000ED88u |= 0xFu << 20;
     __asm__ volatile("dsb\n\tisb" ::: "memory");
+#endif
     semihost_exit(main() != 0);
 }
 

@@ -101,7 +101,7 @@ static void check(uint32_t refused, const fogsf_output *out)
     }
     if (refused != 0u &&
         (out->corrected_dps != 0.0 || out->flags != FOGSF_FLAG_MODEL_INVALID)) {
-        fprintf(stderr, "a model fogsf_init refused must give 0 and MODEL_INVALID only\n");
+        fprintf(stderr, "an invalid model must give 0 and MODEL_INVALID only (init refused it)\n");
         abort();
     }
 }

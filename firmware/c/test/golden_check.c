@@ -17,13 +17,29 @@ typedef union {
     uint64_t u;
 } f64_bits;
 
-/* test-driver buffers (the kernel itself keeps no globals) */
+/* test-driver state and one chunk of buffers for fogsf_run (the kernel keeps no globals);
+ * the inputs are read from the golden tables in flash, so the check fits a 16 KB RAM core */
+#define GOLDEN_CHUNK 50u
 static fogsf_state state;
-static float temps[FOGSF_GOLDEN_N];
-static double gyros[FOGSF_GOLDEN_N];
-static double run_corrected[FOGSF_GOLDEN_N];
-static float run_sf[FOGSF_GOLDEN_N];
-static uint32_t run_flags[FOGSF_GOLDEN_N];
+static float temps[GOLDEN_CHUNK];
+static double gyros[GOLDEN_CHUNK];
+static double run_corrected[GOLDEN_CHUNK];
+static float run_sf[GOLDEN_CHUNK];
+static uint32_t run_flags[GOLDEN_CHUNK];
+
+static float temp_of(unsigned long i)
+{
+    f32_bits t;
+    t.u = golden_temp_bits[i];
+    return t.f;
+}
+
+static double gyro_of(unsigned long i)
+{
+    f64_bits g;
+    g.u = golden_gyro_bits[i];
+    return g.d;
+}
 
 static void put_uint(fogsf_puts_fn out, unsigned long v)
 {
@@ -107,17 +123,9 @@ unsigned long fogsf_golden_check(fogsf_puts_fn out)
         out("FAIL: vectors are for model " FOGSF_GOLDEN_MODEL_ID "\n");
         return 1u;
     }
-    for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
-        f32_bits t;
-        f64_bits g;
-        t.u = golden_temp_bits[i];
-        g.u = golden_gyro_bits[i];
-        temps[i] = t.f;
-        gyros[i] = g.d;
-    }
     (void)fogsf_init(FOGSF_GOLDEN_MODEL, &state);
     for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
-        fogsf_step(FOGSF_GOLDEN_MODEL, &state, temps[i], gyros[i], &o);
+        fogsf_step(FOGSF_GOLDEN_MODEL, &state, temp_of(i), gyro_of(i), &o);
         bad = compare(out, "step", i, o.sf_ppm, o.corrected_dps, o.flags, bad);
 #ifdef FOGSF_GOLDEN_BIAS /* a model with a bias head: its bias bit for bit too */
         {
@@ -138,10 +146,19 @@ unsigned long fogsf_golden_check(fogsf_puts_fn out)
         }
 #endif
     }
+    /* fogsf_run over the log in chunks, the state carried from one to the next */
     (void)fogsf_reset(FOGSF_GOLDEN_MODEL, &state);
-    (void)fogsf_run(FOGSF_GOLDEN_MODEL, &state, temps, gyros, FOGSF_GOLDEN_N, run_corrected, run_sf, run_flags);
-    for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
-        bad = compare(out, "run", i, run_sf[i], run_corrected[i], run_flags[i], bad);
+    for (i = 0; i < FOGSF_GOLDEN_N; i += GOLDEN_CHUNK) {
+        unsigned long j, n = FOGSF_GOLDEN_N - i < GOLDEN_CHUNK ? FOGSF_GOLDEN_N - i : GOLDEN_CHUNK;
+        for (j = 0; j < n; ++j) {
+            temps[j] = temp_of(i + j);
+            gyros[j] = gyro_of(i + j);
+        }
+        (void)fogsf_run(FOGSF_GOLDEN_MODEL, &state, temps, gyros, n, run_corrected, run_sf,
+                        run_flags);
+        for (j = 0; j < n; ++j) {
+            bad = compare(out, "run", i + j, run_sf[j], run_corrected[j], run_flags[j], bad);
+        }
     }
     if (bad == 0u) {
         out("PASS: ");

@@ -1,0 +1,200 @@
+"""MISRA C:2012 check of the kernel and of generated models (`make misra`).
+
+Exports a model of every shape through the export path (plain; bias head with the diagonal
+quadratic; a play; the full quadratic with its cross terms on two layers), then runs
+cppcheck's MISRA addon over the kernel's sources and the generated `NAME.c` files in one
+configuration (the state sized for the largest). Each finding gets its category from the
+rule table below (MISRA C:2012 with Amendments 1 and 2: the addon reports only numbers).
+Fails (exit 1) on any Mandatory or Required finding, on any cppcheck error, on any Advisory
+rule firmware/c/MISRA.md does not record as `Rule N.M`, and where the kernel's sources name a
+plain integer type (Dir 4.6; the addon does not see an `int` used as a boolean, 10.1/14.4).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import shutil
+import subprocess
+import sys
+from collections import Counter
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from fogsf.bindings.kernel import C_DIR, SOURCES, state_sizes
+from fogsf.errors import UserError
+from fogsf.export.header import write_model
+from fogsf.models import samples
+from fogsf.models.stream import StreamModel
+
+CPPCHECK = "cppcheck"
+MISRA_MD = C_DIR / "MISRA.md"
+KERNEL_HEADERS = ("fogsf.h", "fogsf_fp.h")
+
+# MISRA C:2012 (third edition, with Amendments 1 and 2): the Mandatory and the Advisory rules;
+# every other rule and directive is Required (an unknown number counts as Required too).
+MANDATORY = frozenset({"9.1", "12.5", "13.6", "17.3", "17.4", "17.6", "19.1", "21.13",
+                       "21.17", "21.18", "21.19", "21.20", "22.2", "22.4", "22.5", "22.6"})
+ADVISORY = frozenset({
+    "Dir 4.2", "Dir 4.4", "Dir 4.5", "Dir 4.6", "Dir 4.8", "Dir 4.9", "Dir 4.13",
+    "1.2", "2.3", "2.4", "2.5", "2.6", "2.7", "4.2", "5.9", "8.7", "8.9", "8.11", "8.13",
+    "10.5", "11.4", "11.5", "12.1", "12.3", "12.4", "13.3", "13.4", "15.1", "15.4", "15.5",
+    "17.5", "17.8", "18.4", "18.5", "19.2", "20.1", "20.5", "20.10", "21.12"})
+
+
+def category(rule: str) -> str:
+    """'Mandatory', 'Required' or 'Advisory' for a rule number such as '10.4'."""
+    if rule in MANDATORY:
+        return "Mandatory"
+    return "Advisory" if rule in ADVISORY else "Required"
+
+
+def shapes() -> dict[str, StreamModel]:
+    """One model of every shape the export writes (seeded: the same files every run)."""
+    return {
+        "misra_plain": samples.random_model(3, 4, 1, 16, 10, seed=1),
+        "misra_bias": samples.random_model(11, 12, 1, 16, 50, seed=2, poly_head=True,
+                                           lstm_inputs=1, quad_diag=True, feat_diag=True,
+                                           bias_head=True),
+        "misra_play": samples.random_model(2, 4, 1, 16, 10, seed=3, poly_head=True,
+                                           bias_head=True, plays=(((0.2, 0.5, 0.3), 2.0),)),
+        "misra_cross": samples.random_model(3, 4, 2, 8, 10, seed=4, poly_head=True),
+    }
+
+
+@dataclass(frozen=True)
+class Finding:
+    file: str
+    line: int
+    rule: str  # "10.4", or a cppcheck id for its own errors
+    category: str  # Mandatory, Required, Advisory, or "cppcheck" (an error of the tool)
+    message: str
+
+
+LINE_RE = re.compile(r"^(?P<file>[^\n]*?):(?P<line>\d+):(?P<sev>\w+):(?P<id>[\w.-]+):(?P<msg>.*)$")
+
+
+def parse(text: str, root: Path) -> list[Finding]:
+    out = []
+    for line in text.splitlines():
+        m = LINE_RE.match(line.strip())
+        if not m:
+            continue
+        path = Path(m["file"])
+        name = str(path.relative_to(root)) if path.is_relative_to(root) else path.name
+        rule = m["id"].removeprefix("misra-c2012-")
+        if m["id"].startswith("misra-c2012-"):
+            out.append(Finding(name, int(m["line"]), rule, category(rule), m["msg"]))
+        elif m["sev"] == "error":
+            out.append(Finding(name, int(m["line"]), m["id"], "cppcheck", m["msg"]))
+    return out
+
+
+def run_cppcheck(files: list[Path], defines: dict[str, int], includes: list[Path],
+                 root: Path, timeout: float = 900.0) -> list[Finding]:
+    """cppcheck --addon=misra over the files in one configuration (-D for every macro the
+    kernel tests: FLT_EVAL_METHOD as a C99 compiler for IEEE float32 defines it)."""
+    if shutil.which(CPPCHECK) is None:
+        raise UserError("cppcheck not found: `apt-get install cppcheck` (make toolchain)")
+    cmd = [CPPCHECK, "--addon=misra", "--std=c99", "--quiet", "--error-exitcode=0",
+           "--template={file}:{line}:{severity}:{id}:{message}", "-DFLT_EVAL_METHOD=0",
+           *(f"-D{k}={v}" for k, v in defines.items()),
+           *(f"-I{p}" for p in includes), *map(str, files)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    return parse(proc.stdout + proc.stderr, root)
+
+
+PLAIN_TYPE = re.compile(r"\b(int|short|long|signed|unsigned)\b")
+
+
+def plain_integer_lines(paths: list[Path]) -> list[Finding]:
+    """Lines of the kernel's sources that name a plain integer type (comments and strings
+    left out): Dir 4.6 wants sized types, and without them no `int` can act as a boolean
+    (Rules 10.1 and 14.4, which the addon does not check there)."""
+    out = []
+    for path in paths:
+        text = re.sub(r"/\*.*?\*/", lambda m: "\n" * m[0].count("\n"), path.read_text(),
+                      flags=re.DOTALL)
+        for no, line in enumerate(text.splitlines(), 1):
+            code = re.sub(r'"(\\.|[^"\\])*"', '""', line.split("//")[0])
+            if PLAIN_TYPE.search(code):
+                out.append(Finding(path.name, no, "Dir 4.6", "Required",
+                                   f"plain integer type in the kernel: {code.strip()}"))
+    return out
+
+
+def recorded_rules(md: Path = MISRA_MD) -> set[str]:
+    """The Advisory rules firmware/c/MISRA.md records (`Rule N.M` / `Dir N.M`)."""
+    text = md.read_text() if md.is_file() else ""
+    return ({m for m in re.findall(r"\bRule (\d+\.\d+)\b", text)}
+            | {f"Dir {m}" for m in re.findall(r"\bDir (\d+\.\d+)\b", text)})
+
+
+def check(out: Path, extra: list[Path] = ()) -> tuple[list[Finding], list[str]]:
+    """(findings, problems): problems are what makes `make misra` fail."""
+    gen = out / "models"
+    models = shapes()
+    files = [C_DIR / n for n in SOURCES]
+    for name, model in models.items():
+        write_model(model, gen, name)
+        files.append(gen / f"{name}.c")
+    files += list(extra)
+    sizes = {k: max(state_sizes(m)[k] for m in models.values())
+             for k in state_sizes(next(iter(models.values())))}
+    findings = run_cppcheck(files, sizes, [C_DIR, gen], out)
+    findings += plain_integer_lines([C_DIR / n for n in (*SOURCES, *KERNEL_HEADERS)])
+    problems = [f"{f.file}:{f.line}: {f.category} {'rule ' if f.category != 'cppcheck' else ''}"
+                f"{f.rule}: {f.message}" for f in findings
+                if f.category in ("Mandatory", "Required", "cppcheck")]
+    recorded = recorded_rules()
+    for rule in sorted({f.rule for f in findings if f.category == "Advisory"} - recorded):
+        problems.append(f"Advisory rule {rule} found but not recorded in {MISRA_MD.name}")
+    return findings, problems
+
+
+def report(findings: list[Finding], problems: list[str]) -> str:
+    counts = Counter((f.category, f.rule) for f in findings)
+    order = {"Mandatory": 0, "Required": 1, "cppcheck": 2, "Advisory": 3}
+    lines = [f"  {cat:<9} {('Rule ' if not rule.startswith('Dir') and cat != 'cppcheck' else '')}"
+             f"{rule:<8} {n:>4}" for (cat, rule), n in
+             sorted(counts.items(), key=lambda kv: (order[kv[0][0]], _key(kv[0][1])))]
+    by_cat = Counter(f.category for f in findings)
+    lines.append("findings: " + ", ".join(f"{c} {by_cat.get(c, 0)}"
+                                          for c in ("Mandatory", "Required", "Advisory")))
+    lines += [f"  {p}" for p in problems]
+    lines.append("FAIL" if problems else
+                 f"PASS: no Mandatory or Required finding; every Advisory rule recorded in "
+                 f"{MISRA_MD.name}")
+    return "\n".join(lines)
+
+
+def _key(rule: str) -> tuple:
+    nums = re.findall(r"\d+", rule)
+    return (rule.startswith("Dir"), *(int(n) for n in nums)) if nums else (2, rule)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m fogsf.bindings.misra", description=__doc__)
+    p.add_argument("--out", type=Path, default=Path("build/misra"))
+    p.add_argument("--json", type=Path, default=None, help="also write the findings here")
+    p.add_argument("extra", nargs="*", type=Path, help="more C files to check with the kernel")
+    args = p.parse_args(argv)
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+        print(f"cppcheck --addon=misra (MISRA C:2012) on {', '.join(SOURCES)} and models "
+              f"{', '.join(shapes())}")
+        findings, problems = check(args.out.resolve(), args.extra)
+    except (UserError, subprocess.TimeoutExpired) as e:
+        print(f"misra: error: {e}", file=sys.stderr)
+        return 2
+    print(report(findings, problems))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps({"findings": [asdict(f) for f in findings],
+                                         "problems": problems}, indent=1))
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
