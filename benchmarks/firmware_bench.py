@@ -34,8 +34,18 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.bindings.firmware import arm_size, arm_tools_missing, build_arm, qemu_cmd
+from fogsf.bindings.firmware import (
+    CORES,
+    M4F,
+    Core,
+    arm_size,
+    arm_tools_missing,
+    build_arm,
+    qemu_cmd,
+    section_sizes,
+)
 from fogsf.bindings.kernel import Kernel, build_kernel, state_sizes
+from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, stack_bound
 from fogsf.errors import UserError
 from fogsf.export.header import write_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx
@@ -114,6 +124,54 @@ def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-ls
     return row
 
 
+# the per-core rows: the default model's shape (the lag bank, its form), one and three
+CORE_IMAGES = ((1, 11), (3, 11))
+
+
+def bench_core(core: Core, models: list[st.StreamModel], root: Path, label: str) -> dict:
+    """One image on one core: flash (text + data), RAM (data + bss + the stack bound of a
+    call-graph walk of the linked image, libgcc included: the deeper of fogsf_step's and the
+    power-on calls'), instructions per sample (worst: a model step; mean over a period)."""
+    names = AXES[:len(models)]
+    tag = f"image{len(models)}-{label}"
+    gen = root / tag / "models"
+    for name, model in zip(names, models, strict=True):
+        write_model(model, gen, name)
+    sizes: dict[str, int] = {}
+    for model in models:
+        for k, v in state_sizes(model).items():
+            sizes[k] = max(sizes.get(k, 0), v)
+    arm = build_arm(gen, None, root / tag / core.name, names,
+                    tuple(f"-D{k}={v}" for k, v in sizes.items()), core=core)
+    text, data, bss = section_sizes(arm.size_elf)
+    step = stack_bound(arm.size_elf, STEP_ROOTS)
+    init = stack_bound(arm.size_elf, INIT_ROOTS)
+    worst, mean = instructions(arm.bench_elf, models[0].decimation, core)
+    return {"core": core.name, "image": f"{len(models)}x {label}", "models": len(models),
+            "flash_bytes": text + data, "ram_bytes": data + bss + max(step.bytes, init.bytes),
+            "stack_step_bytes": step.bytes, "stack_step_path": step.path,
+            "stack_init_bytes": init.bytes, "stack_unbounded": step.unbounded + init.unbounded,
+            "instructions_per_sample_worst": worst, "instructions_per_sample_mean": mean}
+
+
+def core_rows(root: Path) -> list[dict]:
+    rows = []
+    for core in CORES.values():
+        for n, k in CORE_IMAGES:
+            print(f"{core.name}: {n} x lag-bank-1x16", flush=True)
+            rows.append(bench_core(core, small_poly_models(n, k), root, "lag-bank-1x16"))
+    return rows
+
+
+def print_core_rows(rows: list[dict]) -> None:
+    print(f"\n{'core':11s} {'image':18s} {'flash B':>8s} {'RAM B':>6s} {'stack B':>7s} "
+          f"{'instr/sample worst':>19s} {'mean':>7s}  deepest chain")
+    for r in rows:
+        print(f"{r['core']:11s} {r['image']:18s} {r['flash_bytes']:8d} {r['ram_bytes']:6d} "
+              f"{r['stack_step_bytes']:7d} {r['instructions_per_sample_worst']:19d} "
+              f"{r['instructions_per_sample_mean']:7.0f}  {' > '.join(r['stack_step_path'])}")
+
+
 def random_models() -> list[tuple[str, st.StreamModel, str]]:
     return [
         ("paper-lstm-2x200", samples.random_model(1, 2, 2, 200, decimation=50, seed=200),
@@ -153,10 +211,10 @@ def ort_ns_per_step(model: st.StreamModel, steps: int) -> float:
     return float(best)
 
 
-def instructions(bench_elf: Path, decimation: int) -> tuple[int, float]:
+def instructions(bench_elf: Path, decimation: int, core: Core = M4F) -> tuple[int, float]:
     """(instructions of the worst sample, mean per sample over one decimation period) of
-    fogsf_step on Cortex-M4F, counted between the bench image's marker calls."""
-    cmd = qemu_cmd(bench_elf, "-singlestep", "-d", "exec,nochain")
+    fogsf_step on the core, counted between the bench image's marker calls."""
+    cmd = qemu_cmd(bench_elf, "-singlestep", "-d", "exec,nochain", machine=core.machine)
     counts: list[int] = []
     inside, n = False, 0
     with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
@@ -217,7 +275,20 @@ def main(argv: list[str] | None = None) -> int:
                    help="also bench a trained model artifact (repeatable)")
     p.add_argument("--steps", type=int, default=20000, help="host timing steps (20000)")
     p.add_argument("--build", type=Path, default=Path("build/bench"))
+    p.add_argument("--cores-only", action="store_true",
+                   help="only the per-core rows (Cortex-M4F, M3, M0) -> bench-cores.json")
     args = p.parse_args(argv)
+    if args.cores_only:
+        if arm_tools_missing():
+            print(f"bench: {arm_tools_missing()}", file=sys.stderr)
+            return 2
+        cores = core_rows(args.build.resolve())
+        print_core_rows(cores)
+        args.out.mkdir(parents=True, exist_ok=True)
+        path = args.out / "bench-cores.json"
+        path.write_text(json.dumps({"cores": cores}, indent=2) + "\n")
+        print(f"wrote {path}")
+        return 0
     try:
         models = random_models()
         for spec in args.model:
@@ -231,6 +302,7 @@ def main(argv: list[str] | None = None) -> int:
             bench_image(small_poly_models(n, k, form, bias, own, play, full_quad),
                         args.build.resolve(), label)
             for k, label, form, bias, own, play, full_quad in IMAGES for n in (1, 3)]
+        cores = [] if arm_tools_missing() else core_rows(args.build.resolve())
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)
         return 2
@@ -258,9 +330,12 @@ def main(argv: list[str] | None = None) -> int:
                            for r in images if r["models"] == 3)
         print(f"target (three models): flash <= {IMAGE_TARGET['flash_bytes']} B, RAM <= "
               f"{IMAGE_TARGET['ram_bytes']} B; {threes}")
+    if cores:
+        print_core_rows(cores)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "bench.json"
     path.write_text(json.dumps({"models": rows, "target": TARGET, "images": images,
+                                "cores": cores,
                                 "image_target": IMAGE_TARGET,
                                 "notes": "host_ns/ort_ns per model step (1 thread); "
                                          "instructions_per_step = Cortex-M4F instructions of "

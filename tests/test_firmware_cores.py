@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from fogsf.bindings.cores import main, parse_image, walk
+from fogsf.bindings.cores import main
 from fogsf.bindings.firmware import arm_tools_missing
+from fogsf.bindings.stack import parse_image, walk
 
 LISTING = """
 00000100 <leaf>:

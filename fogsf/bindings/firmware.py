@@ -7,7 +7,6 @@ with ASan+UBSan), and the Cortex-M4F images (golden check under QEMU, size probe
 from __future__ import annotations
 
 import argparse
-import re
 import shutil
 import subprocess
 import sys
@@ -26,6 +25,7 @@ from fogsf.bindings.kernel import (
     KernelBuild,
     build_kernel,
 )
+from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, stack_bound
 from fogsf.errors import UserError
 from fogsf.models.stream import StreamModel
 
@@ -243,27 +243,10 @@ def section_sizes(path: Path) -> tuple[int, int, int]:
     return text, data, bss
 
 
-STACK_CHAIN = ("fogsf_step", "model_step", "fogsf_lstm_cell", "fogsf_tanhf", "fogsf_expf")
-
-
-def stack_bytes(build_dir: Path) -> int:
-    """Upper bound of the step's stack: the frames of its deepest call chain (-fstack-usage);
-    a function inlined into its caller has no frame of its own."""
-    frames: dict[str, int] = {}
-    for su in build_dir.glob("fogsf*.su"):
-        for line in su.read_text().splitlines():
-            m = re.match(r"\S+:\d+:\d+:(\w+)\s+(\d+)\s+(\w+)", line)
-            if m:
-                frames[m.group(1)] = int(m.group(2))
-    sig = frames.get("fogsf_sigmoidf", 0)
-    chain = sum(frames.get(f, 0) for f in STACK_CHAIN[:3])
-    return chain + max(frames.get("fogsf_tanhf", 0), sig) + frames.get("fogsf_expf", 0)
-
-
 @dataclass
 class ArmSize:
     flash_bytes: int  # text + data of the size probe: kernel + model + libgcc + start-up
-    ram_bytes: int  # data + bss of the probe (the state) + the step's stack bound
+    ram_bytes: int  # data + bss of the probe (the states) + the stack bound (walk)
     kernel_flash_bytes: int  # kernel and model objects alone
     state_bytes: int
     stack_bytes: int
@@ -274,7 +257,8 @@ def arm_size(arm: ArmBuild, models: StreamModel | list[StreamModel]) -> ArmSize:
     models = models if isinstance(models, list) else [models]
     text, data, bss = section_sizes(arm.size_elf)
     ktext = sum(section_sizes(o)[0] + section_sizes(o)[1] for o in arm.kernel_objs)
-    stack = stack_bytes(arm.directory)
+    stack = max(stack_bound(arm.size_elf, STEP_ROOTS).bytes,
+                stack_bound(arm.size_elf, INIT_ROOTS).bytes)
     return ArmSize(text + data, data + bss + stack, ktext, state_bytes(models), stack)
 
 
@@ -326,7 +310,7 @@ def firmware(model_dir: Path, out: Path, cc: str = "gcc", sanitize: bool = True)
     print(f"Cortex-M4F size (arm-none-eabi-size, -O2): kernel+model objects "
           f"{size.kernel_flash_bytes} B flash; linked with start-up and libgcc: "
           f"{size.flash_bytes} B flash, {size.ram_bytes} B RAM (state {size.state_bytes} B + "
-          f"step stack <= {size.stack_bytes} B)")
+          f"stack <= {size.stack_bytes} B by a call-graph walk)")
     print("PASS" if not failed else "FAIL")
     return 1 if failed else 0
 
