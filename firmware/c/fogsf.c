@@ -150,8 +150,14 @@ uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only)
     head[14] = m->lstm_inputs;
     head[15] = m->quad_diag;
     head[16] = m->feat_diag;
-    head[17] = (m->quad_w != NULL) ? 1u : 0u;
-    head[18] = (m->bias != NULL) ? 1u : 0u;
+    head[17] = 0u; /* 1: the polynomial head */
+    if (m->quad_w != NULL) {
+        head[17] = 1u;
+    }
+    head[18] = 0u; /* 1: a bias head */
+    if (m->bias != NULL) {
+        head[18] = 1u;
+    }
     head[19] = np;
     if (m->bias != NULL) {
         head[20] = float_bits(m->bias->b);
@@ -209,9 +215,11 @@ uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only)
     }
     for (t = 0u; t < n_tab; ++t) { /* a NULL table adds nothing (the model is refused) */
         const float *a = tab[t];
-        uint32_t i;
-        for (i = 0u; (a != NULL) && (i < len[t]); ++i) {
-            c = crc_word(c, float_bits(a[i]));
+        if (a != NULL) {
+            uint32_t i;
+            for (i = 0u; i < len[t]; ++i) {
+                c = crc_word(c, float_bits(a[i]));
+            }
         }
     }
     return c ^ 0xffffffffu;
