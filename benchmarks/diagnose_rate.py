@@ -7,7 +7,7 @@ the noise floor (visible part), two effects at once (cases.PAIRS), nulls (one of
 effects' setups, and a +/- 10, 50, 100, 200 deg/s table), out-of-catalogue effects
 (humidity, supply step, periodic), ramp-only and short-soak lag / dT/dt runs; half the logs
 without chamber_c. Seeds: `--seeds-from dev` (fogsf.sim.population.DEV_SEEDS, for tuning)
-or `eval` (EVAL_SEEDS, for reporting only). For each case: right or wrong by `cases.judge`,
+or `eval` (EVAL_SEEDS, for reporting only). For each case: right or wrong by `case_judge.judge`,
 and the figures behind it. Prints a table and writes JSON.
 
     python -m benchmarks.diagnose_rate --seeds-from eval --seeds 10 --out out/bench-diagnose.json
@@ -24,13 +24,13 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from fogsf.diagnose import cases
+from fogsf.diagnose import case_judge, cases
 
 Job = tuple[str, str, str, int, bool]  # kind, name, variant, seed, population gyro
 
 
 def one(job: Job) -> dict[str, Any]:
-    from fogsf.diagnose import report, verdict
+    from fogsf.diagnose import extend, report, verdict
 
     kind, name, variant, seed, population = job
     t0 = time.time()
@@ -41,14 +41,15 @@ def one(job: Job) -> dict[str, Any]:
     try:
         logs, truth = cases.build(case)
         d = verdict.diagnose(logs)
+        ext_cfgs, simulation = extend.extended(d)  # as `fogsf diagnose` does
     except Exception as e:  # a crash is a wrong answer, with its reason
         return {"kind": kind, "name": name, "seed": seed, "ok": False,
                 "reason": f"error: {e}", "cause": None, "causes": [], "unexplained": False,
                 "ambiguous": [], "case": case.describe(), "multiple": case.multiple,
                 "structure": {}, "seconds": time.time() - t0, "significant": [],
                 "params": {}, "truth": dict(case.params), "p_values": {}}
-    j = report.to_json(d, {}, None)
-    o = cases.judge_report(case, truth, j)
+    j = report.to_json(d, ext_cfgs[0], simulation)
+    o = case_judge.judge_report(case, truth, j)
     return {"kind": kind, "name": name, "seed": seed, "ok": o.ok, "reason": o.reason,
             "cause": j["cause"], "causes": j["causes"], "unexplained": j["unexplained"],
             "ambiguous": j["ambiguous"],
@@ -75,8 +76,9 @@ def jobs(seeds: int, first_seed: int) -> list[Job]:
 
 
 def population_jobs(seeds: range) -> list[Job]:
-    """22 cases per population gyro: 11 form variants, the lag, dT/dt and hysteresis terms,
-    one pair, two nulls, three out-of-catalogue effects, one ramp-only and one short-soak
+    """24 cases per population gyro: 12 form variants, the lag, dT/dt and hysteresis terms,
+    one pair, two nulls, four out-of-catalogue effects (the mode hop among them), one
+    ramp-only and one short-soak
     run."""
     out: list[Job] = []
     for s in seeds:

@@ -81,11 +81,7 @@ def run(args: argparse.Namespace) -> int:
     d = verdict.diagnose(logs, window_s=args.window_s, latitude_deg=args.latitude_deg,
                          cv=args.cv, start=args.start, effects=effects,
                          progress=sys.stderr.isatty())
-    ext_cfgs = [extend.sim_config(d, d.extended, i, args.seed) for i in range(len(d.runs))]
-    simulation = None
-    if not args.no_simulate:
-        base_cfgs = [extend.sim_config(d, d.base, i, args.seed) for i in range(len(d.runs))]
-        simulation = extend.closeness(d, base_cfgs, ext_cfgs)
+    ext_cfgs, simulation = extend.extended(d, args.seed, compare=not args.no_simulate)
     cfg_path = args.config_out
     if cfg_path is None and args.json:
         cfg_path = str(Path(args.json).with_suffix("")) + ".sim.json"

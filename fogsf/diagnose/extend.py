@@ -223,3 +223,15 @@ def closeness(d: Diagnosis, base_cfgs: list[dict[str, Any]], ext_cfgs: list[dict
     return {"rms_base_sim_ppm": rb, "rms_extended_sim_ppm": re,
             "closer_pct": 100.0 * (1.0 - re / rb) if rb > 0 else 0.0,
             "noise_floor_ppm": d.noise_floor_ppm}
+
+
+def extended(d: Diagnosis, seed: int = 0, compare: bool = True
+             ) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """The extended model's simulator configuration for each run, and (compare) how close
+    the base's and its noiseless simulations come to the logs (`closeness`)."""
+    ext_cfgs = [sim_config(d, d.extended, i, seed) for i in range(len(d.runs))]
+    if not compare:
+        return ext_cfgs, None
+    base_cfgs = [sim_config(d, d.base, i, seed) for i in range(len(d.runs))]
+    return ext_cfgs, closeness(d, base_cfgs, ext_cfgs)
+
