@@ -7,9 +7,9 @@ judges them; their ranges are here):
   effects (3-20x the noise floor of the part the base cannot absorb); the table reverses
   +/- 5-20 deg/s every 120-240 s (`case_programs.table`, "alternating"); the chamber
   program is `draw`'s for bias_drift (a cycle: up 30-45 C and back, 1-2 C/min, 15-25 min
-  soaks); the log is cut into two at its middle (the up and the down log), each starting at
-  t = 0, and neither keeps `chamber_c`. Right when `bias_drift` is named (any form) with its
-  slope within 30 % and nothing else.
+  soaks) run as a log pair: the up run and the down run, each a warm start with a soak at
+  both ends (`pair_configs`); neither keeps `chamber_c`. Right when `bias_drift` is named
+  (any form) with its slope within 30 % and nothing else.
 - `ooc:mode_hop`, an SF step with hysteresis (a source mode hop): STEP_PPM (20-60 ppm) added
   to the SF once the source node passes T_up going up, taken away once it falls below T_up -
   gap going down (gap over GAP_C, 3-8 C), T_up at 30-70 % of the cycle's span above its
@@ -27,7 +27,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from fogsf.logs.chamber_log import ChamberLog
 from fogsf.sim.config import ProfileConfig, SimConfig
 from fogsf.sim.gyro import SimResult
 
@@ -42,32 +41,33 @@ def coil_node(cfg: SimConfig) -> str:
     return next(n.name for n in cfg.thermal.nodes if n.name.startswith("coil"))
 
 
-def calibrate_coil_bias(cfg: SimConfig, target: float,
-                        visible: Callable[[SimConfig], float]) -> tuple[float, float]:
-    """The coil bias's slope (deg/h per C) whose visible part is `target` (ppm RMS): a few
-    secant steps, as `cases._calibrate` (the base's absorption is not linear in the slope,
-    its time constants being profiled). Returns (slope, visible part reached)."""
-    trial = copy.deepcopy(cfg)
+def calibrate_coil_bias(target: float, visible: Callable[[float], float]
+                        ) -> tuple[float, float]:
+    """The coil bias's slope (deg/h per C) whose visible part `visible(slope)` is `target`
+    (ppm RMS): a few secant steps, as `cases._calibrate` (the base's absorption is not
+    linear in the slope, its time constants being profiled). Returns (slope, visible part
+    reached)."""
     slope = 0.05  # deg/h per C: 1.4 ppm per C at 10 deg/s
-    got = 0.0
     for _ in range(4):
-        trial.bias.lin_dph_per_c = slope
-        got = visible(trial)
+        got = visible(slope)
         if abs(got - target) < 0.05 * target:
             break
         slope *= target / max(got, 1e-12)
-    trial.bias.lin_dph_per_c = slope
-    return slope, visible(trial)
+    return slope, visible(slope)
 
 
-def log_pair(log: ChamberLog) -> list[ChamberLog]:
-    """The log cut at its middle into two, each starting at t = 0 (an up and a down log)."""
-    n = len(log)
+def pair_configs(cfg: SimConfig) -> list[SimConfig]:
+    """A log pair from `cfg`'s cycle program (start_c to stop_c at rate_c_per_min, soaks
+    soak_s): an up run and a down run, each a warm start (every node at equilibrium) with a
+    soak at both ends, with their own simulator seeds."""
+    p = cfg.profile
     out = []
-    for a, b in ((0, n // 2), (n // 2, n)):
-        part = copy.copy(log.slice(a, b))
-        part.time_s = np.asarray(part.time_s, dtype=np.float64) - float(part.time_s[0])
-        out.append(part)
+    for i, levels in enumerate(([p.start_c, p.stop_c], [p.stop_c, p.start_c])):
+        c = copy.deepcopy(cfg)
+        c.seed = cfg.seed + i
+        c.profile = ProfileConfig(kind="steps", levels_c=list(levels),
+                                  rate_c_per_min=p.rate_c_per_min, soak_s=p.soak_s)
+        out.append(c)
     return out
 
 

@@ -431,25 +431,29 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
 
 def _build_coil_bias(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
     """`bias_drift:coil` (case_kinds): the coil bias's slope calibrated to the case's
-    multiple of the floor, the log cut into a pair."""
-    plain = copy.deepcopy(case.config)
-    plain.bias.lin_dph_per_c = 0.0
-    base_res = simulate(plain)
-    log0 = _strip(base_res.log, case.chamber)
-    sigma = runs.load_run(log0, WINDOW_S, None).sigma_ppm
-    floor = float(np.sqrt(np.mean(sigma**2)))
-    r0 = base_residual([_noiseless(log0, base_res.ideal_dps)], [sigma])
+    multiple of the floor over the log pair."""
+    plain = case_kinds.pair_configs(case.config)
+    for c in plain:
+        c.bias.lin_dph_per_c = 0.0
+    res0 = [simulate(c) for c in plain]
+    logs0 = [_strip(r.log, case.chamber) for r in res0]
+    sigma = [runs.load_run(log, WINDOW_S, None).sigma_ppm for log in logs0]
+    floor = float(np.sqrt(np.mean(np.concatenate(sigma) ** 2)))
+    r0 = base_residual([_noiseless(log, r.ideal_dps) for log, r in zip(logs0, res0,
+                                                                       strict=True)], sigma)
 
-    def visible(cfg: SimConfig) -> float:
-        ideal = simulate(cfg).ideal_dps
-        return float(np.sqrt(np.mean(
-            (base_residual([_noiseless(log0, ideal)], [sigma]) - r0) ** 2)))
+    def visible(slope: float) -> float:
+        quiet = []
+        for c, log in zip(plain, logs0, strict=True):
+            c.bias.lin_dph_per_c = slope
+            quiet.append(_noiseless(log, simulate(c).ideal_dps))
+        return float(np.sqrt(np.mean((base_residual(quiet, sigma) - r0) ** 2)))
 
-    slope, got = case_kinds.calibrate_coil_bias(plain, case.multiple * floor, visible)
+    slope, got = case_kinds.calibrate_coil_bias(case.multiple * floor, visible)
     case.config.bias.lin_dph_per_c = slope
     case.multiple_reached = got / floor
     case.params = {"strength": slope, "node": case.config.bias.node}
-    logs = case_kinds.log_pair(_strip(simulate(case.config).log, case.chamber))
+    logs = [_strip(simulate(c).log, case.chamber) for c in case_kinds.pair_configs(case.config)]
     return logs, {"effect": case.name, **case.params}
 
 

@@ -96,6 +96,7 @@ def to_json(d: Diagnosis, extended_model: dict[str, Any],
         "ambiguous": d.ambiguous,
         "structure": d.structure,
         "simulation": simulation,
+        "skipped": d.skipped,
     }
     return _clean(out)
 
@@ -139,6 +140,8 @@ def summary_text(j: dict[str, Any]) -> str:
     lines.append(f"unexplained structure: {'yes' if j['unexplained'] else 'no'} (held-out "
                  f"whiteness p={j['structure']['whiteness_p']:.3g}, variance "
                  f"{j['structure']['excess_variance']:.2f}x noise)")
+    for k in j.get("skipped") or []:
+        lines.append(f"skipped: {k['effect']} in the {k['stage']}: {k['reason']}")
     s = j.get("simulation")
     if s and "rms_base_sim_ppm" in s:
         lines.append(f"simulation vs logs: base {s['rms_base_sim_ppm']:.2f} ppm -> extended "

@@ -203,9 +203,16 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
     if progress:
         from tqdm import tqdm
         it = tqdm(names, desc="candidates", unit="effect", leave=False)
+    skipped: list[dict[str, str]] = []
     for name in it:
-        results.append(selection.score(catalogue.CATALOGUE[name], ctxs, y, w, folds, blocks,
-                                       run_ids, base, before))
+        try:
+            results.append(selection.score(catalogue.CATALOGUE[name], ctxs, y, w, folds,
+                                           blocks, run_ids, base, before))
+        except UserError as e:  # a form that cannot apply to these logs: skipped, named
+            skipped.append({"effect": name, "stage": "scoring", "reason": str(e)})
+            results.append(CandidateResult(name, False, 0.0, heldout_before=before,
+                                           heldout_after=before,
+                                           evidence=f"skipped: {e}"))
 
     selection.slow_misfit_family(results)
     selection.against_extra_node(results, ctxs, y, w, folds, blocks)
@@ -295,4 +302,4 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         base=base, base_rms=base_rms, base_whiteness_p=stats.ljung_box_p(segs_in),
         correlations=correlations(ctxs, e_in), candidates=results, cause=cause,
         ambiguous=ambiguous, unexplained=unexplained, structure=structure, extended=extended,
-        cv_mode=cv, window_s=window_s)
+        cv_mode=cv, window_s=window_s, skipped=skipped)
