@@ -88,7 +88,7 @@ def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: boo
                               " not wrong, not named")
         if cause != case.name:
             return out(False, f"cause {cause!r}, planted {case.name}")
-        if case.variant == "coil" and causes != [cause]:
+        if case.variant == "coil_pair" and causes != [cause]:
             return out(False, f"causes {causes}, planted {case.name} alone")
         c = next(x for x in candidates if x["effect"] == cause)
         if case.name == "bias_shupe" and not truth.get("coils_behind_housing", 1.0):

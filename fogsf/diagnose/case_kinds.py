@@ -1,7 +1,7 @@
 """Two planted kinds beside the catalogue's single effects (`diagnose.cases` draws and
 judges them; their ranges are here):
 
-- `bias_drift:coil`, a bias drifting with the coil temperature under a reversing table
+- `bias_drift:coil_pair`, a bias drifting with the coil temperature under a reversing table
   without chamber air, as a log pair: the gyro's own bias moved onto its first coil node
   (`fogsf.sim.population`'s internal parts), its slope calibrated like the catalogue's
   effects (3-20x the noise floor of the part the base cannot absorb); the table reverses

@@ -74,8 +74,8 @@ EFFECT_INFO = {name: (4.0 if name == "extra_lag" else SIM_EFFECTS[name].example)
 VARIANTS: dict[str, dict[str, str]] = {
     "rate_nonlinearity": {"linear": "exponent 1", "quadratic": "exponent 2"},
     "bias_drift": {"board": "on the board", "node": "on an internal node lagging the housing "
-                   "by 600-2400 s", "coil": "the gyro's own bias on its coil node, a reversing "
-                   "table, no chamber air, a log pair (case_kinds)"},
+                   "by 600-2400 s", "coil_pair": "the gyro's own bias on its coil node, a "
+                   "reversing table, no chamber air, a log pair (case_kinds)"},
     "aging": {"linear": "linear", "settling": "settling, time constant 5400-14400 s"},
     "warmup": {"transient": "SF transient, tau 120-300 s",
                "slow": "slow self-heating of internal nodes, tau 900-2400 s"},
@@ -241,7 +241,7 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
             if variant == "node":
                 e.params["node_tau_s"] = float(rng.uniform(600.0, 2400.0))
             cfg.table = programs.table(rng, str(rng.choice(["alternating", "plusminus"])))
-            if variant == "coil":  # the gyro's own bias, on its coil (build calibrates it)
+            if variant == "coil_pair":  # the gyro's own bias, on its coil (build calibrates it)
                 cfg.effects = []
                 cfg.table = programs.table(rng, "alternating")
         elif name == "aging" and variant == "settling":
@@ -266,7 +266,7 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
     case.chamber = (kind in ("ramp_only", "short_soak")
                     or name in ("extra_lag", "temp_rate", "bias_shupe")
                     or bool(rng.random() < 0.5))
-    if kind == "effect" and variant == "coil":
+    if kind == "effect" and variant == "coil_pair":
         case.config.bias.node = case_kinds.coil_node(case.config)
         case.chamber = False
     return case
@@ -367,7 +367,7 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
         return [log.slice(k, len(log))], {"effect": case.name, **case.params}
     if case.kind == "null":
         return [_strip(simulate(cfg).log, case.chamber)], {"effect": None}
-    if case.kind == "effect" and case.variant == "coil":
+    if case.kind == "effect" and case.variant == "coil_pair":
         return _build_coil_bias(case)
     if case.kind in ("effect", "short_soak", "two"):
         plain = copy.deepcopy(cfg)
@@ -430,7 +430,7 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
 
 
 def _build_coil_bias(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
-    """`bias_drift:coil` (case_kinds): the coil bias's slope calibrated to the case's
+    """`bias_drift:coil_pair` (case_kinds): the coil bias's slope calibrated to the case's
     multiple of the floor over the log pair."""
     plain = case_kinds.pair_configs(case.config)
     for c in plain:
