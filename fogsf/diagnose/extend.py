@@ -152,7 +152,7 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
             # the simulator's coil effects act on the mean of the nodes named coil*: the
             # coil as this form fitted it
             coil, coil_of = _coil_taus(c, gv), c.name
-            names_c = ("coil",) if len(coil) == 1 else ("coil_inner", "coil_outer")
+            names_c = ("coil",) if len(coil) == 1 else ("coil_inner", "coil_outer")[:len(coil)]
             nodes += [{"name": n, "parent": "housing", "tau_s": tau, "self_heat_c": 0.0}
                       for n, tau in zip(names_c, coil, strict=True)]
     terms = [

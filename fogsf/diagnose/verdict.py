@@ -79,25 +79,38 @@ MIXED_GYRO_RATIO = 3.0  # joint-fit RMS over the worst single-log fit's, in nois
 MIXED_GYRO_MIN_CHI2 = 10.0
 
 
-def _one_gyro(ctxs: list[RunContext], y: np.ndarray, sigma_win: np.ndarray) -> None:
+def _one_gyro(ctxs: list[RunContext], y: np.ndarray, sigma_win: np.ndarray,
+              names: list[str]) -> None:
     """Refuse logs that one gyro's base model cannot share: the base fitted to all logs at
     once leaves a weighted RMS (noise units) above MIXED_GYRO_RATIO times the worst fit of
-    any log on its own, and above sqrt(MIXED_GYRO_MIN_CHI2). Two gyros differ by tens to
-    hundreds of ppm in their SF law; one gyro's logs agree to a few ppm."""
+    any log on its own, and above sqrt(MIXED_GYRO_MIN_CHI2), and so does the base with any
+    one of the catalogue's effects (`names`). Two gyros differ by tens to hundreds of ppm in
+    their SF law; one gyro's logs agree to a few ppm, unless an effect that each log's own
+    base absorbs shows only across them (a bias on a slow coil over an up and a down log)."""
     if len(ctxs) < 2:
         return
     w = 1.0 / sigma_win**2
 
-    def rms(sub: list[RunContext], yy: np.ndarray, ww: np.ndarray) -> float:
-        st = profile_ls.build(sub, None)
+    def rms(sub: list[RunContext], yy: np.ndarray, ww: np.ndarray,
+            cand: catalogue.Candidate | None = None) -> float:
+        st = profile_ls.build(sub, cand)
         fit = profile_ls.solve(st, yy, ww, np.arange(yy.shape[0]))
         return float(np.sqrt(np.mean((yy - profile_ls.predict(st, fit)) ** 2 * ww)))
+
+    def mixed(joint: float) -> bool:
+        return joint > MIXED_GYRO_RATIO * single and joint**2 > MIXED_GYRO_MIN_CHI2
 
     joint = rms(ctxs, y, w)
     edges = np.cumsum([0] + [len(c.run) for c in ctxs])
     single = max(rms([c], y[a:b], w[a:b])
                  for c, a, b in zip(ctxs, edges[:-1], edges[1:], strict=True))
-    if joint > MIXED_GYRO_RATIO * single and joint**2 > MIXED_GYRO_MIN_CHI2:
+    for name in names if mixed(joint) else []:
+        try:
+            if not mixed(rms(ctxs, y, w, catalogue.CATALOGUE[name])):
+                return  # one effect of the catalogue makes the logs one gyro's
+        except UserError:
+            continue
+    if mixed(joint):
         raise UserError(f"the logs do not look like one gyro: one base model fitted to all "
                         f"leaves {joint:.1f}x the noise, each log alone at most {single:.1f}x; "
                         "diagnose one gyro's logs at a time (give only that gyro's LOG.CSV "
@@ -156,14 +169,21 @@ def correlations(d_ctxs: list[RunContext], e: np.ndarray) -> dict[str, dict[str,
     return out
 
 
-def _structure(d_e: np.ndarray, sigma: np.ndarray, segs: list[np.ndarray]) -> dict[str, float]:
-    """Whiteness and excess variance of a held-out residual; the variance is a 95 %-trimmed
-    mean of (e/sigma)^2 over its expectation for pure noise, so one badly extrapolated
-    block is not taken for structure."""
+def _structure(d_e: np.ndarray, sigma: np.ndarray, run_ids: np.ndarray) -> dict[str, float]:
+    """Whiteness and excess variance of a held-out residual, and how large its structure
+    is: the variance is a 95 %-trimmed mean of (e/sigma)^2 over its expectation for pure
+    noise, so one badly extrapolated block is not taken for structure; the structured share
+    is the share of its (standardised) variance that is not noise (stats.structured_share);
+    the smoothed RMS is the structure's size in ppm (stats.smoothed_rms)."""
     z2 = np.sort((d_e / sigma) ** 2)
     keep = z2[: max(1, int(np.ceil(TRIM * z2.shape[0])))]
+    ids = np.unique(run_ids)
+    segs = [d_e[run_ids == i] / sigma[run_ids == i] for i in ids]
     return {"whiteness_p": stats.ljung_box_p(segs),
-            "excess_variance": float(np.mean(keep)) / stats.trimmed_chi2_1_mean(TRIM)}
+            "excess_variance": float(np.mean(keep)) / stats.trimmed_chi2_1_mean(TRIM),
+            "structured_share": stats.structured_share(segs),
+            "smoothed_rms_ppm": stats.smoothed_rms([d_e[run_ids == i] for i in ids],
+                                                   [sigma[run_ids == i] for i in ids])}
 
 
 def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float | None = None,
@@ -180,7 +200,12 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         ctxs.append(RunContext(r, drv, drv.power_on, bias_on))
     y = np.concatenate([r.y_ppm for r in rs])
     sigma_win = np.concatenate([r.sigma_ppm for r in rs])
-    _one_gyro(ctxs, y, sigma_win)
+    names = list(catalogue.CATALOGUE) if effects is None else effects
+    unknown = [n for n in names if n not in catalogue.CATALOGUE]
+    if unknown:
+        raise UserError(f"unknown effect(s) {', '.join(unknown)}; known: "
+                        f"{', '.join(catalogue.CATALOGUE)}")
+    _one_gyro(ctxs, y, sigma_win, names)
     floor = model_floor(ctxs, y, sigma_win)
     sigma = np.sqrt(sigma_win**2 + floor**2)
     w = 1.0 / sigma**2
@@ -193,11 +218,6 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
     segs_in = [e_in[run_ids == i] for i in range(len(rs))]
     base_rms = weighted_rms(e_in)
     before = weighted_rms(base.heldout)
-    names = list(catalogue.CATALOGUE) if effects is None else effects
-    unknown = [n for n in names if n not in catalogue.CATALOGUE]
-    if unknown:
-        raise UserError(f"unknown effect(s) {', '.join(unknown)}; known: "
-                        f"{', '.join(catalogue.CATALOGUE)}")
     results: list[CandidateResult] = []
     it = names
     if progress:
@@ -261,12 +281,8 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
                     and c.name not in ambiguous
                     and c.name not in selection.nested_partners(best.name)]
             causes, chosen = selection.forward_select(best, pool, ctxs, y, w, folds, blocks)
-    structure = _structure(chosen.heldout, sigma,
-                           [chosen.heldout[run_ids == i] / sigma[run_ids == i]
-                            for i in range(len(rs))])
-    base_structure = _structure(base.heldout, sigma,
-                                [base.heldout[run_ids == i] / sigma[run_ids == i]
-                                 for i in range(len(rs))])
+    structure = _structure(chosen.heldout, sigma, run_ids)
+    base_structure = _structure(base.heldout, sigma, run_ids)
     unexplained = _structure_remains(structure)
     remains = _remaining_share(base_structure, structure)
     structure["remaining_pct"] = 100.0 * remains
