@@ -83,42 +83,43 @@ def ljung_box_p(segments: list[np.ndarray], lags: int | None = None) -> float:
     return chi2_sf(q, dof) if dof else 1.0
 
 
-def structured_share(segments: list[np.ndarray], lags: int | None = None) -> float:
-    """The share of a residual's variance that is structure, not noise: the mean of its
-    autocorrelation over the lags Ljung-Box tests (pooled over the runs, weighted by their
-    lengths), at least 0. Slow structure of variance s2 on white noise of variance 1 has an
-    autocorrelation near s2 / (s2 + 1) at short lags, the share itself; white noise has 0
-    (within about 1/sqrt(n))."""
-    num = 0.0
-    den = 0
+SMOOTH_WINDOWS = 5  # the structure's moving mean, in windows
+
+
+def structure_ms(segments: list[np.ndarray], span: int = SMOOTH_WINDOWS
+                 ) -> tuple[float, float]:
+    """(mean square of the residual's structure, mean square of the residual), pooled over
+    runs. A residual e = s + n, s slow (it keeps its value over `span` windows) and n
+    white: its moving mean over `span` windows keeps s and n / span, so the structure's
+    mean square is (span * ms(smoothed) - ms(e)) / (span - 1), at least 0; 0 (within
+    noise) for a white residual, whatever its variance, so no noise estimate is needed."""
+    sm_sum = e_sum = 0.0
+    n_sm = n_e = 0
+    k = np.ones(span) / span
     for e in segments:
-        e = np.asarray(e, dtype=np.float64) - np.mean(e)
-        n = e.shape[0]
-        h = lags or max(1, min(10, n // 5))
-        d = float(np.sum(e * e))
-        if n < 8 or d == 0:
-            continue
-        num += n * float(np.mean([np.sum(e[k:] * e[:-k]) / d for k in range(1, h + 1)]))
-        den += n
-    return max(0.0, num / den) if den else 0.0
-
-
-def smoothed_rms(segments: list[np.ndarray], noise: list[np.ndarray], span: int = 5) -> float:
-    """RMS of the residual's structure in its own unit: each run's residual smoothed by a
-    centred moving mean of `span` windows, its mean square less what the noise (per window,
-    the same unit) leaves after the smoothing, at least 0."""
-    ms = 0.0
-    n = 0
-    for e, s in zip(segments, noise, strict=True):
         e = np.asarray(e, dtype=np.float64)
-        if e.shape[0] < span:
+        if e.shape[0] < 2 * span:
             continue
-        k = np.ones(span) / span
         sm = np.convolve(e, k, mode="valid")
-        left = np.convolve(np.asarray(s, dtype=np.float64) ** 2, k, mode="valid") / span
-        ms += float(np.sum(sm * sm - left))
-        n += sm.shape[0]
-    return float(np.sqrt(max(0.0, ms / n))) if n else 0.0
+        sm_sum += float(np.sum(sm * sm))
+        n_sm += sm.shape[0]
+        e_sum += float(np.sum(e * e))
+        n_e += e.shape[0]
+    if not n_e:
+        return 0.0, 0.0
+    ms_e = e_sum / n_e
+    return max(0.0, (span * sm_sum / n_sm - ms_e) / (span - 1)), ms_e
+
+
+def structured_share(segments: list[np.ndarray]) -> float:
+    """The share of a residual's mean square that is slow structure (structure_ms)."""
+    s, total = structure_ms(segments)
+    return s / total if total > 0 else 0.0
+
+
+def smoothed_rms(segments: list[np.ndarray]) -> float:
+    """The RMS of a residual's slow structure, in the residual's unit (structure_ms)."""
+    return float(np.sqrt(structure_ms(segments)[0]))
 
 
 SIGN_ROWS_SAMPLES = 1 << 20  # sign draws made at a time (8 MB)

@@ -70,6 +70,12 @@ STRUCTURE_EXCESS = 2.5  # held-out trimmed mean (e/sigma)^2 above which structur
 TRIM = 0.95
 MODEL_FLOOR_FRAC = 0.02  # see model_floor (dev gyros 0-39, mixed-rate nulls)
 WHITE_EXCESS = 1.5  # non-whiteness counts as structure only above this excess variance
+# ... for naming causes. Reported as unexplained structure, whatever its variance, is a
+# held-out residual that is not white: Ljung-Box p below WHITE_P with a structured share
+# (stats.structured_share) of at least WHITE_SHARE; calibrated on development gyros so that
+# a correct model's residual does not trip it (docs/diagnose.md, "Unexplained structure")
+WHITE_P = 1e-6
+WHITE_SHARE = 0.1
 DOMINANT_SHARE = 0.8  # a cause is named with structure remaining if it explains this much
 # effects tied to no logged quantity or event (aging: elapsed time only; warmup is tied to
 # the power-on the board shows): named as the dominant cause only when what remains after
@@ -130,8 +136,14 @@ def model_floor(ctxs: list[RunContext], y: np.ndarray, sigma_win: np.ndarray) ->
 
 
 def _structure_remains(st: dict[str, float]) -> bool:
+    """Structure large enough to weigh on the causes (their dominance, below)."""
     return bool(st["excess_variance"] > STRUCTURE_EXCESS
                 or (st["whiteness_p"] < STRUCTURE_P and st["excess_variance"] > WHITE_EXCESS))
+
+
+def _not_white(st: dict[str, float]) -> bool:
+    """Structure reported whatever its variance: the held-out residual is not white."""
+    return bool(st["whiteness_p"] < WHITE_P and st["structured_share"] >= WHITE_SHARE)
 
 
 def _remaining_share(base_st: dict[str, float], st: dict[str, float]) -> float:
@@ -173,8 +185,8 @@ def _structure(d_e: np.ndarray, sigma: np.ndarray, run_ids: np.ndarray) -> dict[
     """Whiteness and excess variance of a held-out residual, and how large its structure
     is: the variance is a 95 %-trimmed mean of (e/sigma)^2 over its expectation for pure
     noise, so one badly extrapolated block is not taken for structure; the structured share
-    is the share of its (standardised) variance that is not noise (stats.structured_share);
-    the smoothed RMS is the structure's size in ppm (stats.smoothed_rms)."""
+    is the share of its (standardised) mean square that is slow structure, and the smoothed
+    RMS that structure's size in ppm (stats.structure_ms)."""
     z2 = np.sort((d_e / sigma) ** 2)
     keep = z2[: max(1, int(np.ceil(TRIM * z2.shape[0])))]
     ids = np.unique(run_ids)
@@ -182,8 +194,7 @@ def _structure(d_e: np.ndarray, sigma: np.ndarray, run_ids: np.ndarray) -> dict[
     return {"whiteness_p": stats.ljung_box_p(segs),
             "excess_variance": float(np.mean(keep)) / stats.trimmed_chi2_1_mean(TRIM),
             "structured_share": stats.structured_share(segs),
-            "smoothed_rms_ppm": stats.smoothed_rms([d_e[run_ids == i] for i in ids],
-                                                   [sigma[run_ids == i] for i in ids])}
+            "smoothed_rms_ppm": stats.smoothed_rms([d_e[run_ids == i] for i in ids])}
 
 
 def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float | None = None,
@@ -284,8 +295,10 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
     structure = _structure(chosen.heldout, sigma, run_ids)
     base_structure = _structure(base.heldout, sigma, run_ids)
     unexplained = _structure_remains(structure)
+    not_white = _not_white(structure)
     remains = _remaining_share(base_structure, structure)
     structure["remaining_pct"] = 100.0 * remains
+    flagged_by = (["variance"] if unexplained else []) + (["whiteness"] if not_white else [])
     if unexplained and causes:
         best = causes[0]
         if best.name in UNPINNED and structure["excess_variance"] > STRUCTURE_EXCESS:
@@ -310,6 +323,12 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
                               "not named")
             causes = []
             chosen = base
+    elif not_white and causes:
+        causes[0].evidence += (
+            f"; the held-out residual after {' + '.join(c.name for c in causes)} is not "
+            f"white (p={structure['whiteness_p']:.2g}; structure "
+            f"{100 * structure['structured_share']:.0f}% of its variance, "
+            f"{structure['smoothed_rms_ppm']:.2f} ppm RMS): unexplained structure beside it")
     cause = causes[0].name if causes else None
     extended = chosen if cause is not None else base
     return Diagnosis(causes=[c.name for c in causes], model_floor_ppm=floor,
@@ -317,5 +336,7 @@ def diagnose(logs: list[ChamberLog], window_s: float = 60.0, latitude_deg: float
         runs=rs, ctxs=ctxs, y=y, sigma=sigma, run_ids=run_ids, blocks=blocks, folds=folds,
         base=base, base_rms=base_rms, base_whiteness_p=stats.ljung_box_p(segs_in),
         correlations=correlations(ctxs, e_in), candidates=results, cause=cause,
-        ambiguous=ambiguous, unexplained=unexplained, structure=structure, extended=extended,
+        ambiguous=ambiguous, unexplained=bool(flagged_by),
+        structure={**structure, "flagged_by": flagged_by},
+        extended=extended,
         cv_mode=cv, window_s=window_s, skipped=skipped)
