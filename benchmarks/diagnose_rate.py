@@ -24,7 +24,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from fogsf.diagnose import case_judge, cases
+from fogsf.diagnose import case_judge, case_kinds, cases
 
 Job = tuple[str, str, str, int, bool]  # kind, name, variant, seed, population gyro
 
@@ -156,6 +156,16 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
         "ramp_only_no_guess_rate": rate(ramp),
         "short_soak_right_or_ambiguous_rate": rate(short),
         "short_soak_wrong_cause": sum(r["cause"] not in (None, r["name"]) for r in short),
+        "mode_hop_cases": sum(r["name"] == "mode_hop" for r in ooc),
+        "mode_hop_unexplained": sum(r["unexplained"] for r in ooc if r["name"] == "mode_hop"),
+        "mode_hop_faint": sum(r["name"] == "mode_hop" and not r["unexplained"]
+                              and r["multiple"] < case_kinds.MODE_HOP_MIN_VISIBLE
+                              for r in ooc),
+        "mode_hop_named_cause": sum(r["cause"] is not None for r in ooc
+                                    if r["name"] == "mode_hop"),
+        "coil_pair_right": sum(r["ok"] for r in eff if r["name"] == "bias_drift:coil_pair"),
+        "coil_pair_cases": sum(r["name"] == "bias_drift:coil_pair" for r in eff),
+        "errors": sum(str(r["reason"]).startswith("error:") for r in results),
         "all_right_rate": rate(results),
         "cases": len(results),
     }
@@ -222,6 +232,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"two effects at once: {100 * s['two_effects_both_named_rate']:.1f}% both named")
     print(f"out-of-catalogue: {100 * s['ooc_right_rate']:.1f}% unexplained with no cause "
           f"({s['ooc_named_catalogue_cause']} named a catalogue cause)")
+    print(f"mode hop (SF step with hysteresis): {s['mode_hop_unexplained']} of "
+          f"{s['mode_hop_cases']} reported unexplained ({s['mode_hop_faint']} unflagged under "
+          f"{case_kinds.MODE_HOP_MIN_VISIBLE:g}x the floor), {s['mode_hop_named_cause']} named a "
+          "catalogue cause")
+    print(f"coil bias on a log pair without chamber air: {s['coil_pair_right']} of "
+          f"{s['coil_pair_cases']} named bias_drift alone within 30 %")
+    print(f"runs ended by an error: {s['errors']}")
     print(f"ramp-only lag / dT/dt: {100 * s['ramp_only_no_guess_rate']:.1f}% no guess")
     print(f"short-soak lag / dT/dt: {100 * s['short_soak_right_or_ambiguous_rate']:.1f}% right "
           f"or ambiguous ({s['short_soak_wrong_cause']} named the other one)")

@@ -76,6 +76,10 @@ WHITE_EXCESS = 1.5  # non-whiteness counts as structure only above this excess v
 # a correct model's residual does not trip it (docs/diagnose.md, "Unexplained structure")
 WHITE_P = 1e-6
 WHITE_SHARE = 0.1
+# ... and that structure at least this mean square in noise variances (the noise including
+# the base's resolution, model_floor): structure finer than the base resolves is not
+# reported (dev gyro 308's slow warm-up: 176 ppm of structure under a 20000 ppm floor)
+WHITE_MIN_VARIANCE = 0.1
 DOMINANT_SHARE = 0.8  # a cause is named with structure remaining if it explains this much
 # effects tied to no logged quantity or event (aging: elapsed time only; warmup is tied to
 # the power-on the board shows): named as the dominant cause only when what remains after
@@ -143,7 +147,8 @@ def _structure_remains(st: dict[str, float]) -> bool:
 
 def _not_white(st: dict[str, float]) -> bool:
     """Structure reported whatever its variance: the held-out residual is not white."""
-    return bool(st["whiteness_p"] < WHITE_P and st["structured_share"] >= WHITE_SHARE)
+    return bool(st["whiteness_p"] < WHITE_P and st["structured_share"] >= WHITE_SHARE
+                and st["structure_variance"] >= WHITE_MIN_VARIANCE)
 
 
 def _remaining_share(base_st: dict[str, float], st: dict[str, float]) -> float:
@@ -185,8 +190,9 @@ def _structure(d_e: np.ndarray, sigma: np.ndarray, run_ids: np.ndarray) -> dict[
     """Whiteness and excess variance of a held-out residual, and how large its structure
     is: the variance is a 95 %-trimmed mean of (e/sigma)^2 over its expectation for pure
     noise, so one badly extrapolated block is not taken for structure; the structured share
-    is the share of its (standardised) mean square that is slow structure, and the smoothed
-    RMS that structure's size in ppm (stats.structure_ms)."""
+    is the share of its (standardised) mean square that is slow structure, the structure
+    variance that structure's mean square in noise variances, and the smoothed RMS its size
+    in ppm (stats.structure_ms)."""
     z2 = np.sort((d_e / sigma) ** 2)
     keep = z2[: max(1, int(np.ceil(TRIM * z2.shape[0])))]
     ids = np.unique(run_ids)
@@ -194,6 +200,7 @@ def _structure(d_e: np.ndarray, sigma: np.ndarray, run_ids: np.ndarray) -> dict[
     return {"whiteness_p": stats.ljung_box_p(segs),
             "excess_variance": float(np.mean(keep)) / stats.trimmed_chi2_1_mean(TRIM),
             "structured_share": stats.structured_share(segs),
+            "structure_variance": stats.structure_ms(segs)[0],
             "smoothed_rms_ppm": stats.smoothed_rms([d_e[run_ids == i] for i in ids])}
 
 
