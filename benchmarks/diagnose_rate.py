@@ -7,7 +7,7 @@ the noise floor (visible part), two effects at once (cases.PAIRS), nulls (one of
 effects' setups, and a +/- 10, 50, 100, 200 deg/s table), out-of-catalogue effects
 (humidity, supply step, periodic), ramp-only and short-soak lag / dT/dt runs; half the logs
 without chamber_c. Seeds: `--seeds-from dev` (fogsf.sim.population.DEV_SEEDS, for tuning)
-or `eval` (EVAL_SEEDS, for reporting only). For each case: right or wrong by `cases.judge`,
+or `eval` (EVAL_SEEDS, for reporting only). For each case: right or wrong by `case_judge.judge`,
 and the figures behind it. Prints a table and writes JSON.
 
     python -m benchmarks.diagnose_rate --seeds-from eval --seeds 10 --out out/bench-diagnose.json
@@ -24,13 +24,13 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from fogsf.diagnose import cases
+from fogsf.diagnose import case_judge, case_kinds, cases
 
 Job = tuple[str, str, str, int, bool]  # kind, name, variant, seed, population gyro
 
 
 def one(job: Job) -> dict[str, Any]:
-    from fogsf.diagnose import report, verdict
+    from fogsf.diagnose import extend, report, verdict
 
     kind, name, variant, seed, population = job
     t0 = time.time()
@@ -41,14 +41,15 @@ def one(job: Job) -> dict[str, Any]:
     try:
         logs, truth = cases.build(case)
         d = verdict.diagnose(logs)
+        ext_cfgs, simulation = extend.extended(d)  # as `fogsf diagnose` does
     except Exception as e:  # a crash is a wrong answer, with its reason
         return {"kind": kind, "name": name, "seed": seed, "ok": False,
                 "reason": f"error: {e}", "cause": None, "causes": [], "unexplained": False,
                 "ambiguous": [], "case": case.describe(), "multiple": case.multiple,
                 "structure": {}, "seconds": time.time() - t0, "significant": [],
                 "params": {}, "truth": dict(case.params), "p_values": {}}
-    j = report.to_json(d, {}, None)
-    o = cases.judge_report(case, truth, j)
+    j = report.to_json(d, ext_cfgs[0], simulation)
+    o = case_judge.judge_report(case, truth, j)
     return {"kind": kind, "name": name, "seed": seed, "ok": o.ok, "reason": o.reason,
             "cause": j["cause"], "causes": j["causes"], "unexplained": j["unexplained"],
             "ambiguous": j["ambiguous"],
@@ -75,8 +76,9 @@ def jobs(seeds: int, first_seed: int) -> list[Job]:
 
 
 def population_jobs(seeds: range) -> list[Job]:
-    """22 cases per population gyro: 11 form variants, the lag, dT/dt and hysteresis terms,
-    one pair, two nulls, three out-of-catalogue effects, one ramp-only and one short-soak
+    """24 cases per population gyro: 12 form variants, the lag, dT/dt and hysteresis terms,
+    one pair, two nulls, four out-of-catalogue effects (the mode hop among them), one
+    ramp-only and one short-soak
     run."""
     out: list[Job] = []
     for s in seeds:
@@ -154,6 +156,16 @@ def summarise(results: list[dict[str, Any]]) -> dict[str, Any]:
         "ramp_only_no_guess_rate": rate(ramp),
         "short_soak_right_or_ambiguous_rate": rate(short),
         "short_soak_wrong_cause": sum(r["cause"] not in (None, r["name"]) for r in short),
+        "mode_hop_cases": sum(r["name"] == "mode_hop" for r in ooc),
+        "mode_hop_unexplained": sum(r["unexplained"] for r in ooc if r["name"] == "mode_hop"),
+        "mode_hop_faint": sum(r["name"] == "mode_hop" and not r["unexplained"]
+                              and r["multiple"] < case_kinds.MODE_HOP_MIN_VISIBLE
+                              for r in ooc),
+        "mode_hop_named_cause": sum(r["cause"] is not None for r in ooc
+                                    if r["name"] == "mode_hop"),
+        "coil_pair_right": sum(r["ok"] for r in eff if r["name"] == "bias_drift:coil_pair"),
+        "coil_pair_cases": sum(r["name"] == "bias_drift:coil_pair" for r in eff),
+        "errors": sum(str(r["reason"]).startswith("error:") for r in results),
         "all_right_rate": rate(results),
         "cases": len(results),
     }
@@ -220,6 +232,13 @@ def main(argv: list[str] | None = None) -> int:
     print(f"two effects at once: {100 * s['two_effects_both_named_rate']:.1f}% both named")
     print(f"out-of-catalogue: {100 * s['ooc_right_rate']:.1f}% unexplained with no cause "
           f"({s['ooc_named_catalogue_cause']} named a catalogue cause)")
+    print(f"mode hop (SF step with hysteresis): {s['mode_hop_unexplained']} of "
+          f"{s['mode_hop_cases']} reported unexplained ({s['mode_hop_faint']} unflagged under "
+          f"{case_kinds.MODE_HOP_MIN_VISIBLE:g}x the floor), {s['mode_hop_named_cause']} named a "
+          "catalogue cause")
+    print(f"coil bias on a log pair without chamber air: {s['coil_pair_right']} of "
+          f"{s['coil_pair_cases']} named bias_drift alone within 30 %")
+    print(f"runs ended by an error: {s['errors']}")
     print(f"ramp-only lag / dT/dt: {100 * s['ramp_only_no_guess_rate']:.1f}% no guess")
     print(f"short-soak lag / dT/dt: {100 * s['short_soak_right_or_ambiguous_rate']:.1f}% right "
           f"or ambiguous ({s['short_soak_wrong_cause']} named the other one)")

@@ -7,7 +7,7 @@ rate, soaks drawn), table and simulator seed, all from a seeded generator. CI ru
 small sample below; `make bench-diagnose` states the rate over many. A failure prints the
 case and its seed: `cases.draw_population("effect", "hysteresis", "", seed)` rebuilds it.
 
-Rules (cases.judge): never another cause; named with the loop's height (strength x width)
+Rules (case_judge.judge): never another cause; named with the loop's height (strength x width)
 within 50 %, or, when its visible part stays under 3x the noise floor, not named.
 Out-of-catalogue residuals (test_diagnose_planted) must stay `unexplained` with the
 hysteresis form in the catalogue.
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.diagnose import cases, report, verdict
+from fogsf.diagnose import case_judge, cases, report, verdict
 from fogsf.sim.population import DEV_SEEDS
 
 MASTER_SEED = 20261123
@@ -36,7 +36,7 @@ def test_planted_hysteresis_is_named_and_never_misnamed() -> None:
         case = cases.draw_population("effect", "hysteresis", "", seed)
         logs, truth = cases.build(case)
         j = report.to_json(verdict.diagnose(logs), {}, None)
-        out = cases.judge_report(case, truth, j)
+        out = case_judge.judge_report(case, truth, j)
         where = f"seed {seed}: [{case.describe()}] -> {out.reason}"
         assert out.cause in (None, "hysteresis"), f"wrong cause {where}"
         named += out.cause == "hysteresis"

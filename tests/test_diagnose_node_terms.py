@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from fogsf.diagnose import (
+    case_judge,
     cases,
     catalogue,
     design,
@@ -46,11 +47,11 @@ def _draws(tag: str, n: int, span: tuple[float, float]) -> list[tuple[int, float
     return [(int(rng.integers(0, 1_000_000)), float(rng.uniform(*span))) for _ in range(n)]
 
 
-def _run(case: cases.Case) -> tuple[cases.Outcome, dict, fits.Diagnosis]:
+def _run(case: cases.Case) -> tuple[case_judge.Outcome, dict, fits.Diagnosis]:
     logs, truth = cases.build(case)
     d = verdict.diagnose(logs)
     j = report.to_json(d, {}, None)
-    return cases.judge_report(case, truth, j), j, d
+    return case_judge.judge_report(case, truth, j), j, d
 
 
 @pytest.mark.parametrize(("seed", "multiple"), _draws("strong temp_rate", 2, STRONG))
@@ -188,11 +189,11 @@ def _population_dtdt_gyros(n: int) -> list[int]:
 def test_dtdt_term_on_a_population_gyro_gets_its_housing_coupling(seed: int) -> None:
     """On a population gyro (unseen coil nodes at 150-4000 s, any topology) the strength in
     ppm/(C/min) needs the coil's time constants, but the housing coupling is pinned: named,
-    significant, coupling within 50 % (cases.judge), and inside its reported interval."""
+    significant, coupling within 50 % (case_judge.judge), and inside its reported interval."""
     case = cases.draw_population("effect", "temp_rate", "", seed)
     logs, truth = cases.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
-    out = cases.judge_report(case, truth, j)
+    out = case_judge.judge_report(case, truth, j)
     c = next(c for c in j["candidates"] if c["effect"] == "temp_rate")
     assert out.ok, f"[{case.describe()}] -> {out.reason}; params={c['params']}"
     lo, hi = c["params"]["housing_ppm_per_c_ci95"]

@@ -6,8 +6,8 @@ simulator seed are drawn from a seeded generator; the sample here is fixed and s
 rates over many seeds are `make bench-diagnose`). A failure prints the case and its seed:
 `cases.draw(kind, name, seed)` rebuilds it.
 
-Rules (cases.judge): a planted effect must be named, its parameter within the stated
-tolerance (cases.PARAM_CHECK), with a held-out gain; a wrong cause is never acceptable.
+Rules (case_judge.judge): a planted effect must be named, its parameter within the stated
+tolerance (case_judge.PARAM_CHECK), with a held-out gain; a wrong cause is never acceptable.
 A thermal lag and a dT/dt term (extra_lag, temp_rate) are planted in logs with long soaks
 after the steps (they differ by how long they keep settling); with short soaks they may be
 reported ambiguous with each other, never as the other one. Null cases name nothing;
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.diagnose import cases, report, verdict
+from fogsf.diagnose import case_judge, cases, report, verdict
 
 MASTER_SEED = 20261122
 PER_EFFECT = 3
@@ -30,11 +30,11 @@ def _seeds(tag: str, n: int) -> list[int]:
     return [int(s) for s in rng.integers(0, 1_000_000, n)]
 
 
-def _run(kind: str, name: str, seed: int) -> tuple[cases.Case, cases.Outcome, dict]:
+def _run(kind: str, name: str, seed: int) -> tuple[cases.Case, case_judge.Outcome, dict]:
     case = cases.draw(kind, name, seed)
     logs, truth = cases.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
-    out = cases.judge_report(case, truth, j)
+    out = case_judge.judge_report(case, truth, j)
     return case, out, j
 
 
@@ -93,7 +93,7 @@ def test_a_shupe_bias_on_population_gyros_is_named() -> None:
         case = cases.draw_population("effect", "bias_shupe", "coil", seed)
         logs, truth = cases.build(case)
         j = report.to_json(verdict.diagnose(logs), {}, None)
-        out = cases.judge_report(case, truth, j)
+        out = case_judge.judge_report(case, truth, j)
         where = f"[{case.describe()}] -> {out.reason}"
         assert out.cause in (None, "bias_shupe"), f"wrong cause {where}"
         if not out.ok:

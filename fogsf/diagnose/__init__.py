@@ -9,7 +9,8 @@ Stages (one small module each):
 - `catalogue`: the candidate effects (the simulator's seven), their columns, grids, units.
 - `profile_ls`: weighted linear least squares, profiled over grids of time constants.
 - `crossval`: held-out residuals by leaving out contiguous blocks (or whole runs).
-- `stats`: whiteness (Ljung-Box), paired sign-flip tests, correlations, intervals.
+- `stats`: whiteness (Ljung-Box), the structured share of a residual, paired sign-flip
+  tests, correlations, intervals.
 - `fits`: a fitted model with its held-out residuals, and the records of a diagnosis.
 - `intervals`: profiled parameters of a candidate: refinement, intervals, reported values.
 - `selection`: score each candidate against the base on held-out blocks, and choose among
@@ -19,5 +20,7 @@ Stages (one small module each):
 - `extend`: the fitted, extended model as a simulator configuration, and its distance
   to the measured logs.
 - `report`: the JSON of docs/diagnose.md and a Markdown report with plots.
-- `cases`: planted-effect cases (simulated) for the tests and `benchmarks.diagnose_rate`.
+- `cases`: planted-effect cases (simulated) for the tests and `benchmarks.diagnose_rate`;
+  `case_programs` their chamber programs and tables, `case_kinds` the coil bias on a log
+  pair and the source mode hop, `case_judge` whether a diagnosis got a case right.
 """

@@ -45,8 +45,8 @@ from typing import Any
 
 import numpy as np
 
+from fogsf.diagnose import case_kinds, design, driver, profile_ls, runs
 from fogsf.diagnose import case_programs as programs
-from fogsf.diagnose import design, driver, profile_ls, runs
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.sim.config import ProfileConfig, SimConfig, TableConfig
 from fogsf.sim.effects import EFFECTS as SIM_EFFECTS
@@ -66,7 +66,7 @@ PLANTED = EFFECTS + BIAS_EFFECTS
 CATALOGUE_EFFECTS = (*PLANTED, "hysteresis")
 HYST_WIDTH_C = (4.0, 10.0)  # the planted play's width and strength (the population's)
 HYST_PPM_PER_C = (3.0, 8.0)
-OOC_KINDS = ("humidity", "supply_step", "periodic")
+OOC_KINDS = ("humidity", "supply_step", "periodic", "mode_hop")
 # starting strengths (the simulator's examples; extra_lag: its sensitivity in ppm/C)
 EFFECT_INFO = {name: (4.0 if name == "extra_lag" else SIM_EFFECTS[name].example)
                for name in CATALOGUE_EFFECTS}
@@ -74,7 +74,8 @@ EFFECT_INFO = {name: (4.0 if name == "extra_lag" else SIM_EFFECTS[name].example)
 VARIANTS: dict[str, dict[str, str]] = {
     "rate_nonlinearity": {"linear": "exponent 1", "quadratic": "exponent 2"},
     "bias_drift": {"board": "on the board", "node": "on an internal node lagging the housing "
-                   "by 600-2400 s"},
+                   "by 600-2400 s", "coil_pair": "the gyro's own bias on its coil node, a "
+                   "reversing table, no chamber air, a log pair (case_kinds)"},
     "aging": {"linear": "linear", "settling": "settling, time constant 5400-14400 s"},
     "warmup": {"transient": "SF transient, tau 120-300 s",
                "slow": "slow self-heating of internal nodes, tau 900-2400 s"},
@@ -85,23 +86,6 @@ VARIANTS: dict[str, dict[str, str]] = {
 # two-effect cases: pairs that one set of logs can show at once
 PAIRS = (("asymmetry", "aging"), ("rate_nonlinearity", "aging"), ("bias_drift", "aging"),
          ("asymmetry", "rate_nonlinearity"))
-# the profiled parameter and the tolerance a diagnosis must meet on each effect
-PARAM_CHECK: dict[str, tuple[str, str, float]] = {
-    # effect: (param key in the diagnosis, truth key, relative tolerance)
-    "warmup": ("tau_s", "tau_s", 0.5),
-    "extra_lag": ("sens_ppm_per_c", "sens_ppm_per_c", 0.3),  # and tau_s inside its interval
-    # the dT/dt term: its coupling to the housing, what the logs pin (see housing_coupling)
-    "temp_rate": ("housing_ppm_per_c", "housing_ppm_per_c", 0.5),
-    "rate_nonlinearity": ("strength_ppm_at_100dps", "strength", 0.3),
-    "asymmetry": ("strength_ppm", "strength", 0.3),
-    "bias_drift": ("strength_dph_per_c", "strength", 0.3),
-    "aging": ("strength_ppm_per_h", "strength", 0.3),
-    # the loop's height (strength x width): the play of one lagged node stands for the
-    # coil's layers, which trades the width against the strength
-    "hysteresis": ("height_ppm", "height_ppm", 0.5),
-    # as temp_rate: the coupling to the housing (deg/h per C), what the logs pin
-    "bias_shupe": ("housing_dph_per_c", "housing_dph_per_c", 0.5),
-}
 
 
 @dataclass
@@ -189,6 +173,9 @@ def draw(kind: str, name: str, seed: int) -> Case:
         elif name == "periodic":
             params = {"period_s": float(rng.uniform(480.0, 1500.0)),
                       "phase": float(rng.uniform(0, 2 * np.pi))}
+        elif name == "mode_hop":  # up and back, so the source passes the hop both ways
+            profile = programs.cycle(rng)
+            params = case_kinds.draw_mode_hop(rng, profile)
     elif kind == "short_soak":  # a lag or dT/dt term with soaks too short to tell them apart
         cfg.effects = [EffectConfig("extra_lag", float(rng.uniform(5000.0, 9000.0)),
                                     {"sens_ppm_per_c": 1.0})] if name == "extra_lag" else [
@@ -254,6 +241,9 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
             if variant == "node":
                 e.params["node_tau_s"] = float(rng.uniform(600.0, 2400.0))
             cfg.table = programs.table(rng, str(rng.choice(["alternating", "plusminus"])))
+            if variant == "coil_pair":  # the gyro's own bias, on its coil (build calibrates it)
+                cfg.effects = []
+                cfg.table = programs.table(rng, "alternating")
         elif name == "aging" and variant == "settling":
             e.params["settle_tau_s"] = float(rng.uniform(5400.0, 14400.0))
         elif name == "warmup" and variant == "slow":
@@ -276,6 +266,9 @@ def draw_population(kind: str, name: str, variant: str, seed: int) -> Case:
     case.chamber = (kind in ("ramp_only", "short_soak")
                     or name in ("extra_lag", "temp_rate", "bias_shupe")
                     or bool(rng.random() < 0.5))
+    if kind == "effect" and variant == "coil_pair":
+        case.config.bias.node = case_kinds.coil_node(case.config)
+        case.chamber = False
     return case
 
 
@@ -374,6 +367,8 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
         return [log.slice(k, len(log))], {"effect": case.name, **case.params}
     if case.kind == "null":
         return [_strip(simulate(cfg).log, case.chamber)], {"effect": None}
+    if case.kind == "effect" and case.variant == "coil_pair":
+        return _build_coil_bias(case)
     if case.kind in ("effect", "short_soak", "two"):
         plain = copy.deepcopy(cfg)
         plain.effects = []
@@ -423,13 +418,43 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
     log = _strip(res.log, case.chamber)
     sigma = runs.load_run(log, WINDOW_S, None).sigma_ppm
     floor = float(np.sqrt(np.mean(sigma**2)))
-    x = ooc_signal(case, log.time_s)
+    hop = case.name == "mode_hop"  # planted at its own step in ppm, not at a multiple
+    x = case_kinds.mode_hop_signal(case.params, res) if hop else ooc_signal(case, log.time_s)
     ideal = _noiseless(log, res.ideal_dps)
     unit = np.sqrt(np.mean((base_residual([_with_sf(ideal, x)], [sigma])
                             - base_residual([ideal], [sigma])) ** 2))
-    amp = case.multiple * floor / max(float(unit), 1e-12)
+    amp = 1.0 if hop else case.multiple * floor / max(float(unit), 1e-12)
+    case.multiple_reached = float(amp * unit / floor)
     case.params = {**case.params, "amplitude_ppm": amp}
     return [_with_sf(log, amp * x)], {"effect": None, "ooc": case.name, "amplitude_ppm": amp}
+
+
+def _build_coil_bias(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
+    """`bias_drift:coil_pair` (case_kinds): the coil bias's slope calibrated to the case's
+    multiple of the floor over the log pair."""
+    plain = case_kinds.pair_configs(case.config)
+    for c in plain:
+        c.bias.lin_dph_per_c = 0.0
+    res0 = [simulate(c) for c in plain]
+    logs0 = [_strip(r.log, case.chamber) for r in res0]
+    sigma = [runs.load_run(log, WINDOW_S, None).sigma_ppm for log in logs0]
+    floor = float(np.sqrt(np.mean(np.concatenate(sigma) ** 2)))
+    r0 = base_residual([_noiseless(log, r.ideal_dps) for log, r in zip(logs0, res0,
+                                                                       strict=True)], sigma)
+
+    def visible(slope: float) -> float:
+        quiet = []
+        for c, log in zip(plain, logs0, strict=True):
+            c.bias.lin_dph_per_c = slope
+            quiet.append(_noiseless(log, simulate(c).ideal_dps))
+        return float(np.sqrt(np.mean((base_residual(quiet, sigma) - r0) ** 2)))
+
+    slope, got = case_kinds.calibrate_coil_bias(case.multiple * floor, visible)
+    case.config.bias.lin_dph_per_c = slope
+    case.multiple_reached = got / floor
+    case.params = {"strength": slope, "node": case.config.bias.node}
+    logs = [_strip(simulate(c).log, case.chamber) for c in case_kinds.pair_configs(case.config)]
+    return logs, {"effect": case.name, **case.params}
 
 
 def housing_coupling(cfg: SimConfig, strength: float) -> float:
@@ -442,108 +467,3 @@ def housing_coupling(cfg: SimConfig, strength: float) -> float:
     coils = [n for n in cfg.thermal.nodes if n.name.startswith("coil")]
     return strength * 60.0 * sum(1.0 / n.tau_s for n in coils if n.parent == "housing") \
         / len(coils)
-
-
-@dataclass
-class Outcome:
-    ok: bool
-    reason: str
-    cause: str | None
-    unexplained: bool
-
-
-def judge(case: Case, truth: dict[str, Any], cause: str | None, unexplained: bool,
-          candidates: list[dict[str, Any]], ambiguous: list[str] | None = None,
-          causes: list[str] | None = None) -> Outcome:
-    """Did the diagnosis get this case right? (the rules the tests and benchmark apply)
-
-    Beyond `draw`'s kinds: asymmetry at one |rate| is right when no cause is named and the
-    asymmetry is reported confounded with the base (its separating run named); a slow
-    warm-up is right when named (tau within 50 %) or explained by the base's own unseen
-    self-heating (no cause, no structure left); a settling aging's initial slope is held to
-    50 %; two planted effects are right when `causes` holds both and nothing else. A dT/dt
-    term is judged on its housing coupling (housing_coupling, 50 %): the logs pin that, and
-    the strength only with the unseen coil's time constants; one whose coil nodes all sit
-    behind other internal nodes (coupling 0) is part of the gyro's own thermal SF law, and
-    is right when no cause is named (docs/diagnose.md, "The dT/dt term's strength")."""
-    ambiguous = ambiguous or []
-    causes = causes if causes is not None else ([cause] if cause else [])
-
-    def out(ok: bool, why: str) -> Outcome:
-        return Outcome(ok, why, cause, unexplained)
-
-    if case.kind == "two":
-        want = set(truth["effects"])
-        ok = set(causes) == want
-        return out(ok, f"causes {causes}, planted {sorted(want)}"
-                   + ("" if ok or not unexplained else " (unexplained)"))
-    if case.kind == "effect" and case.variant == "one":
-        c = next(x for x in candidates if x["effect"] == case.name)
-        ok = cause is None and "base" in c.get("confounded_with", []) and bool(
-            c.get("separating_run"))
-        return out(ok, f"cause {cause!r}; confounded with {c.get('confounded_with')}, "
-                       f"separating run: {c.get('separating_run')!r}")
-    coupling = {"temp_rate": "housing_ppm_per_c", "bias_shupe": "housing_dph_per_c"}
-    if case.kind == "effect" and case.name in coupling and truth[coupling[case.name]] == 0:
-        # every coil node sits behind another internal node: an SF term is a combination of
-        # internal nodes' temperatures, i.e. part of the gyro's own thermal SF law; a bias
-        # term is still a bias (its sign follows the table's), named or not, never another
-        ok = cause is None or (case.name == "bias_shupe" and cause == case.name)
-        return out(ok, "no coil node behind the housing: confounded with the "
-                   f"gyro's own nodes, {'not named' if cause is None else f'named {cause}'}")
-    if case.kind == "effect" and case.name == "hysteresis" and cause is None \
-            and case.multiple_reached < MULTIPLE_RANGE[0]:
-        return out(True, f"visible part {case.multiple_reached:.1f} x the floor (under "
-                         f"{MULTIPLE_RANGE[0]:g}): not named, not misnamed")
-    if case.kind == "effect" and case.variant == "slow" and cause is None:
-        return out(not unexplained, "explained by the base's self-heating" if not unexplained
-                   else "unexplained, not named")
-    if case.kind == "effect":
-        if cause is None and case.name in ambiguous:
-            return out(False, f"ambiguous between {', '.join(ambiguous)} (planted {case.name}):"
-                              " not wrong, not named")
-        if cause != case.name:
-            return out(False, f"cause {cause!r}, planted {case.name}")
-        c = next(x for x in candidates if x["effect"] == cause)
-        if case.name == "bias_shupe" and not truth.get("coils_behind_housing", 1.0):
-            # a coil behind another internal node: the catalogue's coil (layers right
-            # behind the housing) holds the term only in effect; named is what is checked
-            return out(bool(c["significant"]), "named (a coil behind another node: its "
-                       "coupling is not the model's parameter)")
-        key, tkey, tol = PARAM_CHECK[case.name]
-        if case.variant in ("settling", "slow"):
-            tol = 0.5
-        est, true = float(c["params"][key]), float(truth[tkey])
-        if abs(est - true) > tol * abs(true):
-            return out(False, f"{key} {est:.4g} vs planted {true:.4g} (tolerance {tol:.0%})")
-        if case.name == "extra_lag":  # a slow node's time constant is often only bounded
-            lo, hi = c["params"]["tau_s_ci95"]
-            if not lo <= truth["tau_s"] <= hi:
-                return out(False, f"tau_s interval [{lo:.4g}, {hi:.4g}] misses the planted "
-                                  f"{truth['tau_s']:.4g}")
-        if not c["significant"]:
-            return out(False, f"not significant (held-out gain {c['gain_pct']:.1f}%)")
-        return out(True, f"{key} {est:.4g} vs {true:.4g}, gain {c['gain_pct']:.1f}%")
-    if case.kind == "null":
-        return out(cause is None, "named nothing" if cause is None else f"false cause {cause}")
-    if case.kind == "ooc":
-        if cause is not None:
-            return out(False, f"named catalogue effect {cause} for out-of-catalogue "
-                              f"{case.name}")
-        return out(unexplained, "unexplained" if unexplained else "structure not flagged")
-    if case.kind == "ramp_only":
-        return out(cause is None, "did not guess" if cause is None else f"guessed {cause}")
-    if case.kind == "short_soak":
-        if cause is None and case.name in ambiguous:
-            return out(True, "ambiguous, as short soaks leave it")
-        if case.name == "temp_rate" and truth["housing_ppm_per_c"] == 0 and cause is None:
-            return out(True, "no coil node behind the housing: confounded with the gyro's "
-                             "own nodes, not named")
-        return out(cause == case.name, f"cause {cause!r}, planted {case.name}")
-    raise ValueError(case.kind)
-
-
-def judge_report(case: Case, truth: dict[str, Any], j: dict[str, Any]) -> Outcome:
-    """`judge` on a diagnosis as `report.to_json` writes it."""
-    return judge(case, truth, j["cause"], j["unexplained"], j["candidates"], j["ambiguous"],
-                 j["causes"])

@@ -99,6 +99,8 @@ class Candidate:
                 p["exponent"] = first(theta)
             return {"name": self.name, "strength": coef, "params": p}
         if self.name == "bias_drift":
+            # a lead (node_tau_s < 0) is not the simulator's effect's: extend carries it as
+            # the bias's dT/dt term on the board (bias.shupe_dph_per_c_per_min)
             p = {"ref_c": design.T_REF_C}
             if theta is not None and first(theta) > 0.0:
                 p["node_tau_s"] = first(theta)
@@ -158,12 +160,18 @@ def _asymmetry(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
 
 
 def _bias_drift(ctx: RunContext, b: BaseTheta, g: GridValue) -> np.ndarray:
-    """A bias following the board thermometer (g = 0) or an internal node lagging the
-    driver by g seconds (e.g. the coil or the source). With one table rate the bias is an
-    SF term in temperature, and a lagged node would be a thermal node by another name: the
-    board's form only, which the base absorbs."""
+    """A bias following the board thermometer (g = 0), an internal node lagging the driver
+    by g seconds (e.g. the coil or the source), or (g < 0) a node the board thermometer
+    lags by -g seconds: board + (-g) dT_board/dt. The last is a coil right behind the
+    housing and faster than the board; without the chamber air the driver is the board
+    itself, and a lag of it cannot lead it. With one table rate the bias is an SF term in
+    temperature, and a lagged node would be a thermal node by another name: the board's
+    form only, which the base absorbs."""
     tau = 0.0 if g is None or not ctx.bias_on else first(g)
-    temp = design.board(ctx) if tau <= 0.0 else design.node(ctx, tau)
+    if tau < 0.0:
+        temp = design.board(ctx) - tau / 60.0 * design.board_rate_c_per_min(ctx)
+    else:
+        temp = design.board(ctx) if tau == 0.0 else design.node(ctx, tau)
     return temp * design.PPM_PER_DPH / ctx.run.rate
 
 
@@ -193,7 +201,10 @@ COIL_RATIOS = (1.0, 1.41, 2.0)  # outer / inner layer
 COIL_GRID = tuple((t, r) for r in COIL_RATIOS for t in COIL_TAU_GRID_S
                   if t * r <= COIL_TAU_GRID_S[-1] + 1.0)
 RATE_EXPONENTS = (1.0, 1.5, 2.0)
-BIAS_NODE_TAU_S = (0.0, 300.0, 600.0, 1200.0, 2400.0)  # 0: the board thermometer
+# 0: the board thermometer; < 0: a node the board lags by that much (at most the
+# population's slowest board, fogsf.sim.population.BOARD_TAU_S)
+BIAS_NODE_TAU_S = (0.0, 300.0, 600.0, 1200.0, 2400.0, 4000.0,
+                   *(-float(x) for x in np.round(np.geomspace(30.0, 600.0, 11), -1)))
 AGING_SETTLE_S = (math.inf, 21600.0, 10800.0, 5400.0)  # inf: linear
 EXTRA_LAG_GRID_S = tuple(float(x) for x in np.round(np.geomspace(4000.0, 32000.0, 10), -2))
 

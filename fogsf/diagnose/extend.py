@@ -12,7 +12,12 @@ The base model's pieces map onto the simulator's (fogsf.sim.config):
 - each of board/node1/node2: one SF term (factor L, exponent +1) with the fitted linear
   and quadratic coefficients about 20 C; the intercept -> sf.offset_ppm;
 - constant bias (when the rate varies) -> bias.bias_dph;
-- the named cause -> one entry of `effects`, in the simulator's own units;
+- the named cause -> one entry of `effects`, in the simulator's own units; a cause on the
+  coil's temperature (COIL_EFFECTS: the simulator takes the mean of the nodes named coil*)
+  brings its coil as fitted: temp_rate's and bias_shupe's two layers, hysteresis's one
+  lagged node, children of the housing. A cause the configuration still cannot carry (a
+  second coil form with other time constants) is left out of the simulation and recorded
+  in `Diagnosis.skipped` with the reason, never an error for the run;
 - the chamber program -> profile kind "program" (10 s points); the table schedule ->
   constant / alternating / levels from the log's rate plateaus; noise -> ARW from the
   noise floor.
@@ -35,6 +40,9 @@ from fogsf.logs.metrics import sf_windows
 from fogsf.logs.plateaus import plateaus
 
 PROGRAM_STEP_S = 10.0
+# the simulator's effects on the coil's temperature (fogsf.sim.effects: the mean of the
+# nodes named coil*), and the coil each catalogue form fits: its layers' time constants
+COIL_EFFECTS = ("temp_rate", "bias_shupe", "hysteresis")
 SIM_STEP_S = 0.1  # closeness simulates at 10 Hz or slower (sim_step)
 SIM_MAX_SAMPLES = 1_000_000
 
@@ -94,10 +102,26 @@ def _sf_term(name: str, node: str, lin: float, quad: float) -> dict[str, Any]:
             "quad_ppm_per_c2": quad, "ref_c": design.T_REF_C}
 
 
+def _coil_taus(cand: catalogue.Candidate, g: catalogue.GridValue) -> tuple[float, ...]:
+    """The coil node(s) a coil form was fitted with: temp_rate's and bias_shupe's two layers
+    (inner, outer), hysteresis's one node (its grid value is (width_c, tau_s))."""
+    if cand.name == "hysteresis":
+        assert isinstance(g, tuple)
+        return (float(g[1]),)
+    return catalogue.coil_taus(g)
+
+
+def _skip(d: Diagnosis, effect: str, reason: str) -> None:
+    entry = {"effect": effect, "stage": "simulation of the extended model", "reason": reason}
+    if entry not in d.skipped:
+        d.skipped.append(entry)
+
+
 def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
                ) -> dict[str, Any]:
     """The simulator configuration (as a dict) of `model` fitted to the logs, for one run's
-    chamber program and table schedule."""
+    chamber program and table schedule. A cause it cannot carry is left out and recorded in
+    `d.skipped`."""
     ctx = d.ctxs[run_index]
     drv = ctx.driver
     (tau1, tau2), g = model.combo
@@ -118,17 +142,19 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
         {"name": "node2", "parent": "housing", "tau_s": tau2, "self_heat_c": 0.0},
     ]
     cand = model.stack.candidate
-    coil = [gv if gv is not None else g for c, gv in cand.parts if c.name == "temp_rate"] \
-        if cand is not None and cand.parts else []
-    if cand is not None and cand.name == "temp_rate":
-        coil = [g]
-    if coil:
-        # the simulator's temp_rate differentiates the mean of the nodes named coil*: the
-        # two layers, as fitted
-        nodes += [{"name": f"coil_{layer}", "parent": "housing", "tau_s": tau,
-                   "self_heat_c": 0.0}
-                  for layer, tau in zip(("inner", "outer"), catalogue.coil_taus(coil[0]),
-                                        strict=True)]
+    # the causes with their grid values (the profiled last part at the fit's own)
+    parts = [] if cand is None else (
+        [(c, g if gv is None else gv) for c, gv in cand.parts] if cand.parts else [(cand, g)])
+    coil: tuple[float, ...] = ()
+    coil_of = ""
+    for c, gv in parts:
+        if c.name in COIL_EFFECTS and not coil:
+            # the simulator's coil effects act on the mean of the nodes named coil*: the
+            # coil as this form fitted it
+            coil, coil_of = _coil_taus(c, gv), c.name
+            names_c = ("coil",) if len(coil) == 1 else ("coil_inner", "coil_outer")[:len(coil)]
+            nodes += [{"name": n, "parent": "housing", "tau_s": tau, "self_heat_c": 0.0}
+                      for n, tau in zip(names_c, coil, strict=True)]
     terms = [
         _sf_term("fitted board term", "board", coef["board_ppm_per_c"],
                  coef["board_ppm_per_c2"]),
@@ -146,11 +172,22 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
         # the unseen self-heating transients of the internal nodes, exactly as fitted
         effects += [{"name": "warmup", "strength": coef[f"selfheat{i}_ppm"],
                      "params": {"tau_s": tau}} for i, tau in ((1, tau1), (2, tau2))]
-    if cand is not None and cand.parts:  # several causes (forward selection)
-        for (c, gv), name in zip(cand.parts, cand.names(), strict=True):
-            effects.append(c.to_effect(coef[name], g if gv is None else gv))
-    elif cand is not None:
-        effects.append(cand.to_effect(coef[cand.coef_name], g))
+    coef_names = cand.names() if cand is not None else []
+    shupe_dph_per_c_per_min = 0.0
+    for (c, gv), name in zip(parts, coef_names, strict=True):
+        if c.name == "bias_drift" and gv is not None and catalogue.first(gv) < 0.0:
+            # a node the board lags by lead_s: board + lead_s dT_board/dt, the bias's own
+            # dT/dt term on the board node in deg/h per C/min
+            shupe_dph_per_c_per_min += coef[name] * -catalogue.first(gv) / 60.0
+        if c.name in COIL_EFFECTS and not coil:
+            _skip(d, c.name, "needs coil nodes (names starting with 'coil'), the fitted base "
+                  "has none")
+            continue
+        if c.name in COIL_EFFECTS and c.name != coil_of and _coil_taus(c, gv) != coil:
+            _skip(d, c.name, f"needs its own coil nodes ({_coil_taus(c, gv)} s), the "
+                  f"extended model's coil is {coil_of}'s ({coil} s)")
+            continue
+        effects.append(c.to_effect(coef[name], gv))
     return {
         "scenario": "diagnose",
         "seed": seed,
@@ -162,7 +199,8 @@ def sim_config(d: Diagnosis, model: ModelFit, run_index: int = 0, seed: int = 0
                     "board_node": "board"},
         "sf": {"terms": terms, "offset_ppm": coef["offset_ppm"]},
         "bias": {"bias_dph": coef.get("bias_dph", 0.0), "lin_dph_per_c": 0.0,
-                 "quad_dph_per_c2": 0.0, "node": "board", "ref_c": design.T_REF_C},
+                 "quad_dph_per_c2": 0.0, "node": "board", "ref_c": design.T_REF_C,
+                 "shupe_dph_per_c_per_min": shupe_dph_per_c_per_min},
         "noise": {"arw_deg_per_sqrt_h": arw, "pulse_arcsec": 1.0, "temp_noise_c": 0.02,
                   "temp_lsb_c": 0.0625},
         "effects": effects,
@@ -223,3 +261,15 @@ def closeness(d: Diagnosis, base_cfgs: list[dict[str, Any]], ext_cfgs: list[dict
     return {"rms_base_sim_ppm": rb, "rms_extended_sim_ppm": re,
             "closer_pct": 100.0 * (1.0 - re / rb) if rb > 0 else 0.0,
             "noise_floor_ppm": d.noise_floor_ppm}
+
+
+def extended(d: Diagnosis, seed: int = 0, compare: bool = True
+             ) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """The extended model's simulator configuration for each run, and (compare) how close
+    the base's and its noiseless simulations come to the logs (`closeness`)."""
+    ext_cfgs = [sim_config(d, d.extended, i, seed) for i in range(len(d.runs))]
+    if not compare:
+        return ext_cfgs, None
+    base_cfgs = [sim_config(d, d.base, i, seed) for i in range(len(d.runs))]
+    return ext_cfgs, closeness(d, base_cfgs, ext_cfgs)
+

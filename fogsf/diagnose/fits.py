@@ -89,6 +89,9 @@ class Diagnosis:
     # the windows' own noise alone, RMS over every window of every log: for one log what
     # `fogsf inspect --window-s W` reports as its noise floor
     window_noise_ppm: float = 0.0
+    # catalogue forms that could not apply, each {effect, stage, reason}: in the scoring
+    # (verdict) or in the extended model's simulation (extend); skipped, never an error
+    skipped: list[dict[str, str]] = field(default_factory=list)
 
     @property
     def noise_floor_ppm(self) -> float:

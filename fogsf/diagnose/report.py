@@ -25,6 +25,7 @@ import numpy as np
 
 from fogsf.diagnose import design
 from fogsf.diagnose.fits import Diagnosis
+from fogsf.diagnose.stats import SMOOTH_WINDOWS
 
 
 def _num(x: float) -> float | None:
@@ -96,6 +97,7 @@ def to_json(d: Diagnosis, extended_model: dict[str, Any],
         "ambiguous": d.ambiguous,
         "structure": d.structure,
         "simulation": simulation,
+        "skipped": d.skipped,
     }
     return _clean(out)
 
@@ -126,9 +128,12 @@ def summary_text(j: dict[str, Any]) -> str:
             lines.append(f"{'cause' if i == 0 else 'and cause'}: {name} ({ps}; 95% intervals) "
                          f"{gain}")
         if j["unexplained"]:
-            lines.append(f"cause: {' + '.join(j.get('causes') or [cause])}; "
-                         f"{j['structure'].get('remaining_pct', 0.0):.0f}% of the structure "
-                         "remains: unexplained beyond it")
+            st = j["structure"]
+            left = (f"{st.get('remaining_pct', 0.0):.0f}% of the structure remains"
+                    if "variance" in st.get("flagged_by", ["variance"]) else
+                    "the held-out residual is not white")
+            lines.append(f"cause: {' + '.join(j.get('causes') or [cause])}; {left}: "
+                         "unexplained beyond it")
     elif j["ambiguous"]:
         c = next(x for x in j["candidates"] if x["effect"] == j["ambiguous"][0])
         lines.append("cause: none named; confounded: " + ", ".join(j["ambiguous"])
@@ -136,9 +141,14 @@ def summary_text(j: dict[str, Any]) -> str:
                         if c.get("separating_run") else ""))
     else:
         lines.append("cause: none")
+    st = j["structure"]
     lines.append(f"unexplained structure: {'yes' if j['unexplained'] else 'no'} (held-out "
-                 f"whiteness p={j['structure']['whiteness_p']:.3g}, variance "
-                 f"{j['structure']['excess_variance']:.2f}x noise)")
+                 f"whiteness p={st['whiteness_p']:.3g}, structure "
+                 f"{100 * (st.get('structured_share') or 0.0):.0f}% of the residual's "
+                 f"variance, {st.get('smoothed_rms_ppm') or 0.0:.2f} ppm RMS over "
+                 f"{SMOOTH_WINDOWS}-window means; variance {st['excess_variance']:.2f}x noise)")
+    for k in j.get("skipped") or []:
+        lines.append(f"skipped: {k['effect']} in the {k['stage']}: {k['reason']}")
     s = j.get("simulation")
     if s and "rms_base_sim_ppm" in s:
         lines.append(f"simulation vs logs: base {s['rms_base_sim_ppm']:.2f} ppm -> extended "

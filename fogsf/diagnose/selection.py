@@ -36,6 +36,14 @@ AMBIGUOUS_P = 0.05
 # temp_rate's signature ("housing term", the coil node being in the base already)
 NESTED = {"extra_lag": "temp_rate"}
 NESTED_MIN_GAIN_PCT = 2.0
+# pairs that forward selection does not put together unless a log has the chamber air: a
+# bias on a coil the board thermometer lags or leads, which bias_drift's one-node forms only
+# approximate, leaves a residual in the board's rate, the Shupe bias's signature; without
+# the housing (chamber_c) a Shupe bias is not told from that (dev gyros 100-105: 4 of 6
+# coil biases on a log pair named bias_shupe beside bias_drift before this rule)
+NEEDS_CHAMBER_TOGETHER = (frozenset(("bias_drift", "bias_shupe")),)
+SEPARATES_WITH_CHAMBER = ("the chamber air logged (chamber_c), with a ramp of 5 C or more "
+                          "and a soak after it")
 MIN_SOAK_FOR_LAG_S = 2700.0  # 45 min of soak, as found (the 5 min after a ramp stops excluded)
 SOAK_RATE_C_PER_MIN = 0.02  # slower than this (driver, 5-min average) is a soak
 RAMP_MIN_C = 5.0  # a soak counts when the driver moved at least this much before it
@@ -116,6 +124,16 @@ def forward_select(first_c: CandidateResult, pool: list[CandidateResult],
     model = first_c.model
     chosen = [(catalogue.CATALOGUE[first_c.name], first_c.model.combo[1])]
     rest = list(pool)
+    if not any(c.driver.source == "chamber" for c in ctxs):
+        for r in list(rest):
+            if frozenset((first_c.name, r.name)) in NEEDS_CHAMBER_TOGETHER:
+                rest.remove(r)
+                r.confounded_with = [first_c.name]
+                r.separating_run = SEPARATES_WITH_CHAMBER
+                r.evidence += (f"; not added after {first_c.name}: without the chamber air it "
+                               f"is not told from {first_c.name} on a node the board "
+                               "thermometer only approximates; the run that would separate "
+                               f"them: {SEPARATES_WITH_CHAMBER}")
     while rest and len(causes) < MAX_CAUSES:
         best: tuple[CandidateResult, ModelFit, float] | None = None
         for r in rest:

@@ -83,6 +83,45 @@ def ljung_box_p(segments: list[np.ndarray], lags: int | None = None) -> float:
     return chi2_sf(q, dof) if dof else 1.0
 
 
+SMOOTH_WINDOWS = 5  # the structure's moving mean, in windows
+
+
+def structure_ms(segments: list[np.ndarray], span: int = SMOOTH_WINDOWS
+                 ) -> tuple[float, float]:
+    """(mean square of the residual's structure, mean square of the residual), pooled over
+    runs. A residual e = s + n, s slow (it keeps its value over `span` windows) and n
+    white: its moving mean over `span` windows keeps s and n / span, so the structure's
+    mean square is (span * ms(smoothed) - ms(e)) / (span - 1), at least 0; 0 (within
+    noise) for a white residual, whatever its variance, so no noise estimate is needed."""
+    sm_sum = e_sum = 0.0
+    n_sm = n_e = 0
+    k = np.ones(span) / span
+    for e in segments:
+        e = np.asarray(e, dtype=np.float64)
+        if e.shape[0] < 2 * span:
+            continue
+        sm = np.convolve(e, k, mode="valid")
+        sm_sum += float(np.sum(sm * sm))
+        n_sm += sm.shape[0]
+        e_sum += float(np.sum(e * e))
+        n_e += e.shape[0]
+    if not n_e:
+        return 0.0, 0.0
+    ms_e = e_sum / n_e
+    return max(0.0, (span * sm_sum / n_sm - ms_e) / (span - 1)), ms_e
+
+
+def structured_share(segments: list[np.ndarray]) -> float:
+    """The share of a residual's mean square that is slow structure (structure_ms)."""
+    s, total = structure_ms(segments)
+    return s / total if total > 0 else 0.0
+
+
+def smoothed_rms(segments: list[np.ndarray]) -> float:
+    """The RMS of a residual's slow structure, in the residual's unit (structure_ms)."""
+    return float(np.sqrt(structure_ms(segments)[0]))
+
+
 SIGN_ROWS_SAMPLES = 1 << 20  # sign draws made at a time (8 MB)
 
 
