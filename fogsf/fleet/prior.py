@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.fleet.unit_fit import StepSeries, UnitFit, fit_unit
+from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, UnitFit, fit_unit, predict
 
 K_CHOICES = (1, 2, 3)
 STRUCTURE_TOLERANCE = 0.05
@@ -31,6 +31,7 @@ STRUCTURE_TOLERANCE = 0.05
 # (`robust_keep`)
 OUTLIER_Z = 4.0
 FLOOR = 1e-3
+SHRINK: float | None = None  # toward the diagonal; None: p / (p + N)
 MIN_UNITS = 3
 
 
@@ -55,13 +56,22 @@ class DesignPrior:
 
 def choose_k(series: dict[str, StepSeries], fits: dict[int, dict[str, UnitFit]]
              ) -> tuple[int, dict[int, float]]:
-    """The node count whose fits leave the least mean residual variance per unit, the
-    smallest within STRUCTURE_TOLERANCE of the best."""
-    scores = {k: float(np.median([f.sse / f.n for f in fk.values()]))
+    """The node count whose fits leave the least misfit per unit (the median over units of
+    the mean square of the residuals' WINDOW_S means: the noise of single steps averaged
+    out), the smallest within STRUCTURE_TOLERANCE of the best."""
+    scores = {k: float(np.median([window_misfit(series[sn], f) for sn, f in fk.items()]))
               for k, fk in fits.items()}
     best = min(scores.values())
     k = min(k for k, s in scores.items() if s <= best * (1.0 + STRUCTURE_TOLERANCE))
     return k, scores
+
+
+def window_misfit(series: StepSeries, fit: UnitFit) -> float:
+    """Mean square (ppm^2) of the fit's residuals averaged over WINDOW_S windows."""
+    r = series.y - predict(series, fit.theta, fit.k)
+    w = max(1, int(round(WINDOW_S / series.step_s)))
+    n = r.size // w
+    return float(np.mean(r[:n * w].reshape(n, w).mean(axis=1) ** 2)) if n else float(r @ r)
 
 
 def robust_keep(thetas: np.ndarray, covs: np.ndarray) -> np.ndarray:
@@ -127,6 +137,6 @@ def _spread(between: np.ndarray, noise: np.ndarray, n: int) -> np.ndarray:
     ev, vec = np.linalg.eigh(corr_b - corr_n)
     ev = np.maximum(ev, FLOOR)
     s = (vec * ev) @ vec.T
-    a = p / (p + n)
+    a = p / (p + n) if SHRINK is None else SHRINK
     s = (1.0 - a) * s + a * np.diag(np.diag(s))
     return s * np.outer(d, d)

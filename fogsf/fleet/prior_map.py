@@ -26,6 +26,9 @@ from fogsf.fleet.prior import DesignPrior
 from fogsf.fleet.unit_fit import StepSeries, design_matrix, fit_unit, jacobian
 
 DISAGREE_LEVEL = 1e-3
+# the unit's own data weighed at this multiple of its estimated precision: 1 is the
+# white-noise-with-correlation estimate (`unit_fit.correlation_factor`)
+DATA_WEIGHT = 1.0
 GROUPS = ("time constants", "intercept and linear", "quadratic and cross", "cube of T")
 
 
@@ -101,14 +104,16 @@ class _Problem:
         return theta, r
 
 
-def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30) -> MapFit:
-    """The new unit's MAP under `prior`, its posterior, the prior's share, the check."""
+def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
+            data_weight: float | None = None) -> MapFit:
+    """The new unit's MAP under `prior`, its posterior, the prior's share, the check.
+    `data_weight`: the unit's noise variance divided by this (default DATA_WEIGHT)."""
     k = prior.k
     alone = fit_unit(series, k, np.exp(prior.mu[:k]))
     grid_alone = fit_unit(series, k)
     if grid_alone.sse < alone.sse:
         alone = grid_alone
-    s2 = alone.sigma2
+    s2 = alone.sigma2 / (DATA_WEIGHT if data_weight is None else data_weight)
     pb = _Problem(series, prior, s2)
     starts = [prior.mu[:k].copy(), np.sort(alone.theta[:k])]
     best: tuple[float, np.ndarray] | None = None
