@@ -28,9 +28,10 @@ from fogsf.errors import UserError
 from fogsf.fleet.records import LogRecord, UnitRecord
 
 # Test hook, used only by tests/test_fleet_store.py: while this variable names a file, `add`
-# creates that file once its INSERTs ran and then sleeps before COMMIT (so a kill lands
-# inside the transaction, deterministically).
+# creates that file once its INSERTs ran and then sleeps PAUSE_S_HOOK seconds (default 120)
+# before COMMIT (so a kill lands inside the transaction, deterministically).
 PAUSE_HOOK = "FOGSF_FLEET_TEST_PAUSE_IN_ADD"
+PAUSE_S_HOOK = "FOGSF_FLEET_TEST_PAUSE_S"
 BUSY_TIMEOUT_S = 60.0
 PG_PREFIXES = ("postgresql://", "postgres://")
 MIGRATION_LOCK = 0x0F05F1EE7  # PostgreSQL advisory lock key of the fleet's migrations
@@ -210,11 +211,12 @@ class FleetStore:
     def _read(self, where: str, params: tuple) -> list[UnitRecord]:
         rows = self.execute(
             "SELECT sn, model_id, model_dir, fitted_with, figures, interval_json, summary, "
-            f"fogsf_version, created_utc FROM units {where} ORDER BY sn", params).fetchall()
+            f"fogsf_version, created_utc FROM units {where}", params).fetchall()
+        rows = sorted(rows, key=lambda r: r[0])  # by code point, whatever the collation
         logs: dict[str, list[LogRecord]] = {r[0]: [] for r in rows}
         for lg in self.execute(
                 "SELECT sn, path, sha256, n_rows, span_s, sample_rate_hz, ramp_rates, "
-                "temp_min_c, temp_max_c, role FROM logs ORDER BY sn, idx").fetchall():
+                "temp_min_c, temp_max_c, role FROM logs ORDER BY idx").fetchall():
             if lg[0] in logs:
                 logs[lg[0]].append(LogRecord(
                     path=lg[1], sha256=lg[2], rows=int(lg[3]), span_s=float(lg[4]),
@@ -240,7 +242,7 @@ def _pause_hook() -> None:
     marker = os.environ.get(PAUSE_HOOK)
     if marker:
         Path(marker).write_text(str(os.getpid()))
-        time.sleep(120.0)
+        time.sleep(float(os.environ.get(PAUSE_S_HOOK, "120")))
 
 
 class SQLiteStore(FleetStore):
