@@ -153,3 +153,92 @@ def raw_execute(fleet: str, statements: list[str]) -> None:
         for s in statements:
             db.execute(s)
     db.close()
+
+
+# --- simulated units of one design ------------------------------------------------------------
+
+TAU_SPREAD = 0.15  # a unit's time constants: the design's x U(1 - s, 1 + s)
+SF_SPREAD = 0.25  # a unit's SF law coefficients: the design's x U(1 - s, 1 + s)
+DEFECTS = ("slope", "mode_hop")
+SLOPE_FACTOR = (3.0, 5.0)  # a defective part's SF slope: the design's x this, either sign
+MODE_HOP_PPM = (150.0, 400.0)  # a mode hop: an SF step of this size, either sign,
+MODE_HOP_AT_C = (5.0, 25.0)  # above this source temperature
+
+
+def unit_config(design, rng: np.random.Generator):  # noqa: ANN001, ANN201 - SimConfig
+    """One unit of `design` (a SimConfig): its time constants and SF coefficients drawn
+    around the design's by TAU_SPREAD and SF_SPREAD."""
+    import copy
+
+    cfg = copy.deepcopy(design)
+    for n in cfg.thermal.nodes:
+        n.tau_s *= float(rng.uniform(1 - TAU_SPREAD, 1 + TAU_SPREAD))
+    for t in cfg.sf.terms:
+        t.lin_ppm_per_c *= float(rng.uniform(1 - SF_SPREAD, 1 + SF_SPREAD))
+        t.quad_ppm_per_c2 *= float(rng.uniform(1 - SF_SPREAD, 1 + SF_SPREAD))
+        t.cube_ppm_per_c3 *= float(rng.uniform(1 - SF_SPREAD, 1 + SF_SPREAD))
+    return cfg
+
+
+def loop_program(rate: float = 2.0, lo: float = -20.0, hi: float = 40.0, soak_s: float = 1200.0
+                 ) -> list[list[float]]:
+    """lo -> hi -> lo at `rate` C/min with soaks at each end: [[time_s, temp_c], ...]."""
+    ramp = (hi - lo) / rate * 60.0
+    pts = [[0.0, lo], [soak_s, lo], [soak_s + ramp, hi], [2 * soak_s + ramp, hi],
+           [2 * soak_s + 2 * ramp, lo], [3 * soak_s + 2 * ramp, lo]]
+    return pts
+
+
+def unit_log(cfg, seed: int, defect: dict | None = None, sample_rate_hz: float = 1.0,
+             rate: float = 2.0):  # noqa: ANN001, ANN201
+    """A chamber log of unit `cfg` on `loop_program(rate)`; `defect`: {"kind": "mode_hop",
+    "ppm": step, "at_c": T} adds an SF step where the source is above T."""
+    from fogsf.sim.config import ProfileConfig
+    from fogsf.sim.gyro import simulate
+    from fogsf.sim.population import run_on_gyro
+
+    run = run_on_gyro(cfg, ProfileConfig(kind="program", points=loop_program(rate)), seed,
+                      "fleet-unit")
+    run.dt_s = 1.0 / sample_rate_hz
+    res = simulate(run)
+    log = res.log
+    if defect and defect["kind"] == "mode_hop":
+        part = "source" if "source" in res.nodes else "board"
+        step = np.where(res.nodes[part] > defect["at_c"], defect["ppm"] * 1e-6, 0.0)
+        log.gyro_dps = log.gyro_dps + (log.table_rate_dps + log.earth_rate_dps) * step
+    return log
+
+
+def draw_defect(rng: np.random.Generator, cfg) -> tuple[dict, object]:  # noqa: ANN001
+    """A defect drawn from DEFECTS and its ranges: (what it is, the unit's config with a
+    slope defect applied)."""
+    import copy
+
+    kind = str(rng.choice(DEFECTS))
+    sign = float(rng.choice([-1.0, 1.0]))
+    if kind == "slope":
+        cfg = copy.deepcopy(cfg)
+        term = max(cfg.sf.terms, key=lambda t: abs(t.lin_ppm_per_c))  # the strongest part
+        factor = sign * float(rng.uniform(*SLOPE_FACTOR))
+        term.lin_ppm_per_c *= factor
+        return {"kind": kind, "part": term.name, "factor": round(factor, 3)}, cfg
+    return {"kind": kind, "ppm": round(sign * float(rng.uniform(*MODE_HOP_PPM)), 1),
+            "at_c": round(float(rng.uniform(*MODE_HOP_AT_C)), 1)}, cfg
+
+
+FAST_TRAIN = {"model": "lag-lstm", "structure": "physics", "nodes": 2, "iters": 2,
+              "hysteresis": "off", "transfer_check": False, "progress": False}
+
+
+def fit_unit(sn: str, train_logs: list, out_dir: Path, test_log=None,  # noqa: ANN001
+             **options: object) -> UnitRecord:
+    """Train a unit as `fogsf fleet add` does (the training code directly, few LSTM
+    iterations) and build its record."""
+    from fogsf.fleet.records import unit_record
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import run_training
+
+    opts = TrainOptions(**{**FAST_TRAIN, **options})  # type: ignore[arg-type]
+    metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
+    return unit_record(sn, train_logs, test_log, metrics, fitted, out_dir, dict(options),
+                       keep_dir=False)

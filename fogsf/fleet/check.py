@@ -1,19 +1,26 @@
 """Units unlike the line (`fogsf fleet check`): which units' structure or parameters lie
-outside the design's spread, and why, at a stated false-alarm rate.
+outside the design's spread, and why, at a stated false-alarm rate. Reads only the records.
 
-Reads only the units' records (their `summary`: "structure" and "params", optionally
-"params_se", each parameter's standard error from the unit's own fit):
-
-- structure: the line's structure is the one most units have (at least half of them); a unit
-  with another (node count, law terms) is flagged;
-- parameters: for each numeric parameter every unit of the line's structure has, each unit
-  is compared with the others (leave-one-out): centre their median, spread 1.4826 x their
-  median absolute deviation, the unit's own estimation noise added in quadrature (and the
-  others' typical noise taken out of the spread), z = (x - centre) / sqrt(spread^2 + se^2).
-  The threshold on |z| is the (1 - alpha / P) quantile of the largest |z| over N units of
-  a line of normal units (Gaussian parameters; P parameters, N units; Monte Carlo, a fixed
-  seed): a line of normal units gives a flag with chance at most alpha (Bonferroni over the
-  parameters, exact over the units; correlated parameters make it conservative).
+- Structure: the line's is the one most units have (at least half of them); a unit with
+  another (node count, law terms, a hysteresis term) is flagged.
+- Parameters, through what they predict: each unit's model read on the design's reference
+  program (`records.response`: SF error at soaks and ramp points, less their mean). Two
+  slow parts that move together trade their fitted coefficients from unit to unit (their
+  time constants jump between fits of normal units); the prediction they make does not.
+  And the log of the unit's training residual over its noise floor (`fit.log_residual`,
+  one-sided: only a larger one flags): a defect the design's structure cannot express (a
+  mode hop, a step of SF) is left in the residual.
+  Raw parameters of the summary enter too when the summary gives their standard errors
+  ("params_se"): then a unit's own estimation noise is known.
+- Each unit against the others of the line (leave one out): z = (x - mean) / sqrt(s^2 -
+  the others' mean se^2 + se^2 + s^2 / k) (k others, s their standard deviation, se the
+  standard errors, 0 where not given): a t statistic for a line of normal units. The
+  threshold on |z| is the (1 - alpha / P) quantile of the largest |z| of N normal units
+  (Monte Carlo of Gaussian lines, a fixed seed): a line of normal units gives any flag with
+  chance at most alpha (exact over the units, Bonferroni over the P features; correlated
+  features make it conservative).
+- A unit flagged leaves the reference and the others are compared again (one defect does
+  not hide a second), while the threshold stays that of the whole line.
 """
 
 from __future__ import annotations
@@ -29,8 +36,8 @@ from fogsf.fleet.records import UnitRecord
 
 DEFAULT_FALSE_ALARM = 0.01
 MIN_UNITS = 5  # fewer: the spread cannot be told from the units, nothing is checked
-MAD_SCALE = 1.4826  # MAD -> standard deviation of a Gaussian
-NULL_DRAWS = 40_000  # Monte Carlo draws of the threshold (per line size and level)
+RESIDUAL = "fit.log_residual"  # one-sided: a unit fitting better than the line is no defect
+NULL_DRAWS = 100_000  # Monte Carlo draws of the threshold (per line size and level)
 
 
 @dataclass
@@ -49,7 +56,7 @@ class CheckResult:
     false_alarm: float
     threshold_z: float
     outliers: list[Outlier] = field(default_factory=list)
-    z: dict[str, dict[str, float]] = field(default_factory=dict)  # unit -> parameter -> z
+    z: dict[str, dict[str, float]] = field(default_factory=dict)  # unit -> feature -> z
     note: str = ""
 
     @property
@@ -63,16 +70,14 @@ class CheckResult:
                 "threshold_z": self.threshold_z, "z": self.z, "note": self.note}
 
     def message(self) -> str:
-        head = (f"{self.units} units; the line's structure {self.structure or '-'}; "
-                f"{len(self.parameters)} parameters compared; false-alarm rate "
-                f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f})")
-        lines = [head]
+        lines = [f"{self.units} units; the line's structure {self.structure or '-'}; "
+                 f"{len(self.parameters)} features compared; false-alarm rate "
+                 f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f})"]
         if self.note:
             lines.append(self.note)
         if not self.outliers:
             lines.append("no unit unlike the line")
-        for o in self.outliers:
-            lines.append(f"  {o.unit}: {o.why}")
+        lines += [f"  {o.unit}: {o.why}" for o in self.outliers]
         return "\n".join(lines)
 
 
@@ -90,14 +95,22 @@ def _flatten(prefix: str, x: object, out: dict[str, float]) -> None:
             _flatten(f"{prefix}[{i}]", v, out)
 
 
-def unit_parameters(rec: UnitRecord) -> tuple[dict[str, float], dict[str, float]]:
-    """A unit's parameters and their standard errors (0 where not given), flattened to
-    dotted names."""
-    params: dict[str, float] = {}
+def unit_features(rec: UnitRecord) -> tuple[dict[str, float], dict[str, float]]:
+    """A unit's features (dotted names) and their standard errors (0 where not known): the
+    response on the reference program, and the summary's parameters that have standard
+    errors."""
+    feats: dict[str, float] = {}
+    _flatten("response", rec.figures.get("response_ppm", {}), feats)
+    ratio = rec.figures.get("train_rms_over_floor")
+    if isinstance(ratio, (int, float)) and ratio > 0 and math.isfinite(ratio):
+        feats[RESIDUAL] = math.log(ratio)
     se: dict[str, float] = {}
-    _flatten("", rec.summary.get("params", {}), params)
-    _flatten("", rec.summary.get("params_se", {}), se)
-    return params, {k: abs(se.get(k, 0.0)) for k in params}
+    if rec.summary.get("params_se"):
+        params: dict[str, float] = {}
+        _flatten("params", rec.summary.get("params", {}), params)
+        _flatten("params", rec.summary["params_se"], se)
+        feats.update({k: v for k, v in params.items() if k in se})
+    return feats, {k: abs(se.get(k, 0.0)) for k in feats}
 
 
 def structure_label(rec: UnitRecord) -> str:
@@ -105,34 +118,36 @@ def structure_label(rec: UnitRecord) -> str:
     return s if isinstance(s, str) else str(s)
 
 
-@lru_cache(maxsize=64)
-def null_threshold(n_units: int, n_params: int, alpha: float) -> float:
-    """|z| threshold: the (1 - alpha / n_params) quantile of max over `n_units` of the
-    leave-one-out robust |z| of a Gaussian line (Monte Carlo, seed 0)."""
-    rng = np.random.default_rng(0)
-    q = 1.0 - alpha / max(1, n_params)
-    maxima = []
-    for _ in range(max(1, NULL_DRAWS // 10_000)):
-        x = rng.standard_normal((10_000, n_units))
-        maxima.append(np.max(np.abs(_loo_z(x, np.zeros_like(x), 1e-12)), axis=1))
-    return float(np.quantile(np.concatenate(maxima), q))
-
-
-def _loo_z(x: np.ndarray, se: np.ndarray, floor: float | np.ndarray) -> np.ndarray:
-    """Leave-one-out robust z of each entry of the rows of x [R, N] (N units; se: their
-    standard errors, [R, N]; floor: a least scale, so that a parameter that barely varies
-    divides by no zero)."""
+def _loo_z(x: np.ndarray, se: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """z of every unit (last axis) against the reference units other than itself.
+    x, se: [..., N]; ref: [N] bool."""
     n = x.shape[-1]
-    idx = np.array([[j for j in range(n) if j != i] for i in range(n)])  # [N, N-1]
-    others = x[..., idx]  # [R, N, N-1]
-    centre = np.median(others, axis=-1)
-    mad = MAD_SCALE * np.median(np.abs(others - centre[..., None]), axis=-1)
-    noise = np.median(se[..., idx] ** 2, axis=-1)  # the others' typical estimation noise
-    design2 = np.maximum(mad ** 2 - noise, 0.0)
-    scale = np.sqrt(design2 + se ** 2 + np.square(floor))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = (x - centre) / scale
-    return np.where(scale > 0, z, np.where(x == centre, 0.0, np.inf))
+    z = np.empty_like(x)
+    for i in range(n):
+        others = ref.copy()
+        others[i] = False
+        k = int(others.sum())
+        xo, so = x[..., others], se[..., others]
+        mean = xo.mean(axis=-1)
+        var = xo.var(axis=-1, ddof=1)
+        design = np.maximum(var - np.mean(so ** 2, axis=-1), 0.0)
+        scale = np.sqrt(design + se[..., i] ** 2 + var / k)
+        tiny = 1e-12 * np.maximum(np.abs(mean), 1.0)
+        z[..., i] = (x[..., i] - mean) / np.maximum(scale, tiny)
+    return z
+
+
+@lru_cache(maxsize=64)
+def null_threshold(n_units: int, n_features: int, alpha: float) -> float:
+    """|z| threshold: the (1 - alpha / n_features) quantile of the largest leave-one-out |z|
+    over `n_units` units of a Gaussian line (Monte Carlo, seed 0)."""
+    rng = np.random.default_rng(0)
+    ref = np.ones(n_units, dtype=bool)
+    chunk = 20_000
+    maxima = [np.max(np.abs(_loo_z(x, np.zeros_like(x), ref)), axis=-1)
+              for x in (rng.standard_normal((chunk, n_units))
+                        for _ in range(NULL_DRAWS // chunk))]
+    return float(np.quantile(np.concatenate(maxima), 1.0 - alpha / max(1, n_features)))
 
 
 def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALARM
@@ -150,50 +165,46 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
                            note=f"nothing checked: {n} unit(s), the line's spread needs at "
                                 f"least {MIN_UNITS}")
     line, n_line = counts.most_common(1)[0]
-    outliers: list[Outlier] = []
     if 2 * n_line < n:
         return CheckResult(n, None, [], false_alarm, math.inf,
                            note="nothing checked: no structure is shared by half the units "
                                 f"({', '.join(f'{s} x{c}' for s, c in counts.most_common())})")
-    for u in units:
-        s = structure_label(u)
-        if s != line:
-            outliers.append(Outlier(u.unit, f"structure {s}, the line's is {line} ({n_line} "
-                                             f"of {n} units)", "structure"))
+    outliers = [Outlier(u.unit, f"structure {structure_label(u)}, the line's is {line} "
+                                f"({n_line} of {n} units)", "structure")
+                for u in units if structure_label(u) != line]
     same = [u for u in units if structure_label(u) == line]
-    pars = [unit_parameters(u) for u in same]
-    names = sorted(set.intersection(*(set(p) for p, _ in pars))) if pars else []
+    feats = [unit_features(u) for u in same]
+    names = sorted(set.intersection(*(set(f) for f, _ in feats)))
     if len(same) < MIN_UNITS or not names:
         return CheckResult(n, line, names, false_alarm, math.inf, outliers,
-                           note=f"parameters not checked: {len(same)} unit(s) of the line's "
-                                f"structure with {len(names)} common parameter(s)")
-    x = np.array([[p[k] for k in names] for p, _ in pars]).T  # [P, N]
-    se = np.array([[s[k] for k in names] for _, s in pars]).T
-    varied = np.ptp(x, axis=1) > 0  # a parameter the structure fixes (a grid) says nothing
-    names = [k for k, v in zip(names, varied, strict=True) if v]
-    x, se = x[varied], se[varied]
-    if not names:
-        return CheckResult(n, line, [], false_alarm, math.inf, outliers,
-                           note="parameters not checked: none varies between units")
-    floor = 1e-9 * np.maximum(np.abs(np.median(x, axis=1)), 1e-12)[:, None]
-    z = _loo_z(x, se, floor)
+                           note=f"features not checked: {len(same)} unit(s) of the line's "
+                                f"structure with {len(names)} common feature(s)")
+    x = np.array([[f[k] for k in names] for f, _ in feats]).T  # [P, N]
+    se = np.array([[s[k] for k in names] for _, s in feats]).T
     thr = null_threshold(len(same), len(names), false_alarm)
-    zmap = {u.unit: {k: float(z[i, j]) for i, k in enumerate(names)}
-            for j, u in enumerate(same)}
-    for j, u in enumerate(same):
+    ref = np.ones(len(same), dtype=bool)
+    one_sided = np.array([k == RESIDUAL for k in names])
+    while True:  # flag the farthest unit beyond the threshold, then compare the rest again
+        z = _loo_z(x, se, ref)
+        z[one_sided] = np.maximum(z[one_sided], 0.0)
+        worst = np.max(np.abs(z), axis=0)
+        cand = [j for j in np.argsort(-worst) if ref[j] and worst[j] > thr]
+        if not cand or ref.sum() - 1 < MIN_UNITS:
+            break
+        ref[cand[0]] = False
+    for j in np.flatnonzero(~ref | (np.max(np.abs(z), axis=0) > thr)):
         far = [i for i in np.argsort(-np.abs(z[:, j])) if abs(z[i, j]) > thr]
         if not far:
             continue
         parts = []
         for i in far[:3]:
-            others = np.delete(x[i], j)
-            centre = float(np.median(others))
-            spread = MAD_SCALE * float(np.median(np.abs(others - centre)))
-            parts.append(f"{names[i]} = {x[i, j]:.4g} (the others {centre:.4g} +/- "
-                         f"{spread:.2g}, z = {z[i, j]:+.1f})")
+            others = x[i, ref & (np.arange(len(same)) != j)]
+            parts.append(f"{names[i]} {x[i, j]:.4g} (the line's {others.mean():.4g} +/- "
+                         f"{others.std(ddof=1):.2g}, z {z[i, j]:+.1f})")
         more = f" and {len(far) - 3} more" if len(far) > 3 else ""
-        outliers.append(Outlier(u.unit, "parameters outside the line's spread: "
+        outliers.append(Outlier(same[j].unit, "outside the line's spread: "
                                 + "; ".join(parts) + more, "parameters",
                                 float(np.max(np.abs(z[:, j])))))
+    zmap = {u.unit: {k: round(float(z[i, j]), 3) for i, k in enumerate(names)}
+            for j, u in enumerate(same)}
     return CheckResult(n, line, names, false_alarm, thr, outliers, zmap)
-

@@ -166,6 +166,55 @@ def sf_curve(fitted: Fitted, log: ChamberLog, ref: float, window_s: float,
     return out
 
 
+# The design's reference program, in board temperature: a soak at -10 C, 1 C/min up to 35 C,
+# a soak, 1 C/min down, a soak (1 h each; inside the board temperatures of a chamber's
+# usual -20..40 C or wider program, so that no unit's model extrapolates on it). `response`
+# reads a unit's model on it: what it predicts there is well determined by the unit's logs
+# even where its parameters are not (two slow parts that move together trade their
+# coefficients, not the prediction).
+REFERENCE_SOAK_S = 3600.0
+REFERENCE_RATE_C_PER_MIN = 1.0
+REFERENCE_RANGE_C = (-10.0, 35.0)
+
+
+def reference_points() -> list[tuple[str, float]]:
+    """(name, time s) of the reference program's points where the response is read: each
+    soak's end, and the ramps at 0, 10 and 25 C."""
+    lo, hi = REFERENCE_RANGE_C
+    ramp = (hi - lo) / REFERENCE_RATE_C_PER_MIN * 60.0
+    s = REFERENCE_SOAK_S
+    up = [(f"up {t:+.0f} C", s + (t - lo) / (hi - lo) * ramp) for t in (0.0, 10.0, 25.0)]
+    down = [(f"down {t:+.0f} C", 2 * s + ramp + (hi - t) / (hi - lo) * ramp)
+            for t in (25.0, 10.0, 0.0)]
+    return [(f"soak {lo:+.0f} C", s), *up, (f"soak {hi:+.0f} C", 2 * s + ramp), *down,
+            (f"soak {lo:+.0f} C again", 3 * s + 2 * ramp)]
+
+
+def response(fitted: Fitted, sample_dt_s: float, latitude_deg: float | None
+             ) -> dict[str, float]:
+    """The model's SF error prediction (ppm) at the reference program's points, less their
+    mean (a unit's SF offset is not its law)."""
+    from fogsf.logs.chamber_log import ChamberLog
+    from fogsf.training.train import per_sample_prediction
+
+    lo, hi = REFERENCE_RANGE_C
+    ramp = (hi - lo) / REFERENCE_RATE_C_PER_MIN * 60.0
+    s = REFERENCE_SOAK_S
+    knots_t = [0.0, s, s + ramp, 2 * s + ramp, 2 * s + 2 * ramp, 3 * s + 2 * ramp]
+    knots_c = [lo, lo, hi, hi, lo, lo]
+    t = np.arange(0.0, knots_t[-1] + sample_dt_s / 2, sample_dt_s)
+    temp = np.interp(t, knots_t, knots_c)
+    one = np.full(t.shape, 10.0)
+    log = ChamberLog(time_s=t, temp_c=temp, table_rate_dps=one, gyro_dps=one,
+                     earth_rate_dps=np.zeros_like(t), path="<reference program>",
+                     nominal_dt_s=sample_dt_s)
+    pred = np.asarray(per_sample_prediction(fitted, log, latitude_deg)[:], dtype=np.float64)
+    pts = reference_points()
+    vals = np.array([pred[min(len(pred) - 1, int(round(tp / sample_dt_s)))] for _, tp in pts])
+    vals -= vals.mean()
+    return {name: round(float(v), 3) for (name, _), v in zip(pts, vals, strict=True)}
+
+
 def utc_now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
@@ -193,6 +242,8 @@ def unit_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | 
     figures = figures_of(metrics)
     curve_log = test_log if test_log is not None else train_logs[0]
     figures["sf_curve_log"] = "test" if test_log is not None else "train"
+    figures["response_ppm"] = response(fitted, train_logs[0].sample_dt_s,
+                                       options.get("latitude_deg"))
     figures["sf_curve"] = sf_curve(fitted, curve_log, float(metrics["ref_sf_ratio"]),
                                    float(metrics["window_s"]), options.get("latitude_deg"),
                                    float(metrics["settle_s"]))
