@@ -15,12 +15,14 @@ outside the design's spread, and why, at a stated false-alarm rate. Reads only t
 - Each unit against the others of the line (leave one out): z = (x - mean) / sqrt(s^2 -
   the others' mean se^2 + se^2 + s^2 / k) (k others, s their standard deviation, se the
   standard errors, 0 where not given): a t statistic for a line of normal units. The
-  threshold on |z| is the (1 - alpha / P) quantile of the largest |z| of N normal units
-  (Monte Carlo of Gaussian lines, a fixed seed): a line of normal units gives any flag with
-  chance at most alpha (exact over the units, Bonferroni over the P features; correlated
-  features make it conservative).
-- A unit flagged leaves the reference and the others are compared again (one defect does
-  not hide a second), while the threshold stays that of the whole line.
+  threshold on |z| is the (1 - alpha' / P) quantile of the largest |z| of N normal units
+  (Monte Carlo of Gaussian lines, a fixed seed), alpha' = alpha / 2 for the residual and
+  for the other P features each (alpha when only one kind is there): a line of normal units
+  gives any flag with chance at most alpha (exact over the units, Bonferroni over the
+  features; correlated features make it conservative).
+- The farthest unit beyond the threshold is flagged and leaves the reference; the others
+  are compared again, at the threshold of a line of that many (one defect does not hide a
+  second, and the units left keep the stated rate).
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ class CheckResult:
     outliers: list[Outlier] = field(default_factory=list)
     z: dict[str, dict[str, float]] = field(default_factory=dict)  # unit -> feature -> z
     note: str = ""
+    threshold_residual_z: float = math.nan  # the residual's (one-sided), when compared
 
     @property
     def flagged(self) -> set[str]:
@@ -67,12 +70,16 @@ class CheckResult:
         return {"outliers": [{"unit": o.unit, "why": o.why} for o in self.outliers],
                 "units": self.units, "structure": self.structure,
                 "parameters": self.parameters, "false_alarm": self.false_alarm,
-                "threshold_z": self.threshold_z, "z": self.z, "note": self.note}
+                "threshold_z": self.threshold_z,
+                "threshold_residual_z": self.threshold_residual_z, "z": self.z,
+                "note": self.note}
 
     def message(self) -> str:
         lines = [f"{self.units} units; the line's structure {self.structure or '-'}; "
                  f"{len(self.parameters)} features compared; false-alarm rate "
-                 f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f})"]
+                 f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f}"
+                 + (f", the residual's z > {self.threshold_residual_z:.2f}"
+                    if math.isfinite(self.threshold_residual_z) else "") + ")"]
         if self.note:
             lines.append(self.note)
         if not self.outliers:
@@ -138,16 +145,30 @@ def _loo_z(x: np.ndarray, se: np.ndarray, ref: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
-def null_threshold(n_units: int, n_features: int, alpha: float) -> float:
-    """|z| threshold: the (1 - alpha / n_features) quantile of the largest leave-one-out |z|
-    over `n_units` units of a Gaussian line (Monte Carlo, seed 0)."""
+def null_threshold(n_units: int, n_features: int, alpha: float, one_sided: bool = False
+                   ) -> float:
+    """z threshold: the (1 - alpha / n_features) quantile of the largest leave-one-out |z|
+    (z with `one_sided`) over `n_units` units of a Gaussian line (Monte Carlo, seed 0)."""
     rng = np.random.default_rng(0)
     ref = np.ones(n_units, dtype=bool)
     chunk = 20_000
-    maxima = [np.max(np.abs(_loo_z(x, np.zeros_like(x), ref)), axis=-1)
-              for x in (rng.standard_normal((chunk, n_units))
-                        for _ in range(NULL_DRAWS // chunk))]
+    maxima = []
+    for _ in range(NULL_DRAWS // chunk):
+        x = rng.standard_normal((chunk, n_units))
+        z = _loo_z(x, np.zeros_like(x), ref)
+        maxima.append(np.max(z if one_sided else np.abs(z), axis=-1))
     return float(np.quantile(np.concatenate(maxima), 1.0 - alpha / max(1, n_features)))
+
+
+def thresholds(n_units: int, names: list[str], alpha: float) -> np.ndarray:
+    """Each feature's threshold for a line of `n_units`: alpha shared by Bonferroni, half of
+    it to the residual (one-sided) when it is there beside others, half to the rest."""
+    if RESIDUAL not in names or len(names) == 1:
+        return np.full(len(names), null_threshold(n_units, len(names), alpha,
+                                                  names == [RESIDUAL]))
+    rest = null_threshold(n_units, len(names) - 1, alpha / 2)
+    res = null_threshold(n_units, 1, alpha / 2, True)
+    return np.array([res if k == RESIDUAL else rest for k in names])
 
 
 def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALARM
@@ -181,30 +202,35 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
                                 f"structure with {len(names)} common feature(s)")
     x = np.array([[f[k] for k in names] for f, _ in feats]).T  # [P, N]
     se = np.array([[s[k] for k in names] for _, s in feats]).T
-    thr = null_threshold(len(same), len(names), false_alarm)
+    thr = thresholds(len(same), names, false_alarm)
     ref = np.ones(len(same), dtype=bool)
     one_sided = np.array([k == RESIDUAL for k in names])
-    while True:  # flag the farthest unit beyond the threshold, then compare the rest again
+    limit = np.tile(thr[:, None], (1, len(same)))  # the thresholds each unit was flagged at
+    while ref.sum() > MIN_UNITS:  # flag the farthest unit, then compare the rest again
         z = _loo_z(x, se, ref)
         z[one_sided] = np.maximum(z[one_sided], 0.0)
-        worst = np.max(np.abs(z), axis=0)
-        cand = [j for j in np.argsort(-worst) if ref[j] and worst[j] > thr]
-        if not cand or ref.sum() - 1 < MIN_UNITS:
+        t = thresholds(int(ref.sum()), names, false_alarm)  # for a line of that many
+        worst = np.where(ref, np.max(np.abs(z) / t[:, None], axis=0), 0.0)
+        if worst.max() <= 1.0:
             break
-        ref[cand[0]] = False
-    for j in np.flatnonzero(~ref | (np.max(np.abs(z), axis=0) > thr)):
-        far = [i for i in np.argsort(-np.abs(z[:, j])) if abs(z[i, j]) > thr]
-        if not far:
-            continue
+        j = int(np.argmax(worst))
+        ref[j], limit[:, j] = False, t
+    z = _loo_z(x, se, ref)
+    z[one_sided] = np.maximum(z[one_sided], 0.0)
+    for j in np.flatnonzero(~ref):
+        ratio = np.abs(z[:, j]) / limit[:, j]
+        far = [i for i in np.argsort(-ratio) if ratio[i] > 1.0]
         parts = []
         for i in far[:3]:
-            others = x[i, ref & (np.arange(len(same)) != j)]
+            others = x[i, ref]
             parts.append(f"{names[i]} {x[i, j]:.4g} (the line's {others.mean():.4g} +/- "
-                         f"{others.std(ddof=1):.2g}, z {z[i, j]:+.1f})")
+                         f"{others.std(ddof=1):.2g}, z {z[i, j]:+.1f} > {limit[i, j]:.1f})")
         more = f" and {len(far) - 3} more" if len(far) > 3 else ""
         outliers.append(Outlier(same[j].unit, "outside the line's spread: "
                                 + "; ".join(parts) + more, "parameters",
                                 float(np.max(np.abs(z[:, j])))))
     zmap = {u.unit: {k: round(float(z[i, j]), 3) for i, k in enumerate(names)}
             for j, u in enumerate(same)}
-    return CheckResult(n, line, names, false_alarm, thr, outliers, zmap)
+    return CheckResult(n, line, names, false_alarm, float(np.max(thr)), outliers, zmap,
+                       threshold_residual_z=float(thr[one_sided][0]) if one_sided.any()
+                       else math.nan)
