@@ -235,10 +235,12 @@ def fit_unit(sn: str, train_logs: list, out_dir: Path, test_log=None,  # noqa: A
     """Train a unit as `fogsf fleet add` does (the training code directly, few LSTM
     iterations) and build its record."""
     from fogsf.fleet.records import unit_record
+    from fogsf.training.fit import torch_threads
     from fogsf.training.options import TrainOptions
     from fogsf.training.train import run_training
 
     opts = TrainOptions(**{**FAST_TRAIN, **options})  # type: ignore[arg-type]
-    metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
-    return unit_record(sn, train_logs, test_log, metrics, fitted, out_dir, dict(options),
-                       keep_dir=False)
+    with torch_threads(1):  # a 1 x 16 net: one thread is fastest (several on a busy machine)
+        metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
+        return unit_record(sn, train_logs, test_log, metrics, fitted, out_dir, dict(options),
+                           keep_dir=False)

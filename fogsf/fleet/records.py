@@ -7,6 +7,7 @@ and the fitted model) and the logs it read."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 from dataclasses import asdict, dataclass, field
@@ -242,11 +243,17 @@ def unit_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | 
     figures = figures_of(metrics)
     curve_log = test_log if test_log is not None else train_logs[0]
     figures["sf_curve_log"] = "test" if test_log is not None else "train"
-    figures["response_ppm"] = response(fitted, train_logs[0].sample_dt_s,
-                                       options.get("latitude_deg"))
-    figures["sf_curve"] = sf_curve(fitted, curve_log, float(metrics["ref_sf_ratio"]),
-                                   float(metrics["window_s"]), options.get("latitude_deg"),
-                                   float(metrics["settle_s"]))
+    from fogsf.training.fit import SMALL_NET_UNITS, torch_threads
+
+    sm = fitted.stream_model
+    with contextlib.ExitStack() as stack:
+        if sm is None or sm.layers * sm.hidden <= SMALL_NET_UNITS:  # as training does: one
+            stack.enter_context(torch_threads(1))  # thread is fastest for a small net
+        figures["response_ppm"] = response(fitted, train_logs[0].sample_dt_s,
+                                           options.get("latitude_deg"))
+        figures["sf_curve"] = sf_curve(fitted, curve_log, float(metrics["ref_sf_ratio"]),
+                                       float(metrics["window_s"]), options.get("latitude_deg"),
+                                       float(metrics["settle_s"]))
     return UnitRecord(
         unit=unit, logs=logs, model_id=str(metrics.get("model_id", "")),
         model_dir=str(Path(model_dir).resolve()) if keep_dir else "",
