@@ -1,72 +1,59 @@
-"""What a unit's record keeps for the design's prior and `fleet check`: the trained model's
-structure and its physical parameters (a minimal version, read from the model folder).
+"""What the design's prior needs from one unit, as a JSON-able dict (the fleet database
+keeps it, so the database alone is enough for the prior).
 
-`summarize_unit(train_logs, model_dir)` -> {"structure": ..., "params": {...}}:
-- structure: "physics<N>" (N physics nodes), "bank" (the lag bank, with "+cross" when its
-  quadratic has cross terms), "node<N>", or the model kind for the other models; "+play"
-  when a hysteresis term joined;
-- params: the time constants of the model's filters (s, ascending: the physics nodes' are
-  identified per unit, the bank's are fixed), and its polynomial head's coefficients in ppm
-  with the features in their physical unit z = (T - 20 C) / 50 C: `lin` (per feature),
-  `quad` (the upper triangle, or the diagonal), `cube`; the bias head's, when there is one,
-  in deg/h (`bias_lin`, ...).
+`summarize_unit(train_logs, model_dir)`:
+- `series`: the unit's training logs at the model rate (`unit_fit.StepSeries.as_dict`: the
+  board temperature's block means and the measured SF target per step, float32): the
+  sufficient data to refit the unit at whatever structure the design's prior settles on
+  (node count, time constants started from the fleet's);
+- `fits`: its physics-node fits at 1, 2 and 3 nodes (`unit_fit.UnitFit.as_dict`: log time
+  constants and law coefficients, their estimation covariance, the residual variance);
+- `hours`, `steps`, `model_step_s`; from MODEL_DIR/metrics.json (when there) the structure
+  the default chose, the model id and the test's figures.
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
-import numpy as np
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.models.features import MODEL_STEP_S
 
-
-def _structure(metrics: dict, info: dict) -> str:
-    kind = metrics.get("model", "?")
-    if "physics_nodes" in info:
-        s = f"physics{len(info['physics_nodes']['taus_s'])}"
-    elif "lag_bank" in info:
-        s = "bank" + ("+cross" if info["lag_bank"].get("cross_terms") else "")
-    elif kind in ("lag-lstm", "gsa-lstm"):
-        s = f"node{max(1, len(metrics.get('filter_tau_s', [])))}"
-    else:
-        return str(kind)
-    if (metrics.get("hysteresis_choice") or {}).get("used"):
-        s += "+play"
-    return s
+SUMMARY_VERSION = 1
 
 
-def _round(a: np.ndarray) -> list:
-    return [float(f"{v:.6g}") for v in np.asarray(a, dtype=np.float64).ravel()]
+def summarize_unit(train_logs: list[ChamberLog] | list[str] | list[Path],
+                   model_dir: str | Path | None = None,
+                   step_s: float = MODEL_STEP_S, latitude_deg: float | None = None) -> dict:
+    from fogsf.fleet.prior import K_CHOICES
+    from fogsf.fleet.unit_fit import fit_unit, step_series
 
-
-def summarize_unit(train_logs: list, model_dir: str | Path) -> dict[str, Any]:
-    """The unit's structure and parameters from the model `fogsf train` wrote into
-    `model_dir` (metrics.json, train_info.json and, for the exportable models, the
-    firmware artifact). `train_logs`: the logs it was trained on (unused here)."""
-    d = Path(model_dir)
-    metrics = json.loads((d / "metrics.json").read_text())
-    info_path = d / "train_info.json"
-    info = json.loads(info_path.read_text()) if info_path.is_file() else {}
-    params: dict[str, Any] = {"tau_s": sorted(float(t) for t in
-                                              metrics.get("filter_tau_s", []))}
-    out: dict[str, Any] = {"structure": _structure(metrics, info), "params": params}
-    if not metrics.get("exportable"):
-        return out
-    from fogsf.models.stream import StreamModel
-
-    sm = StreamModel.load(d)
-    w = sm.weights
-    scale = float(np.asarray(w["out_scale"]).ravel()[0])
-    k = sm.n_filters
-    order = [0] + [1 + int(i) for i in np.argsort(sm.filter_tau_s)]  # T, then nodes by tau
-    lin = np.asarray(w["skip_w"], dtype=np.float64) * scale
-    params["lin_ppm"] = _round(lin[order] if lin.size == k + 1 else lin)
-    if sm.poly_head:
-        quad = np.asarray(w["quad_w"], dtype=np.float64) * scale
-        if quad.ndim == 2 and quad.shape[0] == k + 1:
-            quad = quad[np.ix_(order, order)]
-            quad = (quad + quad.T - np.diag(np.diag(quad)))[np.triu_indices(k + 1)]
-        params["quad_ppm"] = _round(quad)
-        params["cube_ppm"] = _round(np.asarray(w["cube_w"], dtype=np.float64)[:1] * scale)
+    logs = [_as_log(lg) for lg in train_logs]
+    series = step_series(logs, step_s, latitude_deg)
+    out: dict = {"summary_version": SUMMARY_VERSION, "model_step_s": series.step_s,
+                 "hours": series.hours, "steps": int(series.y.size),
+                 "series": series.as_dict(),
+                 "fits": {str(k): fit_unit(series, k).as_dict() for k in K_CHOICES}}
+    metrics = Path(model_dir) / "metrics.json" if model_dir is not None else None
+    if metrics is not None and metrics.is_file():
+        m = json.loads(metrics.read_text())
+        out["model"] = {"model_id": m.get("model_id"),
+                        "structure": (m.get("structure_choice") or {}).get("chosen"),
+                        "noise_floor_ppm": m.get("noise_floor_ppm")}
     return out
+
+
+def _as_log(lg: ChamberLog | str | Path) -> ChamberLog:
+    if isinstance(lg, ChamberLog):
+        return lg
+    from fogsf.logs.logio import read_log
+
+    return read_log(lg)
+
+
+def series_of(summary: dict):  # noqa: ANN201 - unit_fit.StepSeries, imported late
+    """The unit's step series back from its summary."""
+    from fogsf.fleet.unit_fit import StepSeries
+
+    return StepSeries.from_dict(summary["series"])
