@@ -44,7 +44,8 @@ def test_add_list_remove(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     train = rec["logs"][0]
     assert train["sha256"] == hashlib.sha256(logs["r2"].read_bytes()).hexdigest()
     assert train["path"] == str(logs["r2"].resolve()) and train["rows"] == 1801
-    assert rec["summary"]["structure"] == "physics1" and rec["figures"]["response_ppm"]
+    assert rec["fitted_with"]["structure"] == "physics1" and rec["figures"]["response_ppm"]
+    assert rec["summary"]["fits"]  # what the design's prior reads
     metrics = json.loads((model / "metrics.json").read_text())
     assert rec["model_id"] == metrics["model_id"]
     assert rec["figures"]["test_after_rms_ppm"] == pytest.approx(

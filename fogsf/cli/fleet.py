@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
 def run_add(args: argparse.Namespace) -> int:
     from fogsf.cli.arguments import read_logs
     from fogsf.cli.train import format_metrics, train_options
-    from fogsf.fleet.records import unit_record
+    from fogsf.fleet.records import structure_of, unit_record
     from fogsf.fleet.store import open_store
     from fogsf.training.train import run_training
 
@@ -146,7 +146,7 @@ def run_add(args: argparse.Namespace) -> int:
         store.add(record, replace=args.replace)
         n = len(store.units())
     print(f"recorded unit {record.unit} in {store.location} ({n} units); "
-          f"structure {record.summary.get('structure', '?')}"
+          f"structure {structure_of(record)}"
           + (f", model in {args.out}" if args.out else ""))
     return 0
 
@@ -227,6 +227,7 @@ def json_safe(x: object) -> object:
 
 
 def run_list(args: argparse.Namespace) -> int:
+    from fogsf.fleet.records import structure_of
     from fogsf.fleet.store import open_store
 
     with open_store(args.fleet) as store:
@@ -248,7 +249,7 @@ def run_list(args: argparse.Namespace) -> int:
         interval = (f"{iv['rms_lo_ppm'] / floor:.1f}-{iv['rms_hi_ppm'] / floor:.1f}"
                     if iv and floor else "-")
         print(row.format(u.unit[:16], f"{u.chamber_hours:.1f} h", len(u.logs),
-                         str(u.summary.get("structure", "?"))[:24],
+                         structure_of(u)[:24],
                          _fmt(f.get("train_rms_over_floor")), _fmt(f.get("test_rms_over_floor")),
                          interval, u.created_utc))
     print("x: RMS SF error left / the noise floor")

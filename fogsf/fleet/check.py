@@ -34,7 +34,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from fogsf.fleet.records import UnitRecord
+from fogsf.fleet.records import UnitRecord, structure_of
 
 DEFAULT_FALSE_ALARM = 0.01
 MIN_UNITS = 5  # fewer: the spread cannot be told from the units, nothing is checked
@@ -120,9 +120,7 @@ def unit_features(rec: UnitRecord) -> tuple[dict[str, float], dict[str, float]]:
     return feats, {k: abs(se.get(k, 0.0)) for k in feats}
 
 
-def structure_label(rec: UnitRecord) -> str:
-    s = rec.summary.get("structure", "?")
-    return s if isinstance(s, str) else str(s)
+structure_label = structure_of
 
 
 def _loo_z(x: np.ndarray, se: np.ndarray, ref: np.ndarray) -> np.ndarray:

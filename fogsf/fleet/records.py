@@ -220,13 +220,37 @@ def utc_now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def fitted_with(metrics: dict, options: dict[str, Any]) -> dict[str, Any]:
-    """What the model was fitted with: its kind, its structure and the training options."""
-    choice = metrics.get("structure_choice") or {}
-    hyst = metrics.get("hysteresis_choice") or {}
-    return {"model": metrics.get("model"), "structure": choice.get("chosen", choice),
-            "hysteresis": bool(hyst.get("used", False)), "features": metrics.get("features"),
-            "filter_tau_s": metrics.get("filter_tau_s"), "options": options}
+def structure_label(metrics: dict, info: dict) -> str:
+    """The model's structure in one word: "physics<N>" (N physics nodes), "bank" ("+cross"
+    with the cross terms), "node<N>" or the model kind; "+play" with a hysteresis term."""
+    kind = metrics.get("model", "?")
+    if "physics_nodes" in info:
+        s = f"physics{len(info['physics_nodes']['taus_s'])}"
+    elif "lag_bank" in info:
+        s = "bank" + ("+cross" if info["lag_bank"].get("cross_terms") else "")
+    elif kind in ("lag-lstm", "gsa-lstm"):
+        s = f"node{max(1, len(metrics.get('filter_tau_s', [])))}"
+    else:
+        return str(kind)
+    if (metrics.get("hysteresis_choice") or {}).get("used"):
+        s += "+play"
+    return s
+
+
+def structure_of(rec: UnitRecord) -> str:
+    """A recorded unit's structure: its summary's, else what it was fitted with."""
+    s = rec.summary.get("structure") or rec.fitted_with.get("structure") or "?"
+    return s if isinstance(s, str) else str(s)
+
+
+def fitted_with(metrics: dict, info: dict, options: dict[str, Any]) -> dict[str, Any]:
+    """What the model was fitted with: its kind, its structure (`structure_label`), why
+    (the structure choice's record, when the logs chose it) and the training options."""
+    return {"model": metrics.get("model"), "structure": structure_label(metrics, info),
+            "structure_choice": metrics.get("structure_choice"),
+            "hysteresis": bool((metrics.get("hysteresis_choice") or {}).get("used", False)),
+            "features": metrics.get("features"), "filter_tau_s": metrics.get("filter_tau_s"),
+            "options": options}
 
 
 def unit_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | None,
@@ -257,6 +281,8 @@ def unit_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | 
     return UnitRecord(
         unit=unit, logs=logs, model_id=str(metrics.get("model_id", "")),
         model_dir=str(Path(model_dir).resolve()) if keep_dir else "",
-        fitted_with=fitted_with(metrics, options), figures=figures,
+        fitted_with=fitted_with(metrics, fitted.info, options), figures=figures,
         interval=interval_of(metrics),
-        summary=summarize_unit(train_logs, model_dir), created_utc=utc_now())
+        summary=summarize_unit(train_logs, model_dir, step_s=float(metrics["model_step_s"]),
+                               latitude_deg=options.get("latitude_deg")),
+        created_utc=utc_now())

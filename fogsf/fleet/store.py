@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from fogsf.errors import UserError
-from fogsf.fleet.records import LogRecord, UnitRecord
+from fogsf.fleet.records import LogRecord, UnitRecord, structure_of
 
 # Test hook, used only by tests/test_fleet_store.py: while this variable names a file, `add`
 # creates that file once its INSERTs ran and then sleeps PAUSE_S_HOOK seconds (default 120)
@@ -80,7 +80,8 @@ SCHEMA_VERSION = len(MIGRATIONS)
 
 
 def _structure_of(summary: dict) -> str:
-    s = summary.get("structure", "")
+    """A version-1 unit's structure, from its summary."""
+    s = summary.get("structure") or (summary.get("model") or {}).get("structure") or ""
     return s if isinstance(s, str) else json.dumps(s, sort_keys=True)
 
 
@@ -176,7 +177,7 @@ class FleetStore:
                  _dumps(record.figures),
                  None if record.interval is None else _dumps(record.interval),
                  _dumps(record.summary), record.fogsf_version, record.created_utc,
-                 _structure_of(record.summary)))
+                 structure_of(record)))
             for i, lg in enumerate(record.logs):
                 self.execute(
                     "INSERT INTO logs (sn, idx, path, sha256, n_rows, span_s, sample_rate_hz, "
