@@ -9,6 +9,9 @@ command -v arm-none-eabi-gcc >/dev/null 2>&1 || need+=(gcc-arm-none-eabi)
 command -v qemu-system-arm >/dev/null 2>&1 || need+=(qemu-system-arm)
 command -v clang >/dev/null 2>&1 || need+=(clang)
 command -v cmake >/dev/null 2>&1 || need+=(cmake)
+# fogsf fleet's tests: a PostgreSQL server they start, Chromium that renders its report
+ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || need+=(postgresql)
+command -v chromium >/dev/null 2>&1 || need+=(chromium)
 if [ ${#need[@]} -eq 0 ]; then
     echo "toolchain: arm-none-eabi-gcc, qemu-system-arm, clang and cmake present"
     exit 0

@@ -32,6 +32,7 @@ import argparse
 import sys
 import textwrap
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fogsf.cli.arguments import (
     add_log_options,
@@ -45,6 +46,9 @@ from fogsf.errors import UserError
 from fogsf.models.lag_bank import BANK_LSTM_INPUTS, bank_spec
 from fogsf.training.structure_choice import choice_message
 from fogsf.training.transfer import RateTransfer, spans_ramp_rates
+
+if TYPE_CHECKING:
+    from fogsf.training.options import TrainOptions
 
 
 def _chunk(text: str) -> tuple[float, float]:
@@ -132,14 +136,29 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.training.options import TrainOptions
     from fogsf.training.train import run_training
 
     if wants_all(args):  # OUT/A per axis, then one summary
         return run_all(args, run, "train")
     train_logs = read_logs(args, args.train, on_disk=True)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
-    opts = TrainOptions(
+    opts = train_options(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a directory")
+    m, _ = run_training(opts, train_logs, test_log, out)
+    args.axis_result = m
+    print(format_metrics(m))
+    print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
+                                         f"{out} --out build/...)" if m["exportable"] else ""))
+    return 0
+
+
+def train_options(args: argparse.Namespace) -> TrainOptions:
+    """The training options of `fogsf train`'s arguments (`fogsf fleet add` takes the same)."""
+    from fogsf.training.options import TrainOptions
+
+    return TrainOptions(
         model=args.model, model_step_s=args.model_step_s, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
         settle_s=args.settle_s,
@@ -156,15 +175,6 @@ def run(args: argparse.Namespace) -> int:
         workers=args.workers, dask=args.dask, ref_sf=args.ref_sf,
         progress=not args.no_progress and sys.stderr.isatty(),
     )
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
-    m, _ = run_training(opts, train_logs, test_log, out)
-    args.axis_result = m
-    print(format_metrics(m))
-    print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
-                                         f"{out} --out build/...)" if m["exportable"] else ""))
-    return 0
 
 
 def format_metrics(m: dict) -> str:
