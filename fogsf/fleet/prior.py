@@ -53,6 +53,7 @@ class DesignPrior:
     # against the design reads (a few units span few of the p directions: a unit may
     # differ from the design where no unit of the fleet happened to)
     sigma_check: np.ndarray
+    step_noise_ppm2: float  # the units' median residual variance per model step
 
     def as_dict(self) -> dict:
         return {"k": self.k, "mu": self.mu.tolist(), "sigma": self.sigma.tolist(),
@@ -133,7 +134,8 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     noise = cv.mean(axis=0)
     sigma = _spread(between, noise, n, SHRINK)
     return DesignPrior(k, mu, sigma, [sn for sn, kp in zip(names, keep, strict=True) if kp],
-                       left, scores, between, noise, _spread(between, noise, n, None))
+                       left, scores, between, noise, _spread(between, noise, n, None),
+                       float(np.median([fits[sn].sse / fits[sn].n for sn in names])))
 
 
 def _spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None
