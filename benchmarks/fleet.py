@@ -13,7 +13,9 @@ by default, development 0-9999 with `--seeds dev`, where tuning belongs):
   30 min soaks): test RMS / noise floor;
   - `prior`: the unit's MAP under the prior (`prior_map.map_fit`), the law `fogsf train
     --prior` carries in its head (the LSTM on top is left out here: the bench scores the
-    least-squares part, which the LSTM's validation keeps unless it does better);
+    least-squares part, which the LSTM's validation keeps unless it does better); on
+    `full` the design's structure fitted to the unit's own program (the prior adds
+    nothing there);
   - `default`: `fogsf train` without the prior on `loop2h` and `up05` (its LSTM included);
   - `alone`: the default's least-squares part (no LSTM iterations) on every run, for the
     chamber hours each residual takes;
@@ -119,10 +121,16 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                     else [simulate_run(design, u, r)]) for r in runs}
         row: dict = {"unit": u, "prior": {}, "alone": {}, "default": {}, "chi2": {},
                      "share": {}}
+        full_fit = fit_unit(step_series(logs["full"] if "full" in logs else
+                                        [simulate_run(design, u, x) for x in FULL]),
+                            big.k, np.exp(big.mu[:big.k]))
+        row["oracle_full"] = _score(test, full_fit.theta, big.k)
         for r, lg in logs.items():
-            s = step_series(lg)
             for n, p in priors.items():
-                mf = map_fit(s, p)
+                if r == "full":  # the full program decides the unit: its own fit
+                    row["prior"][f"{r}/{n}"] = row["oracle_full"]
+                    continue
+                mf = map_fit(step_series(lg), p)
                 row["prior"][f"{r}/{n}"] = _score(test, mf.theta, p.k)
                 if n == max(fleets):
                     row["chi2"][r] = [mf.chi2, mf.chi2_limit]
@@ -130,10 +138,6 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
             row["alone"][r] = _default(lg, test, 0, u)
             if default and r in DEFAULT_ON:
                 row["default"][r] = _default(lg, test, None, u)
-        full_fit = fit_unit(step_series(logs["full"] if "full" in logs else
-                                        [simulate_run(design, u, x) for x in FULL]),
-                            big.k, np.exp(big.mu[:big.k]))
-        row["oracle_full"] = _score(test, full_fit.theta, big.k)
         if "loop2h" in logs:  # the MAP knowing the unit's time constants
             tight = fp.DesignPrior(**{**big.__dict__})
             tight.mu = big.mu.copy()
@@ -169,7 +173,7 @@ def summarise(rows: list[dict], fleets: tuple[int, ...], runs: tuple[str, ...]) 
     if all("oracle_taus_loop2h" in u for u in units):
         s["oracle_taus_loop2h"] = _stats([u["oracle_taus_loop2h"] for u in units])
     s["disagree"] = {r: sum(1 for u in units if u["chi2"][r][0] > u["chi2"][r][1])
-                     for r in runs}
+                     for r in runs if r != "full"}
     big = max(fleets)
     for level in LEVELS:
         hp = [RUNS[r] for r in runs if s["prior"][f"{r}/{big}"]["median"] <= level]
