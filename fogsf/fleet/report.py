@@ -125,8 +125,6 @@ def _plots(units: list[UnitRecord], result: CheckResult, out: Path) -> None:
         ax.set_xticks(range(len(names)))
         ax.set_xticklabels([k.split(".", 1)[-1] for k in names], rotation=30, ha="right",
                            fontsize=8)
-        ax.set_yscale("symlog", linthresh=max(1.0, min(thr, 10.0)) if math.isfinite(thr)
-                      else 1.0)
         if flagged:
             ax.legend(fontsize=8, loc="upper right")
     else:
