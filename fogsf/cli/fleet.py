@@ -123,7 +123,7 @@ def run_add(args: argparse.Namespace) -> int:
     from fogsf.fleet.store import open_store
     from fogsf.training.train import run_training
 
-    if not args.unit.strip():
+    if not (getattr(args, "unit", None) or "").strip():
         raise UserError("--unit must name the unit (its serial number)")
     with open_store(args.fleet) as store:  # refuse a unit already there before training it
         if store.has(args.unit) and not args.replace:
