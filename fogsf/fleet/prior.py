@@ -11,8 +11,9 @@ database by `unit_summary`):
    (robust Mahalanobis distance on a robust scale, `robust_keep`);
 4. the population: mean mu of theta and its spread Sigma = Cov(theta_i) - mean(C_i) (each
    unit's estimation covariance C_i taken out, the method of moments), its eigenvalues
-   kept at least a FLOOR share of the between-unit variance, shrunk toward its diagonal
-   by the share p / (p + N) (a few units cannot pin p(p+1)/2 covariances).
+   kept at least a FLOOR share of the between-unit variance (in the units' correlation
+   scale); for the check of a new unit against the design also shrunk toward its
+   diagonal by the share p / (p + N) (a few units cannot pin p(p+1)/2 covariances).
 `map_fit` fits a new unit under the prior (prior_map.py).
 """
 
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.fleet.unit_fit import StepSeries, UnitFit, fit_unit
+from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, UnitFit, fit_unit, predict
 
 K_CHOICES = (1, 2, 3)
 STRUCTURE_TOLERANCE = 0.05
@@ -31,6 +32,10 @@ STRUCTURE_TOLERANCE = 0.05
 # (`robust_keep`)
 OUTLIER_Z = 4.0
 FLOOR = 1e-3
+# the spread's shrinkage toward its diagonal for the MAP (None: p / (p + N)): none, the
+# units' own directions of variation kept (development designs 5, 12: the 2 h loop's
+# median 3.0 x the floor against 4.5 x with p / (p + N))
+SHRINK: float | None = 0.0
 MIN_UNITS = 3
 
 
@@ -44,6 +49,11 @@ class DesignPrior:
     k_scores: dict[int, float]  # total misfit per node count (ppm^2 per step)
     between: np.ndarray  # the raw covariance of the units' fits
     noise: np.ndarray  # the mean estimation covariance taken out
+    # the spread shrunk toward its diagonal by p / (p + N): what the check of a new unit
+    # against the design reads (a few units span few of the p directions: a unit may
+    # differ from the design where no unit of the fleet happened to)
+    sigma_check: np.ndarray
+    step_noise_ppm2: float  # the units' median residual variance per model step
 
     def as_dict(self) -> dict:
         return {"k": self.k, "mu": self.mu.tolist(), "sigma": self.sigma.tolist(),
@@ -55,13 +65,22 @@ class DesignPrior:
 
 def choose_k(series: dict[str, StepSeries], fits: dict[int, dict[str, UnitFit]]
              ) -> tuple[int, dict[int, float]]:
-    """The node count whose fits leave the least mean residual variance per unit, the
-    smallest within STRUCTURE_TOLERANCE of the best."""
-    scores = {k: float(np.median([f.sse / f.n for f in fk.values()]))
+    """The node count whose fits leave the least misfit per unit (the median over units of
+    the mean square of the residuals' WINDOW_S means: the noise of single steps averaged
+    out), the smallest within STRUCTURE_TOLERANCE of the best."""
+    scores = {k: float(np.median([window_misfit(series[sn], f) for sn, f in fk.items()]))
               for k, fk in fits.items()}
     best = min(scores.values())
     k = min(k for k, s in scores.items() if s <= best * (1.0 + STRUCTURE_TOLERANCE))
     return k, scores
+
+
+def window_misfit(series: StepSeries, fit: UnitFit) -> float:
+    """Mean square (ppm^2) of the fit's residuals averaged over WINDOW_S windows."""
+    r = series.y - predict(series, fit.theta, fit.k)
+    w = max(1, int(round(WINDOW_S / series.step_s)))
+    n = r.size // w
+    return float(np.mean(r[:n * w].reshape(n, w).mean(axis=1) ** 2)) if n else float(r @ r)
 
 
 def robust_keep(thetas: np.ndarray, covs: np.ndarray) -> np.ndarray:
@@ -113,13 +132,16 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     n, p = th.shape
     between = np.cov(th.T, ddof=1) if n > 1 else np.zeros((p, p))
     noise = cv.mean(axis=0)
-    sigma = _spread(between, noise, n)
+    sigma = _spread(between, noise, n, SHRINK)
     return DesignPrior(k, mu, sigma, [sn for sn, kp in zip(names, keep, strict=True) if kp],
-                       left, scores, between, noise)
+                       left, scores, between, noise, _spread(between, noise, n, None),
+                       float(np.median([fits[sn].sse / fits[sn].n for sn in names])))
 
 
-def _spread(between: np.ndarray, noise: np.ndarray, n: int) -> np.ndarray:
-    """Sigma = between - noise, eigenvalues floored, shrunk toward the diagonal."""
+def _spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None
+            ) -> np.ndarray:
+    """Sigma = between - noise, eigenvalues floored, shrunk toward the diagonal by `shrink`
+    (None: p / (p + n))."""
     p = between.shape[0]
     d = np.sqrt(np.maximum(np.diag(between), 1e-300))
     corr_b = between / np.outer(d, d)
@@ -127,6 +149,6 @@ def _spread(between: np.ndarray, noise: np.ndarray, n: int) -> np.ndarray:
     ev, vec = np.linalg.eigh(corr_b - corr_n)
     ev = np.maximum(ev, FLOOR)
     s = (vec * ev) @ vec.T
-    a = p / (p + n)
+    a = p / (p + n) if shrink is None else shrink
     s = (1.0 - a) * s + a * np.diag(np.diag(s))
     return s * np.outer(d, d)

@@ -9,10 +9,10 @@ by Levenberg-Marquardt on the stacked residual [(y - f) / s, L (theta - mu)], L^
 Sigma^-1: a penalised variable projection. The posterior covariance is (J^T J / s^2 +
 Sigma^-1)^-1, the interval counts the prior's spread through it.
 
-The unit's data disagree with the design when J at the MAP exceeds the data-only fit's
-|y - f(theta_alone)|^2 / s^2 by more than the chi-square(p) quantile at DISAGREE_LEVEL:
-for a linear model this difference is (theta_alone - mu)^T (Sigma + C)^-1 (theta_alone -
-mu), the data-only fit against the prior predictive, computed without inverting C.
+The unit's data disagree with the design when its data-only fit lies outside the prior
+predictive: (theta_alone - mu)^T (Sigma_check + C)^-1 (theta_alone - mu) over the
+chi-square(p) quantile at DISAGREE_LEVEL (C the fit's estimation covariance, Sigma_check
+the spread shrunk toward its diagonal, `prior.DesignPrior.sigma_check`).
 """
 
 from __future__ import annotations
@@ -23,9 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.fleet.prior import DesignPrior
-from fogsf.fleet.unit_fit import StepSeries, design_matrix, fit_unit, jacobian
+from fogsf.fleet.unit_fit import StepSeries, UnitFit, design_matrix, fit_unit, jacobian
 
 DISAGREE_LEVEL = 1e-3
+# the unit's own data weighed at this multiple of its estimated precision: 1 is the
+# white-noise-with-correlation estimate (`unit_fit.correlation_factor`)
+DATA_WEIGHT = 1.0
 GROUPS = ("time constants", "intercept and linear", "quadratic and cross", "cube of T")
 
 
@@ -37,7 +40,7 @@ class MapFit:
     s2: float  # the data's noise variance used
     objective: float
     alone_objective: float
-    chi2: float  # objective - alone_objective
+    chi2: float  # the data-only fit against the prior predictive (`check_chi2`)
     chi2_limit: float
     prior_share: dict[str, float]  # per group: the prior's share of the posterior precision
     alone_theta: np.ndarray
@@ -101,14 +104,16 @@ class _Problem:
         return theta, r
 
 
-def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30) -> MapFit:
-    """The new unit's MAP under `prior`, its posterior, the prior's share, the check."""
+def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
+            data_weight: float | None = None) -> MapFit:
+    """The new unit's MAP under `prior`, its posterior, the prior's share, the check.
+    `data_weight`: the unit's noise variance divided by this (default DATA_WEIGHT)."""
     k = prior.k
     alone = fit_unit(series, k, np.exp(prior.mu[:k]))
     grid_alone = fit_unit(series, k)
     if grid_alone.sse < alone.sse:
         alone = grid_alone
-    s2 = alone.sigma2
+    s2 = alone.sigma2 / (DATA_WEIGHT if data_weight is None else data_weight)
     pb = _Problem(series, prior, s2)
     starts = [prior.mu[:k].copy(), np.sort(alone.theta[:k])]
     best: tuple[float, np.ndarray] | None = None
@@ -126,9 +131,25 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30) -> MapFi
     cov = np.linalg.inv(prec_data + prec_prior)
     alone_obj = alone.sse / s2
     p = theta.size
-    return MapFit(k, theta, cov, s2, obj, alone_obj, obj - alone_obj,
+    return MapFit(k, theta, cov, s2, obj, alone_obj,
+                  check_chi2(series, prior, alone.sigma2, alone, max_iter),
                   chi2_quantile(p, DISAGREE_LEVEL),
                   _shares(cov, prior.sigma, k), alone.theta)
+
+
+def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit,
+               max_iter: int) -> float:
+    """min_theta J_check(theta) - |y - f(theta_alone)|^2 / s^2, J_check the objective with
+    the spread shrunk toward its diagonal (`DesignPrior.sigma_check`), s^2 the unit's noise
+    with its residuals' correlation: for a linear model (theta_alone - mu)^T (Sigma_check +
+    C)^-1 (theta_alone - mu), the unit's data-only fit against the design's prior
+    predictive, without inverting the short run's C."""
+    wide = DesignPrior(**{**prior.__dict__, "sigma": prior.sigma_check})
+    pb = _Problem(series, wide, s2)
+    best = min(float(r @ r) for r in (pb.coef(_lm(pb, st, max_iter)[:prior.k])[1]
+                                       for st in (prior.mu[:prior.k].copy(),
+                                                  np.sort(alone.theta[:prior.k]))))
+    return best - alone.sse / s2
 
 
 def _groups(k: int) -> dict[str, list[int]]:

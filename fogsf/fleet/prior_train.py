@@ -38,7 +38,7 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
     return learn(series, first=first)
 
 
-def prior_from_store(path: str) -> DesignPrior:
+def prior_from_store(path: str) -> DesignPrior:  # noqa: D401
     """The design's prior from the fleet database at `path` (its units' summaries)."""
     from fogsf.fleet.store import open_store
 
@@ -140,3 +140,34 @@ def _rewrite(path: Path, obj: dict) -> None:
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(obj, indent=2) + "\n")
     os.replace(tmp, path)
+
+
+def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog],
+                   test_log: ChamberLog | None, out: Path) -> dict:
+    """`fogsf train --prior FLEET [--unit SN]`: the prior from FLEET, the unit trained under
+    it into `out`, recorded in FLEET with --unit; metrics.json's content."""
+    from fogsf.errors import UserError
+    from fogsf.fleet.store import open_store
+
+    unit = getattr(args, "unit", None)
+    with open_store(args.prior) as store:  # type: ignore[attr-defined]
+        if unit is not None and store.has(unit):
+            raise UserError(f"unit {unit!r} is already in {store.location} (`fogsf fleet "
+                            "remove` it first)")
+        summaries = {u.unit: u.summary for u in store.units() if u.summary.get("series")}
+    if len(summaries) < 2:
+        raise UserError(f"the design's prior needs at least two units in {args.prior} "  # type: ignore[attr-defined]
+                        f"with their logs' summary, it has {len(summaries)} (fogsf fleet add)")
+    prior = prior_from_summaries(summaries)
+    metrics, fitted = train_with_prior(opts, train_logs, test_log, out, prior)
+    if unit is not None:
+        from fogsf.fleet.records import unit_record
+
+        options = {k: v for k, v in vars(opts).items()
+                   if k not in ("progress", "workers", "dask", "extra")}
+        options["prior"] = {"fleet_units": prior.units, "used": metrics["prior"]["used"]}
+        record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
+        with open_store(args.prior) as store:  # type: ignore[attr-defined]
+            store.add(record)
+        print(f"recorded unit {unit} in {store.location}")
+    return metrics

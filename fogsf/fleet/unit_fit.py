@@ -6,10 +6,12 @@ node count K the unit's parameters are theta = [log tau_1..K (ascending), interc
 linear, quadratic-with-cross-terms and cube coefficients of `models.physics_nodes`] (the
 law on z = [T, node_1..K] / 50 C, ppm). `fit_unit` finds them by variable projection (as
 `fogsf train --structure physics` does, optionally started from given time constants: the
-design's, so every unit's nodes are the same nodes), with their estimation covariance:
-sigma^2 (J^T J)^-1, J the Jacobian of the model in theta, sigma^2 the residual variance
-times the residuals' correlation over SCORE_WINDOW_S windows (model steps are not
-independent: a structure's misfit is slow).
+design's, so every unit's nodes are the same nodes), with their estimation covariance
+sigma^2 (J^T J)^-1, J the Jacobian of the model in theta. sigma2 is the residual variance
+times the residuals' correlation over WINDOW_S windows (model steps are not
+independent: a structure's misfit is slow) for the weight of the unit's data, the residual
+variance alone for the estimation covariance (the misfit of the design's structure is
+common to its units: it moves every unit's fit alike, not one unit's).
 """
 
 from __future__ import annotations
@@ -180,11 +182,26 @@ def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None)
     resid = series.y - x @ theta[k:]
     sse = float(resid @ resid)
     n = series.y.size
-    sigma2 = sse / max(1, n - theta.size) * correlation_factor(resid, series.step_s)
+    white = sse / max(1, n - theta.size)
+    return UnitFit(k, theta, estimation_cov(series, theta, k, white),
+                   white * correlation_factor(resid, series.step_s), sse, n)
+
+
+def estimation_cov(series: StepSeries, theta: np.ndarray, k: int, white: float) -> np.ndarray:
+    """The ridge fit's estimation covariance, white (J^T J + P)^-1 J^T J (J^T J + P)^-1, P
+    the ridge penalty on the law's coefficients (intercept and time constants free): the
+    penalty pins the collinear nodes' directions, and the units' fits scatter as this."""
     jac = jacobian(series, theta, k)
     a = jac.T @ jac
-    a += np.eye(a.shape[0]) * 1e-9 * float(np.mean(np.diag(a)))
-    return UnitFit(k, theta, sigma2 * np.linalg.inv(a), sigma2, sse, n)
+    x = jac[:, k + 1:]
+    xc = x - x.mean(axis=0)
+    pen = NODE_LAMBDA * float(np.trace(xc.T @ xc)) / max(1, x.shape[1])
+    p = np.zeros(a.shape[0])
+    p[k + 1:] = pen
+    p[:k + 1] = 1e-9 * float(np.mean(np.diag(a)))
+    inv = np.linalg.inv(a + np.diag(p))
+    cov = white * inv @ a @ inv
+    return 0.5 * (cov + cov.T)
 
 
 def _full(series: StepSeries) -> np.ndarray:
