@@ -45,6 +45,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         if action.dest == "out":
             action.required = False
             action.help = "model folder to keep (default: none, the database holds the unit)"
+        if action.dest == "unit":  # train's --unit (with --prior): here it is required
+            action.required = True
+            action.help = "the unit's serial number"
     if "--unit" not in p._option_string_actions:
         p.add_argument("--unit", required=True, metavar="SN", help="the unit's serial number")
     p.add_argument("--replace", action="store_true",
@@ -125,6 +128,10 @@ def run_add(args: argparse.Namespace) -> int:
 
     if not (getattr(args, "unit", None) or "").strip():
         raise UserError("--unit must name the unit (its serial number)")
+    if getattr(args, "prior", None):
+        raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
+                        "under the design's prior and record it: fogsf train --prior FLEET "
+                        "--unit SN ...")
     with open_store(args.fleet) as store:  # refuse a unit already there before training it
         if store.has(args.unit) and not args.replace:
             raise UserError(f"unit {args.unit!r} is already in {store.location} (--replace "
