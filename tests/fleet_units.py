@@ -156,28 +156,22 @@ def raw_execute(fleet: str, statements: list[str]) -> None:
 
 
 # --- simulated units of one design ------------------------------------------------------------
+# Units from the simulator's designs (`fogsf.sim.fleet_units`: time constants +/-15 %, SF
+# coefficients +/-25 %, bias, hysteresis and ARW around the design's); the defect drawn here,
+# its strength from a stated range.
 
-TAU_SPREAD = 0.15  # a unit's time constants: the design's x U(1 - s, 1 + s)
-SF_SPREAD = 0.25  # a unit's SF law coefficients: the design's x U(1 - s, 1 + s)
-DEFECTS = ("slope", "mode_hop")
+DEFECTS = ("slope", "tau", "mode_hop")
 SLOPE_FACTOR = (3.0, 5.0)  # a defective part's SF slope: the design's x this, either sign
+TAU_FACTOR = (2.5, 4.0)  # the slowest part an SF factor reads: its time constant x this
 MODE_HOP_PPM = (150.0, 400.0)  # a mode hop: an SF step of this size, either sign,
 MODE_HOP_AT_C = (5.0, 25.0)  # above this source temperature
 
 
-def unit_config(design, rng: np.random.Generator):  # noqa: ANN001, ANN201 - SimConfig
-    """One unit of `design` (a SimConfig): its time constants and SF coefficients drawn
-    around the design's by TAU_SPREAD and SF_SPREAD."""
-    import copy
+def unit_config(design_seed: int, index: int):  # noqa: ANN201 - SimConfig
+    """Unit `index` of design `design_seed` (`fogsf.sim.fleet_units.unit_for`)."""
+    from fogsf.sim.fleet_units import unit_for
 
-    cfg = copy.deepcopy(design)
-    for n in cfg.thermal.nodes:
-        n.tau_s *= float(rng.uniform(1 - TAU_SPREAD, 1 + TAU_SPREAD))
-    for t in cfg.sf.terms:
-        t.lin_ppm_per_c *= float(rng.uniform(1 - SF_SPREAD, 1 + SF_SPREAD))
-        t.quad_ppm_per_c2 *= float(rng.uniform(1 - SF_SPREAD, 1 + SF_SPREAD))
-        t.cube_ppm_per_c3 *= float(rng.uniform(1 - SF_SPREAD, 1 + SF_SPREAD))
-    return cfg
+    return unit_for(design_seed, index)
 
 
 def loop_program(rate: float = 2.0, lo: float = -20.0, hi: float = 40.0, soak_s: float = 1200.0
@@ -211,17 +205,23 @@ def unit_log(cfg, seed: int, defect: dict | None = None, sample_rate_hz: float =
 
 def draw_defect(rng: np.random.Generator, cfg) -> tuple[dict, object]:  # noqa: ANN001
     """A defect drawn from DEFECTS and its ranges: (what it is, the unit's config with a
-    slope defect applied)."""
+    slope or tau defect applied; a mode hop is applied to the log by `unit_log`)."""
     import copy
 
     kind = str(rng.choice(DEFECTS))
     sign = float(rng.choice([-1.0, 1.0]))
+    cfg = copy.deepcopy(cfg)
     if kind == "slope":
-        cfg = copy.deepcopy(cfg)
         term = max(cfg.sf.terms, key=lambda t: abs(t.lin_ppm_per_c))  # the strongest part
         factor = sign * float(rng.uniform(*SLOPE_FACTOR))
         term.lin_ppm_per_c *= factor
         return {"kind": kind, "part": term.name, "factor": round(factor, 3)}, cfg
+    if kind == "tau":
+        read = {name for t in cfg.sf.terms for name in t.nodes}
+        part = max((n for n in cfg.thermal.nodes[2:] if n.name in read), key=lambda n: n.tau_s)
+        factor = float(rng.uniform(*TAU_FACTOR))
+        part.tau_s *= factor
+        return {"kind": kind, "part": part.name, "factor": round(factor, 3)}, cfg
     return {"kind": kind, "ppm": round(sign * float(rng.uniform(*MODE_HOP_PPM)), 1),
             "at_c": round(float(rng.uniform(*MODE_HOP_AT_C)), 1)}, cfg
 

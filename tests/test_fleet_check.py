@@ -1,12 +1,13 @@
 """fogsf fleet check: a defective unit among units of one design is flagged, a line of
 normal units gives no flag, at the stated false-alarm rate.
 
-The simulated fleet: a development gyro of the population (seeds 1-9999) is the design; its
-units vary the time constants by +/-15 % and the SF law's coefficients by +/-25 %
-(tests/fleet_units.py); one unit is defective: its strongest part's SF slope 3-5 x off,
-either sign, or a mode hop (an SF step of 150-400 ppm, either sign, above a source
-temperature of 5-25 C). The design, the defect, its strength and the seeds are drawn with a
-seeded generator; the seed is printed on failure."""
+The simulated fleet: a development design (`fogsf.sim.fleet_units`, design seeds 1-9999;
+its units vary the time constants by +/-15 % and the SF law's coefficients by +/-25 %);
+one unit is defective: its strongest part's SF slope 3-5 x off, either sign, the slowest
+part an SF factor reads 2.5-4 x slower, or a mode hop (an SF step of 150-400 ppm, either
+sign, above a source temperature of 5-25 C; tests/fleet_units.py). The design, the
+defect, its strength and the seeds are drawn with a seeded generator; the seed is printed
+on failure."""
 
 from __future__ import annotations
 
@@ -72,20 +73,20 @@ def test_threshold_grows_with_the_features_and_shrinks_with_the_units() -> None:
 @pytest.fixture(scope="module")
 def simulated_fleet(tmp_path_factory: pytest.TempPathFactory) -> tuple[list, dict, int]:
     rng = np.random.default_rng(SEED)
-    from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
+    from fogsf.sim.population import DEV_SEEDS
 
-    gyro = int(rng.integers(DEV_SEEDS.start + 1, DEV_SEEDS.stop))
-    design = gyro_for_seed(gyro, hysteresis=False)
+    design = int(rng.integers(DEV_SEEDS.start + 1, DEV_SEEDS.stop))
+    first = int(rng.integers(0, 1000))  # the line's first unit index
     tmp = tmp_path_factory.mktemp("units")
     units = []
     for i in range(N_NORMAL + 1):
-        cfg = unit_config(design, rng)
+        cfg = unit_config(design, first + i)
         defect = None
         if i == N_NORMAL:
             defect, cfg = draw_defect(rng, cfg)
         log = unit_log(cfg, int(rng.integers(0, 2**31)), defect)
         units.append(fit_unit(f"SN{i:03d}", [log], tmp / f"u{i}", nodes=1))
-    return units, defect or {}, gyro
+    return units, defect or {}, design
 
 
 def test_a_defective_unit_is_flagged_and_normal_units_are_not(simulated_fleet) -> None:

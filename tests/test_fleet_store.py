@@ -36,10 +36,10 @@ def fleet(request: pytest.FixtureRequest, tmp_path: Path) -> str:
 
 
 def _add_process(fleet: str, sn: str, seed: int, replace: bool = False,
-                 env: dict | None = None) -> subprocess.Popen:
+                 env: dict | None = None, **kw: object) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-c", ADD_SCRIPT, fleet, sn, str(seed),
                              "1" if replace else "0"], cwd=ROOT,
-                            env={**os.environ, "PYTHONPATH": str(ROOT), **(env or {})})
+                            env={**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}, **kw)
 
 
 def _snapshot(fleet: str) -> list[dict]:
@@ -114,10 +114,21 @@ def test_two_adds_at_once_both_land(fleet: str, tmp_path: Path) -> None:
     with open_store(fleet) as store:
         assert sorted(u.unit for u in store.units()) == ["SN-A", "SN-B"]
         assert store.unit("SN-B").summary == fake_record("SN-B", seed=2).summary
+    # the same unit from two processes at once: the second is refused, the first stays
+    marker.unlink()
+    first = _add_process(fleet, "SN-C", seed=5, env={PAUSE_HOOK: str(marker),
+                                                     PAUSE_S_HOOK: "2"})
+    wait_for(marker.exists, 60.0, "the first add never reached its transaction")
+    second = _add_process(fleet, "SN-C", seed=6, stderr=subprocess.PIPE, text=True)
+    _, err = second.communicate(timeout=120)
+    assert first.wait(120) == 0 and second.returncode != 0
+    assert "already in" in err or "by another process" in err, err[-500:]
+    with open_store(fleet) as store:
+        assert store.unit("SN-C").summary == fake_record("SN-C", seed=5).summary
     # and two started together, neither pausing
     procs = [_add_process(fleet, f"SN-{i}", seed=i) for i in range(3, 5)]
     assert [p.wait(120) for p in procs] == [0, 0]
-    assert len(_snapshot(fleet)) == 4
+    assert len(_snapshot(fleet)) == 5
 
 
 # The schema as fogsf's first fleet store wrote it (frozen here: a file of version 1 must

@@ -45,6 +45,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
         if action.dest == "out":
             action.required = False
             action.help = "model folder to keep (default: none, the database holds the unit)"
+        if action.dest == "unit":  # train's --unit (with --prior): here it is required
+            action.required = True
+            action.help = "the unit's serial number"
     if "--unit" not in p._option_string_actions:
         p.add_argument("--unit", required=True, metavar="SN", help="the unit's serial number")
     p.add_argument("--replace", action="store_true",
@@ -123,8 +126,12 @@ def run_add(args: argparse.Namespace) -> int:
     from fogsf.fleet.store import open_store
     from fogsf.training.train import run_training
 
-    if not args.unit.strip():
+    if not (getattr(args, "unit", None) or "").strip():
         raise UserError("--unit must name the unit (its serial number)")
+    if getattr(args, "prior", None):
+        raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
+                        "under the design's prior and record it: fogsf train --prior FLEET "
+                        "--unit SN ...")
     with open_store(args.fleet) as store:  # refuse a unit already there before training it
         if store.has(args.unit) and not args.replace:
             raise UserError(f"unit {args.unit!r} is already in {store.location} (--replace "
@@ -169,9 +176,9 @@ def add_one(argv: list[str]) -> tuple[int, str]:
 
 
 def run_add_many(args: argparse.Namespace) -> int:
-    from fogsf.fleet.manifest import read_manifest
+    from fogsf.fleet.manifest import ManifestRow, read_manifest
     from fogsf.fleet.store import open_store
-    from fogsf.gsa.executors import open_executor, run_all
+    from fogsf.gsa.executors import open_executor
 
     rows = read_manifest(args.manifest)
     extra = shlex.split(args.train_options)
@@ -192,17 +199,33 @@ def run_add_many(args: argparse.Namespace) -> int:
         argv += ["--test", r.test] if r.test else []
         argv += ["--out", r.out] if r.out else []
         argvs.append(argv + (["--replace"] if args.replace else []))
-    with open_executor(workers=args.workers, dask=args.dask) as ex:
-        results = run_all(ex, add_one, argvs, desc="units", unit="unit",
-                          progress=not args.no_progress and sys.stderr.isatty())
-    failed = []
-    for r, (code, text) in zip(rows, results, strict=True):
+    failed: list[str] = []
+
+    def said(r: ManifestRow, code: int, text: str) -> None:  # each unit as it ends
         last = [ln for ln in text.strip().splitlines() if ln.strip()]
         if code == 0:
-            print(f"{r.unit}: {last[-1] if last else 'recorded'}")
+            print(f"{r.unit}: {last[-1] if last else 'recorded'}", flush=True)
         else:
             failed.append(r.unit)
-            print(f"{r.unit}: FAILED: {last[-1] if last else f'exit status {code}'}")
+            print(f"{r.unit}: FAILED: {last[-1] if last else f'exit status {code}'}",
+                  flush=True)
+
+    from concurrent.futures import as_completed
+
+    from tqdm import tqdm
+
+    with open_executor(workers=args.workers, dask=args.dask) as ex, \
+            tqdm(total=len(rows), desc="units", unit="unit",
+                 disable=args.no_progress or not sys.stderr.isatty()) as bar:
+        if ex is None:
+            for r, argv in zip(rows, argvs, strict=True):
+                said(r, *add_one(argv))
+                bar.update()
+        else:
+            futs = {ex.submit(add_one, argv): r for r, argv in zip(rows, argvs, strict=True)}
+            for f in as_completed(futs):
+                said(futs[f], *f.result())
+                bar.update()
     print(f"{len(rows) - len(failed)} of {len(rows)} units recorded in {args.fleet}")
     if failed:
         raise UserError(f"{len(failed)} unit(s) not recorded: {', '.join(failed)}")

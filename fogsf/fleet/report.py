@@ -19,7 +19,7 @@ import shutil
 from html import escape
 from pathlib import Path
 
-from fogsf.fleet.check import CheckResult, unit_features
+from fogsf.fleet.check import RESIDUAL, CheckResult, unit_features
 from fogsf.fleet.records import UnitRecord
 
 CSS = """body{font-family:sans-serif;margin:1.5em;color:#222}
@@ -117,14 +117,14 @@ def _plots(units: list[UnitRecord], result: CheckResult, out: Path) -> None:
                        color="tab:red" if bad else "tab:blue", zorder=3 if bad else 2,
                        label=_mpl_text(u.unit) if bad else None)
         thr = result.threshold_z
-        if math.isfinite(thr):
-            for s in (-thr, thr):
-                ax.axhline(s, color="tab:red", ls="--", lw=0.8)
+        for i, k in enumerate(names):  # each feature's threshold (the residual's one-sided)
+            t = result.threshold_residual_z if k == RESIDUAL else thr
+            if math.isfinite(t):
+                for s in ((t,) if k == RESIDUAL else (-t, t)):
+                    ax.plot([i - 0.4, i + 0.4], [s, s], color="tab:red", ls="--", lw=0.9)
         ax.set_xticks(range(len(names)))
         ax.set_xticklabels([k.split(".", 1)[-1] for k in names], rotation=30, ha="right",
                            fontsize=8)
-        ax.set_yscale("symlog", linthresh=max(1.0, min(thr, 10.0)) if math.isfinite(thr)
-                      else 1.0)
         if flagged:
             ax.legend(fontsize=8, loc="upper right")
     else:
@@ -241,7 +241,10 @@ fogsf {_e(u.fogsf_version)}, recorded {_e(u.created_utc)} UTC</p>
 <th>z</th></tr>
 {frows}</table>
 <h2>Figures, structure, parameters</h2>
-<pre>{_e(json.dumps({"figures": figs, "fitted_with": u.fitted_with, "summary": u.summary},
+<p class="note">(the summary's per-step series, which the design's prior refits from, left
+out)</p>
+<pre>{_e(json.dumps({"figures": figs, "fitted_with": u.fitted_with,
+                   "summary": {k: v for k, v in u.summary.items() if k != "series"}},
                   indent=2, sort_keys=True, default=str))}</pre>
 """)
 

@@ -311,6 +311,15 @@ class PostgresStore(FleetStore):
             return None
         return self.schema_version()
 
+    def add(self, record: UnitRecord, replace: bool = False) -> None:
+        import psycopg
+
+        try:
+            super().add(record, replace)
+        except psycopg.IntegrityError:  # another add of that unit committed first
+            raise UserError(f"unit {record.unit!r} was added to {self.location} by another "
+                            "process meanwhile (--replace to record it again)") from None
+
     def has(self, sn: str) -> bool:  # a unit's row locked until the transaction ends
         return bool(self.execute("SELECT 1 FROM units WHERE sn = ? FOR UPDATE",
                                  (sn,)).fetchall())
