@@ -92,7 +92,7 @@ HYST_N ?= 12
 bench-hysteresis: $(STAMP)
 	$(PY) -m benchmarks.hysteresis --seeds eval --n $(HYST_N) --workers 2 --kernel --out $(OUT)/bench-hysteresis.json
 
-# --- a production line: new units with their design's prior (docs/fleet-prior.md);
+# --- a production line: new units with their design's prior (docs/fleet.md);
 # FLEET_DESIGNS evaluation designs, FLEET_NEW new units each ---
 FLEET_DESIGNS ?= 2
 FLEET_NEW ?= 3
