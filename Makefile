@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware firmware-cores misra export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias paper clean
+.PHONY: help venv test lint demo firmware firmware-cores misra export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias bench-fleet paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -99,6 +99,14 @@ bench-outside: $(STAMP)
 HYST_N ?= 12
 bench-hysteresis: $(STAMP)
 	$(PY) -m benchmarks.hysteresis --seeds eval --n $(HYST_N) --workers 2 --kernel --out $(OUT)/bench-hysteresis.json
+
+# --- a production line: new units with their design's prior (docs/fleet.md);
+# FLEET_DESIGNS evaluation designs, FLEET_NEW new units each ---
+FLEET_DESIGNS ?= 2
+FLEET_NEW ?= 3
+bench-fleet: $(STAMP)
+	$(PY) -m benchmarks.fleet --seeds eval --designs $(FLEET_DESIGNS) --new $(FLEET_NEW) \
+	  --workers 2 --out $(OUT)/bench-fleet.json
 
 bench-plan: $(STAMP)
 	$(PY) -m benchmarks.plan --out $(OUT)/bench-plan.json

@@ -10,8 +10,11 @@ command -v qemu-system-arm >/dev/null 2>&1 || need+=(qemu-system-arm)
 command -v clang >/dev/null 2>&1 || need+=(clang)
 command -v cmake >/dev/null 2>&1 || need+=(cmake)
 command -v cppcheck >/dev/null 2>&1 || need+=(cppcheck)
+# fogsf fleet's tests: a PostgreSQL server they start, Chromium that renders its report
+ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || need+=(postgresql)
+command -v chromium >/dev/null 2>&1 || need+=(chromium)
 if [ ${#need[@]} -eq 0 ]; then
-    echo "toolchain: arm-none-eabi-gcc, qemu-system-arm, clang, cmake and cppcheck present"
+    echo "toolchain: arm-none-eabi-gcc, qemu-system-arm, clang, cmake, cppcheck, postgresql and chromium present"
     exit 0
 fi
 if [ "$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then

@@ -27,6 +27,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                  "fit the simulator to measured logs, name what it misses, extend it"),
     "plan": ("fogsf.cli.plan",
              "the chamber program that buys the most accuracy per chamber hour"),
+    "fleet": ("fogsf.cli.fleet",
+              "units of one design in one database: add, list, remove, check, report"),
 }
 
 

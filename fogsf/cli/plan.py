@@ -17,8 +17,13 @@ Writes OUT/program.csv (the best program, `time_s,temp_c`: what `fogsf simulate
 compared), OUT/plan.json and OUT/plan.png (temperature program; predicted residual per
 rate, best against the paper's protocol).
 
-Example:
+With --prior FLEET --target X it plans for a new unit of a design instead: the shortest
+candidate program that reaches X times the noise floor for units drawn from the design's
+prior (learned from the units in the fleet database; docs/fleet.md).
+
+Examples:
   fogsf plan --range=-40:50 --max-ramp 3 --hours 4.5 --gyros 8 --out plan/
+  fogsf plan --prior line.fleet --target 1.3 --range=-40:50 --hours 6 --out plan-unit/
 """
 
 from __future__ import annotations
@@ -83,6 +88,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "programs and the paper's (default 4; 0 skips it)")
     p.add_argument("--top", type=positive_int, default=10,
                    help="programs printed (default 10)")
+    f = parser.add_argument_group("a new unit of a design (docs/fleet.md)")
+    f.add_argument("--prior", metavar="FLEET",
+                   help="plan for a new unit fitted with its design's prior, learned from "
+                        "the fleet database FLEET: the shortest candidate program that "
+                        "reaches --target for units drawn from the prior")
+    f.add_argument("--target", type=float, default=None, metavar="X",
+                   help="with --prior: the residual to reach, x the noise floor (median "
+                        "over units and envelope rates)")
+    f.add_argument("--units", type=positive_int, default=6, metavar="N",
+                   help="with --prior: units drawn from the prior (default 6)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
     g = parser.add_argument_group("--from-logs: how each log is fitted (as `fogsf diagnose`)")
     g.add_argument("--window-s", type=float, default=60.0,
@@ -102,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not 1 <= args.test_rates <= 12:
         raise UserError(f"--test-rates must be 1-12, got {args.test_rates}")
+    if args.prior or args.target is not None:
+        return run_prior(args)
     seeds = list(range(args.first, args.first + args.gyros))
     if seeds[0] not in DEV_SEEDS or seeds[-1] not in DEV_SEEDS:
         raise UserError(f"--first/--gyros: plan on development seeds ({DEV_SEEDS.start}-"
@@ -171,3 +188,46 @@ def fitted_gyros(logs: list[ChamberLog], window_s: float = 60.0,
         print(f"fitted a gyro to {log.path}: nodes at "
               + ", ".join(f"{n.tau_s:.0f} s" for n in out[-1].thermal.nodes[2:]))
     return out
+
+
+def run_prior(args: argparse.Namespace) -> int:
+    """`fogsf plan --prior FLEET --target X`."""
+    from fogsf.fleet.prior_plan import shortest, write
+    from fogsf.fleet.prior_train import prior_from_store
+    from fogsf.plan.evaluate import test_rates
+    from fogsf.plan.programs import Limits
+
+    if not args.prior or args.target is None:
+        raise UserError("--prior FLEET and --target X go together")
+    if not (math.isfinite(args.target) and args.target > 1.0):
+        raise UserError(f"--target must be above 1 (x the noise floor), got {args.target:g}")
+    if args.from_logs:
+        raise UserError("--prior plans for the design's units: drop --from-logs")
+    elo, ehi = args.envelope_rate
+    if elo <= 0:
+        raise UserError("--envelope-rate: rates must be positive, e.g. 0.2:2")
+    limits = Limits(args.range[0], args.range[1], args.max_ramp, args.hours)
+    rates = test_rates(elo, ehi, args.test_rates)
+    prior = prior_from_store(args.prior)
+    print(f"design's prior: {prior.k} physics nodes from {len(prior.units)} units; "
+          f"{args.units} units drawn from it, scored at "
+          + ", ".join(f"{r:.2g}" for r in rates) + " C/min")
+    t0 = time.perf_counter()
+
+    def said(r) -> None:  # noqa: ANN001 - prior_plan.PlanResult
+        print(f"  {r.program.name:<48} {r.program.hours:5.2f} h: median {r.median:.2f}, "
+              f"worst {r.worst:.2f} x the floor", flush=True)
+
+    best, tried = shortest(prior, limits, rates, args.target, args.units, progress=said)
+    write(args.out, best, tried, {"target": args.target, "limits": vars(limits),
+                                  "envelope_rates": list(rates), "units": args.units,
+                                  "fleet_units": prior.units,
+                                  "seconds": time.perf_counter() - t0})
+    if best is None:
+        print(f"no candidate within {limits.hours:g} h reaches {args.target:g} x the floor "
+              f"(best median {min(r.median for r in tried):.2f}); raise --hours or the target")
+        return 0
+    print(f"shortest program reaching {args.target:g} x: {best.program.name} "
+          f"({best.program.hours:.2f} h), median {best.median:.2f}, worst {best.worst:.2f}; "
+          f"wrote {args.out}/program.csv and plan-prior.json")
+    return 0

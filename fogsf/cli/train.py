@@ -22,8 +22,12 @@ OUT/metrics.json (before/after metrics on test and train logs, parameter count, 
 bytes) and, for the LSTM models, the firmware artifact (stream.json, stream_weights.npz)
 that `fogsf export` reads.
 
-Example:
+With --prior FLEET the unit is fitted under its design's prior, learned from the units
+already in the fleet database (docs/fleet.md, "The design's prior"); --unit SN records it.
+
+Examples:
   fogsf train --train run05.csv --train run20.csv --test run10.csv --out models/m
+  fogsf train --prior line.fleet --unit SN0042 --train short.csv --test test.csv --out m42
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ import argparse
 import sys
 import textwrap
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fogsf.cli.arguments import (
     add_log_options,
@@ -45,6 +50,9 @@ from fogsf.errors import UserError
 from fogsf.models.lag_bank import BANK_LSTM_INPUTS, bank_spec
 from fogsf.training.structure_choice import choice_message
 from fogsf.training.transfer import RateTransfer, spans_ramp_rates
+
+if TYPE_CHECKING:
+    from fogsf.training.options import TrainOptions
 
 
 def _chunk(text: str) -> tuple[float, float]:
@@ -128,18 +136,54 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="G0=100, alpha=20 (the paper's); default: normalised box, G0=3, "
                         "alpha=2, which beats random search at budgets of tens of iterations")
     add_executor_options(parser, "gsa-lstm's fitness evaluations")
+    g = parser.add_argument_group("the design's prior (docs/fleet.md)")
+    g.add_argument("--prior", metavar="FLEET",
+                   help="fit the unit under its design's prior, learned from the units in "
+                        "the fleet database FLEET (a file, or a postgresql:// URL): physics "
+                        "nodes whose time constants and law are the unit's MAP; fitted "
+                        "alone when its data disagree with the design")
+    g.add_argument("--unit", metavar="SN",
+                   help="with --prior: record the unit in FLEET under this name")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.training.options import TrainOptions
     from fogsf.training.train import run_training
 
     if wants_all(args):  # OUT/A per axis, then one summary
         return run_all(args, run, "train")
+    if args.unit and not args.prior:
+        raise UserError("--unit records the unit in a fleet: give --prior FLEET too (or use "
+                        "fogsf fleet add)")
+    if args.prior and (args.model != "lag-lstm" or args.structure or args.nodes or args.node):
+        raise UserError("--prior fits the default model (lag-lstm) on the design's physics "
+                        "nodes: drop --model, --structure, --nodes and --node")
     train_logs = read_logs(args, args.train, on_disk=True)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
-    opts = TrainOptions(
+    opts = train_options(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a directory")
+    if args.prior:
+        from fogsf.fleet.prior_train import prior_lines, train_on_prior
+
+        m = train_on_prior(args, opts, train_logs, test_log, out)
+        print(format_metrics(m))
+        print("\n".join(textwrap.fill(x, 96) for x in prior_lines(m["prior"])))
+    else:
+        m, _ = run_training(opts, train_logs, test_log, out)
+        print(format_metrics(m))
+    args.axis_result = m
+    print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
+                                         f"{out} --out build/...)" if m["exportable"] else ""))
+    return 0
+
+
+def train_options(args: argparse.Namespace) -> TrainOptions:
+    """The training options of `fogsf train`'s arguments (`fogsf fleet add` takes the same)."""
+    from fogsf.training.options import TrainOptions
+
+    return TrainOptions(
         model=args.model, model_step_s=args.model_step_s, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
         settle_s=args.settle_s,
@@ -156,15 +200,6 @@ def run(args: argparse.Namespace) -> int:
         workers=args.workers, dask=args.dask, ref_sf=args.ref_sf,
         progress=not args.no_progress and sys.stderr.isatty(),
     )
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
-    m, _ = run_training(opts, train_logs, test_log, out)
-    args.axis_result = m
-    print(format_metrics(m))
-    print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
-                                         f"{out} --out build/...)" if m["exportable"] else ""))
-    return 0
 
 
 def format_metrics(m: dict) -> str:

@@ -275,6 +275,18 @@ def _fit_physics(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = 
                           head_fn=head_fn)
 
 
+def fit_physics_head(opts: TrainOptions, logs: list[ChamberLog], taus_s: tuple[float, ...],
+                     head_fn: Callable[[TrainingInputs], NodeFit]) -> Fitted:
+    """lag-lstm on physics nodes at `taus_s` with the head `head_fn` gives (fitted outside,
+    e.g. under the design's prior, `fleet.prior_train`) and the LSTM on what it leaves."""
+    from fogsf.models.physics_nodes import node_spec
+
+    spec = node_spec(taus_s)
+    return _fit_with_spec(opts, logs, spec,
+                          _lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec)),
+                          head_fn=head_fn)
+
+
 def _fit_bank(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False,
               name: str = "bank") -> Fitted:
     """The lag bank (ridge, its quadratic in the head: diagonal, or full with the cross terms)
@@ -555,9 +567,12 @@ def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,
 
 
 def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
-                 test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, Fitted]:
+                 test_log: ChamberLog | None, out_dir: Path,
+                 fit: Callable[[TrainOptions, list[ChamberLog]], Fitted] | None = None
+                 ) -> tuple[dict, Fitted]:
     """Train, score, and write the model directory; returns metrics.json's content and the
-    fitted model."""
+    fitted model. `fit`: what fits the model instead of `fit_model` (the fleet's prior,
+    `fleet.prior_train`)."""
     from fogsf.training import bias_model as bm
 
     for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
@@ -567,7 +582,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
 
         return train_bias_only(opts, train_logs, test_log, out_dir)  # type: ignore[return-value]
     t0 = time.perf_counter()
-    fitted = fit_model(opts, train_logs)
+    fitted = (fit or fit_model)(opts, train_logs)
     shared = (None if fitted.stream_model is None else  # the bias head reads the SF's z
               bm.feature_map_of(fitted.stream_model, train_logs, opts.model_step_s))
     sf_seen: dict[int, Column] = {}

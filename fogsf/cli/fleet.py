@@ -1,0 +1,332 @@
+"""fogsf fleet: the units of one design, calibrated together, in one database.
+
+FLEET is an SQLite file (created on first use) or a postgresql:// URL that several chambers
+share. `add` trains a unit exactly as `fogsf train` does (the same options) and records it:
+its logs (path, sha256, rows, span, ramp rates), its model (id, what it was fitted with, the
+parameters the design's prior needs), its figures and interval, the fogsf version and the
+time, in one transaction (a killed add leaves the database as it was). `add-many` adds the
+units of a manifest in parallel; `list` and `remove` what the title says; `check` names the
+units unlike the line; `report` writes a static HTML report (docs/fleet.md).
+
+Examples:
+  fogsf fleet add line.fleet --unit SN001 --train SN001_loop.csv --test SN001_test.csv
+  fogsf fleet add-many line.fleet units.csv --workers 4
+  fogsf fleet list line.fleet
+  fogsf fleet check line.fleet --json outliers.json
+  fogsf fleet report line.fleet --out report/
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shlex
+import sys
+import tempfile
+from pathlib import Path
+
+from fogsf.errors import UserError
+
+FLEET_HELP = "the fleet: an SQLite file (created on first use) or a postgresql:// URL"
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    from fogsf.cli import train as train_cli
+
+    sub = parser.add_subparsers(dest="fleet_command", metavar="ACTION", required=True)
+
+    p = _action(sub, "add", "train a unit as `fogsf train` does and record it",
+                "fogsf fleet add line.fleet --unit SN001 --train SN001_loop.csv "
+                "--test SN001_test.csv --out models/SN001")
+    p.add_argument("fleet", metavar="FLEET", help=FLEET_HELP)
+    train_cli.configure(p)
+    for action in p._actions:  # the model folder is an output the fleet does not need
+        if action.dest == "out":
+            action.required = False
+            action.help = "model folder to keep (default: none, the database holds the unit)"
+        if action.dest == "unit":  # train's --unit (with --prior): here it is required
+            action.required = True
+            action.help = "the unit's serial number"
+    if "--unit" not in p._option_string_actions:
+        p.add_argument("--unit", required=True, metavar="SN", help="the unit's serial number")
+    p.add_argument("--replace", action="store_true",
+                   help="record the unit again if FLEET already has it")
+    p.set_defaults(_fleet_run=run_add)
+
+    p = _action(sub, "add-many", "add the units of a manifest, several at once",
+                "fogsf fleet add-many line.fleet units.csv --workers 4")
+    p.add_argument("fleet", metavar="FLEET", help=FLEET_HELP)
+    p.add_argument("manifest", metavar="MANIFEST.csv",
+                   help="columns unit, train (logs separated by ';'), test and out (both "
+                        "optional); relative paths are read from the manifest's folder")
+    p.add_argument("--train-options", default="", metavar='"OPTIONS"',
+                   help='`fogsf train` options for every unit, e.g. "--structure physics '
+                        '--nodes 2 --seed 1"')
+    p.add_argument("--replace", action="store_true", help="record units FLEET has again")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="units trained at once in local processes (default: one per core; "
+                        "1 = one after another)")
+    p.add_argument("--dask", default=None, metavar="SCHEDULER_ADDRESS",
+                   help="train them on a Dask cluster instead, e.g. tcp://10.0.0.5:8786 "
+                        "(its workers need fogsf and must reach the logs and FLEET)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(_fleet_run=run_add_many)
+
+    p = _action(sub, "list", "the fleet's units and their figures",
+                "fogsf fleet list line.fleet --json")
+    p.add_argument("fleet", metavar="FLEET", help=FLEET_HELP)
+    p.add_argument("--json", action="store_true", help="every record as JSON on stdout")
+    p.set_defaults(_fleet_run=run_list)
+
+    p = _action(sub, "remove", "remove a unit (its model folder stays)",
+                "fogsf fleet remove line.fleet SN001")
+    p.add_argument("fleet", metavar="FLEET", help=FLEET_HELP)
+    p.add_argument("unit", metavar="SN", help="the unit's serial number")
+    p.set_defaults(_fleet_run=run_remove)
+
+    from fogsf.fleet.check import DEFAULT_FALSE_ALARM
+
+    p = _action(sub, "check", "name the units unlike the line, and why",
+                "fogsf fleet check line.fleet --json outliers.json")
+    p.add_argument("fleet", metavar="FLEET", help=FLEET_HELP)
+    p.add_argument("--json", metavar="F", default=None,
+                   help='write {"outliers": [{"unit": SN, "why": ...}], ...} to F')
+    p.add_argument("--false-alarm", type=float, default=DEFAULT_FALSE_ALARM, metavar="P",
+                   help="chance that a line of normal units gives any flag (default "
+                        f"{DEFAULT_FALSE_ALARM:g}); Bonferroni over parameters and units")
+    p.set_defaults(_fleet_run=run_check)
+
+    p = _action(sub, "report", "a static HTML report of the fleet (opens from disk)",
+                "fogsf fleet report line.fleet --out report/ && xdg-open report/index.html")
+    p.add_argument("fleet", metavar="FLEET", help=FLEET_HELP)
+    p.add_argument("--out", required=True, metavar="DIR", help="folder to write")
+    p.add_argument("--false-alarm", type=float, default=DEFAULT_FALSE_ALARM, metavar="P",
+                   help=f"the check's false-alarm rate (default {DEFAULT_FALSE_ALARM:g})")
+    p.set_defaults(_fleet_run=run_report)
+
+
+def _action(sub: argparse._SubParsersAction, name: str, help_text: str, example: str
+            ) -> argparse.ArgumentParser:
+    return sub.add_parser(name, help=help_text, description=help_text + ".",
+                          epilog=f"Example:\n  {example}",
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def run(args: argparse.Namespace) -> int:
+    return int(args._fleet_run(args) or 0)
+
+
+# --- add ------------------------------------------------------------------------------------
+
+def run_add(args: argparse.Namespace) -> int:
+    from fogsf.cli.arguments import read_logs
+    from fogsf.cli.train import format_metrics, train_options
+    from fogsf.fleet.records import structure_of, unit_record
+    from fogsf.fleet.store import open_store
+    from fogsf.training.train import run_training
+
+    if not (getattr(args, "unit", None) or "").strip():
+        raise UserError("--unit must name the unit (its serial number)")
+    if getattr(args, "prior", None):
+        raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
+                        "under the design's prior and record it: fogsf train --prior FLEET "
+                        "--unit SN ...")
+    with open_store(args.fleet) as store:  # refuse a unit already there before training it
+        if store.has(args.unit) and not args.replace:
+            raise UserError(f"unit {args.unit!r} is already in {store.location} (--replace "
+                            "to record it again, or `fogsf fleet remove`)")
+    train_logs = read_logs(args, args.train, on_disk=True)
+    test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
+    opts = train_options(args)
+    with tempfile.TemporaryDirectory(prefix="fogsf-fleet-") as tmp:
+        out = Path(args.out) if args.out else Path(tmp)
+        if out.exists() and not out.is_dir():
+            raise UserError(f"--out {out} exists and is not a directory")
+        metrics, fitted = run_training(opts, train_logs, test_log, out)
+        print(format_metrics(metrics))
+        options = {k: v for k, v in vars(opts).items()
+                   if k not in ("progress", "workers", "dask", "extra")}
+        record = unit_record(args.unit, train_logs, test_log, metrics, fitted, out,
+                             options, keep_dir=bool(args.out))
+    with open_store(args.fleet) as store:
+        store.add(record, replace=args.replace)
+        n = len(store.units())
+    print(f"recorded unit {record.unit} in {store.location} ({n} units); "
+          f"structure {structure_of(record)}"
+          + (f", model in {args.out}" if args.out else ""))
+    return 0
+
+
+def add_one(argv: list[str]) -> tuple[int, str]:
+    """One unit of add-many, in a worker: `fogsf fleet add ARGV`; (exit status, what it
+    printed)."""
+    import contextlib
+    import io
+
+    from fogsf.cli.main import main
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
+        try:
+            code = main(["fleet", "add", *argv])
+        except SystemExit as e:  # argparse's refusal of an option
+            code = int(e.code or 0) if not isinstance(e.code, str) else 2
+    return code, buf.getvalue()
+
+
+def run_add_many(args: argparse.Namespace) -> int:
+    from fogsf.fleet.manifest import ManifestRow, read_manifest
+    from fogsf.fleet.store import open_store
+    from fogsf.gsa.executors import open_executor
+
+    rows = read_manifest(args.manifest)
+    extra = shlex.split(args.train_options)
+    for bad in ("--unit", "--train", "--test", "--out"):
+        if bad in extra:
+            raise UserError(f"--train-options: {bad} comes from the manifest's columns")
+    with open_store(args.fleet) as store:  # created and migrated once, before the workers
+        have = {r.unit for r in store.units()}
+    clash = [r.unit for r in rows if r.unit in have]
+    if clash and not args.replace:
+        raise UserError(f"{args.manifest}: {len(clash)} unit(s) already in {args.fleet}: "
+                        f"{', '.join(clash[:5])} (--replace to record them again)")
+    argvs = []
+    for r in rows:
+        argv = [args.fleet, "--unit", r.unit, "--workers", "1", "--no-progress", *extra]
+        for t in r.train:
+            argv += ["--train", t]
+        argv += ["--test", r.test] if r.test else []
+        argv += ["--out", r.out] if r.out else []
+        argvs.append(argv + (["--replace"] if args.replace else []))
+    failed: list[str] = []
+
+    def said(r: ManifestRow, code: int, text: str) -> None:  # each unit as it ends
+        last = [ln for ln in text.strip().splitlines() if ln.strip()]
+        if code == 0:
+            print(f"{r.unit}: {last[-1] if last else 'recorded'}", flush=True)
+        else:
+            failed.append(r.unit)
+            print(f"{r.unit}: FAILED: {last[-1] if last else f'exit status {code}'}",
+                  flush=True)
+
+    from concurrent.futures import as_completed
+
+    from tqdm import tqdm
+
+    with open_executor(workers=args.workers, dask=args.dask) as ex, \
+            tqdm(total=len(rows), desc="units", unit="unit",
+                 disable=args.no_progress or not sys.stderr.isatty()) as bar:
+        if ex is None:
+            for r, argv in zip(rows, argvs, strict=True):
+                said(r, *add_one(argv))
+                bar.update()
+        else:
+            futs = {ex.submit(add_one, argv): r for r, argv in zip(rows, argvs, strict=True)}
+            for f in as_completed(futs):
+                said(futs[f], *f.result())
+                bar.update()
+    print(f"{len(rows) - len(failed)} of {len(rows)} units recorded in {args.fleet}")
+    if failed:
+        raise UserError(f"{len(failed)} unit(s) not recorded: {', '.join(failed)}")
+    return 0
+
+
+# --- list, remove -----------------------------------------------------------------------------
+
+def _fmt(x: object, spec: str = ".2f") -> str:
+    return format(x, spec) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
+
+
+def json_safe(x: object) -> object:
+    """NaN and infinities as null (strict JSON)."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_safe(v) for v in x]
+    return x
+
+
+def run_list(args: argparse.Namespace) -> int:
+    from fogsf.fleet.records import structure_of
+    from fogsf.fleet.store import open_store
+
+    with open_store(args.fleet) as store:
+        units = store.units()
+        where = store.location
+    if args.json:
+        print(json.dumps(json_safe([u.as_dict() for u in units]), indent=2))
+        return 0
+    print(f"{where}: {len(units)} unit(s)")
+    if not units:
+        return 0
+    row = "{:<16} {:>8} {:>5} {:<24} {:>10} {:>10} {:>13}  {}"
+    print(row.format("unit", "chamber", "logs", "structure", "train x", "test x",
+                     "interval x", "recorded (UTC)"))
+    for u in units:
+        f = u.figures
+        floor = f.get("noise_floor_ppm")
+        iv = u.interval
+        interval = (f"{iv['rms_lo_ppm'] / floor:.1f}-{iv['rms_hi_ppm'] / floor:.1f}"
+                    if iv and floor else "-")
+        print(row.format(u.unit[:16], f"{u.chamber_hours:.1f} h", len(u.logs),
+                         structure_of(u)[:24],
+                         _fmt(f.get("train_rms_over_floor")), _fmt(f.get("test_rms_over_floor")),
+                         interval, u.created_utc))
+    print("x: RMS SF error left / the noise floor")
+    return 0
+
+
+def run_remove(args: argparse.Namespace) -> int:
+    from fogsf.fleet.store import open_store
+
+    with open_store(args.fleet) as store:
+        store.remove(args.unit)
+        n = len(store.units())
+    print(f"removed unit {args.unit} from {args.fleet} ({n} units left)")
+    return 0
+
+
+# --- check, report ----------------------------------------------------------------------------
+
+def run_check(args: argparse.Namespace) -> int:
+    from fogsf.fleet.check import check_fleet
+    from fogsf.fleet.store import open_store
+
+    with open_store(args.fleet) as store:
+        units = store.units()
+    result = check_fleet(units, false_alarm=args.false_alarm)
+    print(result.message())
+    if args.json:
+        _write_atomic(Path(args.json), json.dumps(json_safe(result.as_dict()), indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0
+
+
+def run_report(args: argparse.Namespace) -> int:
+    from fogsf.fleet.check import check_fleet
+    from fogsf.fleet.report import write_report
+    from fogsf.fleet.store import open_store
+
+    with open_store(args.fleet) as store:
+        units = store.units()
+        where = store.location
+    if not units:
+        raise UserError(f"{where} has no units (fogsf fleet add first)")
+    result = check_fleet(units, false_alarm=args.false_alarm)
+    index = write_report(units, result, Path(args.out), title=where)
+    print(f"wrote {index} ({len(units)} units, {len(result.outliers)} flagged)")
+    return 0
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Write a file whole or not at all (a temporary file beside it, then renamed)."""
+    import os
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False,
+                                     prefix=f".{path.name}.") as f:
+        f.write(text)
+    os.replace(f.name, path)

@@ -1,0 +1,239 @@
+"""Units unlike the line (`fogsf fleet check`): which units' structure or parameters lie
+outside the design's spread, and why, at a stated false-alarm rate. Reads only the records.
+
+- Structure: the line's is the one most units have (at least half of them); a unit with
+  another (node count, law terms, a hysteresis term) is flagged.
+- Parameters, through what they predict: each unit's model read on the design's reference
+  program (`records.response`: SF error at soaks and ramp points, less their mean). Two
+  slow parts that move together trade their fitted coefficients from unit to unit (their
+  time constants jump between fits of normal units); the prediction they make does not.
+  And the log of the unit's training residual over its noise floor (`fit.log_residual`,
+  one-sided: only a larger one flags): a defect the design's structure cannot express (a
+  mode hop, a step of SF) is left in the residual.
+  Raw parameters of the summary enter too when the summary gives their standard errors
+  ("params_se"): then a unit's own estimation noise is known.
+- Each unit against the others of the line (leave one out): z = (x - mean) / sqrt(s^2 -
+  the others' mean se^2 + se^2 + s^2 / k) (k others, s their standard deviation, se the
+  standard errors, 0 where not given): a t statistic for a line of normal units. The
+  threshold on |z| is the (1 - alpha' / P) quantile of the largest |z| of N normal units
+  (Monte Carlo of Gaussian lines, a fixed seed, the quantile taken 10 % further out for
+  its error), alpha' = alpha / 2 for the residual and
+  for the other P features each (alpha when only one kind is there): a line of normal units
+  gives any flag with chance at most alpha (exact over the units, Bonferroni over the
+  features; correlated features make it conservative).
+- The farthest unit beyond the threshold is flagged and leaves the reference; the others
+  are compared again, at the threshold of a line of that many (one defect does not hide a
+  second, and the units left keep the stated rate).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from fogsf.fleet.records import UnitRecord, structure_of
+
+DEFAULT_FALSE_ALARM = 0.01
+MIN_UNITS = 5  # fewer: the spread cannot be told from the units, nothing is checked
+RESIDUAL = "fit.log_residual"  # one-sided: a unit fitting better than the line is no defect
+NULL_DRAWS = 100_000  # Monte Carlo draws of the threshold (per line size and level)
+# the threshold's quantile taken at 1 - MC_MARGIN alpha / P: the Monte Carlo's error in the
+# tail (about +/-4 % of alpha at NULL_DRAWS) must not put the rate above alpha
+MC_MARGIN = 0.9
+
+
+@dataclass
+class Outlier:
+    unit: str
+    why: str
+    kind: str  # "structure" or "parameters"
+    z: float = math.nan
+
+
+@dataclass
+class CheckResult:
+    units: int
+    structure: str | None
+    parameters: list[str]
+    false_alarm: float
+    threshold_z: float
+    outliers: list[Outlier] = field(default_factory=list)
+    z: dict[str, dict[str, float]] = field(default_factory=dict)  # unit -> feature -> z
+    note: str = ""
+    threshold_residual_z: float = math.nan  # the residual's (one-sided), when compared
+
+    @property
+    def flagged(self) -> set[str]:
+        return {o.unit for o in self.outliers}
+
+    def as_dict(self) -> dict:
+        return {"outliers": [{"unit": o.unit, "why": o.why} for o in self.outliers],
+                "units": self.units, "structure": self.structure,
+                "parameters": self.parameters, "false_alarm": self.false_alarm,
+                "threshold_z": self.threshold_z,
+                "threshold_residual_z": self.threshold_residual_z, "z": self.z,
+                "note": self.note}
+
+    def message(self) -> str:
+        lines = [f"{self.units} units; the line's structure {self.structure or '-'}; "
+                 f"{len(self.parameters)} features compared; false-alarm rate "
+                 f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f}"
+                 + (f", the residual's z > {self.threshold_residual_z:.2f}"
+                    if math.isfinite(self.threshold_residual_z) else "") + ")"]
+        if self.note:
+            lines.append(self.note)
+        if not self.outliers:
+            lines.append("no unit unlike the line")
+        lines += [f"  {o.unit}: {o.why}" for o in self.outliers]
+        return "\n".join(lines)
+
+
+def _flatten(prefix: str, x: object, out: dict[str, float]) -> None:
+    if isinstance(x, bool):
+        return
+    if isinstance(x, (int, float)):
+        if math.isfinite(float(x)):
+            out[prefix] = float(x)
+    elif isinstance(x, dict):
+        for k, v in x.items():
+            _flatten(f"{prefix}.{k}" if prefix else str(k), v, out)
+    elif isinstance(x, (list, tuple)):
+        for i, v in enumerate(x):
+            _flatten(f"{prefix}[{i}]", v, out)
+
+
+def unit_features(rec: UnitRecord) -> tuple[dict[str, float], dict[str, float]]:
+    """A unit's features (dotted names) and their standard errors (0 where not known): the
+    response on the reference program, and the summary's parameters that have standard
+    errors."""
+    feats: dict[str, float] = {}
+    _flatten("response", rec.figures.get("response_ppm", {}), feats)
+    ratio = rec.figures.get("train_rms_over_floor")
+    if isinstance(ratio, (int, float)) and ratio > 0 and math.isfinite(ratio):
+        feats[RESIDUAL] = math.log(ratio)
+    se: dict[str, float] = {}
+    if rec.summary.get("params_se"):
+        params: dict[str, float] = {}
+        _flatten("params", rec.summary.get("params", {}), params)
+        _flatten("params", rec.summary["params_se"], se)
+        feats.update({k: v for k, v in params.items() if k in se})
+    return feats, {k: abs(se.get(k, 0.0)) for k in feats}
+
+
+structure_label = structure_of
+
+
+def _loo_z(x: np.ndarray, se: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """z of every unit (last axis) against the reference units other than itself.
+    x, se: [..., N]; ref: [N] bool."""
+    n = x.shape[-1]
+    z = np.empty_like(x)
+    for i in range(n):
+        others = ref.copy()
+        others[i] = False
+        k = int(others.sum())
+        xo, so = x[..., others], se[..., others]
+        mean = xo.mean(axis=-1)
+        var = xo.var(axis=-1, ddof=1)
+        design = np.maximum(var - np.mean(so ** 2, axis=-1), 0.0)
+        scale = np.sqrt(design + se[..., i] ** 2 + var / k)
+        tiny = 1e-12 * np.maximum(np.abs(mean), 1.0)
+        z[..., i] = (x[..., i] - mean) / np.maximum(scale, tiny)
+    return z
+
+
+@lru_cache(maxsize=64)
+def null_threshold(n_units: int, n_features: int, alpha: float, one_sided: bool = False
+                   ) -> float:
+    """z threshold: the (1 - alpha / n_features) quantile of the largest leave-one-out |z|
+    (z with `one_sided`) over `n_units` units of a Gaussian line (Monte Carlo, seed 0)."""
+    rng = np.random.default_rng(0)
+    ref = np.ones(n_units, dtype=bool)
+    chunk = 20_000
+    maxima = []
+    for _ in range(NULL_DRAWS // chunk):
+        x = rng.standard_normal((chunk, n_units))
+        z = _loo_z(x, np.zeros_like(x), ref)
+        maxima.append(np.max(z if one_sided else np.abs(z), axis=-1))
+    return float(np.quantile(np.concatenate(maxima),
+                             1.0 - MC_MARGIN * alpha / max(1, n_features)))
+
+
+def thresholds(n_units: int, names: list[str], alpha: float) -> np.ndarray:
+    """Each feature's threshold for a line of `n_units`: alpha shared by Bonferroni, half of
+    it to the residual (one-sided) when it is there beside others, half to the rest."""
+    if RESIDUAL not in names or len(names) == 1:
+        return np.full(len(names), null_threshold(n_units, len(names), alpha,
+                                                  names == [RESIDUAL]))
+    rest = null_threshold(n_units, len(names) - 1, alpha / 2)
+    res = null_threshold(n_units, 1, alpha / 2, True)
+    return np.array([res if k == RESIDUAL else rest for k in names])
+
+
+def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALARM
+                ) -> CheckResult:
+    """The units unlike the line (see the module's docstring)."""
+    from fogsf.errors import UserError
+
+    if not 0.0 < false_alarm < 1.0:
+        raise UserError(f"--false-alarm must lie in (0, 1), got {false_alarm:g}")
+    n = len(units)
+    counts = Counter(structure_label(u) for u in units)
+    if n < MIN_UNITS:
+        return CheckResult(n, counts.most_common(1)[0][0] if counts else None, [],
+                           false_alarm, math.inf,
+                           note=f"nothing checked: {n} unit(s), the line's spread needs at "
+                                f"least {MIN_UNITS}")
+    line, n_line = counts.most_common(1)[0]
+    if 2 * n_line < n:
+        return CheckResult(n, None, [], false_alarm, math.inf,
+                           note="nothing checked: no structure is shared by half the units "
+                                f"({', '.join(f'{s} x{c}' for s, c in counts.most_common())})")
+    outliers = [Outlier(u.unit, f"structure {structure_label(u)}, the line's is {line} "
+                                f"({n_line} of {n} units)", "structure")
+                for u in units if structure_label(u) != line]
+    same = [u for u in units if structure_label(u) == line]
+    feats = [unit_features(u) for u in same]
+    names = sorted(set.intersection(*(set(f) for f, _ in feats)))
+    if len(same) < MIN_UNITS or not names:
+        return CheckResult(n, line, names, false_alarm, math.inf, outliers,
+                           note=f"features not checked: {len(same)} unit(s) of the line's "
+                                f"structure with {len(names)} common feature(s)")
+    x = np.array([[f[k] for k in names] for f, _ in feats]).T  # [P, N]
+    se = np.array([[s[k] for k in names] for _, s in feats]).T
+    thr = thresholds(len(same), names, false_alarm)
+    ref = np.ones(len(same), dtype=bool)
+    one_sided = np.array([k == RESIDUAL for k in names])
+    limit = np.tile(thr[:, None], (1, len(same)))  # the thresholds each unit was flagged at
+    while ref.sum() > MIN_UNITS:  # flag the farthest unit, then compare the rest again
+        z = _loo_z(x, se, ref)
+        z[one_sided] = np.maximum(z[one_sided], 0.0)
+        t = thresholds(int(ref.sum()), names, false_alarm)  # for a line of that many
+        worst = np.where(ref, np.max(np.abs(z) / t[:, None], axis=0), 0.0)
+        if worst.max() <= 1.0:
+            break
+        j = int(np.argmax(worst))
+        ref[j], limit[:, j] = False, t
+    z = _loo_z(x, se, ref)
+    z[one_sided] = np.maximum(z[one_sided], 0.0)
+    for j in np.flatnonzero(~ref):
+        ratio = np.abs(z[:, j]) / limit[:, j]
+        far = [i for i in np.argsort(-ratio) if ratio[i] > 1.0]
+        parts = []
+        for i in far[:3]:
+            others = x[i, ref]
+            parts.append(f"{names[i]} {x[i, j]:.4g} (the line's {others.mean():.4g} +/- "
+                         f"{others.std(ddof=1):.2g}, z {z[i, j]:+.1f} > {limit[i, j]:.1f})")
+        more = f" and {len(far) - 3} more" if len(far) > 3 else ""
+        outliers.append(Outlier(same[j].unit, "outside the line's spread: "
+                                + "; ".join(parts) + more, "parameters",
+                                float(np.max(np.abs(z[:, j])))))
+    zmap = {u.unit: {k: round(float(z[i, j]), 3) for i, k in enumerate(names)}
+            for j, u in enumerate(same)}
+    return CheckResult(n, line, names, false_alarm, float(np.max(thr)), outliers, zmap,
+                       threshold_residual_z=float(thr[one_sided][0]) if one_sided.any()
+                       else math.nan)

@@ -1,0 +1,154 @@
+"""The design's prior: an empirical-Bayes model of a design's units.
+
+From the step series of the fleet's units (`unit_fit.StepSeries`, kept in the fleet
+database by `unit_summary`):
+1. the structure: the node count K (1-3) is the one with the least total held-out
+   misfit over the units (`choose_k`: each unit's fit at K predicts the unit's own
+   program, every unit's fit at K its score; the smallest K within STRUCTURE_TOLERANCE);
+2. every unit fitted at K, twice: once from the grid start, then from the fleet's median
+   time constants, so every unit's node j is the design's node j;
+3. units unlike the line left out: a unit whose fit lies outside the others' spread
+   (robust Mahalanobis distance on a robust scale, `robust_keep`);
+4. the population: mean mu of theta and its spread Sigma = Cov(theta_i) - mean(C_i) (each
+   unit's estimation covariance C_i taken out, the method of moments), its eigenvalues
+   kept at least a FLOOR share of the between-unit variance (in the units' correlation
+   scale); for the check of a new unit against the design also shrunk toward its
+   diagonal by the share p / (p + N) (a few units cannot pin p(p+1)/2 covariances).
+`map_fit` fits a new unit under the prior (prior_map.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsf.errors import UserError
+from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, UnitFit, fit_unit, predict
+
+K_CHOICES = (1, 2, 3)
+STRUCTURE_TOLERANCE = 0.05
+# a unit is left out when a parameter lies this many robust scales from the units' median
+# (`robust_keep`)
+OUTLIER_Z = 4.0
+FLOOR = 1e-3
+# the spread's shrinkage toward its diagonal for the MAP (None: p / (p + N)): none, the
+# units' own directions of variation kept (development designs 5, 12: the 2 h loop's
+# median 3.0 x the floor against 4.5 x with p / (p + N))
+SHRINK: float | None = 0.0
+MIN_UNITS = 3
+
+
+@dataclass
+class DesignPrior:
+    k: int
+    mu: np.ndarray  # [log taus, coefficients]
+    sigma: np.ndarray  # the units' spread around the design (estimation noise out)
+    units: list[str]  # the units it was learned from
+    left_out: list[dict]  # {"unit", "why"}
+    k_scores: dict[int, float]  # total misfit per node count (ppm^2 per step)
+    between: np.ndarray  # the raw covariance of the units' fits
+    noise: np.ndarray  # the mean estimation covariance taken out
+    # the spread shrunk toward its diagonal by p / (p + N): what the check of a new unit
+    # against the design reads (a few units span few of the p directions: a unit may
+    # differ from the design where no unit of the fleet happened to)
+    sigma_check: np.ndarray
+    step_noise_ppm2: float  # the units' median residual variance per model step
+
+    def as_dict(self) -> dict:
+        return {"k": self.k, "mu": self.mu.tolist(), "sigma": self.sigma.tolist(),
+                "units": self.units, "left_out": self.left_out,
+                "k_scores": {str(k): v for k, v in self.k_scores.items()},
+                "taus_s": np.exp(self.mu[:self.k]).tolist(),
+                "tau_spread": np.sqrt(np.diag(self.sigma)[:self.k]).tolist()}
+
+
+def choose_k(series: dict[str, StepSeries], fits: dict[int, dict[str, UnitFit]]
+             ) -> tuple[int, dict[int, float]]:
+    """The node count whose fits leave the least misfit per unit (the median over units of
+    the mean square of the residuals' WINDOW_S means: the noise of single steps averaged
+    out), the smallest within STRUCTURE_TOLERANCE of the best."""
+    scores = {k: float(np.median([window_misfit(series[sn], f) for sn, f in fk.items()]))
+              for k, fk in fits.items()}
+    best = min(scores.values())
+    k = min(k for k, s in scores.items() if s <= best * (1.0 + STRUCTURE_TOLERANCE))
+    return k, scores
+
+
+def window_misfit(series: StepSeries, fit: UnitFit) -> float:
+    """Mean square (ppm^2) of the fit's residuals averaged over WINDOW_S windows."""
+    r = series.y - predict(series, fit.theta, fit.k)
+    w = max(1, int(round(WINDOW_S / series.step_s)))
+    n = r.size // w
+    return float(np.mean(r[:n * w].reshape(n, w).mean(axis=1) ** 2)) if n else float(r @ r)
+
+
+def robust_keep(thetas: np.ndarray, covs: np.ndarray) -> np.ndarray:
+    """Mask of units whose fit lies inside the others' spread: per parameter the distance
+    from the units' median in units of max(1.4826 MAD, the median estimation standard
+    deviation); a unit with any distance over OUTLIER_Z (1 + sqrt(log p) / 2) is left out
+    (p parameters: the largest of p distances grows so). Needs MIN_UNITS units to judge."""
+    n, p = thetas.shape
+    if n < MIN_UNITS:
+        return np.ones(n, dtype=bool)
+    med = np.median(thetas, axis=0)
+    mad = 1.4826 * np.median(np.abs(thetas - med), axis=0)
+    est = np.sqrt(np.median(np.stack([np.diag(c) for c in covs]), axis=0))
+    scale = np.maximum(mad, est)
+    scale = np.where(scale > 0, scale, 1.0)
+    d = np.abs(thetas - med) / scale
+    return d.max(axis=1) <= OUTLIER_Z * (1.0 + np.sqrt(np.log(p)) / 2.0)
+
+
+def learn(series: dict[str, StepSeries], k: int | None = None,
+          first: dict[int, dict[str, UnitFit]] | None = None) -> DesignPrior:
+    """The design's prior from the units' step series (`k`: force the node count;
+    `first`: the units' fits from the grid start per node count, when known: the
+    summaries keep them)."""
+    if len(series) < 2:
+        raise UserError(f"the design's prior needs at least two units, the fleet has "
+                        f"{len(series)}")
+    ks = (k,) if k is not None else K_CHOICES
+    first = dict(first or {})
+    for kk in ks:
+        if kk not in first or set(first[kk]) != set(series):
+            first[kk] = {sn: fit_unit(s, kk) for sn, s in series.items()}
+    first = {kk: first[kk] for kk in ks}
+    k, scores = choose_k(series, first) if k is None else (k, {k: float("nan")})
+    med = np.exp(np.median(np.stack([f.theta[:k] for f in first[k].values()]), axis=0))
+    fits = {sn: fit_unit(s, k, med) for sn, s in series.items()}
+    # the better of the two fits per unit (the common start unless it fits much worse)
+    for sn, f in fits.items():
+        if first[k][sn].sse < 0.9 * f.sse:
+            fits[sn] = first[k][sn]
+    names = sorted(fits)
+    thetas = np.stack([fits[sn].theta for sn in names])
+    covs = np.stack([fits[sn].cov for sn in names])
+    keep = robust_keep(thetas, covs)
+    left = [{"unit": sn, "why": "its physics fit lies outside the other units' spread"}
+            for sn, kp in zip(names, keep, strict=True) if not kp]
+    th, cv = thetas[keep], covs[keep]
+    mu = th.mean(axis=0)
+    n, p = th.shape
+    between = np.cov(th.T, ddof=1) if n > 1 else np.zeros((p, p))
+    noise = cv.mean(axis=0)
+    sigma = _spread(between, noise, n, SHRINK)
+    return DesignPrior(k, mu, sigma, [sn for sn, kp in zip(names, keep, strict=True) if kp],
+                       left, scores, between, noise, _spread(between, noise, n, None),
+                       float(np.median([fits[sn].sse / fits[sn].n for sn in names])))
+
+
+def _spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None
+            ) -> np.ndarray:
+    """Sigma = between - noise, eigenvalues floored, shrunk toward the diagonal by `shrink`
+    (None: p / (p + n))."""
+    p = between.shape[0]
+    d = np.sqrt(np.maximum(np.diag(between), 1e-300))
+    corr_b = between / np.outer(d, d)
+    corr_n = noise / np.outer(d, d)
+    ev, vec = np.linalg.eigh(corr_b - corr_n)
+    ev = np.maximum(ev, FLOOR)
+    s = (vec * ev) @ vec.T
+    a = p / (p + n) if shrink is None else shrink
+    s = (1.0 - a) * s + a * np.diag(np.diag(s))
+    return s * np.outer(d, d)

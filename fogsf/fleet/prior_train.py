@@ -1,0 +1,173 @@
+"""`fogsf train --prior FLEET`: a new unit fitted under its design's prior.
+
+The prior is learned from the fleet database's unit summaries (`prior.learn`); the unit's
+physics-node law is its MAP under the prior (`prior_map.map_fit`), carried exactly in the
+default model's polynomial head, the LSTM on what it leaves (as `fogsf train`'s lag-lstm:
+its validation keeps the least-squares start where the LSTM does not earn its place). The
+model directory is an ordinary model (no firmware change). When the unit's data disagree
+with the design (`MapFit.disagrees`), the unit is fitted alone, as `fogsf train` would.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from fogsf.fleet.prior import DesignPrior, learn
+from fogsf.fleet.prior_map import DISAGREE_LEVEL, MapFit, map_fit
+from fogsf.fleet.unit_fit import StepSeries, UnitFit, design_matrix, jacobian, step_series
+from fogsf.fleet.unit_summary import series_of
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.models.features import front_end_for, prepare
+from fogsf.models.node_fit import RidgeFit
+from fogsf.models.physics_nodes import NODE_LAMBDA, head_from_ridge
+from fogsf.training.options import TrainOptions
+
+
+def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
+    """The design's prior from units' `unit_summary` dicts (by unit name)."""
+    series = {sn: series_of(s) for sn, s in summaries.items()}
+    first: dict[int, dict[str, UnitFit]] = {}
+    for sn, s in summaries.items():
+        for k, f in s.get("fits", {}).items():
+            first.setdefault(int(k), {})[sn] = UnitFit.from_dict(f)
+    return learn(series, first=first)
+
+
+def prior_from_store(path: str) -> DesignPrior:  # noqa: D401
+    """The design's prior from the fleet database at `path` (its units' summaries)."""
+    from fogsf.fleet.store import open_store
+
+    units = open_store(path).units()
+    return prior_from_summaries({u.unit: u.summary for u in units if u.summary})
+
+
+def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
+                     test_log: ChamberLog | None, out_dir: Path, prior: DesignPrior
+                     ) -> tuple[dict, object]:
+    """Train the unit under `prior` (or alone, when its data disagree with the design);
+    metrics.json gains `prior` (what the prior carried, the check, the interval)."""
+    from fogsf.training.train import fit_physics_head, run_training
+
+    series = step_series(train_logs, opts.model_step_s, opts.latitude_deg)
+    mf = map_fit(series, prior)
+    rec = {"used": not mf.disagrees, "units": len(prior.units), "left_out": prior.left_out,
+           "nodes": prior.k, "design_taus_s": np.exp(prior.mu[:prior.k]).tolist(),
+           "level": DISAGREE_LEVEL, **mf.as_dict()}
+    if mf.disagrees:
+        metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
+    else:
+        taus = tuple(float(t) for t in mf.taus_s)
+
+        def head(ti):  # noqa: ANN001, ANN202 - training.train.TrainingInputs / NodeFit
+            return map_head(mf, ti.offset, ti.scale, taus)
+
+        metrics, fitted = run_training(
+            opts, train_logs, test_log, out_dir,
+            fit=lambda o, logs: fit_physics_head(o, logs, taus, head))
+    if test_log is not None and not mf.disagrees:
+        rec["interval_ppm"] = prior_interval(mf, test_log, opts, metrics["noise_floor_ppm"])
+    metrics["prior"] = rec
+    _rewrite(out_dir / "metrics.json", metrics)
+    return metrics, fitted
+
+
+def map_head(mf: MapFit, offset: float, scale: float, taus: tuple[float, ...]):  # noqa: ANN201
+    """The MAP law as the head's NodeFit (normalised target: (y - offset) / scale)."""
+    k = mf.k
+    coef = mf.theta[k:]
+    rf = RidgeFit((float(coef[0]) - offset) / scale, coef[1:] / scale, 0.0, float(coef.size))
+    return head_from_ridge(rf, k + 1, taus, NODE_LAMBDA)
+
+
+def test_series(log: ChamberLog, step_s: float, latitude_deg: float | None
+                ) -> tuple[StepSeries, int]:
+    """A log's every step as a series (to predict on), and its decimation."""
+    fe = front_end_for([log], step_s, ())
+    d = prepare(log, fe, None, latitude_deg)
+    return (StepSeries([d.s[:, 0].astype(np.float64)], np.zeros(d.n_steps),
+                       np.arange(d.n_steps), fe.step_s), d.decimation)
+
+
+def prior_interval(mf: MapFit, test_log: ChamberLog, opts: TrainOptions, floor_ppm: float
+                   ) -> list[float]:
+    """The expected test RMS (ppm) with the posterior's spread: [the floor, sqrt(floor^2 +
+    4 mean_t var_t)], var_t the posterior variance of the law's prediction at step t (two
+    standard deviations)."""
+    s, _ = test_series(test_log, opts.model_step_s, opts.latitude_deg)
+    jac = jacobian(s, mf.theta, mf.k)
+    var = float(np.mean(np.einsum("ij,jk,ik->i", jac, mf.cov, jac)))
+    return [floor_ppm, math.sqrt(floor_ppm**2 + 4.0 * max(var, 0.0))]
+
+
+def law_prediction(theta: np.ndarray, k: int, log: ChamberLog, step_s: float = 5.0
+                   ) -> np.ndarray:
+    """The law's SF error prediction (ppm) per sample of `log`, held over each step."""
+    from fogsf.models.reference import expand
+
+    s, dec = test_series(log, step_s, None)
+    return expand(design_matrix(s, np.exp(theta[:k])) @ theta[k:], len(log), dec)
+
+
+def prior_lines(rec: dict) -> list[str]:
+    """What `fogsf train --prior` prints about the prior."""
+    share = ", ".join(f"{g} {100 * v:.0f} %" for g, v in rec["prior_share"].items())
+    taus = ", ".join(f"{t:.0f}" for t in rec["design_taus_s"])
+    head = (f"design's prior: {rec['nodes']} physics nodes (time constants {taus} s), learned "
+            f"from {rec['units']} units")
+    if rec["left_out"]:
+        head += (" (left out as unlike the line: "
+                 + ", ".join(u["unit"] for u in rec["left_out"]) + ")")
+    chi = (f"chi-square of the unit's own fit against the design {rec['chi2']:.1f}, limit "
+           f"{rec['chi2_limit']:.1f} at {rec['level']:g}")
+    if not rec["used"]:
+        return [head, f"the unit's data disagree with the design ({chi}): fitted alone, as "
+                "fogsf train would"]
+    lines = [head, f"the prior's share of the posterior precision: {share} (100 %: the "
+             f"unit's data added nothing); {chi}: the unit agrees with the design",
+             "unit's time constants " + ", ".join(f"{t:.0f}" for t in rec["taus_s"]) + " s"]
+    if "interval_ppm" in rec:
+        lo, hi = rec["interval_ppm"]
+        lines.append(f"expected test RMS with the prior's spread: {lo:.2f}-{hi:.2f} ppm")
+    return lines
+
+
+def _rewrite(path: Path, obj: dict) -> None:
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(obj, indent=2) + "\n")
+    os.replace(tmp, path)
+
+
+def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog],
+                   test_log: ChamberLog | None, out: Path) -> dict:
+    """`fogsf train --prior FLEET [--unit SN]`: the prior from FLEET, the unit trained under
+    it into `out`, recorded in FLEET with --unit; metrics.json's content."""
+    from fogsf.errors import UserError
+    from fogsf.fleet.store import open_store
+
+    unit = getattr(args, "unit", None)
+    with open_store(args.prior) as store:  # type: ignore[attr-defined]
+        if unit is not None and store.has(unit):
+            raise UserError(f"unit {unit!r} is already in {store.location} (`fogsf fleet "
+                            "remove` it first)")
+        summaries = {u.unit: u.summary for u in store.units() if u.summary.get("series")}
+    if len(summaries) < 2:
+        raise UserError(f"the design's prior needs at least two units in {args.prior} "  # type: ignore[attr-defined]
+                        f"with their logs' summary, it has {len(summaries)} (fogsf fleet add)")
+    prior = prior_from_summaries(summaries)
+    metrics, fitted = train_with_prior(opts, train_logs, test_log, out, prior)
+    if unit is not None:
+        from fogsf.fleet.records import unit_record
+
+        options = {k: v for k, v in vars(opts).items()
+                   if k not in ("progress", "workers", "dask", "extra")}
+        options["prior"] = {"fleet_units": prior.units, "used": metrics["prior"]["used"]}
+        record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
+        with open_store(args.prior) as store:  # type: ignore[attr-defined]
+            store.add(record)
+        print(f"recorded unit {unit} in {store.location}")
+    return metrics

@@ -1,0 +1,354 @@
+"""The fleet store: the units of one design, in an SQLite file or a PostgreSQL database.
+
+    store = open_store("line.fleet")                 # SQLite, created on first use
+    store = open_store("postgresql://host/fleet")    # a server several chambers share
+    store.add(record)                                # one transaction
+    store.units(); store.unit("SN042"); store.remove("SN042")
+
+Every add and remove is one transaction: a process killed in the middle of one leaves the
+database as it was before it (SQLite: write-ahead log; a second writer waits for the first,
+BEGIN IMMEDIATE and a busy timeout). User strings (serial numbers, paths) reach SQL only as
+parameters. The schema is versioned (table `schema_version`): `MIGRATIONS[i]` takes a
+database from version i to i + 1, run in order, in one transaction, when a store is opened.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sqlite3
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from fogsf.errors import UserError
+from fogsf.fleet.records import LogRecord, UnitRecord, structure_of
+
+# Test hook, used only by tests/test_fleet_store.py: while this variable names a file, `add`
+# creates that file once its INSERTs ran and then sleeps PAUSE_S_HOOK seconds (default 120)
+# before COMMIT (so a kill lands inside the transaction, deterministically).
+PAUSE_HOOK = "FOGSF_FLEET_TEST_PAUSE_IN_ADD"
+PAUSE_S_HOOK = "FOGSF_FLEET_TEST_PAUSE_S"
+BUSY_TIMEOUT_S = 60.0
+PG_PREFIXES = ("postgresql://", "postgres://")
+MIGRATION_LOCK = 0x0F05F1EE7  # PostgreSQL advisory lock key of the fleet's migrations
+
+
+def _v1(db: FleetStore) -> None:
+    """Version 1: units (the record's JSON parts as text) and their training logs."""
+    db.execute("""CREATE TABLE units (
+        sn TEXT PRIMARY KEY,
+        model_id TEXT NOT NULL,
+        model_dir TEXT NOT NULL,
+        fitted_with TEXT NOT NULL,
+        figures TEXT NOT NULL,
+        interval_json TEXT,
+        summary TEXT NOT NULL,
+        fogsf_version TEXT NOT NULL,
+        created_utc TEXT NOT NULL)""")
+    db.execute("""CREATE TABLE logs (
+        sn TEXT NOT NULL REFERENCES units(sn) ON DELETE CASCADE,
+        idx INTEGER NOT NULL,
+        path TEXT NOT NULL,
+        sha256 TEXT NOT NULL,
+        n_rows BIGINT NOT NULL,
+        span_s DOUBLE PRECISION NOT NULL,
+        sample_rate_hz DOUBLE PRECISION NOT NULL,
+        ramp_rates TEXT NOT NULL,
+        temp_min_c DOUBLE PRECISION,
+        temp_max_c DOUBLE PRECISION,
+        PRIMARY KEY (sn, idx))""")
+
+
+def _v2(db: FleetStore) -> None:
+    """Version 2: a log's role (train or test: version 1 kept training logs only), and the
+    unit's structure as a column of its own (for queries by structure), filled from the
+    summary of the units version 1 wrote."""
+    db.execute("ALTER TABLE logs ADD COLUMN role TEXT NOT NULL DEFAULT 'train'")
+    db.execute("ALTER TABLE units ADD COLUMN structure TEXT NOT NULL DEFAULT ''")
+    for sn, summary in db.execute("SELECT sn, summary FROM units").fetchall():
+        db.execute("UPDATE units SET structure = ? WHERE sn = ?",
+                   (_structure_of(json.loads(summary)), sn))
+    db.execute("CREATE INDEX units_structure ON units (structure)")
+
+
+MIGRATIONS: list[Callable[[FleetStore], None]] = [_v1, _v2]
+SCHEMA_VERSION = len(MIGRATIONS)
+
+
+def _structure_of(summary: dict) -> str:
+    """A version-1 unit's structure, from its summary."""
+    s = summary.get("structure") or (summary.get("model") or {}).get("structure") or ""
+    return s if isinstance(s, str) else json.dumps(s, sort_keys=True)
+
+
+def _dumps(x: Any) -> str:
+    return json.dumps(x, sort_keys=True, allow_nan=True)
+
+
+class FleetStore:
+    """A fleet's database (subclasses: SQLite, PostgreSQL). SQL is written with `?`
+    placeholders; values only ever as parameters."""
+
+    location: str
+
+    def execute(self, sql: str, params: tuple = ()) -> Any:
+        raise NotImplementedError
+
+    def _begin(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> FleetStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @contextmanager
+    def transaction(self) -> Iterator[None]:
+        """One write transaction: COMMIT at the end, ROLLBACK on any error."""
+        self._begin()
+        try:
+            yield
+        except BaseException:
+            self.execute("ROLLBACK")
+            raise
+        self.execute("COMMIT")
+
+    # --- schema ----------------------------------------------------------------------------
+
+    def _lock_version(self) -> None:
+        """First in a migration's transaction: hold off other migrations (SQLite's BEGIN
+        IMMEDIATE does)."""
+
+    def _current_version(self) -> int | None:
+        """The schema version, read without a transaction (None: no schema_version yet)."""
+        raise NotImplementedError
+
+    def schema_version(self) -> int:
+        rows = self.execute("SELECT version FROM schema_version").fetchall()
+        return int(rows[0][0]) if rows else 0
+
+    def migrate(self, upto: int = SCHEMA_VERSION) -> None:
+        """Bring the schema forward to version `upto`, one migration after another, in one
+        transaction; refuse a database a newer fogsf wrote."""
+        if self._current_version() == upto:  # nothing to do: no write lock taken
+            return
+        with self.transaction():
+            self._lock_version()
+            self.execute("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)")
+            have = self.schema_version()
+            if have > SCHEMA_VERSION:
+                raise UserError(f"{self.location}: fleet schema version {have} is newer than "
+                                f"this fogsf's ({SCHEMA_VERSION}): upgrade fogsf")
+            if have == 0:
+                self.execute("INSERT INTO schema_version (version) VALUES (0)")
+            for v in range(have, upto):
+                MIGRATIONS[v](self)
+                self.execute("UPDATE schema_version SET version = ?", (v + 1,))
+
+    # --- units -----------------------------------------------------------------------------
+
+    def has(self, sn: str) -> bool:
+        return bool(self.execute("SELECT 1 FROM units WHERE sn = ?", (sn,)).fetchall())
+
+    def add(self, record: UnitRecord, replace: bool = False) -> None:
+        """Record a unit (one transaction); a unit of that serial number already there is
+        refused, or replaced when `replace`."""
+        if not record.unit or not record.unit.strip():
+            raise UserError("a unit needs a serial number (--unit SN)")
+        with self.transaction():
+            if self.has(record.unit):
+                if not replace:
+                    raise UserError(f"unit {record.unit!r} is already in {self.location} "
+                                    "(--replace to record it again, or `fogsf fleet remove`)")
+                self._delete(record.unit)
+            self.execute(
+                "INSERT INTO units (sn, model_id, model_dir, fitted_with, figures, "
+                "interval_json, summary, fogsf_version, created_utc, structure) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (record.unit, record.model_id, record.model_dir, _dumps(record.fitted_with),
+                 _dumps(record.figures),
+                 None if record.interval is None else _dumps(record.interval),
+                 _dumps(record.summary), record.fogsf_version, record.created_utc,
+                 structure_of(record)))
+            for i, lg in enumerate(record.logs):
+                self.execute(
+                    "INSERT INTO logs (sn, idx, path, sha256, n_rows, span_s, sample_rate_hz, "
+                    "ramp_rates, temp_min_c, temp_max_c, role) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (record.unit, i, lg.path, lg.sha256, int(lg.rows), float(lg.span_s),
+                     float(lg.sample_rate_hz), _dumps(lg.ramp_rates_c_per_min),
+                     _finite_or_none(lg.temp_min_c), _finite_or_none(lg.temp_max_c), lg.role))
+            _pause_hook()
+
+    def _delete(self, sn: str) -> None:
+        self.execute("DELETE FROM logs WHERE sn = ?", (sn,))
+        self.execute("DELETE FROM units WHERE sn = ?", (sn,))
+
+    def remove(self, sn: str) -> None:
+        """Remove a unit and its logs (one transaction)."""
+        with self.transaction():
+            if not self.has(sn):
+                raise UserError(f"no unit {sn!r} in {self.location}")
+            self._delete(sn)
+
+    def unit(self, sn: str) -> UnitRecord:
+        found = self._read("WHERE sn = ?", (sn,))
+        if not found:
+            raise UserError(f"no unit {sn!r} in {self.location}")
+        return found[0]
+
+    def units(self) -> list[UnitRecord]:
+        """Every unit, by serial number."""
+        return self._read("", ())
+
+    def _read(self, where: str, params: tuple) -> list[UnitRecord]:
+        rows = self.execute(
+            "SELECT sn, model_id, model_dir, fitted_with, figures, interval_json, summary, "
+            f"fogsf_version, created_utc FROM units {where}", params).fetchall()
+        rows = sorted(rows, key=lambda r: r[0])  # by code point, whatever the collation
+        logs: dict[str, list[LogRecord]] = {r[0]: [] for r in rows}
+        for lg in self.execute(
+                "SELECT sn, path, sha256, n_rows, span_s, sample_rate_hz, ramp_rates, "
+                "temp_min_c, temp_max_c, role FROM logs ORDER BY idx").fetchall():
+            if lg[0] in logs:
+                logs[lg[0]].append(LogRecord(
+                    path=lg[1], sha256=lg[2], rows=int(lg[3]), span_s=float(lg[4]),
+                    sample_rate_hz=float(lg[5]), ramp_rates_c_per_min=json.loads(lg[6]),
+                    temp_min_c=_nan_if_none(lg[7]), temp_max_c=_nan_if_none(lg[8]),
+                    role=lg[9]))
+        return [UnitRecord(unit=r[0], logs=logs[r[0]], model_id=r[1], model_dir=r[2],
+                           fitted_with=json.loads(r[3]), figures=json.loads(r[4]),
+                           interval=None if r[5] is None else json.loads(r[5]),
+                           summary=json.loads(r[6]), fogsf_version=r[7], created_utc=r[8])
+                for r in rows]
+
+
+def _finite_or_none(x: float) -> float | None:
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+def _nan_if_none(x: float | None) -> float:
+    return math.nan if x is None else float(x)
+
+
+def _pause_hook() -> None:
+    marker = os.environ.get(PAUSE_HOOK)
+    if marker:
+        Path(marker).write_text(str(os.getpid()))
+        time.sleep(float(os.environ.get(PAUSE_S_HOOK, "120")))
+
+
+class SQLiteStore(FleetStore):
+    """A fleet in one SQLite file (write-ahead log, writers queue on a busy timeout)."""
+
+    def __init__(self, path: str | Path) -> None:
+        p = Path(path)
+        self.location = str(p)
+        if p.exists() and not p.is_file():
+            raise UserError(f"fleet {p} is not a file (give an SQLite file or a "
+                            "postgresql:// URL)")
+        if not p.parent.is_dir():
+            raise UserError(f"fleet {p}: folder {p.parent} does not exist")
+        try:
+            self.db = sqlite3.connect(p, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+            self.db.execute("PRAGMA journal_mode=WAL")
+        except sqlite3.DatabaseError as e:
+            raise UserError(f"fleet {p} is not a fleet database (SQLite: {e})") from None
+        self.db.execute("PRAGMA foreign_keys=ON")
+        self.db.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
+
+    def execute(self, sql: str, params: tuple = ()) -> Any:
+        return self.db.execute(sql, params)
+
+    def _current_version(self) -> int | None:
+        if not self.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND "
+                            "name = 'schema_version'").fetchall():
+            return None
+        return self.schema_version()
+
+    def _begin(self) -> None:
+        self.db.execute("BEGIN IMMEDIATE")  # the write lock now: no upgrade deadlock later
+
+    def close(self) -> None:
+        self.db.close()
+
+
+class PostgresStore(FleetStore):
+    """A fleet in a PostgreSQL database (psycopg 3), for several chambers at once."""
+
+    def __init__(self, url: str) -> None:
+        try:
+            import psycopg
+        except ImportError:
+            raise UserError("a postgresql:// fleet needs psycopg: pip install 'psycopg[binary]'"
+                            ) from None
+        self.location = _redact(url)
+        try:
+            self.db = psycopg.connect(url, autocommit=True, connect_timeout=20)
+        except psycopg.OperationalError as e:
+            first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+            raise UserError(f"cannot connect to fleet {self.location}: {first}") from None
+
+    def execute(self, sql: str, params: tuple = ()) -> Any:
+        return self.db.execute(sql.replace("?", "%s"), params)
+
+    def _begin(self) -> None:
+        self.db.execute("BEGIN")
+
+    def _lock_version(self) -> None:  # one migration at a time, even before the table exists
+        self.db.execute("SELECT pg_advisory_xact_lock(%s)", (MIGRATION_LOCK,))
+
+    def _current_version(self) -> int | None:
+        if self.execute("SELECT to_regclass('schema_version')").fetchall()[0][0] is None:
+            return None
+        return self.schema_version()
+
+    def add(self, record: UnitRecord, replace: bool = False) -> None:
+        import psycopg
+
+        try:
+            super().add(record, replace)
+        except psycopg.IntegrityError:  # another add of that unit committed first
+            raise UserError(f"unit {record.unit!r} was added to {self.location} by another "
+                            "process meanwhile (--replace to record it again)") from None
+
+    def has(self, sn: str) -> bool:  # a unit's row locked until the transaction ends
+        return bool(self.execute("SELECT 1 FROM units WHERE sn = ? FOR UPDATE",
+                                 (sn,)).fetchall())
+
+    def close(self) -> None:
+        self.db.close()
+
+
+def _redact(url: str) -> str:
+    """A URL with its password left out (for messages)."""
+    from urllib.parse import urlsplit, urlunsplit
+
+    parts = urlsplit(url)
+    if parts.password:
+        host = parts.hostname or ""
+        netloc = f"{parts.username}:***@{host}" + (f":{parts.port}" if parts.port else "")
+        return urlunsplit(parts._replace(netloc=netloc))
+    return url
+
+
+def open_store(url_or_path: str) -> FleetStore:
+    """The fleet at `url_or_path`: an SQLite file (created on first use) or a
+    postgresql:// URL; its schema brought to the current version."""
+    text = str(url_or_path)
+    store: FleetStore = (PostgresStore(text) if text.startswith(PG_PREFIXES)
+                         else SQLiteStore(text))
+    try:
+        store.migrate()
+    except BaseException:
+        store.close()
+        raise
+    return store

@@ -1,0 +1,211 @@
+"""One unit's physics-node fit, and its step series: what the design's prior is made of.
+
+A unit's training logs at the model rate are a step series (`StepSeries`: the board
+temperature's block means minus 20 C per log, the measured SF target per step, ppm). At a
+node count K the unit's parameters are theta = [log tau_1..K (ascending), intercept, the
+linear, quadratic-with-cross-terms and cube coefficients of `models.physics_nodes`] (the
+law on z = [T, node_1..K] / 50 C, ppm). `fit_unit` finds them by variable projection (as
+`fogsf train --structure physics` does, optionally started from given time constants: the
+design's, so every unit's nodes are the same nodes), with their estimation covariance
+sigma^2 (J^T J)^-1, J the Jacobian of the model in theta. sigma2 is the residual variance
+times the residuals' correlation over WINDOW_S windows (model steps are not
+independent: a structure's misfit is slow) for the weight of the unit's data, the residual
+variance alone for the estimation covariance (the misfit of the design's structure is
+common to its units: it moves every unit's fit alike, not one unit's).
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.models.features import MODEL_STEP_S, front_end_for, prepare
+from fogsf.models.node_fit import ridge_fit, varpro
+from fogsf.models.physics_nodes import (
+    NODE_LAMBDA,
+    TAU_MAX_S,
+    TAU_MIN_S,
+    NodeTemperatures,
+    identify_taus,
+    node_design,
+)
+
+WINDOW_S = 100.0  # the residuals' correlation is measured over windows this long
+
+
+@dataclass
+class StepSeries:
+    """A unit's training logs at the model rate (measured steps only in `y` and `rows`)."""
+
+    t_rel: list[np.ndarray]  # per log: block means of T minus 20 C, every step
+    y: np.ndarray  # measured steps' SF target, ppm, stacked over the logs
+    rows: np.ndarray  # index of the measured steps in the stacked steps
+    step_s: float
+
+    @property
+    def nodes(self) -> NodeTemperatures:
+        return NodeTemperatures(self.t_rel, self.step_s)
+
+    @property
+    def hours(self) -> float:
+        return sum(t.size for t in self.t_rel) * self.step_s / 3600.0
+
+    def as_dict(self) -> dict:
+        """JSON-able: float32 arrays in base64 (a 12 h program at 5 s is about 70 kB)."""
+        return {"step_s": self.step_s,
+                "t_rel": [_pack(t) for t in self.t_rel],
+                "y": _pack(self.y), "rows": _pack(self.rows.astype(np.float32))}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> StepSeries:
+        return cls([_unpack(t) for t in d["t_rel"]], _unpack(d["y"]),
+                   _unpack(d["rows"]).astype(np.int64), float(d["step_s"]))
+
+
+def _pack(a: np.ndarray) -> str:
+    return base64.b64encode(np.asarray(a, dtype="<f4").tobytes()).decode("ascii")
+
+
+def _unpack(s: str) -> np.ndarray:
+    return np.frombuffer(base64.b64decode(s), dtype="<f4").astype(np.float64)
+
+
+def step_series(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
+                latitude_deg: float | None = None) -> StepSeries:
+    fe = front_end_for(logs, step_s, ())
+    t_rel, ys, rows = [], [], []
+    base = 0
+    for lg in logs:
+        d = prepare(lg, fe, None, latitude_deg)
+        t_rel.append(d.s[:, 0].astype(np.float64))
+        ys.append(d.target_ppm[d.measured])
+        rows.append(np.flatnonzero(d.measured) + base)
+        base += d.n_steps
+    return StepSeries(t_rel, np.concatenate(ys), np.concatenate(rows), fe.step_s)
+
+
+def n_coef(k: int) -> int:
+    """Coefficients of the K-node law: intercept, 1 + K linear, the pairs, the cube of T."""
+    f = k + 1
+    return 1 + f + f * (f + 1) // 2 + 1
+
+
+def design_matrix(series: StepSeries, taus_s: np.ndarray) -> np.ndarray:
+    """[1, node_design(z)] on the measured steps, ppm per unit coefficient."""
+    z = series.nodes.z(np.asarray(taus_s, dtype=np.float64))[series.rows]
+    x = node_design(z, tuple(float(t) for t in taus_s))
+    return np.hstack([np.ones((x.shape[0], 1)), x])
+
+
+def correlation_factor(resid: np.ndarray, step_s: float) -> float:
+    """How much the residuals' slow part inflates a white-noise variance: the variance of
+    WINDOW_S means times the steps per window over the variance (>= 1)."""
+    w = max(1, int(round(WINDOW_S / step_s)))
+    n = resid.size // w
+    if n < 4:
+        return 1.0
+    means = resid[:n * w].reshape(n, w).mean(axis=1)
+    v = float(np.var(resid))
+    return max(1.0, w * float(np.var(means)) / v) if v > 0 else 1.0
+
+
+@dataclass
+class UnitFit:
+    """theta = [log taus, coefficients]; cov its estimation covariance; sigma2 the residual
+    variance per step (ppm^2) times the correlation factor."""
+
+    k: int
+    theta: np.ndarray
+    cov: np.ndarray
+    sigma2: float
+    sse: float
+    n: int
+
+    @property
+    def taus_s(self) -> np.ndarray:
+        return np.exp(self.theta[:self.k])
+
+    def as_dict(self) -> dict:
+        return {"k": self.k, "theta": self.theta.tolist(), "cov": self.cov.tolist(),
+                "sigma2": self.sigma2, "sse": self.sse, "n": self.n}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> UnitFit:
+        return cls(int(d["k"]), np.asarray(d["theta"], dtype=np.float64),
+                   np.asarray(d["cov"], dtype=np.float64), float(d["sigma2"]),
+                   float(d["sse"]), int(d["n"]))
+
+
+def predict(series: StepSeries, theta: np.ndarray, k: int) -> np.ndarray:
+    return design_matrix(series, np.exp(theta[:k])) @ theta[k:]
+
+
+def jacobian(series: StepSeries, theta: np.ndarray, k: int, h: float = 1e-4) -> np.ndarray:
+    """d prediction / d theta on the measured steps (forward differences in log tau)."""
+    x = design_matrix(series, np.exp(theta[:k]))
+    base = x @ theta[k:]
+    cols = []
+    for j in range(k):
+        t = theta.copy()
+        t[j] += h
+        cols.append((predict(series, t, k) - base) / h)
+    return np.column_stack([*cols, x])
+
+
+def _bounds(k: int) -> tuple[np.ndarray, np.ndarray]:
+    return np.full(k, math.log(TAU_MIN_S)), np.full(k, math.log(TAU_MAX_S))
+
+
+def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None) -> UnitFit:
+    """The K-node physics fit by variable projection (from `start_taus_s`, or from the
+    grid start `identify_taus` uses), with its estimation covariance."""
+    if start_taus_s is None:
+        taus = np.asarray(identify_taus(series.nodes, _full(series), k, series.rows),
+                          dtype=np.float64)
+    else:
+        lo, hi = _bounds(k)
+
+        def design(log_tau: np.ndarray) -> np.ndarray:
+            return design_matrix(series, np.exp(log_tau))[:, 1:]
+
+        vp = varpro(design, series.y, np.log(np.asarray(start_taus_s, dtype=np.float64)),
+                    lo, hi, NODE_LAMBDA)
+        taus = np.exp(vp.theta)
+    taus = np.sort(taus)
+    x = design_matrix(series, taus)
+    f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA)
+    theta = np.concatenate([np.log(taus), [f.intercept], f.coef])
+    resid = series.y - x @ theta[k:]
+    sse = float(resid @ resid)
+    n = series.y.size
+    white = sse / max(1, n - theta.size)
+    return UnitFit(k, theta, estimation_cov(series, theta, k, white),
+                   white * correlation_factor(resid, series.step_s), sse, n)
+
+
+def estimation_cov(series: StepSeries, theta: np.ndarray, k: int, white: float) -> np.ndarray:
+    """The ridge fit's estimation covariance, white (J^T J + P)^-1 J^T J (J^T J + P)^-1, P
+    the ridge penalty on the law's coefficients (intercept and time constants free): the
+    penalty pins the collinear nodes' directions, and the units' fits scatter as this."""
+    jac = jacobian(series, theta, k)
+    a = jac.T @ jac
+    x = jac[:, k + 1:]
+    xc = x - x.mean(axis=0)
+    pen = NODE_LAMBDA * float(np.trace(xc.T @ xc)) / max(1, x.shape[1])
+    p = np.zeros(a.shape[0])
+    p[k + 1:] = pen
+    p[:k + 1] = 1e-9 * float(np.mean(np.diag(a)))
+    inv = np.linalg.inv(a + np.diag(p))
+    cov = white * inv @ a @ inv
+    return 0.5 * (cov + cov.T)
+
+
+def _full(series: StepSeries) -> np.ndarray:
+    """The target over every stacked step (zeros where not measured: `rows` selects)."""
+    y = np.zeros(sum(t.size for t in series.t_rel))
+    y[series.rows] = series.y
+    return y

@@ -1,0 +1,246 @@
+"""What the fleet tests share: made-up unit records, the backends a store test runs on
+(SQLite always; PostgreSQL when a server is at hand) and waiting for another process."""
+
+from __future__ import annotations
+
+import atexit
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+import uuid
+from collections.abc import Callable
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fogsf.fleet.records import LogRecord, UnitRecord
+
+PG_ENV = "FOGSF_TEST_POSTGRES_URL"  # a server to use instead of starting one
+
+
+def fake_record(sn: str, seed: int = 0, structure: str = "physics2") -> UnitRecord:
+    """A unit record with made-up logs, figures and parameters (no training)."""
+    rng = np.random.default_rng(seed)
+    logs = [LogRecord(path=f"/lab/{sn}/loop{i}.csv", sha256=f"{seed:02d}{i:062d}",
+                      rows=36000 + i, span_s=3600.0 + 60 * i, sample_rate_hz=10.0,
+                      ramp_rates_c_per_min=[2.0, 1.0], temp_min_c=-20.0, temp_max_c=40.0,
+                      role="train") for i in range(2)]
+    logs.append(LogRecord(path=f"/lab/{sn}/test.csv", sha256="ab" * 32, rows=7200,
+                          span_s=7200.0, sample_rate_hz=1.0, ramp_rates_c_per_min=[1.0],
+                          temp_min_c=-20.0, temp_max_c=40.0, role="test"))
+    floor = 8.0 + rng.uniform(0, 1)
+    return UnitRecord(
+        unit=sn, logs=logs, model_id=f"{seed:016x}", model_dir="",
+        fitted_with={"model": "lag-lstm", "structure": structure, "options": {"seed": seed}},
+        figures={"noise_floor_ppm": floor, "test_after_rms_ppm": floor * 1.2,
+                 "test_rms_over_floor": 1.2, "train_rms_over_floor": 1.0,
+                 "sf_curve_log": "test",
+                 "sf_curve": {"temp_c": [-20.0, 0.0, 20.0, 40.0],
+                              "before_ppm": [-300.0, -100.0, 0.0, 150.0],
+                              "after_ppm": [3.0, -2.0, 1.0, 0.5]}},
+        interval={"rms_lo_ppm": floor, "rms_hi_ppm": 1.5 * floor, "noise_floor_ppm": floor,
+                  "test_rms_ppm": 1.2 * floor, "held": True, "covered": True},
+        summary={"structure": structure,
+                 "params": {"tau_s": sorted(float(t) for t in rng.uniform(200, 3000, 2)),
+                            "lin_ppm": [float(v) for v in rng.normal(0, 50, 3)]}},
+        fogsf_version="0.1.0", created_utc="2026-11-27T10:00:00Z")
+
+
+def wait_for(cond: Callable[[], bool], timeout_s: float, what: str) -> None:
+    t_end = time.monotonic() + timeout_s
+    while not cond():
+        if time.monotonic() > t_end:
+            raise AssertionError(what)
+        time.sleep(0.05)
+
+
+# --- PostgreSQL -------------------------------------------------------------------------------
+
+def _pg_bin() -> Path | None:
+    found = sorted(Path("/usr/lib/postgresql").glob("*/bin/initdb"))
+    return found[-1].parent if found else None
+
+
+@cache
+def pg_server() -> str | None:
+    """A PostgreSQL server for the session: FOGSF_TEST_POSTGRES_URL's, or Debian's postgresql
+    started in a temporary folder (as the postgres user when we are root: initdb refuses
+    root), listening on a Unix socket only; None when there is neither."""
+    if os.environ.get(PG_ENV):
+        return os.environ[PG_ENV]
+    bindir = _pg_bin()
+    if bindir is None:
+        return None
+    try:
+        import psycopg  # noqa: F401
+    except ImportError:
+        return None
+    root = Path(tempfile.mkdtemp(prefix="fogsf-pg-"))
+    data, sock = root / "data", root / "sock"
+    sock.mkdir()
+    as_user: list[str] = []
+    user = os.environ.get("USER") or "postgres"
+    if os.geteuid() == 0:
+        user = "postgres"
+        shutil.chown(root, user)
+        shutil.chown(sock, user)
+        root.chmod(0o755)
+        as_user = ["runuser", "-u", user, "--"]
+    run = [*as_user, str(bindir / "initdb"), "-D", str(data), "-A", "trust", "-U", user,
+           "--no-sync"]
+    subprocess.run(run, check=True, capture_output=True)
+    opts = f"-c listen_addresses='' -k {sock} -c fsync=off"
+    subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-l",
+                    str(root / "log"), "-o", opts, "-w", "start"], check=True,
+                   capture_output=True)
+
+    def stop() -> None:
+        subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-m", "immediate",
+                        "stop"], capture_output=True)
+        shutil.rmtree(root, ignore_errors=True)
+
+    atexit.register(stop)
+    return f"postgresql://{user}@/postgres?host={sock}"
+
+
+def _fresh_pg_database(server: str) -> str:
+    """A new empty database on `server` (its URL)."""
+    import psycopg
+    from psycopg import sql
+
+    name = f"fleet_{uuid.uuid4().hex[:12]}"
+    with psycopg.connect(server, autocommit=True) as db:
+        db.execute(sql.SQL("CREATE DATABASE {}").format(sql.Identifier(name)))
+    base, _, query = server.partition("?")
+    head = base.rsplit("/", 1)[0]
+    return f"{head}/{name}" + (f"?{query}" if query else "")
+
+
+def _sqlite(tmp_path: Path) -> str:
+    return str(tmp_path / "line.fleet")
+
+
+def _postgres(tmp_path: Path) -> str:
+    server = pg_server()
+    if server is None:
+        pytest.skip("no PostgreSQL server: Debian's postgresql is not installed (scripts/"
+                    f"toolchain.sh installs it) and {PG_ENV} is not set")
+    return _fresh_pg_database(server)
+
+
+def fleet_urls() -> list:
+    """pytest params: a function of tmp_path giving a fresh fleet, on each backend."""
+    return [pytest.param(_sqlite, id="sqlite"), pytest.param(_postgres, id="postgresql")]
+
+
+def raw_execute(fleet: str, statements: list[str]) -> None:
+    """Run SQL on the fleet's database directly (a database an older fogsf wrote)."""
+    if fleet.startswith("postgres"):
+        import psycopg
+
+        with psycopg.connect(fleet, autocommit=True) as db:
+            for s in statements:
+                db.execute(s)
+        return
+    import sqlite3
+
+    db = sqlite3.connect(fleet)
+    with db:
+        for s in statements:
+            db.execute(s)
+    db.close()
+
+
+# --- simulated units of one design ------------------------------------------------------------
+# Units from the simulator's designs (`fogsf.sim.fleet_units`: time constants +/-15 %, SF
+# coefficients +/-25 %, bias, hysteresis and ARW around the design's); the defect drawn here,
+# its strength from a stated range.
+
+DEFECTS = ("slope", "tau", "mode_hop")
+SLOPE_FACTOR = (3.0, 5.0)  # a defective part's SF slope: the design's x this, either sign
+TAU_FACTOR = (2.5, 4.0)  # the slowest part an SF factor reads: its time constant x this
+MODE_HOP_PPM = (150.0, 400.0)  # a mode hop: an SF step of this size, either sign,
+MODE_HOP_AT_C = (5.0, 25.0)  # above this source temperature
+
+
+def unit_config(design_seed: int, index: int):  # noqa: ANN201 - SimConfig
+    """Unit `index` of design `design_seed` (`fogsf.sim.fleet_units.unit_for`)."""
+    from fogsf.sim.fleet_units import unit_for
+
+    return unit_for(design_seed, index)
+
+
+def loop_program(rate: float = 2.0, lo: float = -20.0, hi: float = 40.0, soak_s: float = 1200.0
+                 ) -> list[list[float]]:
+    """lo -> hi -> lo at `rate` C/min with soaks at each end: [[time_s, temp_c], ...]."""
+    ramp = (hi - lo) / rate * 60.0
+    pts = [[0.0, lo], [soak_s, lo], [soak_s + ramp, hi], [2 * soak_s + ramp, hi],
+           [2 * soak_s + 2 * ramp, lo], [3 * soak_s + 2 * ramp, lo]]
+    return pts
+
+
+def unit_log(cfg, seed: int, defect: dict | None = None, sample_rate_hz: float = 1.0,
+             rate: float = 2.0):  # noqa: ANN001, ANN201
+    """A chamber log of unit `cfg` on `loop_program(rate)`; `defect`: {"kind": "mode_hop",
+    "ppm": step, "at_c": T} adds an SF step where the source is above T."""
+    from fogsf.sim.config import ProfileConfig
+    from fogsf.sim.gyro import simulate
+    from fogsf.sim.population import run_on_gyro
+
+    run = run_on_gyro(cfg, ProfileConfig(kind="program", points=loop_program(rate)), seed,
+                      "fleet-unit")
+    run.dt_s = 1.0 / sample_rate_hz
+    res = simulate(run)
+    log = res.log
+    if defect and defect["kind"] == "mode_hop":
+        part = "source" if "source" in res.nodes else "board"
+        step = np.where(res.nodes[part] > defect["at_c"], defect["ppm"] * 1e-6, 0.0)
+        log.gyro_dps = log.gyro_dps + (log.table_rate_dps + log.earth_rate_dps) * step
+    return log
+
+
+def draw_defect(rng: np.random.Generator, cfg) -> tuple[dict, object]:  # noqa: ANN001
+    """A defect drawn from DEFECTS and its ranges: (what it is, the unit's config with a
+    slope or tau defect applied; a mode hop is applied to the log by `unit_log`)."""
+    import copy
+
+    kind = str(rng.choice(DEFECTS))
+    sign = float(rng.choice([-1.0, 1.0]))
+    cfg = copy.deepcopy(cfg)
+    if kind == "slope":
+        term = max(cfg.sf.terms, key=lambda t: abs(t.lin_ppm_per_c))  # the strongest part
+        factor = sign * float(rng.uniform(*SLOPE_FACTOR))
+        term.lin_ppm_per_c *= factor
+        return {"kind": kind, "part": term.name, "factor": round(factor, 3)}, cfg
+    if kind == "tau":
+        read = {name for t in cfg.sf.terms for name in t.nodes}
+        part = max((n for n in cfg.thermal.nodes[2:] if n.name in read), key=lambda n: n.tau_s)
+        factor = float(rng.uniform(*TAU_FACTOR))
+        part.tau_s *= factor
+        return {"kind": kind, "part": part.name, "factor": round(factor, 3)}, cfg
+    return {"kind": kind, "ppm": round(sign * float(rng.uniform(*MODE_HOP_PPM)), 1),
+            "at_c": round(float(rng.uniform(*MODE_HOP_AT_C)), 1)}, cfg
+
+
+FAST_TRAIN = {"model": "lag-lstm", "structure": "physics", "nodes": 2, "iters": 2,
+              "hysteresis": "off", "transfer_check": False, "progress": False}
+
+
+def fit_unit(sn: str, train_logs: list, out_dir: Path, test_log=None,  # noqa: ANN001
+             **options: object) -> UnitRecord:
+    """Train a unit as `fogsf fleet add` does (the training code directly, few LSTM
+    iterations) and build its record."""
+    from fogsf.fleet.records import unit_record
+    from fogsf.training.fit import torch_threads
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import run_training
+
+    opts = TrainOptions(**{**FAST_TRAIN, **options})  # type: ignore[arg-type]
+    with torch_threads(1):  # a 1 x 16 net: one thread is fastest (several on a busy machine)
+        metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
+        return unit_record(sn, train_logs, test_log, metrics, fitted, out_dir, dict(options),
+                           keep_dir=False)

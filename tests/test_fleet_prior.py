@@ -1,0 +1,145 @@
+"""The design's prior on synthetic units of a known physics-node design: the structure and
+the spread it learns, the unit unlike the line it leaves out, the MAP that beats a unit's
+short run alone, the check that refuses a unit unlike the design, the summary round trip.
+
+Units are drawn at the model rate (no simulator): a design's time constants and law, each
+unit's drawn around them by a stated spread, white noise; the effect's strength, the design
+and the seed come from a seeded generator and are printed on failure."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from fogsf.fleet import prior as fp
+from fogsf.fleet.prior_map import map_fit
+from fogsf.fleet.unit_fit import StepSeries, design_matrix, fit_unit, n_coef
+
+STEP_S = 5.0
+SEED = 3802
+
+
+def _program(hours: float, rate: float, soak_min: float, rng: np.random.Generator
+             ) -> np.ndarray:
+    """Board temperature minus 20 C per step: soak, up, soak, down, ... at `rate` C/min."""
+    lo, hi = -55.0 + rng.uniform(-2, 2), 30.0 + rng.uniform(-2, 2)
+    pts_t, pts_c, t, c = [0.0], [lo], 0.0, lo
+    while t < hours * 3600:
+        t += soak_min * 60
+        pts_t.append(t)
+        pts_c.append(c)
+        nxt = hi if c == lo else lo
+        t += abs(nxt - c) / rate * 60
+        pts_t.append(t)
+        pts_c.append(nxt)
+        c = nxt
+    tt = np.arange(0, hours * 3600, STEP_S)
+    return np.interp(tt, pts_t, pts_c)
+
+
+def _design(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    taus = np.sort(np.exp(rng.uniform(np.log(300), np.log(4000), 2)))
+    taus[1] = max(taus[1], 2.5 * taus[0])
+    coef = np.zeros(n_coef(2))
+    coef[1:4] = rng.uniform(-150, 150, 3)  # linear in T and the nodes (ppm per 50 C)
+    coef[4:10] = rng.uniform(-40, 40, 6)  # quadratic and cross
+    coef[10] = rng.uniform(-10, 10)
+    return np.log(taus), coef
+
+
+def _unit(design: tuple[np.ndarray, np.ndarray], t_rel: np.ndarray, rng: np.random.Generator,
+          noise: float, tau_spread: float = 0.10, coef_spread: float = 0.15
+          ) -> tuple[StepSeries, np.ndarray]:
+    lt, coef = design
+    theta = np.concatenate([lt + rng.uniform(-tau_spread, tau_spread, lt.size),
+                            coef * (1 + rng.uniform(-coef_spread, coef_spread, coef.size))])
+    s = StepSeries([t_rel], np.zeros(t_rel.size), np.arange(t_rel.size), STEP_S)
+    y = design_matrix(s, np.exp(theta[:2])) @ theta[2:]
+    s.y = y + rng.normal(0, noise, y.size)
+    return s, theta
+
+
+def _truth_rms(s: StepSeries, theta: np.ndarray, truth: np.ndarray) -> float:
+    a = design_matrix(s, np.exp(theta[:2])) @ theta[2:]
+    b = design_matrix(s, np.exp(truth[:2])) @ truth[2:]
+    return float(np.sqrt(np.mean((a - b) ** 2)))
+
+
+@pytest.fixture(scope="module")
+def line() -> dict:
+    """A design, its noise, 6 units on a 6 h program."""
+    rng = np.random.default_rng(SEED)
+    design = _design(rng)
+    noise = float(rng.uniform(2.0, 5.0))
+    full = _program(6.0, 1.5, 30, rng)
+    units = {f"u{i}": _unit(design, full, rng, noise) for i in range(6)}
+    return {"rng": rng, "design": design, "noise": noise, "units": units}
+
+
+@pytest.fixture(scope="module")
+def prior(line: dict) -> fp.DesignPrior:
+    return fp.learn({sn: s for sn, (s, _) in line["units"].items()}, k=2)
+
+
+def test_prior_learns_the_design_and_its_spread(line: dict, prior: fp.DesignPrior) -> None:
+    p = prior
+    truth = np.stack([th for _, th in line["units"].values()])
+    msg = f"seed {SEED}, noise {line['noise']:.2f}"
+    # the design's time constants within the units' spread of their mean
+    assert np.allclose(p.mu[:2], truth[:, :2].mean(axis=0), atol=0.08), msg
+    # the spread of the log time constants: the units' own, estimation noise taken out
+    sd = np.sqrt(np.diag(p.sigma)[:2])
+    true_sd = truth[:, :2].std(axis=0, ddof=1)
+    assert np.all(sd < 2.5 * true_sd + 0.02) and np.all(sd > 0.3 * true_sd), msg
+    assert not p.left_out, msg
+
+
+def test_unit_unlike_the_line_is_left_out(line: dict) -> None:
+    rng = np.random.default_rng(SEED + 1)
+    lt, coef = line["design"]
+    odd = (lt, coef.copy())
+    odd[1][1:4] *= -2.0  # its linear law far off the design's
+    series = {sn: s for sn, (s, _) in line["units"].items()}
+    series["odd"] = _unit(odd, line["units"]["u0"][0].t_rel[0], rng, line["noise"])[0]
+    p = fp.learn(series, k=2)
+    assert [x["unit"] for x in p.left_out] == ["odd"], f"seed {SEED}"
+
+
+def test_map_beats_the_short_run_alone(line: dict, prior: fp.DesignPrior) -> None:
+    rng = np.random.default_rng(SEED + 2)
+    p = prior
+    full = line["units"]["u0"][0]
+    better = 0
+    for i in range(2):
+        short, truth = _unit(line["design"], _program(1.5, 2.0, 10, rng), rng, line["noise"])
+        mf = map_fit(short, p)
+        alone = fit_unit(short, 2)
+        e_map, e_alone = _truth_rms(full, mf.theta, truth), _truth_rms(full, alone.theta, truth)
+        assert not mf.disagrees, f"seed {SEED} unit {i}: chi2 {mf.chi2:.1f}"
+        assert all(0.0 <= v <= 1.0 for v in mf.prior_share.values())
+        better += e_map < e_alone
+        assert e_map < 3.0 * line["noise"], f"seed {SEED} unit {i}: {e_map:.2f} ppm off"
+    assert better == 2, f"seed {SEED}"
+
+
+def test_unit_unlike_the_design_disagrees(line: dict, prior: fp.DesignPrior) -> None:
+    rng = np.random.default_rng(SEED + 3)
+    p = prior
+    lt, coef = line["design"]
+    odd = (lt, coef.copy())
+    odd[1][1:4] *= float(rng.uniform(2.5, 4.0))
+    short, _ = _unit(odd, _program(2.0, 2.0, 15, rng), rng, line["noise"])
+    mf = map_fit(short, p)
+    assert mf.disagrees, f"seed {SEED}: chi2 {mf.chi2:.1f} limit {mf.chi2_limit:.1f}"
+
+
+def test_series_and_fit_round_trip_through_json(line: dict) -> None:
+    s, _ = line["units"]["u1"]
+    back = StepSeries.from_dict(json.loads(json.dumps(s.as_dict())))
+    assert np.allclose(back.y, s.y, rtol=1e-6, atol=1e-3)
+    assert np.array_equal(back.rows, s.rows)
+    f = fit_unit(s, 2)
+    g = type(f).from_dict(json.loads(json.dumps(f.as_dict())))
+    assert np.allclose(g.theta, f.theta) and np.allclose(g.cov, f.cov)

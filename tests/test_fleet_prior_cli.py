@@ -1,0 +1,66 @@
+"""`fogsf train --prior FLEET --unit SN`: the prior learned from the database alone, what it
+prints, an ordinary model written, the unit recorded; refusals in one line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fogsf.cli.main import main
+from fogsf.fleet.store import open_store
+from fogsf.logs.logio import write_log
+from fogsf.sim.fleet_units import unit_for
+from tests.fleet_units import fit_unit, unit_log
+
+SEED = 3803
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    rng = np.random.default_rng(SEED)
+    design = int(rng.integers(1, 10_000))  # a development design
+    tmp = tmp_path_factory.mktemp("fleet")
+    db = str(tmp / "line.fleet")
+    with open_store(db) as store:
+        for i in range(4):
+            cfg = unit_for(design, i)
+            logs = [unit_log(cfg, 10 * i + j, rate=r) for j, r in enumerate((2.0, 1.0))]
+            store.add(fit_unit(f"SN{i}", logs, tmp / f"m{i}"))
+    new = tmp / "new.csv"
+    write_log(new, unit_log(unit_for(design, 50), 999, rate=2.0))
+    return {"db": db, "new": new, "tmp": tmp, "design": design}
+
+
+def test_train_with_the_prior_records_the_unit(fleet: dict, capsys: pytest.CaptureFixture
+                                               ) -> None:
+    out = fleet["tmp"] / "m-new"
+    assert main(["train", "--prior", fleet["db"], "--unit", "SN-new", "--train",
+                 str(fleet["new"]), "--out", str(out), "--iters", "2", "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    msg = f"design {fleet['design']} (seed {SEED})"
+    assert "design's prior: " in text and "learned from 4 units" in text, msg
+    m = json.loads((out / "metrics.json").read_text())
+    rec = m["prior"]
+    assert rec["units"] == 4 and rec["nodes"] in (1, 2, 3), msg
+    if rec["used"]:
+        assert "share of the posterior precision" in text
+        assert (out / "stream.json").is_file()  # an ordinary model: export reads it
+        assert m["features"][0] == "T" and len(m["filter_tau_s"]) == rec["nodes"]
+    else:
+        assert "fitted alone" in text
+    with open_store(fleet["db"]) as store:
+        assert store.has("SN-new")
+        assert store.unit("SN-new").summary["series"]
+
+
+def test_refusals_in_one_line(fleet: dict, capsys: pytest.CaptureFixture) -> None:
+    base = ["train", "--train", str(fleet["new"]), "--out", str(fleet["tmp"] / "x")]
+    assert main([*base, "--unit", "SN9"]) == 2
+    assert main([*base, "--prior", fleet["db"], "--structure", "bank"]) == 2
+    empty = str(Path(fleet["tmp"]) / "empty.fleet")
+    assert main([*base, "--prior", empty]) == 2
+    err = capsys.readouterr().err
+    assert "--prior FLEET" in err and "drop --model" in err and "at least two units" in err
