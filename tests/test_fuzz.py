@@ -60,7 +60,7 @@ def test_the_harness_reports_a_totality_violation(fuzzer, tmp_path) -> None:
     from fogsf.bindings.kernel import C_DIR, STRICT
     broken = tmp_path / "fogsf.c"
     text = (C_DIR / "fogsf.c").read_text()
-    needle = "        out->corrected_dps = 0.0;\n        out->sf_ppm = 0.0f;"
+    needle = "        out->corrected_dps = 0.0f;\n        out->sf_ppm = 0.0f;"
     assert needle in text
     broken.write_text(text.replace(needle, "        out->corrected_dps = gyro_dps;\n"
                                            "        out->sf_ppm = 0.0f;"))

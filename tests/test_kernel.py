@@ -130,9 +130,12 @@ def test_kernel_vs_onnx_reference(poly, kroot) -> None:
     state = [np.zeros((1, model.hidden), np.float32) for _ in in_names]
     for m in range(z.shape[0]):
         outs = ref.run(None, {"z": z[m:m + 1], **dict(zip(in_names, state, strict=True))})
-        state = outs[1:]
+        state = outs[1:1 + 2 * model.layers]
         np.testing.assert_allclose(state[-2][0], h_c[m], atol=2e-6, err_msg=f"step {m}")
         assert abs(float(outs[0][0, 0]) - float(sf_c[m])) <= 0.01, f"step {m}"
+        # the graph's correction factor is the kernel's float32 ops on its own sf_ppm
+        k_want, _ = reference.correction_terms(outs[0][0])
+        assert outs[-1][0].tobytes() == k_want.tobytes(), f"step {m}"
 
 
 def test_streaming_equals_whole_log_and_runs_repeat_bit_for_bit(kroot) -> None:

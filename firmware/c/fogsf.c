@@ -23,11 +23,6 @@ static bool float_finite(float v)
     return (float_bits(v) & 0x7f800000u) != 0x7f800000u;
 }
 
-static bool double_finite(double v)
-{
-    return (v - v) == 0.0; /* Inf - Inf and NaN - NaN are NaN */
-}
-
 static uint32_t n_plays_of(const fogsf_model *m)
 {
     return m->plays != NULL ? m->plays->n_plays : 0u;
@@ -268,7 +263,8 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
     st->t_last_good = (m != NULL) ? m->t_ref_c : 0.0f;
     st->sf_ppm = 0.0f;
     st->bias_dph = 0.0f;
-    st->bias_dps = 0.0;
+    st->bias_dps = 0.0f;
+    st->sf_k = 0.0f;
     st->sf_flags = 0u;
     st->raw_prev_bits = 0u;
     st->stuck_run = 0u;
@@ -310,7 +306,7 @@ static void bias_step(const fogsf_model *m, fogsf_state *st)
             st->sf_flags |= FOGSF_FLAG_BIAS_CLAMPED;
         }
         st->bias_dph = y;
-        st->bias_dps = (double)y / 3600.0; /* once per model step, not per sample */
+        st->bias_dps = y / 3600.0f; /* once per model step, not per sample */
     }
 }
 
@@ -396,17 +392,24 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
         st->sf_flags = FOGSF_FLAG_SF_CLAMPED;
     }
     st->sf_ppm = sf;
+    /* the correction's factor, once per model step: k = s / (1 + s), s = sf * 1e-6, so that a
+     * sample is corrected by d - d * k = d / (1 + s) with one rounding that matters */
+    {
+        const float s_rel = sf * 1e-6f;
+        st->sf_k = s_rel / (1.0f + s_rel);
+    }
     bias_step(m, st);
 }
 
 /* One sample with a model that fits the state (contract steps 1-5). */
-static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
                         fogsf_output *out)
 {
     uint32_t flags = 0u;
     const uint32_t bits = float_bits(temp_c);
     float tc;
-    double corrected;
+    float d;
+    float corrected;
 
     /* 1. temperature: stuck run on the raw bits, then sanitise and clamp */
     if ((st->started != 0u) && (bits == st->raw_prev_bits)) {
@@ -459,13 +462,13 @@ static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, dou
         }
     }
 
-    /* 5. the held bias and SF error correct this sample, in double; a bias of 0 (always,
-     * without a bias head) is not subtracted: gyro / (1 + sf * 1e-6) as before, and no
-     * soft-double work on a Cortex-M4F */
-    corrected = st->bias_dph != 0.0f ? gyro_dps - st->bias_dps : gyro_dps;
-    corrected = corrected / (1.0 + (double)st->sf_ppm * 1e-6);
-    if (!double_finite(gyro_dps) || !double_finite(corrected)) {
-        corrected = 0.0;
+    /* 5. the held bias and SF error correct this sample, float32: d = g - b / 3600, then
+     * d - d * k (b / 3600 and k computed at the model step). A gyro that is NaN or Inf gives
+     * a corrected value that is NaN or Inf (b and k are finite), so one test covers both. */
+    d = gyro_dps - st->bias_dps;
+    corrected = d - (d * st->sf_k);
+    if (!float_finite(corrected)) {
+        corrected = 0.0f;
         flags |= FOGSF_FLAG_GYRO_INVALID;
     }
     out->corrected_dps = corrected;
@@ -474,12 +477,12 @@ static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, dou
     out->flags = flags | st->sf_flags;
 }
 
-void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
                 fogsf_output *out)
 {
     /* only the model the reset accepted, and never index past the state or through NULL */
     if ((m != st->model) || (model_fits(m) != 0u)) {
-        out->corrected_dps = 0.0;
+        out->corrected_dps = 0.0f;
         out->sf_ppm = 0.0f;
         out->bias_dph = 0.0f;
         out->flags = FOGSF_FLAG_MODEL_INVALID;
@@ -489,14 +492,14 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
 }
 
 uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                   const double *gyro_dps, size_t n, double *corrected_dps, float *sf_ppm,
+                   const float *gyro_dps, size_t n, float *corrected_dps, float *sf_ppm,
                    uint32_t *flags)
 {
     return fogsf_run_bias(m, st, temp_c, gyro_dps, n, corrected_dps, sf_ppm, NULL, flags);
 }
 
 uint32_t fogsf_run_bias(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                        const double *gyro_dps, size_t n, double *corrected_dps,
+                        const float *gyro_dps, size_t n, float *corrected_dps,
                         float *sf_ppm, float *bias_dph, uint32_t *flags)
 {
     uint32_t all = 0u;

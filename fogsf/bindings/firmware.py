@@ -89,7 +89,11 @@ def golden_inputs(model: StreamModel, n: int = GOLDEN_SAMPLES, seed: int = 0
     for value in (np.nan, np.inf, -np.inf, 1.7e308, -1e300):
         gyro[rng.integers(0, n, 3)] = value
     with np.errstate(over="ignore"):
-        return temp.astype(np.float32), gyro
+        gyro32 = gyro.astype(np.float32)  # the kernel's input type: 1.7e308 becomes Inf
+    for value in (3.4e38, -3.4e38):  # finite float32 whose correction may overflow
+        gyro32[rng.integers(0, n, 3)] = value
+    with np.errstate(over="ignore"):
+        return temp.astype(np.float32), gyro32
 
 
 def golden_header(model: StreamModel, kernel: Kernel, n: int = GOLDEN_SAMPLES) -> str:
@@ -113,9 +117,10 @@ def golden_header(model: StreamModel, kernel: Kernel, n: int = GOLDEN_SAMPLES) -
         f'#define FOGSF_GOLDEN_MODEL_ID "{model.model_id}"\n',
         f'#include "{BOUND_NAME}.h"\n#define FOGSF_GOLDEN_MODEL (&{BOUND_NAME})\n',
         arr("uint32_t", "golden_temp_bits", temp.view(np.uint32), "0x{:08x}u", 8),
-        arr("uint64_t", "golden_gyro_bits", gyro.view(np.uint64), "0x{:016x}ull", 4),
+        arr("uint32_t", "golden_gyro_bits", gyro.view(np.uint32), "0x{:08x}u", 8),
         arr("uint32_t", "golden_sf_bits", sf.view(np.uint32), "0x{:08x}u", 8),
-        arr("uint64_t", "golden_corrected_bits", corrected.view(np.uint64), "0x{:016x}ull", 4),
+        arr("uint32_t", "golden_corrected_bits", corrected.astype(np.float32).view(np.uint32),
+            "0x{:08x}u", 8),
         arr("uint32_t", "golden_flags", flags, "{}u", 16),
         *bias,
         "#endif\n",

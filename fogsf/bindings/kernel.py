@@ -201,17 +201,18 @@ class Kernel:
         return st
 
     def step(self, st, temp_c: float, gyro_dps: float) -> tuple[float, float, int]:  # noqa: ANN001
-        """One sample: (corrected_dps, sf_ppm, flags); temp_c is cast to float32 first."""
+        """One sample: (corrected_dps, sf_ppm, flags); temp_c and gyro_dps are cast to
+        float32 first (as C's cast)."""
         out = self.ffi.new("fogsf_output *")
         with np.errstate(over="ignore"):
-            t = float(np.float32(temp_c))
-        self.lib.fogsf_step(self.m, st, t, float(gyro_dps), out)
+            t, g = float(np.float32(temp_c)), float(np.float32(gyro_dps))
+        self.lib.fogsf_step(self.m, st, t, g, out)
         return out.corrected_dps, out.sf_ppm, out.flags
 
     def _inputs(self, temp_c: np.ndarray, gyro_dps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with np.errstate(over="ignore", invalid="ignore"):
             t = np.ascontiguousarray(temp_c, dtype=np.float32)
-        g = np.ascontiguousarray(gyro_dps, dtype=np.float64)
+            g = np.ascontiguousarray(np.asarray(gyro_dps, dtype=np.float64), dtype=np.float32)
         if t.shape != g.shape or t.ndim != 1:
             raise UserError(f"temperature {t.shape} and gyro {g.shape} must be 1-D, same length")
         return t, g
@@ -224,9 +225,9 @@ class Kernel:
         corrected, sf, flags = _outputs(n)
         st = st if st is not None else self.new_state()
         fb = self.ffi.from_buffer
-        self.lib.fogsf_run(self.m, st, fb("float[]", t), fb("double[]", g), n,
-                           fb("double[]", corrected), fb("float[]", sf), fb("uint32_t[]", flags))
-        return corrected, sf, flags
+        self.lib.fogsf_run(self.m, st, fb("float[]", t), fb("float[]", g), n,
+                           fb("float[]", corrected), fb("float[]", sf), fb("uint32_t[]", flags))
+        return corrected.astype(np.float64), sf, flags
 
     def run_bias(self, temp_c: np.ndarray, gyro_dps: np.ndarray, st=None  # noqa: ANN001
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -237,10 +238,10 @@ class Kernel:
         bias = np.empty(n, np.float32)
         fb = self.ffi.from_buffer
         st = st if st is not None else self.new_state()
-        self.lib.fogsf_run_bias(self.m, st, fb("float[]", t), fb("double[]", g),
-                                n, fb("double[]", corrected), fb("float[]", sf),
+        self.lib.fogsf_run_bias(self.m, st, fb("float[]", t), fb("float[]", g),
+                                n, fb("float[]", corrected), fb("float[]", sf),
                                 fb("float[]", bias), fb("uint32_t[]", flags))
-        return corrected, sf, bias, flags
+        return corrected.astype(np.float64), sf, bias, flags
 
     def stream(self, temp_c: np.ndarray, gyro_dps: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -254,7 +255,7 @@ class Kernel:
         for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
             step(m, st, ti, gi, out)
             corrected[i], sf[i], flags[i] = out.corrected_dps, out.sf_ppm, out.flags
-        return corrected, sf, flags
+        return corrected.astype(np.float64), sf, flags
 
     def lstm_cell(self, w: np.ndarray, r: np.ndarray, b: np.ndarray | None,
                   p: np.ndarray | None, x: np.ndarray, h: np.ndarray, c: np.ndarray
@@ -305,5 +306,6 @@ def trace_steps(kernel: Kernel, temp_c: np.ndarray, gyro_dps: np.ndarray
 
 
 def _outputs(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-sample output arrays: corrected rate (double), sf_ppm (float), flags (uint32)."""
-    return np.empty(n, np.float64), np.empty(n, np.float32), np.empty(n, np.uint32)
+    """Per-sample output arrays: corrected rate, sf_ppm (float32; the corrected rate is
+    returned as float64 holding its float32 values exactly), flags (uint32)."""
+    return np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.uint32)

@@ -7,8 +7,8 @@
 static const fogsf_model *const models[IMAGE_N_MODELS] = IMAGE_MODELS;
 static fogsf_state states[IMAGE_N_MODELS];
 volatile float probe_temp_c;
-volatile double probe_gyro_dps;
-volatile double probe_corrected_dps;
+volatile float probe_gyro_dps;
+volatile float probe_corrected_dps;
 volatile uint32_t probe_samples;
 
 int main(void)

@@ -16,6 +16,8 @@
  * violation aborts, which libFuzzer reports as a crash.
  * The number of fogsf_step calls is printed at exit ("fuzz steps: N") for make fuzz.
  */
+#include <float.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -44,11 +46,6 @@ int LLVMFuzzerInitialize(int *argc, char ***argv)
 static int finite_f(float v)
 {
     return v - v == 0.0f;
-}
-
-static int finite_d(double v)
-{
-    return v - v == 0.0;
 }
 
 /* reads little pieces of the input; past the end it reads zeros */
@@ -88,19 +85,33 @@ static double next_f64(reader *r)
     return d;
 }
 
+/* the record's gyro (8 bytes, float64 bits) as the kernel's float32 input, as C's cast under
+ * IEEE 754 (beyond float32's range: +-Inf) without the cast's undefined overflow */
+static float gyro_f32(double g)
+{
+    if (g > (double)FLT_MAX) {
+        return INFINITY;
+    }
+    if (g < -(double)FLT_MAX) {
+        return -INFINITY;
+    }
+    return (float)g;
+}
+
 static void check(uint32_t refused, const fogsf_output *out)
 {
     const float sf = out->sf_ppm < 0.0f ? -out->sf_ppm : out->sf_ppm;
     const float b = out->bias_dph < 0.0f ? -out->bias_dph : out->bias_dph;
     ++steps;
-    if (!finite_d(out->corrected_dps) || !finite_f(out->sf_ppm) || !(sf <= FOGSF_SF_LIMIT_PPM) ||
+    if (!finite_f(out->corrected_dps) || !finite_f(out->sf_ppm) || !(sf <= FOGSF_SF_LIMIT_PPM) ||
         !(b <= FOGSF_BIAS_LIMIT_DPH) || (out->flags & ~127u) != 0u) {
-        fprintf(stderr, "totality violated: corrected %g sf %g flags %u\n", out->corrected_dps,
+        fprintf(stderr, "totality violated: corrected %g sf %g flags %u\n",
+                (double)out->corrected_dps,
                 (double)out->sf_ppm, (unsigned)out->flags);
         abort();
     }
     if (refused != 0u &&
-        (out->corrected_dps != 0.0 || out->flags != FOGSF_FLAG_MODEL_INVALID)) {
+        (out->corrected_dps != 0.0f || out->flags != FOGSF_FLAG_MODEL_INVALID)) {
         fprintf(stderr, "an invalid model must give 0 and MODEL_INVALID only (init refused it)\n");
         abort();
     }
@@ -113,7 +124,7 @@ static void run_samples(const fogsf_model *m, reader *r)
     const uint32_t refused = fogsf_init(m, &st);
     while (r->at < r->n) {
         const float t = next_f32(r);
-        const double g = next_f64(r);
+        const float g = gyro_f32(next_f64(r));
         unsigned rep = next_u8(r);
         do {
             fogsf_step(m, &st, t, g, &out);
