@@ -46,6 +46,15 @@
 #define FOGSF_MAX_PLAYS 1
 #endif
 
+/* Bounded, even time (define to 1 for the kernel's sources, all alike): the model step is
+ * spread over the D samples up to the next one (its front at the step's sample, then one LSTM
+ * unit a sample, then the head, then the bias head), its outputs held from the next step's
+ * sample on (D samples later than by default, the same bits: docs/stream-contract.md,
+ * "Even time"), and fogsf_expf / fogsf_tanhf run one path for every input. */
+#ifndef FOGSF_EVEN_TIME
+#define FOGSF_EVEN_TIME 0
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -149,6 +158,9 @@ typedef struct fogsf_state {
     float bias_dps;                              /* bias_dph / 3600 (float32), held */
     float sf_k;                                  /* s / (1 + s), s = sf_ppm * 1e-6, held */
     uint32_t sf_flags;                           /* FOGSF_FLAG_SF/BIAS_CLAMPED of that step */
+    float sf_next, k_next, bias_next, bias_dps_next; /* the step being computed: held */
+    uint32_t flags_next;                         /* from its publication on */
+    uint32_t part;                               /* FOGSF_EVEN_TIME: its next part, 0 none */
     uint32_t raw_prev_bits;                      /* previous raw temperature, bitwise */
     uint32_t stuck_run;                          /* repeats of it (saturates at the threshold) */
     uint32_t n_acc;                              /* samples in acc */
@@ -231,6 +243,12 @@ size_t fogsf_state_size(void);
 void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
                      const float *b, const float *p, const float *x, float *h, float *c,
                      float *h_prev);
+
+/* Unit j of fogsf_lstm_cell (the same arguments): its c[j] and h[j], from h_prev [H], which
+ * unit 0 first fills with h. fogsf_lstm_cell is this for j = 0 .. H-1 in order. */
+void fogsf_lstm_unit(size_t n_in, size_t hidden, const float *w, const float *r,
+                     const float *b, const float *p, const float *x, float *h, float *c,
+                     float *h_prev, size_t j);
 
 /* The kernel's float32 activations (no libm): within 1.2e-7 of the exact functions. */
 float fogsf_expf(float x);

@@ -102,14 +102,21 @@ def _run(cmd: list[str], where: Path) -> None:
                         f"{proc.stdout}{proc.stderr}")
 
 
+EVEN_TIME = "-DFOGSF_EVEN_TIME=1"  # the kernel's bounded, even-time build (fogsf.h)
+
+
 def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "gcc",
-                 opt: str = "-O2", sanitize: bool = False) -> KernelBuild:
-    """Export the model as C and compile the kernel (cached by model id + sources + flags)."""
+                 opt: str = "-O2", sanitize: bool = False, even_time: bool = False
+                 ) -> KernelBuild:
+    """Export the model as C and compile the kernel (cached by model id + sources + flags);
+    `even_time`: with FOGSF_EVEN_TIME (the step spread over D samples, branch-free
+    activations; `reference.replay(..., even_time=True)` gives its outputs)."""
     from fogsf.export.header import render_model
 
     if shutil.which(cc) is None:
         raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
-    flags = (*STRICT, opt, "-fPIC", *max_defines(model), *(SANITIZE if sanitize else ()))
+    defines = (*max_defines(model), *((EVEN_TIME,) if even_time else ()))
+    flags = (*STRICT, opt, "-fPIC", *defines, *(SANITIZE if sanitize else ()))
     files = render_model(model, BOUND_NAME)
     header = "".join(files.values())
     # the compiler by its name and a hash of how it was given (a path has slashes)
@@ -121,7 +128,7 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     out = (out / key).resolve()
     shared, static = out / "libfogsf.so", out / "libfogsf.a"
     if shared.is_file() and static.is_file():
-        return KernelBuild(out, shared, static, model.model_id, max_defines(model))
+        return KernelBuild(out, shared, static, model.model_id, defines)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=out.parent))
@@ -145,7 +152,7 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
               *objs], work)
         _run(["ar", "rcs", str(work / static.name), *objs], work)
         if shared.is_file() and static.is_file():  # another process finished first
-            return KernelBuild(out, shared, static, model.model_id, max_defines(model))
+            return KernelBuild(out, shared, static, model.model_id, defines)
         if out.is_dir():  # an incomplete folder (a file deleted by hand): replaced
             shutil.rmtree(out, ignore_errors=True)
         try:
@@ -155,7 +162,7 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
                 raise
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return KernelBuild(out, shared, static, model.model_id, max_defines(model))
+    return KernelBuild(out, shared, static, model.model_id, defines)
 
 
 def cdef(model: StreamModel) -> str:

@@ -60,18 +60,23 @@ def render_selftest() -> str:
         want = np.concatenate([f32.exp_f32(x), f32.sigmoid_f32(x), f32.tanh_f32(x)])
         temp = np.array(TEMP, np.float32)
         gyro = np.array(GYRO, np.float32)
-    out = reference.replay(model, temp, gyro)
-    assert out.bias_dph is not None
+    wants = []
+    for even_time in (True, False):
+        out = reference.replay(model, temp, gyro, even_time=even_time)
+        assert out.bias_dph is not None
+        wants.append({
+            "sf_want": _hex(out.sf_ppm.view(np.uint32), 8, "u"),
+            "bias_want": _hex(out.bias_dph.view(np.uint32), 8, "u"),
+            "corrected_want": _hex(out.corrected_dps.astype(np.float32).view(np.uint32), 8,
+                                   "u"),
+            "flags_want": _hex(out.flags, 2, "u")})
     return env.get_template("selftest.c.j2").render(
         name=NAME, model_id=model.model_id, summary=model.summary, model_c=model_c,
         n_act=len(ACT_X), n=len(TEMP),
         act_x=_hex(x.view(np.uint32), 8, "u"), act_want=_hex(want.view(np.uint32), 8, "u"),
         temp_bits=_hex(temp.view(np.uint32), 8, "u"),
         gyro_bits=_hex(gyro.view(np.uint32), 8, "u"),
-        sf_want=_hex(out.sf_ppm.view(np.uint32), 8, "u"),
-        bias_want=_hex(out.bias_dph.view(np.uint32), 8, "u"),
-        corrected_want=_hex(out.corrected_dps.astype(np.float32).view(np.uint32), 8, "u"),
-        flags_want=_hex(out.flags, 2, "u"))
+        wants=wants)
 
 
 def main(argv: list[str] | None = None) -> int:

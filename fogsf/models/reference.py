@@ -294,6 +294,16 @@ def expand(step_values: np.ndarray, n_samples: int, decimation: int) -> np.ndarr
     return np.asarray(step_values)[np.arange(n_samples) // decimation]
 
 
+def expand_late(step_values: np.ndarray, n_samples: int, decimation: int) -> np.ndarray:
+    """Held values of the even-time kernel (FOGSF_EVEN_TIME: each step computed over the D
+    samples after its own and held from the next step's sample on): sample i gets the value
+    of step i // D - 1, and 0 before sample D."""
+    v = np.asarray(step_values)
+    idx = np.arange(n_samples) // decimation - 1
+    out = v[np.maximum(idx, 0)] if v.shape[0] else np.zeros(n_samples, v.dtype)
+    return np.where(idx >= 0, out, np.zeros((), v.dtype)).astype(v.dtype)
+
+
 def correction_terms(sf_ppm: np.ndarray, bias_dph: np.ndarray | None = None
                      ) -> tuple[np.ndarray, np.ndarray]:
     """The per-step factors of the correction, float32 as the kernel computes them at each
@@ -330,13 +340,17 @@ class ReplayOut(NamedTuple):
     bias_dph: np.ndarray | None = None  # [N] float32, held (0 without a bias head)
 
 
-def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray) -> ReplayOut:
-    """The whole contract per sample from reset: what the C kernel returns, bit for bit."""
+def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray,
+           even_time: bool = False) -> ReplayOut:
+    """The whole contract per sample from reset: what the C kernel returns, bit for bit
+    (`even_time`: what a kernel built with FOGSF_EVEN_TIME returns, the same step outputs
+    held D samples later, `expand_late`)."""
     fe = frontend(temp_c, model.front_end)
     steps = run_steps(model, fe.s)
     n = fe.flags.shape[0]
-    sf = expand(steps.sf_ppm, n, model.decimation)
-    b = expand(steps.bias_dph, n, model.decimation)
+    held = expand_late if even_time else expand
+    sf = held(steps.sf_ppm, n, model.decimation)
+    b = held(steps.bias_dph, n, model.decimation)
     corrected, gflags = correct(gyro_dps, sf, b if model.bias_head else None)
-    flags = fe.flags | gflags | expand(steps.flags, n, model.decimation)
+    flags = fe.flags | gflags | held(steps.flags, n, model.decimation)
     return ReplayOut(corrected, sf, flags.astype(np.uint32), b)
