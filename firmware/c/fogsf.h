@@ -184,8 +184,9 @@ typedef struct fogsf_output {
  * plays' arrays present, half widths and source weights finite) and its tables are intact
  * (crc32_sizes, then crc32: fogsf_model_crc32), else FOGSF_FLAG_MODEL_INVALID. Reads every
  * table once (about 10 instructions a byte): call it at power-on (fogsf_init does) and,
- * if the application wants, now and then; fogsf_step itself checks only the sizes and
- * pointers at every sample. */
+ * if the application wants, now and then; fogsf_step itself checks that the state was
+ * started with m at every sample, and the sizes and pointers on every sample that reads the
+ * model's arrays (one that runs a model step or, with FOGSF_EVEN_TIME, a part of one). */
 uint32_t fogsf_model_check(const fogsf_model *m);
 
 /* The CRC-32 (IEEE 802.3, reflected, as zlib.crc32) of m's sizes and scalars
