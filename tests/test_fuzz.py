@@ -54,7 +54,8 @@ def test_the_harness_reports_a_totality_violation(fuzzer, tmp_path) -> None:
     """The check can fail: an input that makes the harness see a bad output must crash.
     A model with decimation 0 is invalid; the harness demands corrected == 0 and only
     MODEL_INVALID for it, which the kernel gives: so run the harness built against a kernel
-    whose invalid-model branch is broken (corrected = gyro) and expect an abort."""
+    whose invalid-model branch is broken (corrected = gyro + 1, never 0) and expect an
+    abort."""
     exe, root = fuzzer
     from fogsf.bindings.fuzz import FUZZ_DIR, FUZZ_FLAGS, FUZZ_MAX
     from fogsf.bindings.kernel import C_DIR, STRICT
@@ -62,7 +63,7 @@ def test_the_harness_reports_a_totality_violation(fuzzer, tmp_path) -> None:
     text = (C_DIR / "fogsf.c").read_text()
     needle = "        out->corrected_dps = 0.0f;\n        out->sf_ppm = 0.0f;"
     assert needle in text
-    broken.write_text(text.replace(needle, "        out->corrected_dps = gyro_dps;\n"
+    broken.write_text(text.replace(needle, "        out->corrected_dps = gyro_dps + 1.0f;\n"
                                            "        out->sf_ppm = 0.0f;"))
     bad_exe = tmp_path / "fuzz_broken"
     subprocess.run(["clang", *STRICT, *FUZZ_FLAGS, *FUZZ_MAX, "-I", str(exe.parent), "-I",
