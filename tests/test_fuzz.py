@@ -72,3 +72,18 @@ def test_the_harness_reports_a_totality_violation(fuzzer, tmp_path) -> None:
                     str(bad_exe)], check=True, capture_output=True)
     rc, out, _ = run_fuzzer(bad_exe, [str(CORPUS / "invalid_model")])
     assert rc != 0 and "invalid model must give 0" in out, out[-2000:]
+
+
+def test_the_even_time_build_passes_the_corpus_and_a_short_run(fuzzer) -> None:
+    """The harness against the kernel built with FOGSF_EVEN_TIME (the spread step): the
+    regression corpus and a short run, no finding."""
+    _, root = fuzzer
+    exe = build_fuzzer(root / "even", even_time=True)
+    rc, text, steps = regression(exe)
+    assert rc == 0 and steps > 0, text[-3000:]
+    work = root / "corpus_even"
+    work.mkdir(exist_ok=True)
+    rc, text, steps = run_fuzzer(exe, ["-seed=11", "-runs=400", "-max_len=4096",
+                                       f"-artifact_prefix={root}/", str(work), str(CORPUS)],
+                                 timeout=300)
+    assert rc == 0 and steps >= 400, text[-3000:]
