@@ -44,7 +44,7 @@ from fogsf.bindings.firmware import (
     qemu_cmd,
     section_sizes,
 )
-from fogsf.bindings.kernel import Kernel, build_kernel, state_sizes
+from fogsf.bindings.kernel import EVEN_TIME, Kernel, build_kernel, state_sizes
 from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, stack_bound
 from fogsf.errors import UserError
 from fogsf.export.header import write_model
@@ -98,9 +98,10 @@ IMAGES = ((1, "small-lstm-1x16-poly", True, False, 0, False, False),
           (11, "lag-bank-1x16-all-inputs-full-quad", False, False, 0, False, False))
 
 
-def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-lstm-1x16-poly"
-                ) -> dict:
-    """Flash, RAM and instructions of one Cortex-M4F image stepping all `models`."""
+def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-lstm-1x16-poly",
+                selftest: bool = False) -> dict:
+    """Flash, RAM and instructions of one Cortex-M4F image stepping all `models` (with
+    `selftest`, the image calls fogsf_selftest at power-on too)."""
     names = AXES[:len(models)]
     tag = f"image{len(models)}-{label}"
     gen = root / tag / "models"
@@ -111,7 +112,8 @@ def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-ls
         for k, v in state_sizes(model).items():
             sizes[k] = max(sizes.get(k, 0), v)
     arm = build_arm(gen, None, root / tag / "m4f", names,
-                    tuple(f"-D{k}={v}" for k, v in sizes.items()))
+                    tuple(f"-D{k}={v}" for k, v in sizes.items())
+                    + (("-DFOGSF_BENCH_SELFTEST",) if selftest else ()))
     size = arm_size(arm, models)
     worst, mean = instructions(arm.bench_elf, models[0].decimation)
     row = {"name": f"{len(models)}x {label} in one image", "models": len(models),
@@ -124,11 +126,13 @@ def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-ls
     return row
 
 
-# the per-core rows: the default model's shape (the lag bank, its form), one and three
-CORE_IMAGES = ((1, 11), (3, 11))
+# the per-core rows: the default model's shape (the lag bank, its form), one and three, in
+# the default build and in the even-time build (FOGSF_EVEN_TIME)
+CORE_IMAGES = ((1, 11, False), (3, 11, False), (1, 11, True), (3, 11, True))
 
 
-def bench_core(core: Core, models: list[st.StreamModel], root: Path, label: str) -> dict:
+def bench_core(core: Core, models: list[st.StreamModel], root: Path, label: str,
+               even_time: bool = False) -> dict:
     """One image on one core: flash (text + data), RAM (data + bss + the stack bound of a
     call-graph walk of the linked image, libgcc included: the deeper of fogsf_step's and the
     power-on calls'), instructions per sample (worst: a model step; mean over a period)."""
@@ -142,34 +146,44 @@ def bench_core(core: Core, models: list[st.StreamModel], root: Path, label: str)
         for k, v in state_sizes(model).items():
             sizes[k] = max(sizes.get(k, 0), v)
     arm = build_arm(gen, None, root / tag / core.name, names,
-                    tuple(f"-D{k}={v}" for k, v in sizes.items()), core=core)
+                    tuple(f"-D{k}={v}" for k, v in sizes.items())
+                    + ((EVEN_TIME,) if even_time else ()), core=core)
     text, data, bss = section_sizes(arm.size_elf)
     step = stack_bound(arm.size_elf, STEP_ROOTS)
     init = stack_bound(arm.size_elf, INIT_ROOTS)
-    worst, mean = instructions(arm.bench_elf, models[0].decimation, core)
+    d = models[0].decimation
+    counts = counts_of(arm.bench_elf, d, core)
+    worst, mean = max(counts), float(np.mean(counts[d + 1:2 * d + 1]))
+    # the samples that start no model step: every front-end path is planted among them
+    plain = max(c for i, c in enumerate(counts) if i % d != 0)
     return {"core": core.name, "image": f"{len(models)}x {label}", "models": len(models),
             "flash_bytes": text + data, "ram_bytes": data + bss + max(step.bytes, init.bytes),
             "stack_step_bytes": step.bytes, "stack_step_path": step.path,
             "stack_init_bytes": init.bytes, "stack_unbounded": step.unbounded + init.unbounded,
-            "instructions_per_sample_worst": worst, "instructions_per_sample_mean": mean}
+            "instructions_per_sample_worst": worst, "instructions_per_sample_mean": mean,
+            "instructions_non_step_worst": plain, "even_time": even_time,
+            "worst_over_mean": worst / mean}
 
 
 def core_rows(root: Path) -> list[dict]:
     rows = []
     for core in CORES.values():
-        for n, k in CORE_IMAGES:
-            print(f"{core.name}: {n} x lag-bank-1x16", flush=True)
-            rows.append(bench_core(core, small_poly_models(n, k), root, "lag-bank-1x16"))
+        for n, k, even in CORE_IMAGES:
+            label = "lag-bank-1x16" + ("-even-time" if even else "")
+            print(f"{core.name}: {n} x {label}", flush=True)
+            rows.append(bench_core(core, small_poly_models(n, k), root, label, even))
     return rows
 
 
 def print_core_rows(rows: list[dict]) -> None:
-    print(f"\n{'core':11s} {'image':18s} {'flash B':>8s} {'RAM B':>6s} {'stack B':>7s} "
-          f"{'instr/sample worst':>19s} {'mean':>7s}  deepest chain")
+    print(f"\n{'core':11s} {'image':28s} {'flash B':>8s} {'RAM B':>6s} {'stack B':>7s} "
+          f"{'instr/sample worst':>19s} {'mean':>7s} {'worst/mean':>10s} "
+          f"{'non-step worst':>14s}  deepest chain")
     for r in rows:
-        print(f"{r['core']:11s} {r['image']:18s} {r['flash_bytes']:8d} {r['ram_bytes']:6d} "
+        print(f"{r['core']:11s} {r['image']:28s} {r['flash_bytes']:8d} {r['ram_bytes']:6d} "
               f"{r['stack_step_bytes']:7d} {r['instructions_per_sample_worst']:19d} "
-              f"{r['instructions_per_sample_mean']:7.0f}  {' > '.join(r['stack_step_path'])}")
+              f"{r['instructions_per_sample_mean']:7.0f} {r['worst_over_mean']:10.1f} "
+              f"{r['instructions_non_step_worst']:14d}  {' > '.join(r['stack_step_path'])}")
 
 
 def random_models() -> list[tuple[str, st.StreamModel, str]]:
@@ -214,6 +228,15 @@ def ort_ns_per_step(model: st.StreamModel, steps: int) -> float:
 def instructions(bench_elf: Path, decimation: int, core: Core = M4F) -> tuple[int, float]:
     """(instructions of the worst sample, mean per sample over one decimation period) of
     fogsf_step on the core, counted between the bench image's marker calls."""
+    counts = counts_of(bench_elf, decimation, core)
+    # calls 0, D, 2D run a model step; samples D+1 .. 2D are one steady period; the worst
+    # is over every sample counted (with FOGSF_EVEN_TIME any sample may be the worst)
+    period = counts[decimation + 1:2 * decimation + 1]
+    return max(counts), float(np.mean(period))
+
+
+def counts_of(bench_elf: Path, decimation: int, core: Core = M4F) -> list[int]:
+    """The instructions of each of the 2D + 1 samples of the bench image, in order."""
     cmd = qemu_cmd(bench_elf, "-singlestep", "-d", "exec,nochain", machine=core.machine)
     counts: list[int] = []
     inside, n = False, 0
@@ -235,9 +258,7 @@ def instructions(bench_elf: Path, decimation: int, core: Core = M4F) -> tuple[in
     if proc.returncode != 0 or len(counts) != 2 * decimation + 1:
         raise UserError(f"instruction count: QEMU exited {proc.returncode} with "
                         f"{len(counts)} marked calls (expected {2 * decimation + 1})")
-    # calls 0, D, 2D run a model step; samples D+1 .. 2D are one steady period
-    period = counts[decimation + 1:2 * decimation + 1]
-    return max(counts[decimation], counts[2 * decimation]), float(np.mean(period))
+    return counts
 
 
 def bench_model(name: str, model: st.StreamModel, note: str, root: Path, steps: int
@@ -302,6 +323,9 @@ def main(argv: list[str] | None = None) -> int:
             bench_image(small_poly_models(n, k, form, bias, own, play, full_quad),
                         args.build.resolve(), label)
             for k, label, form, bias, own, play, full_quad in IMAGES for n in (1, 3)]
+        if images:  # the default shape with the power-on self-test linked
+            images.append(bench_image(small_poly_models(3, 11), args.build.resolve(),
+                                      "lag-bank-1x16-with-fogsf_selftest", selftest=True))
         cores = [] if arm_tools_missing() else core_rows(args.build.resolve())
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)

@@ -99,7 +99,7 @@ def test_without_a_bias_head_ids_and_generated_bytes_are_unchanged() -> None:
     assert (sha(header), sha(before_feat_diag(text))) == (
         "84cef9ee17b9", "af9045995521")
     proto = build_step_onnx(bank)
-    assert [o.name for o in proto.graph.output] == ["sf_ppm", "h0_out", "c0_out"]
+    assert [o.name for o in proto.graph.output] == ["sf_ppm", "h0_out", "c0_out", "sf_k"]
     assert "bias_head" not in fixture.config()
 
 
@@ -160,8 +160,16 @@ def test_corrected_takes_the_bias_off_then_the_sf(kroot: Path) -> None:
     temp, gyro = golden_inputs(model, n=2000, seed=5)
     ok = np.isfinite(temp) & (np.abs(temp) < 100) & np.isfinite(gyro) & (np.abs(gyro) < 1e3)
     corrected, sf, bias, _ = kernel_for(model, kroot).run_bias(temp, gyro)
-    want = (gyro - bias.astype(np.float64) / 3600.0) / (1.0 + sf.astype(np.float64) * 1e-6)
+    # the contract's float32 form (d = g - b / 3600, d - d * k, k = s / (1 + s)), and within
+    # float32 rounding (a few 1e-8 of the rate) of the exact correction in double
+    g32, b32, s = gyro.astype(np.float32), bias / np.float32(3600), sf * np.float32(1e-6)
+    k = s / (np.float32(1) + s)
+    with np.errstate(invalid="ignore"):
+        d = g32 - b32
+        want = (d - d * k).astype(np.float64)
     assert np.array_equal(corrected[ok], want[ok])
+    exact = (gyro - bias.astype(np.float64) / 3600.0) / (1.0 + sf.astype(np.float64) * 1e-6)
+    assert np.max(np.abs(corrected[ok] - exact[ok]) / np.abs(exact[ok])) < 2e-7
     plain = samples.random_model(*SIZES[1][:5], seed=SIZES[1][5])
     c0, sf0, *_ = kernel_for(plain, kroot).run(temp, gyro)
     assert sf0.tobytes() == sf.tobytes()  # the SF part is the same model's
@@ -205,6 +213,8 @@ def test_onnx_bias_output_matches_the_kernel(size: tuple, kroot: Path) -> None:
     b_c = bias_c[::model.decimation].astype(np.float64)
     assert np.ptp(b_c) > 0.1
     assert np.max(np.abs(ort.bias_seq - b_c)) <= 1e-5 * max(1.0, float(np.max(np.abs(b_c))))
+    # the correction's bias term: the kernel's float32 division of the graph's own bias
+    assert ort.bias_dps_seq.tobytes() == (ort.bias_seq / np.float32(3600)).tobytes()
     assert np.max(np.abs(sf_o - sf_c)) <= 0.01
 
 

@@ -204,8 +204,10 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     assert rows[0][-1] == "bias_dph"
     got = np.array(rows[1:], dtype=np.float64)
     assert np.array_equal(got[:, 4].astype(np.float32), ref.bias_dph)
-    bias = got[:, 4].astype(np.float32).astype(np.float64)  # %.9g: the float32's digits
-    assert np.array_equal(got[:, 2], got[:, 1] - bias / 3600.0)
+    # the float32 correction (contract fogsf-stream-2): sf is 0 exactly, so k is 0 and the
+    # corrected rate is g - bias / 3600, each in float32
+    g32, b32 = got[:, 1].astype(np.float32), got[:, 4].astype(np.float32) / np.float32(3600)
+    assert np.array_equal(got[:, 2], (g32 - b32).astype(np.float64))
 
 
 def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,

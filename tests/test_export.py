@@ -62,7 +62,7 @@ def test_onnx_step_matches_torch_and_reference(params) -> None:
         with torch.no_grad():
             sf_t, h, c = tstep(torch.from_numpy(z[None, :]), h, c)
         outs = ref.run(None, {"z": z[None, :], **dict(zip(in_names, ref_state, strict=True))})
-        ref_state = outs[1:]
+        ref_state = outs[1:1 + 2 * layers]
         ort_h = np.stack(ort.state[0::2])[:, 0]
         ort_c = np.stack(ort.state[1::2])[:, 0]
         # sf_ppm = y * out_scale + out_offset: compare at the scale of y (tanh units), and

@@ -57,7 +57,8 @@ def test_make_firmware_cores_passes_on_every_core(tmp_path, capsys) -> None:
                   "Cortex-M3 (soft float) under qemu-system-arm -M mps2-an385: PASS",
                   "Cortex-M0 (soft float) under qemu-system-arm -M microbit: PASS"):
         assert label in out, out
-    assert out.count("PASS: 12000 outputs bit-exact") == 3, out
+    assert out.count("PASS: 12000 outputs bit-exact") == 6, out  # default and even time
+    assert "build: even-time (-DFOGSF_EVEN_TIME=1)" in out, out
     assert "__aeabi_" in out  # the M0's deepest chain runs into libgcc's soft float
 
 
@@ -69,6 +70,6 @@ def test_a_contracted_m4f_build_fails_its_golden_vectors(tmp_path, monkeypatch, 
     monkeypatch.setattr(fw, "STRICT", tuple("-ffp-contract=fast" if f == "-ffp-contract=off"
                                             else f for f in fw.STRICT))
     assert main(["tests/fixtures/small_model", "--out", str(tmp_path),
-                 "--cores", "cortex-m4f"]) == 1
+                 "--cores", "cortex-m4f", "--builds", "default"]) == 1
     out = capsys.readouterr().out
     assert "FAIL" in out and "mismatch" in out, out

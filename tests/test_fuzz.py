@@ -54,15 +54,16 @@ def test_the_harness_reports_a_totality_violation(fuzzer, tmp_path) -> None:
     """The check can fail: an input that makes the harness see a bad output must crash.
     A model with decimation 0 is invalid; the harness demands corrected == 0 and only
     MODEL_INVALID for it, which the kernel gives: so run the harness built against a kernel
-    whose invalid-model branch is broken (corrected = gyro) and expect an abort."""
+    whose invalid-model branch is broken (corrected = gyro + 1, never 0) and expect an
+    abort."""
     exe, root = fuzzer
     from fogsf.bindings.fuzz import FUZZ_DIR, FUZZ_FLAGS, FUZZ_MAX
     from fogsf.bindings.kernel import C_DIR, STRICT
     broken = tmp_path / "fogsf.c"
     text = (C_DIR / "fogsf.c").read_text()
-    needle = "        out->corrected_dps = 0.0;\n        out->sf_ppm = 0.0f;"
+    needle = "        out->corrected_dps = 0.0f;\n        out->sf_ppm = 0.0f;"
     assert needle in text
-    broken.write_text(text.replace(needle, "        out->corrected_dps = gyro_dps;\n"
+    broken.write_text(text.replace(needle, "        out->corrected_dps = gyro_dps + 1.0f;\n"
                                            "        out->sf_ppm = 0.0f;"))
     bad_exe = tmp_path / "fuzz_broken"
     subprocess.run(["clang", *STRICT, *FUZZ_FLAGS, *FUZZ_MAX, "-I", str(exe.parent), "-I",
@@ -71,3 +72,18 @@ def test_the_harness_reports_a_totality_violation(fuzzer, tmp_path) -> None:
                     str(bad_exe)], check=True, capture_output=True)
     rc, out, _ = run_fuzzer(bad_exe, [str(CORPUS / "invalid_model")])
     assert rc != 0 and "invalid model must give 0" in out, out[-2000:]
+
+
+def test_the_even_time_build_passes_the_corpus_and_a_short_run(fuzzer) -> None:
+    """The harness against the kernel built with FOGSF_EVEN_TIME (the spread step): the
+    regression corpus and a short run, no finding."""
+    _, root = fuzzer
+    exe = build_fuzzer(root / "even", even_time=True)
+    rc, text, steps = regression(exe)
+    assert rc == 0 and steps > 0, text[-3000:]
+    work = root / "corpus_even"
+    work.mkdir(exist_ok=True)
+    rc, text, steps = run_fuzzer(exe, ["-seed=11", "-runs=400", "-max_len=4096",
+                                       f"-artifact_prefix={root}/", str(work), str(CORPUS)],
+                                 timeout=300)
+    assert rc == 0 and steps >= 400, text[-3000:]

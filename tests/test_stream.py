@@ -196,8 +196,9 @@ def test_replay_is_total_and_flags_bad_gyro() -> None:
     assert np.all(out.flags[[5, 50]] & st.FLAG_GYRO_INVALID)
     assert out.corrected_dps[5] == 0.0
     ok = np.isfinite(gyro) & (np.abs(gyro) < 1e300)
-    expect = gyro[ok] / (1.0 + out.sf_ppm[ok].astype(np.float64) * 1e-6)
-    np.testing.assert_array_equal(out.corrected_dps[ok], expect)
+    s = out.sf_ppm[ok] * np.float32(1e-6)  # the contract's float32 correction (no bias)
+    d = gyro[ok].astype(np.float32)
+    np.testing.assert_array_equal(out.corrected_dps[ok], d - d * (s / (np.float32(1) + s)))
 
 
 def test_sf_clamp_flags_a_broken_model() -> None:

@@ -23,11 +23,6 @@ static bool float_finite(float v)
     return (float_bits(v) & 0x7f800000u) != 0x7f800000u;
 }
 
-static bool double_finite(double v)
-{
-    return (v - v) == 0.0; /* Inf - Inf and NaN - NaN are NaN */
-}
-
 static uint32_t n_plays_of(const fogsf_model *m)
 {
     return m->plays != NULL ? m->plays->n_plays : 0u;
@@ -268,8 +263,15 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
     st->t_last_good = (m != NULL) ? m->t_ref_c : 0.0f;
     st->sf_ppm = 0.0f;
     st->bias_dph = 0.0f;
-    st->bias_dps = 0.0;
+    st->bias_dps = 0.0f;
+    st->sf_k = 0.0f;
     st->sf_flags = 0u;
+    st->sf_next = 0.0f;
+    st->k_next = 0.0f;
+    st->bias_next = 0.0f;
+    st->bias_dps_next = 0.0f;
+    st->flags_next = 0u;
+    st->part = 0u;
     st->raw_prev_bits = 0u;
     st->stuck_run = 0u;
     st->n_acc = 0u;
@@ -284,47 +286,24 @@ uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st)
     return fogsf_reset(m, st);
 }
 
-/* The bias head on the features z of this step (deg/h): the bias, then the squares, then
- * the cubes, index order; NaN or beyond +-FOGSF_BIAS_LIMIT_DPH is clamped and flagged. */
-static void bias_step(const fogsf_model *m, fogsf_state *st)
+/* A model step (contract step 4) runs as parts, in this order: 0 the front (lag filters,
+ * plays, features z), 1 .. L*H one LSTM unit each (layer by layer, unit by unit), then the
+ * head (sf_ppm and k), then the bias head (bias_dph and b). Each part writes what the next
+ * ones read, and the head and bias parts write the *_next fields, which publish() makes the
+ * held outputs: so running the parts one after another at one sample, or one a sample, gives
+ * the same bits. */
+static uint32_t n_parts(const fogsf_model *m)
 {
-    const fogsf_bias_head *b = m->bias;
-    const uint32_t nf = m->n_features;
-    float y, mag;
-    uint32_t i;
-
-    if (b != NULL) { /* without a bias head bias_dph stays 0 */
-        y = b->b;
-        for (i = 0; i < nf; ++i) {
-            y = y + (b->w[i] * st->z[i]);
-        }
-        for (i = 0; i < nf; ++i) {
-            y = y + (b->quad_w[i] * (st->z[i] * st->z[i]));
-        }
-        for (i = 0; i < nf; ++i) {
-            y = y + (b->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]));
-        }
-        mag = (y < 0.0f) ? -y : y;
-        if (!(mag <= FOGSF_BIAS_LIMIT_DPH)) {
-            y = (y > 0.0f) ? FOGSF_BIAS_LIMIT_DPH : ((y < 0.0f) ? -FOGSF_BIAS_LIMIT_DPH : 0.0f);
-            st->sf_flags |= FOGSF_FLAG_BIAS_CLAMPED;
-        }
-        st->bias_dph = y;
-        st->bias_dps = (double)y / 3600.0; /* once per model step, not per sample */
-    }
+    return (m->layers * m->hidden) + 3u;
 }
 
-/* Contract step 4: one model step on the block-mean temperature tm. */
-static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
+/* part 0 on the block-mean temperature tm */
+static void part_front(const fogsf_model *m, fogsf_state *st, float tm)
 {
     float s[1 + FOGSF_MAX_FILTERS + FOGSF_MAX_PLAYS];
-    float y, sf, mag;
-    const float *x = st->z;
     const fogsf_plays *pm = m->plays;
-    const uint32_t nk = m->n_filters, nf = m->n_features, nh = m->hidden,
-                   np = n_plays_of(m), ni = 1u + nk + np;
-    size_t n_in = m->lstm_inputs != 0u ? m->lstm_inputs : nf; /* layer 0 reads z[0:n_in] */
-    uint32_t k, f, l, j;
+    const uint32_t nk = m->n_filters, nf = m->n_features, np = n_plays_of(m), ni = 1u + nk + np;
+    uint32_t k, f, j;
 
     for (k = 0; k < nk; ++k) {
         st->y[k] = st->y[k] + m->filter_alpha[k] * (tm - st->y[k]);
@@ -358,12 +337,31 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
             st->z[f] = acc;
         }
     }
-    for (l = 0; l < m->layers; ++l) {
-        fogsf_lstm_cell(n_in, nh, m->lstm_w[l], m->lstm_r[l], m->lstm_b[l], NULL, x, st->h[l],
-                        st->c[l], st->h_prev);
-        x = st->h[l];
+}
+
+/* LSTM unit u = l * H + j: unit j of layer l (its h_prev taken at the layer's first unit) */
+static void part_unit(const fogsf_model *m, fogsf_state *st, uint32_t u)
+{
+    const uint32_t nh = m->hidden;
+    const uint32_t l = u / nh;
+    const uint32_t j = u - (l * nh);
+    const float *x = st->z;
+    size_t n_in = (m->lstm_inputs != 0u) ? m->lstm_inputs : m->n_features;
+    if (l > 0u) {
+        x = st->h[l - 1u];
         n_in = nh;
     }
+    fogsf_lstm_unit(n_in, nh, m->lstm_w[l], m->lstm_r[l], m->lstm_b[l], NULL, x, st->h[l],
+                    st->c[l], st->h_prev, j);
+}
+
+/* the head: sf_ppm (NaN or beyond +-FOGSF_SF_LIMIT_PPM clamped and flagged) and k */
+static void part_head(const fogsf_model *m, fogsf_state *st)
+{
+    const uint32_t nf = m->n_features, nh = m->hidden;
+    float y, sf, mag, s_rel;
+    uint32_t i, j;
+
     y = m->head_b;
     for (j = 0; j < nh; ++j) {
         y = y + m->head_w[j] * st->h[m->layers - 1u][j];
@@ -372,7 +370,6 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
         y = y + m->skip_w[j] * st->z[j];
     }
     if (m->quad_w != NULL) { /* polynomial head: the quadratic, then the cubic terms in z */
-        uint32_t i;
         if (m->quad_diag != 0u) { /* the diagonal only: quad_w [F] */
             for (i = 0; i < nf; ++i) {
                 y = y + m->quad_w[i] * (st->z[i] * st->z[i]);
@@ -390,23 +387,127 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
     }
     sf = y * m->out_scale + m->out_offset;
     mag = sf < 0.0f ? -sf : sf;
-    st->sf_flags = 0u;
+    st->flags_next = 0u;
     if (!(mag <= FOGSF_SF_LIMIT_PPM)) { /* a broken model, or NaN: never pass it on */
         sf = sf > 0.0f ? FOGSF_SF_LIMIT_PPM : (sf < 0.0f ? -FOGSF_SF_LIMIT_PPM : 0.0f);
-        st->sf_flags = FOGSF_FLAG_SF_CLAMPED;
+        st->flags_next = FOGSF_FLAG_SF_CLAMPED;
     }
-    st->sf_ppm = sf;
-    bias_step(m, st);
+    st->sf_next = sf;
+    /* the correction's factor, once per model step: k = s / (1 + s), s = sf * 1e-6, so that a
+     * sample is corrected by d - d * k = d / (1 + s) with one rounding that matters */
+    s_rel = sf * 1e-6f;
+    st->k_next = s_rel / (1.0f + s_rel);
+}
+
+/* The bias head on the features z of this step (deg/h): the bias, then the squares, then
+ * the cubes, index order; NaN or beyond +-FOGSF_BIAS_LIMIT_DPH is clamped and flagged. */
+static void part_bias(const fogsf_model *m, fogsf_state *st)
+{
+    const fogsf_bias_head *b = m->bias;
+    const uint32_t nf = m->n_features;
+    float y, mag;
+    uint32_t i;
+
+    if (b != NULL) { /* without a bias head bias_dph stays 0 */
+        y = b->b;
+        for (i = 0; i < nf; ++i) {
+            y = y + (b->w[i] * st->z[i]);
+        }
+        for (i = 0; i < nf; ++i) {
+            y = y + (b->quad_w[i] * (st->z[i] * st->z[i]));
+        }
+        for (i = 0; i < nf; ++i) {
+            y = y + (b->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]));
+        }
+        mag = (y < 0.0f) ? -y : y;
+        if (!(mag <= FOGSF_BIAS_LIMIT_DPH)) {
+            y = (y > 0.0f) ? FOGSF_BIAS_LIMIT_DPH : ((y < 0.0f) ? -FOGSF_BIAS_LIMIT_DPH : 0.0f);
+            st->flags_next |= FOGSF_FLAG_BIAS_CLAMPED;
+        }
+        st->bias_next = y;
+        st->bias_dps_next = y / 3600.0f; /* once per model step, not per sample */
+    }
+}
+
+/* part p of the model step (tm is read by part 0 only) */
+static void run_part(const fogsf_model *m, fogsf_state *st, uint32_t p, float tm)
+{
+    const uint32_t units = m->layers * m->hidden;
+    if (p == 0u) {
+        part_front(m, st, tm);
+    } else if (p <= units) {
+        part_unit(m, st, p - 1u);
+    } else if (p == (units + 1u)) {
+        part_head(m, st);
+    } else {
+        part_bias(m, st);
+    }
+}
+
+/* the step's outputs become the held ones */
+static void publish(fogsf_state *st)
+{
+    st->sf_ppm = st->sf_next;
+    st->sf_k = st->k_next;
+    st->bias_dph = st->bias_next;
+    st->bias_dps = st->bias_dps_next;
+    st->sf_flags = st->flags_next;
+}
+
+/* A model step on the block mean tm at this sample. Default: all parts now, the outputs held
+ * from this sample on (contract step 5). FOGSF_EVEN_TIME: the parts still pending from the
+ * last step first (only when D < its parts), the last step's outputs published, then part 0
+ * now and one part a sample after it (spread_part): the outputs held from the next step's
+ * sample on, D samples later, with the same bits. */
+static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
+{
+#if FOGSF_EVEN_TIME
+    while (st->part != 0u) {
+        run_part(m, st, st->part, 0.0f);
+        st->part = ((st->part + 1u) < n_parts(m)) ? (st->part + 1u) : 0u;
+    }
+    publish(st);
+    run_part(m, st, 0u, tm);
+    st->part = 1u;
+#else
+    uint32_t p;
+    for (p = 0u; p < n_parts(m); ++p) {
+        run_part(m, st, p, tm);
+    }
+    publish(st);
+#endif
+}
+
+#if FOGSF_EVEN_TIME
+/* one pending part of the step started at the last model step, if any */
+static void spread_part(const fogsf_model *m, fogsf_state *st)
+{
+    if (st->part != 0u) {
+        run_part(m, st, st->part, 0.0f);
+        st->part = ((st->part + 1u) < n_parts(m)) ? (st->part + 1u) : 0u;
+    }
+}
+#endif
+
+/* true when this sample runs a model step or a part of one (the arrays are read by size) */
+static bool runs_model(const fogsf_model *m, const fogsf_state *st)
+{
+    bool r = (st->started == 0u) || ((st->n_acc + 1u) >= m->decimation);
+#if FOGSF_EVEN_TIME
+    r = r || (st->part != 0u);
+#endif
+    return r;
 }
 
 /* One sample with a model that fits the state (contract steps 1-5). */
-static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
                         fogsf_output *out)
 {
     uint32_t flags = 0u;
     const uint32_t bits = float_bits(temp_c);
     float tc;
-    double corrected;
+    float d;
+    float corrected;
 
     /* 1. temperature: stuck run on the raw bits, then sanitise and clamp */
     if ((st->started != 0u) && (bits == st->raw_prev_bits)) {
@@ -456,16 +557,21 @@ static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, dou
             st->acc = 0.0f;
             st->n_acc = 0u;
             model_step(m, st, tm);
+        } else {
+            /* between model steps: with FOGSF_EVEN_TIME one part of the pending step */
+#if FOGSF_EVEN_TIME
+            spread_part(m, st);
+#endif
         }
     }
 
-    /* 5. the held bias and SF error correct this sample, in double; a bias of 0 (always,
-     * without a bias head) is not subtracted: gyro / (1 + sf * 1e-6) as before, and no
-     * soft-double work on a Cortex-M4F */
-    corrected = st->bias_dph != 0.0f ? gyro_dps - st->bias_dps : gyro_dps;
-    corrected = corrected / (1.0 + (double)st->sf_ppm * 1e-6);
-    if (!double_finite(gyro_dps) || !double_finite(corrected)) {
-        corrected = 0.0;
+    /* 5. the held bias and SF error correct this sample, float32: d = g - b / 3600, then
+     * d - d * k (b / 3600 and k computed at the model step). A gyro that is NaN or Inf gives
+     * a corrected value that is NaN or Inf (b and k are finite), so one test covers both. */
+    d = gyro_dps - st->bias_dps;
+    corrected = d - (d * st->sf_k);
+    if (!float_finite(corrected)) {
+        corrected = 0.0f;
         flags |= FOGSF_FLAG_GYRO_INVALID;
     }
     out->corrected_dps = corrected;
@@ -474,12 +580,15 @@ static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, dou
     out->flags = flags | st->sf_flags;
 }
 
-void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
                 fogsf_output *out)
 {
-    /* only the model the reset accepted, and never index past the state or through NULL */
-    if ((m != st->model) || (model_fits(m) != 0u)) {
-        out->corrected_dps = 0.0;
+    /* only the model the reset accepted (NULL when it refused one), its sizes and pointers
+     * checked again on a sample that reads its arrays (one that runs a model step, or a part
+     * of one), before anything of the state changes: never index past the state or through
+     * NULL. The other samples read only scalars of the model and the state. */
+    if ((m == NULL) || (m != st->model) || (runs_model(m, st) && (model_fits(m) != 0u))) {
+        out->corrected_dps = 0.0f;
         out->sf_ppm = 0.0f;
         out->bias_dph = 0.0f;
         out->flags = FOGSF_FLAG_MODEL_INVALID;
@@ -489,14 +598,14 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro
 }
 
 uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                   const double *gyro_dps, size_t n, double *corrected_dps, float *sf_ppm,
+                   const float *gyro_dps, size_t n, float *corrected_dps, float *sf_ppm,
                    uint32_t *flags)
 {
     return fogsf_run_bias(m, st, temp_c, gyro_dps, n, corrected_dps, sf_ppm, NULL, flags);
 }
 
 uint32_t fogsf_run_bias(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                        const double *gyro_dps, size_t n, double *corrected_dps,
+                        const float *gyro_dps, size_t n, float *corrected_dps,
                         float *sf_ppm, float *bias_dph, uint32_t *flags)
 {
     uint32_t all = 0u;

@@ -2,7 +2,8 @@
  * fogsf: thermal scale-factor (SF) compensation of a fiber-optic gyro, one call per sample.
  * The public API of the C99 kernel.
  *
- * Streaming contract: docs/stream-contract.md ("fogsf-stream-1"); firmware use: docs/firmware.md.
+ * Streaming contract: docs/stream-contract.md (FOGSF_CONTRACT_VERSION); firmware use:
+ * docs/firmware.md.
  * The model is data (CMSIS-NN style): `fogsf export --name NAME` writes NAME.h and NAME.c, whose
  * `const fogsf_model NAME` holds the sizes, front-end constants and pointers to `static const`
  * weights. Any number of models link into one image; every call takes the model by pointer.
@@ -18,7 +19,7 @@
  *
  * Totality: fogsf_step() cannot fail. A NaN/Inf temperature reuses the last good one, a
  * temperature outside the trained range is clamped, a stuck thermometer is flagged, a
- * non-finite gyro gives corrected = 0.0, a model that does not fit the state (or a NULL
+ * non-finite gyro gives corrected = 0.0f, a model that does not fit the state (or a NULL
  * one) gives corrected = 0.0 and FOGSF_FLAG_MODEL_INVALID; the output is always finite and
  * the flags say why.
  */
@@ -45,6 +46,15 @@
 #define FOGSF_MAX_PLAYS 1
 #endif
 
+/* Bounded, even time (define to 1 for the kernel's sources, all alike): the model step is
+ * spread over the D samples up to the next one (its front at the step's sample, then one LSTM
+ * unit a sample, then the head, then the bias head), its outputs held from the next step's
+ * sample on (D samples later than by default, the same bits: docs/stream-contract.md,
+ * "Even time"), and fogsf_expf / fogsf_tanhf run one path for every input. */
+#ifndef FOGSF_EVEN_TIME
+#define FOGSF_EVEN_TIME 0
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -63,7 +73,7 @@ extern "C" {
 
 /* The bias head of a model (deg/h), a polynomial of the same features z:
  * bias = b + sum w[i] z_i + sum quad_w[i] z_i^2 + sum cube_w[i] z_i^3 (float32, index order);
- * corrected = (gyro - bias / 3600) / (1 + sf_ppm * 1e-6). */
+ * corrected = (gyro - bias / 3600) / (1 + sf_ppm * 1e-6), in float32 (fogsf_output). */
 typedef struct fogsf_bias_head {
     const float *w;               /* [F] */
     const float *quad_w;          /* [F] */
@@ -122,13 +132,17 @@ typedef struct fogsf_model {
  * the plays, the two CRCs); fogsf_model_check refuses every other value. */
 #define FOGSF_FORMAT_VERSION 6u
 
+/* The streaming contract this kernel computes (docs/stream-contract.md): 2 = "fogsf-stream-2",
+ * the per-sample correction in float32 (float gyro in and corrected rate out); 1 corrected in
+ * double. The model tables (FOGSF_FORMAT_VERSION) are the same for both. */
+#define FOGSF_CONTRACT_VERSION 2u
+
 /* fogsf_model has feat_diag (NAME.c of a model with it checks, so that a kernel from before
  * it cannot read its [F] feat_w as [F][1+K+P]) */
 #define FOGSF_FEAT_DIAG 1
 
 /* Caller-owned state, sized for the largest model (FOGSF_MAX_*). Treat as opaque. */
 typedef struct fogsf_state {
-    double bias_dps;                             /* bias_dph / 3600 (double), held */
     const fogsf_model *model;                    /* the model fogsf_init/reset accepted
                                                     (fogsf_model_check), NULL if refused */
     float h[FOGSF_MAX_LAYERS][FOGSF_MAX_HIDDEN]; /* LSTM hidden state per layer */
@@ -141,7 +155,12 @@ typedef struct fogsf_state {
     float t_last_good;                           /* last sanitised finite temperature */
     float sf_ppm;                                /* output of the latest model step, held */
     float bias_dph;                              /* its bias (0 without a bias head), held */
+    float bias_dps;                              /* bias_dph / 3600 (float32), held */
+    float sf_k;                                  /* s / (1 + s), s = sf_ppm * 1e-6, held */
     uint32_t sf_flags;                           /* FOGSF_FLAG_SF/BIAS_CLAMPED of that step */
+    float sf_next, k_next, bias_next, bias_dps_next; /* the step being computed: held */
+    uint32_t flags_next;                         /* from its publication on */
+    uint32_t part;                               /* FOGSF_EVEN_TIME: its next part, 0 none */
     uint32_t raw_prev_bits;                      /* previous raw temperature, bitwise */
     uint32_t stuck_run;                          /* repeats of it (saturates at the threshold) */
     uint32_t n_acc;                              /* samples in acc */
@@ -150,8 +169,10 @@ typedef struct fogsf_state {
 
 /* What one sample gives. */
 typedef struct fogsf_output {
-    double corrected_dps; /* (gyro - bias_dph / 3600) / (1 + sf_ppm * 1e-6): the rate with the
-                             nominal SF restored and the bias taken off */
+    float corrected_dps;  /* (gyro - bias_dph / 3600) / (1 + sf_ppm * 1e-6): the rate with the
+                             nominal SF restored and the bias taken off, float32: d = gyro -
+                             b, b = bias_dph / 3600, then d - d * k, k = s / (1 + s),
+                             s = sf_ppm * 1e-6 (b and k once per model step) */
     float sf_ppm;         /* predicted SF error vs nominal, ppm (held between model steps) */
     uint32_t flags;       /* FOGSF_FLAG_* */
     float bias_dph;       /* predicted bias, deg/h (held; 0 without a bias head) */
@@ -163,8 +184,9 @@ typedef struct fogsf_output {
  * plays' arrays present, half widths and source weights finite) and its tables are intact
  * (crc32_sizes, then crc32: fogsf_model_crc32), else FOGSF_FLAG_MODEL_INVALID. Reads every
  * table once (about 10 instructions a byte): call it at power-on (fogsf_init does) and,
- * if the application wants, now and then; fogsf_step itself checks only the sizes and
- * pointers at every sample. */
+ * if the application wants, now and then; fogsf_step itself checks that the state was
+ * started with m at every sample, and the sizes and pointers on every sample that reads the
+ * model's arrays (one that runs a model step or, with FOGSF_EVEN_TIME, a part of one). */
 uint32_t fogsf_model_check(const fogsf_model *m);
 
 /* The CRC-32 (IEEE 802.3, reflected, as zlib.crc32) of m's sizes and scalars
@@ -192,20 +214,22 @@ uint32_t fogsf_selftest(fogsf_state *scratch);
 uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st);
 uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st);
 
-/* One sample: board temperature (C) and raw gyro output (deg/s, nominal SF), with the model
+/* One sample: board temperature (C) and raw gyro output (deg/s, nominal SF), both float32
+ * (the correction is float32: a float32 rate carries 2^-24 = 0.06 ppm of itself, far below
+ * any SF figure; docs/stream-contract.md, "Precisions"), with the model
  * st was started with (another model, or one refused at reset: corrected 0, MODEL_INVALID). */
-void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, double gyro_dps,
+void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
                 fogsf_output *out);
 
 /* A whole log from the current state, sample by sample through fogsf_step(); any output
  * pointer may be NULL. Returns the OR of all flags. */
 uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                   const double *gyro_dps, size_t n, double *corrected_dps, float *sf_ppm,
+                   const float *gyro_dps, size_t n, float *corrected_dps, float *sf_ppm,
                    uint32_t *flags);
 
 /* fogsf_run with the held bias (deg/h) per sample too (bias_dph may be NULL). */
 uint32_t fogsf_run_bias(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                        const double *gyro_dps, size_t n, double *corrected_dps,
+                        const float *gyro_dps, size_t n, float *corrected_dps,
                         float *sf_ppm, float *bias_dph, uint32_t *flags);
 
 /* sizeof(fogsf_state), for bindings that check the layout they loaded. */
@@ -220,6 +244,12 @@ size_t fogsf_state_size(void);
 void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
                      const float *b, const float *p, const float *x, float *h, float *c,
                      float *h_prev);
+
+/* Unit j of fogsf_lstm_cell (the same arguments): its c[j] and h[j], from h_prev [H], which
+ * unit 0 first fills with h. fogsf_lstm_cell is this for j = 0 .. H-1 in order. */
+void fogsf_lstm_unit(size_t n_in, size_t hidden, const float *w, const float *r,
+                     const float *b, const float *p, const float *x, float *h, float *c,
+                     float *h_prev, size_t j);
 
 /* The kernel's float32 activations (no libm): within 1.2e-7 of the exact functions. */
 float fogsf_expf(float x);

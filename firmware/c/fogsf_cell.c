@@ -9,6 +9,8 @@
 #include "fogsf_fp.h" /* first: the floating-point build checks */
 #include "fogsf.h"
 
+#include <stdbool.h>
+
 float fogsf_expf(float x_in)
 {
     float x = x_in;
@@ -16,12 +18,10 @@ float fogsf_expf(float x_in)
     int32_t n;
     fogsf_f32_bits scale;
 
-    if (!(x > -87.0f)) { /* also NaN: exp stays finite and the cast below defined */
-        x = -87.0f;
-    }
-    if (x > 88.0f) {
-        x = 88.0f;
-    }
+    /* selects, not branches (one path for every input): NaN counts as -87, so exp stays
+     * finite and the cast below defined */
+    x = (x > -87.0f) ? x : -87.0f;
+    x = (x > 88.0f) ? 88.0f : x;
     /* x = n ln2 + r, |r| <= ln2/2, ln2 split in two so that n*ln2_hi is exact */
     t = x * 1.44269502f;
     n = (int32_t)(t + (t >= 0.0f ? 0.5f : -0.5f));
@@ -45,6 +45,41 @@ float fogsf_sigmoidf(float x)
     return 1.0f / (1.0f + fogsf_expf(-x));
 }
 
+#if FOGSF_EVEN_TIME
+/* a when c, else b, by the bits: both are computed, nothing branches on the value */
+static float select_f(bool c, float a, float b)
+{
+    const uint32_t mask = c ? 0xffffffffu : 0u;
+    fogsf_f32_bits ua;
+    fogsf_f32_bits ub;
+    ua.f = a;
+    ub.f = b;
+    ua.u = (ua.u & mask) | (ub.u & ~mask);
+    return ua.f;
+}
+
+/* tanh with one path for every input: the exp form and the polynomial both computed, the
+ * one the default build would take selected (the same bits) */
+float fogsf_tanhf(float x_in)
+{
+    float x = x_in;
+    float a, z, p, big, small;
+
+    x = (x >= -10.0f) ? x : -10.0f; /* tanh(10) rounds to 1.0f; NaN counts as -10 */
+    x = (x > 10.0f) ? 10.0f : x;
+    a = (x < 0.0f) ? -x : x;
+    big = 1.0f - (2.0f / (fogsf_expf(a + a) + 1.0f));
+    big = select_f(x < 0.0f, -big, big);
+    z = x * x;
+    p = -0.00570498873f;
+    p = (p * z) + 0.020639088f;
+    p = (p * z) + -0.0537397154f;
+    p = (p * z) + 0.133314416f;
+    p = (p * z) + -0.333332807f;
+    small = ((p * z) * x) + x;
+    return select_f(a > 0.625f, big, small);
+}
+#else
 float fogsf_tanhf(float x_in)
 {
     float x = x_in;
@@ -71,6 +106,7 @@ float fogsf_tanhf(float x_in)
     }
     return y;
 }
+#endif
 
 /* pre[g] += rows[g] . v for the four gate rows at once, each accumulated in index order (the
  * contract's order: four independent chains interleaved, so the bits are those of four
@@ -93,45 +129,56 @@ static void dot4_from(float pre[4], const float *rows[4], const float *v, size_t
     pre[3] = a3;
 }
 
+void fogsf_lstm_unit(size_t n_in, size_t hidden, const float *w, const float *r,
+                     const float *b, const float *p, const float *x, float *h, float *c,
+                     float *h_prev, size_t j)
+{
+    size_t gate;
+    float pre[4];
+    const float *rows[4];
+    float gi, go, gf, gc, ci, cf, cn;
+
+    if (j == 0u) { /* the layer's first unit: the previous h, which every unit reads */
+        for (gate = 0u; gate < hidden; ++gate) {
+            h_prev[gate] = h[gate];
+        }
+    }
+    /* the unit's four gate rows (i, o, f, c) read only the previous h */
+    for (gate = 0u; gate < 4u; ++gate) {
+        const size_t row = (gate * hidden) + j;
+        pre[gate] = (b != NULL) ? (b[row] + b[(4u * hidden) + row]) : 0.0f;
+        rows[gate] = w + row * n_in;
+    }
+    dot4_from(pre, rows, x, n_in);
+    for (gate = 0u; gate < 4u; ++gate) {
+        rows[gate] = r + (((gate * hidden) + j) * hidden);
+    }
+    dot4_from(pre, rows, h_prev, hidden);
+    gi = pre[0];
+    go = pre[1];
+    gf = pre[2];
+    gc = pre[3];
+    if (p != NULL) { /* peepholes see the previous cell state (i, f), the new one (o) */
+        gi = gi + p[j] * c[j];
+        gf = gf + (p[(2u * hidden) + j] * c[j]);
+    }
+    ci = fogsf_sigmoidf(gi) * fogsf_tanhf(gc);
+    cf = fogsf_sigmoidf(gf) * c[j];
+    cn = cf + ci;
+    if (p != NULL) {
+        go = go + p[hidden + j] * cn;
+    }
+    c[j] = cn;
+    h[j] = fogsf_sigmoidf(go) * fogsf_tanhf(cn);
+}
+
 void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
                      const float *b, const float *p, const float *x, float *h, float *c,
                      float *h_prev)
 {
-    size_t j, gate;
-    float pre[4];
-    const float *rows[4];
+    size_t j;
 
     for (j = 0; j < hidden; ++j) {
-        h_prev[j] = h[j];
-    }
-    /* unit by unit: its four gate rows (i, o, f, c) read only the previous h */
-    for (j = 0; j < hidden; ++j) {
-        float gi, go, gf, gc, ci, cf, cn;
-        for (gate = 0u; gate < 4u; ++gate) {
-            const size_t row = (gate * hidden) + j;
-            pre[gate] = (b != NULL) ? (b[row] + b[(4u * hidden) + row]) : 0.0f;
-            rows[gate] = w + row * n_in;
-        }
-        dot4_from(pre, rows, x, n_in);
-        for (gate = 0u; gate < 4u; ++gate) {
-            rows[gate] = r + (((gate * hidden) + j) * hidden);
-        }
-        dot4_from(pre, rows, h_prev, hidden);
-        gi = pre[0];
-        go = pre[1];
-        gf = pre[2];
-        gc = pre[3];
-        if (p != NULL) { /* peepholes see the previous cell state (i, f), the new one (o) */
-            gi = gi + p[j] * c[j];
-            gf = gf + (p[(2u * hidden) + j] * c[j]);
-        }
-        ci = fogsf_sigmoidf(gi) * fogsf_tanhf(gc);
-        cf = fogsf_sigmoidf(gf) * c[j];
-        cn = cf + ci;
-        if (p != NULL) {
-            go = go + p[hidden + j] * cn;
-        }
-        c[j] = cn;
-        h[j] = fogsf_sigmoidf(go) * fogsf_tanhf(cn);
+        fogsf_lstm_unit(n_in, hidden, w, r, b, p, x, h, c, h_prev, j);
     }
 }

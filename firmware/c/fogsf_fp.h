@@ -41,16 +41,11 @@
 #pragma STDC FP_CONTRACT OFF
 #endif
 
-/* The IEEE 754 bits of a float32 and a float64 (Dir 1.1: the kernel relies on IEEE 754
- * binary32/binary64; firmware/c/MISRA.md, Rule 19.2). */
+/* The IEEE 754 bits of a float32 (Dir 1.1: the kernel relies on IEEE 754 binary32; it holds
+ * no double; firmware/c/MISRA.md, Rule 19.2). */
 typedef union {
     float f;
     uint32_t u;
 } fogsf_f32_bits;
-
-typedef union {
-    double d;
-    uint64_t u;
-} fogsf_f64_bits;
 
 #endif /* FOGSF_FP_H */

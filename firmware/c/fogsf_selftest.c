@@ -120,20 +120,47 @@ static const uint32_t act_want[3u * SELFTEST_N_ACT] = {
     0x3f800000u, 0x3f800000u, 0x3f800000u, 0xbf800000u, 0xbf800000u, 0xbf800000u,
     0xbf7fe354u, 0xbf611441u, 0x3e9d1fafu, 0x3f391032u, 0x3f7d85ffu, 0x3f7ffdafu
 };
-/* the samples: temperature (float32 bits), gyro (float64 bits) */
+/* the samples: temperature and gyro (float32 bits) */
 static const uint32_t temp_bits[SELFTEST_N] = {
     0x41700000u, 0x41780000u, 0x41820000u, 0x7fc00000u, 0x41880000u, 0x41940000u,
     0x419e0000u, 0x7f800000u, 0x41a80000u, 0x41b40000u, 0x42a00000u, 0xc28c0000u,
     0x41c00000u, 0x41cc0000u, 0x41d00000u, 0x41d00000u, 0x41d00000u, 0x41d00000u,
     0x41d00000u, 0x41e40000u, 0x41f00000u, 0x42030000u, 0x420c0000u, 0x42120000u
 };
-static const uint64_t gyro_bits[SELFTEST_N] = {
-    0x4024000000000000ull, 0x4024800000000000ull, 0xc016000000000000ull, 0x4024000000000000ull, 0x7ff8000000000000ull, 0x4008000000000000ull,
-    0x7fe1ccf385ebc8a0ull, 0x0000000000000000ull, 0x8000000000000000ull, 0x4029000000000000ull, 0x406f400000000000ull, 0xc06f400000000000ull,
-    0x4024000000000000ull, 0x4024000000000000ull, 0x7ff0000000000000ull, 0x401c000000000000ull, 0x401c000000000000ull, 0x401c000000000000ull,
-    0x01a56e1fc2f8f359ull, 0x4014000000000000ull, 0x4014000000000000ull, 0x4018000000000000ull, 0xfff0000000000000ull, 0x4000000000000000ull
+static const uint32_t gyro_bits[SELFTEST_N] = {
+    0x41200000u, 0x41240000u, 0xc0b00000u, 0x41200000u, 0x7fc00000u, 0x40400000u,
+    0x7f800000u, 0x00000000u, 0x80000000u, 0x41480000u, 0x437a0000u, 0xc37a0000u,
+    0x41200000u, 0x7f7fc99eu, 0x7f800000u, 0x40e00000u, 0x40e00000u, 0x40e00000u,
+    0x000116c2u, 0x40a00000u, 0xff7fc99eu, 0x40c00000u, 0xff800000u, 0x40000000u
 };
-/* what fogsf_step gives for them from reset: sf_ppm, bias_dph, corrected, flags */
+/* what fogsf_step gives for them from reset: sf_ppm, bias_dph, corrected, flags (with
+ * FOGSF_EVEN_TIME each step's outputs are held D samples later) */
+#if FOGSF_EVEN_TIME
+static const uint32_t sf_want[SELFTEST_N] = {
+    0x00000000u, 0x00000000u, 0x4202daf4u, 0x4202daf4u, 0x42038d73u, 0x42038d73u,
+    0x42047326u, 0x42047326u, 0x42072daeu, 0x42072daeu, 0x420a0398u, 0x420a0398u,
+    0x423213afu, 0x423213afu, 0x4234961du, 0x4234961du, 0x420860a9u, 0x420860a9u,
+    0x42134661u, 0x42134661u, 0x4216d4cfu, 0x4216d4cfu, 0x421e89e9u, 0x421e89e9u
+};
+static const uint32_t bias_want[SELFTEST_N] = {
+    0x00000000u, 0x00000000u, 0x3fd17f4bu, 0x3fd17f4bu, 0x3fd25979u, 0x3fd25979u,
+    0x3fd396dau, 0x3fd396dau, 0x3fd7c3adu, 0x3fd7c3adu, 0x3fd9e0e0u, 0x3fd9e0e0u,
+    0x3ffa3107u, 0x3ffa3107u, 0x3facefadu, 0x3facefadu, 0x3fe31d75u, 0x3fe31d75u,
+    0x3fe38f36u, 0x3fe38f36u, 0x3fe391a6u, 0x3fe391a6u, 0x3fe945dau, 0x3fe945dau
+};
+static const uint32_t corrected_want[SELFTEST_N] = {
+    0x41200000u, 0x41240000u, 0xc0b00240u, 0x411ffcccu, 0x00000000u, 0x403ff6e7u,
+    0x00000000u, 0xb9f0bbcdu, 0xb9f57bcdu, 0x4147fc5au, 0x4379fdacu, 0xc379fdeau,
+    0x411ffbf4u, 0x7f7fc6b4u, 0x00000000u, 0x40dffa56u, 0x40dffa02u, 0x40dffa02u,
+    0xba017386u, 0x409ffa72u, 0xff7fc726u, 0x40bffa1au, 0x00000000u, 0x3fffecd0u
+};
+static const uint32_t flags_want[SELFTEST_N] = {
+    0x00u, 0x00u, 0x00u, 0x01u, 0x08u, 0x00u,
+    0x08u, 0x01u, 0x00u, 0x00u, 0x02u, 0x02u,
+    0x00u, 0x00u, 0x08u, 0x00u, 0x00u, 0x04u,
+    0x04u, 0x00u, 0x00u, 0x00u, 0x08u, 0x00u
+};
+#else
 static const uint32_t sf_want[SELFTEST_N] = {
     0x4202daf4u, 0x4202daf4u, 0x42038d73u, 0x42038d73u, 0x42047326u, 0x42047326u,
     0x42072daeu, 0x42072daeu, 0x420a0398u, 0x420a0398u, 0x423213afu, 0x423213afu,
@@ -146,28 +173,23 @@ static const uint32_t bias_want[SELFTEST_N] = {
     0x3facefadu, 0x3facefadu, 0x3fe31d75u, 0x3fe31d75u, 0x3fe38f36u, 0x3fe38f36u,
     0x3fe391a6u, 0x3fe391a6u, 0x3fe945dau, 0x3fe945dau, 0x3ff17ddcu, 0x3ff17ddcu
 };
-static const uint64_t corrected_want[SELFTEST_N] = {
-    0x4023ff9988cc3e8eull, 0x40247f987662255eull, 0xc01600483eca0876ull, 0x4023ff991041bb71ull, 0x0000000000000000ull, 0x4007fedb2fcf0fd9ull,
-    0x7fe1cccc19b1591full, 0xbf3eaf799f0786c6ull, 0xbf3efc6ffa603354ull, 0x4028ff897fcdbe2cull, 0x406f3fa0618bdfffull, 0xc06f3fa946be66e7ull,
-    0x4023ff93a3bc9430ull, 0x4023ff93a3bc9430ull, 0x0000000000000000ull, 0x401bff403d64642eull, 0x401bff3afd12b01bull, 0x401bff3afd12b01bull,
-    0xbf402e9c228ef160ull, 0x4013ff4d1ef3e73cull, 0x4013ff4759dc3af3ull, 0x4017ff3cf620a2cdull, 0x0000000000000000ull, 0x3ffffd8095f456f3ull
+static const uint32_t corrected_want[SELFTEST_N] = {
+    0x411ffcccu, 0x4123fcc3u, 0xc0b00242u, 0x411ffcc8u, 0x00000000u, 0x403ff6d9u,
+    0x00000000u, 0xb9f57bcdu, 0xb9f7e37fu, 0x4147fc4cu, 0x4379fd03u, 0xc379fd4bu,
+    0x411ffc9du, 0x7f7fc6a9u, 0x00000000u, 0x40dffa02u, 0x40dff9d8u, 0x40dff9d8u,
+    0xba0174e1u, 0x409ffa69u, 0xff7fc706u, 0x40bff9e7u, 0x00000000u, 0x3fffec05u
 };
 static const uint32_t flags_want[SELFTEST_N] = {
     0x00u, 0x00u, 0x00u, 0x01u, 0x08u, 0x00u,
-    0x00u, 0x01u, 0x00u, 0x00u, 0x02u, 0x02u,
+    0x08u, 0x01u, 0x00u, 0x00u, 0x02u, 0x02u,
     0x00u, 0x00u, 0x08u, 0x00u, 0x00u, 0x04u,
     0x04u, 0x00u, 0x00u, 0x00u, 0x08u, 0x00u
 };
+#endif
 
 static uint32_t load32(const uint32_t *p)
 {
     const volatile uint32_t *v = p;
-    return *v;
-}
-
-static uint64_t load64(const uint64_t *p)
-{
-    const volatile uint64_t *v = p;
     return *v;
 }
 
@@ -206,13 +228,11 @@ static uint32_t model_outputs(fogsf_state *st)
     uint32_t i;
     fogsf_output out;
     for (i = 0u; i < SELFTEST_N; ++i) {
-        fogsf_f64_bits g;
-        fogsf_f64_bits c;
-        g.u = load64(&gyro_bits[i]);
-        fogsf_step(&selftest_model, st, f32_of(load32(&temp_bits[i])), g.d, &out);
-        c.d = out.corrected_dps;
+        fogsf_step(&selftest_model, st, f32_of(load32(&temp_bits[i])),
+                   f32_of(load32(&gyro_bits[i])), &out);
         if ((bits_of(out.sf_ppm) != sf_want[i]) || (bits_of(out.bias_dph) != bias_want[i]) ||
-            (c.u != corrected_want[i]) || (out.flags != flags_want[i])) {
+            (bits_of(out.corrected_dps) != corrected_want[i]) ||
+            (out.flags != flags_want[i])) {
             bad = FOGSF_SELFTEST_MODEL;
         }
     }

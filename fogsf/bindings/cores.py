@@ -4,7 +4,9 @@
 runs: the golden vectors (the host build's outputs, bit for bit) in an image for each core of
 `CORES` (Cortex-M4F hard float on mps2-an386, Cortex-M3 on mps2-an385 and Cortex-M0 on
 microbit, both soft float), one PASS or FAIL line a core with the image's flash, RAM and
-stack bound (fogsf.bindings.stack: a call-graph walk of the linked image, libgcc included).
+stack bound (fogsf.bindings.stack: a call-graph walk of the linked image, libgcc included),
+for the default build of the kernel and its even-time build (FOGSF_EVEN_TIME, whose golden
+vectors come from its own host build).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from fogsf.bindings.firmware import (
     section_sizes,
     write_golden,
 )
-from fogsf.bindings.kernel import Kernel, build_kernel
+from fogsf.bindings.kernel import EVEN_TIME, Kernel, build_kernel
 from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, StackBound, stack_bound
 from fogsf.errors import UserError
 from fogsf.models.stream import StreamModel
@@ -52,14 +54,29 @@ def run_core(core: Core, build_dir: Path, golden_dir: Path, out: Path, defines: 
                       data + bss + max(step.bytes, init.bytes), step, init)
 
 
-def firmware_cores(model_dir: Path, out: Path, cores: list[str]) -> int:
+BUILDS = {"default": False, "even-time": True}  # the kernel's builds: FOGSF_EVEN_TIME
+
+
+def firmware_cores(model_dir: Path, out: Path, cores: list[str],
+                   builds: tuple[str, ...] = tuple(BUILDS)) -> int:
     missing = arm_tools_missing()
     if missing:
         print(f"firmware-cores: {missing}", file=sys.stderr)
         return 2
     model = StreamModel.load(model_dir)
     print(f"model {model_dir}: id {model.model_id}, {model.summary}")
-    build = build_kernel(model, root=out / "host")
+    failed = False
+    for kind in builds:
+        even = BUILDS[kind]
+        print(f"build: {kind}" + (f" ({EVEN_TIME})" if even else ""))
+        failed |= not cores_of(model, out / kind, cores, even)
+    print("FAIL" if failed else f"PASS on {', '.join(cores)} ({', '.join(builds)})")
+    return 1 if failed else 0
+
+
+def cores_of(model: StreamModel, out: Path, cores: list[str], even_time: bool) -> bool:
+    """The golden vectors of one build of the kernel on each core; True when all pass."""
+    build = build_kernel(model, root=out / "host", even_time=even_time)
     golden_dir = out / "golden"
     write_golden(model, Kernel(model, build), golden_dir)
     failed = False
@@ -77,8 +94,7 @@ def firmware_cores(model_dir: Path, out: Path, cores: list[str]) -> int:
         if not r.passed:
             print("\n".join(f"  {ln}" for ln in r.output.strip().splitlines()[-12:]))
         failed |= not r.passed
-    print("FAIL" if failed else f"PASS on {', '.join(cores)}")
-    return 1 if failed else 0
+    return not failed
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -87,13 +103,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=Path("build/cores"))
     p.add_argument("--cores", default=",".join(CORES),
                    help=f"comma-separated, of {', '.join(CORES)}")
+    p.add_argument("--builds", default=",".join(BUILDS),
+                   help=f"comma-separated, of {', '.join(BUILDS)}")
     args = p.parse_args(argv)
     cores = [c for c in args.cores.split(",") if c]
     unknown = [c for c in cores if c not in CORES]
     if unknown:
         p.error(f"unknown core(s) {unknown}: choose from {', '.join(CORES)}")
+    builds = tuple(b for b in args.builds.split(",") if b)
+    if not builds or set(builds) - set(BUILDS):
+        p.error(f"--builds {args.builds!r}: choose from {', '.join(BUILDS)}")
     try:
-        return firmware_cores(args.model, args.out, cores)
+        return firmware_cores(args.model, args.out, cores, builds)
     except UserError as e:
         print(f"firmware-cores: error: {e}", file=sys.stderr)
         return 2

@@ -7,6 +7,7 @@ with ASan+UBSan), and the Cortex-M4F images (golden check under QEMU, size probe
 from __future__ import annotations
 
 import argparse
+import re
 import shutil
 import subprocess
 import sys
@@ -89,7 +90,11 @@ def golden_inputs(model: StreamModel, n: int = GOLDEN_SAMPLES, seed: int = 0
     for value in (np.nan, np.inf, -np.inf, 1.7e308, -1e300):
         gyro[rng.integers(0, n, 3)] = value
     with np.errstate(over="ignore"):
-        return temp.astype(np.float32), gyro
+        gyro32 = gyro.astype(np.float32)  # the kernel's input type: 1.7e308 becomes Inf
+    for value in (3.4e38, -3.4e38):  # finite float32 whose correction may overflow
+        gyro32[rng.integers(0, n, 3)] = value
+    with np.errstate(over="ignore"):
+        return temp.astype(np.float32), gyro32
 
 
 def golden_header(model: StreamModel, kernel: Kernel, n: int = GOLDEN_SAMPLES) -> str:
@@ -113,9 +118,10 @@ def golden_header(model: StreamModel, kernel: Kernel, n: int = GOLDEN_SAMPLES) -
         f'#define FOGSF_GOLDEN_MODEL_ID "{model.model_id}"\n',
         f'#include "{BOUND_NAME}.h"\n#define FOGSF_GOLDEN_MODEL (&{BOUND_NAME})\n',
         arr("uint32_t", "golden_temp_bits", temp.view(np.uint32), "0x{:08x}u", 8),
-        arr("uint64_t", "golden_gyro_bits", gyro.view(np.uint64), "0x{:016x}ull", 4),
+        arr("uint32_t", "golden_gyro_bits", gyro.view(np.uint32), "0x{:08x}u", 8),
         arr("uint32_t", "golden_sf_bits", sf.view(np.uint32), "0x{:08x}u", 8),
-        arr("uint64_t", "golden_corrected_bits", corrected.view(np.uint64), "0x{:016x}ull", 4),
+        arr("uint32_t", "golden_corrected_bits", corrected.astype(np.float32).view(np.uint32),
+            "0x{:08x}u", 8),
         arr("uint32_t", "golden_flags", flags, "{}u", 16),
         *bias,
         "#endif\n",
@@ -256,23 +262,27 @@ def arm_size(arm: ArmBuild, models: StreamModel | list[StreamModel]) -> ArmSize:
     """Sizes of the probe image; RAM counts one state per model, sized for the largest."""
     models = models if isinstance(models, list) else [models]
     text, data, bss = section_sizes(arm.size_elf)
-    ktext = sum(section_sizes(o)[0] + section_sizes(o)[1] for o in arm.kernel_objs)
+    # the kernel's and the models' objects, the self-test's only when the image calls it
+    linked = run_cmd([ARM_CC.replace("gcc", "nm"), str(arm.size_elf)], "arm-none-eabi-nm").stdout
+    objs = [o for o in arm.kernel_objs if o.stem != "fogsf_selftest"
+            or re.search(r"\bT fogsf_selftest$", linked, flags=re.M)]
+    ktext = sum(section_sizes(o)[0] + section_sizes(o)[1] for o in objs)
     stack = max(stack_bound(arm.size_elf, STEP_ROOTS).bytes,
                 stack_bound(arm.size_elf, INIT_ROOTS).bytes)
     return ArmSize(text + data, data + bss + stack, ktext, state_bytes(models), stack)
 
 
 def state_bytes(models: StreamModel | list[StreamModel]) -> int:
-    """sizeof(fogsf_state) for the largest of the models (FOGSF_MAX_* = their maxima): a
-    double first, then 4-byte floats/uint32, the whole padded to a multiple of 8."""
+    """sizeof(fogsf_state) on a 32-bit core for the largest of the models (FOGSF_MAX_* =
+    their maxima): the model pointer, then 4-byte floats/uint32."""
     models = models if isinstance(models, list) else [models]
     lay = max(m.layers for m in models)
     h = max(m.hidden for m in models)
     f = max(m.n_features for m in models)
     k = max(max(m.n_filters, 1) for m in models)
     p = max(max(m.n_plays, 1) for m in models)
-    words = 2 * lay * h + h + f + k + p + 9  # 9 scalars: acc .. started, bias_dph
-    return 8 + 4 * (words + words % 2)  # bias_dps (double), then the words, padded to 8
+    # 17 scalars: acc .. started, the held outputs, k and b, the next step's outputs, part
+    return 4 * (1 + 2 * lay * h + h + f + k + p + 17)
 
 
 # --- make firmware -------------------------------------------------------------------------

@@ -17,7 +17,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from fogsf.bindings.kernel import C_DIR, SOURCES, STRICT
+from fogsf.bindings.kernel import C_DIR, EVEN_TIME, SOURCES, STRICT
 from fogsf.errors import UserError
 from fogsf.export.header import write_model
 from fogsf.models import samples
@@ -36,8 +36,9 @@ def fuzz_model() -> st.StreamModel:
                            poly_head=True)
 
 
-def build_fuzzer(out: Path, cc: str = "clang") -> Path:
-    """The harness binary (cached by nothing: a build takes a few seconds)."""
+def build_fuzzer(out: Path, cc: str = "clang", even_time: bool = False) -> Path:
+    """The harness binary (cached by nothing: a build takes a few seconds); `even_time`:
+    against the kernel built with FOGSF_EVEN_TIME."""
     if shutil.which(cc) is None:
         raise UserError(f"{cc} not found: the fuzzer needs clang with libFuzzer "
                         "(run `make toolchain` as root)")
@@ -46,7 +47,8 @@ def build_fuzzer(out: Path, cc: str = "clang") -> Path:
     exe = out / "fuzz_step"
     srcs = [FUZZ_DIR / "fuzz_step.c", *(C_DIR / name for name in SOURCES),
             out / "fuzz_model.c"]
-    cmd = [cc, *STRICT, *FUZZ_FLAGS, *FUZZ_MAX, "-I", str(out), "-I", str(C_DIR),
+    cmd = [cc, *STRICT, *FUZZ_FLAGS, *FUZZ_MAX, *((EVEN_TIME,) if even_time else ()),
+           "-I", str(out), "-I", str(C_DIR),
            *map(str, srcs), "-o", str(exe)]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
@@ -68,8 +70,9 @@ def regression(exe: Path) -> tuple[int, str, int]:
     return run_fuzzer(exe, files) if files else (0, "no corpus", 0)
 
 
-def fuzz(out: Path, steps: int, seed: int = 1, runs_per_round: int = 20000) -> int:
-    exe = build_fuzzer(out)
+def fuzz(out: Path, steps: int, seed: int = 1, runs_per_round: int = 20000,
+         even_time: bool = False) -> int:
+    exe = build_fuzzer(out, even_time=even_time)
     rc, text, n = regression(exe)
     print(f"regression corpus {CORPUS}: exit {rc}, {n} steps")
     if rc != 0:
@@ -104,9 +107,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=10_000_000,
                    help="fuzz until this many fogsf_step calls (default 1e7)")
     p.add_argument("--seed", type=int, default=1, help="libFuzzer seed of the first round")
+    p.add_argument("--even-time", action="store_true",
+                   help="fuzz the kernel's even-time build (FOGSF_EVEN_TIME)")
     args = p.parse_args(argv)
     try:
-        return fuzz(args.out, args.steps, args.seed)
+        return fuzz(args.out, args.steps, args.seed, even_time=args.even_time)
     except UserError as e:
         print(f"fuzz: error: {e}", file=sys.stderr)
         return 2

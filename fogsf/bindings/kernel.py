@@ -102,14 +102,21 @@ def _run(cmd: list[str], where: Path) -> None:
                         f"{proc.stdout}{proc.stderr}")
 
 
+EVEN_TIME = "-DFOGSF_EVEN_TIME=1"  # the kernel's bounded, even-time build (fogsf.h)
+
+
 def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "gcc",
-                 opt: str = "-O2", sanitize: bool = False) -> KernelBuild:
-    """Export the model as C and compile the kernel (cached by model id + sources + flags)."""
+                 opt: str = "-O2", sanitize: bool = False, even_time: bool = False
+                 ) -> KernelBuild:
+    """Export the model as C and compile the kernel (cached by model id + sources + flags);
+    `even_time`: with FOGSF_EVEN_TIME (the step spread over D samples, branch-free
+    activations; `reference.replay(..., even_time=True)` gives its outputs)."""
     from fogsf.export.header import render_model
 
     if shutil.which(cc) is None:
         raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
-    flags = (*STRICT, opt, "-fPIC", *max_defines(model), *(SANITIZE if sanitize else ()))
+    defines = (*max_defines(model), *((EVEN_TIME,) if even_time else ()))
+    flags = (*STRICT, opt, "-fPIC", *defines, *(SANITIZE if sanitize else ()))
     files = render_model(model, BOUND_NAME)
     header = "".join(files.values())
     # the compiler by its name and a hash of how it was given (a path has slashes)
@@ -121,7 +128,7 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     out = (out / key).resolve()
     shared, static = out / "libfogsf.so", out / "libfogsf.a"
     if shared.is_file() and static.is_file():
-        return KernelBuild(out, shared, static, model.model_id, max_defines(model))
+        return KernelBuild(out, shared, static, model.model_id, defines)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=out.parent))
@@ -145,7 +152,7 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
               *objs], work)
         _run(["ar", "rcs", str(work / static.name), *objs], work)
         if shared.is_file() and static.is_file():  # another process finished first
-            return KernelBuild(out, shared, static, model.model_id, max_defines(model))
+            return KernelBuild(out, shared, static, model.model_id, defines)
         if out.is_dir():  # an incomplete folder (a file deleted by hand): replaced
             shutil.rmtree(out, ignore_errors=True)
         try:
@@ -155,7 +162,7 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
                 raise
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return KernelBuild(out, shared, static, model.model_id, max_defines(model))
+    return KernelBuild(out, shared, static, model.model_id, defines)
 
 
 def cdef(model: StreamModel) -> str:
@@ -201,17 +208,18 @@ class Kernel:
         return st
 
     def step(self, st, temp_c: float, gyro_dps: float) -> tuple[float, float, int]:  # noqa: ANN001
-        """One sample: (corrected_dps, sf_ppm, flags); temp_c is cast to float32 first."""
+        """One sample: (corrected_dps, sf_ppm, flags); temp_c and gyro_dps are cast to
+        float32 first (as C's cast)."""
         out = self.ffi.new("fogsf_output *")
         with np.errstate(over="ignore"):
-            t = float(np.float32(temp_c))
-        self.lib.fogsf_step(self.m, st, t, float(gyro_dps), out)
+            t, g = float(np.float32(temp_c)), float(np.float32(gyro_dps))
+        self.lib.fogsf_step(self.m, st, t, g, out)
         return out.corrected_dps, out.sf_ppm, out.flags
 
     def _inputs(self, temp_c: np.ndarray, gyro_dps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         with np.errstate(over="ignore", invalid="ignore"):
             t = np.ascontiguousarray(temp_c, dtype=np.float32)
-        g = np.ascontiguousarray(gyro_dps, dtype=np.float64)
+            g = np.ascontiguousarray(np.asarray(gyro_dps, dtype=np.float64), dtype=np.float32)
         if t.shape != g.shape or t.ndim != 1:
             raise UserError(f"temperature {t.shape} and gyro {g.shape} must be 1-D, same length")
         return t, g
@@ -224,9 +232,9 @@ class Kernel:
         corrected, sf, flags = _outputs(n)
         st = st if st is not None else self.new_state()
         fb = self.ffi.from_buffer
-        self.lib.fogsf_run(self.m, st, fb("float[]", t), fb("double[]", g), n,
-                           fb("double[]", corrected), fb("float[]", sf), fb("uint32_t[]", flags))
-        return corrected, sf, flags
+        self.lib.fogsf_run(self.m, st, fb("float[]", t), fb("float[]", g), n,
+                           fb("float[]", corrected), fb("float[]", sf), fb("uint32_t[]", flags))
+        return corrected.astype(np.float64), sf, flags
 
     def run_bias(self, temp_c: np.ndarray, gyro_dps: np.ndarray, st=None  # noqa: ANN001
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -237,10 +245,10 @@ class Kernel:
         bias = np.empty(n, np.float32)
         fb = self.ffi.from_buffer
         st = st if st is not None else self.new_state()
-        self.lib.fogsf_run_bias(self.m, st, fb("float[]", t), fb("double[]", g),
-                                n, fb("double[]", corrected), fb("float[]", sf),
+        self.lib.fogsf_run_bias(self.m, st, fb("float[]", t), fb("float[]", g),
+                                n, fb("float[]", corrected), fb("float[]", sf),
                                 fb("float[]", bias), fb("uint32_t[]", flags))
-        return corrected, sf, bias, flags
+        return corrected.astype(np.float64), sf, bias, flags
 
     def stream(self, temp_c: np.ndarray, gyro_dps: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -254,7 +262,7 @@ class Kernel:
         for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
             step(m, st, ti, gi, out)
             corrected[i], sf[i], flags[i] = out.corrected_dps, out.sf_ppm, out.flags
-        return corrected, sf, flags
+        return corrected.astype(np.float64), sf, flags
 
     def lstm_cell(self, w: np.ndarray, r: np.ndarray, b: np.ndarray | None,
                   p: np.ndarray | None, x: np.ndarray, h: np.ndarray, c: np.ndarray
@@ -305,5 +313,6 @@ def trace_steps(kernel: Kernel, temp_c: np.ndarray, gyro_dps: np.ndarray
 
 
 def _outputs(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-sample output arrays: corrected rate (double), sf_ppm (float), flags (uint32)."""
-    return np.empty(n, np.float64), np.empty(n, np.float32), np.empty(n, np.uint32)
+    """Per-sample output arrays: corrected rate, sf_ppm (float32; the corrected rate is
+    returned as float64 holding its float32 values exactly), flags (uint32)."""
+    return np.empty(n, np.float32), np.empty(n, np.float32), np.empty(n, np.uint32)

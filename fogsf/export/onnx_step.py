@@ -11,6 +11,12 @@ head existed. A model whose first LSTM layer reads z[0:N] only (`lstm_inputs`) s
 before it; without the key the graph is unchanged. A model with a bias head has one more
 output, `bias_dph` [1, 1] (bias_b + z bias_w + (z*z) bias_quad_w + (z*z*z) bias_cube_w);
 without it the graph is unchanged.
+
+The per-sample correction of contract "fogsf-stream-2" (docs/stream-contract.md, step 5)
+needs two numbers per model step, which the graph outputs after the states, float32 op for
+op as the kernel: `sf_k` [1, 1] = s / (1 + s), s = sf_ppm * 1e-6, and with a bias head
+`bias_dps` [1, 1] = bias_dph / 3600 (before `bias_dph`, which stays last). A sample g is then
+corrected as d = g - bias_dps, d - d * sf_k, in float32.
 """
 
 from __future__ import annotations
@@ -76,6 +82,9 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
         nodes.append(helper.make_node("Squeeze", [f"Yc{layer}", "axis0"], [f"c{layer}_out"]))
         x = f"Yh{layer}"  # [1, 1, H]: the next layer's sequence of length 1
     last = f"h{layers - 1}_out"
+    inits += [numpy_helper.from_array(np.array([1e-6], np.float32), "ppm"),
+              numpy_helper.from_array(np.array([1.0], np.float32), "one")]
+    outputs.append(helper.make_tensor_value_info("sf_k", TensorProto.FLOAT, [1, 1]))
     y_lin = "y_lin" if model.poly_head else "y"
     nodes += [
         helper.make_node("MatMul", [last, "head_w"], ["head_dot"]),
@@ -89,17 +98,23 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
     nodes += [
         helper.make_node("Mul", ["y", "out_scale"], ["y_scaled"]),
         helper.make_node("Add", ["y_scaled", "out_offset"], ["sf_ppm"]),
+        helper.make_node("Mul", ["sf_ppm", "ppm"], ["sf_rel"]),
+        helper.make_node("Add", ["one", "sf_rel"], ["sf_one_plus"]),
+        helper.make_node("Div", ["sf_rel", "sf_one_plus"], ["sf_k"]),
     ]
     if model.bias_head:
         inits += bias_initializers(model)
+        inits.append(numpy_helper.from_array(np.array([3600.0], np.float32), "s_per_h"))
         nodes += bias_nodes()
+        nodes.append(helper.make_node("Div", ["bias_dph", "s_per_h"], ["bias_dps"]))
+        outputs.append(helper.make_tensor_value_info("bias_dps", TensorProto.FLOAT, [1, 1]))
         outputs.append(helper.make_tensor_value_info("bias_dph", TensorProto.FLOAT, [1, 1]))
     graph = helper.make_graph(nodes, "fogsf_step", inputs, outputs, inits)
     proto = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
                               producer_name="fogsf", ir_version=IR_VERSION,
-                              doc_string="fogsf-stream-1 streaming step: z, (h, c) per layer "
-                                         "-> sf_ppm, new (h, c)")
-    helper.set_model_props(proto, {"format": "fogsf-stream-1", "model_id": model.model_id,
+                              doc_string="fogsf-stream-2 streaming step: z, (h, c) per layer "
+                                         "-> sf_ppm, new (h, c), sf_k")
+    helper.set_model_props(proto, {"format": "fogsf-stream-2", "model_id": model.model_id,
                                    "decimation": str(model.decimation)})
     onnx.checker.check_model(proto, full_check=True)
     return proto
@@ -177,7 +192,11 @@ class OrtStepper:
         self.in_names, self.out_names = state_names(layers)
         self.has_bias = any(o.name == "bias_dph" for o in proto.graph.output)
         self.bias_dph = 0.0  # the bias head's output of the latest step (0 without one)
+        self.bias_dps = np.float32(0)  # bias_dph / 3600 of the latest step (float32)
+        self.sf_k = np.float32(0)  # the correction's factor of the latest step (float32)
         self.bias_seq = np.zeros(0, np.float32)  # of the latest `run`
+        self.k_seq = np.zeros(0, np.float32)
+        self.bias_dps_seq = np.zeros(0, np.float32)
         self.reset()
 
     def reset(self) -> None:
@@ -187,21 +206,29 @@ class OrtStepper:
         """One step: (sf_ppm, last layer's new h [H])."""
         feeds = {"z": np.asarray(z, np.float32).reshape(1, -1)}
         feeds.update(zip(self.in_names, self.state, strict=True))
-        names = ["sf_ppm", *self.out_names, *(["bias_dph"] if self.has_bias else [])]
+        names = ["sf_ppm", *self.out_names, "sf_k",
+                 *(["bias_dps", "bias_dph"] if self.has_bias else [])]
         outs = self.session.run(names, feeds)
         if self.has_bias:
             self.bias_dph = float(outs.pop()[0, 0])
+            self.bias_dps = np.float32(outs.pop()[0, 0])
+        self.sf_k = np.float32(outs.pop()[0, 0])
         self.state = outs[1:]
         return float(outs[0][0, 0]), self.state[-2][0]
 
     def run(self, z_seq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """From reset over a sequence of z: (sf_ppm [n], h_last [n, H])."""
+        """From reset over a sequence of z: (sf_ppm [n], h_last [n, H]); the bias, sf_k and
+        bias_dps per step are kept in bias_seq, k_seq and bias_dps_seq."""
         self.reset()
         n = z_seq.shape[0]
         sf = np.empty(n, np.float32)
         hl = np.empty((n, self.hidden), np.float32)
         self.bias_seq = np.zeros(n, np.float32)
+        self.k_seq = np.zeros(n, np.float32)
+        self.bias_dps_seq = np.zeros(n, np.float32)
         for m in range(n):
             sf[m], hl[m] = self.step(z_seq[m])
             self.bias_seq[m] = self.bias_dph
+            self.k_seq[m] = self.sf_k
+            self.bias_dps_seq[m] = self.bias_dps
         return sf, hl

@@ -27,11 +27,12 @@ ACT_X = (-100.0, -87.5, -20.25, -3.3, -0.7, -0.625, -0.3, -1e-40, -0.0, 0.0, 0.2
          0.63, 1.7, 9.9, 12.0, 88.5, float("nan"),
          -10.5901, -9.7932, -4.2137, -1.3723, 0.3171, 0.9137, 2.6633, 5.4719)
 # a ramp with bad inputs planted: NaN and +Inf temperatures, beyond t_max and t_min, a stuck
-# run longer than the threshold; NaN, huge and infinite gyro
+# run longer than the threshold; NaN, infinite, beyond float32 (Inf), near its largest (the
+# correction may overflow), zeros and a denormal gyro
 TEMP = (15.0, 15.5, 16.25, float("nan"), 17.0, 18.5, 19.75, float("inf"), 21.0, 22.5, 80.0,
         -70.0, 24.0, 25.5, 26.0, 26.0, 26.0, 26.0, 26.0, 28.5, 30.0, 32.75, 35.0, 36.5)
 GYRO = (10.0, 10.25, -5.5, 10.0, float("nan"), 3.0, 1e308, 0.0, -0.0, 12.5, 250.0, -250.0,
-        10.0, 10.0, float("inf"), 7.0, 7.0, 7.0, 1e-300, 5.0, 5.0, 6.0, -float("inf"), 2.0)
+        10.0, 3.4e38, float("inf"), 7.0, 7.0, 7.0, 1e-40, 5.0, -3.4e38, 6.0, -float("inf"), 2.0)
 PER_LINE = 6
 
 
@@ -58,19 +59,24 @@ def render_selftest() -> str:
     with np.errstate(all="ignore"):
         want = np.concatenate([f32.exp_f32(x), f32.sigmoid_f32(x), f32.tanh_f32(x)])
         temp = np.array(TEMP, np.float32)
-    gyro = np.array(GYRO, np.float64)
-    out = reference.replay(model, temp, gyro)
-    assert out.bias_dph is not None
+        gyro = np.array(GYRO, np.float32)
+    wants = []
+    for even_time in (True, False):
+        out = reference.replay(model, temp, gyro, even_time=even_time)
+        assert out.bias_dph is not None
+        wants.append({
+            "sf_want": _hex(out.sf_ppm.view(np.uint32), 8, "u"),
+            "bias_want": _hex(out.bias_dph.view(np.uint32), 8, "u"),
+            "corrected_want": _hex(out.corrected_dps.astype(np.float32).view(np.uint32), 8,
+                                   "u"),
+            "flags_want": _hex(out.flags, 2, "u")})
     return env.get_template("selftest.c.j2").render(
         name=NAME, model_id=model.model_id, summary=model.summary, model_c=model_c,
         n_act=len(ACT_X), n=len(TEMP),
         act_x=_hex(x.view(np.uint32), 8, "u"), act_want=_hex(want.view(np.uint32), 8, "u"),
         temp_bits=_hex(temp.view(np.uint32), 8, "u"),
-        gyro_bits=_hex(gyro.view(np.uint64), 16, "ull"),
-        sf_want=_hex(out.sf_ppm.view(np.uint32), 8, "u"),
-        bias_want=_hex(out.bias_dph.view(np.uint32), 8, "u"),
-        corrected_want=_hex(out.corrected_dps.view(np.uint64), 16, "ull"),
-        flags_want=_hex(out.flags, 2, "u"))
+        gyro_bits=_hex(gyro.view(np.uint32), 8, "u"),
+        wants=wants)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -294,35 +294,63 @@ def expand(step_values: np.ndarray, n_samples: int, decimation: int) -> np.ndarr
     return np.asarray(step_values)[np.arange(n_samples) // decimation]
 
 
+def expand_late(step_values: np.ndarray, n_samples: int, decimation: int) -> np.ndarray:
+    """Held values of the even-time kernel (FOGSF_EVEN_TIME: each step computed over the D
+    samples after its own and held from the next step's sample on): sample i gets the value
+    of step i // D - 1, and 0 before sample D."""
+    v = np.asarray(step_values)
+    idx = np.arange(n_samples) // decimation - 1
+    out = v[np.maximum(idx, 0)] if v.shape[0] else np.zeros(n_samples, v.dtype)
+    return np.where(idx >= 0, out, np.zeros((), v.dtype)).astype(v.dtype)
+
+
+def correction_terms(sf_ppm: np.ndarray, bias_dph: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The per-step factors of the correction, float32 as the kernel computes them at each
+    model step: (k, b) with s = sf_ppm * 1e-6, k = s / (1 + s), b = bias_dph / 3600 (0
+    without a bias)."""
+    sf = np.asarray(sf_ppm, dtype=np.float32)
+    s = sf * F32(1e-6)
+    k = (s / (F32(1) + s)).astype(np.float32)
+    if bias_dph is None:
+        return k, np.zeros_like(k)
+    return k, (np.asarray(bias_dph, dtype=np.float32) / F32(3600)).astype(np.float32)
+
+
 def correct(gyro_dps: np.ndarray, sf_ppm: np.ndarray, bias_dph: np.ndarray | None = None
             ) -> tuple[np.ndarray, np.ndarray]:
-    """corrected = (g - bias/3600) / (1 + sf*1e-6) in double (bias: float32 deg/h; where it
-    is 0, or none is given, g as it is, as the kernel); non-finite -> 0.0 and GYRO_INVALID."""
-    g = np.asarray(gyro_dps, dtype=np.float64)
+    """corrected = (g - bias/3600) / (1 + sf*1e-6) in float32 as the kernel (contract step 5):
+    g as float32, d = g - b, corrected = d - d * k (`correction_terms`); non-finite -> 0.0
+    and GYRO_INVALID. Returned as float64 holding the float32 values exactly."""
     with np.errstate(all="ignore"):
-        if bias_dph is not None:
-            b = np.asarray(bias_dph, dtype=np.float32)
-            g = np.where(b != 0, g - b.astype(np.float64) / 3600.0, g)
-        out = g / (1.0 + np.asarray(sf_ppm, dtype=np.float32).astype(np.float64) * 1e-6)
+        g = np.asarray(gyro_dps, dtype=np.float64).astype(np.float32)  # as C's cast
+        k, b = correction_terms(sf_ppm, bias_dph)
+        d = g - b
+        out = (d - d * k).astype(np.float32)
     bad = ~np.isfinite(out)
     out[bad] = 0.0
-    return out, np.where(bad, np.uint32(FLAG_GYRO_INVALID), np.uint32(0)).astype(np.uint32)
+    return (out.astype(np.float64),
+            np.where(bad, np.uint32(FLAG_GYRO_INVALID), np.uint32(0)).astype(np.uint32))
 
 
 class ReplayOut(NamedTuple):
-    corrected_dps: np.ndarray  # [N] float64
+    corrected_dps: np.ndarray  # [N] float64 holding the kernel's float32 values exactly
     sf_ppm: np.ndarray  # [N] float32, held between model steps
     flags: np.ndarray  # [N] uint32
     bias_dph: np.ndarray | None = None  # [N] float32, held (0 without a bias head)
 
 
-def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray) -> ReplayOut:
-    """The whole contract per sample from reset: what the C kernel returns, bit for bit."""
+def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray,
+           even_time: bool = False) -> ReplayOut:
+    """The whole contract per sample from reset: what the C kernel returns, bit for bit
+    (`even_time`: what a kernel built with FOGSF_EVEN_TIME returns, the same step outputs
+    held D samples later, `expand_late`)."""
     fe = frontend(temp_c, model.front_end)
     steps = run_steps(model, fe.s)
     n = fe.flags.shape[0]
-    sf = expand(steps.sf_ppm, n, model.decimation)
-    b = expand(steps.bias_dph, n, model.decimation)
+    held = expand_late if even_time else expand
+    sf = held(steps.sf_ppm, n, model.decimation)
+    b = held(steps.bias_dph, n, model.decimation)
     corrected, gflags = correct(gyro_dps, sf, b if model.bias_head else None)
-    flags = fe.flags | gflags | expand(steps.flags, n, model.decimation)
+    flags = fe.flags | gflags | held(steps.flags, n, model.decimation)
     return ReplayOut(corrected, sf, flags.astype(np.uint32), b)

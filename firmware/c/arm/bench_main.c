@@ -9,6 +9,11 @@
 static const fogsf_model *const models[IMAGE_N_MODELS] = IMAGE_MODELS;
 static fogsf_state states[IMAGE_N_MODELS];
 
+typedef union {
+    float f;
+    uint32_t u;
+} fogsf_f32;
+
 __attribute__((noinline)) void fogsf_bench_begin(void)
 {
     __asm__ volatile("" ::: "memory");
@@ -19,6 +24,20 @@ __attribute__((noinline)) void fogsf_bench_end(void)
     __asm__ volatile("" ::: "memory");
 }
 
+static float t_ramp = 20.0f;
+static float g;
+
+/* sample i's inputs: a 0.01 C a sample ramp; every 5th from 1 a NaN temperature, every 5th
+ * from 2 one beyond t_max, every 7th from 3 a NaN gyro */
+static void fogsf_sample_inputs(uint32_t i, float *t, float *gyro)
+{
+    fogsf_f32 nan;
+    nan.u = 0x7fc00000u;
+    t_ramp = t_ramp + 0.01f;
+    *t = (i % 5u == 1u) ? nan.f : ((i % 5u == 2u) ? 500.0f : t_ramp);
+    *gyro = (i % 7u == 3u) ? nan.f : 10.0f;
+}
+
 int main(void)
 {
     fogsf_output out;
@@ -27,15 +46,17 @@ int main(void)
     for (a = 0; a < IMAGE_N_MODELS; ++a) {
         flags |= fogsf_init(models[a], &states[a]);
     }
+    /* a ramp with every front-end path planted: NaN and beyond-range temperatures, a NaN
+     * gyro (the worst sample is taken over all of them) */
     for (i = 0; i < 2u * models[0]->decimation + 1u; ++i) {
+        fogsf_sample_inputs(i, &t, &g);
         fogsf_bench_begin();
         for (a = 0; a < IMAGE_N_MODELS; ++a) {
-            fogsf_step(models[a], &states[a], t, 10.0, &out);
+            fogsf_step(models[a], &states[a], t, g, &out);
             flags |= out.flags;
         }
         fogsf_bench_end();
-        t = t + 0.01f;
     }
-    semihost_puts(flags == 0u ? "bench done\n" : "bench flags\n");
+    semihost_puts((flags & FOGSF_FLAG_MODEL_INVALID) == 0u ? "bench done\n" : "bench flags\n");
     return 0;
 }

@@ -7,14 +7,20 @@
 static const fogsf_model *const models[IMAGE_N_MODELS] = IMAGE_MODELS;
 static fogsf_state states[IMAGE_N_MODELS];
 volatile float probe_temp_c;
-volatile double probe_gyro_dps;
-volatile double probe_corrected_dps;
+volatile float probe_gyro_dps;
+volatile float probe_corrected_dps;
 volatile uint32_t probe_samples;
+#if defined(FOGSF_BENCH_SELFTEST) /* the image with the power-on self-test linked */
+volatile uint32_t probe_selftest;
+#endif
 
 int main(void)
 {
     fogsf_output out;
     uint32_t i, a;
+#if defined(FOGSF_BENCH_SELFTEST)
+    probe_selftest = fogsf_selftest(&states[0]);
+#endif
     for (a = 0; a < IMAGE_N_MODELS; ++a) {
         (void)fogsf_init(models[a], &states[a]);
     }

@@ -5,7 +5,9 @@
  *   mode 1  the generic LSTM cell with sizes, weights and inputs from the fuzz data;
  *   mode 2  fogsf_step with the generated model fuzz_model (fuzz_model.h) on adversarial
  *           samples: (temperature bits, gyro bits, repeats) records, so NaN, Inf, denormals,
- *           huge values and stuck thermometers (a record repeated up to 255 times) all occur;
+ *           huge values and stuck thermometers (a record repeated up to 255 times) all occur
+ *           (the gyro takes 8 bytes, of which the last 4 are its float32 bits: the records
+ *           keep the layout of the corpus written when the gyro was a double);
  *   mode 3  fogsf_step with an adversarial model: sizes (sometimes too large for the state),
  *           lstm_inputs, quad_diag and feat_diag (sometimes invalid), sometimes a bias head
  *           (sometimes with a NULL array), sometimes plays, every weight from the fuzz data
@@ -46,11 +48,6 @@ static int finite_f(float v)
     return v - v == 0.0f;
 }
 
-static int finite_d(double v)
-{
-    return v - v == 0.0;
-}
-
 /* reads little pieces of the input; past the end it reads zeros */
 typedef struct {
     const uint8_t *p;
@@ -80,12 +77,12 @@ static float next_f32(reader *r)
     return f;
 }
 
-static double next_f64(reader *r)
+/* the record's gyro: 8 bytes, the last 4 its float32 bits (every float, NaN, Inf and
+ * denormals included, as likely as any other bits) */
+static float next_gyro(reader *r)
 {
-    uint64_t u = (uint64_t)next_u32(r) | ((uint64_t)next_u32(r) << 32);
-    double d;
-    memcpy(&d, &u, sizeof d);
-    return d;
+    (void)next_u32(r);
+    return next_f32(r);
 }
 
 static void check(uint32_t refused, const fogsf_output *out)
@@ -93,14 +90,15 @@ static void check(uint32_t refused, const fogsf_output *out)
     const float sf = out->sf_ppm < 0.0f ? -out->sf_ppm : out->sf_ppm;
     const float b = out->bias_dph < 0.0f ? -out->bias_dph : out->bias_dph;
     ++steps;
-    if (!finite_d(out->corrected_dps) || !finite_f(out->sf_ppm) || !(sf <= FOGSF_SF_LIMIT_PPM) ||
+    if (!finite_f(out->corrected_dps) || !finite_f(out->sf_ppm) || !(sf <= FOGSF_SF_LIMIT_PPM) ||
         !(b <= FOGSF_BIAS_LIMIT_DPH) || (out->flags & ~127u) != 0u) {
-        fprintf(stderr, "totality violated: corrected %g sf %g flags %u\n", out->corrected_dps,
+        fprintf(stderr, "totality violated: corrected %g sf %g flags %u\n",
+                (double)out->corrected_dps,
                 (double)out->sf_ppm, (unsigned)out->flags);
         abort();
     }
     if (refused != 0u &&
-        (out->corrected_dps != 0.0 || out->flags != FOGSF_FLAG_MODEL_INVALID)) {
+        (out->corrected_dps != 0.0f || out->flags != FOGSF_FLAG_MODEL_INVALID)) {
         fprintf(stderr, "an invalid model must give 0 and MODEL_INVALID only (init refused it)\n");
         abort();
     }
@@ -113,7 +111,7 @@ static void run_samples(const fogsf_model *m, reader *r)
     const uint32_t refused = fogsf_init(m, &st);
     while (r->at < r->n) {
         const float t = next_f32(r);
-        const double g = next_f64(r);
+        const float g = next_gyro(r);
         unsigned rep = next_u8(r);
         do {
             fogsf_step(m, &st, t, g, &out);

@@ -1,7 +1,7 @@
 /*
  * Golden-vector check: the expected outputs (golden_vectors.h, written by fogsf/bindings/firmware.py
- * from the host build) are compared bit for bit: sf_ppm as float32 bits, the corrected rate
- * as float64 bits, the flags exactly. Mismatches are printed with their index (first 10).
+ * from the host build) are compared bit for bit: sf_ppm and the corrected rate as float32
+ * bits, the flags exactly. Mismatches are printed with their index (first 10).
  */
 #include "fogsf.h"
 #include "golden_check.h"
@@ -12,18 +12,13 @@ typedef union {
     uint32_t u;
 } f32_bits;
 
-typedef union {
-    double d;
-    uint64_t u;
-} f64_bits;
-
 /* test-driver state and one chunk of buffers for fogsf_run (the kernel keeps no globals);
  * the inputs are read from the golden tables in flash, so the check fits a 16 KB RAM core */
 #define GOLDEN_CHUNK 50u
 static fogsf_state state;
 static float temps[GOLDEN_CHUNK];
-static double gyros[GOLDEN_CHUNK];
-static double run_corrected[GOLDEN_CHUNK];
+static float gyros[GOLDEN_CHUNK];
+static float run_corrected[GOLDEN_CHUNK];
 static float run_sf[GOLDEN_CHUNK];
 static uint32_t run_flags[GOLDEN_CHUNK];
 
@@ -34,11 +29,11 @@ static float temp_of(unsigned long i)
     return t.f;
 }
 
-static double gyro_of(unsigned long i)
+static float gyro_of(unsigned long i)
 {
-    f64_bits g;
+    f32_bits g;
     g.u = golden_gyro_bits[i];
-    return g.d;
+    return g.f;
 }
 
 static void put_uint(fogsf_puts_fn out, unsigned long v)
@@ -75,12 +70,12 @@ static int same_text(const char *a, const char *b)
 }
 
 static unsigned long compare(fogsf_puts_fn out, const char *pass, unsigned long i, float sf,
-                             double corrected, uint32_t flags, unsigned long bad)
+                             float corrected, uint32_t flags, unsigned long bad)
 {
     f32_bits s;
-    f64_bits c;
+    f32_bits c;
     s.f = sf;
-    c.d = corrected;
+    c.f = corrected;
     if (s.u == golden_sf_bits[i] && c.u == golden_corrected_bits[i] &&
         flags == golden_flags[i]) {
         return bad;
@@ -95,9 +90,9 @@ static unsigned long compare(fogsf_puts_fn out, const char *pass, unsigned long 
         out(" want 0x");
         put_hex(out, golden_sf_bits[i], 8);
         out(", corrected 0x");
-        put_hex(out, c.u, 16);
+        put_hex(out, c.u, 8);
         out(" want 0x");
-        put_hex(out, golden_corrected_bits[i], 16);
+        put_hex(out, golden_corrected_bits[i], 8);
         out(", flags ");
         put_uint(out, flags);
         out(" want ");

@@ -20,11 +20,6 @@ typedef union {
     uint32_t u;
 } f32_bits;
 
-typedef union {
-    double d;
-    uint64_t u;
-} f64_bits;
-
 static void put_hex(char *p, uint64_t v, int digits)
 {
     static const char hex[] = "0123456789abcdef";
@@ -44,27 +39,26 @@ int main(void)
     for (i = 0; i < IMU3_SAMPLES; ++i) {
         for (a = 0; a < 3u; ++a) {
             fogsf_output out;
-            f32_bits t, s;
-            f64_bits c;
+            f32_bits t, s, c;
             t.f = (-40.0f + (float)i * 0.0625f) + (float)a * 0.5f;
             if (i % 331u == 17u + a) {
                 t.u = 0x7fc00000u; /* a NaN temperature: the kernel must hold the last one */
             }
-            fogsf_step(models[a], &states[a], t.f, 10.0 * (double)(a + 1u) + (double)i * 0.001,
+            fogsf_step(models[a], &states[a], t.f, 10.0f * (float)(a + 1u) + (float)i * 0.001f,
                        &out);
             s.f = out.sf_ppm;
-            c.d = out.corrected_dps;
+            c.f = out.corrected_dps;
             line[0] = (char)('x' + a);
             line[1] = ' ';
             put_hex(line + 2, i, 4);
             line[6] = ' ';
             put_hex(line + 7, s.u, 8);
             line[15] = ' ';
-            put_hex(line + 16, c.u, 16);
-            line[32] = ' ';
-            put_hex(line + 33, out.flags, 2);
-            line[35] = '\n';
-            line[36] = '\0';
+            put_hex(line + 16, c.u, 8);
+            line[24] = ' ';
+            put_hex(line + 25, out.flags, 2);
+            line[27] = '\n';
+            line[28] = '\0';
             semihost_puts(line);
         }
     }
