@@ -23,6 +23,7 @@ import numpy as np
 
 import fogsf
 from fogsf.errors import UserError
+from fogsf.export.header import render_model
 from fogsf.models.stream import StreamModel
 
 C_DIR = Path(fogsf.cmake_dir)
@@ -105,8 +106,6 @@ def _run(cmd: list[str], where: Path) -> None:
 def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "gcc",
                  opt: str = "-O2", sanitize: bool = False) -> KernelBuild:
     """Export the model as C and compile the kernel (cached by model id + sources + flags)."""
-    from fogsf.export.header import render_model
-
     if shutil.which(cc) is None:
         raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
     flags = (*STRICT, opt, "-fPIC", *max_defines(model), *(SANITIZE if sanitize else ()))

@@ -42,8 +42,13 @@ from fogsf.cli.arguments import (
 )
 from fogsf.cli.axes import run_all, wants_all
 from fogsf.errors import UserError
+from fogsf.gsa.executors import add_executor_options
 from fogsf.models.lag_bank import BANK_LSTM_INPUTS, bank_spec
+from fogsf.training.bias_model import bias_lines
+from fogsf.training.hysteresis_choice import choice_line
+from fogsf.training.options import DEFAULT_MODEL, MODELS, STRUCTURES, TrainOptions
 from fogsf.training.structure_choice import choice_message
+from fogsf.training.train import run_training
 from fogsf.training.transfer import RateTransfer, spans_ramp_rates
 
 
@@ -56,9 +61,6 @@ def _chunk(text: str) -> tuple[float, float]:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from fogsf.gsa.executors import add_executor_options
-    from fogsf.training.train import DEFAULT_MODEL, MODELS, STRUCTURES
-
     parser.add_argument("--train", action="append", required=True, metavar="LOG.csv",
                         help="training log (repeat for several)")
     parser.add_argument("--test", metavar="LOG.csv", help="test log, never used for fitting")
@@ -132,9 +134,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.training.options import TrainOptions
-    from fogsf.training.train import run_training
-
     if wants_all(args):  # OUT/A per axis, then one summary
         return run_all(args, run, "train")
     train_logs = read_logs(args, args.train, on_disk=True)
@@ -168,8 +167,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def format_metrics(m: dict) -> str:
-    from fogsf.training.bias_model import bias_lines
-
     if m.get("bias_only"):
         return "\n".join([f"model {m['model']} (bias only: the logs are stationary, they "
                           f"measure no SF): {m['params']} parameters, features "
@@ -199,8 +196,6 @@ def format_metrics(m: dict) -> str:
     if "structure_choice" in m:
         lines.append(textwrap.fill(choice_message(m["structure_choice"]), 96))
     if "hysteresis_choice" in m:
-        from fogsf.training.hysteresis_choice import choice_line
-
         lines.append(textwrap.fill(choice_line(m["hysteresis_choice"]), 96))
     if "rate_transfer" in m:
         lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))
