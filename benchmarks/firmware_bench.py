@@ -51,6 +51,7 @@ from fogsf.export.header import write_model
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx
 from fogsf.models import samples
 from fogsf.models import stream as st
+from fogsf.models.front_end import filter_alpha
 from fogsf.models.lag_bank import BANK_LSTM_INPUTS
 
 TARGET = {"flash_bytes": 32 * 1024, "ram_bytes": 2 * 1024, "instructions_per_step": 50_000}
@@ -199,7 +200,7 @@ def host_ns_per_step(model: st.StreamModel, root: Path, steps: int) -> float:
     """C kernel: ns per model step, the same weights at D=1 so that every sample is a step
     (front end included); fogsf_run over the samples, best of 5."""
     every = replace(model, decimation=1, weights=dict(model.weights))
-    every.weights["filter_alpha"] = st.filter_alpha(model.filter_tau_s, 1, model.sample_dt_s)
+    every.weights["filter_alpha"] = filter_alpha(model.filter_tau_s, 1, model.sample_dt_s)
     kernel = Kernel(every, build_kernel(every, root=root))
     temp, gyro = samples.chamber_ramp(hours=steps / 36000 + 0.01, seed=1)
     temp, gyro = temp[:steps], gyro[:steps]

@@ -29,9 +29,10 @@ from fogsf.logs.logio import write_log
 from fogsf.logs.metrics import reference_sf_of_logs, sf_error_ppm, sf_windows
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import paper
-from fogsf.training.options import TrainOptions
+from fogsf.training.fitted import per_sample_prediction
+from fogsf.training.options import DEFAULT_MODEL, MODELS, TrainOptions
 from fogsf.training.structure_choice import choice_message
-from fogsf.training.train import DEFAULT_MODEL, MODELS, per_sample_prediction, run_training
+from fogsf.training.train import run_training
 from fogsf.training.transfer import RateTransfer
 
 # The paper's Table 2 (1e-6); 450.24 is read as the RMS about the 20 C reference.

@@ -133,8 +133,7 @@ def protocol_logs(gyro: SimConfig, gyro_seed: int, protocol: str) -> tuple[list,
 
 
 def _train_options(model: str, seed: int):  # noqa: ANN202 - TrainOptions, imported late
-    from fogsf.training.options import TrainOptions
-    from fogsf.training.train import DEFAULT_MODEL
+    from fogsf.training.options import DEFAULT_MODEL, TrainOptions
 
     kind = DEFAULT_MODEL if model == "default" or model in FORCED else model
     extra: dict = GSA_SMALL if kind == "gsa-lstm" else dict(FORCED.get(model, {}))

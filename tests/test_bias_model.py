@@ -317,7 +317,7 @@ def test_bias_rows_of_their_own_leave_the_sf_model_as_it_was(poly: bool, diag: b
     of z or part), the widened z's first rows the old z, the new rows the own map's z."""
     from fogsf.models import reference, samples
     from fogsf.models.features import FeatureSpec, filter_alpha, physical_normaliser
-    from fogsf.models.stream import FrontEnd
+    from fogsf.models.front_end import FrontEnd
     from fogsf.training.bias_model import FeatureMap, _widened, with_rows
 
     sm = samples.random_model(3, 5, 1, 6, 10, seed=7, taus_s=[100.0, 400.0, 1600.0],
@@ -556,17 +556,17 @@ def test_a_stationary_logs_partial_last_step_is_no_target() -> None:
 
 
 def test_train_knows_before_the_fit_whether_the_logs_measure_the_bias() -> None:
-    """`train._measures_bias` (what leaves the bank's cross terms out beside a play and a
+    """`train.measures_bias` (what leaves the bank's cross terms out beside a play and a
     bias head): a stationary log measures the bias, a turning log without pairs does not."""
     from fogsf.training.options import TrainOptions
-    from fogsf.training.train import _measures_bias
+    from fogsf.training.sf_fit import measures_bias
 
     log, _ = soak_log(TRAIN, 5)
     turning = ChamberLog(log.time_s, log.temp_c, np.full_like(log.time_s, 10.0),
                          log.gyro_dps + 10.0, log.earth_rate_dps)
     opts = TrainOptions(model="lag-lstm")
-    assert _measures_bias(opts, [log]) and _measures_bias(opts, [turning, log])
-    assert not _measures_bias(opts, [turning])
+    assert measures_bias(opts, [log]) and measures_bias(opts, [turning, log])
+    assert not measures_bias(opts, [turning])
 
 
 def test_the_bias_interval_spans_the_coil_time_constants_the_pairs_leave_open() -> None:

@@ -167,15 +167,14 @@ def test_the_check_is_the_default(tmp_path) -> None:
 
 
 def test_long_logs_are_checked_at_the_choice_step(monkeypatch) -> None:
-    from fogsf.training import hysteresis_choice, structure_choice
-    from fogsf.training import train as train_mod
+    from fogsf.training import hysteresis_choice, sf_fit, structure_choice
 
     seen: list[float] = []
     monkeypatch.setattr(structure_choice, "MAX_CHOICE_STEPS", 100)
     monkeypatch.setattr(hysteresis_choice, "decide",
                         lambda logs, base, step_s, lat, mode: seen.append(step_s) or {})
     log = simulate(_partial_run(1)).log
-    train_mod._hysteresis_choice(TrainOptions(model="lag-lstm"), [log], "bank")
+    sf_fit.hysteresis_choice(TrainOptions(model="lag-lstm"), [log], "bank")
     want = structure_choice.choice_step_s([log], TrainOptions(model="lag-lstm").model_step_s)
     assert want > 5.0 and seen == [want]
 
@@ -185,9 +184,9 @@ def test_cross_terms_are_left_out_beside_a_play_and_a_bias_head(tmp_path, monkey
     keeps its diagonal quadratic (three such models with the full one would not fit 24 KB),
     and `fogsf train` says so."""
     from fogsf.cli.train import format_metrics
-    from fogsf.training import train as train_mod
+    from fogsf.training import sf_fit
 
-    monkeypatch.setattr(train_mod, "_measures_bias", lambda opts, logs: True)
+    monkeypatch.setattr(sf_fit, "measures_bias", lambda opts, logs: True)
     train = simulate(_partial_run(1)).log
     opts = TrainOptions(model="lag-lstm", seed=0, progress=False, workers=1, iters=5,
                         transfer_check=False, hysteresis="on")

@@ -16,6 +16,7 @@ from fogsf.bindings.kernel import trace_steps
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
 from fogsf.models import f32, reference, samples
 from fogsf.models import stream as st
+from fogsf.models.stream_forms import diagonal_features
 
 F32 = np.float32
 
@@ -337,7 +338,7 @@ def test_diagonal_features_keep_every_kernel_bit(size, kroot) -> None:
     w[np.arange(f) % 2 == 1, 0] = F32(-0.0)
     full = replace(diag, weights={**diag.weights, "feat_w": w}, feat_diag=False)
     full.validate()
-    conv = st.diagonal_features(full)
+    conv = diagonal_features(full)
     assert conv.feat_diag and conv.model_id == diag.model_id
     temp, gyro = golden_inputs(full, n=3000, seed=seed)
     temp[::53] = full.t_ref_c  # s_0 = 0 exactly at some steps

@@ -16,6 +16,7 @@ from fogsf.errors import UserError
 from fogsf.export.header import render_model
 from fogsf.models import reference, samples
 from fogsf.models import stream as st
+from fogsf.models.stream_forms import diagonal_features, pure_play_rows
 
 # (K filters, F features, D decimation, seed, plays ((source weights, width_c), ...), poly
 # [, feat_diag])
@@ -148,10 +149,10 @@ def test_a_play_terms_sources_move_to_the_linear_weights(quad_diag, n_plays, kro
     rounding of the model's and the C kernel runs the result bit for bit."""
     model = _hysteresis_term_model(quad_diag=quad_diag, n_plays=n_plays)
     model.validate()
-    pure = st.pure_play_rows(model)
+    pure = pure_play_rows(model)
     assert pure is not model and not np.any(pure.weights["feat_w"][3:, :3])
-    diag = st.diagonal_features(pure)
-    assert diag.feat_diag and st.diagonal_features(model) is model  # the mixed row: dense
+    diag = diagonal_features(pure)
+    assert diag.feat_diag and diagonal_features(model) is model  # the mixed row: dense
     temp, gyro = golden_inputs(model, n=3000, seed=26)
     temp = temp + 15.0 * np.abs(((np.arange(temp.size) / 400.0) % 2.0) - 1.0)
     a, b = reference.replay(model, temp, gyro), reference.replay(diag, temp, gyro)
@@ -169,6 +170,6 @@ def test_a_play_that_is_not_linear_keeps_its_row() -> None:
     w["cube_w"] = w["cube_w"].copy()
     w["cube_w"][3] = 0.1
     cubed = replace(model, weights=w)
-    assert st.pure_play_rows(cubed) is cubed
+    assert pure_play_rows(cubed) is cubed
     no_play = samples.random_model(2, 3, 1, 8, 10, seed=3, poly_head=True)
-    assert st.pure_play_rows(no_play) is no_play
+    assert pure_play_rows(no_play) is no_play

@@ -10,7 +10,7 @@ from kernel_helpers import kernel_for
 
 from fogsf.bindings.kernel import trace_steps
 from fogsf.models import reference, samples
-from fogsf.models import stream as st
+from fogsf.models.front_end import FrontEnd, filter_alpha
 
 features = pytest.importorskip("fogsf.models.features")
 nets = pytest.importorskip("fogsf.models.nets")
@@ -26,9 +26,9 @@ def kroot(tmp_path_factory):
 def test_trainer_network_and_kernel_agree(layers, hidden, seed, kroot) -> None:
     temp, gyro = samples.chamber_ramp(hours=3.0, seed=seed)
     spec = features.make_features(rate_tau_s=120.0)  # the paper's inputs: T and dT/dt
-    fe = st.FrontEnd(t_ref_c=20.0, t_min_c=-45.0, t_max_c=60.0, decimation=20,
+    fe = FrontEnd(t_ref_c=20.0, t_min_c=-45.0, t_max_c=60.0, decimation=20,
                      stuck_samples=3000,
-                     filter_alpha=st.filter_alpha(list(spec.taus_s), 20))
+                     filter_alpha=filter_alpha(list(spec.taus_s), 20))
     s = reference.frontend(temp, fe).s
     a = spec.matrix()
     raw = s.astype(np.float64) @ a.T

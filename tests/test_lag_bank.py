@@ -86,7 +86,7 @@ def test_lstm_inputs_option(two_rates_gyro, tmp_path: Path) -> None:
     """--lstm-inputs N narrows the bank's LSTM to z[0:N] (N = F: every feature); outside
     1..F, or for another structure, it is refused."""
     from fogsf.errors import UserError
-    from fogsf.training.train import fit_model
+    from fogsf.training.sf_fit import fit_sf
 
     logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
     f = 1 + len(TAU_GRID_S)
@@ -99,10 +99,10 @@ def test_lstm_inputs_option(two_rates_gyro, tmp_path: Path) -> None:
         assert sm.lstm_inputs_narrowed == (n_in < f) and sm.quad_diag
     for bad in (0, f + 1):
         with pytest.raises(UserError, match="--lstm-inputs must lie in 1..12"):
-            fit_model(TrainOptions(model="lag-lstm", structure="bank", lstm_inputs=bad, **FAST),
+            fit_sf(TrainOptions(model="lag-lstm", structure="bank", lstm_inputs=bad, **FAST),
                       logs)
     with pytest.raises(UserError, match="--lstm-inputs narrows the LSTM"):
-        fit_model(TrainOptions(model="lag-lstm", structure="node", lstm_inputs=1), logs)
+        fit_sf(TrainOptions(model="lag-lstm", structure="node", lstm_inputs=1), logs)
 
 
 def test_protocol_programs_hold_what_they_promise() -> None:
@@ -145,7 +145,7 @@ def test_bench_population_forces_the_structures_it_names(model: str, structure: 
     """bench-population's bank, node and physics2 are the default model with its physics
     part forced (`fogsf train --structure ...`), the default model its own choice."""
     from benchmarks.population import _train_options
-    from fogsf.training.train import DEFAULT_MODEL
+    from fogsf.training.options import DEFAULT_MODEL
 
     opts = _train_options(model, 3)
     assert (opts.model, opts.structure, opts.nodes) == (DEFAULT_MODEL, structure, nodes)

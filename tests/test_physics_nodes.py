@@ -19,6 +19,7 @@ from fogsf.models.physics_nodes import (
     node_design,
 )
 from fogsf.models.stream import StreamModel
+from fogsf.training.fitted import per_sample_prediction
 from fogsf.training.options import TrainOptions
 from fogsf.training.structure_choice import (
     CANDIDATES,
@@ -35,7 +36,7 @@ from fogsf.training.structure_choice import (
     heldout_score,
     part_folds,
 )
-from fogsf.training.train import per_sample_prediction, run_training
+from fogsf.training.train import run_training
 
 FAST = {"iters": 20, "hidden": 8, "layers": 1, "batch_size": 8}
 STEP_S = 5.0

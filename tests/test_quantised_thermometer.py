@@ -21,7 +21,7 @@ from fogsf.logs.metrics import log_metrics, sf_windows
 from fogsf.sim.config import TableConfig
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import paper
-from fogsf.training.train import bank_compensation
+from fogsf.training.inputs import bank_compensation
 
 
 def run(seed: int, lsb_c: float) -> ChamberLog:

@@ -20,8 +20,8 @@ from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import _read_plain, parse_log, read_log, write_log
 from fogsf.logs.metrics import sf_windows
 from fogsf.models import reference, samples
-from fogsf.models import stream as st
 from fogsf.models.features import front_end_for
+from fogsf.models.front_end import filter_alpha
 
 
 def rows(rate_hz: float, n: int, t0: float = 0.0) -> list[str]:
@@ -162,7 +162,7 @@ def test_re_rated_model_keeps_its_step_and_comes_back_to_its_id() -> None:
     assert slow.decimation == 15
     near = model.at_rate(1.0 / 10.3)  # 52 samples: a step of 5.05 s, the alphas for it
     assert near.decimation == 52
-    want = st.filter_alpha([200.0, 900.0], 52, 1.0 / 10.3)
+    want = filter_alpha([200.0, 900.0], 52, 1.0 / 10.3)
     assert near.weights["filter_alpha"].tobytes() == want.tobytes()
     assert near.weights["filter_alpha"].tobytes() != model.weights["filter_alpha"].tobytes()
     with pytest.raises(UserError, match="multiple of"):

@@ -12,11 +12,14 @@ import pytest
 from fogsf.errors import UserError
 from fogsf.models import f32, reference, samples
 from fogsf.models import stream as st
+from fogsf.models.front_end import FrontEnd
+from fogsf.models.gate_order import onnx_to_torch_lstm, torch_to_onnx_lstm
+from fogsf.models.stream_forms import diagonal_features
 
 F32 = np.float32
 
 
-def scalar_frontend(temp: np.ndarray, fe: st.FrontEnd) -> tuple[list[int], np.ndarray, np.ndarray]:
+def scalar_frontend(temp: np.ndarray, fe: FrontEnd) -> tuple[list[int], np.ndarray, np.ndarray]:
     """The contract's steps 1-4 as a per-sample state machine (what C does), written apart
     from the vectorised reference so that the two check each other."""
     t_min, t_max, t_ref = F32(fe.t_min_c), F32(fe.t_max_c), F32(fe.t_ref_c)
@@ -130,14 +133,14 @@ def test_gate_order_converters_match_torch() -> None:
     with torch.no_grad():
         y_t, (h_t, c_t) = lstm(x, (h0, c0))
     p = {k: v.detach().numpy() for k, v in lstm.named_parameters()}
-    w, r, b = st.torch_to_onnx_lstm(p["weight_ih_l0"], p["weight_hh_l0"], p["bias_ih_l0"],
+    w, r, b = torch_to_onnx_lstm(p["weight_ih_l0"], p["weight_hh_l0"], p["bias_ih_l0"],
                                     p["bias_hh_l0"])
     h, c = h0[0, 0].numpy(), c0[0, 0].numpy()
     for t in range(6):
         h, c = reference.lstm_cell(w, r, b, x[t, 0].numpy(), h, c)
         np.testing.assert_allclose(h, y_t[t, 0].numpy(), atol=2e-6)
     np.testing.assert_allclose(c, c_t[0, 0].numpy(), atol=2e-6)
-    back = st.onnx_to_torch_lstm(w, r, b)
+    back = onnx_to_torch_lstm(w, r, b)
     for got, name in zip(back, ("weight_ih_l0", "weight_hh_l0", "bias_ih_l0", "bias_hh_l0"),
                          strict=True):
         np.testing.assert_array_equal(got, p[name])
@@ -445,7 +448,7 @@ def test_feat_diag_roundtrips_and_enters_the_id_only_when_true(tmp_path) -> None
     full = replace(model, weights={**model.weights,
                                    "feat_w": np.diag(model.weights["feat_w"])}, feat_diag=False)
     assert full.model_id != model.model_id
-    assert st.diagonal_features(full).model_id == model.model_id
+    assert diagonal_features(full).model_id == model.model_id
 
 
 def _square_diagonal(model: st.StreamModel) -> st.StreamModel:
@@ -461,7 +464,7 @@ def test_diagonal_features_stores_the_diagonal_with_the_same_bits() -> None:
     full = _square_diagonal(diag)
     full.weights["feat_w"][0, 3] = F32(-0.0)  # a zero of either sign off the diagonal
     full.validate()
-    conv = st.diagonal_features(full)
+    conv = diagonal_features(full)
     assert conv.feat_diag and conv.weights["feat_w"].flags.c_contiguous
     assert conv.weights["feat_w"].tobytes() == diag.weights["feat_w"].tobytes()
     assert conv.model_id == diag.model_id and conv.weights is not full.weights
@@ -474,23 +477,23 @@ def test_diagonal_features_stores_the_diagonal_with_the_same_bits() -> None:
         assert x.tobytes() == y.tobytes()
     s = reference.frontend(temp, full.front_end).s
     assert reference.features(full, s).tobytes() == reference.features(conv, s).tobytes()
-    assert st.diagonal_features(conv) is conv
+    assert diagonal_features(conv) is conv
 
 
 def test_diagonal_features_leaves_other_models_as_they_are() -> None:
     dense = samples.random_model(3, 4, 1, 6, 5, seed=18)  # square, not diagonal
-    assert st.diagonal_features(dense) is dense
+    assert diagonal_features(dense) is dense
     wide = samples.random_model(3, 3, 1, 6, 5, seed=18)  # F = 3 != 1+K = 4
     w = np.zeros((3, 4), np.float32)
     w[[0, 1, 2], [0, 1, 2]] = 0.02
     wide = replace(wide, weights={**wide.weights, "feat_w": w})
-    assert st.diagonal_features(wide) is wide
+    assert diagonal_features(wide) is wide
     diag = _square_diagonal(samples.random_model(3, 4, 1, 6, 5, seed=18, feat_diag=True))
     diag.weights["feat_w"][2, 0] = F32(1e-30)  # one nonzero entry off the diagonal
-    assert st.diagonal_features(diag) is diag
+    assert diagonal_features(diag) is diag
     played = _square_diagonal(samples.random_model(2, 4, 1, 6, 5, seed=18, feat_diag=True,
                                                    plays=(((0.5, 0.5, 0.0), 4.0),)))
-    assert st.diagonal_features(played).feat_diag  # F = 1+K+P
+    assert diagonal_features(played).feat_diag  # F = 1+K+P
 
 
 def test_diagonal_features_keeps_a_negative_zero_bias_dense() -> None:
@@ -501,14 +504,14 @@ def test_diagonal_features_keeps_a_negative_zero_bias_dense() -> None:
     diag.weights["feat_w"][:] = [-0.5, 0.25]
     diag.weights["feat_b"][:] = [-0.0, 0.1]
     full = _square_diagonal(diag)
-    assert st.diagonal_features(full) is full
+    assert diagonal_features(full) is full
     s = np.array([[0.0, 1.0]], np.float32)
     z_full, z_diag = reference.features(full, s), reference.features(diag, s)
     assert z_full[0, 0] == z_diag[0, 0] == 0.0
     assert np.signbit(z_diag[0, 0]) and not np.signbit(z_full[0, 0])
     diag.weights["feat_b"][0] = F32(0.0)  # +0.0: converted, and the same bits
     full = _square_diagonal(diag)
-    assert st.diagonal_features(full).model_id == diag.model_id
+    assert diagonal_features(full).model_id == diag.model_id
     assert reference.features(full, s).tobytes() == reference.features(diag, s).tobytes()
 
 

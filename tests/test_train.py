@@ -14,8 +14,9 @@ from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.reference import replay
 from fogsf.models.stream import StreamModel
+from fogsf.training.fitted import per_sample_prediction
 from fogsf.training.options import TrainOptions
-from fogsf.training.train import per_sample_prediction, run_training
+from fogsf.training.train import run_training
 
 
 @pytest.fixture(scope="module")
@@ -49,9 +50,9 @@ def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path)
 def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="lag-lstm", progress=False, **FAST)
-    from fogsf.training.train import fit_model
+    from fogsf.training.sf_fit import fit_sf
 
-    fitted = fit_model(opts, [train])
+    fitted = fit_sf(opts, [train])
     torch_pred = per_sample_prediction(fitted, test, None)
     fitted.stream_model.save(tmp_path)
     sm = StreamModel.load(tmp_path)
@@ -65,10 +66,10 @@ def test_no_start_up_transient_after_reset(logs) -> None:
     unseen run (the soak before its ramp) are no worse than the run as a whole, and within
     twice the noise floor (the LSTM state starting from zero once left ~200 ppm there)."""
     from fogsf.logs.metrics import noise_floor_ppm, sf_error_ppm, sf_windows
-    from fogsf.training.train import fit_model
+    from fogsf.training.sf_fit import fit_sf
 
     train, test = logs
-    fitted = fit_model(TrainOptions(model="lag-lstm", progress=False, **FAST), [train])
+    fitted = fit_sf(TrainOptions(model="lag-lstm", progress=False, **FAST), [train])
     ref = replay(fitted.stream_model, test.temp_c, test.gyro_dps)
     w = sf_windows(test, correction_ppm=ref.sf_ppm.astype(np.float64))
     e = sf_error_ppm(w, 1.0)
@@ -127,7 +128,7 @@ def test_gsa_fitness_is_the_same_in_worker_processes(logs) -> None:
 
     from fogsf.gsa.executors import open_executor
     from fogsf.models.features import step_targets
-    from fogsf.training.train import gsa_fitness
+    from fogsf.training.gsa_search import gsa_fitness
 
     train, _ = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_fitness_iters=4)
@@ -154,9 +155,9 @@ def test_static_models_are_refused_by_export_with_a_reason(logs, tmp_path: Path)
 
 def test_bad_options_refused(logs) -> None:
     train, _ = logs
-    from fogsf.training.train import fit_model
+    from fogsf.training.sf_fit import fit_sf
 
     with pytest.raises(UserError, match="unknown model"):
-        fit_model(TrainOptions(model="svm"), [train])
+        fit_sf(TrainOptions(model="svm"), [train])
     with pytest.raises(UserError, match="val-chunk"):
-        fit_model(TrainOptions(model="poly", val_chunk=(0.6, 0.4)), [train])
+        fit_sf(TrainOptions(model="poly", val_chunk=(0.6, 0.4)), [train])

@@ -42,8 +42,8 @@ from fogsf.models.least_squares import (
 )
 from fogsf.models.reference import expand
 from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
+from fogsf.training.inputs import bank_data, training_inputs
 from fogsf.training.options import TrainOptions
-from fogsf.training.train import bank_data, training_inputs
 from fogsf.training.transfer import CHI2_ALLOWANCE, long_run_ratio
 
 BANK_LAMBDAS = (1e-4, 1e-3, 1e-2)
@@ -92,7 +92,7 @@ def _gcv_lambda(z: np.ndarray, y: np.ndarray) -> float:
 
 
 def bank_inputs(train: list, test) -> tuple:  # noqa: ANN001 - ChamberLogs
-    """(ti, z, y, zt): the default model's bank inputs as `train._fit_bank_head` builds them
+    """(ti, z, y, zt): the default model's bank inputs as `inputs.fit_bank_head` builds them
     (normalised features z and targets y of every training step) and the test log's z."""
     ti = training_inputs(TrainOptions(model="lag-lstm"), train, bank_spec(), physical=True)
     z, y = bank_data(ti)

@@ -23,6 +23,7 @@ import numpy as np
 
 import fogsf
 from fogsf.errors import UserError
+from fogsf.export.header import render_model
 from fogsf.models.stream import StreamModel
 
 C_DIR = Path(fogsf.cmake_dir)
@@ -111,8 +112,6 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     """Export the model as C and compile the kernel (cached by model id + sources + flags);
     `even_time`: with FOGSF_EVEN_TIME (the step spread over D samples, branch-free
     activations; `reference.replay(..., even_time=True)` gives its outputs)."""
-    from fogsf.export.header import render_model
-
     if shutil.which(cc) is None:
         raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
     defines = (*max_defines(model), *((EVEN_TIME,) if even_time else ()))

@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import argparse
 
+from fogsf.errors import UserError
+from fogsf.logs import stream_read
+from fogsf.logs.columns import Spill
+from fogsf.logs.dialect import DELIMITERS, Dialect
+
 
 def _number(text: str) -> float:
     """`text` as a float, or argparse's refusal."""
@@ -109,8 +114,6 @@ def axis_cosines(text: str) -> float | dict[str, float]:
 
 def cosine_for(cosines: float | dict[str, float] | None, axis: str | None) -> float:
     """The axis' cosine to the vertical from --axis-cosine (1.0 when not given)."""
-    from fogsf.errors import UserError
-
     if cosines is None:
         return 1.0
     if isinstance(cosines, float):
@@ -153,9 +156,6 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
 
 def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.Dialect
     """The `Dialect` the options of `add_log_options` give."""
-    from fogsf.errors import UserError
-    from fogsf.logs.dialect import DELIMITERS, Dialect
-
     gyro = getattr(args, "gyro_column", None)
     axis = getattr(args, "axis", None)
     if axis is not None and gyro is not None:
@@ -189,16 +189,14 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
     then held in memory."""
     import sys
 
-    from fogsf.logs.columns import Spill
-    from fogsf.logs.stream_read import in_memory, read_log_on_disk
-
     dialect = dialect_from_args(args)
     logs = []
     for p in paths:
         spill = Spill()
-        log = read_log_on_disk(p, dialect, spill, progress=progress_bar(f"reading {p}", "rows"))
+        log = stream_read.read_log_on_disk(p, dialect, spill,
+                                           progress=progress_bar(f"reading {p}", "rows"))
         if not on_disk:
-            log = in_memory(log)
+            log = stream_read.in_memory(log)
             spill.close()
         logs.append(log)
     given = getattr(args, "axis_cosine", None)

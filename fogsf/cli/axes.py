@@ -27,7 +27,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from fogsf.cli.arguments import cosine_for, dialect_from_args
 from fogsf.errors import UserError
+from fogsf.logs.logio import log_axes_of
 
 ALL = "all"
 
@@ -154,9 +156,6 @@ SPECS: dict[str, Spec] = {
 def axes_of_logs(args: argparse.Namespace, paths: list[str]) -> list[str]:
     """The axes every log has (the first log's order); a log without any, or with other
     axes than the first, is refused in one line."""
-    from fogsf.cli.arguments import dialect_from_args
-    from fogsf.logs.logio import log_axes_of
-
     if getattr(args, "gyro_column", None) is not None:
         raise UserError("give --axis all or --gyro-column, not both")
     dialect = dialect_from_args(argparse.Namespace(**{**vars(args), "axis": None}))
@@ -226,8 +225,6 @@ def run_all(args: argparse.Namespace, run: Callable[[argparse.Namespace], int],
             command: str) -> int:
     """`run` once per axis (module docstring), then the summary table; the first axis that
     fails stops the run."""
-    from fogsf.cli.arguments import cosine_for
-
     spec = SPECS[command]
     paths = spec.logs(args)
     axes = axes_of_logs(args, paths) if paths else axes_of_model_dir(args.model)

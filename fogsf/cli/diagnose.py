@@ -46,6 +46,7 @@ import sys
 from pathlib import Path
 
 from fogsf.cli.arguments import add_earth_options, add_log_options, read_logs
+from fogsf.diagnose import extend, report, verdict
 from fogsf.errors import UserError
 
 
@@ -78,8 +79,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.diagnose import extend, report, verdict
-
     if args.window_s <= 0:
         raise UserError("--window-s must be > 0")
     logs = read_logs(args, args.logs, on_disk=True)

@@ -20,6 +20,11 @@ import argparse
 
 from fogsf.cli.arguments import positive_float, rated
 from fogsf.cli.axes import run_all, wants_all
+from fogsf.errors import UserError
+from fogsf.export import export_model
+from fogsf.export.header import check_name
+from fogsf.logs.chamber_log import check_rate_hz
+from fogsf.models.stream import StreamModel
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -39,11 +44,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.errors import UserError
-    from fogsf.export import export_model
-    from fogsf.export.header import check_name
-    from fogsf.models.stream import StreamModel
-
     if wants_all(args):
         return run_all(args, run, "export")
     try:
@@ -52,8 +52,6 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(str(e)) from None
     model = StreamModel.load(args.model)
     if args.sample_rate_hz is not None:
-        from fogsf.logs.chamber_log import check_rate_hz
-
         model = rated(model, 1.0 / check_rate_hz(args.sample_rate_hz),
                       f"{args.sample_rate_hz:g} Hz")
     paths = export_model(model, args.out, args.name)

@@ -1,4 +1,6 @@
-"""The `fogsf` entry point: one sub-command per module in fogsf.cli."""
+"""The `fogsf` entry point: one sub-command per module in fogsf.cli. Only the chosen
+command's module is imported (the top-level --help lists COMMANDS' one-line help), so each
+command starts with what it needs and no more (`fogsf inspect` never loads torch)."""
 
 from __future__ import annotations
 
@@ -6,6 +8,7 @@ import argparse
 import importlib
 import re
 import sys
+from collections.abc import Collection
 from typing import NoReturn
 
 from fogsf import __version__
@@ -70,7 +73,16 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def chosen_command(argv: list[str]) -> str | None:
+    """The sub-command `argv` names: its first word that is not an option (the top level
+    has no option that takes a value), if it is a command."""
+    first = next((a for a in argv if not a.startswith("-")), None)
+    return first if first in COMMANDS else None
+
+
+def build_parser(configure: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """The parser with the commands in `configure` (None: every command) complete, their
+    modules imported; the others listed by their one-line help only."""
     parser = OneLineParser(
         prog="fogsf",
         description="Fiber-optic gyro thermal scale-factor error: from chamber logs to "
@@ -82,6 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"fogsf {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (module, help_text) in COMMANDS.items():
+        if configure is not None and name not in configure:
+            sub.add_parser(name, help=help_text)  # listed in --help, its module not loaded
+            continue
         mod = importlib.import_module(module)
         desc, epilog = split_doc(mod.__doc__ or help_text)
         p = sub.add_parser(name, help=help_text, description=desc, epilog=epilog,
@@ -93,7 +108,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     argv = join_negative_ranges(sys.argv[1:] if argv is None else list(argv))
-    args = build_parser().parse_args(argv)
+    command = chosen_command(argv)
+    args = build_parser(() if command is None else (command,)).parse_args(argv)
     try:
         return int(args._run(args) or 0)
     except UserError as e:

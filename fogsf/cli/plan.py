@@ -34,7 +34,6 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from fogsf.cli.arguments import (
     add_earth_options,
@@ -42,11 +41,16 @@ from fogsf.cli.arguments import (
     positive_int,
     read_logs,
 )
+from fogsf.diagnose import extend, verdict
 from fogsf.errors import UserError
-from fogsf.gsa.executors import add_executor_options
-
-if TYPE_CHECKING:
-    from fogsf.logs.chamber_log import ChamberLog
+from fogsf.gsa.executors import add_executor_options, executor_from_args
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.plan.evaluate import test_rates
+from fogsf.plan.programs import Limits, candidates
+from fogsf.plan.report import table_md, write_outputs
+from fogsf.plan.search import search
+from fogsf.sim.config import SimConfig
+from fogsf.sim.population import DEV_SEEDS
 
 
 def _pair(text: str) -> tuple[float, float]:
@@ -108,13 +112,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.gsa.executors import executor_from_args
-    from fogsf.plan.evaluate import test_rates
-    from fogsf.plan.programs import Limits, candidates
-    from fogsf.plan.report import table_md, write_outputs
-    from fogsf.plan.search import search
-    from fogsf.sim.population import DEV_SEEDS
-
     if not 1 <= args.test_rates <= 12:
         raise UserError(f"--test-rates must be 1-12, got {args.test_rates}")
     if args.prior or args.target is not None:
@@ -178,9 +175,6 @@ def fitted_gyros(logs: list[ChamberLog], window_s: float = 60.0,
     """One simulator gyro per log: diagnose's base model fitted to it (thermal network,
     SF terms, bias, noise; SF in `window_s` windows, the earth rate from the log or
     `latitude_deg`), for the planner to simulate programs on."""
-    from fogsf.diagnose import extend, verdict
-    from fogsf.sim.config import SimConfig
-
     out = []
     for log in logs:
         d = verdict.diagnose([log], window_s=window_s, latitude_deg=latitude_deg, effects=[])

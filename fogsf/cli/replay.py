@@ -29,15 +29,22 @@ from pathlib import Path
 
 import numpy as np
 
+from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.cli.arguments import (
     add_log_options,
     add_metric_options,
     positive_float,
+    progress_bar,
     rated,
     read_logs,
 )
 from fogsf.cli.axes import run_all, wants_all
-from fogsf.logs.columns import Column
+from fogsf.errors import UserError
+from fogsf.logs.bias import before_after, bias_windows
+from fogsf.logs.columns import Column, Spill, is_lazy
+from fogsf.logs.corrected_out import CorrectedWriter
+from fogsf.logs.metrics import log_metrics, reference_sf, sf_error_ppm, sf_windows, start_note
+from fogsf.models.stream import FLAG_NAMES, StreamModel
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -71,8 +78,6 @@ def write_corrected(path: str | Path, time_s: np.ndarray, gyro: np.ndarray,
     """The replay CSV (or Parquet, for a path ending in .parquet; logs/corrected_out.py):
     every number in its shortest form that reads back the same (sf_ppm and bias_dph as
     float32, the latter only for a model with a bias head)."""
-    from fogsf.logs.corrected_out import CorrectedWriter
-
     with CorrectedWriter(path, bias=bias_dph is not None) as w:
         for a in range(0, time_s.shape[0], REPLAY_BLOCK):
             b = a + REPLAY_BLOCK
@@ -86,10 +91,6 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     at a time (its state carried from block to block: the output of one run over the whole
     log), each block written to `path` as it is produced (bias_dph too with `bias_head`):
     (sf_ppm per sample, bias_dph per sample or None without a bias head, the flag counts)."""
-    from fogsf.cli.arguments import progress_bar
-    from fogsf.logs.columns import Spill, is_lazy
-    from fogsf.logs.corrected_out import CorrectedWriter
-
     n = len(log)
     on_disk = is_lazy(log.time_s)  # a log on disk: its outputs go to disk too
     spill = Spill() if on_disk else None
@@ -126,17 +127,10 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
-    from fogsf.models.stream import FLAG_NAMES
-
     return {name: int(np.count_nonzero(flags & bit)) for bit, name in FLAG_NAMES.items()}
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.bindings.kernel import Kernel, build_kernel
-    from fogsf.errors import UserError
-    from fogsf.logs.metrics import log_metrics, start_note
-    from fogsf.models.stream import StreamModel
-
     if wants_all(args):  # MODEL_DIR/A, --out NAME_A.csv (--json, --plot) per axis
         return run_all(args, run, "replay")
     model = StreamModel.load(args.model)
@@ -201,8 +195,6 @@ def replay_bias(model, log, bias: np.ndarray, sf: Column,  # noqa: ANN001 - Stre
     """The bias before/after (deg/h) over the log's bias windows (the replayed SF taken off
     the pairs' plateaus, as `train` measures them), printed; None when the log measures no
     bias."""
-    from fogsf.logs.bias import before_after, bias_windows
-
     w = bias_windows(log, args.window_s, args.latitude_deg, args.settle_s, args.skip_s,
                      sf_ppm=sf)
     if w is None:
@@ -226,8 +218,6 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from fogsf.logs.metrics import reference_sf, sf_error_ppm, sf_windows
 
     sf = np.asarray(sf)  # the plot draws every sample (a log on disk is read whole here)
     w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)

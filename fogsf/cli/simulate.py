@@ -32,14 +32,19 @@ import argparse
 import copy
 import json
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from fogsf.cli.inspect import summary as log_summary
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import check_rate_hz
-
-if TYPE_CHECKING:
-    from fogsf.sim.config import SimConfig
-    from fogsf.sim.gyro import SimResult
+from fogsf.logs.logio import write_log
+from fogsf.sim import profiles, rig_logs, rigs
+from fogsf.sim.config import SimConfig, validate
+from fogsf.sim.effects import describe, parse_effect
+from fogsf.sim.gyro import SimResult, simulate
+from fogsf.sim.plot import plot_runs, runs_for_plot
+from fogsf.sim.population import gyro_for_seed, with_gyro
+from fogsf.sim.scenarios import SCENARIOS, scenario
 
 
 def _floats(text: str) -> list[float]:
@@ -58,8 +63,6 @@ def _ints(text: str) -> list[int]:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from fogsf.sim.scenarios import SCENARIOS
-
     g = parser.add_argument_group("what to run")
     src = g.add_mutually_exclusive_group()
     src.add_argument("--scenario", choices=sorted(SCENARIOS), default=None,
@@ -159,19 +162,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def build_config(args: argparse.Namespace) -> SimConfig:
-    from fogsf.sim import profiles
-    from fogsf.sim.config import SimConfig, validate
-    from fogsf.sim.effects import parse_effect
-    from fogsf.sim.scenarios import scenario
-
     if args.config:
         cfg = SimConfig.load(args.config)
     else:
         cfg = scenario(args.scenario or "paper")
     cfg = copy.deepcopy(cfg)
     if args.random_gyro is not None:
-        from fogsf.sim.population import gyro_for_seed, with_gyro
-
         if args.random_gyro < 0:
             raise UserError(f"--random-gyro must be >= 0, got {args.random_gyro}")
         cfg = with_gyro(cfg, gyro_for_seed(args.random_gyro,
@@ -237,8 +233,6 @@ def build_config(args: argparse.Namespace) -> SimConfig:
 
 def summary(result: SimResult, window_s: float) -> dict[str, Any]:
     """`fogsf inspect --json`'s summary of the log, plus the truth behind it."""
-    from fogsf.cli.inspect import summary as log_summary
-
     try:
         out = log_summary(result.log, window_s, None, None)
     except UserError as e:  # e.g. the board never passes 20 C: no reference SF
@@ -252,8 +246,6 @@ def summary(result: SimResult, window_s: float) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     if args.list_effects:
-        from fogsf.sim.effects import describe
-
         print(describe())
         return 0
     if args.rig:
@@ -270,9 +262,6 @@ def run(args: argparse.Namespace) -> int:
             print(f"configuration -> {args.write_config}", file=sys.stderr)
     if not (args.out or args.summary or args.plot):
         return 0
-    from fogsf.logs.logio import write_log
-    from fogsf.sim.gyro import simulate
-
     result = simulate(cfg)
     if args.out:
         write_log(args.out, result.log)
@@ -281,8 +270,6 @@ def run(args: argparse.Namespace) -> int:
     if args.summary:
         print(json.dumps(summary(result, args.window_s), indent=2))
     if args.plot:
-        from fogsf.sim.plot import plot_runs, runs_for_plot
-
         plot_runs(runs_for_plot(cfg, result), args.plot, args.window_s)
         print(f"figure -> {args.plot}", file=sys.stderr)
     return 0
@@ -296,9 +283,6 @@ RIG_REFUSES = ("scenario", "config", "ramp_rate", "profile", "start_c", "stop_c"
 
 
 def _rig_protocol(args: argparse.Namespace) -> Any:
-    from fogsf.sim import rigs
-    from fogsf.sim.effects import parse_effect
-
     kw: dict[str, Any] = {"effects": [parse_effect(text) for text in args.effect]}
     if args.sample_rate_hz is not None:
         kw["rate_hz"] = check_rate_hz(args.sample_rate_hz)
@@ -333,8 +317,6 @@ def run_rig(args: argparse.Namespace) -> int:
     """--rig: a calibration rig's protocol written in its convention (sim/rigs.py)."""
     from pathlib import Path
 
-    from fogsf.sim import rig_logs
-
     given = [f"--{o.replace('_', '-')}" for o in RIG_REFUSES if getattr(args, o, None)]
     if given:
         raise UserError(f"--rig runs its own protocol: {', '.join(given)} does not apply "
@@ -352,8 +334,6 @@ def run_rig(args: argparse.Namespace) -> int:
     protocol = _rig_protocol(args)
     if args.thermal_bias:
         from dataclasses import replace
-
-        from fogsf.sim.population import gyro_for_seed
 
         if len(seeds) != 1:
             raise UserError("--thermal-bias takes one gyro: not with --rig imu3")

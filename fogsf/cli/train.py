@@ -36,7 +36,6 @@ import argparse
 import sys
 import textwrap
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from fogsf.cli.arguments import (
     add_log_options,
@@ -47,12 +46,15 @@ from fogsf.cli.arguments import (
 )
 from fogsf.cli.axes import run_all, wants_all
 from fogsf.errors import UserError
+from fogsf.fleet.prior_train import prior_lines, train_on_prior
+from fogsf.gsa.executors import add_executor_options
 from fogsf.models.lag_bank import BANK_LSTM_INPUTS, bank_spec
+from fogsf.training.bias_model import bias_lines
+from fogsf.training.hysteresis_choice import choice_line
+from fogsf.training.options import DEFAULT_MODEL, MODELS, STRUCTURES, TrainOptions
 from fogsf.training.structure_choice import choice_message
+from fogsf.training.train import run_training
 from fogsf.training.transfer import RateTransfer, spans_ramp_rates
-
-if TYPE_CHECKING:
-    from fogsf.training.options import TrainOptions
 
 
 def _chunk(text: str) -> tuple[float, float]:
@@ -64,9 +66,6 @@ def _chunk(text: str) -> tuple[float, float]:
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from fogsf.gsa.executors import add_executor_options
-    from fogsf.training.train import DEFAULT_MODEL, MODELS, STRUCTURES
-
     parser.add_argument("--train", action="append", required=True, metavar="LOG.csv",
                         help="training log (repeat for several)")
     parser.add_argument("--test", metavar="LOG.csv", help="test log, never used for fitting")
@@ -148,8 +147,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from fogsf.training.train import run_training
-
     if wants_all(args):  # OUT/A per axis, then one summary
         return run_all(args, run, "train")
     if args.unit and not args.prior:
@@ -165,8 +162,6 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
     if args.prior:
-        from fogsf.fleet.prior_train import prior_lines, train_on_prior
-
         m = train_on_prior(args, opts, train_logs, test_log, out)
         print(format_metrics(m))
         print("\n".join(textwrap.fill(x, 96) for x in prior_lines(m["prior"])))
@@ -181,8 +176,6 @@ def run(args: argparse.Namespace) -> int:
 
 def train_options(args: argparse.Namespace) -> TrainOptions:
     """The training options of `fogsf train`'s arguments (`fogsf fleet add` takes the same)."""
-    from fogsf.training.options import TrainOptions
-
     return TrainOptions(
         model=args.model, model_step_s=args.model_step_s, seed=args.seed,
         val_chunk=args.val_chunk, window_s=args.window_s, latitude_deg=args.latitude_deg,
@@ -203,8 +196,6 @@ def train_options(args: argparse.Namespace) -> TrainOptions:
 
 
 def format_metrics(m: dict) -> str:
-    from fogsf.training.bias_model import bias_lines
-
     if m.get("bias_only"):
         return "\n".join([f"model {m['model']} (bias only: the logs are stationary, they "
                           f"measure no SF): {m['params']} parameters, features "
@@ -234,8 +225,6 @@ def format_metrics(m: dict) -> str:
     if "structure_choice" in m:
         lines.append(textwrap.fill(choice_message(m["structure_choice"]), 96))
     if "hysteresis_choice" in m:
-        from fogsf.training.hysteresis_choice import choice_line
-
         lines.append(textwrap.fill(choice_line(m["hysteresis_choice"]), 96))
     if "rate_transfer" in m:
         lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from fogsf.export.header import check_name, write_model
 from fogsf.models.stream import StreamModel
 
 ONNX_NAME = "model.onnx"
@@ -13,7 +14,8 @@ def export_model(model: StreamModel, out_dir: str | Path, name: str = "gyro_mode
                  ) -> dict[str, Path]:
     """Write out_dir/model.onnx, out_dir/NAME.h and out_dir/NAME.c; returns
     {'onnx': p, 'header': p, 'source': p}."""
-    from fogsf.export.header import check_name, write_model
+    # onnx: the C header's users (`bindings.kernel`, `fogsf replay`) import this package
+    # without it
     from fogsf.export.onnx_step import build_step_onnx
 
     check_name(name)

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import torch
 
-from fogsf.models.stream import StreamModel, onnx_to_torch_lstm
+from fogsf.models.gate_order import onnx_to_torch_lstm
+from fogsf.models.stream import StreamModel
 
 
 class TorchStep(torch.nn.Module):

@@ -4,9 +4,7 @@ Follows the fogsf paper's section 2.1, equations (3)-(9), and Rashedi, Nezamabad
 Saryazdi (2009), "GSA: A Gravitational Search Algorithm", Information Sciences 179:2232-2248,
 with the details of the authors' reference implementation where the paper is silent.
 
-Use::
-
-    from fogsf.gsa.optimizer import SHORT_BUDGET, Param, minimize
+Use (`SHORT_BUDGET`, `Param` and `minimize` from this module)::
 
     space = [Param("batch_size", 8, 256, "int"), Param("layers", 1, 4, "int"),
              Param("hidden", 8, 256, "int"), Param("lr", 1e-4, 1e-1, "log-real")]

@@ -24,7 +24,9 @@ from fogsf.logs.chamber_log import DT_TOLERANCE, ChamberLog, rate_text
 from fogsf.logs.columns import col_max, col_min
 from fogsf.logs.metrics import step_windows
 from fogsf.logs.plateaus import SETTLE_S
-from fogsf.models.stream import FrontEnd, decimation_for, filter_alpha
+from fogsf.models.front_end import FrontEnd, decimation_for, filter_alpha
+from fogsf.models.step_inputs import frontend_s
+from fogsf.models.step_inputs import step_targets as in_blocks
 
 T_REF_C = 20.0
 RANGE_MARGIN_C = 5.0  # the valid input range is the training range widened by this
@@ -144,8 +146,6 @@ def step_targets(log: ChamberLog, decimation: int, latitude_deg: float | None = 
     """Mean SF error (ppm vs nominal) over the measuring samples (settled plateaus,
     `measuring_mask`) each model step's output is held for, the +/- pairs' bias taken off;
     NaN for a step without one. Made a block of steps at a time (models/step_inputs.py)."""
-    from fogsf.models.step_inputs import step_targets as in_blocks
-
     return in_blocks(log, decimation, latitude_deg, settle_s)
 
 
@@ -161,8 +161,6 @@ def prepare(log: ChamberLog, fe: FrontEnd, val_chunk: tuple[float, float] | None
     """Front end and targets of one log; `val_chunk` (fractions of the run) is held out.
     A log at another sample rate than `fe`'s goes through `fe.at_rate` (the same model
     step in seconds). The SF windows (`window_s`, `settle_s`) are those of every metric."""
-    from fogsf.models.step_inputs import frontend_s
-
     fe = fe.at_rate(log.sample_dt_s)
     s = frontend_s(log.temp_c, fe)  # frontend(...).s, a block of samples at a time
     t = step_targets(log, fe.decimation, latitude_deg, settle_s) if targets is None else targets

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from fogsf.models.features import SeqData, prepare
-from fogsf.models.stream import FrontEnd, filter_alpha
+from fogsf.models.front_end import FrontEnd, filter_alpha
 
 
 def poly_design(z: np.ndarray, degree: int, with_rate: bool) -> np.ndarray:

@@ -13,7 +13,9 @@ import torch
 from torch import nn
 
 from fogsf.models.features import FeatureSpec, Normaliser
-from fogsf.models.stream import FrontEnd, StreamModel, torch_to_onnx_lstm
+from fogsf.models.front_end import FrontEnd
+from fogsf.models.gate_order import torch_to_onnx_lstm
+from fogsf.models.stream import StreamModel
 
 
 class StreamNet(nn.Module):

@@ -19,6 +19,7 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.models.f32 import F32, _f32, sigmoid_f32, tanh_f32
+from fogsf.models.front_end import FrontEnd, play_source_w
 from fogsf.models.stream import (
     BIAS_LIMIT_DPH,
     FLAG_BIAS_CLAMPED,
@@ -28,9 +29,7 @@ from fogsf.models.stream import (
     FLAG_TEMP_INVALID,
     FLAG_TEMP_STUCK,
     SF_LIMIT_PPM,
-    FrontEnd,
     StreamModel,
-    play_source_w,
 )
 
 # --- the front end -------------------------------------------------------------------------

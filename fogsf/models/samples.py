@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.models.stream import StreamModel, filter_alpha
+from fogsf.models.front_end import filter_alpha
+from fogsf.models.stream import StreamModel
 
 
 def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden: int = 8,

@@ -19,8 +19,8 @@ from fogsf.logs.chamber_log import ChamberLog
 from fogsf.logs.metrics import _signal_at, _signal_parts, step_means
 from fogsf.logs.plateaus import SETTLE_S, settled_plateaus
 from fogsf.models.f32 import F32
+from fogsf.models.front_end import FrontEnd
 from fogsf.models.reference import state_of
-from fogsf.models.stream import FrontEnd
 
 
 def _block_steps(decimation: int) -> int:

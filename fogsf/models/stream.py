@@ -6,11 +6,12 @@ This module holds what they share:
 
 - `StreamModel`: the artifact (stream.json + stream_weights.npz): load, save, validate,
   `model_id` (a hash of weights and config), re-rating to another sample rate.
-- `diagonal_features`: the same model with a diagonal feat_w stored as its diagonal only.
-- `FrontEnd`, `filter_alpha`, `decimation_for`: the front end's configuration.
 - The status flags (the C kernel's FOGSF_FLAG_* have the same values) and SF_LIMIT_PPM.
-- `torch_to_onnx_lstm`, `onnx_to_torch_lstm`: gate-order converters (torch i,f,g,o with
-  weight_ih, weight_hh, bias_ih, bias_hh <-> ONNX i,o,f,c with W, R, B).
+
+Beside it: the front end's configuration (`models.front_end`: `FrontEnd`, `filter_alpha`,
+`decimation_for`), the artifact's equivalent forms (`models.stream_forms`:
+`diagonal_features`, `pure_play_rows`) and the LSTM gate-order converters
+(`models.gate_order`).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.errors import UserError
+from fogsf.models.front_end import FrontEnd, filter_alpha
 
 FORMAT = "fogsf-stream-1"
 CONFIG_FILE = "stream.json"
@@ -42,96 +44,6 @@ FLAG_NAMES = {FLAG_TEMP_INVALID: "TEMP_INVALID", FLAG_TEMP_CLAMPED: "TEMP_CLAMPE
               FLAG_SF_CLAMPED: "SF_CLAMPED", FLAG_BIAS_CLAMPED: "BIAS_CLAMPED"}
 SF_LIMIT_PPM = 1.0e5  # |predicted SF error| beyond 10 % is a broken model, never a gyro
 BIAS_LIMIT_DPH = 3.6e4  # |predicted bias| beyond 10 deg/s is a broken model
-
-
-
-# --- the artifact --------------------------------------------------------------------------
-
-def play_half_c(widths_c: tuple[float, ...] | list[float]) -> np.ndarray:
-    """float32(width / 2) per play: what the header prints and the reference uses."""
-    return (np.asarray(widths_c, dtype=np.float64).reshape(-1) * 0.5).astype(np.float32)
-
-
-def play_source_w(weights: tuple | list, n_filters: int) -> np.ndarray:
-    """The plays' source weights as float32 [P, 1+K] (what the header prints)."""
-    return np.asarray(weights, dtype=np.float64).reshape(-1, 1 + n_filters).astype(np.float32)
-
-
-def filter_alpha(filter_tau_s: list[float], decimation: int, sample_dt_s: float = 0.1
-                 ) -> np.ndarray:
-    """alpha_k = 1 - exp(-D*dt/tau_k), computed in float64, stored as float32."""
-    return np.array([1.0 - math.exp(-decimation * sample_dt_s / tau) for tau in filter_tau_s],
-                    dtype=np.float32)
-
-
-# A model step may differ from D * dt by this fraction at most (D an integer of samples)
-STEP_TOLERANCE = 0.01
-
-
-def decimation_for(step_s: float, sample_dt_s: float, where: str | None = None) -> int:
-    """Samples per model step: step_s / sample_dt_s, which must be (within STEP_TOLERANCE)
-    a whole number >= 1; `where` (a log's path) starts the refusal."""
-    d = max(1, int(round(step_s / sample_dt_s)))
-    if abs(d * sample_dt_s - step_s) > STEP_TOLERANCE * step_s:
-        raise UserError(f"{where + ': ' if where else ''}a model step of {step_s:g} s is "
-                        f"{step_s / sample_dt_s:.4g} samples at {1.0 / sample_dt_s:.6g} Hz, "
-                        "not a whole number: the step must be a multiple of "
-                        f"{sample_dt_s:.6g} s at this rate (`fogsf train --model-step-s`)")
-    return d
-
-
-@dataclass(frozen=True)
-class FrontEnd:
-    """What the front end needs (a subset of the artifact; the trainer can build one alone)."""
-
-    t_ref_c: float
-    t_min_c: float
-    t_max_c: float
-    decimation: int
-    stuck_samples: int
-    filter_alpha: np.ndarray  # [K] float32
-    sample_dt_s: float = 0.1
-    filter_tau_s: tuple[float, ...] = ()  # () : unknown (the alphas are then rescaled)
-    # play (backlash) operators after the lag filters: width (C) and source weights over
-    # [Tm, y_1..y_K] (the play's input x = w . [Tm, y]); rate-independent, so the same at any
-    # sample rate
-    play_width_c: tuple[float, ...] = ()
-    play_source_w: tuple[tuple[float, ...], ...] = ()
-
-    @property
-    def n_plays(self) -> int:
-        return len(self.play_width_c)
-
-    def play_half_c(self) -> np.ndarray:
-        """The plays' half widths as the kernel holds them (float32 of width / 2)."""
-        return play_half_c(self.play_width_c)
-
-    @property
-    def step_s(self) -> float:
-        """The model step in seconds: D samples."""
-        return self.decimation * self.sample_dt_s
-
-    def at_rate(self, sample_dt_s: float) -> FrontEnd:
-        """The same front end for samples every `sample_dt_s`: the model step (s), the lag
-        filters' time constants (s) and the stuck-thermometer time (s) kept, in samples."""
-        d = decimation_for(self.step_s, sample_dt_s)
-        if d == self.decimation:  # the same samples per step, a step within 1 %: the same
-            return self
-        return replace(self, decimation=d, sample_dt_s=sample_dt_s,
-                       stuck_samples=int(round(self.stuck_samples * self.sample_dt_s
-                                               / sample_dt_s)),
-                       filter_alpha=self._alpha_at(d, sample_dt_s))
-
-    def _alpha_at(self, decimation: int, sample_dt_s: float) -> np.ndarray:
-        """Filter coefficients for D samples of sample_dt_s: the same bits when the step is
-        the same (to 1e-9), else `filter_alpha` afresh (rescaled when tau is unknown)."""
-        new_step_s = decimation * sample_dt_s
-        if abs(new_step_s - self.step_s) <= 1e-9 * self.step_s:
-            return np.asarray(self.filter_alpha, dtype=np.float32)
-        if len(self.filter_tau_s):
-            return filter_alpha(list(self.filter_tau_s), decimation, sample_dt_s)
-        keep = 1.0 - np.asarray(self.filter_alpha, dtype=np.float64)
-        return (1.0 - keep ** (new_step_s / self.step_s)).astype(np.float32)
 
 
 _CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {
@@ -537,110 +449,3 @@ def _trained_kind(directory: Path) -> str | None:
     except (OSError, ValueError, AttributeError):
         return None
     return kind if isinstance(kind, str) else None
-
-
-def diagonal_features(model: StreamModel) -> StreamModel:
-    """The same model with `feat_diag`: feat_w [F] the diagonal of its feat_w (the same
-    float32 bits), when feat_w is square, [F, 1+K+P], with every entry off the diagonal 0
-    (+0.0 or -0.0) and no feat_b entry is -0.0; else `model` itself (also when it already
-    has feat_diag). The result gives every output bit for bit as `model` does.
-
-    Why: the kernel computes z_i = feat_b[i], then + feat_w[i, j] * s_j for j ascending; s is
-    always finite (the front end clamps the temperature), so each off-diagonal term is an
-    exact +0.0 or -0.0, and x + (+-0.0) is x for every x but -0.0 (-0.0 + +0.0 = +0.0). With
-    feat_b[i] not -0.0 the running sum is never -0.0: feat_b[i] before the diagonal term,
-    feat_b[i] + feat_w[i, i] * s_i after it (-0.0 only when both are), so the zero terms
-    change nothing and z_i is the diagonal form's feat_b[i] + feat_w[i] * s_i. With
-    feat_b[i] = -0.0 the sign of a zero z_i would hang on the signs of the other s_j: such
-    a model stays dense."""
-    if model.feat_diag:
-        return model
-    w, b = model.weights["feat_w"], model.weights["feat_b"]
-    f = model.n_features
-    if w.shape != (f, 1 + model.n_filters + model.n_plays) or w.shape != (f, f):
-        return model
-    if np.any(w[~np.eye(f, dtype=bool)] != 0) or np.any((b == 0) & np.signbit(b)):
-        return model
-    weights = dict(model.weights)
-    weights["feat_w"] = np.diagonal(w).astype(np.float32)  # a copy, the same bits
-    out = replace(model, weights=weights, feat_diag=True)
-    out.validate()
-    return out
-
-
-def pure_play_rows(model: StreamModel) -> StreamModel:
-    """The same model with every play feature's row of feat_w on its own play state only, so
-    that `diagonal_features` applies: a play feature that mixes in other states (the
-    hysteresis term's play(x) - x) has those states' part moved to the linear weights
-    (skip_w, bias_w) of the features that are those states alone, and their offsets to
-    head_b and bias_b. Exact algebra, rounded once to float32 (outputs within float32
-    rounding of the model's, not bit for bit). Applies when every other row of feat_w is
-    diagonal, the play features enter linearly only (no LSTM input, quadratic or cube on
-    them) and feat_w is square; else returns `model` itself."""
-    p = model.n_plays
-    n = 1 + model.n_filters + p
-    w = model.weights["feat_w"]
-    if model.feat_diag or p == 0 or w.shape != (n, n) or model.n_features != n:
-        return model
-    wts = model.weights
-    off = w.astype(np.float64) * (1.0 - np.eye(n))
-    plays, others = np.arange(n - p, n), np.arange(n - p)
-    diag = np.diagonal(w).astype(np.float64)
-    linear_only = model.n_lstm_inputs <= n - p and np.all(diag[others] != 0)
-    if model.poly_head:
-        q = wts["quad_w"]
-        linear_only &= not (q[plays].any() if model.quad_diag else
-                            q[plays].any() or q[:, plays].any()) and not wts["cube_w"][plays].any()
-    if model.bias_head:
-        linear_only &= not (wts["bias_quad_w"][plays].any() or wts["bias_cube_w"][plays].any())
-    if off[others].any() or off[np.ix_(plays, plays)].any() or not linear_only:
-        return model
-    b = wts["feat_b"].astype(np.float64)
-    ratio = off[np.ix_(plays, others)] / diag[others]  # s_j = (z_j - b_j) / w_jj
-    out = dict(wts)
-    for lin, const in (("skip_w", "head_b"), ("bias_w", "bias_b")):
-        if lin not in wts:
-            continue
-        v = wts[lin].astype(np.float64)
-        moved = v[plays] @ ratio
-        v[others] += moved
-        out[lin] = v.astype(np.float32)
-        out[const] = (wts[const].astype(np.float64) - moved @ b[others]).astype(np.float32)
-    fw = w.copy()
-    fw[np.ix_(plays, others)] = 0.0
-    out["feat_w"] = fw
-    res = replace(model, weights=out)
-    res.validate()
-    return res
-
-
-# --- gate order ----------------------------------------------------------------------------
-# torch.nn.LSTM stacks gates as (i, f, g, o); ONNX as (i, o, f, c) with c == g.
-_TORCH_TO_ONNX = (0, 3, 1, 2)
-_ONNX_TO_TORCH = (0, 2, 3, 1)
-
-
-def _reorder(a: np.ndarray, order: tuple[int, ...]) -> np.ndarray:
-    a = np.asarray(a)
-    blocks = np.split(a, 4, axis=0)
-    return np.concatenate([blocks[k] for k in order], axis=0)
-
-
-def torch_to_onnx_lstm(weight_ih: np.ndarray, weight_hh: np.ndarray, bias_ih: np.ndarray,
-                       bias_hh: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """torch (i,f,g,o) -> ONNX (W [4H,in], R [4H,H], B [8H]) in gate order (i,o,f,c)."""
-    w = _reorder(weight_ih, _TORCH_TO_ONNX)
-    r = _reorder(weight_hh, _TORCH_TO_ONNX)
-    b = np.concatenate([_reorder(bias_ih, _TORCH_TO_ONNX), _reorder(bias_hh, _TORCH_TO_ONNX)])
-    return w.astype(np.float32), r.astype(np.float32), b.astype(np.float32)
-
-
-def onnx_to_torch_lstm(w: np.ndarray, r: np.ndarray, b: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """ONNX (W, R, B) -> torch (weight_ih, weight_hh, bias_ih, bias_hh)."""
-    hid4 = np.asarray(w).shape[0]
-    b = np.asarray(b)
-    return (_reorder(w, _ONNX_TO_TORCH).astype(np.float32),
-            _reorder(r, _ONNX_TO_TORCH).astype(np.float32),
-            _reorder(b[:hid4], _ONNX_TO_TORCH).astype(np.float32),
-            _reorder(b[hid4:], _ONNX_TO_TORCH).astype(np.float32))

@@ -2,7 +2,7 @@
 
 One unit of work is one gyro (so gyros run on the project's executor): the test loops at
 every envelope rate are simulated once, then every program's runs are simulated, the
-default model's fixed part (the lag bank, least squares: `train.bank_compensation`) is
+default model's fixed part (the lag bank, least squares: `training.inputs.bank_compensation`) is
 trained on them, and its RMS error on each test loop is taken as a multiple of that loop's
 noise floor (report.py also sums up the rates that are not in the program on their own).
 Test loops go up and down at one rate with 30 min soaks, so both ramp directions and the
@@ -13,14 +13,17 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from fogsf.logs.metrics import log_metrics
 from fogsf.plan.programs import START_SOAK_S, Limits, Program, _path
-
-if TYPE_CHECKING:
-    from fogsf.sim.config import SimConfig
+from fogsf.sim import simulate
+from fogsf.sim.config import ProfileConfig, SimConfig
+from fogsf.sim.population import gyro_for_seed, run_on_gyro
+from fogsf.training.inputs import bank_compensation
+from fogsf.training.transfer import INTERVAL_LO
+from fogsf.training.transfer_interval import rate_transfer
 
 TEST_SOAK_S = 1800.0
 RATE_NEAR = 0.10  # a test rate within 10 % of a program's ramp rate counts as trained on
@@ -52,10 +55,6 @@ def _test_loop(limits: Limits, rate: float) -> tuple[tuple[float, float], ...]:
 
 
 def _simulate(gyro, points, seed: int, name: str):  # noqa: ANN001, ANN202 - sim types
-    from fogsf.sim import simulate
-    from fogsf.sim.config import ProfileConfig
-    from fogsf.sim.population import run_on_gyro
-
     prof = ProfileConfig(kind="program", points=[list(p) for p in points])
     return simulate(run_on_gyro(gyro, prof, seed, name)).log
 
@@ -68,8 +67,6 @@ def _program_logs(gyro, p: Program, seed: int) -> list:  # noqa: ANN001 - sim ty
 
 
 def gyro_of(ref: int | SimConfig) -> SimConfig:
-    from fogsf.sim.population import gyro_for_seed
-
     return gyro_for_seed(ref) if isinstance(ref, int) else ref
 
 
@@ -79,9 +76,6 @@ def evaluate_gyro(item: tuple[int, int | SimConfig], programs: list[Program], li
     gyro): {"gyro_seed", "ratios": {program name: {rate: test RMS / noise floor}},
     "seconds"}, at every envelope rate (those in the program too: the test loop is another
     run, up and down)."""
-    from fogsf.logs.metrics import log_metrics
-    from fogsf.training.train import bank_compensation
-
     t0 = time.perf_counter()
     gyro_seed, ref = item
     gyro = gyro_of(ref)
@@ -104,10 +98,6 @@ def interval_gyro(item: tuple[int, int | SimConfig], programs: list[Program], li
     """The rate-transfer interval's upper end, as a multiple of the noise floor, on the test
     loop at `rate` for each program trained on one gyro: how sure `fogsf train --test`
     would be."""
-    from fogsf.training.train import bank_compensation
-    from fogsf.training.transfer import INTERVAL_LO
-    from fogsf.training.transfer_interval import rate_transfer
-
     gyro_seed, ref = item
     gyro = gyro_of(ref)
     test = _simulate(gyro, _test_loop(limits, rate), gyro_seed * 1000 + 990,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from concurrent.futures import Executor
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -11,9 +10,7 @@ from fogsf.gsa.executors import run_all
 from fogsf.plan.evaluate import evaluate_gyro, interval_gyro
 from fogsf.plan.programs import Limits, candidates, paper_protocol
 from fogsf.plan.report import Scored, score
-
-if TYPE_CHECKING:
-    from fogsf.sim.config import SimConfig
+from fogsf.sim.config import SimConfig
 
 
 def search(limits: Limits, rates: tuple[float, ...], gyros: list[tuple[int, int | SimConfig]],

@@ -28,15 +28,26 @@ from fogsf.logs.chamber_log import ChamberLog, is_stationary
 from fogsf.logs.columns import Column
 from fogsf.logs.metrics import step_means
 from fogsf.logs.plateaus import DPS_TO_DPH, SETTLE_S
-from fogsf.models.features import MODEL_STEP_S, PHYSICAL_SCALE_C, front_end_for
-from fogsf.models.lag_bank import BankFit, n_curved
+from fogsf.models.features import (
+    MODEL_STEP_S,
+    PHYSICAL_SCALE_C,
+    FeatureSpec,
+    front_end_for,
+    physical_normaliser,
+)
+from fogsf.models.front_end import FrontEnd
+from fogsf.models.lag_bank import BankFit, bank_spec, n_curved
 from fogsf.models.least_squares import TAU_GRID_S
-from fogsf.models.physics_nodes import NodeTemperatures
+from fogsf.models.node_fit import ridge_fit
+from fogsf.models.physics_nodes import NodeTemperatures, node_spec
 from fogsf.models.reference import expand
 from fogsf.models.reference import features as ref_features
 from fogsf.models.step_inputs import frontend_s
-from fogsf.models.stream import FrontEnd, StreamModel, diagonal_features
+from fogsf.models.stream import StreamModel
+from fogsf.models.stream_forms import diagonal_features
+from fogsf.training import bias_structure as bs
 from fogsf.training.bias_interval import bias_interval, family, interval_message
+from fogsf.training.transfer import RATE_TOLERANCE, ramp_segments
 
 MIN_TARGETS = 3  # model steps (or pairs) the fit needs at the least
 # A stationary log's step with fewer valid samples than this share of a step (the log's
@@ -77,8 +88,6 @@ class FeatureMap:
 def bank_curved(n_features: int, n_plays: int = 0) -> int:
     """Curved features for z of `n_features`: the bank's rule for the lag bank (its plays'
     features after it linear, as the SF model has them), all else."""
-    from fogsf.models.lag_bank import bank_spec
-
     return n_curved() if n_features - n_plays == bank_spec().n_features else n_features
 
 
@@ -162,8 +171,6 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
     the SF model's per-sample prediction of a log, taken off the pairs' plateaus
     (`measured_windows`). `lead` is left out beside an SF model with a play or, `full_quad`,
     with a full quadratic (the bank's cross terms): three such models would not fit 24 KB."""
-    from fogsf.training import bias_structure as bs
-
     fe0 = fm.fe if fm is not None else front_end_for(logs, step_s, ())
     t_rel, zs, rows, ys, folds, groups, sources = [], [], [], [], [], [], []
     kernels: list[np.ndarray | None] = []
@@ -249,8 +256,6 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
 def _free_columns(log: ChamberLog, fe0: FrontEnd) -> Any:
     """A log's columns at every model step on a front end with no filter of its own (the
     lags computed at any time constant)."""
-    from fogsf.training import bias_structure as bs
-
     nodes = NodeTemperatures([frontend_s(log.temp_c, fe0.at_rate(log.sample_dt_s))[:, 0]
                               .astype(np.float64)], fe0.step_s)
     return bs.Columns(nodes.z(())[:, 0], nodes.lag, None, nodes.z(TAU_GRID_S), n_curved())
@@ -260,8 +265,6 @@ def _shared_columns(fm: FeatureMap, z: np.ndarray, own: Any = None
                     ) -> tuple[Any, int | None, dict[float, int]]:
     """The candidates' columns on z (targets' rows): T and z's lags by time constant;
     `own`, the same rows' columns at any time constant (what `lead` reads)."""
-    from fogsf.training import bias_structure as bs
-
     i_t, by_filter = bs.pure_columns(fm.feat_w)
     lags = {float(fm.fe.filter_tau_s[k]): i for k, i in by_filter.items()}
     t = z[:, i_t] if i_t is not None else z[:, 0]
@@ -270,8 +273,6 @@ def _shared_columns(fm: FeatureMap, z: np.ndarray, own: Any = None
 
 
 def _head(fit: Any, fm: FeatureMap, i_t: int | None, lags: dict[float, int]) -> BankFit:
-    from fogsf.training import bias_structure as bs
-
     if fit.bank is not None:
         return fit.bank
     assert i_t is not None
@@ -286,9 +287,6 @@ def _lead_head(z: np.ndarray, y: np.ndarray, taus: tuple[float, ...], w: float,
     `at` of z, each z_i = a x + b (`scale`, x in the physical unit; c's (1, 0)); c as a cubic
     and its rate of change (`bias_structure.lead_rate`, linear in x) as one column, fitted
     to the targets y; the rate's coefficient spread over the three linear terms."""
-    from fogsf.models.node_fit import ridge_fit
-    from fogsf.training import bias_structure as bs
-
     t, fast, c = ((z[:, i] - b) / a for i, (a, b) in zip(at, scale, strict=True))
     rate = bs.lead_rate(t, fast, c, taus, w)
     f = ridge_fit(np.column_stack([c, c * c, c * c * c, rate]), y, bs.SMALL_LAMBDA)
@@ -363,8 +361,6 @@ def lead_feature_map(logs: list[ChamberLog], step_s: float, tau_c: float, w: flo
     """The lead structure's features on a front end of its own (one physical unit): T (if
     `with_t`), lag(T, fast_s) (if given) and the node w T + (1 - w) lag(T, tau_c), in
     that order."""
-    from fogsf.models.features import FeatureSpec, physical_normaliser
-
     taus = ((fast_s,) if fast_s is not None else ()) + (tau_c,)
     k = len(taus)
     rows: list[tuple[float, ...]] = []
@@ -387,9 +383,6 @@ def node_feature_map(logs: list[ChamberLog], step_s: float,
                      taus_s: tuple[float, ...]) -> FeatureMap:
     """T and lags of T at `taus_s` (one physical unit) on a front end of their own: a
     bias-only model's features for the `cubic`, `shupe` and `node` structures."""
-    from fogsf.models.features import front_end_for, physical_normaliser
-    from fogsf.models.physics_nodes import node_spec
-
     norm = physical_normaliser(node_spec(taus_s))
     return FeatureMap(front_end_for(logs, step_s, taus_s), norm.feat_w, norm.feat_b,
                       1 + len(taus_s))
@@ -449,8 +442,6 @@ def ramp_rate_check(train_logs: list[ChamberLog], test_log: ChamberLog, structur
     loop at 1 up / 0.7 down C/min, a 1.5 C/min test ramp leaves 0.134 deg/h median with a
     Shupe term (evaluation gyros 20000-20031); from 1 up / 2 down, 0.064 (docs/train.md,
     "Bias")."""
-    from fogsf.training.transfer import RATE_TOLERANCE, ramp_segments
-
     def fastest_of(logs: list[ChamberLog]) -> float:
         return max((abs(sg.rate_c_per_min) for lg in logs for sg in ramp_segments(lg)),
                    default=0.0)
@@ -476,9 +467,6 @@ def check_mixed(logs: list[ChamberLog]) -> bool:
 def bank_feature_map(logs: list[ChamberLog], step_s: float) -> FeatureMap:
     """The lag bank's z (T and its lags, one physical unit) with its own front end: the
     bias-only model's features, and the bias's for SF models without a firmware form."""
-    from fogsf.models.features import front_end_for, physical_normaliser
-    from fogsf.models.lag_bank import bank_spec
-
     spec = bank_spec()
     norm = physical_normaliser(spec)
     return FeatureMap(front_end_for(logs, step_s, spec.taus_s), norm.feat_w, norm.feat_b,
@@ -514,9 +502,7 @@ def bias_lines(b: dict) -> list[str]:
     if b.get("rate_transfer"):
         lines += ["  " + ln for ln in textwrap.wrap(interval_message(b["rate_transfer"]), 94)]
     if b["model"].get("structure"):
-        from fogsf.training.bias_structure import choice_message
-
-        lines += ["  " + ln for ln in textwrap.wrap(choice_message(b["model"]["structure"]),
+        lines += ["  " + ln for ln in textwrap.wrap(bs.choice_message(b["model"]["structure"]),
                                                      94)]
     src = ", ".join(sorted(set(b["model"]["sources"])))
     lines.append(f"  bias model: {b['model']['targets']} targets ({src}) on the features z; "

@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
@@ -18,9 +17,7 @@ from fogsf.training.bias_model import (
     fit_bias,
     score_logs,
 )
-
-if TYPE_CHECKING:
-    from fogsf.training.options import TrainOptions
+from fogsf.training.options import TrainOptions
 
 KIND = "bias"  # metrics.json's "model" of a bias-only model
 

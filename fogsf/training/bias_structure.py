@@ -142,8 +142,6 @@ class CandidateFit:
     def columns(self, cols: Columns, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
         """The design (no intercept) at `rows` of `cols`."""
         if self.bank is not None:
-            from fogsf.models.lag_bank import bank_design
-
             return bank_design(cols.z[rows], cols.curved)
         if self.name == "lead":
             cols = _lead_columns(cols)

@@ -25,24 +25,7 @@ from fogsf.models.features import SeqData
 from fogsf.models.lag_bank import BankFit
 from fogsf.models.nets import MLP, StreamNet
 from fogsf.models.physics_nodes import NodeFit
-
-
-@dataclass
-class LSTMConfig:
-    layers: int = 2
-    hidden: int = 200
-    batch_size: int = 32
-    lr: float = 0.02
-    iters: int = 300
-    window: int = 256  # model steps per training window
-    burn_in: int = 16
-    eval_every: int = 20
-    seed: int = 0
-    time_limit_s: float | None = None
-    poly_head: bool = False  # carry the least-squares polynomial of the features exactly
-    cubes: bool = True  # with poly_head: cubic terms too
-    lstm_inputs: int | None = None  # the first LSTM layer reads z[:N]; None: every feature
-    quad_diag: bool = False  # the polynomial head's quadratic is diagonal (the lag bank's)
+from fogsf.training.net_config import LSTMConfig, MLPConfig
 
 
 @dataclass
@@ -245,15 +228,6 @@ def _train_stream(data: list[SeqData], z: list[np.ndarray], cfg: LSTMConfig,
     net.load_state_dict(best_state)
     hist.seconds = time.perf_counter() - t0
     return net, hist
-
-
-@dataclass
-class MLPConfig:
-    hidden: tuple[int, ...] = (32, 32)
-    lr: float = 0.01
-    epochs: int = 1500
-    eval_every: int = 25
-    seed: int = 0
 
 
 def train_mlp(data: list[SeqData], z: list[np.ndarray], cfg: MLPConfig, out_offset: float,

@@ -51,8 +51,12 @@ from fogsf.sim.effects import play_operator
 from fogsf.training.structure_choice import (
     Predictor,
     StepData,
+    heldout_folds,
     heldout_score,
+    part_folds,
+    pooled_rms,
     step_data,
+    step_won,
 )
 
 REVERSAL_C = 2.0  # a turn back by more than this (C, block means) makes the check run
@@ -183,13 +187,6 @@ def cross_with_term(logs: list[ChamberLog], plain: str, cross: str, step_s: floa
     walk reached, and `cross`) fitted with the term on the same held-out parts; the record,
     its "kept" true when the cross terms still make a step the rule takes
     (`structure_choice.step_won`)."""
-    from fogsf.training.structure_choice import (
-        heldout_folds,
-        part_folds,
-        pooled_rms,
-        step_won,
-    )
-
     sd = step_data(logs, step_s, latitude_deg)
     sd.fold = part_folds(sd)
     folds = {n: heldout_folds(n, sd, fit=lambda s, r, n=n: fit_with_term(n, s, r)[0])

@@ -3,10 +3,18 @@ modules it calls read."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
+from fogsf.errors import UserError
+from fogsf.logs.chamber_log import ChamberLog
 from fogsf.logs.plateaus import SETTLE_S
 from fogsf.models.features import MODEL_STEP_S
+
+MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
+DEFAULT_MODEL = "lag-lstm"  # what `fogsf train` fits without --model
+# lag-lstm: chosen by the training logs, physics nodes, the lag bank, one / two effective nodes
+STRUCTURES = ("auto", "physics", "bank", "node")
 
 
 @dataclass
@@ -45,3 +53,28 @@ class TrainOptions:
     transfer_check: bool = True  # with a test log: the rate-transfer check and its interval
     ref_sf: float | None = None  # reference SF of the before-metrics; None: measured at 20 C
     extra: dict = field(default_factory=dict)
+
+
+def check_options(opts: TrainOptions, train_logs: list[ChamberLog]) -> None:
+    """A UserError for options that cannot train (before any fitting)."""
+    if opts.model not in MODELS:
+        raise UserError(f"unknown model {opts.model!r}; choose one of {', '.join(MODELS)}")
+    if not train_logs:
+        raise UserError("give at least one training log (--train)")
+    if opts.nodes not in ((1, 2, 3) if opts.structure == "physics" else (1, 2)):
+        raise UserError("--nodes must be 1 or 2 (1-3 with --structure physics)")
+    if opts.structure not in STRUCTURES:
+        raise UserError(f"--structure must be one of {', '.join(STRUCTURES)}")
+    if opts.hysteresis not in ("auto", "on", "off"):
+        raise UserError("--hysteresis must be one of auto, on, off")
+    if opts.node is not None and opts.nodes != 1:
+        raise UserError("--node gives one effective node; drop it or use --nodes 1")
+    if opts.lstm_inputs is not None and not (opts.model == "lag-lstm"
+                                             and opts.structure != "node"):
+        raise UserError("--lstm-inputs narrows the LSTM of the lag bank or the physics "
+                        "nodes: it needs --model lag-lstm without --structure node")
+    if not (math.isfinite(opts.model_step_s) and opts.model_step_s > 0):
+        raise UserError(f"--model-step-s must be > 0, got {opts.model_step_s!r}")
+    lo, hi = opts.val_chunk
+    if not 0.0 <= lo < hi <= 1.0 or hi - lo > 0.5:
+        raise UserError("--val-chunk LO:HI must satisfy 0 <= LO < HI <= 1, at most half")

@@ -50,6 +50,7 @@ from fogsf.logs.chamber_log import ChamberLog
 from fogsf.logs.columns import held
 from fogsf.models.chain_nodes import chain_z, identify_chains, node_taus
 from fogsf.models.features import MODEL_STEP_S, front_end_for, prepare
+from fogsf.models.front_end import FrontEnd
 from fogsf.models.lag_bank import (
     BANK_LAMBDA,
     LOOP_LAMBDA,
@@ -65,7 +66,6 @@ from fogsf.models.physics_nodes import (
     fit_coefficients,
     identify_taus,
 )
-from fogsf.models.stream import FrontEnd
 from fogsf.training.transfer import ramp_segments
 
 CANDIDATES = ("physics1", "physics2", "physics3", "bank")  # the order with one segment

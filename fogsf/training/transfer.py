@@ -45,6 +45,15 @@ from fogsf.logs.metrics import (
     windows_rms,
 )
 from fogsf.logs.plateaus import SETTLE_S
+from fogsf.models.features import common_sample_dt, front_end_for
+from fogsf.models.least_squares import (
+    MAX_NODE_SLOPE_PPM_PER_C,
+    TAU_GRID_S,
+    fit_candidates,
+    grid_data,
+    measured_rows,
+    node_candidates,
+)
 
 SLOPE_WINDOW_S = 300.0  # ramp rate: temperature change over 5 min windows
 MIN_RAMP_C_PER_MIN = 0.05  # slower than this is a soak
@@ -276,15 +285,6 @@ def target_spreads(train_logs: list[ChamberLog], target: ChamberLog,
                    prediction_ppm: np.ndarray | None = None, step_s: float = STEP_S,
                    window_s: float = 100.0, settle_s: float = SETTLE_S) -> TargetSpreads:
     """Steps 2 and 3 of the module docstring (`rate_transfer`'s arguments)."""
-    from fogsf.models.features import common_sample_dt, front_end_for
-    from fogsf.models.least_squares import (
-        MAX_NODE_SLOPE_PPM_PER_C,
-        TAU_GRID_S,
-        fit_candidates,
-        grid_data,
-        measured_rows,
-        node_candidates,
-    )
     fe = front_end_for([*train_logs, target], step_s, (),
                        sample_dt_s=common_sample_dt(train_logs))
     data, y = grid_data(train_logs, fe, TAU_GRID_S, latitude_deg)

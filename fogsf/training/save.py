@@ -1,0 +1,37 @@
+"""The model directory `fogsf train` writes: metrics.json, train_info.json, the firmware
+artifact (stream.json, stream_weights.npz) of the exportable models, the torch state of the
+nets, and gsa-lstm's search record."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from fogsf.training.fitted import Fitted
+
+
+def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    info = {k: v for k, v in fitted.info.items() if k != "gsa_result"}
+    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (out_dir / "train_info.json").write_text(json.dumps(
+        {"model": fitted.kind, "features": metrics["features"],
+         "filter_tau_s": metrics["filter_tau_s"], **info}, indent=2, default=_json) + "\n")
+    if fitted.stream_model is not None:
+        fitted.stream_model.save(out_dir)
+    if fitted.torch_state is not None:
+        import torch  # the nets' state only: the least-squares models never load torch
+
+        torch.save(fitted.torch_state, out_dir / "model.pt")
+    res = fitted.info.get("gsa_result")
+    if res is not None:
+        res.save_json(out_dir / "gsa_fitness.json")
+        res.plot(out_dir / "gsa_fitness.png")
+
+
+def _json(o: object) -> object:
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(type(o).__name__)
