@@ -26,13 +26,23 @@ import sys
 import tempfile
 from pathlib import Path
 
+from fogsf.cli import train as train_cli
+from fogsf.cli.arguments import read_logs
+from fogsf.cli.main import main
+from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
+from fogsf.fleet.check import DEFAULT_FALSE_ALARM, check_fleet
+from fogsf.fleet.manifest import ManifestRow, read_manifest
+from fogsf.fleet.records import structure_of, unit_record
+from fogsf.fleet.report import write_report
+from fogsf.fleet.store import open_store
+from fogsf.gsa.executors import open_executor
+from fogsf.training.train import run_training
 
 FLEET_HELP = "the fleet: an SQLite file (created on first use) or a postgresql:// URL"
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    from fogsf.cli import train as train_cli
 
     sub = parser.add_subparsers(dest="fleet_command", metavar="ACTION", required=True)
 
@@ -85,7 +95,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("unit", metavar="SN", help="the unit's serial number")
     p.set_defaults(_fleet_run=run_remove)
 
-    from fogsf.fleet.check import DEFAULT_FALSE_ALARM
 
     p = _action(sub, "check", "name the units unlike the line, and why",
                 "fogsf fleet check line.fleet --json outliers.json")
@@ -120,11 +129,6 @@ def run(args: argparse.Namespace) -> int:
 # --- add ------------------------------------------------------------------------------------
 
 def run_add(args: argparse.Namespace) -> int:
-    from fogsf.cli.arguments import read_logs
-    from fogsf.cli.train import format_metrics, train_options
-    from fogsf.fleet.records import structure_of, unit_record
-    from fogsf.fleet.store import open_store
-    from fogsf.training.train import run_training
 
     if not (getattr(args, "unit", None) or "").strip():
         raise UserError("--unit must name the unit (its serial number)")
@@ -164,7 +168,6 @@ def add_one(argv: list[str]) -> tuple[int, str]:
     import contextlib
     import io
 
-    from fogsf.cli.main import main
 
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(buf):
@@ -176,9 +179,6 @@ def add_one(argv: list[str]) -> tuple[int, str]:
 
 
 def run_add_many(args: argparse.Namespace) -> int:
-    from fogsf.fleet.manifest import ManifestRow, read_manifest
-    from fogsf.fleet.store import open_store
-    from fogsf.gsa.executors import open_executor
 
     rows = read_manifest(args.manifest)
     extra = shlex.split(args.train_options)
@@ -250,8 +250,6 @@ def json_safe(x: object) -> object:
 
 
 def run_list(args: argparse.Namespace) -> int:
-    from fogsf.fleet.records import structure_of
-    from fogsf.fleet.store import open_store
 
     with open_store(args.fleet) as store:
         units = store.units()
@@ -280,7 +278,6 @@ def run_list(args: argparse.Namespace) -> int:
 
 
 def run_remove(args: argparse.Namespace) -> int:
-    from fogsf.fleet.store import open_store
 
     with open_store(args.fleet) as store:
         store.remove(args.unit)
@@ -292,8 +289,6 @@ def run_remove(args: argparse.Namespace) -> int:
 # --- check, report ----------------------------------------------------------------------------
 
 def run_check(args: argparse.Namespace) -> int:
-    from fogsf.fleet.check import check_fleet
-    from fogsf.fleet.store import open_store
 
     with open_store(args.fleet) as store:
         units = store.units()
@@ -306,9 +301,6 @@ def run_check(args: argparse.Namespace) -> int:
 
 
 def run_report(args: argparse.Namespace) -> int:
-    from fogsf.fleet.check import check_fleet
-    from fogsf.fleet.report import write_report
-    from fogsf.fleet.store import open_store
 
     with open_store(args.fleet) as store:
         units = store.units()

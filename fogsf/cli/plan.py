@@ -43,6 +43,8 @@ from fogsf.cli.arguments import (
 )
 from fogsf.diagnose import extend, verdict
 from fogsf.errors import UserError
+from fogsf.fleet.prior_plan import shortest, write
+from fogsf.fleet.prior_train import prior_from_store
 from fogsf.gsa.executors import add_executor_options, executor_from_args
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.plan.evaluate import test_rates
@@ -186,10 +188,6 @@ def fitted_gyros(logs: list[ChamberLog], window_s: float = 60.0,
 
 def run_prior(args: argparse.Namespace) -> int:
     """`fogsf plan --prior FLEET --target X`."""
-    from fogsf.fleet.prior_plan import shortest, write
-    from fogsf.fleet.prior_train import prior_from_store
-    from fogsf.plan.evaluate import test_rates
-    from fogsf.plan.programs import Limits
 
     if not args.prior or args.target is None:
         raise UserError("--prior FLEET and --target X go together")

@@ -38,6 +38,8 @@ from fogsf.logs.chamber_log import EARTH_RATE_DPS
 from fogsf.logs.columns import Column, derived, exact_mean
 from fogsf.logs.metrics import sf_windows
 from fogsf.logs.plateaus import plateaus
+from fogsf.sim.config import SimConfig
+from fogsf.sim.gyro import simulate
 
 PROGRAM_STEP_S = 10.0
 # the simulator's effects on the coil's temperature (fogsf.sim.effects: the mean of the
@@ -227,8 +229,6 @@ def simulated_windows(cfg: dict[str, Any], window_s: float, dt_s: float | None =
                       ) -> tuple[np.ndarray, np.ndarray]:
     """(window centre times, apparent SF error in ppm) of the configuration simulated without
     noise (at dt_s when given, else at its own step)."""
-    from fogsf.sim.config import SimConfig
-    from fogsf.sim.gyro import simulate
 
     quiet = copy.deepcopy(cfg)
     quiet["noise"] = {"arw_deg_per_sqrt_h": 0.0, "pulse_arcsec": 0.0, "temp_noise_c": 0.0,

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+import fogsf
 from fogsf.export.header import _context, _environment
 from fogsf.models import f32, reference, samples
 from fogsf.models.stream import StreamModel
@@ -80,10 +81,8 @@ def render_selftest() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from fogsf.bindings.kernel import C_DIR
-
     p = argparse.ArgumentParser(prog="python -m fogsf.export.selftest", description=__doc__)
-    p.add_argument("--out", type=Path, default=C_DIR / "fogsf_selftest.c")
+    p.add_argument("--out", type=Path, default=Path(fogsf.cmake_dir) / "fogsf_selftest.c")
     args = p.parse_args(argv)
     args.out.write_text(render_selftest())
     print(f"wrote {args.out}")

@@ -35,6 +35,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from fogsf.errors import UserError
 from fogsf.fleet.records import UnitRecord, structure_of
 
 DEFAULT_FALSE_ALARM = 0.01
@@ -177,7 +178,6 @@ def thresholds(n_units: int, names: list[str], alpha: float) -> np.ndarray:
 def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALARM
                 ) -> CheckResult:
     """The units unlike the line (see the module's docstring)."""
-    from fogsf.errors import UserError
 
     if not 0.0 < false_alarm < 1.0:
         raise UserError(f"--false-alarm must lie in (0, 1), got {false_alarm:g}")

@@ -27,7 +27,9 @@ from fogsf.fleet.prior_map import map_fit
 from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, design_matrix
 from fogsf.models.features import MODEL_STEP_S, T_REF_C
 from fogsf.models.node_fit import discrete_lag, lag_alpha
-from fogsf.plan.programs import Limits, Program, candidates
+from fogsf.plan.evaluate import envelope_program
+from fogsf.plan.programs import Limits, Program, candidates, write_program_csv
+from fogsf.sim.config import ThermalConfig
 
 FINE_S = 1.0  # the chamber's path through the housing and board lags at this step
 
@@ -36,7 +38,6 @@ def board_steps(points: tuple[tuple[float, float], ...], step_s: float = MODEL_S
                 ) -> np.ndarray:
     """The board temperature's block means minus T_REF_C per model step of a run: the
     chamber path through the default gyro's housing and board lags, from equilibrium."""
-    from fogsf.sim.config import ThermalConfig
 
     nodes = {n.name: n for n in ThermalConfig().nodes}
     t_end = points[-1][0]
@@ -104,7 +105,6 @@ def shortest(prior: DesignPrior, limits: Limits, rates: tuple[float, ...], targe
              progress: Callable[[PlanResult], None] | None = None
              ) -> tuple[PlanResult | None, list[PlanResult]]:
     """The shortest candidate whose median reaches `target`, and every program tried."""
-    from fogsf.plan.evaluate import envelope_program
 
     units = draw_units(prior, n_units, seed)
     tests = [board_steps(run) for run in envelope_program(limits, rates).runs]
@@ -121,7 +121,6 @@ def shortest(prior: DesignPrior, limits: Limits, rates: tuple[float, ...], targe
 
 def write(out: Path, best: PlanResult | None, tried: list[PlanResult], meta: dict) -> None:
     """OUT/program.csv (the program found) and OUT/plan-prior.json (every program tried)."""
-    from fogsf.plan.programs import write_program_csv
 
     out.mkdir(parents=True, exist_ok=True)
     if best is not None:

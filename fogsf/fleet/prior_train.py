@@ -17,15 +17,21 @@ from pathlib import Path
 
 import numpy as np
 
+from fogsf.errors import UserError
 from fogsf.fleet.prior import DesignPrior, learn
 from fogsf.fleet.prior_map import DISAGREE_LEVEL, MapFit, map_fit
+from fogsf.fleet.records import unit_record
+from fogsf.fleet.store import open_store
 from fogsf.fleet.unit_fit import StepSeries, UnitFit, design_matrix, jacobian, step_series
 from fogsf.fleet.unit_summary import series_of
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.features import front_end_for, prepare
 from fogsf.models.node_fit import RidgeFit
 from fogsf.models.physics_nodes import NODE_LAMBDA, head_from_ridge
+from fogsf.models.reference import expand
 from fogsf.training.options import TrainOptions
+from fogsf.training.sf_fit import fit_physics_head
+from fogsf.training.train import run_training
 
 
 def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
@@ -40,7 +46,6 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
 
 def prior_from_store(path: str) -> DesignPrior:  # noqa: D401
     """The design's prior from the fleet database at `path` (its units' summaries)."""
-    from fogsf.fleet.store import open_store
 
     units = open_store(path).units()
     return prior_from_summaries({u.unit: u.summary for u in units if u.summary})
@@ -51,7 +56,6 @@ def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
                      ) -> tuple[dict, object]:
     """Train the unit under `prior` (or alone, when its data disagree with the design);
     metrics.json gains `prior` (what the prior carried, the check, the interval)."""
-    from fogsf.training.train import fit_physics_head, run_training
 
     series = step_series(train_logs, opts.model_step_s, opts.latitude_deg)
     mf = map_fit(series, prior)
@@ -107,7 +111,6 @@ def prior_interval(mf: MapFit, test_log: ChamberLog, opts: TrainOptions, floor_p
 def law_prediction(theta: np.ndarray, k: int, log: ChamberLog, step_s: float = 5.0
                    ) -> np.ndarray:
     """The law's SF error prediction (ppm) per sample of `log`, held over each step."""
-    from fogsf.models.reference import expand
 
     s, dec = test_series(log, step_s, None)
     return expand(design_matrix(s, np.exp(theta[:k])) @ theta[k:], len(log), dec)
@@ -146,8 +149,6 @@ def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog
                    test_log: ChamberLog | None, out: Path) -> dict:
     """`fogsf train --prior FLEET [--unit SN]`: the prior from FLEET, the unit trained under
     it into `out`, recorded in FLEET with --unit; metrics.json's content."""
-    from fogsf.errors import UserError
-    from fogsf.fleet.store import open_store
 
     unit = getattr(args, "unit", None)
     with open_store(args.prior) as store:  # type: ignore[attr-defined]
@@ -161,7 +162,6 @@ def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog
     prior = prior_from_summaries(summaries)
     metrics, fitted = train_with_prior(opts, train_logs, test_log, out, prior)
     if unit is not None:
-        from fogsf.fleet.records import unit_record
 
         options = {k: v for k, v in vars(opts).items()
                    if k not in ("progress", "workers", "dask", "extra")}

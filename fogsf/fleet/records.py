@@ -18,10 +18,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fogsf import __version__
+from fogsf.fleet.unit_summary import summarize_unit
+from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.metrics import sf_error_ppm, sf_windows
+from fogsf.training.fitted import per_sample_prediction
+from fogsf.training.transfer import ramp_segments
 
 if TYPE_CHECKING:
     from fogsf.logs.chamber_log import ChamberLog
-    from fogsf.training.train import Fitted
+    from fogsf.training.fitted import Fitted
 
 # SF error against temperature (the report's curves) in bins of this width, C
 SF_CURVE_BIN_C = 2.0
@@ -94,7 +99,6 @@ def file_sha256(path: str | Path) -> str:
 def log_record(log: ChamberLog, role: str = "train") -> LogRecord:
     """A log as the store keeps it: where it was, its hash, size, span, rate, ramps and
     temperatures (the hash of the file on disk; empty for a log made in memory)."""
-    from fogsf.training.transfer import ramp_segments
 
     p = Path(log.path)
     sha = file_sha256(p) if p.is_file() else ""
@@ -149,8 +153,6 @@ def sf_curve(fitted: Fitted, log: ChamberLog, ref: float, window_s: float,
              latitude_deg: float | None, settle_s: float) -> dict[str, list[float]]:
     """SF error against board temperature on `log`, before (about `ref`) and after the
     model, mean of the windows in SF_CURVE_BIN_C bins (the report's curves)."""
-    from fogsf.logs.metrics import sf_error_ppm, sf_windows
-    from fogsf.training.train import per_sample_prediction
 
     before = sf_windows(log, window_s, latitude_deg, settle_s=settle_s)
     after = sf_windows(log, window_s, latitude_deg,
@@ -195,8 +197,6 @@ def response(fitted: Fitted, sample_dt_s: float, latitude_deg: float | None
              ) -> dict[str, float]:
     """The model's SF error prediction (ppm) at the reference program's points, less their
     mean (a unit's SF offset is not its law)."""
-    from fogsf.logs.chamber_log import ChamberLog
-    from fogsf.training.train import per_sample_prediction
 
     lo, hi = REFERENCE_RANGE_C
     ramp = (hi - lo) / REFERENCE_RATE_C_PER_MIN * 60.0
@@ -259,7 +259,6 @@ def unit_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | 
     """The record of a unit `fogsf train` has just fitted into `model_dir` (`metrics`: its
     metrics.json; `options`: the training options as data). `keep_dir` False: the folder is
     temporary and the record names none."""
-    from fogsf.fleet.unit_summary import summarize_unit
 
     logs = [log_record(lg, "train") for lg in train_logs]
     if test_log is not None:
@@ -267,6 +266,7 @@ def unit_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | 
     figures = figures_of(metrics)
     curve_log = test_log if test_log is not None else train_logs[0]
     figures["sf_curve_log"] = "test" if test_log is not None else "train"
+    # torch: loaded only when a record is built from a trained model
     from fogsf.training.fit import SMALL_NET_UNITS, torch_threads
 
     sm = fitted.stream_model

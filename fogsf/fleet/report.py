@@ -19,6 +19,7 @@ import shutil
 from html import escape
 from pathlib import Path
 
+from fogsf.errors import UserError
 from fogsf.fleet.check import RESIDUAL, CheckResult, unit_features
 from fogsf.fleet.records import UnitRecord
 
@@ -253,7 +254,6 @@ def write_report(units: list[UnitRecord], result: CheckResult, out: Path, title:
     """Write the report into `out` (replacing a previous one whole); returns index.html."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        from fogsf.errors import UserError
 
         raise UserError(f"--out {out} exists and is not a folder")
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -17,7 +17,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from fogsf.fleet.prior import K_CHOICES
+from fogsf.fleet.unit_fit import StepSeries, fit_unit, step_series
 from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.logio import read_log
 from fogsf.models.features import MODEL_STEP_S
 
 SUMMARY_VERSION = 1
@@ -26,8 +29,6 @@ SUMMARY_VERSION = 1
 def summarize_unit(train_logs: list[ChamberLog] | list[str] | list[Path],
                    model_dir: str | Path | None = None,
                    step_s: float = MODEL_STEP_S, latitude_deg: float | None = None) -> dict:
-    from fogsf.fleet.prior import K_CHOICES
-    from fogsf.fleet.unit_fit import fit_unit, step_series
 
     logs = [_as_log(lg) for lg in train_logs]
     series = step_series(logs, step_s, latitude_deg)
@@ -47,13 +48,11 @@ def summarize_unit(train_logs: list[ChamberLog] | list[str] | list[Path],
 def _as_log(lg: ChamberLog | str | Path) -> ChamberLog:
     if isinstance(lg, ChamberLog):
         return lg
-    from fogsf.logs.logio import read_log
 
     return read_log(lg)
 
 
 def series_of(summary: dict):  # noqa: ANN201 - unit_fit.StepSeries, imported late
     """The unit's step series back from its summary."""
-    from fogsf.fleet.unit_fit import StepSeries
 
     return StepSeries.from_dict(summary["series"])

@@ -23,6 +23,8 @@ from typing import BinaryIO
 
 import numpy as np
 
+from fogsf.errors import UserError
+
 READ_SAMPLES = 1 << 18  # samples read at a time by the block helpers (2 MB of float64)
 PAIRWISE_LEAF = 128  # numpy's pairwise summation: runs this long are summed in one loop
 STRICT = False  # tests: refuse to read a whole column (np.asarray) where a block would do
@@ -221,7 +223,6 @@ class SpillFile:
             self._file.seek(self.n * self.dtype.itemsize)
             self._file.write(memoryview(b).cast("B"))
         except OSError as e:  # a full disk: one line, and what to do
-            from fogsf.errors import UserError
 
             raise UserError(f"cannot write the log's columns to {self.path.parent}: "
                             f"{e.strerror or e}; they need 8 bytes a sample a column on disk "

@@ -54,7 +54,7 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs import columns
-from fogsf.logs.chamber_log import ChamberLog, rate_text
+from fogsf.logs.chamber_log import ChamberLog, is_stationary, rate_text, stationary_refusal
 from fogsf.logs.columns import is_lazy, searchsorted
 from fogsf.logs.pairs import (
     bias_track,
@@ -120,7 +120,6 @@ def sf_spans(log: ChamberLog, window_s: float = 100.0, settle_s: float = SETTLE_
             grid = [(max(s, a), s + n) for s in range(a0, b - n + 1, n)]
         spans.extend((x, y) for x, y in grid if y - x >= shortest)
     if not spans:
-        from fogsf.logs.chamber_log import is_stationary, stationary_refusal
 
         if is_stationary(log):
             raise stationary_refusal(log)
