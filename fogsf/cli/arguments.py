@@ -163,11 +163,15 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.
     if axis == "all":
         raise UserError("--axis all runs train, inspect, replay and export once per axis; "
                         "here give one axis, e.g. --axis x")
-    cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
+    given = getattr(args, "columns", None)
+    cols = Dialect.parse_columns(given) if given else ()
+    joins = (Dialect.mapping_joins(given) if given and "=" not in given
+             and given.lower().endswith((".json", ".toml")) else ())
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
                    decimal_comma=getattr(args, "decimal_comma", False),
-                   sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis)
+                   sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis,
+                   joins=joins)
 
 
 def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.logs.arrow_csv import NotFast, read_numbers
+from fogsf.logs.cell_kinds import numeric_cells, row_kinds
 from fogsf.logs.chamber_log import (
     DT_TOLERANCE,
     EPOCH_S,
@@ -42,8 +43,8 @@ from fogsf.logs.chamber_log import (
     rate_text,
     time_text,
 )
-from fogsf.logs.column_map import ColumnPlan
-from fogsf.logs.columns import Column, blocks, derived, is_lazy
+from fogsf.logs.column_map import ColumnPlan, with_kinds
+from fogsf.logs.columns import Column, blocks, col_max, col_min, derived, is_lazy
 from fogsf.logs.dialect import (
     Dialect,
     find_delimiter,
@@ -54,6 +55,7 @@ from fogsf.logs.dialect import (
     read_header,
     unquote_lines,
 )
+from fogsf.logs.joins import apply_joins
 from fogsf.logs.line_scan import bad_cell_in, first_bad_line
 from fogsf.logs.parquet_log import (
     in_rows,
@@ -99,7 +101,8 @@ def with_mapping_beside(path: str | Path, dialect: Dialect) -> Dialect:
     beside = mapping_beside(path)
     if beside is None:
         return dialect
-    return replace(dialect, columns=Dialect.mapping_file(beside), columns_from=str(beside))
+    return replace(dialect, columns=Dialect.mapping_file(beside), columns_from=str(beside),
+                   joins=Dialect.mapping_joins(beside))
 
 
 def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
@@ -148,6 +151,10 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
         raise LogError(path, 1, "empty file", "a header but no data rows")
     if dialect.decimal_comma:
         lines = [lines[0], *(line.replace(",", ".") for line in lines[1:])]
+    plan = with_kinds(plan, row_kinds(lines[1].split(delim)), path, notes)
+    if plan.kinds:
+        kinds = plan.kinds
+        lines = [lines[0], *((numeric_cells(line, delim, kinds) or line) for line in lines[1:])]
     data = _parse_numbers(lines, list(plan.raw), path, delim)
     return _log_of(data, plan, path, dialect, notes)
 
@@ -168,7 +175,8 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
     if rows < 1:
         return None
     try:
-        data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma)
+        data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma,
+                            plan.kinds)
     except NotFast as e:
         refuse_bad_line(path, head, dialect, e.rows_ok)
         return None
@@ -206,7 +214,32 @@ def plain_header(path: str | Path, dialect: Dialect) -> PlainHeader | None:
             return None
     else:
         plan = read_header(first, delim, p, dialect, notes)
+    kinds = first_row_kinds(path, delim, quoted, dialect.decimal_comma)
+    if kinds is not None and len(kinds) == len(plan.raw):
+        plan = with_kinds(plan, kinds, p, notes)
     return delim, quoted, plan, notes
+
+
+def first_row_kinds(path: str | Path, delim: str, quoted: bool, decimal_comma: bool
+                    ) -> tuple[str, ...] | None:
+    """What each column of the first data row holds (logs/cell_kinds.py); None when there
+    is no such row or it cannot be read."""
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            f.readline()
+            line = f.readline().rstrip("\r\n")
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not line.strip():
+        return None
+    if quoted:
+        try:
+            line = unquote_lines([line], delim, str(path))[0]
+        except LogError:
+            return None
+    if decimal_comma:
+        line = line.replace(",", ".")
+    return row_kinds(line.split(delim))
 
 
 def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_ok: int
@@ -214,7 +247,8 @@ def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_
     """After the fast reader failed: the refusal of the first bad row, named reading line by
     line (no copy of the text); returns when the general path must decide."""
     delim, quoted, plan, _ = head
-    bad = first_bad_line(path, list(plan.raw), delim, dialect.decimal_comma, rows_ok, quoted)
+    bad = first_bad_line(path, list(plan.raw), delim, dialect.decimal_comma, rows_ok, quoted,
+                         plan.kinds)
     if bad is not None:
         raise bad from None
 
@@ -241,6 +275,8 @@ def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
 def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes: list[str]
                      ) -> ChamberLog:
     """Our columns (in memory or on disk) as a validated ChamberLog."""
+    cols = without_duplicates(cols, notes)
+    cols, _ = apply_joins(cols, dialect.joins, path, notes)
     dt = validate(cols, path, dialect.sample_rate_hz)
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
         notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
@@ -264,6 +300,27 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
         read_notes=tuple(notes),
         nominal_dt_s=dt,
     )
+
+
+def without_duplicates(cols: dict[str, Column], notes: list[str]) -> dict[str, Column]:
+    """`cols` without the rows that repeat the row before them exactly (a logger that wrote a
+    sample twice), counted in `notes`; a row at the same time with other values stays (and
+    is refused as time not increasing). A log with such rows is then held in memory."""
+    t = cols["time_s"]
+    same: list[np.ndarray] = []
+    for a in range(0, max(len(t) - 1, 0), VALIDATE_BLOCK):
+        dt = np.diff(np.asarray(t[a:a + VALIDATE_BLOCK + 1]))
+        same.append(a + 1 + np.flatnonzero(dt == 0.0))
+    rows = np.concatenate(same) if same else np.zeros(0, dtype=np.int64)
+    if not rows.size:
+        return cols
+    for v in cols.values():
+        rows = rows[np.asarray(v[rows]) == np.asarray(v[rows - 1])]
+    if not rows.size:
+        return cols
+    notes.append(f"{rows.size} exact duplicate row{'s' if rows.size > 1 else ''} dropped "
+                 f"(the first at line {int(rows[0]) + 2})")
+    return {k: np.delete(np.asarray(v[:]), rows) for k, v in cols.items()}
 
 
 def _parse_numbers(lines: list[str], header: list[str], path: str, delim: str = ","
@@ -355,8 +412,24 @@ def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = Non
             if out.size:
                 i = int(out[0])
                 raise LogError(path, a + i + 2, "temperature out of range",
-                               f"{name} = {x[i]:g} C, allowed {lo:g}..{hi:g} C")
+                               f"{name} = {x[i]:g} C, allowed {lo:g}..{hi:g} C"
+                               + temperature_unit_hint(v))
     return nominal
+
+
+def temperature_unit_hint(v: np.ndarray) -> str:
+    """What a temperature column outside TEMP_RANGE_C is likely in, by its range: Kelvin
+    (every value 173 .. 400), Fahrenheit (every value -76 .. 212 and more than 1 % of them
+    above 100: one spike is not a unit)."""
+    lo, hi = col_min(v), col_max(v)
+    if 173.0 <= lo and hi <= 400.0:
+        return (f" (the column spans {lo:g} .. {hi:g}: Kelvin? map it as "
+                "`NAME - 273.15`)")
+    hot = sum(int(np.count_nonzero(x > TEMP_RANGE_C[1])) for _, x in blocks(v))
+    if -76.0 <= lo and hi <= 212.0 and hot > 0.01 * len(v):
+        return (f" (the column spans {lo:g} .. {hi:g}: Fahrenheit? map it as "
+                "`(NAME - 32) / 1.8`)")
+    return ""
 
 
 VALIDATE_BLOCK = 1 << 20  # time steps checked at a time

@@ -54,7 +54,7 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs import columns
-from fogsf.logs.chamber_log import ChamberLog, rate_text
+from fogsf.logs.chamber_log import ChamberLog, LogError, rate_text
 from fogsf.logs.columns import is_lazy, searchsorted
 from fogsf.logs.pairs import (
     bias_track,
@@ -222,8 +222,47 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
             out["t_s"][sel] = log.time_s[idx].mean(axis=1)
             out["temp_c"][sel] = log.temp_c[idx].mean(axis=1)
             out["rate_dps"][sel] = tab.mean(axis=1)
+    check_units(log, out["sf_ratio"], spans[:, 0])
     return SFWindows(start=spans[:, 0].copy(), stop=spans[:, 1].copy(),
                      window_s=float(window_s), **out)
+
+
+RAD_TO_DEG = 180.0 / np.pi
+UNITS_TOL = 0.01  # a ratio within 1 % of 180/pi (or pi/180) is a rad/s - deg/s mix-up
+
+
+def units_factor(ratio: float) -> str | None:
+    """'180/pi' or 'pi/180' when `ratio` lies within UNITS_TOL of it, else None."""
+    for factor, text in ((RAD_TO_DEG, "180/pi"), (1.0 / RAD_TO_DEG, "pi/180")):
+        if abs(ratio / factor - 1.0) <= UNITS_TOL:
+            return text
+    return None
+
+
+UNITS_FIX = ("gyro_dps and table_rate_dps are in deg/s: a column in rad/s is mapped with "
+             "`* 57.29577951308232` (a rad/s to deg/s factor), one already in deg/s without "
+             "it; fix the column map (--columns or its file)")
+
+
+def check_units(log: ChamberLog, sf_ratio: np.ndarray, starts: np.ndarray) -> None:
+    """Refuse a log whose gyro reads 180/pi (or pi/180) times its table rate: one of them
+    in rad/s, the other in deg/s; and one whose windows jump by such a factor mid-log (the
+    units switched), at the line of the first window off."""
+    if not sf_ratio.size:
+        return
+    med = float(np.median(sf_ratio))
+    factor = units_factor(med)
+    if factor is not None:
+        raise UserError(f"{log.path}: units: the gyro reads {med:.6g} x the table rate "
+                        f"(reference SF ratio within 1 % of {factor}): one of gyro_dps and "
+                        f"table_rate_dps is in rad/s, the other in deg/s; {UNITS_FIX}")
+    for i, r in enumerate(sf_ratio):
+        factor = units_factor(float(r) / med) if med != 0 else None
+        if factor is not None:
+            raise LogError(log.path, int(starts[i]) + 2, "units switch",
+                           f"the SF ratio jumps from {med:.6g} to {float(r):.6g} "
+                           f"({factor}): the gyro or the table switched between rad/s and "
+                           "deg/s mid-log; write the log in one unit")
 
 
 def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
@@ -265,10 +304,27 @@ def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
                          settle_s: float = SETTLE_S) -> float:
     """The SF at `t_ref_c` over several logs (e.g. all training runs) together."""
     ws = [sf_windows(lg, window_s, latitude_deg, settle_s=settle_s) for lg in logs]
+    same_units(logs, ws)
     merged = SFWindows(*(np.concatenate([getattr(w, f) for w in ws]) for f in
                          ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm", "start",
                           "stop")), window_s=float(window_s))
     return reference_sf(merged, t_ref_c)
+
+
+def same_units(logs: list[ChamberLog], ws: list[SFWindows]) -> None:
+    """Refuse logs (trained together) whose SF ratios differ by more than UNITS_TOL: one
+    gyro's SF moves by parts per thousand at most; more is another unit or scaling."""
+    meds = [(float(np.median(w.sf_ratio)), lg.path) for w, lg in zip(ws, logs, strict=True)
+            if w.sf_ratio.size]
+    if len(meds) < 2:
+        return
+    lo, hi = min(meds), max(meds)
+    if hi[0] > lo[0] * (1.0 + UNITS_TOL):
+        factor = units_factor(hi[0] / lo[0])
+        why = (f" ({factor}: one in rad/s, the other in deg/s; {UNITS_FIX})" if factor
+               else ": another unit or scaling in one of them (check the column maps)")
+        raise UserError(f"units: the logs' SF ratios differ by more than 1 %: {lo[1]} "
+                        f"{lo[0]:.6g}, {hi[1]} {hi[0]:.6g}{why}")
 
 
 def sf_error_ppm(w: SFWindows, ref: float) -> np.ndarray:

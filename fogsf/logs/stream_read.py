@@ -64,7 +64,7 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
     if rows < 1:
         return read_log(path, dialect)
     blocks = (np.column_stack(c) for c in number_blocks(path, delim, len(plan.raw), quoted,
-                                                        dialect.decimal_comma))
+                                                        dialect.decimal_comma, plan.kinds))
     counted = _Counted(blocks)
     try:
         cols, refused = _spilled(counted, plan, p, spill, _told(progress, rows))

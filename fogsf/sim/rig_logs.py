@@ -337,3 +337,84 @@ def write_case(folder: str | Path, case: BenchCase, gyro_seeds: Sequence[int], s
     train = rig_log(case.kind, folder / "train" / name, case.train, gyro_seeds, seed)
     test = rig_log(case.kind, folder / "test" / name, case.test, gyro_seeds, seed + 1)
     return train, test
+
+
+# --- raw logger output: several files on their own clocks ----------------------------------
+
+WALL_EPOCH_S = 1_772_612_100.0  # 2026-03-04T08:15:00Z: the chamber logger's wall clock
+WRAP_US = 2**32  # a 32-bit microsecond counter wraps every 4294.967296 s
+
+
+def iso_stamps(epoch_s: np.ndarray) -> list[str]:
+    """Epoch seconds as ISO-8601 text to the millisecond, UTC without an offset
+    (`2026-03-04T09:15:02.123`), as chamber loggers write wall-clock time."""
+    ms = np.round(np.asarray(epoch_s) * 1e3).astype(np.int64).astype("datetime64[ms]")
+    return list(np.datetime_as_string(ms, unit="ms"))
+
+
+def _write_text_csv(path: Path, names: list[str], cols: list[list[str]]) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", encoding="utf-8", newline="\n") as f:
+        f.write(",".join(names) + "\n")
+        f.writelines(",".join(row) + "\n" for row in zip(*cols, strict=True))
+    return path
+
+
+def write_loggers(path: str | Path, run: RigRun, seed: int = 0, thermo_hz: float = 1.0,
+                  dropout_s: float = 30.0, boot_s: float | None = None,
+                  duplicates: int = 3, max_gap_s: float = 5.0) -> RigLog:
+    """A run as two loggers and a table controller write it, each on its own clock:
+
+    `path` (the IMU): t_us, a 32-bit microsecond counter since the IMU booted (`boot_s`
+    before the run; by default so that it wraps in the run's first half), rate_z (rad/s),
+    header.frame_id (text), with `duplicates` rows written twice; `{stem}.thermo.csv`:
+    wall (ISO-8601, UTC), board_T, chamber_T at `thermo_hz`, with a dropout of `dropout_s`
+    (no rows) at a seeded time; `{stem}.table.csv`: wall, cmd_dps, one row per command
+    change. The map beside them joins both onto the IMU's clock (time_s = unwrap(t_us,
+    2**32) * 1e-6 + the boot's wall time). The truth is on that clock (epoch seconds)."""
+    ax = run.axes[_one_axis(run)]
+    out = Path(path)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x10661]))
+    n = run.stamp_s.shape[0]
+    if boot_s is None:
+        boot_s = WRAP_US * 1e-6 - run.stamp_s[-1] * float(rng.uniform(0.3, 0.6))
+    boot_wall = float(WALL_EPOCH_S - boot_s)  # the wall time of the IMU's boot
+    t_us = np.round((run.stamp_s + boot_s) * 1e6).astype(np.int64) % WRAP_US
+    rows = np.arange(n)
+    if duplicates:
+        dup = np.sort(rng.choice(np.arange(1, n), size=min(duplicates, n - 1), replace=False))
+        rows = np.sort(np.concatenate([rows, dup]))
+    rate = ax.gyro_dps / DEG_PER_RAD
+    _write_text_csv(out, ["t_us", "rate_z", "header.frame_id"],
+                    [[str(int(v)) for v in t_us[rows]], [f"{v:.12g}" for v in rate[rows]],
+                     ["imu_link"] * rows.size])
+    wall = WALL_EPOCH_S + run.stamp_s  # the run's samples on the wall clock
+    step = max(1, int(round(run.protocol.rate_hz / thermo_hz)))
+    th = np.arange(0, n, step)
+    if dropout_s > 0:
+        d0 = float(rng.uniform(0.2, 0.7)) * run.stamp_s[-1]
+        th = th[(run.stamp_s[th] < d0) | (run.stamp_s[th] >= d0 + dropout_s)]
+    chamber = ax.result.log.extra.get("chamber_c", ax.temp_c)
+    _write_text_csv(out.with_name(f"{out.stem}.thermo.csv"), ["wall", "board_T", "chamber_T"],
+                    [iso_stamps(wall[th]), [f"{v:.4f}" for v in ax.temp_c[th]],
+                     [f"{v:.3f}" for v in chamber[th]]])
+    change = np.flatnonzero(np.diff(run.command_dps, prepend=np.nan) != 0)
+    _write_text_csv(out.with_name(f"{out.stem}.table.csv"), ["wall", "cmd_dps"],
+                    [iso_stamps(wall[change]), [f"{v:.6g}" for v in run.command_dps[change]]])
+    cmap: ColumnMap = {
+        "time_s": f"unwrap(t_us, 2**32) * 1e-6 + {boot_wall!r}",
+        "gyro_dps": f"rate_z * {DEG_PER_RAD!r}",
+        "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine),
+    }
+    joins = {"thermo": {"file": "{stem}.thermo.csv", "time_s": "wall", "temp_c": "board_T",
+                        "chamber_c": "chamber_T", "how": "interpolate",
+                        "max_gap_s": max_gap_s},
+             "table": {"file": "{stem}.table.csv", "time_s": "wall",
+                       "table_rate_dps": "cmd_dps", "how": "hold"}}
+    text = "".join(f"{k} = {json.dumps(v)}\n" for k, v in cmap.items())
+    for name, table in joins.items():
+        text += f"\n[join.{name}]\n" + "".join(f"{k} = {json.dumps(v)}\n"
+                                                for k, v in table.items())
+    mpath = out.parent / "fogsf-columns.toml"
+    mpath.write_text(text, encoding="utf-8")
+    return RigLog(out, cmap, {"": run.truth(_one_axis(run), WALL_EPOCH_S)}, mpath)
