@@ -57,6 +57,10 @@ def add_metric_options(parser: argparse.ArgumentParser, skip: bool = False) -> N
                                  "the temperature moves")
     parser.add_argument("--latitude-deg", type=float, default=None,
                         help=LATITUDE_HELP)
+    parser.add_argument("--ref-temp-c", type=float, default=20.0, metavar="C",
+                        help="board temperature whose SF is the reference of the SF error "
+                             "(default 20); a log that never comes within 5 C of it takes "
+                             "the nearest temperature it holds (said on stderr)")
     add_axis_cosine(parser)
 
 
@@ -207,8 +211,11 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
         logs.append(log)
     given = getattr(args, "axis_cosine", None)
     cosine = cosine_for(given, dialect.axis)
+    ref_temp = getattr(args, "ref_temp_c", None)
     for lg in logs:
         lg.axis_cosine = cosine
+        if ref_temp is not None:
+            lg.ref_temp_c = ref_temp
         if given is not None and lg.earth_rate_dps is not None:
             lg.read_notes = (*lg.read_notes, "--axis-cosine not used: the log has its earth "
                              "rate (earth_rate_dps)")

@@ -231,7 +231,7 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
 
     sf = np.asarray(sf)  # the plot draws every sample (a log on disk is read whole here)
     w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
-    ref = ref if ref is not None else reference_sf(w)
+    ref = ref if ref is not None else reference_sf(w, log.ref_temp_c)
     before = sf_error_ppm(w, ref)
     after = sf_error_ppm(sf_windows(log, window_s, latitude_deg, sf.astype(np.float64),
                                     settle_s, skip_s), 1.0)

@@ -74,6 +74,9 @@ class ChamberLog:
     # the cosine between the sensitive axis and the local vertical (up): the earth rate from
     # a latitude is scaled by it (`--axis-cosine`); an earth_rate_dps column is used as given
     axis_cosine: float = 1.0
+    # the board temperature whose SF is the reference of the SF error (--ref-temp-c; a log
+    # that never comes near it takes the nearest it holds: metrics.reference_sf)
+    ref_temp_c: float = 20.0
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])
@@ -149,6 +152,7 @@ class ChamberLog:
             read_notes=self.read_notes,
             nominal_dt_s=self.sample_dt_s,
             axis_cosine=self.axis_cosine,
+            ref_temp_c=self.ref_temp_c,
         )
 
 

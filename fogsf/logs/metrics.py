@@ -269,19 +269,53 @@ def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
     """The apparent SF ratio at `t_ref_c` board temperature: a quadratic in temperature
     fitted to the windows within REF_BAND_C of it (a line where they are few). A log held at
     set points (none within the band) takes the nearest set points on both sides of
-    `t_ref_c`, up to REF_BRACKET_C away, and interpolates."""
+    `t_ref_c`, up to REF_BRACKET_C away, and interpolates. A log that never comes near
+    `t_ref_c` (a heated rig at 38-62 C) takes the nearest temperature it holds
+    (`reference_temp_c`), said once on stderr."""
+    t = reference_temp_c(w, t_ref_c)
+    if t != t_ref_c:
+        _say_once(f"fogsf: note: the board temperature never comes within {REF_BAND_C:g} C "
+                  f"of {t_ref_c:g} C ({w.temp_c.min():.1f} .. {w.temp_c.max():.1f} C): the SF "
+                  f"reference is the SF at {t:.2f} C, the nearest temperature the windows "
+                  "hold (--ref-temp-c C sets it; --ref-sf RATIO gives the ratio)")
+    return _reference_at(w, t)
+
+
+def reference_temp_c(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
+    """The temperature the reference SF is taken at: `t_ref_c` when the windows span it
+    (within REF_BAND_C, or set points on both sides within REF_BRACKET_C), else the
+    windows' temperature nearest to it."""
+    if not w.temp_c.size:
+        return t_ref_c
+    if np.any(np.abs(w.temp_c - t_ref_c) <= REF_BAND_C) or _bracket(w.temp_c, t_ref_c) \
+            is not None:
+        return t_ref_c
+    return float(w.temp_c[np.argmin(np.abs(w.temp_c - t_ref_c))])
+
+
+_SAID: set[str] = set()
+
+
+def _say_once(text: str) -> None:
+    import sys
+
+    if text not in _SAID:
+        _SAID.add(text)
+        print(text, file=sys.stderr)
+
+
+def _reference_at(w: SFWindows, t_ref_c: float) -> float:
     near = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C
     deg = 2 if near.sum() >= 6 else 1
     if near.sum() < 2 or np.ptp(w.temp_c[near]) < 0.5:
         near, deg = _bracket(w.temp_c, t_ref_c), 1  # a line between two set points
+    if near is None and np.any(np.abs(w.temp_c - t_ref_c) <= REF_BAND_C):
+        near, deg = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C, 0  # one set point: its mean
     if near is None:
         raise UserError(
-            f"the board temperature never spans {t_ref_c:g} +/- {REF_BAND_C:g} C (range "
-            f"{w.temp_c.min():.1f}..{w.temp_c.max():.1f} C), nor lies on both sides of it "
-            f"within {REF_BRACKET_C:g} C: the SF at {t_ref_c:g} C, the reference of the SF "
-            "error, cannot be measured on this log: give it with --ref-sf RATIO "
-            "(ref_sf_ratio of `fogsf inspect --json` on a run of the same gyro that spans "
-            "20 C), or use logs whose board temperature spans it")
+            f"the log has no SF window (board temperature "
+            f"{w.temp_c.min() if w.temp_c.size else float('nan'):.1f} C): the SF reference "
+            "cannot be measured on it: give it with --ref-sf RATIO")
     coef = np.polyfit(w.temp_c[near] - t_ref_c, w.sf_ratio[near], deg)
     return float(coef[-1])
 
@@ -300,15 +334,16 @@ def _bracket(temp_c: np.ndarray, t_ref_c: float) -> np.ndarray | None:
 
 
 def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
-                         latitude_deg: float | None = None, t_ref_c: float = T_REF_C,
+                         latitude_deg: float | None = None, t_ref_c: float | None = None,
                          settle_s: float = SETTLE_S) -> float:
-    """The SF at `t_ref_c` over several logs (e.g. all training runs) together."""
+    """The SF at `t_ref_c` (None: the logs' `ref_temp_c`, --ref-temp-c) over several logs
+    (e.g. all training runs) together."""
     ws = [sf_windows(lg, window_s, latitude_deg, settle_s=settle_s) for lg in logs]
     same_units(logs, ws)
     merged = SFWindows(*(np.concatenate([getattr(w, f) for w in ws]) for f in
                          ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm", "start",
                           "stop")), window_s=float(window_s))
-    return reference_sf(merged, t_ref_c)
+    return reference_sf(merged, logs[0].ref_temp_c if t_ref_c is None else t_ref_c)
 
 
 def same_units(logs: list[ChamberLog], ws: list[SFWindows]) -> None:
@@ -367,7 +402,7 @@ def log_metrics(log: ChamberLog, window_s: float = 100.0, ref: float | None = No
     if correction_ppm is not None:
         ref = 1.0
     elif ref is None:
-        ref = reference_sf(w)
+        ref = reference_sf(w, log.ref_temp_c)
     return metrics_block(sf_error_ppm(w, ref), window_s, noise_floor_ppm(w))
 
 
