@@ -198,8 +198,10 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
     import sys
 
     from fogsf.logs.columns import Spill
+    from fogsf.logs.metrics import forget_notes
     from fogsf.logs.stream_read import in_memory, read_log_on_disk
 
+    forget_notes()
     dialect = dialect_from_args(args)
     logs = []
     for p in paths:

@@ -259,11 +259,25 @@ def check_units(log: ChamberLog, sf_ratio: np.ndarray, starts: np.ndarray) -> No
     for i, r in enumerate(sf_ratio):
         factor = units_factor(float(r) / med) if med != 0 else None
         if factor is not None:
-            raise LogError(log.path, int(starts[i]) + 2, "units switch",
+            normal = np.flatnonzero(np.abs(sf_ratio[:i] / med - 1.0) <= UNITS_TOL)
+            lo = int(starts[normal[-1]]) if normal.size else 0  # the last window in the unit
+            row = _switch_row(log, lo, int(starts[i]), med, factor)
+            raise LogError(log.path, row + 2, "units switch",
                            f"the SF ratio jumps from {med:.6g} to {float(r):.6g} "
                            f"({factor}): the gyro or the table switched between rad/s and "
                            "deg/s mid-log; write the log in one unit")
 
+
+def _switch_row(log: ChamberLog, lo: int, hi: int, med: float, factor: str) -> int:
+    """The first row in [lo, hi] (the last window in the log's unit, to the first off) whose own
+    gyro / table ratio reads the switched unit (within 5 %); `hi` when none does."""
+    f = RAD_TO_DEG if factor == "180/pi" else 1.0 / RAD_TO_DEG
+    tab = np.asarray(log.table_rate_dps[lo:hi + 1], dtype=np.float64)
+    gyro = np.asarray(log.gyro_dps[lo:hi + 1], dtype=np.float64)
+    with np.errstate(all="ignore"):
+        off = (tab != 0) & (np.abs(gyro / tab / (med * f) - 1.0) <= 0.05)
+    hits = np.flatnonzero(off)
+    return lo + int(hits[0]) if hits.size else hi
 
 def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
     """The apparent SF ratio at `t_ref_c` board temperature: a quadratic in temperature
@@ -293,7 +307,12 @@ def reference_temp_c(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
     return float(w.temp_c[np.argmin(np.abs(w.temp_c - t_ref_c))])
 
 
-_SAID: set[str] = set()
+_SAID: set[str] = set()  # the notes said by this command (read_logs starts it afresh)
+
+
+def forget_notes() -> None:
+    """A new command: the notes of `_say_once` may be said again."""
+    _SAID.clear()
 
 
 def _say_once(text: str) -> None:
