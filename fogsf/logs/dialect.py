@@ -52,6 +52,10 @@ class Dialect:
     axis: str | None = None
     # [join.NAME] tables of the map file: other files put on the log's clock (logs/joins.py)
     joins: tuple[Join, ...] = ()
+    # a step longer than this is a gap (None: logs/sampling.py default_max_gap_s); how the
+    # model's states cross it: "carry" or "restart"
+    max_gap_s: float | None = None
+    gap_states: str = "carry"
 
     @property
     def gyro_name(self) -> str | None:

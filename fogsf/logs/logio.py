@@ -28,7 +28,6 @@ from fogsf.logs.cell_kinds import numeric_cells, row_kinds
 from fogsf.logs.chamber_log import (
     DT_TOLERANCE,
     EPOCH_S,
-    GAP_STEPS,
     NOMINAL_DT_S,
     RATE_RANGE_HZ,
     RATE_SLACK,
@@ -64,6 +63,7 @@ from fogsf.logs.parquet_log import (
     read_parquet_log,
     write_columns,
 )
+from fogsf.logs.sampling import default_max_gap_s, mend_segments, survey
 
 
 def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
@@ -274,13 +274,28 @@ def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
 
 def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes: list[str]
                      ) -> ChamberLog:
-    """Our columns (in memory or on disk) as a validated ChamberLog."""
+    """Our columns (in memory or on disk) as a validated ChamberLog: exact duplicate rows
+    dropped, other files joined on its clock, its gaps and resets mended into segments
+    (logs/sampling.py), then checked."""
     cols = without_duplicates(cols, notes)
     cols, _ = apply_joins(cols, dialect.joins, path, notes)
+    if dialect.sample_rate_hz is not None:
+        check_rate_hz(dialect.sample_rate_hz)
+    t = cols["time_s"]
+    nominal = (1.0 / dialect.sample_rate_hz if dialect.sample_rate_hz is not None
+               else nominal_step_s(t))
+    max_gap = (dialect.max_gap_s if dialect.max_gap_s is not None
+               else default_max_gap_s(nominal))
+    if dialect.sample_rate_hz is None:
+        check_rate_range(nominal, path)
+    sampling = survey(t, nominal, max_gap)
+    cols = mend_segments(cols, sampling, dialect.gap_states)
     dt = validate(cols, path, dialect.sample_rate_hz)
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
         notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
                      f"{'--sample-rate-hz' if dialect.sample_rate_hz else 'from time_s'})")
+    if sampling.irregular:
+        notes.append(sampling.text())
     extra = {k: v for k, v in cols.items()
              if k not in REQUIRED and k not in ("earth_rate_dps", "valid")}
     valid = cols.get("valid")
@@ -299,6 +314,7 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
         path=path,
         read_notes=tuple(notes),
         nominal_dt_s=dt,
+        sampling=sampling,
     )
 
 
@@ -354,7 +370,6 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
 def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:
     """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s)."""
     t = cols["time_s"]
-    lo_hz, hi_hz = RATE_RANGE_HZ
     if rate_hz is not None:
         check_rate_hz(rate_hz)
     nominal = 1.0 / rate_hz if rate_hz is not None else nominal_step_s(t)
@@ -372,21 +387,16 @@ def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = Non
                 off = np.flatnonzero(np.abs(dt - nominal) > DT_TOLERANCE * nominal)
                 if off.size:
                     first_off = (a + int(off[0]), float(dt[off[0]]))
-        slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
-        if rate_hz is None and not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
-            raise LogError(path, None, "sample rate out of range",
-                           f"the median step of time_s is {nominal:.6g} s "
-                           f"({1.0 / nominal:.6g} Hz); allowed {lo_hz:g} Hz .. "
-                           f"{hi_hz / 1000:g} kHz, +/- {RATE_SLACK:.0%} (time_s in seconds?)")
-        if first_off is not None:
-            i, step = first_off
-            kind = "gap" if step >= GAP_STEPS * nominal else "jitter"
-            given = ("--sample-rate-hz" if rate_hz is not None
-                     else "the median step of time_s")
-            raise LogError(path, i + 3, kind,
-                           f"step {step:.4g} s from time_s {time_text(t, i)}; allowed "
-                           f"{nominal:.4g} s +/- {DT_TOLERANCE:.0%} ({rate_text(nominal)}, "
-                           f"{given}){epoch_text(t)}")
+        if rate_hz is None:
+            check_rate_range(nominal, path)
+        if rate_hz is not None and first_off is not None:
+            median_step = nominal_step_s(t)
+            if abs(median_step - nominal) > DT_TOLERANCE * nominal:
+                raise LogError(path, None, "sample rate",
+                               f"the median step of time_s is {median_step:.4g} s "
+                               f"({rate_text(median_step)}), not {nominal:.4g} s +/- "
+                               f"{DT_TOLERANCE:.0%} (--sample-rate-hz {rate_hz:g})"
+                               f"{epoch_text(t)}")
     # a log with the table stopped on every row is stationary: it measures the bias (the
     # SF figures refuse it, logs.bias); a log whose every row is invalid measures nothing
     turning = kept = measures = False
@@ -433,6 +443,17 @@ def temperature_unit_hint(v: np.ndarray) -> str:
 
 
 VALIDATE_BLOCK = 1 << 20  # time steps checked at a time
+
+
+def check_rate_range(nominal: float, path: str) -> None:
+    """Refuse a median step outside RATE_RANGE_HZ (+/- RATE_SLACK): time_s not in seconds."""
+    lo_hz, hi_hz = RATE_RANGE_HZ
+    slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
+    if not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
+        raise LogError(path, None, "sample rate out of range",
+                       f"the median step of time_s is {nominal:.6g} s "
+                       f"({1.0 / nominal:.6g} Hz); allowed {lo_hz:g} Hz .. "
+                       f"{hi_hz / 1000:g} kHz, +/- {RATE_SLACK:.0%} (time_s in seconds?)")
 
 
 def write_log(path: str | Path, log: ChamberLog) -> None:
