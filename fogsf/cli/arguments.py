@@ -152,7 +152,16 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
                         "replay and export: every axis of the log in one run (docs/train.md)")
     g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                    help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
-                        "of time_s); every step must lie within 20 %% of 1/HZ")
+                        "of time_s, which must lie within 20 %% of 1/HZ)")
+    g.add_argument("--max-gap-s", type=positive_float, default=None, metavar="S",
+                   help="a step of time_s longer than S seconds is a gap: the log is then "
+                        "segments, the gap filled with rows that measure nothing (default: "
+                        "1 s, or 10 samples under 10 Hz); shorter steps are jitter or "
+                        "dropped samples, kept as logged")
+    g.add_argument("--gap-states", choices=("carry", "restart"), default="carry",
+                   help="how a model's states cross a gap: carry (default: the gyro stayed "
+                        "on, the temperature interpolated over the gap) or restart (it was "
+                        "off: the next segment's first temperature held, the power-on rule)")
 
 
 def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.Dialect
@@ -175,7 +184,8 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
                    decimal_comma=getattr(args, "decimal_comma", False),
                    sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis,
-                   joins=joins)
+                   joins=joins, max_gap_s=getattr(args, "max_gap_s", None),
+                   gap_states=getattr(args, "gap_states", None) or "carry")
 
 
 def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel

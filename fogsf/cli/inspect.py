@@ -88,7 +88,20 @@ def stationary_summary(log: ChamberLog, window_s: float, latitude_deg: float | N
         "settle_s": None,
         "skip_s": skip_s, "start_ramp_c_per_min": start_ramp_c_per_min(log), "pairs": None,
         "rate_steps": None, "stationary": True, "bias": bias_summary(w),
+        "sampling": sampling_summary(log),
     }
+
+
+def sampling_summary(log: ChamberLog) -> dict | None:
+    """How the rows lie in time (logs/sampling.py): the nominal rate, steps off it, dropped
+    samples, gaps and resets; None for a log made in memory."""
+    s = log.sampling
+    if s is None:
+        return None
+    return {"nominal_rate_hz": 1.0 / s.nominal_s, "steps": s.steps, "jittered": s.jittered,
+            "dropped": s.dropped, "worst_step_s": s.worst_step_s, "gaps": len(s.gaps),
+            "longest_gap_s": max((g for _, g in s.gaps), default=0.0), "resets": len(s.resets),
+            "filled_rows": s.filled_rows, "max_gap_s": s.max_gap_s, "gap_states": s.gap_states}
 
 
 def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
@@ -120,6 +133,7 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
         "rate_steps": None if steps is None else steps.as_dict(),
         "stationary": False,
         "bias": None if bias is None else bias_summary(bias),
+        "sampling": sampling_summary(log),
     }
 
 

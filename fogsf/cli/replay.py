@@ -125,6 +125,26 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     return sf, bias, counts
 
 
+def drop_treatment(log, decimation: int) -> str | None:  # noqa: ANN001 - ChamberLog
+    """How the kernel treated the log's irregular rows (None for a regular log): it runs on
+    the rows as logged, as firmware would, counting samples, not seconds."""
+    s = log.sampling
+    if s is None or not s.irregular:
+        return None
+    parts = []
+    if s.dropped or s.jittered:
+        parts.append(f"the kernel ran on the rows as logged ({s.dropped} dropped samples, "
+                     f"{s.jittered} steps off the nominal {s.nominal_s:.4g} s): it counts "
+                     f"rows, {decimation} a model step, so a step with a dropped sample "
+                     "spans that much more time and its lag states advance as if none were "
+                     "missed (firmware does the same)")
+    if s.filled_rows:
+        parts.append(f"{s.filled_rows} rows filled into {len(s.gaps) + len(s.resets)} gaps "
+                     f"(logged = 0, states {'carried' if s.gap_states == 'carry' else 'restarted'}"
+                     "; --gap-states) ran through the kernel too and are in the output")
+    return "; ".join(parts)
+
+
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
     from fogsf.models.stream import FLAG_NAMES
 
@@ -151,6 +171,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"kernel {build.shared} (model {model.model_id}, {model.layers}x{model.hidden} "
           f"LSTM, D={model.decimation})")
     print(f"replayed {len(log)} samples of {log.path}; wrote {args.out}")
+    how = drop_treatment(log, model.decimation)
+    if how:
+        print(how)
     flagged = {k: v for k, v in counts.items() if v}
     print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
                        else "none"))

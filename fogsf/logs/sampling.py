@@ -53,6 +53,8 @@ class Sampling:
     gaps: list[tuple[int, float]] = field(default_factory=list)  # (row after, length s)
     resets: list[int] = field(default_factory=list)  # rows where the clock stepped back
     filled_rows: int = 0
+    # the first row of each segment in the log as read (gaps filled): [0] without gaps
+    segment_starts: list[int] = field(default_factory=lambda: [0])
     max_gap_s: float = 0.0
     gap_states: str = "carry"
 
@@ -158,6 +160,8 @@ def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
         out[k].append(v[a:])
     out["logged"].append(np.ones(t.shape[0] - a))
     merged = {k: np.concatenate(v) for k, v in out.items()}
+    s.segment_starts = [0, *(int(i) + int(sum(n_fill[:j + 1]))
+                             for j, i in enumerate(cuts))]
     if "valid" not in merged:
         merged["valid"] = merged["logged"].copy()
     s.filled_rows = int(sum(n_fill))
@@ -166,7 +170,7 @@ def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
 
 def on_grid(log: ChamberLog, dt_s: float) -> ChamberLog:
     """`log` on a regular grid of period `dt_s` from its first row, by true time: each grid
-    row the mean of the rows within half a period of it (a row measures when every row there
+    row the mean of the rows within half a period of it (a row is valid when every row there
     measures at one table rate), or, where there is none (a dropped sample), the line between
     its neighbours (measuring nothing). For training: a model step is then its seconds."""
     t = np.asarray(log.time_s[:], dtype=np.float64)
@@ -184,7 +188,8 @@ def on_grid(log: ChamberLog, dt_s: float) -> ChamberLog:
         return m
 
     tab = binned(log.table_rate_dps)
-    meas = np.asarray(log.measures[:], dtype=np.float64)
+    meas = (np.ones(t.shape[0]) if log.valid is None
+            else np.asarray(log.valid[:], dtype=np.float64))
     tab_lo = np.full(n, np.inf)
     tab_hi = np.full(n, -np.inf)
     raw_tab = np.asarray(log.table_rate_dps[:], dtype=np.float64)
@@ -212,7 +217,7 @@ def common_rate(logs: list[ChamberLog]) -> list[ChamberLog]:
     dts = [lg.sample_dt_s for lg in logs]
     slow = max(dts)
     same = all(abs(d - dts[0]) <= DT_TOLERANCE * dts[0] for d in dts)
-    irregular = any(getattr(lg, "sampling", None) is not None and lg.sampling.irregular
+    irregular = any(lg.sampling is not None and (lg.sampling.jittered or lg.sampling.dropped)
                     for lg in logs)
     if same and not irregular:
         return logs

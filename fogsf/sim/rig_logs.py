@@ -398,9 +398,7 @@ def write_loggers(path: str | Path, run: RigRun, seed: int = 0, thermo_hz: float
     _write_text_csv(out.with_name(f"{out.stem}.thermo.csv"), ["wall", "board_T", "chamber_T"],
                     [iso_stamps(wall[th]), [f"{v:.4f}" for v in ax.temp_c[th]],
                      [f"{v:.3f}" for v in chamber[th]]])
-    change = np.flatnonzero(np.diff(run.command_dps, prepend=np.nan) != 0)
-    _write_text_csv(out.with_name(f"{out.stem}.table.csv"), ["wall", "cmd_dps"],
-                    [iso_stamps(wall[change]), [f"{v:.6g}" for v in run.command_dps[change]]])
+    _table_events(out.with_name(f"{out.stem}.table.csv"), run, wall)
     cmap: ColumnMap = {
         "time_s": f"unwrap(t_us, 2**32) * 1e-6 + {boot_wall!r}",
         "gyro_dps": f"rate_z * {DEG_PER_RAD!r}",
@@ -411,10 +409,81 @@ def write_loggers(path: str | Path, run: RigRun, seed: int = 0, thermo_hz: float
                         "max_gap_s": max_gap_s},
              "table": {"file": "{stem}.table.csv", "time_s": "wall",
                        "table_rate_dps": "cmd_dps", "how": "hold"}}
+    return RigLog(out, cmap, {"": run.truth(_one_axis(run), WALL_EPOCH_S)},
+                  _write_map(out.parent, cmap, joins))
+
+
+def _table_events(path: Path, run: RigRun, wall: np.ndarray) -> Path:
+    change = np.flatnonzero(np.diff(run.command_dps, prepend=np.nan) != 0)
+    return _write_text_csv(path, ["wall", "cmd_dps"],
+                           [iso_stamps(wall[change]),
+                            [f"{v:.6g}" for v in run.command_dps[change]]])
+
+
+def write_px4(path: str | Path, run: RigRun, seed: int = 0, jitter: float = 0.15,
+              drops_per_1000: float = 2.0) -> RigLog:
+    """A PX4-style `sensor_gyro` export of a run: timestamp (us since boot, the samples'
+    stamps jittered by +/- `jitter` of a sample, uniform), device_id, x, y, z (rad/s: the
+    run's gyro on z, the others its noise), temperature (C); `drops_per_1000` samples in a
+    thousand dropped (one or two in a row); the table controller's commands beside it
+    (`{stem}.table.csv`, ISO wall time), joined by the map."""
+    ax = run.axes[_one_axis(run)]
+    out = Path(path)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x9E4]))
+    n = run.stamp_s.shape[0]
+    dt = run.protocol.dt_s
+    boot_s = float(rng.uniform(30.0, 600.0))
+    stamp = run.stamp_s + rng.uniform(-jitter, jitter, n) * dt
+    keep = np.ones(n, dtype=bool)
+    k = int(round(n * drops_per_1000 / 1000.0))
+    at = rng.choice(np.arange(1, n - 2), size=k, replace=False)
+    keep[at] = False
+    keep[at[rng.random(k) < 0.3] + 1] = False  # some drop two in a row
+    rows = np.flatnonzero(keep)
+    t_us = np.round((stamp + boot_s) * 1e6).astype(np.int64)
+    rate = ax.gyro_dps / DEG_PER_RAD
+    other = rng.normal(0.0, 1e-4, (2, n))
+    _write_text_csv(out, ["timestamp", "device_id", "x", "y", "z", "temperature"],
+                    [[str(int(v)) for v in t_us[rows]], ["2293768"] * rows.size,
+                     [f"{v:.9g}" for v in other[0, rows]], [f"{v:.9g}" for v in other[1, rows]],
+                     [f"{v:.12g}" for v in rate[rows]], [f"{v:.4f}" for v in ax.temp_c[rows]]])
+    boot_wall = float(WALL_EPOCH_S - boot_s)
+    _table_events(out.with_name(f"{out.stem}.table.csv"), run, WALL_EPOCH_S + run.stamp_s)
+    cmap: ColumnMap = {"time_s": f"timestamp * 1e-6 + {boot_wall!r}",
+                       "gyro_dps": f"z * {DEG_PER_RAD!r}", "temp_c": "temperature",
+                       "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine)}
+    joins = {"table": {"file": "{stem}.table.csv", "time_s": "wall",
+                       "table_rate_dps": "cmd_dps", "how": "hold"}}
+    truth = run.truth(_one_axis(run), WALL_EPOCH_S)
+    truth = Truth(*(getattr(truth, f)[rows] if isinstance(getattr(truth, f), np.ndarray)
+                    and getattr(truth, f).shape == (n,) else getattr(truth, f)
+                    for f in Truth.__dataclass_fields__))
+    truth.time_s = boot_wall + t_us[rows] * 1e-6
+    return RigLog(out, cmap, {"": truth}, _write_map(out.parent, cmap, joins))
+
+
+def _write_map(folder: Path, cmap: ColumnMap, joins: dict[str, dict[str, Any]]) -> Path:
     text = "".join(f"{k} = {json.dumps(v)}\n" for k, v in cmap.items())
     for name, table in joins.items():
         text += f"\n[join.{name}]\n" + "".join(f"{k} = {json.dumps(v)}\n"
                                                 for k, v in table.items())
-    mpath = out.parent / "fogsf-columns.toml"
-    mpath.write_text(text, encoding="utf-8")
-    return RigLog(out, cmap, {"": run.truth(_one_axis(run), WALL_EPOCH_S)}, mpath)
+    path = folder / "fogsf-columns.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def write_bursts(path: str | Path, run: RigRun, burst_s: float = 5.0,
+                 every_s: float = 300.0) -> RigLog:
+    """A burst logger's file of a stationary run: `burst_s` of samples every `every_s`
+    (a thermal-vacuum chamber's data logger), time (epoch s), temp (C), rate (deg/s); the
+    map gives the stopped table and the earth rate. Rows between bursts are not written."""
+    ax = run.axes[_one_axis(run)]
+    t = run.stamp_s
+    keep = np.mod(t - t[0] + 1e-9, every_s) < burst_s - 1e-9
+    cols = {"time": EPOCH_S + t[keep], "temp": ax.temp_c[keep], "rate": ax.gyro_dps[keep]}
+    out = _write_csv(path, cols, ["%.6f", "%.10g", "%.12g"])
+    cmap: ColumnMap = {"time_s": "time", "temp_c": "temp", "gyro_dps": "rate",
+                       "table_rate_dps": 0,
+                       "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine)}
+    truth = run.truth(_one_axis(run), EPOCH_S)
+    return RigLog(out, cmap, {"": truth}, write_mapping(out.parent, cmap))

@@ -558,8 +558,10 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
                  test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, Fitted]:
     """Train, score, and write the model directory; returns metrics.json's content and the
     fitted model."""
+    from fogsf.logs.sampling import common_rate
     from fogsf.training import bias_model as bm
 
+    train_logs = common_rate(train_logs)  # other rates, jitter, drops: on one grid of time
     for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
         decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
     if bm.check_mixed(train_logs):  # stationary logs alone: a bias-only model
