@@ -289,8 +289,13 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
     if dialect.sample_rate_hz is None:
         check_rate_range(nominal, path)
     sampling = survey(t, nominal, max_gap)
+    if dialect.sample_rate_hz is None and sampling.jittered > 0.01 * sampling.steps:
+        # a jittered clock: its period is the mean step (each counted in samples), not the
+        # median of jittered steps
+        nominal = 1.0 / float(f"{1.0 / sampling.mean_step_s:.6g}")
+        sampling = survey(t, nominal, max_gap)
     cols = mend_segments(cols, sampling, dialect.gap_states)
-    dt = validate(cols, path, dialect.sample_rate_hz)
+    dt = validate(cols, path, dialect.sample_rate_hz, nominal)
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
         notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
                      f"{'--sample-rate-hz' if dialect.sample_rate_hz else 'from time_s'})")
@@ -367,12 +372,16 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
             raise err
 
 
-def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:
-    """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s)."""
+def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None,
+             nominal: float | None = None) -> float:
+    """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s):
+    1 / rate_hz, else `nominal` (the reader's, logs/sampling.py), else time_s's median step."""
     t = cols["time_s"]
     if rate_hz is not None:
         check_rate_hz(rate_hz)
-    nominal = 1.0 / rate_hz if rate_hz is not None else nominal_step_s(t)
+        nominal = 1.0 / rate_hz
+    elif nominal is None:
+        nominal = nominal_step_s(t)
     if t.shape[0] >= 2:
         first_off: tuple[int, float] | None = None  # (index, step) of the first step off
         for a in range(0, t.shape[0] - 1, VALIDATE_BLOCK):  # no log-long temporaries

@@ -57,6 +57,9 @@ class Sampling:
     segment_starts: list[int] = field(default_factory=lambda: [0])
     max_gap_s: float = 0.0
     gap_states: str = "carry"
+    # the mean step within segments, each counted as round(step / nominal) samples: the
+    # clock's true period under jitter (the median step is one jittered step)
+    mean_step_s: float = 0.0
 
     @property
     def irregular(self) -> bool:
@@ -95,12 +98,15 @@ def survey(t: Column, nominal_s: float, max_gap_s: float, block: int = 1 << 20) 
     s = Sampling(nominal_s, max_gap_s=max_gap_s)
     n = int(t.shape[0]) if hasattr(t, "shape") else len(t)
     worst = -1.0
+    span = count = 0.0
     for a in range(0, max(n - 1, 0), block):
         dt = np.diff(np.asarray(t[a:a + block + 1], dtype=np.float64))
         s.steps += int(dt.shape[0])
         s.resets += [a + int(i) + 1 for i in np.flatnonzero(dt < -max_gap_s)]
         s.gaps += [(a + int(i) + 1, float(dt[i])) for i in np.flatnonzero(dt > max_gap_s)]
         inside = (dt > 0) & (dt <= max_gap_s)
+        span += float(dt[inside].sum())
+        count += float(np.maximum(np.round(dt[inside] / nominal_s), 1.0).sum())
         drop = inside & (dt >= GAP_STEPS * nominal_s)
         s.drop_steps += int(drop.sum())
         s.dropped += int(np.maximum(np.round(dt[drop] / nominal_s) - 1, 1).sum())
@@ -111,6 +117,7 @@ def survey(t: Column, nominal_s: float, max_gap_s: float, block: int = 1 << 20) 
             i = int(np.argmax(dev))
             if dev[i] > worst:
                 worst, s.worst_step_s = float(dev[i]), float(dt[i])
+    s.mean_step_s = span / count if count else nominal_s
     return s
 
 
@@ -170,9 +177,10 @@ def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
 
 def on_grid(log: ChamberLog, dt_s: float) -> ChamberLog:
     """`log` on a regular grid of period `dt_s` from its first row, by true time: each grid
-    row the mean of the rows within half a period of it (a row is valid when every row there
-    measures at one table rate), or, where there is none (a dropped sample), the line between
-    its neighbours (measuring nothing). For training: a model step is then its seconds."""
+    row the mean of the rows within half a period of it (valid when every row there is, at
+    one table rate), or, where there is none (a dropped sample), the line between its
+    neighbours (valid when both are, at one table rate). For training: a model step is then
+    its seconds."""
     t = np.asarray(log.time_s[:], dtype=np.float64)
     n = int(np.floor((t[-1] - t[0]) / dt_s + 1e-9)) + 1
     grid = t[0] + dt_s * np.arange(n)
@@ -197,8 +205,15 @@ def on_grid(log: ChamberLog, dt_s: float) -> ChamberLog:
     np.maximum.at(tab_hi, k, raw_tab)
     all_meas = np.bincount(k, weights=meas, minlength=n) == count
     valid = have & all_meas & (tab_lo == tab_hi)
-    keep = have & (tab_lo == tab_hi)
-    tab = np.where(keep, tab, 0.0)  # a row between two commands measures nothing
+    tab = np.where(have & (tab_lo != tab_hi), 0.0, tab)  # a row between two commands
+    if not have.all():  # a dropped sample: the line between its neighbours, which measures
+        # when both do at one table rate
+        idx = np.arange(n)
+        prev = np.maximum.accumulate(np.where(have, idx, 0))
+        nxt = np.minimum.accumulate(np.where(have, idx, n - 1)[::-1])[::-1]
+        bridge = ~have & valid[prev] & valid[nxt] & (tab[prev] == tab[nxt])
+        tab = np.where(~have, np.where(bridge, tab[prev], 0.0), tab)
+        valid = valid | bridge
     return replace(
         log, time_s=grid, temp_c=binned(log.temp_c), table_rate_dps=tab,
         gyro_dps=binned(log.gyro_dps),
