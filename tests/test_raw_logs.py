@@ -253,3 +253,17 @@ def test_a_heated_rig_takes_the_nearest_temperature(tmp_path: Path, capsys) -> N
     lo = s["temp_range_c"][0]
     assert lo > 25.0 and lo <= s["ref_temp_c"] <= lo + 1.0  # its windows' nearest to 20 C
     assert "nearest temperature" in out.err
+
+
+def test_a_ros2_bag_exported_to_csv(tmp_path: Path) -> None:
+    rng = np.random.default_rng(SEED + 4)
+    gyro, seed = int(rng.integers(20000, 30000)), int(rng.integers(0, 1000))
+    r = short_run(gyro, seed)
+    rl = rig_logs.write_ros2_export(tmp_path / "imu.csv", r)
+    lg = read_log(rl.path)
+    msg = f"gyro {gyro} seed {seed}"
+    assert np.abs(lg.time_s - rl.truth[""].time_s).max() < 1e-6, msg
+    assert np.allclose(lg.gyro_dps, r.axes[""].gyro_dps, rtol=1e-11), msg
+    assert np.array_equal(lg.table_rate_dps, r.command_dps), msg
+    assert np.abs(lg.temp_c - r.axes[""].temp_c).max() < 0.2, msg
+    assert "header.frame_id" in " ".join(lg.read_notes), msg

@@ -487,3 +487,41 @@ def write_bursts(path: str | Path, run: RigRun, burst_s: float = 5.0,
                        "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine)}
     truth = run.truth(_one_axis(run), EPOCH_S)
     return RigLog(out, cmap, {"": truth}, write_mapping(out.parent, cmap))
+
+
+def write_ros2_export(path: str | Path, run: RigRun, thermo_hz: float = 1.0) -> RigLog:
+    """A ROS 2 bag exported to CSV, a file per topic: `path` (/imu: header.stamp.sec,
+    header.stamp.nanosec, header.frame_id, angular_velocity.x/.y/.z in rad/s),
+    `{stem}.board_temperature.csv` (/board_temperature at `thermo_hz`: the stamp,
+    header.frame_id, temperature) and `{stem}.table.csv` (/table/cmd on each change: the
+    stamp, data in deg/s); the map joins both topics onto /imu's stamps."""
+    ax = run.axes[_one_axis(run)]
+    out = Path(path)
+    ns = np.int64(round(WALL_EPOCH_S * 1e9)) + np.round(run.stamp_s * 1e9).astype(np.int64)
+    sec, nsec = ns // 1_000_000_000, ns % 1_000_000_000
+
+    def stamp(rows: np.ndarray) -> list[list[str]]:
+        return [[str(int(v)) for v in sec[rows]], [str(int(v)) for v in nsec[rows]]]
+
+    head = ["header.stamp.sec", "header.stamp.nanosec", "header.frame_id"]
+    rows = np.arange(run.stamp_s.shape[0])
+    rate = ax.gyro_dps / DEG_PER_RAD
+    _write_text_csv(out, [*head, "angular_velocity.x", "angular_velocity.y",
+                          "angular_velocity.z"],
+                    [*stamp(rows), ["imu_link"] * rows.size, ["0"] * rows.size,
+                     ["0"] * rows.size, [f"{v:.12g}" for v in rate]])
+    th = np.arange(0, rows.size, max(1, int(round(run.protocol.rate_hz / thermo_hz))))
+    _write_text_csv(out.with_name(f"{out.stem}.board_temperature.csv"), [*head, "temperature"],
+                    [*stamp(th), ["board"] * th.size, [f"{v:.4f}" for v in ax.temp_c[th]]])
+    change = np.flatnonzero(np.diff(run.command_dps, prepend=np.nan) != 0)
+    _write_text_csv(out.with_name(f"{out.stem}.table.csv"), [*head[:2], "data"],
+                    [*stamp(change), [f"{v:.6g}" for v in run.command_dps[change]]])
+    when = "`header.stamp.sec` + `header.stamp.nanosec` * 1e-9"
+    cmap: ColumnMap = {"time_s": when, "gyro_dps": f"`angular_velocity.z` * {DEG_PER_RAD!r}",
+                       "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine)}
+    joins = {"board": {"file": "{stem}.board_temperature.csv", "time_s": when,
+                       "temp_c": "temperature", "how": "interpolate", "max_gap_s": 5.0},
+             "table": {"file": "{stem}.table.csv", "time_s": when,
+                       "table_rate_dps": "data", "how": "hold"}}
+    return RigLog(out, cmap, {"": run.truth(_one_axis(run), WALL_EPOCH_S)},
+                  _write_map(out.parent, cmap, joins))
