@@ -56,6 +56,9 @@ class Dialect:
     # model's states cross it: "carry" or "restart"
     max_gap_s: float | None = None
     gap_states: str = "carry"
+    # a field-format file's stream read as the log (logs/field_formats.py): the map's
+    # `stream = "/imu"`; None: the file's only one
+    stream: str | None = None
 
     @property
     def gyro_name(self) -> str | None:
@@ -68,7 +71,8 @@ class Dialect:
         number, or an expression over the log's columns."""
         p = Path(path)
         m = _map_file(p)
-        m = {k: v for k, v in m.items() if k != "join"} if isinstance(m, dict) else m
+        m = ({k: v for k, v in m.items() if k not in ("join", "stream")}
+             if isinstance(m, dict) else m)
         if not isinstance(m, dict) or not m or not all(_is_value(v) for v in m.values()):
             raise UserError(f"{p}: expected a mapping of our names to the log's columns, "
                             'numbers or expressions, e.g. {"time_s": "t", "earth_rate_dps": '
@@ -82,6 +86,15 @@ class Dialect:
         if not isinstance(m, dict) or "join" not in m:
             return ()
         return joins_of(m["join"], str(path), is_our_name)
+
+    @staticmethod
+    def mapping_stream(path: str | Path) -> str | None:
+        """The `stream = "..."` of a column map file (a field format's main stream)."""
+        m = _map_file(Path(path))
+        v = m.get("stream") if isinstance(m, dict) else None
+        if v is not None and not isinstance(v, str):
+            raise UserError(f"{path}: stream = {v!r}: a topic, message or group name")
+        return v
 
     @staticmethod
     def parse_columns(text: str) -> tuple[tuple[str, str], ...]:

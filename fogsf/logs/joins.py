@@ -27,7 +27,7 @@ from fogsf.logs.column_map import plan_map, with_kinds
 from fogsf.logs.columns import Column
 
 HOW = ("interpolate", "hold")
-JOIN_KEYS = ("file", "time_s", "how", "max_gap_s")
+JOIN_KEYS = ("file", "stream", "time_s", "how", "max_gap_s")
 DEFAULT_MAX_GAP = {"interpolate": None, "hold": None}  # None: 3 median steps (interpolate)
 
 
@@ -37,12 +37,13 @@ class Join:
     put on the main clock."""
 
     name: str
-    file: str
+    file: str  # "" for a stream of a field-format log (`stream`)
     time_s: str
     columns: tuple[tuple[str, str], ...]
     how: str = "interpolate"
     max_gap_s: float | None = None
     origin: str = ""
+    stream: str | None = None  # a topic, message or group of the same field-format file
 
 
 def joins_of(table: object, origin: str, is_ours) -> tuple[Join, ...]:  # noqa: ANN001
@@ -55,9 +56,14 @@ def joins_of(table: object, origin: str, is_ours) -> tuple[Join, ...]:  # noqa: 
         where = f"{origin}: [join.{name}]"
         if not isinstance(t, dict):
             raise UserError(f"{where}: expected a table (file = ..., time_s = ..., ...)")
-        for key in ("file", "time_s"):
-            if not isinstance(t.get(key), str) or not t[key].strip():
-                raise UserError(f"{where}: {key} = \"...\" is required")
+        stream = t.get("stream")
+        if stream is not None and (not isinstance(stream, str) or not stream.strip()):
+            raise UserError(f"{where}: stream = {stream!r}: a topic, message or group name")
+        if stream is None and (not isinstance(t.get("file"), str) or not t["file"].strip()):
+            raise UserError(f"{where}: file = \"...\" is required (or stream = \"...\" for "
+                            "a stream of the same bag, ULog or TDMS file)")
+        if not isinstance(t.get("time_s"), str) or not t["time_s"].strip():
+            raise UserError(f"{where}: time_s = \"...\" is required")
         how = t.get("how", "interpolate")
         if how not in HOW:
             raise UserError(f"{where}: how = {how!r}; allowed: {', '.join(HOW)}")
@@ -77,8 +83,8 @@ def joins_of(table: object, origin: str, is_ours) -> tuple[Join, ...]:  # noqa: 
             cols.append((ours, theirs if isinstance(theirs, str) else repr(theirs)))
         if not cols:
             raise UserError(f"{where}: names no column to join (e.g. temp_c = \"board_T\")")
-        out.append(Join(str(name), t["file"], t["time_s"], tuple(cols), how,
-                        None if gap is None else float(gap), origin))
+        out.append(Join(str(name), t.get("file", ""), t["time_s"], tuple(cols), how,
+                        None if gap is None else float(gap), origin, stream))
     return tuple(out)
 
 
@@ -100,6 +106,8 @@ def read_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
     from fogsf.logs.dialect import Dialect, find_delimiter, raw_header
     from fogsf.logs.line_scan import bad_cell_in
 
+    if j.stream:
+        return _field_stream(j, log_path)
     path = join_path(j, log_path)
     p = str(path)
     try:
@@ -130,9 +138,25 @@ def read_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
             if bad is not None:
                 raise bad
         raise LogError(p, None, "unreadable", "numbers could not be parsed")
+    return p, _checked_stream(j, plan.apply(data, p), p)
+
+
+def _field_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
+    """A join's stream of the same field-format file (logs/field_formats.py)."""
+    from fogsf.logs.field_formats import as_table, main_stream
+
+    name, stream = main_stream(log_path, j.stream, f"[join.{j.name}]")
+    names, data = as_table(stream)
+    p = f"{log_path} [{name}]"
+    plan = plan_map(names, (("time_s", j.time_s), *j.columns), f"[join.{j.name}]", p)
+    return p, _checked_stream(j, plan.apply(data, p), p)
+
+
+def _checked_stream(j: Join, built: dict[str, np.ndarray], p: str
+                    ) -> dict[str, np.ndarray]:
+    """A stream's time and joined columns; exact duplicates dropped, time increasing."""
     wanted = {"time_s", *(ours for ours, _ in j.columns)}
-    cols = {k: np.asarray(v, dtype=np.float64) for k, v in plan.apply(data, p).items()
-            if k in wanted}
+    cols = {k: np.asarray(v, dtype=np.float64) for k, v in built.items() if k in wanted}
     t = cols["time_s"]
     dt = np.diff(t)
     dup = np.flatnonzero(dt == 0) + 1
@@ -146,7 +170,7 @@ def read_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
         i = int(back[0])
         raise LogError(p, i + 3, "time not increasing",
                        f"time_s {time_text(t, i + 1)} after {time_text(t, i)}")
-    return p, cols
+    return cols
 
 
 @dataclass

@@ -46,14 +46,17 @@ from fogsf.logs.column_map import ColumnPlan, with_kinds
 from fogsf.logs.columns import Column, blocks, col_max, col_min, derived, is_lazy
 from fogsf.logs.dialect import (
     Dialect,
+    checked_names,
     find_delimiter,
     log_axes,
     map_plan,
     mapping_beside,
+    names_plan,
     raw_header,
     read_header,
     unquote_lines,
 )
+from fogsf.logs.field_formats import as_table, format_of, main_stream
 from fogsf.logs.joins import apply_joins
 from fogsf.logs.line_scan import bad_cell_in, first_bad_line
 from fogsf.logs.parquet_log import (
@@ -73,6 +76,8 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     dialect = with_mapping_beside(path, dialect or Dialect())
     if is_parquet(path):
         return read_parquet_log(path, dialect, _log_of)
+    if format_of(path) is not None:
+        return read_field_log(path, dialect)
     fast = _read_plain(path, dialect)
     if fast is not None:
         return fast
@@ -82,6 +87,17 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     except (OSError, UnicodeDecodeError) as e:
         raise cannot_read(p, e) from None
     return parse_log(text, p, dialect)
+
+
+def read_field_log(path: str | Path, dialect: Dialect) -> ChamberLog:
+    """A field-format file's main stream (logs/field_formats.py) read as a log: its columns
+    through the column map, as a CSV's."""
+    p = str(path)
+    name, stream = main_stream(path, dialect.stream, dialect.columns_from)
+    names, data = as_table(stream)
+    notes = [f"{format_of(path)} stream {name}"]
+    plan = names_plan(checked_names(names, p), p, dialect, notes)
+    return _log_of(data, plan, p, dialect, notes)
 
 
 def cannot_read(path: str, e: OSError | UnicodeDecodeError) -> LogError:
@@ -102,7 +118,7 @@ def with_mapping_beside(path: str | Path, dialect: Dialect) -> Dialect:
     if beside is None:
         return dialect
     return replace(dialect, columns=Dialect.mapping_file(beside), columns_from=str(beside),
-                   joins=Dialect.mapping_joins(beside))
+                   joins=Dialect.mapping_joins(beside), stream=Dialect.mapping_stream(beside))
 
 
 def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
@@ -115,6 +131,9 @@ def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
     dialect = with_mapping_beside(path, dialect)
     if is_parquet(path):
         return log_axes(in_rows(p, lambda: map_plan(parquet_names(path), dialect, p, [])).names)
+    if format_of(path) is not None:
+        names = list(main_stream(path, dialect.stream, dialect.columns_from)[1])
+        return log_axes(map_plan(names, dialect, p, []).names)
     try:
         with open(path, encoding="utf-8-sig") as f:
             first = f.readline().rstrip("\r\n")
