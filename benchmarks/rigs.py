@@ -192,8 +192,8 @@ def run_raw(name: str, gyro: int, seed: int, work: Path) -> list[dict]:
 
     folder = work / f"{name}-{gyro}"
     if name == "loggers":  # IMU at 100 Hz on its boot clock, thermometers at 1 Hz, table
-        train_run = rigs.run_rig(_loop_protocol(100.0, -10.0, 40.0, 1.5, 1.0), gyro, seed)
-        test_run = rigs.run_rig(_loop_protocol(100.0, -10.0, 40.0, 1.2, 1.3), gyro, seed + 1)
+        train_run = rigs.run_rig(_loop_protocol(100.0, -10.0, 40.0, 1.0, 0.7), gyro, seed)
+        test_run = rigs.run_rig(_loop_protocol(100.0, -10.0, 40.0, 0.8, 0.9), gyro, seed + 1)
         tr = rig_logs.write_loggers(folder / "train" / "imu.csv", train_run, seed=seed)
         te = rig_logs.write_loggers(folder / "test" / "imu.csv", test_run, seed=seed + 1)
         took = _train([str(tr.path)], folder / "model", seed)

@@ -267,3 +267,17 @@ def test_a_ros2_bag_exported_to_csv(tmp_path: Path) -> None:
     assert np.array_equal(lg.table_rate_dps, r.command_dps), msg
     assert np.abs(lg.temp_c - r.axes[""].temp_c).max() < 0.2, msg
     assert "header.frame_id" in " ".join(lg.read_notes), msg
+
+
+def test_clocks_that_disagree_are_said_loudly(tmp_path: Path) -> None:
+    r = short_run(20004, 2)
+    rl = rig_logs.write_loggers(tmp_path / "imu.csv", r, seed=2)
+    text = rl.mapping_path.read_text()
+    off = text.split("* 1e-6 + ")[1].split('"')[0]
+    rl.mapping_path.write_text(text.replace(off, repr(float(off) + 600.0)))  # 10 min off
+    notes = " | ".join(read_log(rl.path).read_notes)
+    assert "CHECK THE CLOCKS" in notes, notes
+    wrong = float(off) + 2.0**32 * 1e-6  # the offset of a counter that wrapped once more
+    rl.mapping_path.write_text(text.replace(off, repr(wrong)))
+    with pytest.raises(UserError, match="covers none of the log's rows.*check the clocks"):
+        read_log(rl.path)

@@ -28,7 +28,7 @@ from fogsf.logs.columns import Column
 
 HOW = ("interpolate", "hold")
 JOIN_KEYS = ("file", "stream", "time_s", "how", "max_gap_s")
-DEFAULT_MAX_GAP = {"interpolate": None, "hold": None}  # None: 3 median steps (interpolate)
+CLOCK_CHECK_S = 60.0  # a stream starting or ending this far from the log: said loudly
 
 
 @dataclass(frozen=True)
@@ -195,7 +195,17 @@ class JoinReport:
         return (f"join {self.name} ({Path(self.path).name}): {self.covered} of {self.rows} "
                 f"rows covered, {self.rows - self.covered} measure nothing; {limit}; the stream "
                 f"starts {self.start_offset_s:+.3f} s and ends {self.end_offset_s:+.3f} s "
-                "from the log's first and last rows")
+                "from the log's first and last rows" + self.warning())
+
+    def warning(self) -> str:
+        """A loud word when the clocks look wrong: a tenth of the rows or more uncovered, or
+        the stream starting or ending a minute or more away from the log."""
+        far = max(abs(self.start_offset_s), abs(self.end_offset_s))
+        if self.covered >= 0.9 * self.rows and far < CLOCK_CHECK_S:
+            return ""
+        return (f" -- CHECK THE CLOCKS: {100.0 * (1 - self.covered / self.rows):.0f} % of the "
+                f"rows uncovered, the ends up to {far:.1f} s apart (a wrong offset in "
+                "time_s, or a counter that wrapped before the first row?)")
 
 
 def apply_joins(cols: dict[str, Column], joins: tuple[Join, ...], path: str,
@@ -234,6 +244,12 @@ def apply_joins(cols: dict[str, Column], joins: tuple[Join, ...], path: str,
                 out[ours] = np.interp(t, ts, v)
             else:
                 out[ours] = v[np.clip(k, 0, ts.size - 1)]
+        if not ok.any():
+            raise UserError(f"{path}: [join.{j.name}] ({j.origin}): the stream covers none of "
+                            f"the log's rows: it runs {ts[0] - t[0]:+.3f} .. "
+                            f"{ts[-1] - t[0]:+.3f} s from the log's first row, the log "
+                            f"0 .. {t[-1] - t[0]:.3f} s; check the clocks (time_s of the "
+                            "log and of the join)")
         covered_all &= ok
         gaps = [(float(a), float(b - a)) for a, b in zip(ts[:-1], ts[1:], strict=True)
                 if b - a > gap]

@@ -376,8 +376,9 @@ def write_loggers(path: str | Path, run: RigRun, seed: int = 0, thermo_hz: float
     out = Path(path)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x10661]))
     n = run.stamp_s.shape[0]
-    if boot_s is None:
-        boot_s = WRAP_US * 1e-6 - run.stamp_s[-1] * float(rng.uniform(0.3, 0.6))
+    if boot_s is None:  # the counter's first wrap a third to two thirds into the run
+        boot_s = WRAP_US * 1e-6 - (run.stamp_s[-1] * float(rng.uniform(0.3, 0.6))) % (
+            WRAP_US * 1e-6)
     boot_wall = float(WALL_EPOCH_S - boot_s)  # the wall time of the IMU's boot
     t_us = np.round((run.stamp_s + boot_s) * 1e6).astype(np.int64) % WRAP_US
     rows = np.arange(n)
