@@ -132,6 +132,8 @@ def test_a_burst_log_is_segments_trains_a_bias_model_and_replays(tmp_path: Path,
                  str(tmp_path / "c.csv"), "--build-dir", str(tmp_path / "k")]) == 0
     text = capsys.readouterr().out
     assert "rows filled into 30 gaps" in text and "after  max|e|" in text, text
+    # the output holds the file's rows, the filled ones run but not written
+    assert sum(1 for _ in open(tmp_path / "c.csv")) - 1 == int(logged.sum()), msg
 
 
 def test_restart_holds_the_next_segments_temperature(tmp_path: Path) -> None:

@@ -98,6 +98,7 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     sf = None if on_disk else np.empty(n, np.float32)
     bias = None if on_disk or not bias_head else np.empty(n, np.float32)
     counts: dict[str, int] = {}
+    logged = log.extra.get("logged")  # rows filled into gaps: run, not written
     st = kernel.new_state()
     tell = progress_bar("replay", "samples") if on_disk else None
     with CorrectedWriter(path, bias=bias_head) as w:
@@ -114,8 +115,9 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
                 sf_out.append(block_sf)
             if bias_out is not None:
                 bias_out.append(block_bias)
-            w.write(np.asarray(log.time_s[a:b]), gyro, corrected, block_sf,
-                    block_bias if bias_head else None)
+            keep = slice(None) if logged is None else np.asarray(logged[a:b]) != 0.0
+            w.write(np.asarray(log.time_s[a:b])[keep], gyro[keep], corrected[keep],
+                    block_sf[keep], block_bias[keep] if bias_head else None)
             for name, c in flag_counts(flags).items():
                 counts[name] = counts.get(name, 0) + c
             if tell is not None:
@@ -140,8 +142,9 @@ def drop_treatment(log, decimation: int) -> str | None:  # noqa: ANN001 - Chambe
                      "missed (firmware does the same)")
     if s.filled_rows:
         parts.append(f"{s.filled_rows} rows filled into {len(s.gaps) + len(s.resets)} gaps "
-                     f"(logged = 0, states {'carried' if s.gap_states == 'carry' else 'restarted'}"
-                     "; --gap-states) ran through the kernel too and are in the output")
+                     f"(states {'carried' if s.gap_states == 'carry' else 'restarted'}; "
+                     "--gap-states) ran through the kernel too; the output holds the "
+                     "log's own rows")
     return "; ".join(parts)
 
 
