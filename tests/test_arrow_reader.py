@@ -99,8 +99,6 @@ BAD = {  # name -> (file text, dialect, the refusal's start)
     "overflow": (_with(11, "1.0,20.1,10,1e400"), Dialect(), "line 11: non-finite cell"),
     "quoted-data": (_with(13, '1.1,20.11,10,"10"'), Dialect(), None),  # read, not refused
     "time-back": (_with(31, "2.0,20.3,10,10"), Dialect(), "line 31: time not increasing"),
-    "gap": ("\n".join(text(rows()).split("\n")[:30] + text(rows()).split("\n")[31:]),
-            Dialect(), "line 31: gap"),
     "too-hot": (_with(40, "3.8,120,10,10"), Dialect(), "line 40: temperature out of range"),
     "delimiter-in-quotes": (_quoted(_with(15, "1.4,20.14,10,10,5")).replace('"10","5"',
                                                                              '"10,5"'),

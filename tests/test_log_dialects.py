@@ -103,12 +103,21 @@ def test_one_axis_of_a_three_axis_log(plain: Path, tmp_path: Path, capsys) -> No
     assert "--axis or --gyro-column" in capsys.readouterr().err
 
 
-def test_a_log_that_never_reaches_20_c_names_ref_sf(tmp_path: Path, capsys) -> None:
+def test_a_log_that_never_reaches_20_c_takes_the_nearest_temperature(tmp_path: Path,
+                                                                       capsys) -> None:
     warm = tmp_path / "warm.csv"
     assert main(["simulate", "--scenario", "paper", "--start-c", "30", "--stop-c", "40",
                  "--ramp-rate", "1", "--out", str(warm)]) == 0
-    assert main(["inspect", str(warm)]) == 2
-    assert "--ref-sf" in capsys.readouterr().err
+    capsys.readouterr()
+    assert main(["inspect", "--json", str(warm)]) == 0
+    out = capsys.readouterr()
+    s = json.loads(out.out)
+    lo, hi = s["temp_range_c"]
+    assert lo - 0.5 <= s["ref_temp_c"] <= lo + 1.0  # the nearest to 20 C its windows hold
+    assert "nearest temperature" in out.err and "--ref-sf" in out.err
+    assert main(["inspect", "--json", str(warm), "--ref-temp-c", "35"]) == 0
+    s35 = json.loads(capsys.readouterr().out)
+    assert s35["ref_temp_c"] == 35.0 and s35["ref_sf_ratio"] != s["ref_sf_ratio"]
     assert main(["inspect", str(warm), "--ref-sf", "1.0"]) == 0
 
 
@@ -250,10 +259,10 @@ def test_ref_sf_from_a_longer_run_makes_a_cold_log_usable(plain: Path, tmp_path:
                        str(tmp_path / "poly")],
              "replay": ["replay", str(tmp_path / "m"), str(cold), "--out",
                         str(tmp_path / "c.csv"), "--build-dir", str(tmp_path / "kernels")]}
-    for cmd in ("inspect", "train"):
-        assert "--ref-sf" in _refused(capsys, *argvs[cmd]), cmd
-    assert main(argvs["replay"]) == 0  # replay runs the kernel, then says why no metrics
-    assert "no before/after metrics" in capsys.readouterr().out
+    for cmd in ("inspect", "train", "replay"):  # the SF at the nearest temperature held
+        assert main(argvs[cmd]) == 0, cmd
+        err = capsys.readouterr().err
+        assert "nearest temperature" in err and "--ref-sf" in err, (cmd, err)
     ref = _inspect_json(capsys, str(plain))[0]["ref_sf_ratio"]
     got = _inspect_json(capsys, str(cold), "--ref-sf", repr(ref))[0]
     assert got["ref_sf_ratio"] == ref and got["metrics"]["rms_ppm"] > 0

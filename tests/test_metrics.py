@@ -12,6 +12,7 @@ from fogsf.logs.metrics import (
     log_metrics,
     metrics_block,
     reference_sf,
+    reference_temp_c,
     sf_error_ppm,
     sf_windows,
 )
@@ -110,11 +111,11 @@ def test_plateau_pairs_separate_sf_and_bias() -> None:
     np.testing.assert_allclose(pp.bias_dps, 1e-3 + 0.0023 * 200e-6, atol=1e-12)
 
 
-def test_reference_needs_20c() -> None:
+def test_a_log_off_20c_takes_the_nearest_temperature(capsys) -> None:
     n = 20000
     log = ramp_log(n, np.zeros(n), temp=np.linspace(30, 50, n))
-    with pytest.raises(UserError, match="never spans 20"):
-        log_metrics(log)
+    log_metrics(log)
+    assert "the SF reference is the SF at 30" in capsys.readouterr().err
     assert log_metrics(log, ref=1.0)["max_abs_ppm"] < 1e-6
 
 
@@ -137,5 +138,6 @@ def test_reference_between_set_points() -> None:
     w = sf_windows(log, 20.0)
     assert abs(reference_sf(w) - 1.0) < 1e-9
     far = ramp_log(n, sf, temp=np.where(np.arange(n) < n // 2, 2.0, 31.0))
-    with pytest.raises(UserError, match="both sides"):
-        reference_sf(sf_windows(far, 20.0))
+    wf = sf_windows(far, 20.0)  # too far to interpolate: the nearest set point, 31 C
+    assert reference_temp_c(wf) == 31.0
+    assert abs(reference_sf(wf) - (1.0 + 33e-6)) < 2e-8  # 0.02 ppm

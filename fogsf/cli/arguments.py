@@ -8,6 +8,7 @@ from fogsf.errors import UserError
 from fogsf.logs import stream_read
 from fogsf.logs.columns import Spill
 from fogsf.logs.dialect import DELIMITERS, Dialect
+from fogsf.logs.metrics import forget_notes
 
 
 def _number(text: str) -> float:
@@ -62,6 +63,10 @@ def add_metric_options(parser: argparse.ArgumentParser, skip: bool = False) -> N
                                  "the temperature moves")
     parser.add_argument("--latitude-deg", type=float, default=None,
                         help=LATITUDE_HELP)
+    parser.add_argument("--ref-temp-c", type=float, default=20.0, metavar="C",
+                        help="board temperature whose SF is the reference of the SF error "
+                             "(default 20); a log that never comes within 5 C of it takes "
+                             "the nearest temperature it holds (said on stderr)")
     add_axis_cosine(parser)
 
 
@@ -151,7 +156,16 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
                         "replay and export: every axis of the log in one run (docs/train.md)")
     g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                    help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
-                        "of time_s); every step must lie within 20 %% of 1/HZ")
+                        "of time_s, which must lie within 20 %% of 1/HZ)")
+    g.add_argument("--max-gap-s", type=positive_float, default=None, metavar="S",
+                   help="a step of time_s longer than S seconds is a gap: the log is then "
+                        "segments, the gap filled with rows that measure nothing (default: "
+                        "1 s, or 10 samples under 10 Hz); shorter steps are jitter or "
+                        "dropped samples, kept as logged")
+    g.add_argument("--gap-states", choices=("carry", "restart"), default="carry",
+                   help="how a model's states cross a gap: carry (default: the gyro stayed "
+                        "on, the temperature interpolated over the gap) or restart (it was "
+                        "off: the next segment's first temperature held, the power-on rule)")
 
 
 def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.Dialect
@@ -163,11 +177,17 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.
     if axis == "all":
         raise UserError("--axis all runs train, inspect, replay and export once per axis; "
                         "here give one axis, e.g. --axis x")
-    cols = Dialect.parse_columns(args.columns) if getattr(args, "columns", None) else ()
+    given = getattr(args, "columns", None)
+    cols = Dialect.parse_columns(given) if given else ()
+    from_file = bool(given) and "=" not in given and given.lower().endswith((".json", ".toml"))
+    joins = Dialect.mapping_joins(given) if from_file else ()
+    stream = Dialect.mapping_stream(given) if from_file else None
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
                    decimal_comma=getattr(args, "decimal_comma", False),
-                   sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis)
+                   sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis,
+                   joins=joins, max_gap_s=getattr(args, "max_gap_s", None),
+                   gap_states=getattr(args, "gap_states", None) or "carry", stream=stream)
 
 
 def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel
@@ -189,6 +209,7 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
     then held in memory."""
     import sys
 
+    forget_notes()
     dialect = dialect_from_args(args)
     logs = []
     for p in paths:
@@ -201,8 +222,11 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
         logs.append(log)
     given = getattr(args, "axis_cosine", None)
     cosine = cosine_for(given, dialect.axis)
+    ref_temp = getattr(args, "ref_temp_c", None)
     for lg in logs:
         lg.axis_cosine = cosine
+        if ref_temp is not None:
+            lg.ref_temp_c = ref_temp
         if given is not None and lg.earth_rate_dps is not None:
             lg.read_notes = (*lg.read_notes, "--axis-cosine not used: the log has its earth "
                              "rate (earth_rate_dps)")

@@ -32,6 +32,7 @@ from fogsf.logs.metrics import (
     log_metrics,
     noise_floor_ppm,
     reference_sf,
+    reference_temp_c,
     sf_error_ppm,
     sf_windows,
     start_note,
@@ -83,10 +84,24 @@ def stationary_summary(log: ChamberLog, window_s: float, latitude_deg: float | N
         "samples": len(log), "duration_s": log.duration_s,
         "sample_rate_hz": log.sample_rate_hz,
         "temp_range_c": [col_min(log.temp_c), col_max(log.temp_c)],
-        "table_rates_dps": [], "metrics": None, "ref_sf_ratio": None, "settle_s": None,
+        "table_rates_dps": [], "metrics": None, "ref_sf_ratio": None, "ref_temp_c": None,
+        "settle_s": None,
         "skip_s": skip_s, "start_ramp_c_per_min": start_ramp_c_per_min(log), "pairs": None,
         "rate_steps": None, "stationary": True, "bias": bias_summary(w),
+        "sampling": sampling_summary(log),
     }
+
+
+def sampling_summary(log: ChamberLog) -> dict | None:
+    """How the rows lie in time (logs/sampling.py): the nominal rate, steps off it, dropped
+    samples, gaps and resets; None for a log made in memory."""
+    s = log.sampling
+    if s is None:
+        return None
+    return {"nominal_rate_hz": 1.0 / s.nominal_s, "steps": s.steps, "jittered": s.jittered,
+            "dropped": s.dropped, "worst_step_s": s.worst_step_s, "gaps": len(s.gaps),
+            "longest_gap_s": max((g for _, g in s.gaps), default=0.0), "resets": len(s.resets),
+            "filled_rows": s.filled_rows, "max_gap_s": s.max_gap_s, "gap_states": s.gap_states}
 
 
 def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
@@ -96,9 +111,10 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
     bias = bias_windows(log, window_s, latitude_deg, settle_s, skip_s)
     rates = sorted({round(float(log.table_rate_dps[a]), 9)
                     for a, _ in plateaus(log.table_rate_dps, log.measures)})
+    ref_temp = None
     if ref is None:
-        ref = reference_sf(sf_windows(log, window_s, latitude_deg, settle_s=settle_s,
-                                      skip_s=skip_s))
+        w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
+        ref, ref_temp = reference_sf(w, log.ref_temp_c), reference_temp_c(w, log.ref_temp_c)
     steps = rate_steps(log, latitude_deg, settle_s)
     return {
         "samples": len(log),
@@ -109,6 +125,7 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
         "metrics": log_metrics(log, window_s, ref=ref, latitude_deg=latitude_deg,
                                settle_s=settle_s, skip_s=skip_s),
         "ref_sf_ratio": ref,
+        "ref_temp_c": ref_temp,
         "settle_s": settle_s,
         "skip_s": skip_s,
         "start_ramp_c_per_min": start_ramp_c_per_min(log),
@@ -116,6 +133,7 @@ def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,
         "rate_steps": None if steps is None else steps.as_dict(),
         "stationary": False,
         "bias": None if bias is None else bias_summary(bias),
+        "sampling": sampling_summary(log),
     }
 
 
@@ -192,7 +210,8 @@ def run(args: argparse.Namespace) -> int:
         extra = [k for k in log.extra]
         if extra:
             print(f"  extra columns: {', '.join(extra)}")
-        ref = "the given reference" if args.ref_sf is not None else "the SF at 20 C"
+        ref = ("the given reference" if args.ref_sf is not None
+               else f"the SF at {s['ref_temp_c']:.4g} C")
         print(f"  SF error about {ref}, {m['window_s']:g} s windows (settle "
               f"{s['settle_s']:g} s{f', first {args.skip_s:g} s skipped' if args.skip_s else ''}):")
         print(f"    max|e| {m['max_abs_ppm']:.2f} ppm   p-p {m['pp_ppm']:.2f} ppm   "
@@ -259,7 +278,7 @@ def plot_sf(row, log: ChamberLog, window_s: float,  # noqa: ANN001 - matplotlib 
             latitude_deg: float | None, ref: float | None, settle_s: float,
             skip_s: float) -> None:
     w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
-    e = sf_error_ppm(w, ref if ref is not None else reference_sf(w))
+    e = sf_error_ppm(w, ref if ref is not None else reference_sf(w, log.ref_temp_c))
     floor = noise_floor_ppm(w)
     a1, a2 = row
     a1.plot(w.temp_c, e, ".-", ms=3, lw=0.8)

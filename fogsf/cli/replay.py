@@ -99,6 +99,7 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     sf = None if on_disk else np.empty(n, np.float32)
     bias = None if on_disk or not bias_head else np.empty(n, np.float32)
     counts: dict[str, int] = {}
+    logged = log.extra.get("logged")  # rows filled into gaps: run, not written
     st = kernel.new_state()
     tell = progress_bar("replay", "samples") if on_disk else None
     with CorrectedWriter(path, bias=bias_head) as w:
@@ -115,8 +116,9 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
                 sf_out.append(block_sf)
             if bias_out is not None:
                 bias_out.append(block_bias)
-            w.write(np.asarray(log.time_s[a:b]), gyro, corrected, block_sf,
-                    block_bias if bias_head else None)
+            keep = slice(None) if logged is None else np.asarray(logged[a:b]) != 0.0
+            w.write(np.asarray(log.time_s[a:b])[keep], gyro[keep], corrected[keep],
+                    block_sf[keep], block_bias[keep] if bias_head else None)
             for name, c in flag_counts(flags).items():
                 counts[name] = counts.get(name, 0) + c
             if tell is not None:
@@ -124,6 +126,27 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
     if sf_out is not None:
         return (sf_out.column(), None if bias_out is None else bias_out.column(), counts)
     return sf, bias, counts
+
+
+def drop_treatment(log, decimation: int) -> str | None:  # noqa: ANN001 - ChamberLog
+    """How the kernel treated the log's irregular rows (None for a regular log): it runs on
+    the rows as logged, as firmware would, counting samples, not seconds."""
+    s = log.sampling
+    if s is None or not s.irregular:
+        return None
+    parts = []
+    if s.dropped or s.jittered:
+        parts.append(f"the kernel ran on the rows as logged ({s.dropped} dropped samples, "
+                     f"{s.jittered} steps off the nominal {s.nominal_s:.4g} s): it counts "
+                     f"rows, {decimation} a model step, so a step with a dropped sample "
+                     "spans that much more time and its lag states advance as if none were "
+                     "missed (firmware does the same)")
+    if s.filled_rows:
+        parts.append(f"{s.filled_rows} rows filled into {len(s.gaps) + len(s.resets)} gaps "
+                     f"(states {'carried' if s.gap_states == 'carry' else 'restarted'}; "
+                     "--gap-states) ran through the kernel too; the output holds the "
+                     "log's own rows")
+    return "; ".join(parts)
 
 
 def flag_counts(flags: np.ndarray) -> dict[str, int]:
@@ -145,6 +168,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"kernel {build.shared} (model {model.model_id}, {model.layers}x{model.hidden} "
           f"LSTM, D={model.decimation})")
     print(f"replayed {len(log)} samples of {log.path}; wrote {args.out}")
+    how = drop_treatment(log, model.decimation)
+    if how:
+        print(how)
     flagged = {k: v for k, v in counts.items() if v}
     print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
                        else "none"))
@@ -221,7 +247,7 @@ def plot(log, sf: np.ndarray, window_s: float, latitude_deg: float | None,  # no
 
     sf = np.asarray(sf)  # the plot draws every sample (a log on disk is read whole here)
     w = sf_windows(log, window_s, latitude_deg, settle_s=settle_s, skip_s=skip_s)
-    ref = ref if ref is not None else reference_sf(w)
+    ref = ref if ref is not None else reference_sf(w, log.ref_temp_c)
     before = sf_error_ppm(w, ref)
     after = sf_error_ppm(sf_windows(log, window_s, latitude_deg, sf.astype(np.float64),
                                     settle_s, skip_s), 1.0)

@@ -77,25 +77,31 @@ def stationary_windows(log: ChamberLog, window_s: float = 100.0,
     earth = log.earth(latitude_deg)
     t_skip = log.time_s[0] + skip_s - 1e-9 if skip_s > 0 else None
     parts: list[tuple[np.ndarray, ...]] = []
-    starts_all = np.arange(0, len(log) - n + 1, n)
+    # whole windows from the log's first row, and from each segment's of a log with gaps
+    # (logs/sampling.py: a burst logger's bursts)
+    segs = [0] if log.sampling is None else list(log.sampling.segment_starts)
+    ends = [*segs[1:], len(log)]
+    starts_all = np.concatenate([np.arange(a, b - n + 1, n) for a, b in zip(segs, ends,
+                                                                             strict=True)])
     per = max(1, BLOCK_WINDOWS_SAMPLES // n)  # windows read at a time: memory stays bounded
     for j in range(0, starts_all.size, per):
         s0 = starts_all[j:j + per]
         a, b = int(s0[0]), int(s0[-1]) + n
-        rows = (s0.size, n)
+        # the windows' rows within [a, b) (contiguous but for a segment's tail)
+        idx = (s0 - a)[:, None] + np.arange(n)[None, :]
         keep = np.ones(b - a, dtype=bool) if log.valid is None else np.array(log.valid[a:b])
         t = np.asarray(log.time_s[a:b])
         if t_skip is not None:
             keep &= t >= t_skip
-        ok = keep.reshape(rows).all(axis=1)
+        ok = keep[idx].all(axis=1)
         if not ok.any():
             continue
-        sig = ((np.asarray(log.gyro_dps[a:b]) - earth[a:b]) * DPS_TO_DPH).reshape(rows)[ok]
+        sig = ((np.asarray(log.gyro_dps[a:b]) - earth[a:b]) * DPS_TO_DPH)[idx][ok]
         m = n // SUB_WINDOWS
         noise = sub_window_noise(sig[:, :m * SUB_WINDOWS].reshape(-1, SUB_WINDOWS, m)
                                  .mean(axis=2))
-        parts.append((t.reshape(rows)[ok].mean(axis=1),
-                      np.asarray(log.temp_c[a:b]).reshape(rows)[ok].mean(axis=1),
+        parts.append((t[idx][ok].mean(axis=1),
+                      np.asarray(log.temp_c[a:b])[idx][ok].mean(axis=1),
                       sig.mean(axis=1), s0[ok], noise))
     if not parts:
         raise UserError(f"{log.path}: no complete {window_s:g} s bias window of valid rows "

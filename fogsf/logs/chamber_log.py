@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -74,6 +75,12 @@ class ChamberLog:
     # the cosine between the sensitive axis and the local vertical (up): the earth rate from
     # a latitude is scaled by it (`--axis-cosine`); an earth_rate_dps column is used as given
     axis_cosine: float = 1.0
+    # the board temperature whose SF is the reference of the SF error (--ref-temp-c; a log
+    # that never comes near it takes the nearest it holds: metrics.reference_sf)
+    ref_temp_c: float = 20.0
+    # how the rows lie in time (logs/sampling.py `Sampling`: jitter, drops, gaps, resets);
+    # None: not surveyed (a log made in memory)
+    sampling: Any = None
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])
@@ -149,6 +156,8 @@ class ChamberLog:
             read_notes=self.read_notes,
             nominal_dt_s=self.sample_dt_s,
             axis_cosine=self.axis_cosine,
+            ref_temp_c=self.ref_temp_c,
+            sampling=self.sampling,
         )
 
 

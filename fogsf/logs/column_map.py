@@ -10,11 +10,13 @@ names) replace table_rate_dps and earth_rate_dps. Both reading paths apply the s
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fogsf.logs.chamber_log import REQUIRED, LogError
+from fogsf.logs.cell_kinds import ISO_TIME, NUMBER, TEXT
+from fogsf.logs.chamber_log import OPTIONAL, REQUIRED, LogError, is_temperature
 from fogsf.logs.expressions import (
     EvaluationError,
     Expression,
@@ -57,6 +59,12 @@ class ColumnPlan:
 
     raw: tuple[str, ...]
     sources: tuple[Source, ...]
+    # what each column of `raw` holds (logs/cell_kinds.py): () when every one is numbers
+    kinds: tuple[str, ...] = ()
+
+    @property
+    def parsed_kinds(self) -> tuple[str, ...]:
+        return self.kinds or (NUMBER,) * len(self.raw)
 
     @property
     def names(self) -> list[str]:
@@ -122,6 +130,51 @@ def plan_map(raw: list[str], columns: tuple[tuple[str, str], ...], origin: str, 
             out.append(Source(name, column=i))
     out.extend(computed.values())
     return ColumnPlan(tuple(raw), tuple(out))
+
+
+def with_kinds(plan: ColumnPlan, kinds: tuple[str, ...], path: str, notes: list[str]
+               ) -> ColumnPlan:
+    """`plan` for a log whose columns hold `kinds` (from its first data row): a column of
+    text or time stamps the plan does not read is left out (said in `notes`); a text column
+    it reads is refused, naming it."""
+    if all(k == NUMBER for k in kinds):
+        return plan
+    used: set[int] = set()
+    for s in plan.sources:
+        if s.expr is not None:
+            used.update(plan.raw.index(n) for n in _read_columns(s, plan.raw))
+        elif s.column is not None and (s.origin or is_our_name(s.name)):
+            used.add(s.column)
+    dropped = [i for i, k in enumerate(kinds) if k != NUMBER and i not in used]
+    for i in sorted(used):
+        if kinds[i] == TEXT:
+            names = [s.name for s in plan.sources if s.column == i or plan.raw[i] in
+                     _read_columns(s, plan.raw)]
+            raise LogError(path, 2, "text column",
+                           f"column {plan.raw[i]!r} holds text, not numbers, and is read as "
+                           f"{', '.join(names)}: map another column (a text column the map "
+                           "does not read is left out)")
+    if dropped:
+        notes.append(f"text columns left out: {', '.join(plan.raw[i] for i in dropped)}")
+    stamped = [plan.raw[i] for i in sorted(used) if kinds[i] == ISO_TIME]
+    if stamped:
+        notes.append(f"ISO-8601 time read as epoch seconds (UTC): {', '.join(stamped)}")
+    return replace(plan, kinds=kinds, sources=tuple(
+        s for s in plan.sources if not (s.expr is None and s.column in dropped)))
+
+
+def _read_columns(s: Source, raw: tuple[str, ...]) -> list[str]:
+    return [c for n in s.reads if (c := column_named(n, raw)) is not None]
+
+
+# a per-axis name of the map: the axis is letters and digits (x, y, z, 1, ...)
+PER_AXIS = re.compile(r"(gyro|table_rate|earth_rate)_[A-Za-z0-9]+_dps")
+
+
+def is_our_name(name: str) -> bool:
+    """A name the column map may give: the format's, a thermometer's, a per-axis one."""
+    return (name in REQUIRED or name in OPTIONAL or is_temperature(name)
+            or PER_AXIS.fullmatch(name) is not None)
 
 
 def map_reads(raw: list[str], columns: tuple[tuple[str, str], ...]) -> set[str]:
@@ -213,6 +266,8 @@ def _evaluated(s: Source, raw: dict[str, np.ndarray], path: str, row0: int = 0
                ) -> np.ndarray:
     assert s.expr is not None
     n = next(iter(raw.values())).shape[0] if raw else 0
+    if row0 == 0:  # the log's first rows: unwrap() starts afresh
+        s.expr.carry.clear()
     try:
         return s.expr.evaluate(raw, n)
     except EvaluationError as e:

@@ -197,7 +197,7 @@ class Spill:
         self._files: list[SpillFile] = []
 
     def file(self, name: str, dtype: np.dtype) -> SpillFile:
-        f = SpillFile(self.dir / f"{len(self._files)}-{name}.bin", np.dtype(dtype))
+        f = SpillFile(self.dir / f"{len(self._files)}.bin", np.dtype(dtype))
         self._files.append(f)
         return f
 

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fogsf.errors import UserError
-from fogsf.logs.chamber_log import OPTIONAL, REQUIRED, LogError, is_temperature
+from fogsf.logs.chamber_log import OPTIONAL, REQUIRED, LogError
 from fogsf.logs.column_map import (
     ColumnPlan,
+    is_our_name,
     map_reads,
     missing_required,
     moved_notes,
@@ -24,6 +25,7 @@ from fogsf.logs.column_map import (
     plan_map,
 )
 from fogsf.logs.expressions import ExpressionError, parse_expression, split_top_level
+from fogsf.logs.joins import Join, join_names, joins_of
 
 DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
 DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
@@ -48,6 +50,15 @@ class Dialect:
     # --axis A: gyro_A_dps read as gyro_dps, table_rate_A_dps and earth_rate_A_dps (when
     # the log or the map has them) as table_rate_dps and earth_rate_dps
     axis: str | None = None
+    # [join.NAME] tables of the map file: other files put on the log's clock (logs/joins.py)
+    joins: tuple[Join, ...] = ()
+    # a step longer than this is a gap (None: logs/sampling.py default_max_gap_s); how the
+    # model's states cross it: "carry" or "restart"
+    max_gap_s: float | None = None
+    gap_states: str = "carry"
+    # a field-format file's stream read as the log (logs/field_formats.py): the map's
+    # `stream = "/imu"`; None: the file's only one
+    stream: str | None = None
 
     @property
     def gyro_name(self) -> str | None:
@@ -59,16 +70,31 @@ class Dialect:
         """A JSON object or TOML table {"time_s": "t", ...}: our name to the log's column, a
         number, or an expression over the log's columns."""
         p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8-sig")
-            m = tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
-        except (OSError, ValueError) as e:  # TOMLDecodeError is a ValueError
-            raise UserError(f"{p}: cannot read the column mapping ({e})") from None
+        m = _map_file(p)
+        m = ({k: v for k, v in m.items() if k not in ("join", "stream")}
+             if isinstance(m, dict) else m)
         if not isinstance(m, dict) or not m or not all(_is_value(v) for v in m.values()):
             raise UserError(f"{p}: expected a mapping of our names to the log's columns, "
                             'numbers or expressions, e.g. {"time_s": "t", "earth_rate_dps": '
                             '0.00234} (TOML: time_s = "t")')
         return Dialect._checked([(k, _text(v)) for k, v in m.items()], str(p))
+
+    @staticmethod
+    def mapping_joins(path: str | Path) -> tuple[Join, ...]:
+        """The [join.NAME] tables of a column map file (none: ())."""
+        m = _map_file(Path(path))
+        if not isinstance(m, dict) or "join" not in m:
+            return ()
+        return joins_of(m["join"], str(path), is_our_name)
+
+    @staticmethod
+    def mapping_stream(path: str | Path) -> str | None:
+        """The `stream = "..."` of a column map file (a field format's main stream)."""
+        m = _map_file(Path(path))
+        v = m.get("stream") if isinstance(m, dict) else None
+        if v is not None and not isinstance(v, str):
+            raise UserError(f"{path}: stream = {v!r}: a topic, message or group name")
+        return v
 
     @staticmethod
     def parse_columns(text: str) -> tuple[tuple[str, str], ...]:
@@ -106,14 +132,14 @@ class Dialect:
 
 OUR_NAMES = (*REQUIRED, *OPTIONAL, "temp_<name>_c", "gyro_<a>_dps", "table_rate_<a>_dps",
              "earth_rate_<a>_dps")
-# a per-axis name of the map: the axis is letters and digits (x, y, z, 1, ...)
-PER_AXIS = re.compile(r"(gyro|table_rate|earth_rate)_[A-Za-z0-9]+_dps")
 
 
-def is_our_name(name: str) -> bool:
-    """A name the column map may give: the format's, a thermometer's, a per-axis one."""
-    return (name in REQUIRED or name in OPTIONAL or is_temperature(name)
-            or PER_AXIS.fullmatch(name) is not None)
+def _map_file(p: Path) -> object:
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+        return tomllib.loads(text) if p.suffix.lower() == ".toml" else json.loads(text)
+    except (OSError, ValueError) as e:  # TOMLDecodeError is a ValueError
+        raise UserError(f"{p}: cannot read the column mapping ({e})") from None
 
 
 def _is_value(v: object) -> bool:
@@ -287,7 +313,7 @@ def names_plan(raw: list[str], path: str, dialect: Dialect, notes: list[str]) ->
             raise LogError(path, 1, "bad header", f"column {h!r} appears twice"
                            " (after --columns / --gyro-column)")
         seen.add(h)
-    missing = missing_required(plan)
+    missing = [m for m in missing_required(plan) if m not in join_names(dialect.joins)]
     if missing:
         raise LogError(path, 1, "missing required column",
                        f"{', '.join(missing)} (header has: {', '.join(raw)})"

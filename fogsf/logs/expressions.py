@@ -15,7 +15,7 @@ import math
 import re
 import unicodedata
 from collections.abc import Callable, Collection, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,7 +26,7 @@ _BINARY = {ast.Add: np.add, ast.Sub: np.subtract, ast.Mult: np.multiply,
 _COMPARE = {ast.Eq: np.equal, ast.NotEq: np.not_equal, ast.Lt: np.less,
             ast.LtE: np.less_equal, ast.Gt: np.greater, ast.GtE: np.greater_equal}
 ALLOWED = ("numbers, column names (`in backquotes` when not an identifier), + - * / **, "
-           "unary -, parentheses, abs() sqrt() sin() cos()")
+           "unary -, parentheses, abs() sqrt() sin() cos(), unwrap(COUNTER, PERIOD)")
 ALLOWED_CONDITION = f"{ALLOWED}, == != < <= > >=, and, or, not"
 BACKQUOTED = re.compile(r"`([^`]*)`")
 MAX_DEPTH = 100  # operators nested deeper than this are refused (no map needs them)
@@ -55,6 +55,8 @@ class Expression:
     tree: ast.expr
     names: tuple[str, ...]
     aliases: tuple[tuple[str, str], ...]  # (placeholder identifier, backquoted column name)
+    # what unwrap() carries from one block of rows to the next (its last value, its offset)
+    carry: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
 
     @property
     def is_name(self) -> bool:
@@ -75,7 +77,7 @@ class Expression:
         env = {alias: columns[name] for alias, name in self.aliases}
         env.update({k: columns[column_named(k, columns) or k] for k in self.names})
         with np.errstate(all="ignore"):
-            v = _Evaluator(env, dict(self.aliases)).value(self.tree)
+            v = _Evaluator(env, dict(self.aliases), self.carry).value(self.tree)
         return np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)).copy()
 
 
@@ -191,6 +193,14 @@ def _check(node: ast.expr, condition: bool, names: list[str], aliases: dict[str,
                                             or condition and isinstance(node.op, ast.Not)):
         kids = [node.operand]
     elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+          and node.func.id == "unwrap"):
+        if len(node.args) != 2 or node.keywords:
+            raise ExpressionError("unwrap() takes two arguments: unwrap(t_us, 2**32)")
+        period = node.args[1]
+        if any(isinstance(n, ast.Name) for n in ast.walk(period)):
+            raise ExpressionError("unwrap()'s period is a number (2**32), not a column")
+        kids = list(node.args)
+    elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
           and node.func.id in FUNCTIONS):
         if len(node.args) != 1 or node.keywords:
             raise ExpressionError(f"{node.func.id}() takes one argument")
@@ -209,9 +219,11 @@ def _check(node: ast.expr, condition: bool, names: list[str], aliases: dict[str,
 class _Evaluator:
     """Evaluates a checked tree; every sub-expression's first bad row is named."""
 
-    def __init__(self, env: Mapping[str, np.ndarray], aliases: Mapping[str, str]) -> None:
+    def __init__(self, env: Mapping[str, np.ndarray], aliases: Mapping[str, str],
+                 carry: dict | None = None) -> None:
         self.env = env
         self.aliases = aliases
+        self.carry = {} if carry is None else carry
 
     def text(self, node: ast.expr) -> str:
         s = ast.unparse(node)
@@ -245,6 +257,8 @@ class _Evaluator:
             return -_num(a) if isinstance(node.op, ast.USub) else _num(a)
         if isinstance(node, ast.Call):
             assert isinstance(node.func, ast.Name)  # checked
+            if node.func.id == "unwrap":
+                return self._unwrap(node)
             return FUNCTIONS[node.func.id](_num(self.value(node.args[0])))
         if isinstance(node, ast.Compare):
             return self._compare(node)
@@ -253,6 +267,26 @@ class _Evaluator:
         out = self.value(node.values[0])
         for kid in node.values[1:]:
             out = join(out, self.value(kid))
+        return out
+
+    def _unwrap(self, node: ast.Call) -> np.ndarray:
+        """A counter that wraps at PERIOD (a 32-bit us clock: 2**32) made to count on: a step
+        down by more than half the period is a wrap. What it carries to the next block of
+        rows: its last value and offset (keyed by the call's place in the tree)."""
+        x = np.atleast_1d(np.asarray(_num(self.value(node.args[0])), dtype=np.float64))
+        period = float(np.asarray(self.value(node.args[1])))
+        if not period > 0:
+            raise EvaluationError(0, f"unwrap()'s period is {period:g}, not > 0")
+        key = (node.lineno, node.col_offset)
+        last, offset = self.carry.get(key, (None, 0.0))
+        prev = np.empty_like(x)
+        if x.size:
+            prev[0] = x[0] if last is None else last
+            prev[1:] = x[:-1]
+        wraps = np.cumsum((x - prev) < -period / 2.0)
+        out = x + offset + period * wraps
+        if x.size:
+            self.carry[key] = (float(x[-1]), offset + period * float(wraps[-1]))
         return out
 
     def _compare(self, node: ast.Compare) -> Value:

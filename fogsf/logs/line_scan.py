@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from fogsf.logs.cell_kinds import numeric_cells
 from fogsf.logs.chamber_log import LogError
 from fogsf.logs.dialect import DECIMAL_COMMA, delimiter_in_cell
 
@@ -25,7 +26,8 @@ def _ascii_number(cell: str) -> bool:
 
 
 def first_bad_line(path: str | Path, header: list[str], delim: str, decimal_comma: bool,
-                   rows_ok: int = 0, quoted: bool = False) -> LogError | None:
+                   rows_ok: int = 0, quoted: bool = False, kinds: tuple[str, ...] = ()
+                   ) -> LogError | None:
     """The refusal the general path gives for the data lines of a file whose header is
     `header`, or None (no bad cell found, or not sure: see the module). The first
     `rows_ok` lines that are not blank are known to hold finite numbers of the header's
@@ -40,10 +42,11 @@ def first_bad_line(path: str | Path, header: list[str], delim: str, decimal_comm
                 return bad_quote
             with open(path, encoding="utf-8") as f:
                 return _scan(_unquoted_rows(f, delim), p, header, delim, decimal_comma,
-                             rows_ok, quoted)
+                             rows_ok, quoted, kinds)
         with open(path, encoding="utf-8") as f:
             f.readline()  # the header
-            return _scan(_plain_rows(f), p, header, delim, decimal_comma, rows_ok, quoted)
+            return _scan(_plain_rows(f), p, header, delim, decimal_comma, rows_ok, quoted,
+                         kinds)
     except (OSError, UnicodeDecodeError):
         return None
 
@@ -89,7 +92,8 @@ def _plain_rows(f):  # noqa: ANN001, ANN202 - a text file; (line number, line, b
 
 
 def _scan(lines, p: str, header: list[str], delim: str,  # noqa: ANN001 - (number, line)
-          decimal_comma: bool, rows_ok: int, quoted: bool) -> LogError | None:
+          decimal_comma: bool, rows_ok: int, quoted: bool, kinds: tuple[str, ...] = ()
+          ) -> LogError | None:
     first_bad: LogError | None = None
     non_finite: LogError | None = None
     blank_run: list[int] = []  # blank lines not yet known to lie inside (not at the end)
@@ -112,6 +116,8 @@ def _scan(lines, p: str, header: list[str], delim: str,  # noqa: ANN001 - (numbe
             continue
         if decimal_comma:
             line = line.replace(",", ".")
+        if kinds:
+            line = numeric_cells(line, delim, kinds) or line
         first_bad = bad_cell_in(line, i, header, p, delim)
         if first_bad is not None:
             continue

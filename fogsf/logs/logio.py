@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.logs.arrow_csv import NotFast, read_numbers
+from fogsf.logs.cell_kinds import numeric_cells, row_kinds
 from fogsf.logs.chamber_log import (
     DT_TOLERANCE,
     EPOCH_S,
-    GAP_STEPS,
     NOMINAL_DT_S,
     RATE_RANGE_HZ,
     RATE_SLACK,
@@ -42,18 +42,22 @@ from fogsf.logs.chamber_log import (
     rate_text,
     time_text,
 )
-from fogsf.logs.column_map import ColumnPlan
-from fogsf.logs.columns import Column, blocks, derived, is_lazy
+from fogsf.logs.column_map import ColumnPlan, with_kinds
+from fogsf.logs.columns import Column, blocks, col_max, col_min, derived, is_lazy
 from fogsf.logs.dialect import (
     Dialect,
+    checked_names,
     find_delimiter,
     log_axes,
     map_plan,
     mapping_beside,
+    names_plan,
     raw_header,
     read_header,
     unquote_lines,
 )
+from fogsf.logs.field_formats import as_table, format_of, main_stream
+from fogsf.logs.joins import apply_joins
 from fogsf.logs.line_scan import bad_cell_in, first_bad_line
 from fogsf.logs.parquet_log import (
     in_rows,
@@ -62,6 +66,7 @@ from fogsf.logs.parquet_log import (
     read_parquet_log,
     write_columns,
 )
+from fogsf.logs.sampling import default_max_gap_s, mend_segments, survey
 
 
 def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
@@ -71,6 +76,8 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     dialect = with_mapping_beside(path, dialect or Dialect())
     if is_parquet(path):
         return read_parquet_log(path, dialect, _log_of)
+    if format_of(path) is not None:
+        return read_field_log(path, dialect)
     fast = _read_plain(path, dialect)
     if fast is not None:
         return fast
@@ -80,6 +87,17 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     except (OSError, UnicodeDecodeError) as e:
         raise cannot_read(p, e) from None
     return parse_log(text, p, dialect)
+
+
+def read_field_log(path: str | Path, dialect: Dialect) -> ChamberLog:
+    """A field-format file's main stream (logs/field_formats.py) read as a log: its columns
+    through the column map, as a CSV's."""
+    p = str(path)
+    name, stream = main_stream(path, dialect.stream, dialect.columns_from)
+    names, data = as_table(stream)
+    notes = [f"{format_of(path)} stream {name}"]
+    plan = names_plan(checked_names(names, p), p, dialect, notes)
+    return _log_of(data, plan, p, dialect, notes)
 
 
 def cannot_read(path: str, e: OSError | UnicodeDecodeError) -> LogError:
@@ -99,7 +117,8 @@ def with_mapping_beside(path: str | Path, dialect: Dialect) -> Dialect:
     beside = mapping_beside(path)
     if beside is None:
         return dialect
-    return replace(dialect, columns=Dialect.mapping_file(beside), columns_from=str(beside))
+    return replace(dialect, columns=Dialect.mapping_file(beside), columns_from=str(beside),
+                   joins=Dialect.mapping_joins(beside), stream=Dialect.mapping_stream(beside))
 
 
 def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
@@ -112,6 +131,9 @@ def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
     dialect = with_mapping_beside(path, dialect)
     if is_parquet(path):
         return log_axes(in_rows(p, lambda: map_plan(parquet_names(path), dialect, p, [])).names)
+    if format_of(path) is not None:
+        names = list(main_stream(path, dialect.stream, dialect.columns_from)[1])
+        return log_axes(map_plan(names, dialect, p, []).names)
     try:
         with open(path, encoding="utf-8-sig") as f:
             first = f.readline().rstrip("\r\n")
@@ -148,6 +170,10 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
         raise LogError(path, 1, "empty file", "a header but no data rows")
     if dialect.decimal_comma:
         lines = [lines[0], *(line.replace(",", ".") for line in lines[1:])]
+    plan = with_kinds(plan, row_kinds(lines[1].split(delim)), path, notes)
+    if plan.kinds:
+        kinds = plan.kinds
+        lines = [lines[0], *((numeric_cells(line, delim, kinds) or line) for line in lines[1:])]
     data = _parse_numbers(lines, list(plan.raw), path, delim)
     return _log_of(data, plan, path, dialect, notes)
 
@@ -168,7 +194,8 @@ def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
     if rows < 1:
         return None
     try:
-        data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma)
+        data = read_numbers(path, rows, delim, len(plan.raw), quoted, dialect.decimal_comma,
+                            plan.kinds)
     except NotFast as e:
         refuse_bad_line(path, head, dialect, e.rows_ok)
         return None
@@ -206,7 +233,32 @@ def plain_header(path: str | Path, dialect: Dialect) -> PlainHeader | None:
             return None
     else:
         plan = read_header(first, delim, p, dialect, notes)
+    kinds = first_row_kinds(path, delim, quoted, dialect.decimal_comma)
+    if kinds is not None and len(kinds) == len(plan.raw):
+        plan = with_kinds(plan, kinds, p, notes)
     return delim, quoted, plan, notes
+
+
+def first_row_kinds(path: str | Path, delim: str, quoted: bool, decimal_comma: bool
+                    ) -> tuple[str, ...] | None:
+    """What each column of the first data row holds (logs/cell_kinds.py); None when there
+    is no such row or it cannot be read."""
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            f.readline()
+            line = f.readline().rstrip("\r\n")
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not line.strip():
+        return None
+    if quoted:
+        try:
+            line = unquote_lines([line], delim, str(path))[0]
+        except LogError:
+            return None
+    if decimal_comma:
+        line = line.replace(",", ".")
+    return row_kinds(line.split(delim))
 
 
 def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_ok: int
@@ -214,7 +266,8 @@ def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_
     """After the fast reader failed: the refusal of the first bad row, named reading line by
     line (no copy of the text); returns when the general path must decide."""
     delim, quoted, plan, _ = head
-    bad = first_bad_line(path, list(plan.raw), delim, dialect.decimal_comma, rows_ok, quoted)
+    bad = first_bad_line(path, list(plan.raw), delim, dialect.decimal_comma, rows_ok, quoted,
+                         plan.kinds)
     if bad is not None:
         raise bad from None
 
@@ -240,11 +293,33 @@ def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
 
 def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes: list[str]
                      ) -> ChamberLog:
-    """Our columns (in memory or on disk) as a validated ChamberLog."""
-    dt = validate(cols, path, dialect.sample_rate_hz)
+    """Our columns (in memory or on disk) as a validated ChamberLog: exact duplicate rows
+    dropped, other files joined on its clock, its gaps and resets mended into segments
+    (logs/sampling.py), then checked."""
+    cols = without_duplicates(cols, notes)
+    cols, _ = apply_joins(cols, dialect.joins, path, notes)
+    if dialect.sample_rate_hz is not None:
+        check_rate_hz(dialect.sample_rate_hz)
+    t = cols["time_s"]
+    nominal = (1.0 / dialect.sample_rate_hz if dialect.sample_rate_hz is not None
+               else nominal_step_s(t))
+    max_gap = (dialect.max_gap_s if dialect.max_gap_s is not None
+               else default_max_gap_s(nominal))
+    if dialect.sample_rate_hz is None:
+        check_rate_range(nominal, path)
+    sampling = survey(t, nominal, max_gap)
+    if dialect.sample_rate_hz is None and sampling.jittered > 0.01 * sampling.steps:
+        # a jittered clock: its period is the mean step (each counted in samples), not the
+        # median of jittered steps
+        nominal = 1.0 / float(f"{1.0 / sampling.mean_step_s:.6g}")
+        sampling = survey(t, nominal, max_gap)
+    cols = mend_segments(cols, sampling, dialect.gap_states)
+    dt = validate(cols, path, dialect.sample_rate_hz, nominal)
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
         notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
                      f"{'--sample-rate-hz' if dialect.sample_rate_hz else 'from time_s'})")
+    if sampling.irregular:
+        notes.append(sampling.text())
     extra = {k: v for k, v in cols.items()
              if k not in REQUIRED and k not in ("earth_rate_dps", "valid")}
     valid = cols.get("valid")
@@ -263,7 +338,29 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
         path=path,
         read_notes=tuple(notes),
         nominal_dt_s=dt,
+        sampling=sampling,
     )
+
+
+def without_duplicates(cols: dict[str, Column], notes: list[str]) -> dict[str, Column]:
+    """`cols` without the rows that repeat the row before them exactly (a logger that wrote a
+    sample twice), counted in `notes`; a row at the same time with other values stays (and
+    is refused as time not increasing). A log with such rows is then held in memory."""
+    t = cols["time_s"]
+    same: list[np.ndarray] = []
+    for a in range(0, max(len(t) - 1, 0), VALIDATE_BLOCK):
+        dt = np.diff(np.asarray(t[a:a + VALIDATE_BLOCK + 1]))
+        same.append(a + 1 + np.flatnonzero(dt == 0.0))
+    rows = np.concatenate(same) if same else np.zeros(0, dtype=np.int64)
+    if not rows.size:
+        return cols
+    for v in cols.values():
+        rows = rows[np.asarray(v[rows]) == np.asarray(v[rows - 1])]
+    if not rows.size:
+        return cols
+    notes.append(f"{rows.size} exact duplicate row{'s' if rows.size > 1 else ''} dropped "
+                 f"(the first at line {int(rows[0]) + 2})")
+    return {k: np.delete(np.asarray(v[:]), rows) for k, v in cols.items()}
 
 
 def _parse_numbers(lines: list[str], header: list[str], path: str, delim: str = ","
@@ -294,13 +391,16 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
             raise err
 
 
-def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None) -> float:
-    """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s)."""
+def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None,
+             nominal: float | None = None) -> float:
+    """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s):
+    1 / rate_hz, else `nominal` (the reader's, logs/sampling.py), else time_s's median step."""
     t = cols["time_s"]
-    lo_hz, hi_hz = RATE_RANGE_HZ
     if rate_hz is not None:
         check_rate_hz(rate_hz)
-    nominal = 1.0 / rate_hz if rate_hz is not None else nominal_step_s(t)
+        nominal = 1.0 / rate_hz
+    elif nominal is None:
+        nominal = nominal_step_s(t)
     if t.shape[0] >= 2:
         first_off: tuple[int, float] | None = None  # (index, step) of the first step off
         for a in range(0, t.shape[0] - 1, VALIDATE_BLOCK):  # no log-long temporaries
@@ -315,21 +415,16 @@ def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = Non
                 off = np.flatnonzero(np.abs(dt - nominal) > DT_TOLERANCE * nominal)
                 if off.size:
                     first_off = (a + int(off[0]), float(dt[off[0]]))
-        slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
-        if rate_hz is None and not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
-            raise LogError(path, None, "sample rate out of range",
-                           f"the median step of time_s is {nominal:.6g} s "
-                           f"({1.0 / nominal:.6g} Hz); allowed {lo_hz:g} Hz .. "
-                           f"{hi_hz / 1000:g} kHz, +/- {RATE_SLACK:.0%} (time_s in seconds?)")
-        if first_off is not None:
-            i, step = first_off
-            kind = "gap" if step >= GAP_STEPS * nominal else "jitter"
-            given = ("--sample-rate-hz" if rate_hz is not None
-                     else "the median step of time_s")
-            raise LogError(path, i + 3, kind,
-                           f"step {step:.4g} s from time_s {time_text(t, i)}; allowed "
-                           f"{nominal:.4g} s +/- {DT_TOLERANCE:.0%} ({rate_text(nominal)}, "
-                           f"{given}){epoch_text(t)}")
+        if rate_hz is None:
+            check_rate_range(nominal, path)
+        if rate_hz is not None and first_off is not None:
+            median_step = nominal_step_s(t)
+            if abs(median_step - nominal) > DT_TOLERANCE * nominal:
+                raise LogError(path, None, "sample rate",
+                               f"the median step of time_s is {median_step:.4g} s "
+                               f"({rate_text(median_step)}), not {nominal:.4g} s +/- "
+                               f"{DT_TOLERANCE:.0%} (--sample-rate-hz {rate_hz:g})"
+                               f"{epoch_text(t)}")
     # a log with the table stopped on every row is stationary: it measures the bias (the
     # SF figures refuse it, logs.bias); a log whose every row is invalid measures nothing
     turning = kept = measures = False
@@ -355,11 +450,38 @@ def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = Non
             if out.size:
                 i = int(out[0])
                 raise LogError(path, a + i + 2, "temperature out of range",
-                               f"{name} = {x[i]:g} C, allowed {lo:g}..{hi:g} C")
+                               f"{name} = {x[i]:g} C, allowed {lo:g}..{hi:g} C"
+                               + temperature_unit_hint(v))
     return nominal
 
 
+def temperature_unit_hint(v: np.ndarray) -> str:
+    """What a temperature column outside TEMP_RANGE_C is likely in, by its range: Kelvin
+    (every value 173 .. 400), Fahrenheit (every value -76 .. 212 and more than 1 % of them
+    above 100: one spike is not a unit)."""
+    lo, hi = col_min(v), col_max(v)
+    if 173.0 <= lo and hi <= 400.0:
+        return (f" (the column spans {lo:g} .. {hi:g}: Kelvin? map it as "
+                "`NAME - 273.15`)")
+    hot = sum(int(np.count_nonzero(x > TEMP_RANGE_C[1])) for _, x in blocks(v))
+    if -76.0 <= lo and hi <= 212.0 and hot > 0.01 * len(v):
+        return (f" (the column spans {lo:g} .. {hi:g}: Fahrenheit? map it as "
+                "`(NAME - 32) / 1.8`)")
+    return ""
+
+
 VALIDATE_BLOCK = 1 << 20  # time steps checked at a time
+
+
+def check_rate_range(nominal: float, path: str) -> None:
+    """Refuse a median step outside RATE_RANGE_HZ (+/- RATE_SLACK): time_s not in seconds."""
+    lo_hz, hi_hz = RATE_RANGE_HZ
+    slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
+    if not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
+        raise LogError(path, None, "sample rate out of range",
+                       f"the median step of time_s is {nominal:.6g} s "
+                       f"({1.0 / nominal:.6g} Hz); allowed {lo_hz:g} Hz .. "
+                       f"{hi_hz / 1000:g} kHz, +/- {RATE_SLACK:.0%} (time_s in seconds?)")
 
 
 def write_log(path: str | Path, log: ChamberLog) -> None:

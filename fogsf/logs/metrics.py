@@ -54,7 +54,13 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs import columns
-from fogsf.logs.chamber_log import ChamberLog, is_stationary, rate_text, stationary_refusal
+from fogsf.logs.chamber_log import (
+    ChamberLog,
+    LogError,
+    is_stationary,
+    rate_text,
+    stationary_refusal,
+)
 from fogsf.logs.columns import is_lazy, searchsorted
 from fogsf.logs.pairs import (
     bias_track,
@@ -221,27 +227,119 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
             out["t_s"][sel] = log.time_s[idx].mean(axis=1)
             out["temp_c"][sel] = log.temp_c[idx].mean(axis=1)
             out["rate_dps"][sel] = tab.mean(axis=1)
+    check_units(log, out["sf_ratio"], spans[:, 0])
     return SFWindows(start=spans[:, 0].copy(), stop=spans[:, 1].copy(),
                      window_s=float(window_s), **out)
 
+
+RAD_TO_DEG = 180.0 / np.pi
+UNITS_TOL = 0.01  # a ratio within 1 % of 180/pi (or pi/180) is a rad/s - deg/s mix-up
+
+
+def units_factor(ratio: float) -> str | None:
+    """'180/pi' or 'pi/180' when `ratio` lies within UNITS_TOL of it, else None."""
+    for factor, text in ((RAD_TO_DEG, "180/pi"), (1.0 / RAD_TO_DEG, "pi/180")):
+        if abs(ratio / factor - 1.0) <= UNITS_TOL:
+            return text
+    return None
+
+
+UNITS_FIX = ("gyro_dps and table_rate_dps are in deg/s: a column in rad/s is mapped with "
+             "`* 57.29577951308232` (a rad/s to deg/s factor), one already in deg/s without "
+             "it; fix the column map (--columns or its file)")
+
+
+def check_units(log: ChamberLog, sf_ratio: np.ndarray, starts: np.ndarray) -> None:
+    """Refuse a log whose gyro reads 180/pi (or pi/180) times its table rate: one of them
+    in rad/s, the other in deg/s; and one whose windows jump by such a factor mid-log (the
+    units switched), at the line of the first window off."""
+    if not sf_ratio.size:
+        return
+    med = float(np.median(sf_ratio))
+    factor = units_factor(med)
+    if factor is not None:
+        raise UserError(f"{log.path}: units: the gyro reads {med:.6g} x the table rate "
+                        f"(reference SF ratio within 1 % of {factor}): one of gyro_dps and "
+                        f"table_rate_dps is in rad/s, the other in deg/s; {UNITS_FIX}")
+    for i, r in enumerate(sf_ratio):
+        factor = units_factor(float(r) / med) if med != 0 else None
+        if factor is not None:
+            normal = np.flatnonzero(np.abs(sf_ratio[:i] / med - 1.0) <= UNITS_TOL)
+            lo = int(starts[normal[-1]]) if normal.size else 0  # the last window in the unit
+            row = _switch_row(log, lo, int(starts[i]), med, factor)
+            raise LogError(log.path, row + 2, "units switch",
+                           f"the SF ratio jumps from {med:.6g} to {float(r):.6g} "
+                           f"({factor}): the gyro or the table switched between rad/s and "
+                           "deg/s mid-log; write the log in one unit")
+
+
+def _switch_row(log: ChamberLog, lo: int, hi: int, med: float, factor: str) -> int:
+    """The first row in [lo, hi] (the last window in the log's unit, to the first off) whose own
+    gyro / table ratio reads the switched unit (within 5 %); `hi` when none does."""
+    f = RAD_TO_DEG if factor == "180/pi" else 1.0 / RAD_TO_DEG
+    tab = np.asarray(log.table_rate_dps[lo:hi + 1], dtype=np.float64)
+    gyro = np.asarray(log.gyro_dps[lo:hi + 1], dtype=np.float64)
+    with np.errstate(all="ignore"):
+        off = (tab != 0) & (np.abs(gyro / tab / (med * f) - 1.0) <= 0.05)
+    hits = np.flatnonzero(off)
+    return lo + int(hits[0]) if hits.size else hi
 
 def reference_sf(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
     """The apparent SF ratio at `t_ref_c` board temperature: a quadratic in temperature
     fitted to the windows within REF_BAND_C of it (a line where they are few). A log held at
     set points (none within the band) takes the nearest set points on both sides of
-    `t_ref_c`, up to REF_BRACKET_C away, and interpolates."""
+    `t_ref_c`, up to REF_BRACKET_C away, and interpolates. A log that never comes near
+    `t_ref_c` (a heated rig at 38-62 C) takes the nearest temperature it holds
+    (`reference_temp_c`), said once on stderr."""
+    t = reference_temp_c(w, t_ref_c)
+    if t != t_ref_c:
+        _say_once(f"fogsf: note: the board temperature never comes within {REF_BAND_C:g} C "
+                  f"of {t_ref_c:g} C ({w.temp_c.min():.1f} .. {w.temp_c.max():.1f} C): the SF "
+                  f"reference is the SF at {t:.2f} C, the nearest temperature the windows "
+                  "hold (--ref-temp-c C sets it; --ref-sf RATIO gives the ratio)")
+    return _reference_at(w, t)
+
+
+def reference_temp_c(w: SFWindows, t_ref_c: float = T_REF_C) -> float:
+    """The temperature the reference SF is taken at: `t_ref_c` when the windows span it
+    (within REF_BAND_C, or set points on both sides within REF_BRACKET_C), else the
+    windows' temperature nearest to it."""
+    if not w.temp_c.size:
+        return t_ref_c
+    if np.any(np.abs(w.temp_c - t_ref_c) <= REF_BAND_C) or _bracket(w.temp_c, t_ref_c) \
+            is not None:
+        return t_ref_c
+    return float(w.temp_c[np.argmin(np.abs(w.temp_c - t_ref_c))])
+
+
+_SAID: set[str] = set()  # the notes said by this command (read_logs starts it afresh)
+
+
+def forget_notes() -> None:
+    """A new command: the notes of `_say_once` may be said again."""
+    _SAID.clear()
+
+
+def _say_once(text: str) -> None:
+    import sys
+
+    if text not in _SAID:
+        _SAID.add(text)
+        print(text, file=sys.stderr)
+
+
+def _reference_at(w: SFWindows, t_ref_c: float) -> float:
     near = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C
     deg = 2 if near.sum() >= 6 else 1
     if near.sum() < 2 or np.ptp(w.temp_c[near]) < 0.5:
         near, deg = _bracket(w.temp_c, t_ref_c), 1  # a line between two set points
+    if near is None and np.any(np.abs(w.temp_c - t_ref_c) <= REF_BAND_C):
+        near, deg = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C, 0  # one set point: its mean
     if near is None:
         raise UserError(
-            f"the board temperature never spans {t_ref_c:g} +/- {REF_BAND_C:g} C (range "
-            f"{w.temp_c.min():.1f}..{w.temp_c.max():.1f} C), nor lies on both sides of it "
-            f"within {REF_BRACKET_C:g} C: the SF at {t_ref_c:g} C, the reference of the SF "
-            "error, cannot be measured on this log: give it with --ref-sf RATIO "
-            "(ref_sf_ratio of `fogsf inspect --json` on a run of the same gyro that spans "
-            "20 C), or use logs whose board temperature spans it")
+            f"the log has no SF window (board temperature "
+            f"{w.temp_c.min() if w.temp_c.size else float('nan'):.1f} C): the SF reference "
+            "cannot be measured on it: give it with --ref-sf RATIO")
     coef = np.polyfit(w.temp_c[near] - t_ref_c, w.sf_ratio[near], deg)
     return float(coef[-1])
 
@@ -260,14 +358,32 @@ def _bracket(temp_c: np.ndarray, t_ref_c: float) -> np.ndarray | None:
 
 
 def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
-                         latitude_deg: float | None = None, t_ref_c: float = T_REF_C,
+                         latitude_deg: float | None = None, t_ref_c: float | None = None,
                          settle_s: float = SETTLE_S) -> float:
-    """The SF at `t_ref_c` over several logs (e.g. all training runs) together."""
+    """The SF at `t_ref_c` (None: the logs' `ref_temp_c`, --ref-temp-c) over several logs
+    (e.g. all training runs) together."""
     ws = [sf_windows(lg, window_s, latitude_deg, settle_s=settle_s) for lg in logs]
+    same_units(logs, ws)
     merged = SFWindows(*(np.concatenate([getattr(w, f) for w in ws]) for f in
                          ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm", "start",
                           "stop")), window_s=float(window_s))
-    return reference_sf(merged, t_ref_c)
+    return reference_sf(merged, logs[0].ref_temp_c if t_ref_c is None else t_ref_c)
+
+
+def same_units(logs: list[ChamberLog], ws: list[SFWindows]) -> None:
+    """Refuse logs (trained together) whose SF ratios differ by more than UNITS_TOL: one
+    gyro's SF moves by parts per thousand at most; more is another unit or scaling."""
+    meds = [(float(np.median(w.sf_ratio)), lg.path) for w, lg in zip(ws, logs, strict=True)
+            if w.sf_ratio.size]
+    if len(meds) < 2:
+        return
+    lo, hi = min(meds), max(meds)
+    if hi[0] > lo[0] * (1.0 + UNITS_TOL):
+        factor = units_factor(hi[0] / lo[0])
+        why = (f" ({factor}: one in rad/s, the other in deg/s; {UNITS_FIX})" if factor
+               else ": another unit or scaling in one of them (check the column maps)")
+        raise UserError(f"units: the logs' SF ratios differ by more than 1 %: {lo[1]} "
+                        f"{lo[0]:.6g}, {hi[1]} {hi[0]:.6g}{why}")
 
 
 def sf_error_ppm(w: SFWindows, ref: float) -> np.ndarray:
@@ -310,7 +426,7 @@ def log_metrics(log: ChamberLog, window_s: float = 100.0, ref: float | None = No
     if correction_ppm is not None:
         ref = 1.0
     elif ref is None:
-        ref = reference_sf(w)
+        ref = reference_sf(w, log.ref_temp_c)
     return metrics_block(sf_error_ppm(w, ref), window_s, noise_floor_ppm(w))
 
 

@@ -24,6 +24,7 @@ from fogsf.logs.chamber_log import ChamberLog, LogError
 from fogsf.logs.column_map import ColumnPlan
 from fogsf.logs.columns import LazyColumn, Spill, is_lazy
 from fogsf.logs.dialect import Dialect, names_plan
+from fogsf.logs.field_formats import format_of
 from fogsf.logs.logio import (
     _data_lines,
     log_from_columns,
@@ -43,6 +44,8 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
     p = str(path)
     dialect = with_mapping_beside(path, dialect or Dialect())
     spill = spill or Spill()
+    if format_of(path) is not None:  # a field format: its streams are read whole
+        return read_log(path, dialect)
     if is_parquet(path):
         notes: list[str] = []
         given = [o for o, on in (("--delimiter", dialect.delimiter),
@@ -64,7 +67,7 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
     if rows < 1:
         return read_log(path, dialect)
     blocks = (np.column_stack(c) for c in number_blocks(path, delim, len(plan.raw), quoted,
-                                                        dialect.decimal_comma))
+                                                        dialect.decimal_comma, plan.kinds))
     counted = _Counted(blocks)
     try:
         cols, refused = _spilled(counted, plan, p, spill, _told(progress, rows))

@@ -38,6 +38,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from fogsf.logs.chamber_log import ChamberLog
+from fogsf.logs.sampling import common_rate
 from fogsf.models.front_end import decimation_for
 from fogsf.training.bias_head import finish_artifact, fit_bias_part
 from fogsf.training.bias_model import check_mixed
@@ -56,6 +57,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
     """Train, score, and write the model directory; returns metrics.json's content and the
     fitted model. `fit`: what fits the SF part instead of `fit_sf` (the fleet's prior,
     `fleet.prior_train`)."""
+    train_logs = common_rate(train_logs)  # other rates, jitter, drops: on one grid of time
     for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
         decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
     if check_mixed(train_logs):  # stationary logs alone: a bias-only model
