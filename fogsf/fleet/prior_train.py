@@ -96,11 +96,12 @@ def test_series(log: ChamberLog, step_s: float, latitude_deg: float | None
 def prior_interval(mf: MapFit, test_log: ChamberLog, opts: TrainOptions, floor_ppm: float
                    ) -> list[float]:
     """The expected test RMS (ppm) with the posterior's spread: [the floor, sqrt(floor^2 +
-    4 mean_t var_t)], var_t the posterior variance of the law's prediction at step t (two
-    standard deviations)."""
+    4 mean_t var_t)], var_t the variance of the law's prediction at step t under the
+    posterior with the spread shrunk toward its diagonal (`MapFit.cov_wide`; two standard
+    deviations)."""
     s, _ = test_series(test_log, opts.model_step_s, opts.latitude_deg)
     jac = jacobian(s, mf.theta, mf.k)
-    var = float(np.mean(np.einsum("ij,jk,ik->i", jac, mf.cov, jac)))
+    var = float(np.mean(np.einsum("ij,jk,ik->i", jac, mf.cov_wide, jac)))
     return [floor_ppm, math.sqrt(floor_ppm**2 + 4.0 * max(var, 0.0))]
 
 
@@ -124,16 +125,17 @@ def prior_lines(rec: dict) -> list[str]:
                  + ", ".join(u["unit"] for u in rec["left_out"]) + ")")
     chi = (f"chi-square of the unit's own fit against the design {rec['chi2']:.1f}, limit "
            f"{rec['chi2_limit']:.1f} at {rec['level']:g}")
+    tail = [rec["recorded"]] if "recorded" in rec else []
     if not rec["used"]:
         return [head, f"the unit's data disagree with the design ({chi}): fitted alone, as "
-                "fogsf train would"]
+                "fogsf train would", *tail]
     lines = [head, f"the prior's share of the posterior precision: {share} (100 %: the "
              f"unit's data added nothing); {chi}: the unit agrees with the design",
              "unit's time constants " + ", ".join(f"{t:.0f}" for t in rec["taus_s"]) + " s"]
     if "interval_ppm" in rec:
         lo, hi = rec["interval_ppm"]
         lines.append(f"expected test RMS with the prior's spread: {lo:.2f}-{hi:.2f} ppm")
-    return lines
+    return lines + tail
 
 
 def _rewrite(path: Path, obj: dict) -> None:
@@ -169,5 +171,5 @@ def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog
         record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
         with open_store(args.prior) as store:  # type: ignore[attr-defined]
             store.add(record)
-        print(f"recorded unit {unit} in {store.location}")
+        metrics["prior"]["recorded"] = f"recorded unit {unit} in {store.location}"
     return metrics
