@@ -38,11 +38,22 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
     return learn(series, first=first)
 
 
-def prior_from_store(path: str) -> DesignPrior:  # noqa: D401
+def existing_fleet(path: str) -> str:
+    """`path` if it names a fleet database that exists (a file) or a server's URL: the
+    prior reads a fleet, it does not create one."""
+    from fogsf.errors import UserError
+
+    if "://" not in path and not Path(path).is_file():
+        raise UserError(f"{path}: no such fleet database (`fogsf fleet add` creates one)")
+    return path
+
+
+def prior_from_store(path: str) -> DesignPrior:
     """The design's prior from the fleet database at `path` (its units' summaries)."""
     from fogsf.fleet.store import open_store
 
-    units = open_store(path).units()
+    with open_store(existing_fleet(path)) as store:
+        units = store.units()
     return prior_from_summaries({u.unit: u.summary for u in units if u.summary})
 
 
@@ -152,7 +163,7 @@ def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog
     from fogsf.fleet.store import open_store
 
     unit = getattr(args, "unit", None)
-    with open_store(args.prior) as store:  # type: ignore[attr-defined]
+    with open_store(existing_fleet(args.prior)) as store:  # type: ignore[attr-defined]
         if unit is not None and store.has(unit):
             raise UserError(f"unit {unit!r} is already in {store.location} (`fogsf fleet "
                             "remove` it first)")
