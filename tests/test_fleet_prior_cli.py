@@ -60,7 +60,13 @@ def test_refusals_in_one_line(fleet: dict, capsys: pytest.CaptureFixture) -> Non
     base = ["train", "--train", str(fleet["new"]), "--out", str(fleet["tmp"] / "x")]
     assert main([*base, "--unit", "SN9"]) == 2
     assert main([*base, "--prior", fleet["db"], "--structure", "bank"]) == 2
-    empty = str(Path(fleet["tmp"]) / "empty.fleet")
-    assert main([*base, "--prior", empty]) == 2
+    missing = Path(fleet["tmp"]) / "missing.fleet"
+    assert main([*base, "--prior", str(missing)]) == 2
+    assert not missing.exists()  # the prior reads a fleet, it does not create one
+    one = str(Path(fleet["tmp"]) / "one.fleet")
+    with open_store(one) as store:
+        store.add(open_store(fleet["db"]).unit("SN0"))
+    assert main([*base, "--prior", one]) == 2
     err = capsys.readouterr().err
-    assert "--prior FLEET" in err and "drop --model" in err and "at least two units" in err
+    assert "--prior FLEET" in err and "drop --model" in err and "no such fleet" in err
+    assert "at least two units" in err

@@ -44,10 +44,21 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
     return learn(series, first=first)
 
 
-def prior_from_store(path: str) -> DesignPrior:  # noqa: D401
+def existing_fleet(path: str) -> str:
+    """`path` if it names a fleet database that exists (a file) or a server's URL: the
+    prior reads a fleet, it does not create one."""
+    from fogsf.errors import UserError
+
+    if "://" not in path and not Path(path).is_file():
+        raise UserError(f"{path}: no such fleet database (`fogsf fleet add` creates one)")
+    return path
+
+
+def prior_from_store(path: str) -> DesignPrior:
     """The design's prior from the fleet database at `path` (its units' summaries)."""
 
-    units = open_store(path).units()
+    with open_store(existing_fleet(path)) as store:
+        units = store.units()
     return prior_from_summaries({u.unit: u.summary for u in units if u.summary})
 
 
@@ -100,11 +111,12 @@ def test_series(log: ChamberLog, step_s: float, latitude_deg: float | None
 def prior_interval(mf: MapFit, test_log: ChamberLog, opts: TrainOptions, floor_ppm: float
                    ) -> list[float]:
     """The expected test RMS (ppm) with the posterior's spread: [the floor, sqrt(floor^2 +
-    4 mean_t var_t)], var_t the posterior variance of the law's prediction at step t (two
-    standard deviations)."""
+    4 mean_t var_t)], var_t the variance of the law's prediction at step t under the
+    posterior with the spread shrunk toward its diagonal (`MapFit.cov_wide`; two standard
+    deviations)."""
     s, _ = test_series(test_log, opts.model_step_s, opts.latitude_deg)
     jac = jacobian(s, mf.theta, mf.k)
-    var = float(np.mean(np.einsum("ij,jk,ik->i", jac, mf.cov, jac)))
+    var = float(np.mean(np.einsum("ij,jk,ik->i", jac, mf.cov_wide, jac)))
     return [floor_ppm, math.sqrt(floor_ppm**2 + 4.0 * max(var, 0.0))]
 
 
@@ -127,16 +139,17 @@ def prior_lines(rec: dict) -> list[str]:
                  + ", ".join(u["unit"] for u in rec["left_out"]) + ")")
     chi = (f"chi-square of the unit's own fit against the design {rec['chi2']:.1f}, limit "
            f"{rec['chi2_limit']:.1f} at {rec['level']:g}")
+    tail = [rec["recorded"]] if "recorded" in rec else []
     if not rec["used"]:
         return [head, f"the unit's data disagree with the design ({chi}): fitted alone, as "
-                "fogsf train would"]
+                "fogsf train would", *tail]
     lines = [head, f"the prior's share of the posterior precision: {share} (100 %: the "
              f"unit's data added nothing); {chi}: the unit agrees with the design",
              "unit's time constants " + ", ".join(f"{t:.0f}" for t in rec["taus_s"]) + " s"]
     if "interval_ppm" in rec:
         lo, hi = rec["interval_ppm"]
         lines.append(f"expected test RMS with the prior's spread: {lo:.2f}-{hi:.2f} ppm")
-    return lines
+    return lines + tail
 
 
 def _rewrite(path: Path, obj: dict) -> None:
@@ -151,7 +164,7 @@ def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog
     it into `out`, recorded in FLEET with --unit; metrics.json's content."""
 
     unit = getattr(args, "unit", None)
-    with open_store(args.prior) as store:  # type: ignore[attr-defined]
+    with open_store(existing_fleet(args.prior)) as store:  # type: ignore[attr-defined]
         if unit is not None and store.has(unit):
             raise UserError(f"unit {unit!r} is already in {store.location} (`fogsf fleet "
                             "remove` it first)")
@@ -169,5 +182,5 @@ def train_on_prior(args: object, opts: TrainOptions, train_logs: list[ChamberLog
         record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
         with open_store(args.prior) as store:  # type: ignore[attr-defined]
             store.add(record)
-        print(f"recorded unit {unit} in {store.location}")
+        metrics["prior"]["recorded"] = f"recorded unit {unit} in {store.location}"
     return metrics
