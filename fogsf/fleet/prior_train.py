@@ -47,7 +47,6 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
 def existing_fleet(path: str) -> str:
     """`path` if it names a fleet database that exists (a file) or a server's URL: the
     prior reads a fleet, it does not create one."""
-    from fogsf.errors import UserError
 
     if "://" not in path and not Path(path).is_file():
         raise UserError(f"{path}: no such fleet database (`fogsf fleet add` creates one)")
