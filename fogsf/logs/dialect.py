@@ -25,7 +25,7 @@ from fogsf.logs.column_map import (
     plan_map,
 )
 from fogsf.logs.expressions import ExpressionError, parse_expression, split_top_level
-from fogsf.logs.joins import Join, join_names, joins_of
+from fogsf.logs.join_spec import Join, join_names, joins_of
 
 DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
 DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
