@@ -18,6 +18,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -97,11 +98,15 @@ def run_cppcheck(files: list[Path], defines: dict[str, int], includes: list[Path
     kernel tests: FLT_EVAL_METHOD as a C99 compiler for IEEE float32 defines it)."""
     if shutil.which(CPPCHECK) is None:
         raise UserError("cppcheck not found: `apt-get install cppcheck` (make toolchain)")
-    cmd = [CPPCHECK, "--addon=misra", "--std=c99", "--quiet", "--error-exitcode=0",
-           "--template={file}:{line}:{severity}:{id}:{message}", "-DFLT_EVAL_METHOD=0",
-           *(f"-D{k}={v}" for k, v in defines.items()),
-           *(f"-I{p}" for p in includes), *map(str, files)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    # its dump files in a folder of the run's own, never beside the sources (a killed run
+    # would leave them in the kernel's folder)
+    with tempfile.TemporaryDirectory(prefix="cppcheck-", dir=root) as build:
+        cmd = [CPPCHECK, "--addon=misra", "--std=c99", "--quiet", "--error-exitcode=0",
+               f"--cppcheck-build-dir={build}",
+               "--template={file}:{line}:{severity}:{id}:{message}", "-DFLT_EVAL_METHOD=0",
+               *(f"-D{k}={v}" for k, v in defines.items()),
+               *(f"-I{p}" for p in includes), *map(str, files)]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     return parse(proc.stdout + proc.stderr, root)
 
 
