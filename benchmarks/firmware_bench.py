@@ -99,22 +99,29 @@ IMAGES = ((1, "small-lstm-1x16-poly", True, False, 0, False, False),
           (11, "lag-bank-1x16-all-inputs-full-quad", False, False, 0, False, False))
 
 
-def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-lstm-1x16-poly",
-                selftest: bool = False) -> dict:
-    """Flash, RAM and instructions of one Cortex-M4F image stepping all `models` (with
-    `selftest`, the image calls fogsf_selftest at power-on too)."""
+def write_image_models(models: list[st.StreamModel], root: Path, label: str
+                       ) -> tuple[list[str], Path, Path, tuple[str, ...]]:
+    """The image's models as C (one an axis) under ROOT/image{n}-{label}/models: (names,
+    the image's folder, the models' folder, -D flags sizing the states for all of them)."""
     names = AXES[:len(models)]
-    tag = f"image{len(models)}-{label}"
-    gen = root / tag / "models"
+    folder = root / f"image{len(models)}-{label}"
+    gen = folder / "models"
     for name, model in zip(names, models, strict=True):
         write_model(model, gen, name)
     sizes: dict[str, int] = {}
     for model in models:
         for k, v in state_sizes(model).items():
             sizes[k] = max(sizes.get(k, 0), v)
-    arm = build_arm(gen, None, root / tag / "m4f", names,
-                    tuple(f"-D{k}={v}" for k, v in sizes.items())
-                    + (("-DFOGSF_BENCH_SELFTEST",) if selftest else ()))
+    return names, folder, gen, tuple(f"-D{k}={v}" for k, v in sizes.items())
+
+
+def bench_image(models: list[st.StreamModel], root: Path, label: str = "small-lstm-1x16-poly",
+                selftest: bool = False) -> dict:
+    """Flash, RAM and instructions of one Cortex-M4F image stepping all `models` (with
+    `selftest`, the image calls fogsf_selftest at power-on too)."""
+    names, folder, gen, defines = write_image_models(models, root, label)
+    arm = build_arm(gen, None, folder / "m4f", names,
+                    defines + (("-DFOGSF_BENCH_SELFTEST",) if selftest else ()))
     size = arm_size(arm, models)
     worst, mean = instructions(arm.bench_elf, models[0].decimation)
     row = {"name": f"{len(models)}x {label} in one image", "models": len(models),
@@ -137,18 +144,9 @@ def bench_core(core: Core, models: list[st.StreamModel], root: Path, label: str,
     """One image on one core: flash (text + data), RAM (data + bss + the stack bound of a
     call-graph walk of the linked image, libgcc included: the deeper of fogsf_step's and the
     power-on calls'), instructions per sample (worst: a model step; mean over a period)."""
-    names = AXES[:len(models)]
-    tag = f"image{len(models)}-{label}"
-    gen = root / tag / "models"
-    for name, model in zip(names, models, strict=True):
-        write_model(model, gen, name)
-    sizes: dict[str, int] = {}
-    for model in models:
-        for k, v in state_sizes(model).items():
-            sizes[k] = max(sizes.get(k, 0), v)
-    arm = build_arm(gen, None, root / tag / core.name, names,
-                    tuple(f"-D{k}={v}" for k, v in sizes.items())
-                    + ((EVEN_TIME,) if even_time else ()), core=core)
+    names, folder, gen, defines = write_image_models(models, root, label)
+    arm = build_arm(gen, None, folder / core.name, names,
+                    defines + ((EVEN_TIME,) if even_time else ()), core=core)
     text, data, bss = section_sizes(arm.size_elf)
     step = stack_bound(arm.size_elf, STEP_ROOTS)
     init = stack_bound(arm.size_elf, INIT_ROOTS)
