@@ -11,11 +11,13 @@ by default, development 0-9999 with `--seeds dev`, where tuning belongs):
   0.5 C/min up-ramp, 3 h), `loop4h` (the 1 up / 2 down loop with 30 min soaks, 4 h), and
   `full` (the fleet's program), each tested on the test loop (1 C/min up, 1.5 C/min down,
   30 min soaks): test RMS / noise floor;
-  - `prior`: the unit's MAP under the prior (`prior_map.map_fit`), the law `fogsf train
-    --prior` carries in its head (the LSTM on top is left out here: the bench scores the
-    least-squares part, which the LSTM's validation keeps unless it does better); on
-    `full` the design's structure fitted to the unit's own program (the prior adds
-    nothing there);
+  - `prior`: the unit's law under the prior (`prior_function.function_fit`, `law`), the
+    law `fogsf train --prior` carries in its head (the LSTM on top is left out here: the
+    bench scores the least-squares part, which the LSTM's validation keeps unless it does
+    better); on `full` the design's structure fitted to the unit's own program (the prior
+    adds nothing there); beside it `map`, the MAP of the parameters (`prior_map.map_fit`,
+    the check's fit), and `interval`, the upper end of the interval `train --prior`
+    states, over the floor, against the unit's test figure;
   - `default`: `fogsf train` without the prior on `loop2h` and `up05` (its LSTM included);
   - `alone`: the default's least-squares part (no LSTM iterations) on every run, for the
     chamber hours each residual takes;
@@ -41,6 +43,7 @@ import numpy as np
 
 from benchmarks.population import HI_C, LO_C, run_profile
 from fogsf.gsa.executors import add_executor_options, executor_from_args, run_all
+from fogsf.logs.metrics import log_metrics
 from fogsf.sim.config import ProfileConfig
 
 FULL = ("up05", "up20", "loop_train", "loop_test_again")
@@ -79,6 +82,15 @@ def _score(log, theta: np.ndarray, k: int) -> float:  # noqa: ANN001
     return ratio(log, law_prediction(theta, k, log))
 
 
+def _interval(ff, test) -> float:  # noqa: ANN001 - FunctionFit, ChamberLog
+    """The upper end of the interval `fogsf train --prior` states, over the floor."""
+    from fogsf.fleet.prior_train import INTERVAL_Z, test_series
+
+    s, _ = test_series(test, 5.0, None)
+    floor = log_metrics(test)["noise_floor_ppm"]
+    return float(np.sqrt(1.0 + INTERVAL_Z**2 * np.mean(ff.variance(s)) / floor**2))
+
+
 def _default(logs: list, test, iters: int | None, seed: int) -> float:  # noqa: ANN001
     from fogsf.training.options import TrainOptions
     from fogsf.training.train import run_training
@@ -96,6 +108,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
     import torch
 
     from fogsf.fleet import prior as fp
+    from fogsf.fleet.prior_function import function_fit
     from fogsf.fleet.prior_map import map_fit
     from fogsf.fleet.unit_fit import fit_unit, step_series
 
@@ -120,7 +133,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
         logs = {r: ([simulate_run(design, u, x) for x in FULL] if r == "full"
                     else [simulate_run(design, u, r)]) for r in runs}
         row: dict = {"unit": u, "prior": {}, "alone": {}, "default": {}, "chi2": {},
-                     "share": {}}
+                     "share": {}, "map": {}, "interval": {}}
         full_fit = fit_unit(step_series(logs["full"] if "full" in logs else
                                         [simulate_run(design, u, x) for x in FULL]),
                             big.k, np.exp(big.mu[:big.k]))
@@ -130,11 +143,15 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                 if r == "full":  # the full program decides the unit: its own fit
                     row["prior"][f"{r}/{n}"] = row["oracle_full"]
                     continue
-                mf = map_fit(step_series(lg), p)
-                row["prior"][f"{r}/{n}"] = _score(test, mf.theta, p.k)
+                ss = step_series(lg)
+                mf = map_fit(ss, p)
+                ff = function_fit(ss, p, mf.s2)
+                row["prior"][f"{r}/{n}"] = _score(test, ff.law(), p.k)
                 if n == max(fleets):
                     row["chi2"][r] = [mf.chi2, mf.chi2_limit]
                     row["share"][r] = mf.prior_share
+                    row["map"][r] = _score(test, mf.theta, p.k)
+                    row["interval"][r] = _interval(ff, test)
             row["alone"][r] = _default(lg, test, 0, u)
             if default and r in DEFAULT_ON:
                 row["default"][r] = _default(lg, test, None, u)
@@ -170,6 +187,13 @@ def summarise(rows: list[dict], fleets: tuple[int, ...], runs: tuple[str, ...]) 
         if all(r in u["default"] for u in units):
             s["default"][r] = _stats([u["default"][r] for u in units])
     s["oracle_full"] = _stats([u["oracle_full"] for u in units])
+    short = [r for r in runs if r != "full"]
+    s["map"] = {r: _stats([u["map"][r] for u in units]) for r in short}
+    s["interval"] = {r: {"inside": sum(1 for u in units
+                                       if u["prior"][f"{r}/{max(fleets)}"] <= u["interval"][r]),
+                         "n": len(units),
+                         "upper_median": float(np.median([u["interval"][r] for u in units]))}
+                     for r in short}
     if all("oracle_taus_loop2h" in u for u in units):
         s["oracle_taus_loop2h"] = _stats([u["oracle_taus_loop2h"] for u in units])
     s["disagree"] = {r: sum(1 for u in units if u["chi2"][r][0] > u["chi2"][r][1])
@@ -202,6 +226,11 @@ def print_summary(s: dict, fleets: tuple[int, ...], runs: tuple[str, ...], n: in
                                  f"{s['oracle_taus_loop2h']['median']:.2f} / "
                                  f"{s['oracle_taus_loop2h']['worst']:.2f}"
                                  if "oracle_taus_loop2h" in s else ""))
+    print("the MAP of the parameters (the check's fit), median / worst: " + ", ".join(
+        f"{r} {v['median']:.2f} / {v['worst']:.2f}" for r, v in s["map"].items()))
+    print("units at or under the interval's upper end (fleet of " + str(max(fleets)) + "): "
+          + ", ".join(f"{r} {v['inside']}/{v['n']} (upper end {v['upper_median']:.2f} x "
+                      "the floor, median)" for r, v in s["interval"].items()))
     print("units whose data disagreed with the design (fitted alone by train --prior): "
           + ", ".join(f"{r} {v}" for r, v in s["disagree"].items()))
     print(f"chamber hours to reach a residual (median, fleet of {max(fleets)}):")

@@ -14,7 +14,9 @@ database by `unit_summary`):
    kept at least a FLOOR share of the between-unit variance (in the units' correlation
    scale); for the check of a new unit against the design also shrunk toward its
    diagonal by the share p / (p + N) (a few units cannot pin p(p+1)/2 covariances).
-`map_fit` fits a new unit under the prior (prior_map.py).
+The kept units' fits (`unit_thetas`) and a full program they ran (`reference`) carry the
+prior in the space of responses (prior_function.py), what a new unit is fitted with;
+`map_fit` (prior_map.py) fits the parameters themselves: the check against the design.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, UnitFit, fit_unit, predict
+from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, UnitFit, all_steps, fit_unit, predict
 
 K_CHOICES = (1, 2, 3)
 STRUCTURE_TOLERANCE = 0.05
@@ -54,6 +56,11 @@ class DesignPrior:
     # differ from the design where no unit of the fleet happened to)
     sigma_check: np.ndarray
     step_noise_ppm2: float  # the units' median residual variance per model step
+    # the kept units' fits at k from the design's time constants (one row a unit): their
+    # responses are the prior in the space of responses (`prior_function`)
+    unit_thetas: np.ndarray | None = None
+    # a full program the units ran (every step): where a new unit's law is fitted
+    reference: StepSeries | None = None
 
     def as_dict(self) -> dict:
         return {"k": self.k, "mu": self.mu.tolist(), "sigma": self.sigma.tolist(),
@@ -133,9 +140,11 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     between = np.cov(th.T, ddof=1) if n > 1 else np.zeros((p, p))
     noise = cv.mean(axis=0)
     sigma = _spread(between, noise, n, SHRINK)
-    return DesignPrior(k, mu, sigma, [sn for sn, kp in zip(names, keep, strict=True) if kp],
-                       left, scores, between, noise, _spread(between, noise, n, None),
-                       float(np.median([fits[sn].sse / fits[sn].n for sn in names])))
+    kept = [sn for sn, kp in zip(names, keep, strict=True) if kp]
+    return DesignPrior(k, mu, sigma, kept, left, scores, between, noise,
+                       _spread(between, noise, n, None),
+                       float(np.median([fits[sn].sse / fits[sn].n for sn in names])), th,
+                       all_steps(series[kept[0]]))
 
 
 def _spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None

@@ -44,9 +44,6 @@ class MapFit:
     chi2_limit: float
     prior_share: dict[str, float]  # per group: the prior's share of the posterior precision
     alone_theta: np.ndarray
-    # the posterior covariance with the spread shrunk toward its diagonal (the interval's:
-    # a fleet of few units spans few directions, Sigma alone is too sure of the others)
-    cov_wide: np.ndarray
 
     @property
     def disagrees(self) -> bool:
@@ -137,8 +134,7 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
     return MapFit(k, theta, cov, s2, obj, alone_obj,
                   check_chi2(series, prior, alone.sigma2, alone, max_iter),
                   chi2_quantile(p, DISAGREE_LEVEL),
-                  _shares(cov, prior.sigma, k), alone.theta,
-                  np.linalg.inv(prec_data + np.linalg.inv(prior.sigma_check)))
+                  _shares(cov, prior.sigma, k), alone.theta)
 
 
 def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit,

@@ -6,10 +6,11 @@ its physics nodes) and simulated at the model rate: the board temperature follow
 chamber through the default gyro's housing and board lags (the prior knows the unit from
 its board thermometer on, not the chamber's air), the SF error is the unit's law plus white
 noise at the fleet's median residual level per step. Each candidate program of the planner
-(`plan.programs.candidates`, shortest first) is fitted under the prior (`prior_map.map_fit`,
-as `fogsf train --prior` fits it) and scored on the planner's test loops across the
-envelope: sqrt(floor^2 + the law's error over 100 s windows) / floor. The first program
-whose median over units and rates is at or under the target is the answer.
+(`plan.programs.candidates`, shortest first) is fitted under the prior (its posterior mean
+response, `prior_function.function_fit`, as `fogsf train --prior` fits it) and scored on
+the planner's test loops across the envelope: sqrt(floor^2 + the law's error over 100 s
+windows) / floor. The first program whose median over units and rates is at or under the
+target is the answer.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.fleet.prior import DesignPrior
-from fogsf.fleet.prior_map import map_fit
+from fogsf.fleet.prior_function import function_fit
 from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, design_matrix
 from fogsf.models.features import MODEL_STEP_S, T_REF_C
 from fogsf.models.node_fit import discrete_lag, lag_alpha
@@ -91,11 +92,11 @@ def evaluate(program: Program, prior: DesignPrior, units: list[np.ndarray],
     ratios = []
     for i, theta in enumerate(units):
         rng = np.random.default_rng([seed, i])
-        mf = map_fit(_series(runs, theta, k, noise, rng), prior)
+        ff = function_fit(_series(runs, theta, k, noise, rng), prior, noise**2)
         for t in tests:
             s = _series([t], None, k, noise, None)
             truth = design_matrix(s, np.exp(theta[:k])) @ theta[k:]
-            pred = design_matrix(s, np.exp(mf.theta[:k])) @ mf.theta[k:]
+            pred = ff.predict(s)
             ratios.append(_ratio(pred - truth, noise))
     return PlanResult(program, float(np.median(ratios)), float(np.max(ratios)), ratios)
 

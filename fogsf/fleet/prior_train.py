@@ -1,11 +1,13 @@
 """`fogsf train --prior FLEET`: a new unit fitted under its design's prior.
 
 The prior is learned from the fleet database's unit summaries (`prior.learn`); the unit's
-physics-node law is its MAP under the prior (`prior_map.map_fit`), carried exactly in the
-default model's polynomial head, the LSTM on what it leaves (as `fogsf train`'s lag-lstm:
+response is its posterior under the prior in the space of responses
+(`prior_function.function_fit`), its physics-node law (`FunctionFit.law`) carried exactly in
+the default model's polynomial head, the LSTM on what it leaves (as `fogsf train`'s lag-lstm:
 its validation keeps the least-squares start where the LSTM does not earn its place). The
 model directory is an ordinary model (no firmware change). When the unit's data disagree
-with the design (`MapFit.disagrees`), the unit is fitted alone, as `fogsf train` would.
+with the design (`MapFit.disagrees`, the check of the unit's parameters against the
+design's, `prior_map.map_fit`), the unit is fitted alone, as `fogsf train` would.
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.fleet.prior import DesignPrior, learn
-from fogsf.fleet.prior_map import DISAGREE_LEVEL, MapFit, map_fit
+from fogsf.fleet.prior_function import FunctionFit, function_fit
+from fogsf.fleet.prior_map import DISAGREE_LEVEL, map_fit
 from fogsf.fleet.records import unit_record
 from fogsf.fleet.store import open_store
-from fogsf.fleet.unit_fit import StepSeries, UnitFit, design_matrix, jacobian, step_series
+from fogsf.fleet.unit_fit import StepSeries, UnitFit, all_steps, design_matrix, step_series
 from fogsf.fleet.unit_summary import series_of
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.features import front_end_for, prepare
@@ -42,6 +45,11 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
         for k, f in s.get("fits", {}).items():
             first.setdefault(int(k), {})[sn] = UnitFit.from_dict(f)
     return learn(series, first=first)
+
+
+# the interval's upper end: the floor and this many posterior standard deviations of the
+# response (bench-fleet, development designs: the share of new units at or under it)
+INTERVAL_Z = 2.0
 
 
 def existing_fleet(path: str) -> str:
@@ -75,27 +83,31 @@ def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
     if mf.disagrees:
         metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
     else:
-        taus = tuple(float(t) for t in mf.taus_s)
+        ff = function_fit(series, prior, mf.s2)
+        theta = ff.law()
+        taus = tuple(float(t) for t in np.exp(theta[:prior.k]))
+        rec["taus_s"], rec["theta"] = list(taus), theta.tolist()
 
         def head(ti):  # noqa: ANN001, ANN202 - training.train.TrainingInputs / NodeFit
-            return map_head(mf, ti.offset, ti.scale, taus)
+            return law_head(theta, prior.k, ti.offset, ti.scale)
 
         metrics, fitted = run_training(
             opts, train_logs, test_log, out_dir,
             fit=lambda o, logs: fit_physics_head(o, logs, taus, head))
-    if test_log is not None and not mf.disagrees:
-        rec["interval_ppm"] = prior_interval(mf, test_log, opts, metrics["noise_floor_ppm"])
+        if test_log is not None:
+            rec["interval_ppm"] = prior_interval(ff, test_log, opts,
+                                                 metrics["noise_floor_ppm"])
     metrics["prior"] = rec
     _rewrite(out_dir / "metrics.json", metrics)
     return metrics, fitted
 
 
-def map_head(mf: MapFit, offset: float, scale: float, taus: tuple[float, ...]):  # noqa: ANN201
-    """The MAP law as the head's NodeFit (normalised target: (y - offset) / scale)."""
-    k = mf.k
-    coef = mf.theta[k:]
+def law_head(theta: np.ndarray, k: int, offset: float, scale: float):  # noqa: ANN201
+    """The law theta = [log taus, coefficients] as the head's NodeFit (normalised target:
+    (y - offset) / scale)."""
+    coef = theta[k:]
     rf = RidgeFit((float(coef[0]) - offset) / scale, coef[1:] / scale, 0.0, float(coef.size))
-    return head_from_ridge(rf, k + 1, taus, NODE_LAMBDA)
+    return head_from_ridge(rf, k + 1, tuple(float(t) for t in np.exp(theta[:k])), NODE_LAMBDA)
 
 
 def test_series(log: ChamberLog, step_s: float, latitude_deg: float | None
@@ -103,20 +115,18 @@ def test_series(log: ChamberLog, step_s: float, latitude_deg: float | None
     """A log's every step as a series (to predict on), and its decimation."""
     fe = front_end_for([log], step_s, ())
     d = prepare(log, fe, None, latitude_deg)
-    return (StepSeries([d.s[:, 0].astype(np.float64)], np.zeros(d.n_steps),
-                       np.arange(d.n_steps), fe.step_s), d.decimation)
+    return all_steps(StepSeries([d.s[:, 0].astype(np.float64)], np.zeros(0),
+                                np.zeros(0, dtype=np.int64), fe.step_s)), d.decimation
 
 
-def prior_interval(mf: MapFit, test_log: ChamberLog, opts: TrainOptions, floor_ppm: float
-                   ) -> list[float]:
+def prior_interval(ff: FunctionFit, test_log: ChamberLog, opts: TrainOptions,
+                   floor_ppm: float) -> list[float]:
     """The expected test RMS (ppm) with the posterior's spread: [the floor, sqrt(floor^2 +
-    4 mean_t var_t)], var_t the variance of the law's prediction at step t under the
-    posterior with the spread shrunk toward its diagonal (`MapFit.cov_wide`; two standard
-    deviations)."""
+    INTERVAL_Z^2 mean_t var_t)], var_t the posterior variance of the unit's response at
+    step t of the test (`FunctionFit.variance`)."""
     s, _ = test_series(test_log, opts.model_step_s, opts.latitude_deg)
-    jac = jacobian(s, mf.theta, mf.k)
-    var = float(np.mean(np.einsum("ij,jk,ik->i", jac, mf.cov_wide, jac)))
-    return [floor_ppm, math.sqrt(floor_ppm**2 + 4.0 * max(var, 0.0))]
+    var = float(np.mean(ff.variance(s)))
+    return [floor_ppm, math.sqrt(floor_ppm**2 + INTERVAL_Z**2 * max(var, 0.0))]
 
 
 def law_prediction(theta: np.ndarray, k: int, log: ChamberLog, step_s: float = 5.0

@@ -204,6 +204,12 @@ def estimation_cov(series: StepSeries, theta: np.ndarray, k: int, white: float) 
     return 0.5 * (cov + cov.T)
 
 
+def all_steps(series: StepSeries) -> StepSeries:
+    """`series` with every step as a row, the target zero: to predict on."""
+    n = sum(t.size for t in series.t_rel)
+    return StepSeries(series.t_rel, np.zeros(n), np.arange(n), series.step_s)
+
+
 def _full(series: StepSeries) -> np.ndarray:
     """The target over every stacked step (zeros where not measured: `rows` selects)."""
     y = np.zeros(sum(t.size for t in series.t_rel))

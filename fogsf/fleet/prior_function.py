@@ -1,0 +1,97 @@
+"""A new unit under its design's prior, in the space of responses: what `fogsf train --prior`
+fits and `fogsf plan --prior` plans with.
+
+Each unit of the fleet, fitted on its full program at the design's structure
+(`DesignPrior.unit_thetas`), is a function f_i from a temperature history to the SF error.
+The new unit's function is drawn around theirs:
+    f = m + D a + J b,   a ~ N(0, LAM_UNITS I),   b ~ N(0, LAM_PARAMS I),
+m the units' mean response, D their deviations from it over sqrt(N - 1) (the fleet's own
+spread of responses, rank N - 1: what real units of the design do, whatever form the
+physics has), J the response's Jacobian at the design's parameters times a square root of
+their spread (`DesignPrior.sigma`: the directions a few units did not happen to span).
+The short run's steps y = f + e, e ~ N(0, s^2), s^2 the unit's own residual variance with
+its correlation (`unit_fit.correlation_factor`); the posterior of (a, b) is a ridge in
+closed form, its mean the unit's response on any history (`predict`), its covariance the
+spread of that response (`variance`, the interval's).
+
+The exported model is an ordinary physics-node model: `law` fits the design's structure to
+the posterior mean response on the fleet's reference program and the unit's own runs
+(noise-free, so the fit is a projection), the law the model's head carries.
+
+The weights LAM_UNITS and LAM_PARAMS were chosen on development designs 3, 4, 10, 15, 21,
+22 (3 new units each, fleets of 12 and 20; benchmarks/probes/README.md, "The design's
+prior in the space of responses").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fogsf.fleet.prior import DesignPrior
+from fogsf.fleet.unit_fit import StepSeries, all_steps, fit_unit, jacobian, predict
+
+LAM_UNITS = 1.0
+LAM_PARAMS = 0.3
+
+
+def _root(sigma: np.ndarray) -> np.ndarray:
+    """R with R R^T = sigma (sigma symmetric, eigenvalues floored at zero)."""
+    ev, vec = np.linalg.eigh(0.5 * (sigma + sigma.T))
+    return vec * np.sqrt(np.maximum(ev, 0.0))
+
+
+@dataclass
+class FunctionFit:
+    prior: DesignPrior
+    a: np.ndarray  # posterior mean of the basis coefficients [a, b]
+    a_cov: np.ndarray  # their posterior covariance
+    s2: float  # the data's noise variance used
+    own: StepSeries  # the unit's training runs
+
+    def basis(self, series: StepSeries) -> tuple[np.ndarray, np.ndarray]:
+        return response_basis(self.prior, series)
+
+    def predict(self, series: StepSeries) -> np.ndarray:
+        """The posterior mean response (ppm) on `series`' rows."""
+        m, b = self.basis(series)
+        return m + b @ self.a
+
+    def variance(self, series: StepSeries) -> np.ndarray:
+        """The posterior variance (ppm^2) of the response on `series`' rows."""
+        _, b = self.basis(series)
+        return np.einsum("ij,jk,ik->i", b, self.a_cov, b)
+
+    def law(self) -> np.ndarray:
+        """The design's structure fitted to the posterior mean response on the fleet's
+        reference program and the unit's own runs: theta = [log taus, coefficients]."""
+        p = self.prior
+        runs = ([] if p.reference is None else list(p.reference.t_rel)) + list(self.own.t_rel)
+        ref = all_steps(StepSeries(runs, np.zeros(0), np.zeros(0, dtype=np.int64),
+                                   self.own.step_s))
+        ref.y = self.predict(ref)
+        return fit_unit(ref, p.k, np.exp(p.mu[:p.k])).theta
+
+
+def response_basis(prior: DesignPrior, series: StepSeries) -> tuple[np.ndarray, np.ndarray]:
+    """(m, B) on `series`' rows: the units' mean response and the basis [sqrt(LAM_UNITS) D,
+    sqrt(LAM_PARAMS) J R] (R R^T = Sigma)."""
+    k = prior.k
+    f = np.stack([predict(series, th, k) for th in prior.unit_thetas], axis=1)
+    m = f.mean(axis=1)
+    n = f.shape[1]
+    d = (f - m[:, None]) / np.sqrt(max(n - 1, 1))
+    j = jacobian(series, prior.mu, k) @ _root(prior.sigma)
+    return m, np.hstack([np.sqrt(LAM_UNITS) * d, np.sqrt(LAM_PARAMS) * j])
+
+
+def function_fit(series: StepSeries, prior: DesignPrior, s2: float) -> FunctionFit:
+    """The new unit's posterior under the prior from its runs `series` (noise variance s2)."""
+    if prior.unit_thetas is None or len(prior.unit_thetas) == 0:
+        raise ValueError("the design's prior holds no units' fits")
+    m, b = response_basis(prior, series)
+    prec = b.T @ b / s2 + np.eye(b.shape[1])
+    cov = np.linalg.inv(prec)
+    a = cov @ (b.T @ (series.y - m) / s2)
+    return FunctionFit(prior, a, 0.5 * (cov + cov.T), s2, series)
