@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 from fogsf.fleet import prior as fp
+from fogsf.fleet.prior_function import function_fit
 from fogsf.fleet.prior_map import map_fit
-from fogsf.fleet.unit_fit import StepSeries, design_matrix, fit_unit, n_coef
+from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, fit_unit, n_coef
 
 STEP_S = 5.0
 SEED = 3802
@@ -122,6 +123,32 @@ def test_map_beats_the_short_run_alone(line: dict, prior: fp.DesignPrior) -> Non
         better += e_map < e_alone
         assert e_map < 3.0 * line["noise"], f"seed {SEED} unit {i}: {e_map:.2f} ppm off"
     assert better == 2, f"seed {SEED}"
+
+
+def test_response_prior_beats_the_short_run_alone(line: dict, prior: fp.DesignPrior) -> None:
+    """The posterior mean response beats the unit's short run alone; the law it exports is
+    that response (a projection of it), and the interval narrows with the unit's data."""
+    rng = np.random.default_rng(SEED + 4)
+    full = all_steps(line["units"]["u0"][0])
+    for i in range(2):
+        t_short = _program(1.5, 2.0, 10, rng)
+        short, truth = _unit(line["design"], t_short, rng, line["noise"])
+        mf = map_fit(short, prior)
+        ff = function_fit(short, prior, mf.s2)
+        law = ff.law()
+        alone = fit_unit(short, 2)
+        e_law, e_alone = _truth_rms(full, law, truth), _truth_rms(full, alone.theta, truth)
+        msg = f"seed {SEED} unit {i}: {e_law:.2f} ppm against {e_alone:.2f} alone"
+        assert e_law < e_alone and e_law < 3.0 * line["noise"], msg
+        mean = ff.predict(full)
+        exported = design_matrix(full, np.exp(law[:2])) @ law[2:]
+        assert np.sqrt(np.mean((mean - exported) ** 2)) < 0.2 * line["noise"], msg
+        more = StepSeries([t_short, full.t_rel[0]], np.concatenate(
+            [short.y, design_matrix(full, np.exp(truth[:2])) @ truth[2:]
+             + rng.normal(0, line["noise"], full.rows.size)]),
+            np.arange(t_short.size + full.rows.size), STEP_S)
+        assert np.mean(function_fit(more, prior, mf.s2).variance(full)) \
+            < np.mean(ff.variance(full)), msg
 
 
 def test_unit_unlike_the_design_disagrees(line: dict, prior: fp.DesignPrior) -> None:

@@ -26,7 +26,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, UnitFit, all_steps, fit_unit, predict
+from fogsf.fleet.unit_fit import (
+    WINDOW_S,
+    StepSeries,
+    UnitFit,
+    all_steps,
+    fit_unit,
+    plain_refit,
+    predict,
+)
 
 K_CHOICES = (1, 2, 3)
 STRUCTURE_TOLERANCE = 0.05
@@ -56,8 +64,9 @@ class DesignPrior:
     # differ from the design where no unit of the fleet happened to)
     sigma_check: np.ndarray
     step_noise_ppm2: float  # the units' median residual variance per model step
-    # the kept units' fits at k from the design's time constants (one row a unit): their
-    # responses are the prior in the space of responses (`prior_function`)
+    # the kept units' fits at k from the design's time constants, their coefficients by
+    # least squares (`unit_fit.plain_refit`; one row a unit): their responses are the prior
+    # in the space of responses (`prior_function`)
     unit_thetas: np.ndarray | None = None
     # a full program the units ran (every step): where a new unit's law is fitted
     reference: StepSeries | None = None
@@ -143,7 +152,8 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     kept = [sn for sn, kp in zip(names, keep, strict=True) if kp]
     return DesignPrior(k, mu, sigma, kept, left, scores, between, noise,
                        _spread(between, noise, n, None),
-                       float(np.median([fits[sn].sse / fits[sn].n for sn in names])), th,
+                       float(np.median([fits[sn].sse / fits[sn].n for sn in names])),
+                       np.stack([plain_refit(series[sn], fits[sn].theta, k) for sn in kept]),
                        all_steps(series[kept[0]]))
 
 

@@ -49,9 +49,10 @@ class FunctionFit:
     a_cov: np.ndarray  # their posterior covariance
     s2: float  # the data's noise variance used
     own: StepSeries  # the unit's training runs
+    lam: tuple[float, float] = (LAM_UNITS, LAM_PARAMS)
 
     def basis(self, series: StepSeries) -> tuple[np.ndarray, np.ndarray]:
-        return response_basis(self.prior, series)
+        return response_basis(self.prior, series, *self.lam)
 
     def predict(self, series: StepSeries) -> np.ndarray:
         """The posterior mean response (ppm) on `series`' rows."""
@@ -74,24 +75,27 @@ class FunctionFit:
         return fit_unit(ref, p.k, np.exp(p.mu[:p.k])).theta
 
 
-def response_basis(prior: DesignPrior, series: StepSeries) -> tuple[np.ndarray, np.ndarray]:
-    """(m, B) on `series`' rows: the units' mean response and the basis [sqrt(LAM_UNITS) D,
-    sqrt(LAM_PARAMS) J R] (R R^T = Sigma)."""
+def response_basis(prior: DesignPrior, series: StepSeries, lam_units: float = LAM_UNITS,
+                   lam_params: float = LAM_PARAMS) -> tuple[np.ndarray, np.ndarray]:
+    """(m, B) on `series`' rows: the units' mean response and the basis [sqrt(lam_units) D,
+    sqrt(lam_params) J R] (R R^T = Sigma)."""
     k = prior.k
     f = np.stack([predict(series, th, k) for th in prior.unit_thetas], axis=1)
     m = f.mean(axis=1)
     n = f.shape[1]
     d = (f - m[:, None]) / np.sqrt(max(n - 1, 1))
     j = jacobian(series, prior.mu, k) @ _root(prior.sigma)
-    return m, np.hstack([np.sqrt(LAM_UNITS) * d, np.sqrt(LAM_PARAMS) * j])
+    return m, np.hstack([np.sqrt(lam_units) * d, np.sqrt(lam_params) * j])
 
 
-def function_fit(series: StepSeries, prior: DesignPrior, s2: float) -> FunctionFit:
-    """The new unit's posterior under the prior from its runs `series` (noise variance s2)."""
+def function_fit(series: StepSeries, prior: DesignPrior, s2: float,
+                 lam: tuple[float, float] = (LAM_UNITS, LAM_PARAMS)) -> FunctionFit:
+    """The new unit's posterior under the prior from its runs `series` (noise variance s2;
+    `lam`: the weights on the fleet's responses and on the parametric spread)."""
     if prior.unit_thetas is None or len(prior.unit_thetas) == 0:
         raise ValueError("the design's prior holds no units' fits")
-    m, b = response_basis(prior, series)
+    m, b = response_basis(prior, series, *lam)
     prec = b.T @ b / s2 + np.eye(b.shape[1])
     cov = np.linalg.inv(prec)
     a = cov @ (b.T @ (series.y - m) / s2)
-    return FunctionFit(prior, a, 0.5 * (cov + cov.T), s2, series)
+    return FunctionFit(prior, a, 0.5 * (cov + cov.T), s2, series, lam)

@@ -187,6 +187,15 @@ def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None)
                    white * correlation_factor(resid, series.step_s), sse, n)
 
 
+def plain_refit(series: StepSeries, theta: np.ndarray, k: int) -> np.ndarray:
+    """theta with its coefficients refitted by least squares without the ridge at its time
+    constants: the unit's response as its data say it (the ridge shrinks collinear nodes
+    toward each other, right for one unit's law, a bias shared by every unit's)."""
+    x = design_matrix(series, np.exp(theta[:k]))
+    coef = np.linalg.lstsq(x, series.y, rcond=None)[0]
+    return np.concatenate([theta[:k], coef])
+
+
 def estimation_cov(series: StepSeries, theta: np.ndarray, k: int, white: float) -> np.ndarray:
     """The ridge fit's estimation covariance, white (J^T J + P)^-1 J^T J (J^T J + P)^-1, P
     the ridge penalty on the law's coefficients (intercept and time constants free): the

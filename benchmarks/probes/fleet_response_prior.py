@@ -1,0 +1,88 @@
+"""Probe: the design's prior in the space of responses against the MAP of the parameters.
+
+For each design (development designs by default: tuning belongs there), a fleet of units on
+the full program of `make bench-fleet`, the design's prior learned from it
+(`fogsf.fleet.prior.learn`), new units 100.. on a 2 h loop and on one 0.5 C/min ramp,
+scored on the test loop (1 C/min up, 1.5 down; test RMS / noise floor):
+- `map`: the MAP of the parameters (`prior_map.map_fit`, the fit before the response prior);
+- `resp U,P`: the posterior mean response (`prior_function`) with weights LAM_UNITS = U on
+  the fleet's responses and LAM_PARAMS = P on the parametric spread; `law` the exported law
+  at the module's weights;
+- `span`: the response prior given the unit's FULL program (the basis's reach);
+- `oracle`: the design's structure fitted to the unit's full program.
+
+    python -m benchmarks.probes.fleet_response_prior --designs 3,4,10,15,21,22 --fleet 20
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from benchmarks.fleet import FULL, NEW_FIRST, simulate_run
+from benchmarks.probes import ratio
+from fogsf.fleet import prior as fp
+from fogsf.fleet import prior_function as pf
+from fogsf.fleet.prior_map import map_fit
+from fogsf.fleet.prior_train import law_prediction, test_series
+from fogsf.fleet.unit_fit import fit_unit, step_series
+from fogsf.models.reference import expand
+
+WEIGHTS = ((1.0, 0.0), (1.0, 0.3), (1.0, 1.0), (2.0, 0.3), (0.0, 1.0))
+
+
+def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]]:
+    fleet = {f"u{u}": step_series([simulate_run(design, u, r) for r in FULL])
+             for u in range(n_fleet)}
+    prior = fp.learn(fleet)
+    k = prior.k
+    out: dict[str, list[float]] = {}
+    for u in range(NEW_FIRST, NEW_FIRST + n_new):
+        test = simulate_run(design, u, "loop_test")
+        ts, dec = test_series(test, 5.0, None)
+
+        def score(g: np.ndarray) -> float:
+            return ratio(test, expand(g, len(test), dec))  # noqa: B023
+
+        full = step_series([simulate_run(design, u, r) for r in FULL])
+        alone_full = fit_unit(full, k, np.exp(prior.mu[:k]))
+        out.setdefault("oracle", []).append(ratio(test, law_prediction(alone_full.theta, k,
+                                                                        test)))
+        out.setdefault("span", []).append(score(pf.function_fit(full, prior, alone_full.sigma2)
+                                                .predict(ts)))
+        for run in ("loop2h", "up05"):
+            s = step_series([simulate_run(design, u, run)])
+            mf = map_fit(s, prior)
+            out.setdefault(f"{run} map", []).append(ratio(test, law_prediction(mf.theta, k,
+                                                                                test)))
+            out.setdefault(f"{run} law", []).append(ratio(test, law_prediction(
+                pf.function_fit(s, prior, mf.s2).law(), k, test)))
+            for w in WEIGHTS:
+                out.setdefault(f"{run} resp {w[0]:g},{w[1]:g}", []).append(
+                    score(pf.function_fit(s, prior, mf.s2, w).predict(ts)))
+        print(f"design {design} unit {u} done", flush=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--designs", default="3,4,10,15,21,22")
+    ap.add_argument("--fleet", type=int, default=20, help="units on the full program")
+    ap.add_argument("--new", type=int, default=3, help="new units per design")
+    args = ap.parse_args(argv)
+    rows: dict[str, list[float]] = {}
+    for d in (int(x) for x in args.designs.split(",")):
+        for key, v in probe_design(d, args.fleet, args.new).items():
+            rows.setdefault(key, []).extend(v)
+    print(f"designs {args.designs}, fleet of {args.fleet}, {args.new} new units each: "
+          "test RMS / floor, median / worst")
+    for key in sorted(rows):
+        v = np.asarray(rows[key])
+        print(f"  {key:22s} {np.median(v):5.2f} / {v.max():5.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
