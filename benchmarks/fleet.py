@@ -88,7 +88,8 @@ def _interval(ff, test) -> float:  # noqa: ANN001 - FunctionFit, ChamberLog
 
     s, _ = test_series(test, 5.0, None)
     floor = log_metrics(test)["noise_floor_ppm"]
-    return float(np.sqrt(1.0 + INTERVAL_Z**2 * np.mean(ff.variance(s)) / floor**2))
+    var = float(np.mean(ff.variance(s))) + ff.misfit_ppm2()
+    return float(np.sqrt(1.0 + INTERVAL_Z**2 * var / floor**2))
 
 
 def _default(logs: list, test, iters: int | None, seed: int) -> float:  # noqa: ANN001

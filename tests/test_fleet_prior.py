@@ -149,6 +149,14 @@ def test_response_prior_beats_the_short_run_alone(line: dict, prior: fp.DesignPr
             np.arange(t_short.size + full.rows.size), STEP_S)
         assert np.mean(function_fit(more, prior, mf.s2).variance(full)) \
             < np.mean(ff.variance(full)), msg
+        # a slow form no unit of the design has, planted in the run, is read as misfit
+        amp = float(rng.uniform(1.0, 2.0)) * line["noise"]
+        t_s = np.arange(short.y.size) * STEP_S
+        odd = StepSeries(short.t_rel, short.y + amp * np.sin(2 * np.pi * t_s / 1500.0),
+                         short.rows, STEP_S)
+        m_odd = function_fit(odd, prior, mf.s2).misfit_ppm2()
+        assert m_odd > 4.0 * ff.misfit_ppm2() and m_odd > 0.1 * amp**2, \
+            f"{msg}; misfit {m_odd:.2f} ppm^2 with a {amp:.1f} ppm sine"
 
 
 def test_unit_unlike_the_design_disagrees(line: dict, prior: fp.DesignPrior) -> None:

@@ -9,6 +9,8 @@ scored on the test loop (1 C/min up, 1.5 down; test RMS / noise floor):
   the fleet's responses and LAM_PARAMS = P on the parametric spread; `law` the exported law
   at the module's weights;
 - `span`: the response prior given the unit's FULL program (the basis's reach);
+- `interval held`: units whose law's figure is at or under the interval's upper end, without
+  the misfit on the unit's runs, with it, and with 4 x it (`train --prior`'s);
 - `oracle`: the design's structure fitted to the unit's full program.
 
     python -m benchmarks.probes.fleet_response_prior --designs 3,4,10,15,21,22 --fleet 20
@@ -27,6 +29,7 @@ from fogsf.fleet import prior_function as pf
 from fogsf.fleet.prior_map import map_fit
 from fogsf.fleet.prior_train import law_prediction, test_series
 from fogsf.fleet.unit_fit import fit_unit, step_series
+from fogsf.logs.metrics import log_metrics
 from fogsf.models.reference import expand
 
 WEIGHTS = ((1.0, 0.0), (1.0, 0.3), (1.0, 1.0), (2.0, 0.3), (0.0, 1.0))
@@ -56,8 +59,15 @@ def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]
             mf = map_fit(s, prior)
             out.setdefault(f"{run} map", []).append(ratio(test, law_prediction(mf.theta, k,
                                                                                 test)))
-            out.setdefault(f"{run} law", []).append(ratio(test, law_prediction(
-                pf.function_fit(s, prior, mf.s2).law(), k, test)))
+            ff = pf.function_fit(s, prior, mf.s2)
+            law = ratio(test, law_prediction(ff.law(), k, test))
+            out.setdefault(f"{run} law", []).append(law)
+            floor2 = log_metrics(test)["noise_floor_ppm"] ** 2
+            var, mis = float(np.mean(ff.variance(ts))), ff.misfit_ppm2()
+            for name, extra in (("interval", 0.0), ("interval+misfit", mis),
+                                ("interval+4 misfit", 4.0 * mis)):
+                upper = np.sqrt(1.0 + (4.0 * var + extra) / floor2)
+                out.setdefault(f"{run} {name} held", []).append(float(law <= upper))
             for w in WEIGHTS:
                 out.setdefault(f"{run} resp {w[0]:g},{w[1]:g}", []).append(
                     score(pf.function_fit(s, prior, mf.s2, w).predict(ts)))
@@ -80,7 +90,10 @@ def main(argv: list[str] | None = None) -> int:
           "test RMS / floor, median / worst")
     for key in sorted(rows):
         v = np.asarray(rows[key])
-        print(f"  {key:22s} {np.median(v):5.2f} / {v.max():5.2f}")
+        if key.endswith(" held"):
+            print(f"  {key:22s} {int(v.sum())} of {v.size}")
+        else:
+            print(f"  {key:22s} {np.median(v):5.2f} / {v.max():5.2f}")
     return 0
 
 

@@ -30,7 +30,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.fleet.prior import DesignPrior
-from fogsf.fleet.unit_fit import StepSeries, all_steps, fit_unit, jacobian, predict
+from fogsf.fleet.unit_fit import (
+    WINDOW_S,
+    StepSeries,
+    all_steps,
+    fit_unit,
+    jacobian,
+    predict,
+)
 
 LAM_UNITS = 1.0
 LAM_PARAMS = 0.3
@@ -63,6 +70,18 @@ class FunctionFit:
         """The posterior variance (ppm^2) of the response on `series`' rows."""
         _, b = self.basis(series)
         return np.einsum("ij,jk,ik->i", b, self.a_cov, b)
+
+    def misfit_ppm2(self) -> float:
+        """The slow part of the posterior mean's residual on the unit's own runs (ppm^2): the
+        mean square of its WINDOW_S means less what white noise of its variance leaves there
+        (>= 0): what the design's responses could not explain in the run itself."""
+        r = self.own.y - self.predict(self.own)
+        w = max(1, int(round(WINDOW_S / self.own.step_s)))
+        n = r.size // w
+        if n < 2:
+            return 0.0
+        means = r[:n * w].reshape(n, w).mean(axis=1)
+        return max(0.0, float(np.mean(means**2)) - float(np.var(r)) / w)
 
     def law(self) -> np.ndarray:
         """The design's structure fitted to the posterior mean response on the fleet's
