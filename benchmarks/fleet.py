@@ -84,12 +84,11 @@ def _score(log, theta: np.ndarray, k: int) -> float:  # noqa: ANN001
 
 def _interval(ff, test) -> float:  # noqa: ANN001 - FunctionFit, ChamberLog
     """The upper end of the interval `fogsf train --prior` states, over the floor."""
-    from fogsf.fleet.prior_train import INTERVAL_Z, test_series
+    from fogsf.fleet.prior_train import prior_interval
+    from fogsf.training.options import TrainOptions
 
-    s, _ = test_series(test, 5.0, None)
     floor = log_metrics(test)["noise_floor_ppm"]
-    var = float(np.mean(ff.variance(s))) + ff.misfit_ppm2()
-    return float(np.sqrt(1.0 + INTERVAL_Z**2 * var / floor**2))
+    return prior_interval(ff, test, TrainOptions(model="lag-lstm"), floor)[1] / floor
 
 
 def _default(logs: list, test, iters: int | None, seed: int) -> float:  # noqa: ANN001

@@ -29,16 +29,18 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
             cfg = unit_for(design, i)
             logs = [unit_log(cfg, 10 * i + j, rate=r) for j, r in enumerate((2.0, 1.0))]
             store.add(fit_unit(f"SN{i}", logs, tmp / f"m{i}"))
-    new = tmp / "new.csv"
+    new, test = tmp / "new.csv", tmp / "test.csv"
     write_log(new, unit_log(unit_for(design, 50), 999, rate=2.0))
-    return {"db": db, "new": new, "tmp": tmp, "design": design}
+    write_log(test, unit_log(unit_for(design, 50), 998, rate=1.0))
+    return {"db": db, "new": new, "test": test, "tmp": tmp, "design": design}
 
 
 def test_train_with_the_prior_records_the_unit(fleet: dict, capsys: pytest.CaptureFixture
                                                ) -> None:
     out = fleet["tmp"] / "m-new"
     assert main(["train", "--prior", fleet["db"], "--unit", "SN-new", "--train",
-                 str(fleet["new"]), "--out", str(out), "--iters", "2", "--no-progress"]) == 0
+                 str(fleet["new"]), "--test", str(fleet["test"]), "--out", str(out),
+                 "--iters", "2", "--no-progress"]) == 0
     text = capsys.readouterr().out
     msg = f"design {fleet['design']} (seed {SEED})"
     assert "design's prior: " in text and "learned from 4 units" in text, msg
@@ -49,6 +51,9 @@ def test_train_with_the_prior_records_the_unit(fleet: dict, capsys: pytest.Captu
         assert "share of the posterior precision" in text
         assert (out / "stream.json").is_file()  # an ordinary model: export reads it
         assert m["features"][0] == "T" and len(m["filter_tau_s"]) == rec["nodes"]
+        lo, hi = rec["interval_ppm"]
+        assert lo == m["noise_floor_ppm"] and hi > lo, msg
+        assert "expected test RMS with the prior's spread" in text
     else:
         assert "fitted alone" in text
     with open_store(fleet["db"]) as store:

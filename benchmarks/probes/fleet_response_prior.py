@@ -10,7 +10,7 @@ scored on the test loop (1 C/min up, 1.5 down; test RMS / noise floor):
   at the module's weights;
 - `span`: the response prior given the unit's FULL program (the basis's reach);
 - `interval held`: units whose law's figure is at or under the interval's upper end, without
-  the misfit on the unit's runs, with it, and with 4 x it (`train --prior`'s);
+  the misfit on the unit's runs, with it, and with INTERVAL_Z^2 x it (`train --prior`'s);
 - `oracle`: the design's structure fitted to the unit's full program.
 
     python -m benchmarks.probes.fleet_response_prior --designs 3,4,10,15,21,22 --fleet 20
@@ -27,7 +27,7 @@ from benchmarks.probes import ratio
 from fogsf.fleet import prior as fp
 from fogsf.fleet import prior_function as pf
 from fogsf.fleet.prior_map import map_fit
-from fogsf.fleet.prior_train import law_prediction, test_series
+from fogsf.fleet.prior_train import INTERVAL_Z, law_prediction, test_series
 from fogsf.fleet.unit_fit import fit_unit, step_series
 from fogsf.logs.metrics import log_metrics
 from fogsf.models.reference import expand
@@ -64,9 +64,10 @@ def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]
             out.setdefault(f"{run} law", []).append(law)
             floor2 = log_metrics(test)["noise_floor_ppm"] ** 2
             var, mis = float(np.mean(ff.variance(ts))), ff.misfit_ppm2()
+            z2 = INTERVAL_Z**2
             for name, extra in (("interval", 0.0), ("interval+misfit", mis),
-                                ("interval+4 misfit", 4.0 * mis)):
-                upper = np.sqrt(1.0 + (4.0 * var + extra) / floor2)
+                                ("interval+4 misfit", z2 * mis)):
+                upper = np.sqrt(1.0 + (z2 * var + extra) / floor2)
                 out.setdefault(f"{run} {name} held", []).append(float(law <= upper))
             for w in WEIGHTS:
                 out.setdefault(f"{run} resp {w[0]:g},{w[1]:g}", []).append(

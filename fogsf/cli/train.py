@@ -138,9 +138,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("the design's prior (docs/fleet.md)")
     g.add_argument("--prior", metavar="FLEET",
                    help="fit the unit under its design's prior, learned from the units in "
-                        "the fleet database FLEET (a file, or a postgresql:// URL): physics "
-                        "nodes whose time constants and law are the unit's MAP; fitted "
-                        "alone when its data disagree with the design")
+                        "the fleet database FLEET (a file, or a postgresql:// URL): its "
+                        "response drawn around the fleet's units', carried by physics nodes; "
+                        "fitted alone when its data disagree with the design")
     g.add_argument("--unit", metavar="SN",
                    help="with --prior: record the unit in FLEET under this name")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")

@@ -27,13 +27,13 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.fleet.unit_fit import (
-    WINDOW_S,
     StepSeries,
     UnitFit,
     all_steps,
     fit_unit,
     plain_refit,
     predict,
+    window_means,
 )
 
 K_CHOICES = (1, 2, 3)
@@ -94,9 +94,8 @@ def choose_k(series: dict[str, StepSeries], fits: dict[int, dict[str, UnitFit]]
 def window_misfit(series: StepSeries, fit: UnitFit) -> float:
     """Mean square (ppm^2) of the fit's residuals averaged over WINDOW_S windows."""
     r = series.y - predict(series, fit.theta, fit.k)
-    w = max(1, int(round(WINDOW_S / series.step_s)))
-    n = r.size // w
-    return float(np.mean(r[:n * w].reshape(n, w).mean(axis=1) ** 2)) if n else float(r @ r)
+    means, _ = window_means(r, series.step_s)
+    return float(np.mean(means**2)) if means.size else float(r @ r)
 
 
 def robust_keep(thetas: np.ndarray, covs: np.ndarray) -> np.ndarray:

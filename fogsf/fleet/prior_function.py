@@ -14,9 +14,9 @@ its correlation (`unit_fit.correlation_factor`); the posterior of (a, b) is a ri
 closed form, its mean the unit's response on any history (`predict`), its covariance the
 spread of that response (`variance`, the interval's).
 
-The exported model is an ordinary physics-node model: `law` fits the design's structure to
-the posterior mean response on the fleet's reference program and the unit's own runs
-(noise-free, so the fit is a projection), the law the model's head carries.
+The exported model is an ordinary physics-node model: `law` fits the design's structure (as
+`unit_fit.fit_unit` fits a unit) to the posterior mean response on the fleet's reference
+program and the unit's own runs, the law the model's head carries.
 
 The weights LAM_UNITS and LAM_PARAMS were chosen on development designs 3, 4, 10, 15, 21,
 22 (3 new units each, fleets of 12 and 20; benchmarks/probes/README.md, "The design's
@@ -31,12 +31,12 @@ import numpy as np
 
 from fogsf.fleet.prior import DesignPrior
 from fogsf.fleet.unit_fit import (
-    WINDOW_S,
     StepSeries,
     all_steps,
     fit_unit,
     jacobian,
     predict,
+    window_means,
 )
 
 LAM_UNITS = 1.0
@@ -51,6 +51,9 @@ def _root(sigma: np.ndarray) -> np.ndarray:
 
 @dataclass
 class FunctionFit:
+    """A new unit's posterior under the prior: the basis coefficients' mean and covariance
+    (`function_fit`), read on any temperature history through `basis`."""
+
     prior: DesignPrior
     a: np.ndarray  # posterior mean of the basis coefficients [a, b]
     a_cov: np.ndarray  # their posterior covariance
@@ -59,6 +62,7 @@ class FunctionFit:
     lam: tuple[float, float] = (LAM_UNITS, LAM_PARAMS)
 
     def basis(self, series: StepSeries) -> tuple[np.ndarray, np.ndarray]:
+        """(m, B) on `series`' rows (`response_basis` at this fit's weights)."""
         return response_basis(self.prior, series, *self.lam)
 
     def predict(self, series: StepSeries) -> np.ndarray:
@@ -76,18 +80,19 @@ class FunctionFit:
         mean square of its WINDOW_S means less what white noise of its variance leaves there
         (>= 0): what the design's responses could not explain in the run itself."""
         r = self.own.y - self.predict(self.own)
-        w = max(1, int(round(WINDOW_S / self.own.step_s)))
-        n = r.size // w
-        if n < 2:
+        means, w = window_means(r, self.own.step_s)
+        if means.size < 2:
             return 0.0
-        means = r[:n * w].reshape(n, w).mean(axis=1)
         return max(0.0, float(np.mean(means**2)) - float(np.var(r)) / w)
 
     def law(self) -> np.ndarray:
         """The design's structure fitted to the posterior mean response on the fleet's
         reference program and the unit's own runs: theta = [log taus, coefficients]."""
         p = self.prior
-        runs = ([] if p.reference is None else list(p.reference.t_rel)) + list(self.own.t_rel)
+        # the fleet's program joins the unit's runs when both are at the same model step
+        same = p.reference is not None and abs(p.reference.step_s - self.own.step_s) < 1e-9
+        runs = (list(p.reference.t_rel) if same and p.reference is not None else []) \
+            + list(self.own.t_rel)
         ref = all_steps(StepSeries(runs, np.zeros(0), np.zeros(0, dtype=np.int64),
                                    self.own.step_s))
         ref.y = self.predict(ref)

@@ -1,4 +1,6 @@
-"""A new unit's fit under the design's prior: the MAP of its parameters.
+"""A new unit's parameters under the design's prior: their MAP, what the check against the
+design and the prior's share per parameter group read (the unit's law `train --prior`
+exports is fitted in the space of responses, `prior_function`).
 
 theta = [log taus, coefficients] minimises
     J(theta) = |y - f(theta)|^2 / s^2 + (theta - mu)^T Sigma^-1 (theta - mu),
@@ -7,7 +9,7 @@ correlation, `unit_fit.correlation_factor`). For fixed time constants the coeffi
 a generalised ridge toward the prior's conditional mean (closed form); the time constants
 by Levenberg-Marquardt on the stacked residual [(y - f) / s, L (theta - mu)], L^T L =
 Sigma^-1: a penalised variable projection. The posterior covariance is (J^T J / s^2 +
-Sigma^-1)^-1, the interval counts the prior's spread through it.
+Sigma^-1)^-1.
 
 The unit's data disagree with the design when its data-only fit lies outside the prior
 predictive: (theta_alone - mu)^T (Sigma_check + C)^-1 (theta_alone - mu) over the

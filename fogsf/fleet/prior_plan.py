@@ -7,8 +7,9 @@ chamber through the default gyro's housing and board lags (the prior knows the u
 its board thermometer on, not the chamber's air), the SF error is the unit's law plus white
 noise at the fleet's median residual level per step. Each candidate program of the planner
 (`plan.programs.candidates`, shortest first) is fitted under the prior (its posterior mean
-response, `prior_function.function_fit`, as `fogsf train --prior` fits it) and scored on
-the planner's test loops across the envelope: sqrt(floor^2 + the law's error over 100 s
+response, `prior_function.function_fit`, as `fogsf train --prior` fits it, the posterior
+mean read directly rather than through the law it exports) and scored on the planner's
+test loops across the envelope: sqrt(floor^2 + the law's error over 100 s
 windows) / floor. The first program whose median over units and rates is at or under the
 target is the answer.
 """
@@ -25,7 +26,7 @@ import numpy as np
 
 from fogsf.fleet.prior import DesignPrior
 from fogsf.fleet.prior_function import function_fit
-from fogsf.fleet.unit_fit import WINDOW_S, StepSeries, design_matrix
+from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, window_means
 from fogsf.models.features import MODEL_STEP_S, T_REF_C
 from fogsf.models.node_fit import discrete_lag, lag_alpha
 from fogsf.plan.evaluate import envelope_program
@@ -62,7 +63,7 @@ class PlanResult:
 def _series(runs: list[np.ndarray], theta: np.ndarray | None, k: int, noise: float,
             rng: np.random.Generator | None) -> StepSeries:
     n = sum(r.size for r in runs)
-    s = StepSeries(runs, np.zeros(n), np.arange(n), MODEL_STEP_S)
+    s = all_steps(StepSeries(runs, np.zeros(0), np.zeros(0, dtype=np.int64), MODEL_STEP_S))
     if theta is not None:
         s.y = design_matrix(s, np.exp(theta[:k])) @ theta[k:]
         if rng is not None:
@@ -71,9 +72,8 @@ def _series(runs: list[np.ndarray], theta: np.ndarray | None, k: int, noise: flo
 
 
 def _ratio(err: np.ndarray, noise: float) -> float:
-    w = max(1, int(round(WINDOW_S / MODEL_STEP_S)))
-    n = err.size // w
-    mse = float(np.mean(err[:n * w].reshape(n, w).mean(axis=1) ** 2))
+    means, w = window_means(err, MODEL_STEP_S)
+    mse = float(np.mean(means**2))
     floor2 = noise**2 / w
     return math.sqrt((floor2 + mse) / floor2)
 

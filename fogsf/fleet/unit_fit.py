@@ -101,14 +101,20 @@ def design_matrix(series: StepSeries, taus_s: np.ndarray) -> np.ndarray:
     return np.hstack([np.ones((x.shape[0], 1)), x])
 
 
+def window_means(x: np.ndarray, step_s: float) -> tuple[np.ndarray, int]:
+    """The means of `x` (one value a model step of `step_s`) over whole WINDOW_S windows,
+    and the steps per window (a trailing part window left out)."""
+    w = max(1, int(round(WINDOW_S / step_s)))
+    n = x.size // w
+    return np.asarray(x[:n * w], dtype=np.float64).reshape(n, w).mean(axis=1), w
+
+
 def correlation_factor(resid: np.ndarray, step_s: float) -> float:
     """How much the residuals' slow part inflates a white-noise variance: the variance of
     WINDOW_S means times the steps per window over the variance (>= 1)."""
-    w = max(1, int(round(WINDOW_S / step_s)))
-    n = resid.size // w
-    if n < 4:
+    means, w = window_means(resid, step_s)
+    if means.size < 4:
         return 1.0
-    means = resid[:n * w].reshape(n, w).mean(axis=1)
     v = float(np.var(resid))
     return max(1.0, w * float(np.var(means)) / v) if v > 0 else 1.0
 
