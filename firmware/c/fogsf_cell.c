@@ -45,6 +45,24 @@ float fogsf_sigmoidf(float x)
     return 1.0f / (1.0f + fogsf_expf(-x));
 }
 
+/* tanh of |x| > 0.625 (a = |x|, sign applied by the caller): 1 - 2 / (e^2a + 1) */
+static float tanh_big(float a)
+{
+    return 1.0f - (2.0f / (fogsf_expf(a + a) + 1.0f));
+}
+
+/* tanh of |x| <= 0.625: x + x^3 P(x^2), the Cephes odd polynomial */
+static float tanh_small(float x)
+{
+    const float z = x * x;
+    float p = -0.00570498873f;
+    p = (p * z) + 0.020639088f;
+    p = (p * z) + -0.0537397154f;
+    p = (p * z) + 0.133314416f;
+    p = (p * z) + -0.333332807f;
+    return ((p * z) * x) + x;
+}
+
 #if FOGSF_EVEN_TIME
 /* a when c, else b, by the bits: both are computed, nothing branches on the value */
 static float select_f(bool c, float a, float b)
@@ -63,27 +81,21 @@ static float select_f(bool c, float a, float b)
 float fogsf_tanhf(float x_in)
 {
     float x = x_in;
-    float a, z, p, big, small;
+    float a, big, small;
 
     x = (x >= -10.0f) ? x : -10.0f; /* tanh(10) rounds to 1.0f; NaN counts as -10 */
     x = (x > 10.0f) ? 10.0f : x;
     a = (x < 0.0f) ? -x : x;
-    big = 1.0f - (2.0f / (fogsf_expf(a + a) + 1.0f));
+    big = tanh_big(a);
     big = select_f(x < 0.0f, -big, big);
-    z = x * x;
-    p = -0.00570498873f;
-    p = (p * z) + 0.020639088f;
-    p = (p * z) + -0.0537397154f;
-    p = (p * z) + 0.133314416f;
-    p = (p * z) + -0.333332807f;
-    small = ((p * z) * x) + x;
+    small = tanh_small(x);
     return select_f(a > 0.625f, big, small);
 }
 #else
 float fogsf_tanhf(float x_in)
 {
     float x = x_in;
-    float a, z, p, y;
+    float a, y;
 
     if (!(x >= -10.0f)) { /* tanh(10) rounds to 1.0f; NaN counts as -10 */
         x = -10.0f;
@@ -93,16 +105,10 @@ float fogsf_tanhf(float x_in)
     }
     a = (x < 0.0f) ? -x : x;
     if (a > 0.625f) {
-        const float big = 1.0f - (2.0f / (fogsf_expf(a + a) + 1.0f));
+        const float big = tanh_big(a);
         y = (x < 0.0f) ? -big : big;
     } else {
-        z = x * x;
-        p = -0.00570498873f;
-        p = (p * z) + 0.020639088f;
-        p = (p * z) + -0.0537397154f;
-        p = (p * z) + 0.133314416f;
-        p = (p * z) + -0.333332807f;
-        y = ((p * z) * x) + x;
+        y = tanh_small(x);
     }
     return y;
 }
