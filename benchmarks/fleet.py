@@ -75,11 +75,11 @@ def simulate_run(design: int, unit: int, name: str):  # noqa: ANN201 - ChamberLo
     return simulate(run_on_gyro(unit_for(design, unit), profile(name), seed, name)).log
 
 
-def _score(log, theta: np.ndarray, k: int) -> float:  # noqa: ANN001
+def _score(log, theta: np.ndarray, k: int, play=None) -> float:  # noqa: ANN001
     from benchmarks.probes import ratio
     from fogsf.fleet.prior_train import law_prediction
 
-    return ratio(log, law_prediction(theta, k, log))
+    return ratio(log, law_prediction(theta, k, log, play=play))
 
 
 def _interval(ff, test) -> float:  # noqa: ANN001 - FunctionFit, ChamberLog
@@ -124,6 +124,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                              first={k: {sn: f[sn] for sn in names} for k, f in first.items()})
     out: dict = {"design": design, "fleets": {n: {"k": p.k, "units": len(p.units),
                                                   "left_out": p.left_out,
+                                                  "play": p.as_dict()["play"],
                                                   "taus_s": np.exp(p.mu[:p.k]).tolist()}
                                               for n, p in priors.items()},
                  "new": []}
@@ -136,8 +137,8 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                      "share": {}, "map": {}, "interval": {}}
         full_fit = fit_unit(step_series(logs["full"] if "full" in logs else
                                         [simulate_run(design, u, x) for x in FULL]),
-                            big.k, np.exp(big.mu[:big.k]))
-        row["oracle_full"] = _score(test, full_fit.theta, big.k)
+                            big.k, np.exp(big.mu[:big.k]), big.play)
+        row["oracle_full"] = _score(test, full_fit.theta, big.k, big.play)
         for r, lg in logs.items():
             for n, p in priors.items():
                 if r == "full":  # the full program decides the unit: its own fit
@@ -146,7 +147,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                 ss = step_series(lg)
                 mf = map_fit(ss, p)
                 ff = function_fit(ss, p, mf.s2)
-                row["prior"][f"{r}/{n}"] = _score(test, ff.law(), p.k)
+                row["prior"][f"{r}/{n}"] = _score(test, ff.law(), p.k, p.play)
                 if n == max(fleets):
                     row["chi2"][r] = [mf.chi2, mf.chi2_limit]
                     row["share"][r] = mf.prior_share
@@ -162,7 +163,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
             tight.sigma = big.sigma.copy()
             tight.sigma[:big.k, :] *= 1e-3
             tight.sigma[:, :big.k] *= 1e-3
-            mf = map_fit(step_series(logs["loop2h"]), tight)
+            mf = map_fit(step_series(logs["loop2h"]), tight)  # (the MAP has no play)
             row["oracle_taus_loop2h"] = _score(test, mf.theta, big.k)
         out["new"].append(row)
         print(f"design {design} unit {u}: " + " ".join(

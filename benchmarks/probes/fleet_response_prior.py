@@ -40,6 +40,7 @@ def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]
              for u in range(n_fleet)}
     prior = fp.learn(fleet)
     k = prior.k
+    print(f"design {design}: {k} nodes, play {prior.as_dict()['play']}", flush=True)
     out: dict[str, list[float]] = {}
     for u in range(NEW_FIRST, NEW_FIRST + n_new):
         test = simulate_run(design, u, "loop_test")
@@ -49,9 +50,9 @@ def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]
             return ratio(test, expand(g, len(test), dec))  # noqa: B023
 
         full = step_series([simulate_run(design, u, r) for r in FULL])
-        alone_full = fit_unit(full, k, np.exp(prior.mu[:k]))
-        out.setdefault("oracle", []).append(ratio(test, law_prediction(alone_full.theta, k,
-                                                                        test)))
+        alone_full = fit_unit(full, k, np.exp(prior.mu[:k]), prior.play)
+        out.setdefault("oracle", []).append(ratio(test, law_prediction(
+            alone_full.theta, k, test, play=prior.play)))
         out.setdefault("span", []).append(score(pf.function_fit(full, prior, alone_full.sigma2)
                                                 .predict(ts)))
         for run in ("loop2h", "up05"):
@@ -60,7 +61,7 @@ def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]
             out.setdefault(f"{run} map", []).append(ratio(test, law_prediction(mf.theta, k,
                                                                                 test)))
             ff = pf.function_fit(s, prior, mf.s2)
-            law = ratio(test, law_prediction(ff.law(), k, test))
+            law = ratio(test, law_prediction(ff.law(), k, test, play=prior.play))
             out.setdefault(f"{run} law", []).append(law)
             floor2 = log_metrics(test)["noise_floor_ppm"] ** 2
             var, mis = float(np.mean(ff.variance(ts))), ff.misfit_ppm2()

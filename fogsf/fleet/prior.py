@@ -14,8 +14,13 @@ database by `unit_summary`):
    kept at least a FLOOR share of the between-unit variance (in the units' correlation
    scale); for the check of a new unit against the design also shrunk toward its
    diagonal by the share p / (p + N) (a few units cannot pin p(p+1)/2 covariances).
-The kept units' fits (`unit_thetas`) and a full program they ran (`reference`) carry the
-prior in the space of responses (prior_function.py), what a new unit is fitted with;
+5. the design's hysteresis: the play (of T or of one node, `unit_fit.Play`) whose column
+   lowers the kept units' pooled squared error most, kept when by more than PLAY_GAIN
+   (`choose_play`): a physics node fitted to one program mimics a play at that program's
+   rates and mispredicts the others.
+The kept units' fits (`unit_thetas`, with the play when the design has one) and a full
+program they ran (`reference`) carry the prior in the space of responses
+(prior_function.py), what a new unit is fitted with;
 `map_fit` (prior_map.py) fits the parameters themselves: the check against the design.
 """
 
@@ -27,14 +32,17 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.fleet.unit_fit import (
+    Play,
     StepSeries,
     UnitFit,
     all_steps,
+    design_matrix,
     fit_unit,
     plain_refit,
     predict,
     window_means,
 )
+from fogsf.models.hysteresis import MAX_SOURCE_TAU_S
 
 K_CHOICES = (1, 2, 3)
 STRUCTURE_TOLERANCE = 0.05
@@ -47,6 +55,12 @@ FLOOR = 1e-3
 # 2 h loop's median 2.88 x the floor against 5.54 x with p / (p + N))
 SHRINK: float | None = 0.0
 MIN_UNITS = 3
+# the play's widths (C) and the units it is chosen on; it is kept when it lowers their
+# pooled squared error by more than PLAY_GAIN (development designs 3, 4, 10, 17, 19, 21:
+# 0.0016-0.029 where a play helped or did no harm, 0.0001 on design 21, which has none)
+PLAY_WIDTHS_C = tuple(float(w) for w in range(2, 13))
+PLAY_UNITS = 8
+PLAY_GAIN = 0.001
 
 
 @dataclass
@@ -70,13 +84,16 @@ class DesignPrior:
     unit_thetas: np.ndarray | None = None
     # a full program the units ran (every step): where a new unit's law is fitted
     reference: StepSeries | None = None
+    play: Play | None = None  # the design's hysteresis term (`choose_play`), if any
 
     def as_dict(self) -> dict:
+        taus = np.exp(self.mu[:self.k])
         return {"k": self.k, "mu": self.mu.tolist(), "sigma": self.sigma.tolist(),
                 "units": self.units, "left_out": self.left_out,
                 "k_scores": {str(k): v for k, v in self.k_scores.items()},
-                "taus_s": np.exp(self.mu[:self.k]).tolist(),
-                "tau_spread": np.sqrt(np.diag(self.sigma)[:self.k]).tolist()}
+                "taus_s": taus.tolist(),
+                "tau_spread": np.sqrt(np.diag(self.sigma)[:self.k]).tolist(),
+                "play": None if self.play is None else self.play.as_dict(taus)}
 
 
 def choose_k(series: dict[str, StepSeries], fits: dict[int, dict[str, UnitFit]]
@@ -149,11 +166,37 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     noise = cv.mean(axis=0)
     sigma = _spread(between, noise, n, SHRINK)
     kept = [sn for sn, kp in zip(names, keep, strict=True) if kp]
+    play = choose_play([series[sn] for sn in kept[:PLAY_UNITS]],
+                       [fits[sn].taus_s for sn in kept[:PLAY_UNITS]], k)
+    thetas_f = [fits[sn].theta if play is None else
+                fit_unit(series[sn], k, fits[sn].taus_s, play).theta for sn in kept]
     return DesignPrior(k, mu, sigma, kept, left, scores, between, noise,
                        _spread(between, noise, n, None),
                        float(np.median([fits[sn].sse / fits[sn].n for sn in names])),
-                       np.stack([plain_refit(series[sn], fits[sn].theta, k) for sn in kept]),
-                       all_steps(series[kept[0]]))
+                       np.stack([plain_refit(series[sn], th, k, play)
+                                 for sn, th in zip(kept, thetas_f, strict=True)]),
+                       all_steps(series[kept[0]]), play)
+
+
+def choose_play(series: list[StepSeries], taus: list[np.ndarray], k: int) -> Play | None:
+    """The play (of T or of a node no slower than MAX_SOURCE_TAU_S, a width of
+    PLAY_WIDTHS_C) whose column, at each unit's own time constants `taus`, lowers the units'
+    pooled least-squares error most; None unless by more than PLAY_GAIN."""
+
+    def sse(play: Play | None) -> float:
+        total = 0.0
+        for s, t in zip(series, taus, strict=True):
+            x = design_matrix(s, t, play)
+            r = s.y - x @ np.linalg.lstsq(x, s.y, rcond=None)[0]
+            total += float(r @ r)
+        return total
+
+    base = sse(None)
+    med = np.median(np.stack(taus), axis=0)
+    nodes = [0] + [j + 1 for j in range(k) if med[j] <= MAX_SOURCE_TAU_S]
+    best = min(((sse(Play(j, w)), Play(j, w)) for j in nodes for w in PLAY_WIDTHS_C),
+               key=lambda c: c[0])
+    return best[1] if base > 0 and 1.0 - best[0] / base > PLAY_GAIN else None
 
 
 def _spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None

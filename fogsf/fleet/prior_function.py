@@ -14,7 +14,9 @@ its correlation (`unit_fit.correlation_factor`); the posterior of (a, b) is a ri
 closed form, its mean the unit's response on any history (`predict`), its covariance the
 spread of that response (`variance`, the interval's).
 
-The exported model is an ordinary physics-node model: `law` fits the design's structure (as
+The units' fits carry the design's play when it has one (`DesignPrior.play`); J is the
+physics nodes' alone. The exported model is an ordinary physics-node model (with the play
+in its front end when the design has one): `law` fits the design's structure (as
 `unit_fit.fit_unit` fits a unit) to the posterior mean response on the fleet's reference
 program and the unit's own runs, the law the model's head carries.
 
@@ -96,7 +98,7 @@ class FunctionFit:
         ref = all_steps(StepSeries(runs, np.zeros(0), np.zeros(0, dtype=np.int64),
                                    self.own.step_s))
         ref.y = self.predict(ref)
-        return fit_unit(ref, p.k, np.exp(p.mu[:p.k])).theta
+        return fit_unit(ref, p.k, np.exp(p.mu[:p.k]), p.play).theta
 
 
 def response_basis(prior: DesignPrior, series: StepSeries, lam_units: float = LAM_UNITS,
@@ -104,7 +106,7 @@ def response_basis(prior: DesignPrior, series: StepSeries, lam_units: float = LA
     """(m, B) on `series`' rows: the units' mean response and the basis [sqrt(lam_units) D,
     sqrt(lam_params) J R] (R R^T = Sigma)."""
     k = prior.k
-    f = np.stack([predict(series, th, k) for th in prior.unit_thetas], axis=1)
+    f = np.stack([predict(series, th, k, prior.play) for th in prior.unit_thetas], axis=1)
     m = f.mean(axis=1)
     n = f.shape[1]
     d = (f - m[:, None]) / np.sqrt(max(n - 1, 1))

@@ -25,7 +25,14 @@ from fogsf.fleet.prior_function import FunctionFit, function_fit
 from fogsf.fleet.prior_map import DISAGREE_LEVEL, map_fit
 from fogsf.fleet.records import unit_record
 from fogsf.fleet.store import open_store
-from fogsf.fleet.unit_fit import StepSeries, UnitFit, all_steps, design_matrix, step_series
+from fogsf.fleet.unit_fit import (
+    Play,
+    StepSeries,
+    UnitFit,
+    all_steps,
+    design_matrix,
+    step_series,
+)
 from fogsf.fleet.unit_summary import series_of
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.features import front_end_for, prepare
@@ -88,13 +95,16 @@ def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
         theta = ff.law()
         taus = tuple(float(t) for t in np.exp(theta[:prior.k]))
         rec["taus_s"], rec["theta"] = list(taus), theta.tolist()
+        term = None if prior.play is None else prior.play.term(np.asarray(taus))
+        if term is not None:
+            rec["play"] = term.as_dict()
 
         def head(ti):  # noqa: ANN001, ANN202 - training.train.TrainingInputs / NodeFit
-            return law_head(theta, prior.k, ti.offset, ti.scale)
+            return law_head(theta, prior.k, ti.offset, ti.scale, term is not None)
 
         metrics, fitted = run_training(
             opts, train_logs, test_log, out_dir,
-            fit=lambda o, logs: fit_physics_head(o, logs, taus, head))
+            fit=lambda o, logs: fit_physics_head(o, logs, taus, head, term))
         if test_log is not None:
             rec["interval_ppm"] = prior_interval(ff, test_log, opts,
                                                  metrics["noise_floor_ppm"])
@@ -103,12 +113,14 @@ def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
     return metrics, fitted
 
 
-def law_head(theta: np.ndarray, k: int, offset: float, scale: float):  # noqa: ANN201
+def law_head(theta: np.ndarray, k: int, offset: float, scale: float,  # noqa: ANN201
+             play: bool = False):
     """The law theta = [log taus, coefficients] as the head's NodeFit (normalised target:
-    (y - offset) / scale)."""
+    (y - offset) / scale); with `play`, the play's feature after the nodes (linear)."""
     coef = theta[k:]
     rf = RidgeFit((float(coef[0]) - offset) / scale, coef[1:] / scale, 0.0, float(coef.size))
-    return head_from_ridge(rf, k + 1, tuple(float(t) for t in np.exp(theta[:k])), NODE_LAMBDA)
+    return head_from_ridge(rf, k + 1 + int(play), tuple(float(t) for t in np.exp(theta[:k])),
+                           NODE_LAMBDA)
 
 
 def test_series(log: ChamberLog, step_s: float, latitude_deg: float | None
@@ -131,12 +143,12 @@ def prior_interval(ff: FunctionFit, test_log: ChamberLog, opts: TrainOptions,
     return [floor_ppm, math.sqrt(floor_ppm**2 + INTERVAL_Z**2 * max(var, 0.0))]
 
 
-def law_prediction(theta: np.ndarray, k: int, log: ChamberLog, step_s: float = 5.0
-                   ) -> np.ndarray:
+def law_prediction(theta: np.ndarray, k: int, log: ChamberLog, step_s: float = 5.0,
+                   play: Play | None = None) -> np.ndarray:
     """The law's SF error prediction (ppm) per sample of `log`, held over each step."""
 
     s, dec = test_series(log, step_s, None)
-    return expand(design_matrix(s, np.exp(theta[:k])) @ theta[k:], len(log), dec)
+    return expand(design_matrix(s, np.exp(theta[:k]), play) @ theta[k:], len(log), dec)
 
 
 def prior_lines(rec: dict) -> list[str]:
@@ -156,7 +168,8 @@ def prior_lines(rec: dict) -> list[str]:
                 "fogsf train would", *tail]
     lines = [head, f"the prior's share of the posterior precision: {share} (100 %: the "
              f"unit's data added nothing); {chi}: the unit agrees with the design",
-             "unit's time constants " + ", ".join(f"{t:.0f}" for t in rec["taus_s"]) + " s"]
+             "unit's time constants " + ", ".join(f"{t:.0f}" for t in rec["taus_s"]) + " s"
+             + (f"; the design's hysteresis {rec['play']['form']}" if "play" in rec else "")]
     if "interval_ppm" in rec:
         lo, hi = rec["interval_ppm"]
         lines.append(f"expected test RMS with the prior's spread: {lo:.2f}-{hi:.2f} ppm")

@@ -12,6 +12,10 @@ times the residuals' correlation over WINDOW_S windows (model steps are not
 independent: a structure's misfit is slow) for the weight of the unit's data, the residual
 variance alone for the estimation covariance (the misfit of the design's structure is
 common to its units: it moves every unit's fit alike, not one unit's).
+
+A design may carry a hysteresis term (`Play`, chosen on the fleet by `prior.choose_play`):
+one more column in the law, the play of T or of one of the law's nodes, its coefficient
+last in theta; every function here takes it as `play` (None: the law without it).
 """
 
 from __future__ import annotations
@@ -24,7 +28,8 @@ import numpy as np
 
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.features import MODEL_STEP_S, front_end_for, prepare
-from fogsf.models.node_fit import ridge_fit, varpro
+from fogsf.models.hysteresis import HystTerm, column, ridge_fit_free
+from fogsf.models.node_fit import discrete_lag, lag_alpha, ridge_fit, varpro
 from fogsf.models.physics_nodes import (
     NODE_LAMBDA,
     TAU_MAX_S,
@@ -88,16 +93,50 @@ def step_series(logs: list[ChamberLog], step_s: float = MODEL_STEP_S,
     return StepSeries(t_rel, np.concatenate(ys), np.concatenate(rows), fe.step_s)
 
 
+@dataclass(frozen=True)
+class Play:
+    """The design's hysteresis term: the play, `width_c` wide, of T (`node` 0) or of the
+    law's node `node` (its lag at the fit's own time constant, the nodes ascending), in the
+    law linearly as (play(x) - x) / 50 C (`models.hysteresis`; the firmware's front end runs
+    it)."""
+
+    node: int
+    width_c: float
+
+    def term(self, taus_s: np.ndarray) -> HystTerm:
+        """The term at a fit's time constants (what the exported model's front end runs)."""
+        tau = 0.0 if self.node == 0 else float(np.sort(taus_s)[self.node - 1])
+        return HystTerm(tau, tau, 1.0, float(self.width_c))
+
+    def column(self, series: StepSeries, taus_s: np.ndarray) -> np.ndarray:
+        """h over every stacked step of `series`."""
+        tau = self.term(taus_s).tau_a_s
+        xs = series.t_rel if tau == 0 else [discrete_lag(t, lag_alpha(tau, series.step_s))
+                                            for t in series.t_rel]
+        return column(list(xs), self.width_c)
+
+    def as_dict(self, taus_s: np.ndarray | None = None) -> dict:
+        d: dict = {"node": self.node, "width_c": self.width_c}
+        if taus_s is not None:
+            d["form"] = self.term(taus_s).describe()
+        return d
+
+
 def n_coef(k: int) -> int:
     """Coefficients of the K-node law: intercept, 1 + K linear, the pairs, the cube of T."""
     f = k + 1
     return 1 + f + f * (f + 1) // 2 + 1
 
 
-def design_matrix(series: StepSeries, taus_s: np.ndarray) -> np.ndarray:
-    """[1, node_design(z)] on the measured steps, ppm per unit coefficient."""
-    z = series.nodes.z(np.asarray(taus_s, dtype=np.float64))[series.rows]
-    x = node_design(z, tuple(float(t) for t in taus_s))
+def design_matrix(series: StepSeries, taus_s: np.ndarray, play: Play | None = None
+                  ) -> np.ndarray:
+    """[1, node_design(z)] on the measured steps, ppm per unit coefficient (z = [T, nodes,
+    the play's h] with `play`: h enters linearly, its column k + 2)."""
+    taus = np.asarray(taus_s, dtype=np.float64)
+    z = series.nodes.z(taus)
+    if play is not None:
+        z = np.column_stack([z, play.column(series, taus)])
+    x = node_design(z[series.rows], tuple(float(t) for t in taus))
     return np.hstack([np.ones((x.shape[0], 1)), x])
 
 
@@ -146,19 +185,21 @@ class UnitFit:
                    float(d["sse"]), int(d["n"]))
 
 
-def predict(series: StepSeries, theta: np.ndarray, k: int) -> np.ndarray:
-    return design_matrix(series, np.exp(theta[:k])) @ theta[k:]
+def predict(series: StepSeries, theta: np.ndarray, k: int, play: Play | None = None
+            ) -> np.ndarray:
+    return design_matrix(series, np.exp(theta[:k]), play) @ theta[k:]
 
 
-def jacobian(series: StepSeries, theta: np.ndarray, k: int, h: float = 1e-4) -> np.ndarray:
+def jacobian(series: StepSeries, theta: np.ndarray, k: int, h: float = 1e-4,
+             play: Play | None = None) -> np.ndarray:
     """d prediction / d theta on the measured steps (forward differences in log tau)."""
-    x = design_matrix(series, np.exp(theta[:k]))
+    x = design_matrix(series, np.exp(theta[:k]), play)
     base = x @ theta[k:]
     cols = []
     for j in range(k):
         t = theta.copy()
         t[j] += h
-        cols.append((predict(series, t, k) - base) / h)
+        cols.append((predict(series, t, k, play) - base) / h)
     return np.column_stack([*cols, x])
 
 
@@ -166,47 +207,55 @@ def _bounds(k: int) -> tuple[np.ndarray, np.ndarray]:
     return np.full(k, math.log(TAU_MIN_S)), np.full(k, math.log(TAU_MAX_S))
 
 
-def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None) -> UnitFit:
+def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None,
+             play: Play | None = None) -> UnitFit:
     """The K-node physics fit by variable projection (from `start_taus_s`, or from the
-    grid start `identify_taus` uses), with its estimation covariance."""
-    if start_taus_s is None:
+    grid start `identify_taus` uses), with its estimation covariance; with `play`, the law
+    holds its column too (unpenalised), the time constants fitted with it."""
+    if start_taus_s is None and play is None:
         taus = np.asarray(identify_taus(series.nodes, _full(series), k, series.rows),
                           dtype=np.float64)
     else:
+        if start_taus_s is None:
+            start_taus_s = np.asarray(identify_taus(series.nodes, _full(series), k,
+                                                    series.rows), dtype=np.float64)
         lo, hi = _bounds(k)
 
         def design(log_tau: np.ndarray) -> np.ndarray:
-            return design_matrix(series, np.exp(log_tau))[:, 1:]
+            return design_matrix(series, np.sort(np.exp(log_tau)), play)[:, 1:]
 
         vp = varpro(design, series.y, np.log(np.asarray(start_taus_s, dtype=np.float64)),
                     lo, hi, NODE_LAMBDA)
         taus = np.exp(vp.theta)
     taus = np.sort(taus)
-    x = design_matrix(series, taus)
-    f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA)
+    x = design_matrix(series, taus, play)
+    f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA) if play is None else \
+        ridge_fit_free(x[:, 1:], series.y, NODE_LAMBDA, [k + 1])
     theta = np.concatenate([np.log(taus), [f.intercept], f.coef])
     resid = series.y - x @ theta[k:]
     sse = float(resid @ resid)
     n = series.y.size
     white = sse / max(1, n - theta.size)
-    return UnitFit(k, theta, estimation_cov(series, theta, k, white),
+    return UnitFit(k, theta, estimation_cov(series, theta, k, white, play),
                    white * correlation_factor(resid, series.step_s), sse, n)
 
 
-def plain_refit(series: StepSeries, theta: np.ndarray, k: int) -> np.ndarray:
+def plain_refit(series: StepSeries, theta: np.ndarray, k: int, play: Play | None = None
+                ) -> np.ndarray:
     """theta with its coefficients refitted by least squares without the ridge at its time
     constants: the unit's response as its data say it (the ridge shrinks collinear nodes
     toward each other, right for one unit's law, a bias shared by every unit's)."""
-    x = design_matrix(series, np.exp(theta[:k]))
+    x = design_matrix(series, np.exp(theta[:k]), play)
     coef = np.linalg.lstsq(x, series.y, rcond=None)[0]
     return np.concatenate([theta[:k], coef])
 
 
-def estimation_cov(series: StepSeries, theta: np.ndarray, k: int, white: float) -> np.ndarray:
+def estimation_cov(series: StepSeries, theta: np.ndarray, k: int, white: float,
+                   play: Play | None = None) -> np.ndarray:
     """The ridge fit's estimation covariance, white (J^T J + P)^-1 J^T J (J^T J + P)^-1, P
     the ridge penalty on the law's coefficients (intercept and time constants free): the
     penalty pins the collinear nodes' directions, and the units' fits scatter as this."""
-    jac = jacobian(series, theta, k)
+    jac = jacobian(series, theta, k, play=play)
     a = jac.T @ jac
     x = jac[:, k + 1:]
     xc = x - x.mean(axis=0)

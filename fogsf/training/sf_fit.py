@@ -11,7 +11,7 @@ from dataclasses import asdict
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.features import FeatureSpec, effective_node_features, make_features
-from fogsf.models.hysteresis import spec_with_play
+from fogsf.models.hysteresis import HystTerm, spec_with_play
 from fogsf.models.lag_bank import (
     BANK_LSTM_INPUTS,
     BankFit,
@@ -148,13 +148,18 @@ def _fit_physics(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = 
 
 
 def fit_physics_head(opts: TrainOptions, logs: list[ChamberLog], taus_s: tuple[float, ...],
-                     head_fn: Callable[[TrainingInputs], NodeFit]) -> Fitted:
-    """lag-lstm on physics nodes at `taus_s` with the head `head_fn` gives (fitted outside,
-    e.g. under the design's prior, `fleet.prior_train`) and the LSTM on what it leaves."""
-    spec = node_spec(taus_s)
-    return fit_with_spec(opts, logs, spec,
-                         lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec)),
-                         head_fn=head_fn)
+                     head_fn: Callable[[TrainingInputs], NodeFit],
+                     term: HystTerm | None = None) -> Fitted:
+    """lag-lstm on physics nodes at `taus_s` (and the play `term`, its feature last) with the
+    head `head_fn` gives (fitted outside, e.g. under the design's prior,
+    `fleet.prior_train`) and the LSTM on what it leaves."""
+    spec = node_spec(taus_s) if term is None else spec_with_play(node_spec(taus_s), term)
+    fitted = fit_with_spec(opts, logs, spec,
+                           lstm_config(opts, lstm_inputs=_lstm_inputs(opts, spec)),
+                           head_fn=head_fn)
+    if term is not None:
+        fitted.info["term"] = term.as_dict()
+    return fitted
 
 
 def _fit_bank(opts: TrainOptions, logs: list[ChamberLog], hysteresis: bool = False,

@@ -1,0 +1,120 @@
+"""The design's hysteresis term in the fleet's prior: a play planted in every unit of a
+synthetic design is chosen (its node and width), carried by the units' responses and by the
+law `train --prior` exports, and it is what lets a short run at another rate predict the
+unit; a line without one gets none.
+
+Units are drawn at the model rate (no simulator), as in test_fleet_prior.py; the play's
+node, width and strength, the design and the seed come from a seeded generator and are
+printed on failure."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fogsf.fleet import prior as fp
+from fogsf.fleet.prior_function import function_fit
+from fogsf.fleet.prior_map import map_fit
+from fogsf.fleet.prior_train import law_head
+from fogsf.fleet.unit_fit import Play, StepSeries, all_steps, design_matrix, n_coef
+from tests.test_fleet_prior import STEP_S, _design, _program
+
+SEED = 3804
+
+
+def _unit(design: tuple[np.ndarray, np.ndarray], runs: list[np.ndarray], play: Play,
+          strength: float, rng: np.random.Generator, noise: float
+          ) -> tuple[StepSeries, np.ndarray]:
+    """A unit of the design with the play (its coefficient `strength` x 15 %)."""
+    lt, coef = design
+    theta = np.concatenate([lt + rng.uniform(-0.1, 0.1, lt.size),
+                            coef * (1 + rng.uniform(-0.15, 0.15, coef.size)),
+                            [strength * (1 + rng.uniform(-0.15, 0.15))]])
+    n = sum(r.size for r in runs)
+    s = StepSeries(runs, np.zeros(n), np.arange(n), STEP_S)
+    s.y = design_matrix(s, np.exp(theta[:2]), play) @ theta[2:]
+    s.y = s.y + rng.normal(0, noise, n)
+    return s, theta
+
+
+@pytest.fixture(scope="module")
+def hysteretic() -> dict:
+    """A design with a play of T or of its faster node, 6 units on two loops at 0.7 and 1.5
+    C/min (a lag mimics a play at one rate, not at two)."""
+    rng = np.random.default_rng(SEED)
+    design = _design(rng)
+    node = int(rng.integers(0, 2)) if np.exp(design[0][0]) <= 3000 else 0
+    play = Play(node, float(rng.integers(4, 10)))
+    # ppm per 50 C of (play - x): 2-5 ppm/C, as the population draws
+    strength = float(rng.uniform(2.0, 5.0)) * 50.0
+    noise = float(rng.uniform(2.0, 4.0))
+    runs = [_program(3.0, 0.7, 20, rng), _program(3.0, 1.5, 20, rng)]
+    units = {f"u{i}": _unit(design, runs, play, strength, rng, noise) for i in range(6)}
+    msg = (f"seed {SEED}: play of node {node}, {play.width_c:g} C, {strength / 50:.1f} ppm/C, "
+           f"noise {noise:.1f} ppm")
+    return {"rng": rng, "design": design, "play": play, "strength": strength, "noise": noise,
+            "units": units, "msg": msg}
+
+
+@pytest.fixture(scope="module")
+def prior(hysteretic: dict) -> fp.DesignPrior:
+    return fp.learn({sn: s for sn, (s, _) in hysteretic["units"].items()}, k=2)
+
+
+def test_the_planted_play_is_chosen(hysteretic: dict, prior: fp.DesignPrior) -> None:
+    p = prior
+    msg = hysteretic["msg"]
+    assert p.play is not None, msg
+    assert p.play.node == hysteretic["play"].node, f"{msg}: chose {p.play}"
+    assert abs(p.play.width_c - hysteretic["play"].width_c) <= 1.0, f"{msg}: chose {p.play}"
+    assert p.unit_thetas is not None and p.unit_thetas.shape[1] == 2 + n_coef(2) + 1
+    assert p.as_dict()["play"]["form"].startswith("play("), msg
+
+
+def test_the_play_carries_a_short_run_to_another_rate(hysteretic: dict,
+                                                       prior: fp.DesignPrior) -> None:
+    """A 2 h loop at 2 C/min predicts the unit on a program unlike the fleet's (2.5 C/min,
+    hour-long soaks, where a lag settles and a play holds) within the noise, the exported
+    law's play coefficient the unit's own. (That the play beats the same prior without it
+    is for the simulator's designs to say, whose chains of parts a lag cannot mimic:
+    `make bench-fleet`; on these synthetic units a lag mimics much of it.)"""
+    p = prior
+    assert p.play is not None, hysteretic["msg"]
+    rng = np.random.default_rng(SEED + 1)
+    ref = all_steps(StepSeries([_program(4.0, 2.5, 60, rng)], np.zeros(0),
+                               np.zeros(0, dtype=np.int64), STEP_S))
+    for i in range(2):
+        short, truth = _unit(hysteretic["design"], [_program(2.0, 2.0, 15, rng)],
+                             hysteretic["play"], hysteretic["strength"], rng,
+                             hysteretic["noise"])
+        want = design_matrix(ref, np.exp(truth[:2]), hysteretic["play"]) @ truth[2:]
+        law = function_fit(short, p, map_fit(short, p).s2).law()
+        got = design_matrix(ref, np.exp(law[:2]), p.play) @ law[2:]
+        err = float(np.sqrt(np.mean((got - want) ** 2)))
+        msg = (f"{hysteretic['msg']} unit {i}: {err:.2f} ppm, play coefficient "
+               f"{law[-1]:.1f} against {truth[-1]:.1f}")
+        assert err < hysteretic["noise"], msg
+        assert abs(law[-1] - truth[-1]) < 0.3 * abs(truth[-1]), msg
+
+
+def test_the_exported_head_is_the_law_with_its_play(hysteretic: dict) -> None:
+    """law_head's NodeFit on [T, nodes, h] / 50 C computes design_matrix @ coefficients."""
+    s, theta = hysteretic["units"]["u1"]
+    play = hysteretic["play"]
+    taus = np.exp(theta[:2])
+    offset, scale = 3.0, 40.0
+    head = law_head(theta, 2, offset, scale, play=True)
+    z = np.column_stack([s.nodes.z(taus), play.column(s, taus)])
+    want = design_matrix(s, taus, play) @ theta[2:]
+    assert np.allclose(head.predict(z) * scale + offset, want, atol=1e-6 * np.abs(want).max())
+
+
+def test_a_line_without_hysteresis_gets_no_play() -> None:
+    from tests.test_fleet_prior import _unit as plain_unit
+
+    rng = np.random.default_rng(SEED + 2)
+    design = _design(rng)
+    noise = float(rng.uniform(2.0, 5.0))
+    full = _program(6.0, 1.5, 30, rng)
+    p = fp.learn({f"u{i}": plain_unit(design, full, rng, noise)[0] for i in range(6)}, k=2)
+    assert p.play is None, f"seed {SEED + 2}: chose {p.play}"
