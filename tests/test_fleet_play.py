@@ -118,3 +118,21 @@ def test_a_line_without_hysteresis_gets_no_play() -> None:
     full = _program(6.0, 1.5, 30, rng)
     p = fp.learn({f"u{i}": plain_unit(design, full, rng, noise)[0] for i in range(6)}, k=2)
     assert p.play is None, f"seed {SEED + 2}: chose {p.play}"
+
+
+def test_train_says_the_design_has_a_play(hysteretic: dict, prior: fp.DesignPrior) -> None:
+    """What `train --prior` prints names the play the unit's model runs."""
+    from fogsf.fleet.prior_map import DISAGREE_LEVEL
+    from fogsf.fleet.prior_train import prior_lines
+
+    s, _ = hysteretic["units"]["u2"]
+    mf = map_fit(s, prior)
+    law = function_fit(s, prior, mf.s2).law()
+    assert prior.play is not None
+    term = prior.play.term(np.exp(law[:2]))
+    rec = {"used": True, "units": len(prior.units), "left_out": [], "nodes": 2,
+           "design_taus_s": np.exp(prior.mu[:2]).tolist(), "level": DISAGREE_LEVEL,
+           **mf.as_dict(), "taus_s": np.exp(law[:2]).tolist(), "play": term.as_dict()}
+    text = "\n".join(prior_lines(rec))
+    assert f"the design's hysteresis {term.describe()}" in text, text
+    assert term.describe().startswith("play(T," if prior.play.node == 0 else "play(lag(T,")
