@@ -151,7 +151,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                 if n == max(fleets):
                     row["chi2"][r] = [mf.chi2, mf.chi2_limit]
                     row["share"][r] = mf.prior_share
-                    row["map"][r] = _score(test, mf.theta, p.k)
+                    row["map"][r] = _score(test, mf.theta, p.k, p.play)
                     row["interval"][r] = _interval(ff, test)
             row["alone"][r] = _default(lg, test, 0, u)
             if default and r in DEFAULT_ON:
@@ -163,8 +163,8 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
             tight.sigma = big.sigma.copy()
             tight.sigma[:big.k, :] *= 1e-3
             tight.sigma[:, :big.k] *= 1e-3
-            mf = map_fit(step_series(logs["loop2h"]), tight)  # (the MAP has no play)
-            row["oracle_taus_loop2h"] = _score(test, mf.theta, big.k)
+            mf = map_fit(step_series(logs["loop2h"]), tight)
+            row["oracle_taus_loop2h"] = _score(test, mf.theta, big.k, big.play)
         out["new"].append(row)
         print(f"design {design} unit {u}: " + " ".join(
             f"{r} prior {row['prior'][f'{r}/{max(fleets)}']:.2f} alone {row['alone'][r]:.2f}"

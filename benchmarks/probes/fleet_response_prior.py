@@ -58,8 +58,8 @@ def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]
         for run in ("loop2h", "up05"):
             s = step_series([simulate_run(design, u, run)])
             mf = map_fit(s, prior)
-            out.setdefault(f"{run} map", []).append(ratio(test, law_prediction(mf.theta, k,
-                                                                                test)))
+            out.setdefault(f"{run} map", []).append(ratio(test, law_prediction(
+                mf.theta, k, test, play=prior.play)))
             ff = pf.function_fit(s, prior, mf.s2)
             law = ratio(test, law_prediction(ff.law(), k, test, play=prior.play))
             out.setdefault(f"{run} law", []).append(law)

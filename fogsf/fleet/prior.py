@@ -17,10 +17,10 @@ database by `unit_summary`):
 5. the design's hysteresis: the play (of T or of one node, `unit_fit.Play`) whose column
    lowers the kept units' pooled squared error most, kept when by more than PLAY_GAIN
    (`choose_play`): a physics node fitted to one program mimics a play at that program's
-   rates and mispredicts the others.
-The kept units' fits (`unit_thetas`, with the play when the design has one) and a full
-program they ran (`reference`) carry the prior in the space of responses
-(prior_function.py), what a new unit is fitted with;
+   rates and mispredicts the others. With one, every unit is fitted again with it, and
+   theta, mu and Sigma hold its coefficient after the nodes' (`unit_fit`).
+The kept units' fits (`unit_thetas`) and a full program they ran (`reference`) carry the
+prior in the space of responses (prior_function.py), what a new unit is fitted with;
 `map_fit` (prior_map.py) fits the parameters themselves: the check against the design.
 """
 
@@ -159,22 +159,24 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     keep = robust_keep(thetas, covs)
     left = [{"unit": sn, "why": "its physics fit lies outside the other units' spread"}
             for sn, kp in zip(names, keep, strict=True) if not kp]
+    kept = [sn for sn, kp in zip(names, keep, strict=True) if kp]
+    play = choose_play([series[sn] for sn in kept[:PLAY_UNITS]],
+                       [fits[sn].taus_s for sn in kept[:PLAY_UNITS]], k)
+    if play is not None:  # every unit fitted again with it: the parameters hold the play
+        fits = {sn: fit_unit(series[sn], k, fits[sn].taus_s, play) for sn in names}
+        thetas = np.stack([fits[sn].theta for sn in names])
+        covs = np.stack([fits[sn].cov for sn in names])
     th, cv = thetas[keep], covs[keep]
     mu = th.mean(axis=0)
     n, p = th.shape
     between = np.cov(th.T, ddof=1) if n > 1 else np.zeros((p, p))
     noise = cv.mean(axis=0)
     sigma = _spread(between, noise, n, SHRINK)
-    kept = [sn for sn, kp in zip(names, keep, strict=True) if kp]
-    play = choose_play([series[sn] for sn in kept[:PLAY_UNITS]],
-                       [fits[sn].taus_s for sn in kept[:PLAY_UNITS]], k)
-    thetas_f = [fits[sn].theta if play is None else
-                fit_unit(series[sn], k, fits[sn].taus_s, play).theta for sn in kept]
     return DesignPrior(k, mu, sigma, kept, left, scores, between, noise,
                        _spread(between, noise, n, None),
                        float(np.median([fits[sn].sse / fits[sn].n for sn in names])),
-                       np.stack([plain_refit(series[sn], th, k, play)
-                                 for sn, th in zip(kept, thetas_f, strict=True)]),
+                       np.stack([plain_refit(series[sn], fits[sn].theta, k, play)
+                                 for sn in kept]),
                        all_steps(series[kept[0]]), play)
 
 

@@ -14,8 +14,8 @@ its correlation (`unit_fit.correlation_factor`); the posterior of (a, b) is a ri
 closed form, its mean the unit's response on any history (`predict`), its covariance the
 spread of that response (`variance`, the interval's).
 
-The units' fits carry the design's play when it has one (`DesignPrior.play`); J is the
-physics nodes' alone. The exported model is an ordinary physics-node model (with the play
+The units' fits and J carry the design's play when it has one (`DesignPrior.play`). The
+exported model is an ordinary physics-node model (with the play
 in its front end when the design has one): `law` fits the design's structure (as
 `unit_fit.fit_unit` fits a unit) to the posterior mean response on the fleet's reference
 program and the unit's own runs, the law the model's head carries.
@@ -110,7 +110,7 @@ def response_basis(prior: DesignPrior, series: StepSeries, lam_units: float = LA
     m = f.mean(axis=1)
     n = f.shape[1]
     d = (f - m[:, None]) / np.sqrt(max(n - 1, 1))
-    j = jacobian(series, prior.mu, k) @ _root(prior.sigma)
+    j = jacobian(series, prior.mu, k, play=prior.play) @ _root(prior.sigma)
     return m, np.hstack([np.sqrt(lam_units) * d, np.sqrt(lam_params) * j])
 
 

@@ -96,7 +96,7 @@ class _Problem:
     def coef(self, log_tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(theta, stacked residual) with the coefficients at their conditional MAP."""
         k, mu, lm = self.k, self.prior.mu, self.lmat
-        x = design_matrix(self.series, np.exp(log_tau))
+        x = design_matrix(self.series, np.exp(log_tau), self.prior.play)
         a = np.vstack([x / self.s, lm[:, k:]])
         b = np.concatenate([self.series.y / self.s,
                             lm[:, k:] @ mu[k:] - lm[:, :k] @ (log_tau - mu[:k])])
@@ -111,8 +111,8 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
     """The new unit's MAP under `prior`, its posterior, the prior's share, the check.
     `data_weight`: the unit's noise variance divided by this (default DATA_WEIGHT)."""
     k = prior.k
-    alone = fit_unit(series, k, np.exp(prior.mu[:k]))
-    grid_alone = fit_unit(series, k)
+    alone = fit_unit(series, k, np.exp(prior.mu[:k]), prior.play)
+    grid_alone = fit_unit(series, k, play=prior.play)
     if grid_alone.sse < alone.sse:
         alone = grid_alone
     s2 = alone.sigma2 / (DATA_WEIGHT if data_weight is None else data_weight)
@@ -127,7 +127,7 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
             best = (obj, theta)
     assert best is not None
     obj, theta = best
-    jac = jacobian(series, theta, k)
+    jac = jacobian(series, theta, k, play=prior.play)
     prec_data = jac.T @ jac / s2
     prec_prior = np.linalg.inv(prior.sigma)
     cov = np.linalg.inv(prec_data + prec_prior)
@@ -136,7 +136,7 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
     return MapFit(k, theta, cov, s2, obj, alone_obj,
                   check_chi2(series, prior, alone.sigma2, alone, max_iter),
                   chi2_quantile(p, DISAGREE_LEVEL),
-                  _shares(cov, prior.sigma, k), alone.theta)
+                  _shares(cov, prior.sigma, k, prior.play is not None), alone.theta)
 
 
 def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit,
@@ -154,19 +154,23 @@ def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit
     return best - alone.sse / s2
 
 
-def _groups(k: int) -> dict[str, list[int]]:
+def _groups(k: int, play: bool = False) -> dict[str, list[int]]:
+    """theta's indices per group (the play's coefficient, after the nodes', is linear)."""
     f = k + 1
-    lin = list(range(k, k + 1 + f))
-    quad = list(range(k + 1 + f, k + 1 + f + f * (f + 1) // 2))
+    lin = list(range(k, k + 1 + f + int(play)))
+    q0 = lin[-1] + 1
+    quad = list(range(q0, q0 + f * (f + 1) // 2))
     return {GROUPS[0]: list(range(k)), GROUPS[1]: lin, GROUPS[2]: quad,
-            GROUPS[3]: [k + 1 + f + f * (f + 1) // 2]}
+            GROUPS[3]: [quad[-1] + 1]}
 
 
-def _shares(cov: np.ndarray, sigma: np.ndarray, k: int) -> dict[str, float]:
+def _shares(cov: np.ndarray, sigma: np.ndarray, k: int, play: bool = False
+            ) -> dict[str, float]:
     """Per group, the mean over its parameters of posterior variance / prior variance:
     the prior's share of the posterior precision (1: the data added nothing)."""
     v = np.diag(cov) / np.diag(sigma)
-    return {g: float(np.clip(np.mean(v[idx]), 0.0, 1.0)) for g, idx in _groups(k).items()}
+    return {g: float(np.clip(np.mean(v[idx]), 0.0, 1.0))
+            for g, idx in _groups(k, play).items()}
 
 
 def _lm(pb: _Problem, log_tau0: np.ndarray, max_iter: int) -> np.ndarray:
@@ -200,7 +204,3 @@ def _lm(pb: _Problem, log_tau0: np.ndarray, max_iter: int) -> np.ndarray:
             break
     return theta
 
-
-def predict_steps(series: StepSeries, theta: np.ndarray, k: int) -> np.ndarray:
-    """The SF error (ppm) the fit predicts on every measured step of `series`."""
-    return design_matrix(series, np.exp(theta[:k])) @ theta[k:]

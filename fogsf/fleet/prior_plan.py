@@ -26,7 +26,7 @@ import numpy as np
 
 from fogsf.fleet.prior import DesignPrior
 from fogsf.fleet.prior_function import function_fit
-from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, window_means
+from fogsf.fleet.unit_fit import Play, StepSeries, all_steps, design_matrix, window_means
 from fogsf.models.features import MODEL_STEP_S, T_REF_C
 from fogsf.models.node_fit import discrete_lag, lag_alpha
 from fogsf.plan.evaluate import envelope_program
@@ -61,11 +61,11 @@ class PlanResult:
 
 
 def _series(runs: list[np.ndarray], theta: np.ndarray | None, k: int, noise: float,
-            rng: np.random.Generator | None) -> StepSeries:
+            rng: np.random.Generator | None, play: Play | None = None) -> StepSeries:
     n = sum(r.size for r in runs)
     s = all_steps(StepSeries(runs, np.zeros(0), np.zeros(0, dtype=np.int64), MODEL_STEP_S))
     if theta is not None:
-        s.y = design_matrix(s, np.exp(theta[:k])) @ theta[k:]
+        s.y = design_matrix(s, np.exp(theta[:k]), play) @ theta[k:]
         if rng is not None:
             s.y = s.y + rng.normal(0.0, noise, n)
     return s
@@ -92,10 +92,10 @@ def evaluate(program: Program, prior: DesignPrior, units: list[np.ndarray],
     ratios = []
     for i, theta in enumerate(units):
         rng = np.random.default_rng([seed, i])
-        ff = function_fit(_series(runs, theta, k, noise, rng), prior, noise**2)
+        ff = function_fit(_series(runs, theta, k, noise, rng, prior.play), prior, noise**2)
         for t in tests:
             s = _series([t], None, k, noise, None)
-            truth = design_matrix(s, np.exp(theta[:k])) @ theta[k:]
+            truth = design_matrix(s, np.exp(theta[:k]), prior.play) @ theta[k:]
             pred = ff.predict(s)
             ratios.append(_ratio(pred - truth, noise))
     return PlanResult(program, float(np.median(ratios)), float(np.max(ratios)), ratios)
