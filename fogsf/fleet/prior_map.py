@@ -155,7 +155,7 @@ def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit
 
 
 def _groups(k: int, play: bool = False) -> dict[str, list[int]]:
-    """theta's indices per group (the play's coefficient, after the nodes', is linear)."""
+    """theta's indices per group (the play's, `unit_fit.play_index`, is linear)."""
     f = k + 1
     lin = list(range(k, k + 1 + f + int(play)))
     q0 = lin[-1] + 1

@@ -15,7 +15,8 @@ common to its units: it moves every unit's fit alike, not one unit's).
 
 A design may carry a hysteresis term (`Play`, chosen on the fleet by `prior.choose_play`):
 one more column in the law, the play of T or of one of the law's nodes, its coefficient
-last in theta; every function here takes it as `play` (None: the law without it).
+after the nodes' linear ones (`play_index`); every function here takes it as `play` (None:
+the law without it).
 """
 
 from __future__ import annotations
@@ -120,6 +121,11 @@ class Play:
         if taus_s is not None:
             d["form"] = self.term(taus_s).describe()
         return d
+
+
+def play_index(k: int) -> int:
+    """The play's coefficient in theta = [log taus (k), intercept, T, nodes (k), h, ...]."""
+    return 2 * k + 2
 
 
 def n_coef(k: int) -> int:
@@ -230,7 +236,7 @@ def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None,
     taus = np.sort(taus)
     x = design_matrix(series, taus, play)
     f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA) if play is None else \
-        ridge_fit_free(x[:, 1:], series.y, NODE_LAMBDA, [k + 1])
+        ridge_fit_free(x[:, 1:], series.y, NODE_LAMBDA, [play_index(k) - k - 1])
     theta = np.concatenate([np.log(taus), [f.intercept], f.coef])
     resid = series.y - x @ theta[k:]
     sse = float(resid @ resid)
@@ -257,12 +263,14 @@ def estimation_cov(series: StepSeries, theta: np.ndarray, k: int, white: float,
     penalty pins the collinear nodes' directions, and the units' fits scatter as this."""
     jac = jacobian(series, theta, k, play=play)
     a = jac.T @ jac
-    x = jac[:, k + 1:]
+    penalised = np.arange(k + 1, a.shape[0])
+    if play is not None:  # the play's coefficient is free, as in the fit
+        penalised = penalised[penalised != play_index(k)]
+    x = jac[:, penalised]
     xc = x - x.mean(axis=0)
     pen = NODE_LAMBDA * float(np.trace(xc.T @ xc)) / max(1, x.shape[1])
-    p = np.zeros(a.shape[0])
-    p[k + 1:] = pen
-    p[:k + 1] = 1e-9 * float(np.mean(np.diag(a)))
+    p = np.full(a.shape[0], 1e-9 * float(np.mean(np.diag(a))))
+    p[penalised] = pen
     inv = np.linalg.inv(a + np.diag(p))
     cov = white * inv @ a @ inv
     return 0.5 * (cov + cov.T)
