@@ -42,7 +42,8 @@ from fogsf.fleet.unit_fit import (
     predict,
     window_means,
 )
-from fogsf.models.hysteresis import MAX_SOURCE_TAU_S
+from fogsf.models.features import PHYSICAL_SCALE_C
+from fogsf.models.hysteresis import MAX_SOURCE_TAU_S, plays_batch
 
 K_CHOICES = (1, 2, 3)
 STRUCTURE_TOLERANCE = 0.05
@@ -183,22 +184,30 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
 def choose_play(series: list[StepSeries], taus: list[np.ndarray], k: int) -> Play | None:
     """The play (of T or of a node no slower than MAX_SOURCE_TAU_S, a width of
     PLAY_WIDTHS_C) whose column, at each unit's own time constants `taus`, lowers the units'
-    pooled least-squares error most; None unless by more than PLAY_GAIN."""
-
-    def sse(play: Play | None) -> float:
-        total = 0.0
-        for s, t in zip(series, taus, strict=True):
-            x = design_matrix(s, t, play)
-            r = s.y - x @ np.linalg.lstsq(x, s.y, rcond=None)[0]
-            total += float(r @ r)
-        return total
-
-    base = sse(None)
+    pooled least-squares error most; None unless by more than PLAY_GAIN. (Each unit's law
+    without the play is built once, the play's column beside it: the error does not depend
+    on the columns' order.)"""
     med = np.median(np.stack(taus), axis=0)
     nodes = [0] + [j + 1 for j in range(k) if med[j] <= MAX_SOURCE_TAU_S]
-    best = min(((sse(Play(j, w)), Play(j, w)) for j in nodes for w in PLAY_WIDTHS_C),
-               key=lambda c: c[0])
-    return best[1] if base > 0 and 1.0 - best[0] / base > PLAY_GAIN else None
+    widths = np.asarray(PLAY_WIDTHS_C)
+    base = 0.0
+    sse = np.zeros((len(nodes), widths.size))
+    for s, t in zip(series, taus, strict=True):
+        x0 = design_matrix(s, t)
+        base += _sse(x0, s.y)
+        for a, j in enumerate(nodes):
+            xs = Play(j, 0.0).source(s, t)
+            h = np.vstack([plays_batch(np.repeat(x[:, None], widths.size, axis=1), widths)
+                           for x in xs])[s.rows] / PHYSICAL_SCALE_C
+            sse[a] += [_sse(np.column_stack([x0, h[:, i]]), s.y) for i in range(widths.size)]
+    a, i = np.unravel_index(int(np.argmin(sse)), sse.shape)
+    gain = 1.0 - float(sse[a, i]) / base if base > 0 else 0.0
+    return Play(nodes[int(a)], float(widths[i])) if gain > PLAY_GAIN else None
+
+
+def _sse(x: np.ndarray, y: np.ndarray) -> float:
+    r = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
+    return float(r @ r)
 
 
 def _spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None

@@ -109,12 +109,15 @@ class Play:
         tau = 0.0 if self.node == 0 else float(np.sort(taus_s)[self.node - 1])
         return HystTerm(tau, tau, 1.0, float(self.width_c))
 
+    def source(self, series: StepSeries, taus_s: np.ndarray) -> list[np.ndarray]:
+        """The temperature the play reads (C, relative), one array per log of `series`."""
+        tau = self.term(taus_s).tau_a_s
+        return list(series.t_rel) if tau == 0 else [
+            discrete_lag(t, lag_alpha(tau, series.step_s)) for t in series.t_rel]
+
     def column(self, series: StepSeries, taus_s: np.ndarray) -> np.ndarray:
         """h over every stacked step of `series`."""
-        tau = self.term(taus_s).tau_a_s
-        xs = series.t_rel if tau == 0 else [discrete_lag(t, lag_alpha(tau, series.step_s))
-                                            for t in series.t_rel]
-        return column(list(xs), self.width_c)
+        return column(self.source(series, taus_s), self.width_c)
 
     def as_dict(self, taus_s: np.ndarray | None = None) -> dict:
         d: dict = {"node": self.node, "width_c": self.width_c}
