@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fogsf.fleet import prior as fp
-from fogsf.fleet.prior_function import FunctionFit, function_fit
+from fogsf.fleet.prior_function import NOISE_SCALE, FunctionFit, function_fit
 from fogsf.fleet.prior_map import map_fit
 from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, fit_unit, n_coef
 
@@ -162,6 +162,22 @@ def test_response_prior_beats_the_short_run_alone(line: dict, prior: fp.DesignPr
         m_odd = function_fit(odd, prior, mf.s2).misfit_ppm2()
         assert m_odd > 4.0 * ff.misfit_ppm2() and m_odd > 0.1 * amp**2, \
             f"{msg}; misfit {m_odd:.2f} ppm^2 with a {amp:.1f} ppm sine"
+
+
+def test_short_run_noise_is_scaled(line: dict, prior: fp.DesignPrior) -> None:
+    """The short run is weighed at NOISE_SCALE times the unit's noise estimate (the design's
+    common misfit on a run the fleet never ran counted as noise): the same posterior as the
+    scaled variance at scale 1, a wider one than at scale 1."""
+    rng = np.random.default_rng(SEED + 5)
+    short, _ = _unit(line["design"], _program(1.5, 2.0, 10, rng), rng, line["noise"])
+    s2 = map_fit(short, prior).s2
+    ff, same = function_fit(short, prior, s2), function_fit(short, prior, s2 * NOISE_SCALE,
+                                                           noise_scale=1.0)
+    assert NOISE_SCALE > 1.0 and ff.s2 == pytest.approx(s2 * NOISE_SCALE)
+    np.testing.assert_allclose(ff.a, same.a, rtol=1e-9, atol=1e-12)
+    full = all_steps(line["units"]["u0"][0])
+    assert np.mean(ff.variance(full)) > np.mean(
+        function_fit(short, prior, s2, noise_scale=1.0).variance(full)), f"seed {SEED}"
 
 
 def test_unit_unlike_the_design_disagrees(line: dict, prior: fp.DesignPrior) -> None:

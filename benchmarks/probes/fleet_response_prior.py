@@ -7,7 +7,8 @@ scored on the test loop (1 C/min up, 1.5 down; test RMS / noise floor):
 - `map`: the MAP of the parameters (`prior_map.map_fit`, the fit before the response prior);
 - `resp U,P`: the posterior mean response (`prior_function`) with weights LAM_UNITS = U on
   the fleet's responses and LAM_PARAMS = P on the parametric spread; `law` the exported law
-  at the module's weights;
+  at the module's weights; `law noise N` with the short run's noise variance taken N times
+  the unit's own estimate (NOISE_SCALE: `law`);
 - `span`: the response prior given the unit's FULL program (the basis's reach);
 - `interval held`: units whose law's figure is at or under the interval's upper end, without
   the misfit on the unit's runs, with it, and with INTERVAL_Z^2 x it (`train --prior`'s);
@@ -33,6 +34,7 @@ from fogsf.logs.metrics import log_metrics
 from fogsf.models.reference import expand
 
 WEIGHTS = ((1.0, 0.0), (1.0, 0.3), (1.0, 1.0), (2.0, 0.3), (0.0, 1.0))
+NOISE_SCALES = (1.0, 10.0)
 
 
 def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]]:
@@ -63,6 +65,10 @@ def probe_design(design: int, n_fleet: int, n_new: int) -> dict[str, list[float]
             ff = pf.function_fit(s, prior, mf.s2)
             law = ratio(test, law_prediction(ff.law(), k, test, play=prior.play))
             out.setdefault(f"{run} law", []).append(law)
+            for n in NOISE_SCALES:
+                out.setdefault(f"{run} law noise {n:g}", []).append(ratio(test, law_prediction(
+                    pf.function_fit(s, prior, mf.s2, noise_scale=n).law(), k, test,
+                    play=prior.play)))
             floor2 = log_metrics(test)["noise_floor_ppm"] ** 2
             var, mis = float(np.mean(ff.variance(ts))), ff.misfit_ppm2()
             z2 = INTERVAL_Z**2

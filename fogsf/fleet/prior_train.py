@@ -56,7 +56,8 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
 
 # the interval's upper end: the floor and this many posterior standard deviations of the
 # response and of its misfit on the unit's own runs (development designs 3-23, fleets of
-# 20: it held 22 of 27 2 h loops and 23 of 27 ramps; 19 and 22 without the misfit)
+# 20, prior_function.NOISE_SCALE 3: it held 24 of 27 2 h loops, the three missed on design
+# 23, whose structure fails there, and 27 of 27 ramps)
 INTERVAL_Z = 2.0
 
 
