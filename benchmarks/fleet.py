@@ -14,10 +14,11 @@ by default, development 0-9999 with `--seeds dev`, where tuning belongs):
   - `prior`: the unit's law under the prior (`prior_function.function_fit`, `law`), the
     law `fogsf train --prior` carries in its head (the LSTM on top is left out here: the
     bench scores the least-squares part, which the LSTM's validation keeps unless it does
-    better); on `full` the design's structure fitted to the unit's own program (the prior
-    adds nothing there); beside it `map`, the MAP of the parameters (`prior_map.map_fit`,
-    the check's fit), and `interval`, the upper end of the interval `train --prior`
-    states, over the floor, against the unit's test figure;
+    better), or `alone` where the unit's data disagree with the design (train --prior
+    fits it alone there); on `full` the design's structure fitted to the unit's own
+    program (the prior adds nothing there); beside it `map`, the MAP of the parameters
+    (`prior_map.map_fit`, the check's fit), and `interval`, the upper end of the interval
+    `train --prior` states, over the floor, against the unit's test figure;
   - `default`: `fogsf train` without the prior on `loop2h` and `up05` (its LSTM included);
   - `alone`: the default's least-squares part (no LSTM iterations) on every run, for the
     chamber hours each residual takes;
@@ -140,6 +141,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                             big.k, np.exp(big.mu[:big.k]), big.play)
         row["oracle_full"] = _score(test, full_fit.theta, big.k, big.play)
         for r, lg in logs.items():
+            row["alone"][r] = _default(lg, test, 0, u)
             for n, p in priors.items():
                 if r == "full":  # the full program decides the unit: its own fit
                     row["prior"][f"{r}/{n}"] = row["oracle_full"]
@@ -147,13 +149,14 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
                 ss = step_series(lg)
                 mf = map_fit(ss, p)
                 ff = function_fit(ss, p, mf.s2)
-                row["prior"][f"{r}/{n}"] = _score(test, ff.law(), p.k, p.play)
+                # what train --prior delivers: the unit alone where its data disagree
+                row["prior"][f"{r}/{n}"] = row["alone"][r] if mf.disagrees else _score(
+                    test, ff.law(), p.k, p.play)
                 if n == max(fleets):
                     row["chi2"][r] = [mf.chi2, mf.chi2_limit]
                     row["share"][r] = mf.prior_share
                     row["map"][r] = _score(test, mf.theta, p.k, p.play)
                     row["interval"][r] = _interval(ff, test)
-            row["alone"][r] = _default(lg, test, 0, u)
             if default and r in DEFAULT_ON:
                 row["default"][r] = _default(lg, test, None, u)
         if "loop2h" in logs:  # the MAP knowing the unit's time constants
