@@ -98,6 +98,32 @@ def test_prior_learns_the_design_and_its_spread(line: dict, prior: fp.DesignPrio
     assert not p.left_out, msg
 
 
+def test_structure_misfit_says_when_the_structure_misses(line: dict,
+                                                         prior: fp.DesignPrior) -> None:
+    """The structure leaves noise only on a line of its own form; on a line whose units all
+    carry a slow form it cannot express (a 20-40 min sine, 1-2 x the noise) it says so."""
+    from fogsf.fleet.prior_train import STRUCTURE_MISS, prior_lines
+
+    assert prior.structure_misfit < 1.1, f"seed {SEED}: {prior.structure_misfit:.2f}"
+    rng = np.random.default_rng(SEED + 6)
+    amp, period = rng.uniform(1.0, 2.0) * line["noise"], rng.uniform(1200.0, 2400.0)
+    odd = {}
+    for sn, (s, _) in line["units"].items():
+        t_s = np.arange(s.y.size) * STEP_S
+        odd[sn] = StepSeries(s.t_rel, s.y + amp * np.sin(2 * np.pi * t_s / period
+                                                          + rng.uniform(0, 2 * np.pi)),
+                             s.rows, STEP_S)
+    missed = fp.learn(odd, k=2)
+    assert missed.structure_misfit > STRUCTURE_MISS, \
+        f"seed {SEED}: {missed.structure_misfit:.2f} with a {amp:.1f} ppm sine"
+    rec = {"prior_share": {}, "design_taus_s": [1.0, 2.0], "nodes": 2, "units": 6,
+           "left_out": [], "chi2": 1.0, "chi2_limit": 2.0, "level": 1e-3, "used": False,
+           "structure_misfit": missed.structure_misfit}
+    assert "the design's structure misses them" in prior_lines(rec)[0]
+    rec["structure_misfit"] = prior.structure_misfit
+    assert "misses" not in prior_lines(rec)[0]
+
+
 def test_unit_unlike_the_line_is_left_out(line: dict) -> None:
     rng = np.random.default_rng(SEED + 1)
     lt, coef = line["design"]

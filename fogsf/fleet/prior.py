@@ -19,7 +19,9 @@ database by `unit_summary`):
    (`choose_play`): a physics node fitted to one program mimics a play at that program's
    rates and mispredicts the others. With one, every unit is fitted again with it, and
    theta, mu and Sigma hold its coefficient after the nodes' (`unit_fit`).
-The kept units' fits (`unit_thetas`) and a full program they ran (`reference`) carry the
+How much the structure leaves on the units' own programs (`structure_misfit`, 1: noise
+only) says how far the prior's figures can be trusted. The kept units' fits (`unit_thetas`)
+and a full program they ran (`reference`) carry the
 prior in the space of responses (prior_function.py), what a new unit is fitted with;
 `map_fit` (prior_map.py) fits the parameters themselves: the check against the design.
 """
@@ -36,6 +38,7 @@ from fogsf.fleet.unit_fit import (
     StepSeries,
     UnitFit,
     all_steps,
+    correlation_factor,
     design_matrix,
     fit_unit,
     plain_refit,
@@ -86,6 +89,9 @@ class DesignPrior:
     # a full program the units ran (every step): where a new unit's law is fitted
     reference: StepSeries | None = None
     play: Play | None = None  # the design's hysteresis term (`choose_play`), if any
+    # how much the design's structure leaves on the kept units' own programs: the median
+    # over them of sqrt(`unit_fit.correlation_factor`) of their residuals (1: noise only)
+    structure_misfit: float = 1.0
 
     def as_dict(self) -> dict:
         taus = np.exp(self.mu[:self.k])
@@ -94,7 +100,8 @@ class DesignPrior:
                 "k_scores": {str(k): v for k, v in self.k_scores.items()},
                 "taus_s": taus.tolist(),
                 "tau_spread": np.sqrt(np.diag(self.sigma)[:self.k]).tolist(),
-                "play": None if self.play is None else self.play.as_dict(taus)}
+                "play": None if self.play is None else self.play.as_dict(taus),
+                "structure_misfit": self.structure_misfit}
 
 
 def choose_k(series: dict[str, StepSeries], fits: dict[int, dict[str, UnitFit]]
@@ -173,12 +180,15 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     between = np.cov(th.T, ddof=1) if n > 1 else np.zeros((p, p))
     noise = cv.mean(axis=0)
     sigma = _spread(between, noise, n, SHRINK)
+    unit_thetas = np.stack([plain_refit(series[sn], fits[sn].theta, k, play) for sn in kept])
+    misfit = float(np.median([
+        np.sqrt(correlation_factor(series[sn].y - predict(series[sn], t, k, play),
+                                   series[sn].step_s))
+        for sn, t in zip(kept, unit_thetas, strict=True)]))
     return DesignPrior(k, mu, sigma, kept, left, scores, between, noise,
                        _spread(between, noise, n, None),
                        float(np.median([fits[sn].sse / fits[sn].n for sn in names])),
-                       np.stack([plain_refit(series[sn], fits[sn].theta, k, play)
-                                 for sn in kept]),
-                       all_steps(series[kept[0]]), play)
+                       unit_thetas, all_steps(series[kept[0]]), play, misfit)
 
 
 def choose_play(series: list[StepSeries], taus: list[np.ndarray], k: int) -> Play | None:
