@@ -144,7 +144,8 @@ def test_train_says_the_design_has_a_play(hysteretic: dict, prior: fp.DesignPrio
     term = prior.play.term(np.exp(law[:2]))
     rec = {"used": True, "units": len(prior.units), "left_out": [], "nodes": 2,
            "design_taus_s": np.exp(prior.mu[:2]).tolist(), "level": DISAGREE_LEVEL,
-           **mf.as_dict(), "taus_s": np.exp(law[:2]).tolist(), "play": term.as_dict()}
+           "structure_misfit": prior.structure_misfit, **mf.as_dict(),
+           "taus_s": np.exp(law[:2]).tolist(), "play": term.as_dict()}
     text = "\n".join(prior_lines(rec))
     assert f"the design's hysteresis {term.describe()}" in text, text
     assert term.describe().startswith("play(T," if prior.play.node == 0 else "play(lag(T,")

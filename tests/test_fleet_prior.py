@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from fogsf.fleet import prior as fp
-from fogsf.fleet.prior_function import NOISE_SCALE, FunctionFit, function_fit
-from fogsf.fleet.prior_map import map_fit
+from fogsf.fleet.prior_function import FunctionFit, function_fit
+from fogsf.fleet.prior_map import NOISE_SCALE, check_chi2, map_fit
 from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, fit_unit, n_coef
 
 STEP_S = 5.0
@@ -196,7 +196,13 @@ def test_short_run_noise_is_scaled(line: dict, prior: fp.DesignPrior) -> None:
     scaled variance at scale 1, a wider one than at scale 1."""
     rng = np.random.default_rng(SEED + 5)
     short, _ = _unit(line["design"], _program(1.5, 2.0, 10, rng), rng, line["noise"])
-    s2 = map_fit(short, prior).s2
+    mf = map_fit(short, prior)
+    s2 = mf.s2
+    # the check reads the run at the same noise
+    alone = fit_unit(short, prior.k, np.exp(prior.mu[:prior.k]))
+    alone = min(alone, fit_unit(short, prior.k), key=lambda f: f.sse)
+    assert mf.chi2 == pytest.approx(check_chi2(short, prior, alone.sigma2 * NOISE_SCALE,
+                                               alone, 30), rel=1e-6)
     ff, same = function_fit(short, prior, s2), function_fit(short, prior, s2 * NOISE_SCALE,
                                                            noise_scale=1.0)
     assert NOISE_SCALE > 1.0 and ff.s2 == pytest.approx(s2 * NOISE_SCALE)

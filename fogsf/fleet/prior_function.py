@@ -10,10 +10,9 @@ spread of responses, rank N - 1: what real units of the design do, whatever form
 physics has), J the response's Jacobian at the design's parameters times a square root of
 their spread (`DesignPrior.sigma`: the directions a few units did not happen to span).
 The short run's steps y = f + e, e ~ N(0, NOISE_SCALE s^2), s^2 the unit's own residual
-variance with its correlation (`unit_fit.correlation_factor`), NOISE_SCALE > 1 because the
-design's responses also miss a run the fleet never ran (their common misfit, which a unit's
-own fit absorbs, counted as noise rather than bent into the unit's coefficients); the
-posterior of (a, b) is a ridge in closed form, its mean the unit's response on any history
+variance with its correlation (`unit_fit.correlation_factor`), NOISE_SCALE > 1
+(`prior_map`: the design's responses also miss a run the fleet never ran); the posterior
+of (a, b) is a ridge in closed form, its mean the unit's response on any history
 (`predict`), its covariance the spread of that response (`variance`, the interval's).
 
 The units' fits and J carry the design's play when it has one (`DesignPrior.play`). The
@@ -34,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.fleet.prior import DesignPrior
+from fogsf.fleet.prior_map import NOISE_SCALE
 from fogsf.fleet.unit_fit import (
     StepSeries,
     all_steps,
@@ -45,10 +45,6 @@ from fogsf.fleet.unit_fit import (
 
 LAM_UNITS = 1.0
 LAM_PARAMS = 0.3
-# the short run's noise variance over the unit's own estimate (development designs 3-23,
-# fleets of 20: 3 against 1 took the 2 h loop from 1.34 / 7.75 to 1.30 / 6.46 x the floor,
-# the 0.5 C/min ramp from 1.56 / 5.07 to 1.36 / 4.25; benchmarks/probes/README.md)
-NOISE_SCALE = 3.0
 
 
 def _root(sigma: np.ndarray) -> np.ndarray:
