@@ -199,8 +199,8 @@ def test_short_run_noise_is_scaled(line: dict, prior: fp.DesignPrior) -> None:
     mf = map_fit(short, prior)
     s2 = mf.s2
     # the check reads the run at the same noise
-    alone = fit_unit(short, prior.k, np.exp(prior.mu[:prior.k]))
-    alone = min(alone, fit_unit(short, prior.k), key=lambda f: f.sse)
+    alone = fit_unit(short, prior.k, np.exp(prior.mu[:prior.k]), prior.play)
+    alone = min(alone, fit_unit(short, prior.k, play=prior.play), key=lambda f: f.sse)
     assert mf.chi2 == pytest.approx(check_chi2(short, prior, alone.sigma2 * NOISE_SCALE,
                                                alone, 30), rel=1e-6)
     ff, same = function_fit(short, prior, s2), function_fit(short, prior, s2 * NOISE_SCALE,

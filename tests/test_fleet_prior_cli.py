@@ -47,6 +47,7 @@ def test_train_with_the_prior_records_the_unit(fleet: dict, capsys: pytest.Captu
     m = json.loads((out / "metrics.json").read_text())
     rec = m["prior"]
     assert rec["units"] == 4 and rec["nodes"] in (1, 2, 3), msg
+    assert rec["structure_misfit"] >= 1.0 and "x their noise" in text, msg
     if rec["used"]:
         assert "share of the posterior precision" in text
         assert (out / "stream.json").is_file()  # an ordinary model: export reads it

@@ -21,9 +21,9 @@ database by `unit_summary`):
    theta, mu and Sigma hold its coefficient after the nodes' (`unit_fit`).
 How much the structure leaves on the units' own programs (`structure_misfit`, 1: noise
 only) says how far the prior's figures can be trusted. The kept units' fits (`unit_thetas`)
-and a full program they ran (`reference`) carry the
-prior in the space of responses (prior_function.py), what a new unit is fitted with;
-`map_fit` (prior_map.py) fits the parameters themselves: the check against the design.
+and a full program they ran (`reference`) carry the prior in the space of responses
+(prior_function.py), what a new unit is fitted with; `map_fit` (prior_map.py) fits the
+parameters themselves: the check against the design.
 """
 
 from __future__ import annotations

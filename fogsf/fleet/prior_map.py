@@ -38,8 +38,9 @@ DATA_WEIGHT = 1.0
 # bent into the unit's coefficients or read as the unit's difference from the design).
 # Development designs 3-23, fleets of 20, the fit (`prior_function`): 3 against 1 took the
 # 2 h loop from 1.34 / 7.75 to 1.30 / 6.46 x the floor, the 0.5 C/min ramp from 1.56 / 5.07
-# to 1.36 / 4.25 (benchmarks/probes/README.md); the check: development designs 11 and 12
-# (their structure fails) sent 7 of 18 runs alone at 1, 3 at 3 (an alone ramp left 15-26 x)
+# to 1.36 / 4.25 (benchmarks/probes/README.md); the check: of development designs 11 and
+# 12's 18 2 h loops and 0.5 C/min ramps (their structure fails) it sent 7 alone at 1, 3 at
+# 3 (alone, 3 ramps left 12.7-26.4 x against 1.8-2.7 x under the prior)
 NOISE_SCALE = 3.0
 GROUPS = ("time constants", "intercept and linear", "quadratic and cross", "cube of T")
 
@@ -138,24 +139,26 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
     assert best is not None
     obj, theta = best
     jac = jacobian(series, theta, k, play=prior.play)
-    prec_data = jac.T @ jac / s2
+    jtj = jac.T @ jac
     prec_prior = np.linalg.inv(prior.sigma)
-    cov = np.linalg.inv(prec_data + prec_prior)
+    cov = np.linalg.inv(jtj / s2 + prec_prior)
     alone_obj = alone.sse / s2
     p = theta.size
+    # the prior's share at the noise the unit's law is fitted with (prior_function)
+    shares = _shares(np.linalg.inv(jtj / (s2 * NOISE_SCALE) + prec_prior), prior.sigma, k,
+                     prior.play is not None)
     return MapFit(k, theta, cov, s2, obj, alone_obj,
                   check_chi2(series, prior, alone.sigma2 * NOISE_SCALE, alone, max_iter),
-                  chi2_quantile(p, DISAGREE_LEVEL),
-                  _shares(cov, prior.sigma, k, prior.play is not None), alone.theta)
+                  chi2_quantile(p, DISAGREE_LEVEL), shares, alone.theta)
 
 
 def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit,
                max_iter: int) -> float:
     """min_theta J_check(theta) - |y - f(theta_alone)|^2 / s^2, J_check the objective with
-    the spread shrunk toward its diagonal (`DesignPrior.sigma_check`), s^2 the unit's noise
-    with its residuals' correlation: for a linear model (theta_alone - mu)^T (Sigma_check +
-    C)^-1 (theta_alone - mu), the unit's data-only fit against the design's prior
-    predictive, without inverting the short run's C."""
+    the spread shrunk toward its diagonal (`DesignPrior.sigma_check`), s^2 the noise the
+    check reads (`map_fit`: NOISE_SCALE times the unit's own estimate): for a linear model
+    (theta_alone - mu)^T (Sigma_check + C)^-1 (theta_alone - mu), the unit's data-only fit
+    against the design's prior predictive, without inverting the short run's C."""
     wide = DesignPrior(**{**prior.__dict__, "sigma": prior.sigma_check})
     pb = _Problem(series, wide, s2)
     best = min(float(r @ r) for r in (pb.coef(_lm(pb, st, max_iter)[:prior.k])[1]

@@ -22,7 +22,7 @@ import numpy as np
 from fogsf.errors import UserError
 from fogsf.fleet.prior import DesignPrior, learn
 from fogsf.fleet.prior_function import FunctionFit, function_fit
-from fogsf.fleet.prior_map import DISAGREE_LEVEL, map_fit
+from fogsf.fleet.prior_map import DISAGREE_LEVEL, NOISE_SCALE, map_fit
 from fogsf.fleet.records import unit_record
 from fogsf.fleet.store import open_store
 from fogsf.fleet.unit_fit import (
@@ -56,14 +56,15 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
 
 # the interval's upper end: the floor and this many posterior standard deviations of the
 # response and of its misfit on the unit's own runs (development designs 3-23, fleets of
-# 20, prior_function.NOISE_SCALE 3: it held 24 of 27 2 h loops, the three missed on design
+# 20, prior_map.NOISE_SCALE 3: it held 24 of 27 2 h loops, the three missed on design
 # 23, whose structure fails there, and 27 of 27 ramps)
 INTERVAL_Z = 2.0
 # `train --prior` says the design's structure misses the fleet's units when it leaves more
-# than this on their own programs (`DesignPrior.structure_misfit`; development designs
-# 3-23 and 5, 11, 12, fleets of 20: 1.57 on 11 and 1.38 on 23, whose 2 h loops the prior
-# leaves at 4-10 x the floor; 1.00-1.12 on the others, 5 and 12 (1.12, 1.06) among them,
-# whose loops it leaves at 4-6 x: a structure that misses the loop only is not seen)
+# than this on their own programs (`DesignPrior.structure_misfit`; development designs 3,
+# 4, 5, 10, 11, 12, 15, 17, 19, 21, 22, 23, fleets of 20: 1.57 on 11 and 1.38 on 23, whose
+# 2 h loops the prior leaves at 4-10 x the floor; 1.00-1.12 on the others, 5 and 12 (1.12,
+# 1.06) among them, whose loops it leaves at 4-6 x: a structure that misses the loop only
+# is not seen)
 STRUCTURE_MISS = 1.2
 
 
@@ -94,7 +95,8 @@ def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
     mf = map_fit(series, prior)
     rec = {"used": not mf.disagrees, "units": len(prior.units), "left_out": prior.left_out,
            "nodes": prior.k, "design_taus_s": np.exp(prior.mu[:prior.k]).tolist(),
-           "structure_misfit": prior.structure_misfit, "level": DISAGREE_LEVEL,
+           "structure_misfit": prior.structure_misfit, "noise_scale": NOISE_SCALE,
+           "level": DISAGREE_LEVEL,
            **mf.as_dict()}
     if mf.disagrees:
         metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
