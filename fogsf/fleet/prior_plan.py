@@ -8,10 +8,10 @@ its board thermometer on, not the chamber's air), the SF error is the unit's law
 noise at the fleet's median residual level per step. Each candidate program of the planner
 (`plan.programs.candidates`, shortest first) is fitted under the prior (its posterior mean
 response, `prior_function.function_fit`, as `fogsf train --prior` fits it, the run's noise
-taken NOISE_SCALE times its level, the posterior mean read directly rather than through the law it exports) and scored on the planner's
-test loops across the envelope: sqrt(floor^2 + the law's error over 100 s
-windows) / floor. The first program whose median over units and rates is at or under the
-target is the answer.
+taken NOISE_SCALE times its level, the posterior mean read directly rather than through the
+law it exports) and scored on the planner's test loops across the envelope: sqrt(floor^2 +
+the law's error over 100 s windows) / floor. The first program whose median over units and
+rates is at or under the target is the answer.
 """
 
 from __future__ import annotations
