@@ -8,8 +8,9 @@ s^2 the unit's own residual variance (its data-only fit's, times the residuals'
 correlation, `unit_fit.correlation_factor`). For fixed time constants the coefficients are
 a generalised ridge toward the prior's conditional mean (closed form); the time constants
 by Levenberg-Marquardt on the stacked residual [(y - f) / s, L (theta - mu)], L^T L =
-Sigma^-1: a penalised variable projection. The posterior covariance is (J^T J / s^2 +
-Sigma^-1)^-1.
+Sigma^-1: a penalised variable projection. The posterior covariance, at the noise the
+unit's law is fitted with (NOISE_SCALE s^2, `prior_function`), is (J^T J / (NOISE_SCALE s^2)
++ Sigma^-1)^-1: the prior's share per group reads it.
 
 The unit's data disagree with the design when its data-only fit lies outside the prior
 predictive: (theta_alone - mu)^T (Sigma_check + C)^-1 (theta_alone - mu) over the
@@ -49,7 +50,7 @@ GROUPS = ("time constants", "intercept and linear", "quadratic and cross", "cube
 class MapFit:
     k: int
     theta: np.ndarray
-    cov: np.ndarray  # the posterior covariance
+    cov: np.ndarray  # the posterior covariance at NOISE_SCALE s2 (the prior's share's)
     s2: float  # the data's noise variance used
     objective: float
     alone_objective: float
@@ -139,17 +140,14 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
     assert best is not None
     obj, theta = best
     jac = jacobian(series, theta, k, play=prior.play)
-    jtj = jac.T @ jac
-    prec_prior = np.linalg.inv(prior.sigma)
-    cov = np.linalg.inv(jtj / s2 + prec_prior)
+    # at the noise the unit's law is fitted with (prior_function)
+    cov = np.linalg.inv(jac.T @ jac / (s2 * NOISE_SCALE) + np.linalg.inv(prior.sigma))
     alone_obj = alone.sse / s2
     p = theta.size
-    # the prior's share at the noise the unit's law is fitted with (prior_function)
-    shares = _shares(np.linalg.inv(jtj / (s2 * NOISE_SCALE) + prec_prior), prior.sigma, k,
-                     prior.play is not None)
     return MapFit(k, theta, cov, s2, obj, alone_obj,
                   check_chi2(series, prior, alone.sigma2 * NOISE_SCALE, alone, max_iter),
-                  chi2_quantile(p, DISAGREE_LEVEL), shares, alone.theta)
+                  chi2_quantile(p, DISAGREE_LEVEL),
+                  _shares(cov, prior.sigma, k, prior.play is not None), alone.theta)
 
 
 def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit,

@@ -96,8 +96,7 @@ def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
     rec = {"used": not mf.disagrees, "units": len(prior.units), "left_out": prior.left_out,
            "nodes": prior.k, "design_taus_s": np.exp(prior.mu[:prior.k]).tolist(),
            "structure_misfit": prior.structure_misfit, "noise_scale": NOISE_SCALE,
-           "level": DISAGREE_LEVEL,
-           **mf.as_dict()}
+           "level": DISAGREE_LEVEL, **mf.as_dict()}
     if mf.disagrees:
         metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
     else:

@@ -221,13 +221,13 @@ def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None,
     """The K-node physics fit by variable projection (from `start_taus_s`, or from the
     grid start `identify_taus` uses), with its estimation covariance; with `play`, the law
     holds its column too (unpenalised), the time constants fitted with it."""
-    if start_taus_s is None and play is None:
-        taus = np.asarray(identify_taus(series.nodes, _full(series), k, series.rows),
-                          dtype=np.float64)
+    grid = start_taus_s is None
+    if grid:
+        start_taus_s = np.asarray(identify_taus(series.nodes, _full(series), k, series.rows),
+                                  dtype=np.float64)
+    if grid and play is None:  # the grid's time constants are the fit's
+        taus = np.asarray(start_taus_s, dtype=np.float64)
     else:
-        if start_taus_s is None:
-            start_taus_s = np.asarray(identify_taus(series.nodes, _full(series), k,
-                                                    series.rows), dtype=np.float64)
         lo, hi = _bounds(k)
 
         def design(log_tau: np.ndarray) -> np.ndarray:
