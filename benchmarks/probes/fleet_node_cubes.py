@@ -1,0 +1,87 @@
+"""Probe: what the design's structure misses on a 2 h loop: the cubes of its nodes.
+
+The fleet's structure (`fogsf.fleet.unit_fit`: T and K first-order lags of T, their
+quadratic with every cross term, the cube of T) fitted to a unit's full program (the
+program of `make bench-fleet`'s fleet) predicts the unit's test loop, which that program
+holds, and can miss a 2 h loop at 2 C/min with 15 min soaks by several times the floor: the
+unit's short run then pulls the prior's law away from the test (development designs 5, 11,
+12, 23: the prior's law leaves 4-10 x on the test). Per new unit (100..) of each design,
+the structure at K nodes fitted to the full program by variable projection, with the cube
+of T only (`base`) and with the cubes of every node as well (`cubes`; each part's law a
+cubic of its own temperature, as the population's SF terms are), scored (test RMS / noise
+floor) on the unit's 2 h loop (`loop2h`, never fitted) and on the test loop (`test`).
+
+    python -m benchmarks.probes.fleet_node_cubes --designs 3,5,12,23 --new 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+from benchmarks.fleet import FULL, NEW_FIRST, simulate_run
+from benchmarks.probes import ratio
+from fogsf.fleet.prior_train import test_series
+from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, fit_unit, step_series
+from fogsf.models.node_fit import varpro
+from fogsf.models.physics_nodes import NODE_LAMBDA, TAU_MAX_S, TAU_MIN_S
+from fogsf.models.reference import expand
+
+
+def design(s: StepSeries, taus: np.ndarray, cubes: bool) -> np.ndarray:
+    """The structure's columns (`unit_fit.design_matrix`), with the nodes' cubes after them."""
+    x = design_matrix(s, taus)
+    if not cubes:
+        return x
+    z = s.nodes.z(taus)[s.rows]
+    return np.hstack([x, z[:, 1:] ** 3])
+
+
+def fit(s: StepSeries, k: int, cubes: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(time constants, coefficients) by variable projection from the structure's own fit."""
+    start = fit_unit(s, k).taus_s
+    lo, hi = np.full(k, math.log(TAU_MIN_S)), np.full(k, math.log(TAU_MAX_S))
+    vp = varpro(lambda lt: design(s, np.sort(np.exp(lt)), cubes)[:, 1:], s.y, np.log(start),
+                lo, hi, NODE_LAMBDA)
+    taus = np.sort(np.exp(vp.theta))
+    return taus, np.linalg.lstsq(design(s, taus, cubes), s.y, rcond=None)[0]
+
+
+def score(log, taus: np.ndarray, coef: np.ndarray, cubes: bool) -> float:  # noqa: ANN001
+    s, dec = test_series(log, 5.0, None)
+    return ratio(log, expand(design(all_steps(s), taus, cubes) @ coef, len(log), dec))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--designs", default="3,4,5,10,12,19,23")
+    ap.add_argument("--new", type=int, default=2, help="new units per design")
+    ap.add_argument("--nodes", default="2,3", help="node counts K")
+    args = ap.parse_args(argv)
+    ks = [int(x) for x in args.nodes.split(",")]
+    rows: dict[str, list[float]] = {}
+    print("test RMS / noise floor; the structure fitted to the unit's full program")
+    for d in (int(x) for x in args.designs.split(",")):
+        for u in range(NEW_FIRST, NEW_FIRST + args.new):
+            full = step_series([simulate_run(d, u, r) for r in FULL])
+            loop, test = simulate_run(d, u, "loop2h"), simulate_run(d, u, "loop_test")
+            cells = []
+            for k in ks:
+                for tag, cubes in (("base", False), ("cubes", True)):
+                    taus, coef = fit(full, k, cubes)
+                    a, b = score(loop, taus, coef, cubes), score(test, taus, coef, cubes)
+                    rows.setdefault(f"K {k} {tag} loop2h", []).append(a)
+                    rows.setdefault(f"K {k} {tag} test", []).append(b)
+                    cells.append(f"K{k} {tag} loop2h {a:.2f} test {b:.2f}")
+            print(f"design {d} unit {u}: " + ", ".join(cells), flush=True)
+    print(f"designs {args.designs}, {args.new} new units each: median / worst")
+    for key, v in rows.items():
+        print(f"  {key:20s} {np.median(v):5.2f} / {np.max(v):5.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
