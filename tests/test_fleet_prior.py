@@ -47,7 +47,7 @@ def _design(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     coef = np.zeros(n_coef(2))
     coef[1:4] = rng.uniform(-150, 150, 3)  # linear in T and the nodes (ppm per 50 C)
     coef[4:10] = rng.uniform(-40, 40, 6)  # quadratic and cross
-    coef[10] = rng.uniform(-10, 10)
+    coef[10:13] = rng.uniform(-10, 10, 3)  # the cubes of T and the nodes
     return np.log(taus), coef
 
 
@@ -71,12 +71,12 @@ def _truth_rms(s: StepSeries, theta: np.ndarray, truth: np.ndarray) -> float:
 
 @pytest.fixture(scope="module")
 def line() -> dict:
-    """A design, its noise, 6 units on a 6 h program."""
+    """A design, its noise, 8 units on a 6 h program."""
     rng = np.random.default_rng(SEED)
     design = _design(rng)
     noise = float(rng.uniform(2.0, 5.0))
     full = _program(6.0, 1.5, 30, rng)
-    units = {f"u{i}": _unit(design, full, rng, noise) for i in range(6)}
+    units = {f"u{i}": _unit(design, full, rng, noise) for i in range(8)}
     return {"rng": rng, "design": design, "noise": noise, "units": units}
 
 
@@ -122,6 +122,21 @@ def test_structure_misfit_says_when_the_structure_misses(line: dict,
     assert "the design's structure misses them" in prior_lines(rec)[0]
     rec["structure_misfit"] = prior.structure_misfit
     assert "misses" not in prior_lines(rec)[0]
+
+
+def test_stored_fits_of_another_layout_are_refitted(line: dict) -> None:
+    """A fleet's summaries written by an older fogsf keep fits without the nodes' cubes
+    (a shorter theta): the prior refits them (the node count chosen on the refits) and
+    learns what it learns without them."""
+    from dataclasses import replace
+
+    series = {sn: s for sn, (s, _) in line["units"].items()}
+    old = {kk: {sn: replace(f, theta=f.theta[:-kk])  # no nodes' cubes
+                for sn, f in ((sn, fit_unit(s, kk)) for sn, s in series.items())}
+           for kk in fp.K_CHOICES}
+    p = fp.learn(series, first=old)
+    assert p.mu.size == p.k + n_coef(p.k), f"seed {SEED}"
+    assert np.allclose(p.mu, fp.learn(series, k=p.k).mu), f"seed {SEED}"
 
 
 def test_unit_unlike_the_line_is_left_out(line: dict) -> None:

@@ -40,7 +40,9 @@ from fogsf.fleet.unit_fit import (
     all_steps,
     correlation_factor,
     design_matrix,
+    fit_taus,
     fit_unit,
+    n_coef,
     plain_refit,
     predict,
     window_means,
@@ -150,8 +152,9 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
                         f"{len(series)}")
     ks = (k,) if k is not None else K_CHOICES
     first = dict(first or {})
-    for kk in ks:
-        if kk not in first or set(first[kk]) != set(series):
+    for kk in ks:  # refitted where missing or of another layout (a summary of an older fogsf)
+        if kk not in first or set(first[kk]) != set(series) or any(
+                f.theta.size != kk + n_coef(kk) for f in first[kk].values()):
             first[kk] = {sn: fit_unit(s, kk) for sn, s in series.items()}
     first = {kk: first[kk] for kk in ks}
     k, scores = choose_k(series, first) if k is None else (k, {k: float("nan")})
@@ -168,8 +171,12 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     left = [{"unit": sn, "why": "its physics fit lies outside the other units' spread"}
             for sn, kp in zip(names, keep, strict=True) if not kp]
     kept = [sn for sn, kp in zip(names, keep, strict=True) if kp]
+    # the play's form at the time constants of the law without the nodes' cubes: with them
+    # the time constants move to mimic a play, and the play's width with them (a planted
+    # 5 C play read as 11 C)
     play = choose_play([series[sn] for sn in kept[:PLAY_UNITS]],
-                       [fits[sn].taus_s for sn in kept[:PLAY_UNITS]], k)
+                       [fit_taus(series[sn], k, med, node_cubes=False)
+                        for sn in kept[:PLAY_UNITS]], k)
     if play is not None:  # every unit fitted again with it: the parameters hold the play
         fits = {sn: fit_unit(series[sn], k, fits[sn].taus_s, play) for sn in names}
         thetas = np.stack([fits[sn].theta for sn in names])
@@ -194,24 +201,34 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
 def choose_play(series: list[StepSeries], taus: list[np.ndarray], k: int) -> Play | None:
     """The play (of T or of a node no slower than MAX_SOURCE_TAU_S, a width of
     PLAY_WIDTHS_C) whose column, at each unit's own time constants `taus`, lowers the units'
-    pooled least-squares error most; None unless by more than PLAY_GAIN. (Each unit's law
-    without the play is built once, the play's column beside it: the error does not depend
-    on the columns' order.)"""
+    pooled least-squares error most against the law without the nodes' cubes (fitted beside
+    the play, they trade with its width); kept when it
+    lowers the pooled error of the whole law (the cubes in) by more than PLAY_GAIN (against
+    the law without them a play stands in for the cubes on a line that has none). (Each
+    unit's law without the play is built once, the play's column beside it: the error does
+    not depend on the columns' order.)"""
     med = np.median(np.stack(taus), axis=0)
     nodes = [0] + [j + 1 for j in range(k) if med[j] <= MAX_SOURCE_TAU_S]
     widths = np.asarray(PLAY_WIDTHS_C)
-    base = 0.0
     sse = np.zeros((len(nodes), widths.size))
+    columns: list[list[np.ndarray]] = []
     for s, t in zip(series, taus, strict=True):
-        x0 = design_matrix(s, t)
-        base += _sse(x0, s.y)
+        x0 = design_matrix(s, t, node_cubes=False)
+        cols = []
         for a, j in enumerate(nodes):
             xs = Play(j, 0.0).source(s, t)
             h = np.vstack([plays_batch(np.repeat(x[:, None], widths.size, axis=1), widths)
                            for x in xs])[s.rows] / PHYSICAL_SCALE_C
             sse[a] += [_sse(np.column_stack([x0, h[:, i]]), s.y) for i in range(widths.size)]
+            cols.append(h)
+        columns.append(cols)
     a, i = np.unravel_index(int(np.argmin(sse)), sse.shape)
-    gain = 1.0 - float(sse[a, i]) / base if base > 0 else 0.0
+    base = with_play = 0.0
+    for s, t, cols in zip(series, taus, columns, strict=True):
+        x = design_matrix(s, t)
+        base += _sse(x, s.y)
+        with_play += _sse(np.column_stack([x, cols[int(a)][:, int(i)]]), s.y)
+    gain = 1.0 - with_play / base if base > 0 else 0.0
     return Play(nodes[int(a)], float(widths[i])) if gain > PLAY_GAIN else None
 
 

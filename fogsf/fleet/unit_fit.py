@@ -3,8 +3,11 @@
 A unit's training logs at the model rate are a step series (`StepSeries`: the board
 temperature's block means minus 20 C per log, the measured SF target per step, ppm). At a
 node count K the unit's parameters are theta = [log tau_1..K (ascending), intercept, the
-linear, quadratic-with-cross-terms and cube coefficients of `models.physics_nodes`] (the
-law on z = [T, node_1..K] / 50 C, ppm). `fit_unit` finds them by variable projection (as
+linear, quadratic-with-cross-terms and cube coefficients of `models.physics_nodes`, the
+cubes of T and of every node] (the law on z = [T, node_1..K] / 50 C, ppm: each part's law a
+cubic of its own temperature; with the cube of T only, a slow node's cube is carried by T's
+on the fleet's programs and missed on a run whose slow nodes see another range, as a 2 h
+loop's do). `fit_unit` finds them by variable projection (as
 `fogsf train --structure physics` does, optionally started from given time constants: the
 design's, so every unit's nodes are the same nodes), with their estimation covariance
 sigma^2 (J^T J)^-1, J the Jacobian of the model in theta. sigma2 is the residual variance
@@ -132,20 +135,22 @@ def play_index(k: int) -> int:
 
 
 def n_coef(k: int) -> int:
-    """Coefficients of the K-node law: intercept, 1 + K linear, the pairs, the cube of T."""
+    """Coefficients of the K-node law: intercept, 1 + K linear, the pairs, the cubes of T
+    and the K nodes."""
     f = k + 1
-    return 1 + f + f * (f + 1) // 2 + 1
+    return 1 + f + f * (f + 1) // 2 + f
 
 
-def design_matrix(series: StepSeries, taus_s: np.ndarray, play: Play | None = None
-                  ) -> np.ndarray:
+def design_matrix(series: StepSeries, taus_s: np.ndarray, play: Play | None = None,
+                  node_cubes: bool = True) -> np.ndarray:
     """[1, node_design(z)] on the measured steps, ppm per unit coefficient (z = [T, nodes,
-    the play's h] with `play`: h enters linearly, its column k + 2)."""
+    the play's h] with `play`: h enters linearly, its column k + 2); `node_cubes` False: the
+    law without the nodes' cubes (the play is chosen against it, `prior.choose_play`)."""
     taus = np.asarray(taus_s, dtype=np.float64)
     z = series.nodes.z(taus)
     if play is not None:
         z = np.column_stack([z, play.column(series, taus)])
-    x = node_design(z[series.rows], tuple(float(t) for t in taus))
+    x = node_design(z[series.rows], tuple(float(t) for t in taus), cube_nodes=node_cubes)
     return np.hstack([np.ones((x.shape[0], 1)), x])
 
 
@@ -216,6 +221,20 @@ def _bounds(k: int) -> tuple[np.ndarray, np.ndarray]:
     return np.full(k, math.log(TAU_MIN_S)), np.full(k, math.log(TAU_MAX_S))
 
 
+def fit_taus(series: StepSeries, k: int, start_taus_s: np.ndarray, play: Play | None = None,
+             node_cubes: bool = True) -> np.ndarray:
+    """The K nodes' time constants (ascending) by variable projection from `start_taus_s`
+    (`node_cubes` False: for the law without the nodes' cubes, `design_matrix`)."""
+    lo, hi = _bounds(k)
+
+    def design(log_tau: np.ndarray) -> np.ndarray:
+        return design_matrix(series, np.sort(np.exp(log_tau)), play, node_cubes)[:, 1:]
+
+    vp = varpro(design, series.y, np.log(np.asarray(start_taus_s, dtype=np.float64)),
+                lo, hi, NODE_LAMBDA)
+    return np.sort(np.exp(vp.theta))
+
+
 def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None,
              play: Play | None = None) -> UnitFit:
     """The K-node physics fit by variable projection (from `start_taus_s`, or from the
@@ -226,17 +245,9 @@ def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None,
         start_taus_s = np.asarray(identify_taus(series.nodes, _full(series), k, series.rows),
                                   dtype=np.float64)
     if grid and play is None:  # the grid's time constants are the fit's
-        taus = np.asarray(start_taus_s, dtype=np.float64)
+        taus = np.sort(np.asarray(start_taus_s, dtype=np.float64))
     else:
-        lo, hi = _bounds(k)
-
-        def design(log_tau: np.ndarray) -> np.ndarray:
-            return design_matrix(series, np.sort(np.exp(log_tau)), play)[:, 1:]
-
-        vp = varpro(design, series.y, np.log(np.asarray(start_taus_s, dtype=np.float64)),
-                    lo, hi, NODE_LAMBDA)
-        taus = np.exp(vp.theta)
-    taus = np.sort(taus)
+        taus = fit_taus(series, k, np.asarray(start_taus_s, dtype=np.float64), play)
     x = design_matrix(series, taus, play)
     f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA) if play is None else \
         ridge_fit_free(x[:, 1:], series.y, NODE_LAMBDA, [play_index(k) - k - 1])

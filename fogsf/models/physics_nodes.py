@@ -17,7 +17,8 @@ among the features carries a lead-lag node (w T + (1 - w) lag(T, tau)) exactly.
 
 In the firmware contract the model is the polynomial head over 1 + N features (T and the N
 lags, in one physical unit, (T - 20 C) / 50 C): linear terms in skip_w, the quadratic with
-its cross terms in the full quad_w [F, F] (upper triangle), the cube of T in cube_w.
+its cross terms in the full quad_w [F, F] (upper triangle), the cube of T in cube_w (and,
+in the fleet's structure, the nodes' cubes: `node_design(cube_nodes=True)`).
 """
 
 from __future__ import annotations
@@ -75,14 +76,19 @@ def product_pairs(taus_s: tuple[float, ...] | np.ndarray) -> list[tuple[int, int
 
 
 def node_design(z: np.ndarray, taus_s: tuple[float, ...] | np.ndarray | None = None,
-                cube_t: bool | None = None) -> np.ndarray:
+                cube_t: bool | None = None, cube_nodes: bool = False) -> np.ndarray:
     """Columns z, the products z_i z_j (i <= j) of T and the curved nodes (every node when
-    taus_s is None), then z_0^3 (z_0 = T) with `cube_t`."""
+    taus_s is None), then z_0^3 (z_0 = T) with `cube_t`, then the cubes of the curved nodes
+    with `cube_nodes` (each part's law a cubic of its own temperature: the fleet's
+    structure, `fleet.unit_fit`)."""
     x = np.asarray(z, dtype=np.float64)
     pr = pairs(x.shape[1]) if taus_s is None else product_pairs(taus_s)
     cols = [x] + [(x[:, i] * x[:, j])[:, None] for i, j in pr]
     if CUBE_T if cube_t is None else cube_t:
         cols.append((x[:, 0] ** 3)[:, None])
+    if cube_nodes:
+        c = list(range(x.shape[1])) if taus_s is None else curved(taus_s)
+        cols += [(x[:, i] ** 3)[:, None] for i in c[1:]]
     return np.hstack(cols)
 
 
@@ -115,6 +121,9 @@ def head_from_ridge(f: RidgeFit, n_features: int, taus_s: tuple[float, ...],
     cube = np.zeros(n_features)
     if f.coef.size > n_features + len(pr):
         cube[0] = f.coef[n_features + len(pr)]
+    nodes = curved(taus_s)[1:]  # their cubes follow T's when the fit has them (cube_nodes)
+    if f.coef.size == n_features + len(pr) + 1 + len(nodes):
+        cube[nodes] = f.coef[n_features + len(pr) + 1:]
     return NodeFit(taus_s, f.intercept, lin, quad, cube, lam, f.dof)
 
 
