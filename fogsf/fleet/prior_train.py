@@ -60,11 +60,10 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
 # 23, whose structure fails there, and 27 of 27 ramps)
 INTERVAL_Z = 2.0
 # `train --prior` says the design's structure misses the fleet's units when it leaves more
-# than this on their own programs (`DesignPrior.structure_misfit`; development designs 3,
-# 4, 5, 10, 11, 12, 15, 17, 19, 21, 22, 23, fleets of 20: 1.57 on 11 and 1.38 on 23, whose
-# 2 h loops the prior leaves at 4-10 x the floor; 1.00-1.12 on the others, 5 and 12 (1.12,
-# 1.06) among them, whose loops it leaves at 4-6 x: a structure that misses the loop only
-# is not seen)
+# than this on their own programs (`DesignPrior.structure_misfit`; development designs,
+# fleets of 20, before the nodes' cubes: 1.57 on 11 and 1.38 on 23, whose 2 h loops the
+# prior left at 4-10 x the floor, 1.00-1.12 on the others; with them 1.00-1.02 on designs
+# 1-13, 15-17, 19, 23)
 STRUCTURE_MISS = 1.2
 
 
