@@ -56,8 +56,8 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
 
 # the interval's upper end: the floor and this many posterior standard deviations of the
 # response and of its misfit on the unit's own runs (development designs 3-23, fleets of
-# 20, prior_map.NOISE_SCALE 3: it held 24 of 27 2 h loops, the three missed on design
-# 23, whose structure fails there, and 27 of 27 ramps)
+# 20, prior_map.NOISE_SCALE 3, the nodes' cubes: it held 26 of 27 2 h loops and 26 of 27
+# ramps; `benchmarks.probes.fleet_response_prior`)
 INTERVAL_Z = 2.0
 # `train --prior` says the design's structure misses the fleet's units when it leaves more
 # than this on their own programs (`DesignPrior.structure_misfit`; development designs,
