@@ -1,13 +1,14 @@
-"""Probe: what the design's structure misses on a 2 h loop: the cubes of its nodes.
+"""Probe: what the design's structure missed on a 2 h loop: the cubes of its nodes.
 
 The fleet's structure (`fogsf.fleet.unit_fit`: T and K first-order lags of T, their
-quadratic with every cross term, the cube of T) fitted to a unit's full program (the
-program of `make bench-fleet`'s fleet) predicts the unit's test loop, which that program
-holds, and can miss a 2 h loop at 2 C/min with 15 min soaks by several times the floor: the
-unit's short run then pulls the prior's law away from the test (development designs 5, 11,
-12, 23: the prior's law leaves 4-10 x on the test). Per new unit (100..) of each design,
-the structure at K nodes fitted to the full program by variable projection, with the cube
-of T only (`base`) and with the cubes of every node as well (`cubes`; each part's law a
+quadratic with every cross term, the cube of T, and now the nodes' cubes) fitted to a unit's
+full program (the program of `make bench-fleet`'s fleet) predicts the unit's test loop,
+which that program holds; without the nodes' cubes it can miss a 2 h loop at 2 C/min with
+15 min soaks by several times the floor, and the unit's short run then pulls the prior's
+law away from the test (development designs 5, 11, 12, 23: 4-10 x on the test). Per new
+unit (100..) of each design, the structure at K nodes fitted to the full program by
+variable projection, with the cube of T only (`base`, the structure before) and with the
+cubes of every node as well (`cubes`, the structure `fogsf.fleet` fits; each part's law a
 cubic of its own temperature, as the population's SF terms are), scored (test RMS / noise
 floor) on the unit's 2 h loop (`loop2h`, never fitted) and on the test loop (`test`).
 
@@ -31,12 +32,8 @@ from fogsf.models.reference import expand
 
 
 def design(s: StepSeries, taus: np.ndarray, cubes: bool) -> np.ndarray:
-    """The structure's columns (`unit_fit.design_matrix`), with the nodes' cubes after them."""
-    x = design_matrix(s, taus)
-    if not cubes:
-        return x
-    z = s.nodes.z(taus)[s.rows]
-    return np.hstack([x, z[:, 1:] ** 3])
+    """The structure's columns (`unit_fit.design_matrix`), with or without the nodes' cubes."""
+    return design_matrix(s, taus, node_cubes=cubes)
 
 
 def fit(s: StepSeries, k: int, cubes: bool) -> tuple[np.ndarray, np.ndarray]:

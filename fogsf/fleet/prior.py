@@ -15,7 +15,8 @@ database by `unit_summary`):
    scale); for the check of a new unit against the design also shrunk toward its
    diagonal by the share p / (p + N) (a few units cannot pin p(p+1)/2 covariances).
 5. the design's hysteresis: the play (of T or of one node, `unit_fit.Play`) whose column
-   lowers the kept units' pooled squared error most, kept when by more than PLAY_GAIN
+   lowers the kept units' pooled squared error most on the law without the nodes' cubes, at
+   that law's time constants, kept when it lowers the whole law's by more than PLAY_GAIN
    (`choose_play`): a physics node fitted to one program mimics a play at that program's
    rates and mispredicts the others. With one, every unit is fitted again with it, and
    theta, mu and Sigma hold its coefficient after the nodes' (`unit_fit`).
@@ -58,12 +59,14 @@ OUTLIER_Z = 4.0
 FLOOR = 1e-3
 # the spread's shrinkage toward its diagonal for the MAP (None: p / (p + N)): none, the
 # units' own directions of variation kept (development design 12, 10 units, 3 new: the
-# 2 h loop's median 2.88 x the floor against 5.54 x with p / (p + N))
+# 2 h loop's median 2.88 x the floor against 5.54 x with p / (p + N); before the nodes' cubes)
 SHRINK: float | None = 0.0
 MIN_UNITS = 3
 # the play's widths (C) and the units it is chosen on; it is kept when it lowers their
-# pooled squared error by more than PLAY_GAIN (development designs 3, 4, 10, 17, 19, 21:
-# 0.0016-0.029 where a play helped or did no harm, 0.0001 on design 21, which has none)
+# pooled squared error by more than PLAY_GAIN (development designs 3, 4, 10, 17, 19, 21,
+# before the nodes' cubes: 0.0016-0.029 where a play helped or did no harm, 0.0001 on
+# design 21, which has none; with them, against the whole law, designs 4, 19 and 23, which
+# draw hysteresis, get none)
 PLAY_WIDTHS_C = tuple(float(w) for w in range(2, 13))
 PLAY_UNITS = 8
 PLAY_GAIN = 0.001
@@ -202,7 +205,7 @@ def choose_play(series: list[StepSeries], taus: list[np.ndarray], k: int) -> Pla
     """The play (of T or of a node no slower than MAX_SOURCE_TAU_S, a width of
     PLAY_WIDTHS_C) whose column, at each unit's own time constants `taus`, lowers the units'
     pooled least-squares error most against the law without the nodes' cubes (fitted beside
-    the play, they trade with its width); kept when it
+    the play, they trade with its width; `taus` that law's time constants); kept when it
     lowers the pooled error of the whole law (the cubes in) by more than PLAY_GAIN (against
     the law without them a play stands in for the cubes on a line that has none). (Each
     unit's law without the play is built once, the play's column beside it: the error does

@@ -37,7 +37,8 @@ DATA_WEIGHT = 1.0
 # the unit's own estimate, because the design's responses also miss a run the fleet never
 # ran (their common misfit, which the unit's own fit absorbs, counted as noise rather than
 # bent into the unit's coefficients or read as the unit's difference from the design).
-# Development designs 3-23, fleets of 20, the fit (`prior_function`): 3 against 1 took the
+# Development designs 3-23, fleets of 20, the fit (`prior_function`), before the nodes' cubes
+# (docs/fleet.md has the figures with them): 3 against 1 took the
 # 2 h loop from 1.34 / 7.75 to 1.30 / 6.46 x the floor, the 0.5 C/min ramp from 1.56 / 5.07
 # to 1.36 / 4.25 (benchmarks/probes/README.md); the check: of development designs 11 and
 # 12's 18 2 h loops and 0.5 C/min ramps (their structure fails) it sent 7 alone at 1, 3 at

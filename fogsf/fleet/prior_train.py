@@ -128,7 +128,7 @@ def law_head(theta: np.ndarray, k: int, offset: float, scale: float,  # noqa: AN
     coef = theta[k:]
     rf = RidgeFit((float(coef[0]) - offset) / scale, coef[1:] / scale, 0.0, float(coef.size))
     return head_from_ridge(rf, k + 1 + int(play), tuple(float(t) for t in np.exp(theta[:k])),
-                           NODE_LAMBDA)
+                           NODE_LAMBDA, cube_nodes=True)
 
 
 def test_series(log: ChamberLog, step_s: float, latitude_deg: float | None

@@ -238,8 +238,10 @@ def fit_taus(series: StepSeries, k: int, start_taus_s: np.ndarray, play: Play | 
 def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None,
              play: Play | None = None) -> UnitFit:
     """The K-node physics fit by variable projection (from `start_taus_s`, or from the
-    grid start `identify_taus` uses), with its estimation covariance; with `play`, the law
-    holds its column too (unpenalised), the time constants fitted with it."""
+    grid start `identify_taus` uses: without `start_taus_s` and `play` the time constants
+    are the grid start's, refined on the law without the nodes' cubes), with its estimation
+    covariance; with `play`, the law holds its column too (unpenalised), the time constants
+    fitted with it."""
     grid = start_taus_s is None
     if grid:
         start_taus_s = np.asarray(identify_taus(series.nodes, _full(series), k, series.rows),

@@ -112,7 +112,8 @@ class NodeFit:
 
 
 def head_from_ridge(f: RidgeFit, n_features: int, taus_s: tuple[float, ...],
-                    lam: float) -> NodeFit:
+                    lam: float, cube_nodes: bool = False) -> NodeFit:
+    """The head of a ridge fit on `node_design(z, taus_s, cube_nodes=cube_nodes)`."""
     lin = f.coef[:n_features]
     quad = np.zeros((n_features, n_features))
     pr = product_pairs(taus_s)
@@ -121,8 +122,10 @@ def head_from_ridge(f: RidgeFit, n_features: int, taus_s: tuple[float, ...],
     cube = np.zeros(n_features)
     if f.coef.size > n_features + len(pr):
         cube[0] = f.coef[n_features + len(pr)]
-    nodes = curved(taus_s)[1:]  # their cubes follow T's when the fit has them (cube_nodes)
-    if f.coef.size == n_features + len(pr) + 1 + len(nodes):
+    if cube_nodes:  # the curved nodes' cubes follow T's
+        nodes = curved(taus_s)[1:]
+        if f.coef.size != n_features + len(pr) + 1 + len(nodes):
+            raise ValueError(f"{f.coef.size} coefficients: not a law with the nodes' cubes")
         cube[nodes] = f.coef[n_features + len(pr) + 1:]
     return NodeFit(taus_s, f.intercept, lin, quad, cube, lam, f.dof)
 
