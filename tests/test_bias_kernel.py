@@ -95,9 +95,11 @@ def test_without_a_bias_head_ids_and_generated_bytes_are_unchanged() -> None:
     bank = samples.random_model(11, 12, 1, 16, 10, seed=1, poly_head=True, lstm_inputs=1,
                                 quad_diag=True)
     header, text = before_format_6(render_model(bank, "imu_x"), bank)
-    assert bank.model_id == "329bec87215e0bdb"
+    # pinned again when random_model's time constants left numpy's geomspace, whose last digit
+    # follows the CPU's vector unit (the generator unchanged; the fixture above is the older pin)
+    assert bank.model_id == "7b34f3ad2ebfbdc5"
     assert (sha(header), sha(before_feat_diag(text))) == (
-        "84cef9ee17b9", "af9045995521")
+        "0825054c8536", "72f42d563a76")
     proto = build_step_onnx(bank)
     assert [o.name for o in proto.graph.output] == ["sf_ppm", "h0_out", "c0_out", "sf_k"]
     assert "bias_head" not in fixture.config()

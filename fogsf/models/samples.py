@@ -39,7 +39,10 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
-        taus_s = [float(t) for t in np.geomspace(300.0, 1200.0, filters)] if filters else []
+        # 300-1200 s, geometric, in Python's floats: numpy's geomspace rounds its last digit
+        # by the CPU's vector unit, and the time constants enter the model's id
+        taus_s = [300.0 * 4.0 ** (i / (filters - 1)) if filters > 1 else 300.0
+                  for i in range(filters)]
     if len(taus_s) != filters:
         raise UserError(f"random_model: {filters} filters but {len(taus_s)} time constants")
     k, f, h = filters, n_features, hidden
