@@ -11,6 +11,19 @@ from fogsf.models.front_end import filter_alpha
 from fogsf.models.stream import StreamModel
 
 
+def _geometric(start: float, stop: float, n: int) -> list[float]:
+    """numpy's geomspace(start, stop, n) in Python's floats (10 ** a linear log10 grid, the
+    ends exact): numpy's vector unit rounds the last digit of its powers by the CPU (AVX-512
+    against AVX2), and the time constants enter the model's id; libm's pow does not."""
+    if n < 2:
+        return [start][:n]
+    lo, hi = math.log10(start), math.log10(stop)
+    step = (hi - lo) / (n - 1)
+    out = [10.0 ** (lo + i * step) for i in range(n)]
+    out[0], out[-1] = start, stop
+    return out
+
+
 def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden: int = 8,
                  decimation: int = 10, seed: int = 0, *, taus_s: list[float] | None = None,
                  t_ref_c: float = 20.0, t_min_c: float = -45.0, t_max_c: float = 55.0,
@@ -39,10 +52,7 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
-        # 300-1200 s, geometric, in Python's floats: numpy's geomspace rounds its last digit
-        # by the CPU's vector unit, and the time constants enter the model's id
-        taus_s = [300.0 * 4.0 ** (i / (filters - 1)) if filters > 1 else 300.0
-                  for i in range(filters)]
+        taus_s = _geometric(300.0, 1200.0, filters)
     if len(taus_s) != filters:
         raise UserError(f"random_model: {filters} filters but {len(taus_s)} time constants")
     k, f, h = filters, n_features, hidden
