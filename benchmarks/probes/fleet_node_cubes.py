@@ -18,37 +18,33 @@ floor) on the unit's 2 h loop (`loop2h`, never fitted) and on the test loop (`te
 from __future__ import annotations
 
 import argparse
-import math
 
 import numpy as np
 
 from benchmarks.fleet import FULL, NEW_FIRST, simulate_run
 from benchmarks.probes import ratio
 from fogsf.fleet.prior_train import test_series
-from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, fit_unit, step_series
-from fogsf.models.node_fit import varpro
-from fogsf.models.physics_nodes import NODE_LAMBDA, TAU_MAX_S, TAU_MIN_S
+from fogsf.fleet.unit_fit import (
+    StepSeries,
+    all_steps,
+    design_matrix,
+    fit_taus,
+    fit_unit,
+    step_series,
+)
 from fogsf.models.reference import expand
-
-
-def design(s: StepSeries, taus: np.ndarray, cubes: bool) -> np.ndarray:
-    """The structure's columns (`unit_fit.design_matrix`), with or without the nodes' cubes."""
-    return design_matrix(s, taus, node_cubes=cubes)
 
 
 def fit(s: StepSeries, k: int, cubes: bool) -> tuple[np.ndarray, np.ndarray]:
     """(time constants, coefficients) by variable projection from the structure's own fit."""
-    start = fit_unit(s, k).taus_s
-    lo, hi = np.full(k, math.log(TAU_MIN_S)), np.full(k, math.log(TAU_MAX_S))
-    vp = varpro(lambda lt: design(s, np.sort(np.exp(lt)), cubes)[:, 1:], s.y, np.log(start),
-                lo, hi, NODE_LAMBDA)
-    taus = np.sort(np.exp(vp.theta))
-    return taus, np.linalg.lstsq(design(s, taus, cubes), s.y, rcond=None)[0]
+    taus = fit_taus(s, k, fit_unit(s, k).taus_s, node_cubes=cubes)
+    return taus, np.linalg.lstsq(design_matrix(s, taus, node_cubes=cubes), s.y, rcond=None)[0]
 
 
 def score(log, taus: np.ndarray, coef: np.ndarray, cubes: bool) -> float:  # noqa: ANN001
     s, dec = test_series(log, 5.0, None)
-    return ratio(log, expand(design(all_steps(s), taus, cubes) @ coef, len(log), dec))
+    x = design_matrix(all_steps(s), taus, node_cubes=cubes)
+    return ratio(log, expand(x @ coef, len(log), dec))
 
 
 def main(argv: list[str] | None = None) -> int:

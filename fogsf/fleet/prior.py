@@ -214,25 +214,20 @@ def choose_play(series: list[StepSeries], taus: list[np.ndarray], k: int) -> Pla
     nodes = [0] + [j + 1 for j in range(k) if med[j] <= MAX_SOURCE_TAU_S]
     widths = np.asarray(PLAY_WIDTHS_C)
     sse = np.zeros((len(nodes), widths.size))
-    columns: list[list[np.ndarray]] = []
     for s, t in zip(series, taus, strict=True):
         x0 = design_matrix(s, t, node_cubes=False)
-        cols = []
         for a, j in enumerate(nodes):
             xs = Play(j, 0.0).source(s, t)
             h = np.vstack([plays_batch(np.repeat(x[:, None], widths.size, axis=1), widths)
                            for x in xs])[s.rows] / PHYSICAL_SCALE_C
             sse[a] += [_sse(np.column_stack([x0, h[:, i]]), s.y) for i in range(widths.size)]
-            cols.append(h)
-        columns.append(cols)
     a, i = np.unravel_index(int(np.argmin(sse)), sse.shape)
-    base = with_play = 0.0
-    for s, t, cols in zip(series, taus, columns, strict=True):
-        x = design_matrix(s, t)
-        base += _sse(x, s.y)
-        with_play += _sse(np.column_stack([x, cols[int(a)][:, int(i)]]), s.y)
+    play = Play(nodes[int(a)], float(widths[i]))
+    base = sum(_sse(design_matrix(s, t), s.y) for s, t in zip(series, taus, strict=True))
+    with_play = sum(_sse(design_matrix(s, t, play), s.y)
+                    for s, t in zip(series, taus, strict=True))
     gain = 1.0 - with_play / base if base > 0 else 0.0
-    return Play(nodes[int(a)], float(widths[i])) if gain > PLAY_GAIN else None
+    return play if gain > PLAY_GAIN else None
 
 
 def _sse(x: np.ndarray, y: np.ndarray) -> float:
