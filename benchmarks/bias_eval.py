@@ -24,15 +24,17 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.logs.bias import before_after, bias_windows
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import read_log, with_mapping_beside
-from fogsf.sim import rig_logs, rigs
+from fogsf.logs.measure.bias import before_after, bias_windows
+from fogsf.logs.read.dialect import Dialect
 from fogsf.sim.config import BiasConfig
 from fogsf.sim.population import gyro_for_seed
-from fogsf.training.bias_interval import bias_interval
-from fogsf.training.bias_model import bank_feature_map, fit_bias
-from fogsf.training.bias_structure import CANDIDATES
+from fogsf.sim.rigs import chambers, rig_logs
+from fogsf.sim.rigs import protocols as rigs
+from fogsf.training.bias.features import bank_feature_map
+from fogsf.training.bias.fit import fit_bias
+from fogsf.training.bias.interval import bias_interval
+from fogsf.training.bias.structure import CANDIDATES
 
 TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)  # lo, hi C, up, down C/min, soak s
 # reversals-fast: the same reversals from a loop that ramps down faster than the test
@@ -59,7 +61,7 @@ def bias_law(gyro: int, shupe: float | None) -> BiasConfig:
 
 
 def protocol(kind: str, loop: tuple, bias: BiasConfig) -> rigs.RigProtocol:
-    chamber = rigs.loop(*loop)
+    chamber = chambers.loop(*loop)
     if kind.startswith("reversals"):
         return rigs.reversal_protocol(100.0, 60.0, chamber=chamber, bias=bias)
     return rigs.stationary_protocol(chamber, bias=bias)

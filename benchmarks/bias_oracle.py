@@ -29,13 +29,13 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.bias_eval import CASES, SHUPE, TEST_LOOP, TRAIN_LOOP, bias_law, protocol
-from fogsf.logs.bias import bias_windows
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import read_log, with_mapping_beside
-from fogsf.sim import rig_logs
+from fogsf.logs.measure.bias import bias_windows
+from fogsf.logs.read.dialect import Dialect
 from fogsf.sim.config import BiasConfig
 from fogsf.sim.lag import first_order_lag
 from fogsf.sim.population import gyro_for_seed
+from fogsf.sim.rigs import rig_logs
 
 FAST_S = 20.0  # the board derivative's lag (board oracle)
 BASIS = ("lin_dph_per_c", "quad_dph_per_c2", "cube_dph_per_c3", "shupe_dph_per_c_per_min")

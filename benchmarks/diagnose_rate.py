@@ -1,6 +1,6 @@
 """Success rate of `fogsf diagnose` over many seeded cases (make bench-diagnose).
 
-Cases (fogsf.diagnose.cases, ranges stated there), on the gyro population
+Cases (fogsf.diagnose.cases.planted, ranges stated there), on the gyro population
 (fogsf.sim.population; `--gyros default`: the default gyro only, as before): every form
 variant of the catalogue effects (cases.VARIANTS) and the lag / dT/dt terms planted at 3-20x
 the noise floor (visible part), two effects at once (cases.PAIRS), nulls (one of the
@@ -24,7 +24,10 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from fogsf.diagnose import case_judge, case_kinds, cases
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import judge as case_judge
+from fogsf.diagnose.cases import kinds as case_kinds
+from fogsf.diagnose.cases import planted as cases
 
 Job = tuple[str, str, str, int, bool]  # kind, name, variant, seed, population gyro
 
@@ -39,7 +42,7 @@ def one(job: Job) -> dict[str, Any]:
     name = f"{name}:{variant}" if variant and kind == "effect" else (
         f"{name}+{variant}" if kind == "two" else name)
     try:
-        logs, truth = cases.build(case)
+        logs, truth = case_build.build(case)
         d = verdict.diagnose(logs)
         ext_cfgs, simulation = extend.extended(d)  # as `fogsf diagnose` does
     except Exception as e:  # a crash is a wrong answer, with its reason

@@ -52,7 +52,7 @@ from fogsf.export.onnx_step import OrtStepper, build_step_onnx
 from fogsf.models import samples
 from fogsf.models import stream as st
 from fogsf.models.front_end import filter_alpha
-from fogsf.models.lag_bank import BANK_LSTM_INPUTS
+from fogsf.models.structures.lag_bank import BANK_LSTM_INPUTS
 
 TARGET = {"flash_bytes": 32 * 1024, "ram_bytes": 2 * 1024, "instructions_per_step": 50_000}
 IMAGE_TARGET = {"flash_bytes": 24 * 1024, "ram_bytes": 1536}  # three small models, one image

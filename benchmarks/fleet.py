@@ -5,7 +5,7 @@ by default, development 0-9999 with `--seeds dev`, where tuning belongs):
 - a fleet of units 0..N-1 on the full program (the envelope of `make bench-population`'s
   protocol f: 0.5 and 2 C/min up-ramps, the 1 up / 2 down loop and the test loop run
   again, 11.75 h), the design's prior learned from the first 5, 10 and 20 of them
-  (`fogsf.fleet.prior.learn`, as `fogsf train --prior` learns it from the database);
+  (`fogsf.prior.design_prior.learn`, as `fogsf train --prior` learns it from the database);
 - new units (indices from 100, never in the fleet), each on short runs: `up20` (one
   2 C/min up-ramp, 0.75 h), `loop2h` (2 C/min up and down, 15 min soaks, 2 h), `up05` (one
   0.5 C/min up-ramp, 3 h), `loop4h` (the 1 up / 2 down loop with 30 min soaks, 4 h), and
@@ -45,7 +45,7 @@ import numpy as np
 
 from benchmarks.population import HI_C, LO_C, run_profile
 from fogsf.gsa.executors import add_executor_options, executor_from_args, run_all
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.sim.config import ProfileConfig
 
 FULL = ("up05", "up20", "loop_train", "loop_test_again")
@@ -79,15 +79,15 @@ def simulate_run(design: int, unit: int, name: str):  # noqa: ANN201 - ChamberLo
 
 def _score(log, theta: np.ndarray, k: int, play=None) -> float:  # noqa: ANN001
     from benchmarks.probes import ratio
-    from fogsf.fleet.prior_train import law_prediction
+    from fogsf.training.with_prior import law_prediction
 
     return ratio(log, law_prediction(theta, k, log, play=play))
 
 
 def _interval(ff, test) -> float:  # noqa: ANN001 - FunctionFit, ChamberLog
     """The upper end of the interval `fogsf train --prior` states, over the floor."""
-    from fogsf.fleet.prior_train import prior_interval
     from fogsf.training.options import TrainOptions
+    from fogsf.training.with_prior import prior_interval
 
     floor = log_metrics(test)["noise_floor_ppm"]
     return prior_interval(ff, test, TrainOptions(model="lag-lstm"), floor)[1] / floor
@@ -109,10 +109,10 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
     """One design: the fleet, its priors, the new units' figures (one unit of work)."""
     import torch
 
-    from fogsf.fleet import prior as fp
-    from fogsf.fleet.prior_function import function_fit
-    from fogsf.fleet.prior_map import map_fit
-    from fogsf.fleet.unit_fit import fit_unit, step_series
+    from fogsf.prior import design_prior as fp
+    from fogsf.prior.map_estimate import map_fit
+    from fogsf.prior.response_prior import function_fit
+    from fogsf.prior.unit_fit import fit_unit, step_series
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()

@@ -102,7 +102,7 @@ def kernel_check(model, log, floor: float) -> dict:  # noqa: ANN001 - StreamMode
     """The model through the C kernel over the test log: bit-for-bit SF against the numpy
     reference, and the test ratio from the kernel's own SF output."""
     from fogsf.bindings.kernel import Kernel
-    from fogsf.logs.metrics import log_metrics
+    from fogsf.logs.measure.metrics import log_metrics
     from fogsf.models import reference
 
     kern = Kernel(model)

@@ -62,7 +62,8 @@ def prepare(work: Path, hours: float) -> None:
     parent's at the time it starts, so the measuring process stays small."""
     from benchmarks.sample_rate import day_log
     from fogsf.bindings.kernel import build_kernel
-    from fogsf.logs.logio import read_log, write_log
+    from fogsf.logs.logio import read_log
+    from fogsf.logs.writer import write_log
     from fogsf.models import samples
 
     model = samples.random_model(3, 4, 1, 16, decimation=10, seed=SEED)
@@ -80,9 +81,9 @@ def write_tiled(csv: Path, hours: float) -> None:
     """A log of `hours` as CSV, then Parquet (the numbers the CSV holds), written in chunks:
     a TILE_H stretch repeated, time_s = sample index / RATE_HZ."""
     from benchmarks.sample_rate import day_log
-    from fogsf.logs.arrow_csv import number_blocks
-    from fogsf.logs.logio import write_rows
-    from fogsf.logs.parquet_log import ParquetColumns
+    from fogsf.logs.read.arrow_csv import number_blocks
+    from fogsf.logs.read.parquet_log import ParquetColumns
+    from fogsf.logs.writer import write_rows
 
     tile = day_log(RATE_HZ, TILE_H, SEED).columns()
     names = list(tile)

@@ -25,15 +25,17 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.logs.logio import write_log
-from fogsf.logs.metrics import reference_sf_of_logs, sf_error_ppm, sf_windows
+from fogsf.logs.measure.metrics import sf_error_ppm
+from fogsf.logs.measure.sf_reference import reference_sf_of_logs
+from fogsf.logs.measure.windows import sf_windows
+from fogsf.logs.writer import write_log
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import paper
-from fogsf.training.fitted import per_sample_prediction
+from fogsf.training.fitted_model import per_sample_prediction
+from fogsf.training.interval.transfer import RateTransfer
 from fogsf.training.options import DEFAULT_MODEL, MODELS, TrainOptions
-from fogsf.training.structure_choice import choice_message
+from fogsf.training.structure.choice import choice_message
 from fogsf.training.train import run_training
-from fogsf.training.transfer import RateTransfer
 
 # The paper's Table 2 (1e-6); 450.24 is read as the RMS about the 20 C reference.
 PAPER = {"before": 450.24, "mlp": 32.46, "lstm": 13.02, "gsa-lstm": 11.23}

@@ -188,7 +188,7 @@ def bench_gyro(gyro_seed: int, models: tuple[str, ...], protocols: tuple[str, ..
                     row["lag_excursion_c"] = rt["lag_excursion_c"]
                     row["upper_over_actual"] = hi / after["rms_ppm"]
                     # the multiple of D this case needs to fall inside (calibration,
-                    # `training.transfer_interval`)
+                    # `training.interval.rate_transfer`)
                     excess = max(0.0, after["rms_ppm"] ** 2 - floor**2) ** 0.5
                     d = (rt["model_spread_max_ppm"] if rt["one_segment"]
                          else max(rt["structure_spread_ppm"].values()))
@@ -295,7 +295,7 @@ def print_table(summary: dict, models: tuple[str, ...], protocols: tuple[str, ..
 def magnitudes(seeds: list[int]) -> dict:
     """The population's SF error before compensation on the paper's 1 C/min run (RMS and
     max|e| about the SF at 20 C) and its noise floor, and its structural mix."""
-    from fogsf.logs.metrics import log_metrics
+    from fogsf.logs.measure.metrics import log_metrics
     from fogsf.sim import simulate
     from fogsf.sim.population import gyro_for_seed
 

@@ -12,7 +12,7 @@ log's noise floor for
 - the oracle: least squares on the simulator's TRUE node temperatures with the simulator's
   own SF structure (source, coil mean and its square, inner coil, board), fitted on the
   0.5 C/min run: no model built on the board thermometer can know more,
-and the rate-transfer spread of `training.transfer` for both training sets: how much lag
+and the rate-transfer spread of `training.interval.transfer` for both training sets: how much lag
 models that fit the training data equally well disagree on the test log.
 
     python -m benchmarks.rate_transfer --out out/bench-transfer.json --seeds 8
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.models.features import step_targets
 from fogsf.sim.gyro import SimResult, simulate
 from fogsf.sim.scenarios import paper

@@ -1,6 +1,6 @@
 """Logs the way calibration rigs write them, end to end (`make bench-rigs`).
 
-For each rig case of `fogsf.sim.rig_logs.bench_cases` (a ROS-logged staircase with a
+For each rig case of `fogsf.sim.rigs.benches.bench_cases` (a ROS-logged staircase with a
 slewing, stalling table; +/-100 deg/s reversals in a plain rad/s log with an epoch time base;
 a skew-mounted 3-axis IMU; quantised thermometers; ...) and each gyro drawn from the
 population, the case's training and held-out test logs are written with their column map
@@ -22,8 +22,8 @@ cubic on its coil).
 
 Gyros: evaluation seeds 20000-29999 by default (`--seeds dev` for 0-9999, to tune on).
 
-Raw logger output (issue 39; `RAW_CASES`, written by `rig_logs.write_loggers`,
-`write_px4`, `write_bursts`, `write_ros`): loggers (an IMU at 100 Hz on a 32-bit us boot
+Raw logger output (issue 39; `RAW_CASES`, written by `raw_loggers.write_loggers`,
+`write_px4`, `write_bursts` and `rig_logs.write_ros`): loggers (an IMU at 100 Hz on a 32-bit us boot
 clock, thermometers at 1 Hz with ISO stamps and a dropout, the table's commands as events),
 px4-rates (a jittered export with dropped samples, trained at 50 and 100 Hz, tested at 200 Hz
 as logged), units (a deg/s log under a rad/s map; a rad/s and a deg/s log trained together:
@@ -60,7 +60,7 @@ def score_bias(train_log, log, bias_dph: np.ndarray, truth,  # noqa: ANN001
     against max(0.1 deg/h, 5 % of the true bias' std), beside a PX4-style cubic in board
     temperature fitted to the training log's windows (the pairs measured as `train` measures
     them: the SF model's prediction `sf_train`, `sf_test` taken off their plateaus)."""
-    from fogsf.logs.bias import bias_windows
+    from fogsf.logs.measure.bias import bias_windows
 
     wt, ws = bias_windows(train_log, sf_ppm=sf_train), bias_windows(log, sf_ppm=sf_test)
     if wt is None or ws is None:
@@ -78,9 +78,9 @@ def score_bias(train_log, log, bias_dph: np.ndarray, truth,  # noqa: ANN001
 def score_axis(model_dir: Path, train_path: Path, test_path: Path, axis: str, truth,  # noqa: ANN001 - rigs.Truth
                model: str) -> dict:
     """The trained model of one axis on its test log, against the truth."""
-    from fogsf.logs.dialect import Dialect
     from fogsf.logs.logio import read_log
-    from fogsf.logs.pairs import find_pairs
+    from fogsf.logs.measure.pairs import find_pairs
+    from fogsf.logs.read.dialect import Dialect
     from fogsf.models.reference import replay
     from fogsf.models.stream import StreamModel
 
@@ -112,12 +112,12 @@ def score_axis(model_dir: Path, train_path: Path, test_path: Path, axis: str, tr
 
 def run_case(name: str, gyro: int, seed: int, model: str | None, work: Path) -> list[dict]:
     """Write the case's logs for one gyro (three for an IMU), train, score every axis."""
-    from fogsf.sim import rig_logs
+    from fogsf.sim.rigs import benches
 
-    case = rig_logs.bench_cases()[name]
+    case = benches.bench_cases()[name]
     seeds = (gyro, gyro + 1, gyro + 2) if case.kind == "imu3" else (gyro,)
     folder = work / f"{name}-{gyro}"
-    train, test = rig_logs.write_case(folder, case, seeds, seed)
+    train, test = benches.write_case(folder, case, seeds, seed)
     axes = [a for a in train.truth if a]
     out_dir = folder / "model"
     cmd = [sys.executable, "-m", "fogsf", "train", "--train", str(train.path),
@@ -179,23 +179,26 @@ def _sf_row(model_dir: Path, log_path: Path, truth, name: str, gyro: int,  # noq
 
 
 def _loop_protocol(rate_hz: float, lo: float, hi: float, up: float, down: float, **kw):  # noqa: ANN202
-    from fogsf.sim import rigs
+    from fogsf.sim.rigs import chambers
+    from fogsf.sim.rigs import protocols as rigs
 
-    return rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(lo, hi, up, down, soak_s=600.0),
+    return rigs.reversal_protocol(100.0, 60.0,
+                                  chamber=chambers.loop(lo, hi, up, down, soak_s=600.0),
                                   rate_hz=rate_hz, bias=None, thermal_bias=True, **kw)
 
 
 def run_raw(name: str, gyro: int, seed: int, work: Path) -> list[dict]:
     """One raw-logger case for one gyro: its logs written as the loggers write them, read
     through the map beside them (no user script), trained and scored against the truth."""
-    from fogsf.sim import rig_logs, rigs
+    from fogsf.sim.rigs import chambers, raw_loggers, rig_logs
+    from fogsf.sim.rigs import protocols as rigs
 
     folder = work / f"{name}-{gyro}"
     if name == "loggers":  # IMU at 100 Hz on its boot clock, thermometers at 1 Hz, table
         train_run = rigs.run_rig(_loop_protocol(100.0, -10.0, 40.0, 1.0, 0.7), gyro, seed)
         test_run = rigs.run_rig(_loop_protocol(100.0, -10.0, 40.0, 0.8, 0.9), gyro, seed + 1)
-        tr = rig_logs.write_loggers(folder / "train" / "imu.csv", train_run, seed=seed)
-        te = rig_logs.write_loggers(folder / "test" / "imu.csv", test_run, seed=seed + 1)
+        tr = raw_loggers.write_loggers(folder / "train" / "imu.csv", train_run, seed=seed)
+        te = raw_loggers.write_loggers(folder / "test" / "imu.csv", test_run, seed=seed + 1)
         took = _train([str(tr.path)], folder / "model", seed)
         return [_sf_row(folder / "model", te.path, te.truth[""], name, gyro, took)]
     if name == "px4-rates":  # jittered, dropped samples; trained at 50 and 100 Hz, test 200
@@ -203,7 +206,7 @@ def run_raw(name: str, gyro: int, seed: int, work: Path) -> list[dict]:
         for k, (rate, up, down) in enumerate(((50.0, 1.5, 1.0), (100.0, 1.0, 1.5),
                                               (200.0, 1.2, 1.3))):
             run = rigs.run_rig(_loop_protocol(rate, -10.0, 40.0, up, down), gyro, seed + k)
-            logs.append(rig_logs.write_px4(folder / f"r{k}" / "gyro.csv", run, seed=seed + k))
+            logs.append(raw_loggers.write_px4(folder / f"r{k}" / "gyro.csv", run, seed=seed + k))
         took = _train([str(logs[0].path), str(logs[1].path)], folder / "model", seed)
         return [_sf_row(folder / "model", logs[2].path, logs[2].truth[""], name, gyro, took)]
     if name == "units":  # a deg/s log under a rad/s map; a rad/s and a deg/s log together
@@ -226,9 +229,9 @@ def run_raw(name: str, gyro: int, seed: int, work: Path) -> list[dict]:
                         and "rad/s" in err[0] and "deg/s" in err[0]}
         return [row]
     if name == "burst-tvac":  # 5 s bursts every 5 min, 2 h, the gyro cooling 8 C at rest
-        p = rigs.stationary_protocol(chamber=rigs.Chamber([[0.0, 30.0], [7200.0, 22.0]]),
+        p = rigs.stationary_protocol(chamber=chambers.Chamber([[0.0, 30.0], [7200.0, 22.0]]),
                                      rate_hz=50.0, bias=None, thermal_bias=True)
-        rl = rig_logs.write_bursts(folder / "tvac.csv", rigs.run_rig(p, gyro, seed))
+        rl = raw_loggers.write_bursts(folder / "tvac.csv", rigs.run_rig(p, gyro, seed))
         took = _train([str(rl.path)], folder / "model", seed, ("--window-s", "5"))
         return [_burst_row(folder / "model", rl.path, name, gyro, took)]
     if name == "heated-ros":  # the ROS rig with its heater holding the gyro at 38-62 C
@@ -244,8 +247,8 @@ def run_raw(name: str, gyro: int, seed: int, work: Path) -> list[dict]:
 def _burst_row(model_dir: Path, path: Path, name: str, gyro: int, took: float) -> dict:
     """A burst log's bias per burst: the trained model's residual (measured - predicted)
     RMS against a cubic in board temperature fitted to the same bursts (in-sample)."""
-    from fogsf.logs.bias import bias_windows
     from fogsf.logs.logio import read_log
+    from fogsf.logs.measure.bias import bias_windows
     from fogsf.models.reference import replay
     from fogsf.models.stream import StreamModel
 
@@ -285,7 +288,7 @@ def print_raw(row: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from fogsf.sim import rig_logs
+    from fogsf.sim.rigs import benches
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -294,16 +297,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", choices=tuple(SEED_BASE), default="eval")
     p.add_argument("--first", type=int, default=0, help="first gyro after the range's base")
     p.add_argument("--n", type=int, default=2, help="gyros per case (IMU cases: 3 each)")
-    p.add_argument("--cases", default=",".join([*rig_logs.bench_cases(), *RAW_CASES]),
+    p.add_argument("--cases", default=",".join([*benches.bench_cases(), *RAW_CASES]),
                    help="comma-separated case names (default: all; the raw loggers' "
                         f"{', '.join(RAW_CASES)} too)")
     p.add_argument("--model", default=None, help="fogsf train --model (default: its default)")
     p.add_argument("--out", default="out/bench-rigs.json")
     args = p.parse_args(argv)
     names = [c for c in args.cases.split(",") if c]
-    unknown = set(names) - set(rig_logs.bench_cases()) - set(RAW_CASES)
+    unknown = set(names) - set(benches.bench_cases()) - set(RAW_CASES)
     if unknown:
-        p.error(f"unknown case {sorted(unknown)[0]}; cases: {', '.join(rig_logs.bench_cases())}")
+        p.error(f"unknown case {sorted(unknown)[0]}; cases: {', '.join(benches.bench_cases())}")
     rows: list[dict] = []
     base = SEED_BASE[args.seeds] + args.first
     with tempfile.TemporaryDirectory() as tmp:

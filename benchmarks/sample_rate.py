@@ -32,8 +32,9 @@ import numpy as np
 
 from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.logio import read_log, write_log
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.logio import read_log
+from fogsf.logs.measure.metrics import log_metrics
+from fogsf.logs.writer import write_log
 from fogsf.models.stream import StreamModel
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import paper

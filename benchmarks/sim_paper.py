@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.logs.logio import write_log
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
+from fogsf.logs.writer import write_log
 from fogsf.sim import simulate
 from fogsf.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper
 

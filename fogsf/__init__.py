@@ -1,10 +1,12 @@
 """fogsf: FOG thermal scale-factor error from chamber data to firmware.
 
-One package a stage, imports pointing one way (docs/decisions.md, "Layout"): `fogsf.logs`
-(read, write, metrics), `fogsf.sim` (the physics simulator), `fogsf.models` (the streaming
-artifact and its structures), `fogsf.gsa` (the optimizer), `fogsf.training`, `fogsf.diagnose`,
-`fogsf.plan`, `fogsf.export` (ONNX and the generated C model), `fogsf.bindings` (the compiled C
-kernel through cffi) and `fogsf.cli` (the `fogsf` commands). The C kernel ships with the package;
+One package a stage, imports pointing one way (docs/decisions.md, "One import package, a
+package a stage"): `fogsf.logs` (read, write, measure), `fogsf.sim` (the physics simulator),
+`fogsf.models` (the streaming artifact and its structures), `fogsf.gsa` (the optimizer),
+`fogsf.prior` (a design's units as a population), `fogsf.training`, `fogsf.diagnose`,
+`fogsf.plan`, `fogsf.fleet` (the fleet database), `fogsf.export` (ONNX and the generated C
+model), `fogsf.bindings` (the compiled C kernel through cffi) and `fogsf.cli` (the `fogsf`
+commands). The C kernel ships with the package;
 a firmware project finds it here, as emlearn users find `emlearn.includedir`:
 
     cmake -DFOGSF_DIR="$(python -c 'import fogsf; print(fogsf.cmake_dir)')" ...

@@ -235,7 +235,7 @@ def fit_unit(sn: str, train_logs: list, out_dir: Path, test_log=None,  # noqa: A
     """Train a unit as `fogsf fleet add` does (the training code directly, few LSTM
     iterations) and build its record."""
     from fogsf.fleet.records import unit_record
-    from fogsf.training.fit import torch_threads
+    from fogsf.training.net.loops import torch_threads
     from fogsf.training.options import TrainOptions
     from fogsf.training.train import run_training
 

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fogsf.logs.arrow_csv import NotFast, read_numbers
 from fogsf.logs.chamber_log import LogError
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import _read_plain, parse_log, read_log
+from fogsf.logs.read.arrow_csv import NotFast, read_numbers
+from fogsf.logs.read.dialect import Dialect
 
 HEADER = "time_s,temp_c,table_rate_dps,gyro_dps"
 
@@ -157,7 +157,7 @@ def test_read_numbers_wants_the_line_count(tmp_path: Path) -> None:
 def test_fast_path_reads_across_blocks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
                                        ) -> None:
     """Many small blocks (as a long log is read): the same numbers, a bad cell still named."""
-    import fogsf.logs.arrow_csv as arrow_csv
+    import fogsf.logs.read.arrow_csv as arrow_csv
 
     monkeypatch.setattr(arrow_csv, "BLOCK_BYTES", 256)
     body = text(rows(3000))
@@ -202,8 +202,9 @@ def test_rows_read_before_a_bad_block_are_not_parsed_again(
     """The scan skips the rows pyarrow read (its blank lines still count): a late bad cell
     is named parsing only the rows from the failed block on; a blank line in an early block
     is named before it."""
-    import fogsf.logs.arrow_csv as arrow_csv
-    from fogsf.logs import line_scan, logio
+    import fogsf.logs.read.arrow_csv as arrow_csv
+    from fogsf.logs import logio
+    from fogsf.logs.read import line_scan
 
     monkeypatch.setattr(arrow_csv, "BLOCK_BYTES", 512)
     lines = text(rows(3000)).split("\n")

@@ -317,12 +317,13 @@ def test_a_stationary_imu_trains_a_bias_only_model_per_axis_titled_as_the_bias(
     of one axis's model over its log reports the bias too."""
     from dataclasses import replace
 
-    from fogsf.sim import rig_logs, rigs
+    from fogsf.sim.rigs import benches, chambers
+    from fogsf.sim.rigs import protocols as rigs
 
-    still = rigs.stationary_protocol(chamber=rigs.loop(-10.0, 20.0, 2.0, 2.0, 300.0),
+    still = rigs.stationary_protocol(chamber=chambers.loop(-10.0, 20.0, 2.0, 2.0, 300.0),
                                      bias=None, thermal_bias=True)
-    case = rig_logs.BenchCase("imu3", still, replace(still), "stationary IMU")
-    train, test = rig_logs.write_case(tmp_path / "logs", case, (20000, 20001, 20002), 5)
+    case = benches.BenchCase("imu3", still, replace(still), "stationary IMU")
+    train, test = benches.write_case(tmp_path / "logs", case, (20000, 20001, 20002), 5)
     assert fogsf("train", "--train", train.path, "--test", test.path, "--axis", "all",
                  "--out", tmp_path / "m") == 0
     out = capsys.readouterr().out

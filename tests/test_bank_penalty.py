@@ -8,23 +8,22 @@ import numpy as np
 import pytest
 from ramp_logs import short_ramp
 
-from fogsf.models.lag_bank import (
+from fogsf.models.stream import StreamModel
+from fogsf.models.structures.lag_bank import (
     BANK_LAMBDA,
     LOOP_LAMBDA,
     bank_cross,
     bank_name,
     bank_penalty,
 )
-from fogsf.models.stream import StreamModel
-from fogsf.training import structure_choice as sc
 from fogsf.training.options import TrainOptions
-from fogsf.training.structure_choice import (
+from fogsf.training.structure import penalty as sp
+from fogsf.training.structure.choice import PHYSICS, choose
+from fogsf.training.structure.heldout import SPLIT_PARTS, StepData
+from fogsf.training.structure.penalty import (
     PENALTIES,
     PENALTY_MIN_FOLDS,
-    PHYSICS,
-    StepData,
     bank_prior,
-    choose,
     choose_penalty,
     ramps_both_ways,
 )
@@ -88,7 +87,7 @@ def test_a_lower_penalty_must_win_most_parts_and_the_score(
         }
         return _folds(n, shapes[e] if isinstance(e, str) else [e] * n)
 
-    monkeypatch.setattr(sc, "heldout_folds", folds)
+    monkeypatch.setattr(sp, "heldout_folds", folds)
     from types import SimpleNamespace
 
     sd = StepData(SimpleNamespace(step_s=5.0), [np.zeros(n)], np.zeros(n),  # type: ignore[arg-type]
@@ -101,12 +100,12 @@ def test_a_lower_penalty_must_win_most_parts_and_the_score(
     assert any(t.startswith("bankx") for t in tried)
     assert next(t for t in tried if t.startswith("bankx")).partition(":")[2] == \
         pc.against[next(t for t in tried if t.startswith("bankx"))].partition(":")[2]
-    text = sc.penalty_message(pc.as_dict())
+    text = sp.penalty_message(pc.as_dict())
     assert text.endswith(f"kept {'the prior ' if chosen == 'bank' else ''}"
-                         f"{sc.bank_label(chosen)}"), text
+                         f"{sp.bank_label(chosen)}"), text
     if chosen != "bank":
-        assert pc.wins[pc.name] >= sc.PENALTY_WIN_SHARE * n
-        assert f"{sc.bank_label(chosen)} predicted {pc.wins[chosen]} better (held-out RMS" in text
+        assert pc.wins[pc.name] >= sp.PENALTY_WIN_SHARE * n
+        assert f"{sp.bank_label(chosen)} predicted {pc.wins[chosen]} better (held-out RMS" in text
     assert ("0.0001 predicted 11 better: not taken" in text) == \
         (pc.wins["bank:0.0001"] == 11), text
 
@@ -114,7 +113,7 @@ def test_a_lower_penalty_must_win_most_parts_and_the_score(
 def test_logs_with_few_parts_keep_the_prior() -> None:
     """Two ramps hold 6 held-out parts, under PENALTY_MIN_FOLDS: the rule does not run."""
     c = choose([short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)])
-    assert 2 * sc.SPLIT_PARTS < PENALTY_MIN_FOLDS
+    assert 2 * SPLIT_PARTS < PENALTY_MIN_FOLDS
     assert c.name == "bank" and c.penalty is None and c.bank == "bank"
     assert "bank_penalty" not in c.as_dict() and "penalty" not in c.message()
 
@@ -185,7 +184,7 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
     pen = c["bank_penalty"]
     lam = pen["penalty"]
     assert pen["parts"] >= PENALTY_MIN_FOLDS and lam < BANK_LAMBDA
-    assert pen["wins"][bank_name(lam)] >= sc.PENALTY_WIN_SHARE * pen["parts"]
+    assert pen["wins"][bank_name(lam)] >= sp.PENALTY_WIN_SHARE * pen["parts"]
     assert pen["heldout_rms_ppm"][bank_name(lam)] < pen["heldout_rms_ppm"]["bank"]
     assert fitted.info["lag_bank"]["ridge_lambda"] == lam
     # the cross terms, taken here, run in the C kernel bit for bit (the full quadratic)
@@ -217,16 +216,16 @@ def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
     from fogsf.cli.train import format_metrics
 
     text = format_metrics(m).replace("\n", " ")
-    assert f"kept {sc.bank_label(pen['bank'])}" in text
+    assert f"kept {sp.bank_label(pen['bank'])}" in text
 
 
 def test_a_play_term_is_fitted_at_the_banks_penalty() -> None:
     """With a hysteresis term the bank's head is the ridge fit at the penalty its name
     carries (the term's coefficient free), not at the prior."""
-    from fogsf.models.hysteresis import ridge_fit_free
-    from fogsf.models.lag_bank import bank_design, n_curved
-    from fogsf.models.least_squares import TAU_GRID_S
-    from fogsf.training.hysteresis_choice import head_fit
+    from fogsf.models.structures.hysteresis import ridge_fit_free
+    from fogsf.models.structures.lag_bank import bank_design, n_curved
+    from fogsf.models.structures.least_squares import TAU_GRID_S
+    from fogsf.training.structure.hysteresis import head_fit
 
     rng = np.random.default_rng(5)
     z = rng.normal(size=(400, len(TAU_GRID_S) + 2)) * 0.3
@@ -242,10 +241,10 @@ def test_a_play_term_is_fitted_at_the_banks_penalty() -> None:
 def test_cross_terms_reach_the_play_terms_head() -> None:
     """`bankx:LAM` with a play: the head is the ridge fit of the design with the cross terms
     of the curved features (the play's feature linear), its quadratic the full [F, F]."""
-    from fogsf.models.hysteresis import ridge_fit_free
-    from fogsf.models.lag_bank import bank_design, n_curved
-    from fogsf.models.least_squares import TAU_GRID_S
-    from fogsf.training.hysteresis_choice import head_fit
+    from fogsf.models.structures.hysteresis import ridge_fit_free
+    from fogsf.models.structures.lag_bank import bank_design, n_curved
+    from fogsf.models.structures.least_squares import TAU_GRID_S
+    from fogsf.training.structure.hysteresis import head_fit
 
     rng = np.random.default_rng(6)
     z = rng.normal(size=(500, len(TAU_GRID_S) + 2)) * 0.3

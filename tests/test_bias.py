@@ -1,4 +1,4 @@
-"""The measured bias (logs/bias.py): a stationary log (table stopped throughout) and the
+"""The measured bias (logs/measure/bias.py): a stationary log (table stopped throughout) and the
 +/- pairs; inspect's bias block; the SF figures refusing a stationary log."""
 
 from __future__ import annotations
@@ -11,12 +11,13 @@ import pytest
 
 from fogsf.cli import main as cli
 from fogsf.errors import UserError
-from fogsf.logs.bias import bias_windows, is_stationary
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import read_log, with_mapping_beside
-from fogsf.logs.metrics import log_metrics
-from fogsf.sim import rig_logs, rigs
+from fogsf.logs.measure.bias import bias_windows, is_stationary
+from fogsf.logs.measure.metrics import log_metrics
+from fogsf.logs.read.dialect import Dialect
 from fogsf.sim.config import BiasConfig
+from fogsf.sim.rigs import chambers, rig_logs
+from fogsf.sim.rigs import protocols as rigs
 
 BIAS = BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05, quad_dph_per_c2=0.002)
 CHAMBER = (10.0, 40.0, 1.0, 0.7, 300.0)  # loop: lo, hi, up, down C/min, soak s
@@ -29,13 +30,13 @@ def write(folder: Path, protocol: rigs.RigProtocol, gyro: int, seed: int) -> rig
 
 @pytest.fixture(scope="module")
 def stationary(tmp_path_factory: pytest.TempPathFactory) -> rig_logs.RigLog:
-    p = rigs.stationary_protocol(rigs.loop(*CHAMBER), bias=BIAS)
+    p = rigs.stationary_protocol(chambers.loop(*CHAMBER), bias=BIAS)
     return write(tmp_path_factory.mktemp("stat"), p, 20001, 1)
 
 
 @pytest.fixture(scope="module")
 def reversals(tmp_path_factory: pytest.TempPathFactory) -> rig_logs.RigLog:
-    p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(*CHAMBER), bias=BIAS)
+    p = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.loop(*CHAMBER), bias=BIAS)
     return write(tmp_path_factory.mktemp("rev"), p, 20001, 2)
 
 

@@ -30,6 +30,7 @@ from fogsf.export.onnx_step import OrtStepper, build_step_onnx
 from fogsf.models import reference, samples
 from fogsf.models import stream as st
 from fogsf.models.f32 import F32
+from fogsf.models.stream_flags import BIAS_LIMIT_DPH, FLAG_BIAS_CLAMPED
 
 FIXTURE = "tests/fixtures/small_model"
 # (K, F, L, H, D, seed, poly, lstm_inputs, quad_diag, feat_diag): the first is the lag
@@ -183,8 +184,8 @@ def test_a_broken_bias_head_is_clamped_and_flagged(kroot: Path) -> None:
     model = bias_model(SIZES[1])
     model.weights["bias_b"][0] = F32(1e30)
     out = reference.replay(model, np.full(30, 30.0), np.full(30, 10.0))
-    assert np.all(out.bias_dph == np.float32(st.BIAS_LIMIT_DPH))
-    assert np.all(out.flags & st.FLAG_BIAS_CLAMPED) and np.all(np.isfinite(out.corrected_dps))
+    assert np.all(out.bias_dph == np.float32(BIAS_LIMIT_DPH))
+    assert np.all(out.flags & FLAG_BIAS_CLAMPED) and np.all(np.isfinite(out.corrected_dps))
     _, _, bias, flags = kernel_for(model, kroot).run_bias(np.full(30, 30.0), np.full(30, 10.0))
     assert bias.tobytes() == out.bias_dph.tobytes() and np.array_equal(flags, out.flags)
 

@@ -1,4 +1,4 @@
-"""The bias model (training/bias_model.py): the lag bank's polynomial of z fitted to the
+"""The bias model (training/bias/model.py): the lag bank's polynomial of z fitted to the
 measured bias; a Shupe term (bias ~ dT/dt of the coil) that a cubic in T cannot carry; the
 bias-only model of `fogsf train` on stationary logs; mixed logs refused."""
 
@@ -14,10 +14,13 @@ import pytest
 
 from fogsf.cli import main as cli
 from fogsf.errors import UserError
-from fogsf.logs.bias import bias_windows
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.logio import write_log
-from fogsf.training.bias_model import bank_feature_map, check_mixed, fit_bias, score_bias
+from fogsf.logs.measure.bias import bias_windows
+from fogsf.logs.writer import write_log
+from fogsf.training.bias.features import bank_feature_map
+from fogsf.training.bias.fit import fit_bias
+from fogsf.training.bias.model import score_bias
+from fogsf.training.bias.targets import check_mixed
 
 EARTH_DPS = 0.0025
 SHUPE_DPH_PER_C_PER_MIN = 3.0  # bias per C/min of the coil's temperature change
@@ -165,7 +168,7 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     from fogsf.logs.logio import read_log
     from fogsf.models import reference
     from fogsf.models.stream import StreamModel
-    from fogsf.training.bias_model import fit_bias
+    from fogsf.training.bias.fit import fit_bias
 
     write_log(tmp_path / "a.csv", soak_log(TRAIN, 9)[0])
     test, _ = soak_log(TEST, 10)
@@ -214,15 +217,16 @@ def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]
                                                            ) -> None:
     from fogsf.models.stream import StreamModel
-    from fogsf.sim import rig_logs, rigs
     from fogsf.sim.config import BiasConfig
+    from fogsf.sim.rigs import benches, chambers, rig_logs
+    from fogsf.sim.rigs import protocols as rigs
 
     bias = BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05, quad_dph_per_c2=0.002)
     logs = []
     for name, seed in (("train", 21), ("test", 22)):
         (tmp_path / name).mkdir()
-        p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(10.0, 40.0, 1.0, 0.7, 300.0),
-                                   bias=bias, arw_deg_per_sqrt_h=rig_logs.QUIET_ARW)
+        p = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.loop(10.0, 40.0, 1.0, 0.7, 300.0),
+                                   bias=bias, arw_deg_per_sqrt_h=benches.QUIET_ARW)
         logs.append(rig_logs.rig_log("plain", tmp_path / name / "log.csv", p, (20002,),
                                  seed=seed).path)
     out = tmp_path / "m"
@@ -262,7 +266,8 @@ def test_every_bias_structure_goes_through_the_bias_head(structure: str) -> None
     model's z (the lag bank's; for `lead`, which adds its coil node, also a z without a lag
     fast enough for the board's rate, to which it adds that too)."""
     from fogsf.models import reference
-    from fogsf.training.bias_model import bias_only_stream_model, node_feature_map
+    from fogsf.training.bias.artifact import bias_only_stream_model
+    from fogsf.training.bias.features import node_feature_map
 
     train, _ = soak_log(TRAIN, 31)
     test, _ = soak_log(TEST, 32)
@@ -292,7 +297,7 @@ def test_every_bias_structure_goes_through_the_bias_head(structure: str) -> None
 def test_a_shupe_bias_takes_the_coils_own_rate(shupe: float) -> None:
     """On a front end of its own, a bias the cubic in T misses by far (a Shupe term) takes
     `lead`, the coil's cubic and its own rate of change; without one the rule's choice."""
-    from fogsf.training.bias_structure import SHUPE_EVIDENT
+    from fogsf.training.bias.choice import SHUPE_EVIDENT
 
     train, _ = soak_log(TRAIN, 41, shupe=shupe)
     test, true_bias = soak_log(TEST, 42, shupe=shupe)
@@ -318,7 +323,8 @@ def test_bias_rows_of_their_own_leave_the_sf_model_as_it_was(poly: bool, diag: b
     from fogsf.models import reference, samples
     from fogsf.models.features import FeatureSpec, filter_alpha, physical_normaliser
     from fogsf.models.front_end import FrontEnd
-    from fogsf.training.bias_model import FeatureMap, _widened, with_rows
+    from fogsf.training.bias.artifact import _widened
+    from fogsf.training.bias.features import FeatureMap, with_rows
 
     sm = samples.random_model(3, 5, 1, 6, 10, seed=7, taus_s=[100.0, 400.0, 1600.0],
                               poly_head=poly, quad_diag=diag, lstm_inputs=n_in,
@@ -353,7 +359,7 @@ def reversal_rig_log(path: Path, gyro: int, shupe: float, loop: tuple, seed: int
     from dataclasses import replace
 
     from benchmarks.bias_eval import bias_law, protocol
-    from fogsf.sim import rig_logs
+    from fogsf.sim.rigs import rig_logs
 
     return rig_logs.rig_log("plain", path, protocol("reversals", loop, replace(
         bias_law(gyro, shupe))), (gyro,), seed=seed)
@@ -366,12 +372,12 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     the artifact gives is the SF model's bit for bit, the kernel's bias the fit's, and the
     test loop's bias nearer the truth than the same SF model's z alone gives."""
     from benchmarks.bias_eval import TEST_LOOP, TRAIN_LOOP
-    from fogsf.logs.dialect import Dialect
     from fogsf.logs.logio import read_log, with_mapping_beside
+    from fogsf.logs.read.dialect import Dialect
     from fogsf.models import reference
-    from fogsf.models.lag_bank import bank_spec
     from fogsf.models.stream import StreamModel
-    from fogsf.training.bias_model import bank_feature_map
+    from fogsf.models.structures.lag_bank import bank_spec
+    from fogsf.training.bias.features import bank_feature_map
 
     rl = [reversal_rig_log(tmp_path / n / "log.csv", 3, 2.0, loop, seed)
           for n, loop, seed in (("a", TRAIN_LOOP, 1), ("b", TEST_LOOP, 2))]
@@ -441,9 +447,9 @@ def test_a_model_with_a_play_leaves_lead_out(tmp_path: Path) -> None:
     `lead` (its filter and feature beside the play would overflow the three-model M4F
     image), says so, and the artifact carries the play and no filter of the bias's own."""
     from benchmarks.bias_eval import TRAIN_LOOP
-    from fogsf.models.lag_bank import bank_spec
     from fogsf.models.stream import StreamModel
-    from fogsf.training.bias_model import LEAD_LEFT_OUT
+    from fogsf.models.structures.lag_bank import bank_spec
+    from fogsf.training.bias.fit import LEAD_LEFT_OUT
 
     log = reversal_rig_log(tmp_path / "a" / "log.csv", 3, 2.0, TRAIN_LOOP, 1)
     assert cli.main(["train", "--train", str(log.path), "--structure", "bank",
@@ -464,9 +470,9 @@ def test_a_bank_with_cross_terms_leaves_lead_out(tmp_path: Path) -> None:
     """Beside the bank's cross terms (a full quadratic) the bias head does not take `lead`
     either (three such models would overflow the M4F image), and says why."""
     from benchmarks.bias_eval import TRAIN_LOOP
-    from fogsf.logs.dialect import Dialect
     from fogsf.logs.logio import read_log, with_mapping_beside
-    from fogsf.training.bias_model import LEAD_LEFT_OUT_CROSS
+    from fogsf.logs.read.dialect import Dialect
+    from fogsf.training.bias.fit import LEAD_LEFT_OUT_CROSS
 
     rig = reversal_rig_log(tmp_path / "a" / "log.csv", 3, 2.0, TRAIN_LOOP, 1)
     log = read_log(rig.path, with_mapping_beside(rig.path, Dialect()))
@@ -481,7 +487,7 @@ def test_a_bank_with_cross_terms_leaves_lead_out(tmp_path: Path) -> None:
 def test_the_choice_message_says_why_lead_was_taken() -> None:
     """`fogsf train`'s line on the bias structure: the rule's reason, and for `lead` taken
     because the cubic in T misses by far, that reason, not 'within 10 %'."""
-    from fogsf.training.bias_structure import BiasChoice, choice_message
+    from fogsf.training.bias.choice import BiasChoice, choice_message
 
     scores = {"cubic": 0.805, "shupe": 0.243, "node": 0.216, "lead": 0.343, "bank": 0.336}
     msg = choice_message(BiasChoice("lead", scores, 5, (60.0, 1044.0)).as_dict())
@@ -498,7 +504,7 @@ def test_train_takes_the_sf_models_prediction_off_a_staircases_pairs(tmp_path: P
     it, so the pairs alone read up to ~0.5 deg/h of it as bias. `train` takes the SF model's
     prediction off the plateaus first: the constant bias it then measures (metrics.json,
     before) is flat, and the bias model has little to model."""
-    from fogsf.logs.pairs import find_pairs
+    from fogsf.logs.measure.pairs import find_pairs
 
     dt, per = 0.1, 160
     stair = [s * 4.0 * k for k in range(1, 26) for s in (1.0, -1.0)]
@@ -559,7 +565,7 @@ def test_train_knows_before_the_fit_whether_the_logs_measure_the_bias() -> None:
     """`train.measures_bias` (what leaves the bank's cross terms out beside a play and a
     bias head): a stationary log measures the bias, a turning log without pairs does not."""
     from fogsf.training.options import TrainOptions
-    from fogsf.training.sf_fit import measures_bias
+    from fogsf.training.sf.fit import measures_bias
 
     log, _ = soak_log(TRAIN, 5)
     turning = ChamberLog(log.time_s, log.temp_c, np.full_like(log.time_s, 10.0),
@@ -577,8 +583,8 @@ def test_the_bias_interval_spans_the_coil_time_constants_the_pairs_leave_open() 
     and the interval's top wider for it there."""
     from dataclasses import replace as dc_replace
 
-    from fogsf.training.bias_interval import bias_interval
-    from fogsf.training.bias_structure import LEAD_SET_MOST
+    from fogsf.training.bias.interval import bias_interval
+    from fogsf.training.bias.structure import LEAD_SET_MOST
 
     train, _ = soak_log(TRAIN, 41)
     model = fit_bias(None, [train])
@@ -610,8 +616,8 @@ def test_the_lead_set_holds_the_points_within_the_allowance() -> None:
     """`lead_set` on a lead-law bias with noise: its first fit is the profile's minimum (as
     the lead candidate fits it), each fit's training SSE lies within LEAD_SET_CHI2 x sigma2
     of that minimum, and a larger sigma2 admits at least as many points."""
-    from fogsf.models.physics_nodes import NodeTemperatures
-    from fogsf.training import bias_structure as bs
+    from fogsf.models.structures.physics_nodes import NodeTemperatures
+    from fogsf.training.bias import structure as bs
 
     step = 5.0
     t = np.concatenate([np.linspace(-0.6, 0.6, 1500), np.full(300, 0.6),

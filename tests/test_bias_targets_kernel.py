@@ -1,12 +1,12 @@
 """A +/- pair's bias averages its four plateaus (1, 3, 3, 1)/8: the bias model is fitted to
-its columns averaged the same way (`bias_model.target_kernel`, `at_targets`)."""
+its columns averaged the same way (`training.bias.targets.target_kernel`, `at_targets`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from fogsf.logs.bias import BiasWindows
-from fogsf.training.bias_model import at_targets, target_kernel
+from fogsf.logs.measure.bias import BiasWindows
+from fogsf.training.bias.targets import at_targets, target_kernel
 
 
 def _windows(source: str, window_s: float) -> BiasWindows:

@@ -12,7 +12,8 @@ from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.cli.main import main
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.logio import read_log, write_log
+from fogsf.logs.logio import read_log
+from fogsf.logs.writer import write_log
 from fogsf.models import reference, samples
 
 

@@ -10,7 +10,7 @@ import pytest
 from test_physics_nodes import STEP_S, _program
 
 from fogsf.models import reference
-from fogsf.models.chain_nodes import (
+from fogsf.models.structures.chain_nodes import (
     CHAIN_MIN_RATIO,
     chain_spec,
     chain_weights,
@@ -18,8 +18,8 @@ from fogsf.models.chain_nodes import (
     identify_chains,
     node_taus,
 )
-from fogsf.models.node_fit import discrete_lag, lag_alpha
-from fogsf.models.physics_nodes import NodeTemperatures, fit_coefficients, identify_taus
+from fogsf.models.structures.node_fit import discrete_lag, lag_alpha
+from fogsf.models.structures.physics_nodes import NodeTemperatures, fit_coefficients, identify_taus
 
 
 @pytest.mark.parametrize("chain", [(60.0, 90.0), (300.0, 1200.0), (2000.0, 14000.0)])

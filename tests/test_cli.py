@@ -38,9 +38,9 @@ def test_a_value_led_by_a_negative_number_reaches_the_command(
 
 def test_train_help_describes_the_bank_the_code_fits() -> None:
     from fogsf.cli.main import build_parser
-    from fogsf.models.lag_bank import CURVED_MAX_TAU_S
-    from fogsf.models.least_squares import TAU_GRID_S
-    from fogsf.training.structure_choice import CANDIDATES
+    from fogsf.models.structures.lag_bank import CURVED_MAX_TAU_S
+    from fogsf.models.structures.least_squares import TAU_GRID_S
+    from fogsf.training.structure.choice import CANDIDATES
 
     train = build_parser()._subparsers._group_actions[0].choices["train"]
     text = " ".join(train.format_help().split())

@@ -13,14 +13,15 @@ import pytest
 from fogsf.cli.main import main
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog, LogError
-from fogsf.logs.dialect import Dialect
-from fogsf.logs.expressions import (
+from fogsf.logs.logio import log_axes_of, parse_log, read_log
+from fogsf.logs.mapping.expressions import (
     EvaluationError,
     ExpressionError,
     parse_expression,
     split_top_level,
 )
-from fogsf.logs.logio import log_axes_of, parse_log, read_log, write_log
+from fogsf.logs.read.dialect import Dialect
+from fogsf.logs.writer import write_log
 
 SHORT = ["--scenario", "paper", "--start-c", "15", "--stop-c", "25", "--ramp-rate", "1",
          "--seed", "3"]
@@ -423,8 +424,8 @@ def _without_earth(text: str) -> str:
 def test_axis_reads_its_own_thermometer(tmp_path: Path) -> None:
     """--axis A reads temp_A_c (one thermometer per gyro) as temp_c; without one, the
     common temp_c."""
-    from fogsf.logs.dialect import Dialect
     from fogsf.logs.logio import read_log
+    from fogsf.logs.read.dialect import Dialect
 
     rows = [f"{0.1 * i:.1f},{20 + 0.01 * i:.2f},{30 + 0.01 * i:.2f},10,10,10" for i in range(6)]
     p = tmp_path / "imu.csv"

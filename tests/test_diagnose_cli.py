@@ -8,8 +8,11 @@ from pathlib import Path
 import pytest
 
 from fogsf.cli import main as cli
-from fogsf.diagnose import cases, report
-from fogsf.logs.logio import read_log, write_log
+from fogsf.diagnose import report
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import planted as cases
+from fogsf.logs.logio import read_log
+from fogsf.logs.writer import write_log
 from fogsf.sim.config import SimConfig
 
 CONTRACT_CANDIDATE = {"effect", "params", "heldout_rms_before_ppm", "heldout_rms_after_ppm",
@@ -20,7 +23,7 @@ CONTRACT_CANDIDATE = {"effect", "params", "heldout_rms_before_ppm", "heldout_rms
 def diagnosed(tmp_path_factory: pytest.TempPathFactory) -> dict:
     tmp = tmp_path_factory.mktemp("diag")
     case = cases.draw("effect", "bias_drift", 11)
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     log_path = tmp / "run.csv"
     write_log(log_path, logs[0])
     out = tmp / "out"
@@ -72,7 +75,7 @@ def test_bad_input_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert cli.main(["diagnose", str(tmp_path / "nope.csv")]) == 2
     assert "no such file" in capsys.readouterr().err
     case = cases.draw("null", "", 3)
-    logs, _ = cases.build(case)
+    logs, _ = case_build.build(case)
     short = tmp_path / "short.csv"
     write_log(short, logs[0].slice(0, 3000))  # 5 minutes
     assert cli.main(["diagnose", str(short)]) == 2

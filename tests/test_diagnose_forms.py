@@ -12,7 +12,11 @@ import copy
 import numpy as np
 import pytest
 
-from fogsf.diagnose import case_judge, case_programs, cases, driver, extend, report, verdict
+from fogsf.diagnose import driver, extend, report, verdict
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import judge as case_judge
+from fogsf.diagnose.cases import planted as cases
+from fogsf.diagnose.cases import programs as case_programs
 from fogsf.errors import UserError
 from fogsf.sim.gyro import simulate
 from fogsf.sim.population import DEV_SEEDS
@@ -23,7 +27,7 @@ VARIANTS = [(e, v) for e, vs in cases.VARIANTS.items() for v in vs if v != "coil
 
 
 def _run(case: cases.Case) -> tuple[case_judge.Outcome, dict]:
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
     out = case_judge.judge_report(case, truth, j)
     return out, j
@@ -44,7 +48,7 @@ def test_form_variant_is_named(effect: str, variant: str) -> None:
 def test_two_effects_both_named(pair: tuple[str, str]) -> None:
     seed = SEED + 20 + cases.PAIRS.index(pair)
     case = cases.draw_population("two", pair[0], pair[1], seed)
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     d = verdict.diagnose(logs)
     j = report.to_json(d, {}, None)
     out = case_judge.judge_report(case, truth, j)
@@ -76,7 +80,7 @@ def test_power_on_from_the_board_alone() -> None:
     board thermometer's self-heating rise, the warm-up named."""
     case = cases.draw_population("effect", "warmup", "transient", SEED + 50)
     case.chamber = False
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     assert "chamber_c" not in logs[0].extra
     rise = driver.board_power_on(logs[0].time_s, logs[0].temp_c)
     assert rise > driver.POWER_ON_MIN_C
@@ -98,7 +102,7 @@ def test_warm_start_is_not_power_on() -> None:
 def null_log() -> object:
     case = cases.draw_population("null", "", "", SEED + 60)
     case.chamber = True
-    return cases.build(case)[0][0]
+    return case_build.build(case)[0][0]
 
 
 def _one_line(e: pytest.ExceptionInfo) -> str:
@@ -128,7 +132,7 @@ def test_refuses_logs_of_different_gyros(null_log) -> None:
     other.chamber = True
     other.config.profile = copy.deepcopy(cases.draw_population("null", "", "",
                                                                SEED + 60).config.profile)
-    log2 = cases.build(other)[0][0]
+    log2 = case_build.build(other)[0][0]
     with pytest.raises(UserError) as e:
         verdict.diagnose([null_log, log2])
     assert "one gyro" in _one_line(e)

@@ -1,7 +1,7 @@
 """A hidden SF hysteresis planted in simulated logs: does diagnose name it `hysteresis`?
 
 Cases (`cases.draw_population("effect", "hysteresis", "", seed)`, ranges stated in
-fogsf.diagnose.cases): a population gyro (without its own hysteresis), a play of its
+fogsf.diagnose.cases.planted): a population gyro (without its own hysteresis), a play of its
 coil temperature of width 4-10 C and strength 3-8 ppm/C, partial cycles of 3.5-5 h (turns,
 rate, soaks drawn), table and simulator seed, all from a seeded generator. CI runs the fixed
 small sample below; `make bench-diagnose` states the rate over many. A failure prints the
@@ -17,7 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.diagnose import case_judge, cases, report, verdict
+from fogsf.diagnose import report, verdict
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import judge as case_judge
+from fogsf.diagnose.cases import planted as cases
 from fogsf.sim.population import DEV_SEEDS
 
 MASTER_SEED = 20261123
@@ -34,7 +37,7 @@ def test_planted_hysteresis_is_named_and_never_misnamed() -> None:
     named = 0
     for seed in _seeds():
         case = cases.draw_population("effect", "hysteresis", "", seed)
-        logs, truth = cases.build(case)
+        logs, truth = case_build.build(case)
         j = report.to_json(verdict.diagnose(logs), {}, None)
         out = case_judge.judge_report(case, truth, j)
         where = f"seed {seed}: [{case.describe()}] -> {out.reason}"

@@ -20,19 +20,11 @@ import json
 import numpy as np
 import pytest
 
-from fogsf.diagnose import (
-    case_judge,
-    cases,
-    catalogue,
-    design,
-    driver,
-    extend,
-    fits,
-    report,
-    runs,
-    selection,
-    verdict,
-)
+from fogsf.diagnose import design, driver, extend, fits, report, runs, selection, verdict
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import judge as case_judge
+from fogsf.diagnose.cases import planted as cases
+from fogsf.diagnose.effects import catalogue
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.sim.config import SimConfig
 from fogsf.sim.gyro import simulate
@@ -48,7 +40,7 @@ def _draws(tag: str, n: int, span: tuple[float, float]) -> list[tuple[int, float
 
 
 def _run(case: cases.Case) -> tuple[case_judge.Outcome, dict, fits.Diagnosis]:
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     d = verdict.diagnose(logs)
     j = report.to_json(d, {}, None)
     return case_judge.judge_report(case, truth, j), j, d
@@ -191,7 +183,7 @@ def test_dtdt_term_on_a_population_gyro_gets_its_housing_coupling(seed: int) -> 
     ppm/(C/min) needs the coil's time constants, but the housing coupling is pinned: named,
     significant, coupling within 50 % (case_judge.judge), and inside its reported interval."""
     case = cases.draw_population("effect", "temp_rate", "", seed)
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
     out = case_judge.judge_report(case, truth, j)
     c = next(c for c in j["candidates"] if c["effect"] == "temp_rate")

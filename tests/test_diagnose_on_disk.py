@@ -9,9 +9,13 @@ from pathlib import Path
 import pytest
 
 from fogsf.cli.main import main
-from fogsf.diagnose import cases, driver, hysteresis_form, runs
-from fogsf.logs import columns, stream_read
-from fogsf.logs.logio import read_log, write_log
+from fogsf.diagnose import driver, runs
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import planted as cases
+from fogsf.diagnose.effects import hysteresis_form
+from fogsf.logs.logio import read_log
+from fogsf.logs.read import columns, stream_read
+from fogsf.logs.writer import write_log
 
 
 def _outputs(tmp: Path, log: Path, earlier: Path, monkeypatch: pytest.MonkeyPatch, how: str
@@ -39,7 +43,7 @@ def test_diagnose_and_plan_on_disk_are_in_memory(tmp_path: Path,
     monkeypatch.setattr(columns, "READ_SAMPLES", 97)
     for module in (runs, driver, hysteresis_form):  # lags made 1000 samples at a time
         monkeypatch.setattr(module, "STREAM_BLOCK", 1000)
-    logs, _ = cases.build(cases.draw("effect", "bias_drift", 11))
+    logs, _ = case_build.build(cases.draw("effect", "bias_drift", 11))
     log = tmp_path / "run.csv"
     write_log(log, logs[0])
     earlier = tmp_path / "earlier.csv"  # as test_plan's: a log plan fits a gyro to

@@ -1,6 +1,6 @@
 """Hidden effects planted in simulated logs: does diagnose name them, and only them?
 
-Cases come from `fogsf.diagnose.cases` (ranges stated there): profile, table schedule,
+Cases come from `fogsf.diagnose.cases.planted` (ranges stated there): profile, table schedule,
 start, strength (3-20x the noise floor of the part the base model cannot absorb) and the
 simulator seed are drawn from a seeded generator; the sample here is fixed and small (the
 rates over many seeds are `make bench-diagnose`). A failure prints the case and its seed:
@@ -19,7 +19,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.diagnose import case_judge, cases, report, verdict
+from fogsf.diagnose import report, verdict
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import judge as case_judge
+from fogsf.diagnose.cases import planted as cases
 
 MASTER_SEED = 20261122
 PER_EFFECT = 3
@@ -32,7 +35,7 @@ def _seeds(tag: str, n: int) -> list[int]:
 
 def _run(kind: str, name: str, seed: int) -> tuple[cases.Case, case_judge.Outcome, dict]:
     case = cases.draw(kind, name, seed)
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
     out = case_judge.judge_report(case, truth, j)
     return case, out, j
@@ -91,7 +94,7 @@ def test_a_shupe_bias_on_population_gyros_is_named() -> None:
     bad = []
     for seed in (int(s) for s in rng.integers(1, 10_000, 4)):
         case = cases.draw_population("effect", "bias_shupe", "coil", seed)
-        logs, truth = cases.build(case)
+        logs, truth = case_build.build(case)
         j = report.to_json(verdict.diagnose(logs), {}, None)
         out = case_judge.judge_report(case, truth, j)
         where = f"[{case.describe()}] -> {out.reason}"

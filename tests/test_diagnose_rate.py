@@ -7,7 +7,9 @@ import copy
 
 import pytest
 
-from fogsf.diagnose import cases, driver
+from fogsf.diagnose import driver
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import planted as cases
 from fogsf.diagnose.verdict import diagnose
 
 
@@ -26,7 +28,7 @@ def test_ten_and_hundred_hz_give_the_same_diagnosis() -> None:
     fast.config.dt_s = case.config.dt_s / 10.0
     verdicts = []
     for c in (case, fast):
-        logs, _ = cases.build(c)
+        logs, _ = case_build.build(c)
         d = diagnose(logs)
         verdicts.append(d)
     slow_d, fast_d = verdicts

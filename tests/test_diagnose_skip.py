@@ -2,9 +2,9 @@
 a bias on the coil under a reversing table without chamber air (a log pair) is named
 `bias_drift` again.
 
-Cases from `fogsf.diagnose.cases` on development gyros of the population, drawn with a
+Cases from `fogsf.diagnose.cases.planted` on development gyros of the population, drawn with a
 seeded generator (gyro, profile, table, strength, simulator seed; ranges in
-`diagnose.case_kinds` and `diagnose.cases`). A failure prints the case and its seed:
+`diagnose.cases.kinds` and `diagnose.cases.planted`). A failure prints the case and its seed:
 `cases.draw_population(kind, name, variant, seed)` rebuilds it.
 """
 
@@ -13,7 +13,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.diagnose import case_judge, cases, catalogue, extend, report, verdict
+from fogsf.diagnose import extend, report, verdict
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import judge as case_judge
+from fogsf.diagnose.cases import planted as cases
+from fogsf.diagnose.effects import catalogue
 from fogsf.errors import UserError
 
 MASTER_SEED = 20261127
@@ -29,7 +33,7 @@ def shupe() -> tuple[cases.Case, verdict.Diagnosis]:
     """A Shupe bias (a coil form) diagnosed with bias_shupe as the only candidate: the
     extended model then holds a coil cause."""
     case = cases.draw_population("effect", "bias_shupe", "coil", _gyros(1, 1)[0])
-    logs, _ = cases.build(case)
+    logs, _ = case_build.build(case)
     return case, verdict.diagnose(logs, effects=["bias_shupe"])
 
 
@@ -64,7 +68,7 @@ def test_a_coil_cause_without_coil_nodes_is_skipped_in_the_simulation(
 def test_a_form_that_cannot_apply_is_skipped_not_an_error(
         monkeypatch: pytest.MonkeyPatch) -> None:
     case = cases.draw_population("null", "", "", _gyros(2, 1)[0])
-    logs, _ = cases.build(case)
+    logs, _ = case_build.build(case)
     form = catalogue.CATALOGUE["aging"]
 
     def column(ctx, b, g):  # type: ignore[no-untyped-def]
@@ -90,7 +94,7 @@ def test_a_coil_bias_on_a_reversing_table_without_chamber_air_is_bias_drift(seed
     chamber air. Named bias_drift (its slope within 30 %), nothing else, and the extended
     model simulates."""
     case = cases.draw_population("effect", "bias_drift", "coil_pair", seed)
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     assert len(logs) == 2 and all("chamber_c" not in log.extra for log in logs)
     d = verdict.diagnose(logs)
     cfgs, sim = extend.extended(d)

@@ -2,8 +2,8 @@
 is, not only when its variance is large; a correct model's residual does not trip it.
 
 The structure measures on series with a known answer, then planted cases on development
-gyros of the population drawn with a seeded generator (`diagnose.cases`, ranges in
-`diagnose.case_kinds`): a source mode hop (an SF step with hysteresis, out of the catalogue)
+gyros of the population drawn with a seeded generator (`diagnose.cases.planted`, ranges in
+`diagnose.cases.kinds`): a source mode hop (an SF step with hysteresis, out of the catalogue)
 made faint enough that its variance alone would not flag it, and nulls. A failure prints the
 case and its seed.
 """
@@ -13,7 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.diagnose import case_judge, cases, report, stats, verdict
+from fogsf.diagnose import report, stats, verdict
+from fogsf.diagnose.cases import build as case_build
+from fogsf.diagnose.cases import judge as case_judge
+from fogsf.diagnose.cases import planted as cases
 
 MASTER_SEED = 20261128
 
@@ -42,9 +45,9 @@ def _mode_hop(seed: int, visible: float) -> tuple[cases.Case, dict, dict]:
     floor: a held-out variance near 1 + visible^2 times the noise."""
     case = cases.draw_population("ooc", "mode_hop", "", seed)
     case.config.profile.cycles = 3
-    cases.build(case)
+    case_build.build(case)
     case.params["step_ppm"] *= visible / case.multiple_reached
-    logs, truth = cases.build(case)
+    logs, truth = case_build.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
     return case, truth, j
 
@@ -67,7 +70,7 @@ def test_a_faint_mode_hop_is_reported_as_unexplained_structure(seed: int) -> Non
 @pytest.mark.parametrize("seed", _gyros(2, 3))
 def test_a_null_is_not_flagged(seed: int) -> None:
     case = cases.draw_population("null", "", "", seed)
-    logs, _ = cases.build(case)
+    logs, _ = case_build.build(case)
     j = report.to_json(verdict.diagnose(logs), {}, None)
     assert j["cause"] is None and not j["unexplained"], \
         f"[{case.describe()}] -> {j['causes']}, structure {j['structure']}"

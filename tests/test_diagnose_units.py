@@ -166,9 +166,10 @@ def test_out_of_catalogue_numpy_term_is_unexplained() -> None:
 def test_housing_coupling_of_a_dtdt_term() -> None:
     """A coil layer lagging the housing by tau has dT/dt = (housing - T) / tau: the term
     S * dT_coil/dt (C/min) holds the housing with S * 60 * mean(1/tau); a coil node behind
-    another internal node holds it with nothing (cases.housing_coupling, the bench's
+    another internal node holds it with nothing (case_build.housing_coupling, the bench's
     truth, and catalogue.housing_coupling, the diagnosis's, agree on a two-layer coil)."""
-    from fogsf.diagnose import cases, catalogue
+    from fogsf.diagnose.cases import build as case_build
+    from fogsf.diagnose.effects import catalogue
     from fogsf.sim.config import NodeConfig, SimConfig
 
     rng = np.random.default_rng(20261123)
@@ -179,9 +180,9 @@ def test_housing_coupling_of_a_dtdt_term() -> None:
                          NodeConfig("board", "housing", 300.0, 0.0),
                          NodeConfig("coil_inner", "housing", tau, 0.0),
                          NodeConfig("coil_outer", "housing", 2.0 * tau, 0.0)]
-    assert cases.housing_coupling(cfg, s) == pytest.approx(
+    assert case_build.housing_coupling(cfg, s) == pytest.approx(
         catalogue.housing_coupling(s, (tau, 2.0)), rel=1e-3), f"S={s}, tau={tau}"
     cfg.thermal.nodes[3] = NodeConfig("coil_outer", "coil_inner", 2.0 * tau, 0.0)
-    assert cases.housing_coupling(cfg, s) == pytest.approx(s * 60.0 / tau / 2.0)
+    assert case_build.housing_coupling(cfg, s) == pytest.approx(s * 60.0 / tau / 2.0)
     cfg.thermal.nodes[2] = NodeConfig("coil_inner", "board", tau, 0.0)
-    assert cases.housing_coupling(cfg, s) == 0.0
+    assert case_build.housing_coupling(cfg, s) == 0.0

@@ -1,12 +1,13 @@
-"""Whole-series statistics a block at a time (logs/exact_stats.py, logs/columns.py): the
-bits numpy gives over the whole array, at every length and block size."""
+"""Whole-series statistics a block at a time (logs/measure/exact_stats.py, logs/read/columns.py):
+the bits numpy gives over the whole array, at every length and block size."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from fogsf.logs import columns, exact_stats
+from fogsf.logs.measure import exact_stats
+from fogsf.logs.read import columns
 
 
 def _series(kind: int, n: int, rng: np.random.Generator) -> np.ndarray:

@@ -12,11 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.fleet import prior as fp
-from fogsf.fleet.prior_function import function_fit
-from fogsf.fleet.prior_map import map_fit
-from fogsf.fleet.prior_train import law_head
-from fogsf.fleet.unit_fit import (
+from fogsf.prior import design_prior as fp
+from fogsf.prior.map_estimate import map_fit
+from fogsf.prior.response_prior import function_fit
+from fogsf.prior.unit_fit import (
     Play,
     StepSeries,
     all_steps,
@@ -24,6 +23,7 @@ from fogsf.fleet.unit_fit import (
     n_coef,
     play_index,
 )
+from fogsf.training.with_prior import law_head
 from tests.test_fleet_prior import STEP_S, _design, _program
 
 SEED = 3804
@@ -136,8 +136,8 @@ def test_a_line_without_hysteresis_gets_no_play() -> None:
 
 def test_train_says_the_design_has_a_play(hysteretic: dict, prior: fp.DesignPrior) -> None:
     """What `train --prior` prints names the play the unit's model runs."""
-    from fogsf.fleet.prior_map import DISAGREE_LEVEL
-    from fogsf.fleet.prior_train import prior_lines
+    from fogsf.prior.map_estimate import DISAGREE_LEVEL
+    from fogsf.training.with_prior import prior_lines
 
     s, _ = hysteretic["units"]["u2"]
     mf = map_fit(s, prior)
@@ -157,11 +157,11 @@ def test_the_front_end_runs_the_fleet_play() -> None:
     """The exported model's front end (float32, `reference.frontend`) computes the play's
     column `Play.column` fits the law with: the play of the law's node at its time constant,
     primed at the log's first step, over 50 C."""
-    from fogsf.fleet.unit_fit import step_series
     from fogsf.models import reference
     from fogsf.models.features import front_end_for, physical_normaliser
-    from fogsf.models.hysteresis import spec_with_play
-    from fogsf.models.physics_nodes import node_spec
+    from fogsf.models.structures.hysteresis import spec_with_play
+    from fogsf.models.structures.physics_nodes import node_spec
+    from fogsf.prior.unit_fit import step_series
     from fogsf.sim import simulate
     from tests.test_hysteresis_term import _partial_run
 

@@ -14,10 +14,10 @@ import json
 import numpy as np
 import pytest
 
-from fogsf.fleet import prior as fp
-from fogsf.fleet.prior_function import FunctionFit, function_fit
-from fogsf.fleet.prior_map import NOISE_SCALE, check_chi2, map_fit
-from fogsf.fleet.unit_fit import StepSeries, all_steps, design_matrix, fit_unit, n_coef
+from fogsf.prior import design_prior as fp
+from fogsf.prior.map_estimate import NOISE_SCALE, check_chi2, map_fit
+from fogsf.prior.response_prior import FunctionFit, function_fit
+from fogsf.prior.unit_fit import StepSeries, all_steps, design_matrix, fit_unit, n_coef
 
 STEP_S = 5.0
 SEED = 3802
@@ -102,7 +102,7 @@ def test_structure_misfit_says_when_the_structure_misses(line: dict,
                                                          prior: fp.DesignPrior) -> None:
     """The structure leaves noise only on a line of its own form; on a line whose units all
     carry a slow form it cannot express (a 20-40 min sine, 1-2 x the noise) it says so."""
-    from fogsf.fleet.prior_train import STRUCTURE_MISS, prior_lines
+    from fogsf.training.with_prior import STRUCTURE_MISS, prior_lines
 
     assert prior.structure_misfit < 1.1, f"seed {SEED}: {prior.structure_misfit:.2f}"
     rng = np.random.default_rng(SEED + 6)

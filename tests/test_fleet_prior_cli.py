@@ -11,7 +11,7 @@ import pytest
 
 from fogsf.cli.main import main
 from fogsf.fleet.store import open_store
-from fogsf.logs.logio import write_log
+from fogsf.logs.writer import write_log
 from fogsf.sim.fleet_units import unit_for
 from tests.fleet_units import fit_unit, unit_log
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.fleet import prior as fp
-from fogsf.fleet.prior_plan import board_steps, shortest
+from fogsf.plan.prior_program import board_steps, shortest
 from fogsf.plan.programs import Limits
+from fogsf.prior import design_prior as fp
 from tests.test_fleet_prior import SEED, _design, _program, _unit
 
 

@@ -8,7 +8,7 @@ from kernel_helpers import kernel_for
 
 from fogsf.models import reference
 from fogsf.models.features import front_end_for, physical_normaliser
-from fogsf.models.hysteresis import (
+from fogsf.models.structures.hysteresis import (
     HystTerm,
     _sse_batch,
     choose_term,
@@ -17,15 +17,15 @@ from fogsf.models.hysteresis import (
     spec_with_play,
     term_column,
 )
-from fogsf.models.lag_bank import bank_penalty, bank_spec
-from fogsf.models.node_fit import discrete_lag, lag_alpha
+from fogsf.models.structures.lag_bank import bank_penalty, bank_spec
+from fogsf.models.structures.node_fit import discrete_lag, lag_alpha
 from fogsf.sim import simulate
 from fogsf.sim.config import EffectConfig
 from fogsf.sim.effects import play_operator
 from fogsf.sim.partial_cycles import PartialCycle
 from fogsf.sim.population import gyro_for_seed, run_on_gyro
-from fogsf.training.hysteresis_choice import decide, has_reversal
 from fogsf.training.options import TrainOptions
+from fogsf.training.structure.hysteresis import decide, has_reversal
 from fogsf.training.train import run_training
 
 STEP_S = 5.0
@@ -182,15 +182,17 @@ def test_the_check_is_the_default(tmp_path) -> None:
 
 
 def test_long_logs_are_checked_at_the_choice_step(monkeypatch) -> None:
-    from fogsf.training import hysteresis_choice, sf_fit, structure_choice
+    from fogsf.training.sf import fit as sf_fit
+    from fogsf.training.structure import heldout as structure_heldout
+    from fogsf.training.structure import hysteresis as hysteresis_choice
 
     seen: list[float] = []
-    monkeypatch.setattr(structure_choice, "MAX_CHOICE_STEPS", 100)
+    monkeypatch.setattr(structure_heldout, "MAX_CHOICE_STEPS", 100)
     monkeypatch.setattr(hysteresis_choice, "decide",
                         lambda logs, base, step_s, lat, mode: seen.append(step_s) or {})
     log = simulate(_partial_run(1)).log
     sf_fit.hysteresis_choice(TrainOptions(model="lag-lstm"), [log], "bank")
-    want = structure_choice.choice_step_s([log], TrainOptions(model="lag-lstm").model_step_s)
+    want = structure_heldout.choice_step_s([log], TrainOptions(model="lag-lstm").model_step_s)
     assert want > 5.0 and seen == [want]
 
 
@@ -199,7 +201,7 @@ def test_cross_terms_are_left_out_beside_a_play_and_a_bias_head(tmp_path, monkey
     keeps its diagonal quadratic (three such models with the full one would not fit 24 KB),
     and `fogsf train` says so."""
     from fogsf.cli.train import format_metrics
-    from fogsf.training import sf_fit
+    from fogsf.training.sf import fit as sf_fit
 
     monkeypatch.setattr(sf_fit, "measures_bias", lambda opts, logs: True)
     train = simulate(_partial_run(1)).log

@@ -16,6 +16,12 @@ from fogsf.bindings.kernel import trace_steps
 from fogsf.export.onnx_step import OrtStepper, build_step_onnx, state_names
 from fogsf.models import f32, reference, samples
 from fogsf.models import stream as st
+from fogsf.models.stream_flags import (
+    FLAG_GYRO_INVALID,
+    FLAG_TEMP_CLAMPED,
+    FLAG_TEMP_INVALID,
+    FLAG_TEMP_STUCK,
+)
 from fogsf.models.stream_forms import diagonal_features
 
 F32 = np.float32
@@ -187,13 +193,13 @@ def test_bad_inputs_give_finite_outputs_and_the_right_flags(seed, kroot) -> None
     gyro[bad_g] = rng.choice([np.nan, np.inf, -np.inf, 1.7e308], 10)
     corrected, sf, flags = kernel.stream(temp, gyro)
     assert np.all(np.isfinite(corrected)) and np.all(np.isfinite(sf)), f"seed {seed}"
-    assert np.all(flags[nan_t] & st.FLAG_TEMP_INVALID), f"seed {seed}"
-    assert np.all(flags[inf_t] & st.FLAG_TEMP_INVALID), f"seed {seed}"
-    assert np.all(flags[np.concatenate([hot, cold])] & st.FLAG_TEMP_CLAMPED), f"seed {seed}"
-    stuck_flagged = np.flatnonzero(flags & st.FLAG_TEMP_STUCK)
+    assert np.all(flags[nan_t] & FLAG_TEMP_INVALID), f"seed {seed}"
+    assert np.all(flags[inf_t] & FLAG_TEMP_INVALID), f"seed {seed}"
+    assert np.all(flags[np.concatenate([hot, cold])] & FLAG_TEMP_CLAMPED), f"seed {seed}"
+    stuck_flagged = np.flatnonzero(flags & FLAG_TEMP_STUCK)
     assert stuck_flagged.tolist() == list(range(s0 + stuck, s0 + stuck + 10)), f"seed {seed}"
     huge_ok = gyro[bad_g] == 1.7e308  # finite but the correction may overflow
-    assert np.all(flags[bad_g[~huge_ok]] & st.FLAG_GYRO_INVALID), f"seed {seed}"
+    assert np.all(flags[bad_g[~huge_ok]] & FLAG_GYRO_INVALID), f"seed {seed}"
     assert np.all(corrected[bad_g[~huge_ok]] == 0.0), f"seed {seed}"
     good = np.setdiff1d(np.arange(n), np.concatenate([idx[:30], np.arange(s0, n)]))
     assert not np.any(flags[good]), f"seed {seed}: flags on good samples"

@@ -16,6 +16,7 @@ from fogsf.errors import UserError
 from fogsf.export.header import render_model
 from fogsf.models import reference, samples
 from fogsf.models import stream as st
+from fogsf.models.stream_format import CONFIG_FILE, PLAY_SOURCE_KEY, PLAY_WIDTH_KEY
 from fogsf.models.stream_forms import diagonal_features, pure_play_rows
 
 # (K filters, F features, D decimation, seed, plays ((source weights, width_c), ...), poly
@@ -71,9 +72,9 @@ def test_play_column_is_the_backlash_of_its_source() -> None:
 def test_plays_enter_config_and_id_only_when_present(tmp_path) -> None:
     plain = samples.random_model(2, 3, 1, 8, 10, seed=5)
     played = model_of(PLAY_SIZES[1])
-    assert st.PLAY_WIDTH_KEY not in plain.config()
-    assert played.config()[st.PLAY_WIDTH_KEY] == [3.5, 9.25]
-    assert played.config()[st.PLAY_SOURCE_KEY] == [[0.0, 0.0, 1.0], [0.3, 0.45, 0.25]]
+    assert PLAY_WIDTH_KEY not in plain.config()
+    assert played.config()[PLAY_WIDTH_KEY] == [3.5, 9.25]
+    assert played.config()[PLAY_SOURCE_KEY] == [[0.0, 0.0, 1.0], [0.3, 0.45, 0.25]]
     played.save(tmp_path / "m")
     back = st.StreamModel.load(tmp_path / "m")
     assert back.model_id == played.model_id and back.play_source_w == played.play_source_w
@@ -92,9 +93,9 @@ def test_plays_enter_config_and_id_only_when_present(tmp_path) -> None:
 def test_bad_plays_are_refused(tmp_path, bad) -> None:
     model = samples.random_model(2, 3, 1, 8, 10, seed=5)
     model.save(tmp_path / "m")
-    cfg = json.loads((tmp_path / "m" / st.CONFIG_FILE).read_text())
+    cfg = json.loads((tmp_path / "m" / CONFIG_FILE).read_text())
     cfg.update(bad)
-    (tmp_path / "m" / st.CONFIG_FILE).write_text(json.dumps(cfg))
+    (tmp_path / "m" / CONFIG_FILE).write_text(json.dumps(cfg))
     with pytest.raises(UserError):
         st.StreamModel.load(tmp_path / "m")
 

@@ -14,7 +14,7 @@ from fogsf.models.front_end import FrontEnd, filter_alpha
 
 features = pytest.importorskip("fogsf.models.features")
 nets = pytest.importorskip("fogsf.models.nets")
-fit = pytest.importorskip("fogsf.training.fit")
+fit = pytest.importorskip("fogsf.training.net.loops")
 
 
 @pytest.fixture(scope="session")

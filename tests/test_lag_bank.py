@@ -9,9 +9,9 @@ import pytest
 from ramp_logs import short_ramp
 
 from benchmarks.population import PROTOCOLS, run_profile, summarise
-from fogsf.models.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, bank_spec, fit_bank
-from fogsf.models.least_squares import TAU_GRID_S
 from fogsf.models.stream import StreamModel
+from fogsf.models.structures.lag_bank import BANK_LSTM_INPUTS, CURVED_MAX_TAU_S, bank_spec, fit_bank
+from fogsf.models.structures.least_squares import TAU_GRID_S
 from fogsf.sim.profiles import breakpoints
 from fogsf.training.options import TrainOptions
 from fogsf.training.train import run_training
@@ -86,7 +86,7 @@ def test_lstm_inputs_option(two_rates_gyro, tmp_path: Path) -> None:
     """--lstm-inputs N narrows the bank's LSTM to z[0:N] (N = F: every feature); outside
     1..F, or for another structure, it is refused."""
     from fogsf.errors import UserError
-    from fogsf.training.sf_fit import fit_sf
+    from fogsf.training.sf.fit import fit_sf
 
     logs = [two_rates_gyro["slow"], two_rates_gyro["fast"]]
     f = 1 + len(TAU_GRID_S)
@@ -156,7 +156,7 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
     import json
 
     from fogsf.cli.main import main
-    from fogsf.logs.logio import write_log
+    from fogsf.logs.writer import write_log
 
     paths = {}
     for k, lg in two_rates_gyro.items():
@@ -221,7 +221,7 @@ def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Pat
 def test_cross_terms_are_fitted_and_predicted_as_the_firmware_quadratic() -> None:
     """With `cross`, the bank's quadratic is the upper-triangular [F, F] of z^T quad z over the
     curved features: a planted cross term is recovered and the prediction is the design's."""
-    from fogsf.models.lag_bank import bank_design, n_curved
+    from fogsf.models.structures.lag_bank import bank_design, n_curved
 
     rng = np.random.default_rng(3)
     k, c = 12, n_curved()

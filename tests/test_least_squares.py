@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fogsf.models.features import front_end_for
-from fogsf.models.least_squares import (
+from fogsf.models.structures.least_squares import (
     MAX_NODE_SLOPE_PPM_PER_C,
     node_candidates,
     profile_effective_node,
@@ -28,7 +28,7 @@ def test_profile_prefers_a_plausible_candidate() -> None:
     stays under the bound, although the grid holds implausible ones."""
     import numpy as np
 
-    from fogsf.models.least_squares import grid_data
+    from fogsf.models.structures.least_squares import grid_data
 
     cfg = paper(1.0, seed=4)
     cfg.profile.start_c, cfg.profile.stop_c = 0.0, 30.0

@@ -12,8 +12,8 @@ import pytest
 from fogsf.cli.main import main
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import LogError
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import read_log
+from fogsf.logs.read.dialect import Dialect
 
 SHORT = ["--scenario", "paper", "--start-c", "15", "--stop-c", "25", "--ramp-rate", "1",
          "--seed", "3"]

@@ -1,4 +1,4 @@
-"""A log read onto disk (logs/stream_read.py) is the log `read_log` gives, to the bit, and a
+"""A log read onto disk (logs/read/stream_read.py) is the log `read_log` gives, to the bit, and a
 broken file is refused with the same line, whatever the block size the file is read in."""
 
 from __future__ import annotations
@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 from test_arrow_reader import BAD, GOOD, SCANNED, _both, _quoted, rows, text
 
-from fogsf.logs import arrow_csv, columns, parquet_log
 from fogsf.logs.chamber_log import ChamberLog, LogError
-from fogsf.logs.dialect import Dialect
-from fogsf.logs.logio import read_log, write_log
-from fogsf.logs.stream_read import read_log_on_disk
+from fogsf.logs.logio import read_log
+from fogsf.logs.read import arrow_csv, columns, parquet_log
+from fogsf.logs.read.dialect import Dialect
+from fogsf.logs.read.stream_read import read_log_on_disk
+from fogsf.logs.writer import write_log
 
 
 def _read(f) -> ChamberLog | str:  # noqa: ANN001
@@ -107,7 +108,7 @@ def test_parquet_on_disk_as_in_memory(tmp_path: Path, small_blocks: int) -> None
 
 
 def test_a_log_read_in_blocks_then_held_is_read_logs(tmp_path: Path) -> None:
-    from fogsf.logs.stream_read import in_memory
+    from fogsf.logs.read.stream_read import in_memory
 
     p = tmp_path / "log.csv"
     p.write_text(text(rows(300)).replace("time_s,", "time_s,").replace(",10,", ",10,", 1))

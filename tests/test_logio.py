@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from fogsf.logs.chamber_log import ChamberLog, LogError
-from fogsf.logs.logio import parse_log, read_log, write_log
+from fogsf.logs.logio import parse_log, read_log
+from fogsf.logs.writer import write_log
 
 HEADER = "time_s,temp_c,table_rate_dps,gyro_dps"
 

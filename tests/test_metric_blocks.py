@@ -1,4 +1,4 @@
-"""Per-sample work in blocks (plateaus.BLOCK_SAMPLES, logio.VALIDATE_BLOCK): the same bits as
+"""Per-sample work in blocks (plateaus.BLOCK_SAMPLES, validation.VALIDATE_BLOCK): the same bits as
 one block over the whole log, and the same refusals, on a log with +/- pairs."""
 
 from __future__ import annotations
@@ -8,9 +8,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from fogsf.logs import logio, metrics, pairs, plateaus
+from fogsf.logs import validation
 from fogsf.logs.chamber_log import ChamberLog, LogError
 from fogsf.logs.logio import parse_log
+from fogsf.logs.measure import metrics, pairs, plateaus, windows
 from fogsf.sim.config import TableConfig
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import paper
@@ -27,13 +28,13 @@ def reversals() -> ChamberLog:
 
 def figures(log: ChamberLog) -> dict:
     corr = np.linspace(-50.0, 50.0, len(log)).astype(np.float32)
-    w = metrics.sf_windows(log, 100.0)
+    w = windows.sf_windows(log, 100.0)
     pp = pairs.find_pairs(log)
     assert pp is not None
     return {
         "plateaus": np.asarray(plateaus.plateaus(log.table_rate_dps, log.measures)),
         "bias": pairs.bias_track(log),
-        "signal": metrics.sf_signal(log, correction_ppm=corr),
+        "signal": windows.sf_signal(log, correction_ppm=corr),
         **{f"w_{k}": v for k, v in dataclasses.asdict(w).items()},
         "pairs_sf": pp.sf_ratio,
         "pairs_bias": pp.bias_dps,
@@ -46,7 +47,7 @@ def test_metrics_in_blocks_are_the_same_bits(monkeypatch: pytest.MonkeyPatch) ->
     log = reversals()
     whole = figures(log)
     for block in (1, 997, 4096):
-        for module in (metrics, pairs, plateaus):  # each reads its own binding
+        for module in (windows, pairs, plateaus):  # each reads its own binding
             monkeypatch.setattr(module, "BLOCK_SAMPLES", block)
         got = figures(log)
         for k, v in whole.items():
@@ -55,7 +56,7 @@ def test_metrics_in_blocks_are_the_same_bits(monkeypatch: pytest.MonkeyPatch) ->
 
 @pytest.mark.parametrize("block", [1, 3, 1 << 20])
 def test_validation_in_blocks_names_the_first_broken_step(block: int, monkeypatch) -> None:
-    monkeypatch.setattr(logio, "VALIDATE_BLOCK", block)
+    monkeypatch.setattr(validation, "VALIDATE_BLOCK", block)
     head = "time_s,temp_c,table_rate_dps,gyro_dps"
     t = [0.1 * i for i in range(30)]
     t[20] = t[20] + 0.05  # jitter at line 22 (the step from row 20 to 21), then ...

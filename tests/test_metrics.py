@@ -8,16 +8,11 @@ import pytest
 
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.metrics import (
-    log_metrics,
-    metrics_block,
-    reference_sf,
-    reference_temp_c,
-    sf_error_ppm,
-    sf_windows,
-)
-from fogsf.logs.pairs import plateau_pairs
-from fogsf.logs.plateaus import plateaus
+from fogsf.logs.measure.metrics import log_metrics, metrics_block, sf_error_ppm
+from fogsf.logs.measure.pairs import plateau_pairs
+from fogsf.logs.measure.plateaus import plateaus
+from fogsf.logs.measure.sf_reference import reference_sf, reference_temp_c
+from fogsf.logs.measure.windows import sf_windows
 
 
 def ramp_log(n: int, sf_ppm: np.ndarray, rate: np.ndarray | float = 10.0, noise_dps: float = 0.0,

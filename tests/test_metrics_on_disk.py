@@ -1,4 +1,4 @@
-"""inspect's and replay's figures of a log on disk (logs/stream_read.py) are those of the log
+"""inspect's and replay's figures of a log on disk (logs/read/stream_read.py) are those of the log
 in memory, bit for bit: plateaus, +/- pairs (a long plateau summed in pieces, a stall), the
 SF windows before and after a correction, the bias windows (pairs, stationary), read in
 small blocks so that every border falls inside a plateau or a window."""
@@ -14,12 +14,14 @@ from test_metric_blocks import reversals
 
 from fogsf.cli.inspect import summary
 from fogsf.cli.main import main
-from fogsf.logs import bias as bias_mod
-from fogsf.logs import columns, metrics
-from fogsf.logs.bias import before_after, bias_windows
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.logio import read_log, write_log
-from fogsf.logs.stream_read import read_log_on_disk
+from fogsf.logs.logio import read_log
+from fogsf.logs.measure import bias as bias_mod
+from fogsf.logs.measure import metrics, windows
+from fogsf.logs.measure.bias import before_after, bias_windows
+from fogsf.logs.read import columns
+from fogsf.logs.read.stream_read import read_log_on_disk
+from fogsf.logs.writer import write_log
 
 
 def _stalled(log: ChamberLog) -> ChamberLog:
@@ -75,7 +77,7 @@ def test_inspect_on_disk_is_the_same_bits(name: str, tmp_path: Path, small: None
     if name != "stationary":
         _same(metrics.log_metrics(disk, 100.0, correction_ppm=lazy),
               metrics.log_metrics(whole, 100.0, correction_ppm=corr))
-        sw, sd = metrics.sf_windows(whole, 100.0), metrics.sf_windows(disk, 100.0)
+        sw, sd = windows.sf_windows(whole, 100.0), windows.sf_windows(disk, 100.0)
         for k in ("t_s", "temp_c", "sf_ratio", "noise_ppm", "start", "stop"):
             assert np.array_equal(getattr(sw, k), getattr(sd, k), equal_nan=True), k
     spill.close()
@@ -87,7 +89,7 @@ def test_replay_on_disk_is_the_replay_in_memory(tmp_path: Path, monkeypatch: pyt
     after, the bias of a bias head over the pairs) of a log read onto disk are those of
     the log read into memory."""
     import fogsf.cli.replay as replay
-    from fogsf.logs import stream_read
+    from fogsf.logs.read import stream_read
     from fogsf.models import samples
 
     monkeypatch.setenv("FOGSF_BUILD_DIR", str(tmp_path / "kernels"))

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.logs.bias import pair_windows, second_difference_ratio
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.pairs import find_pairs
+from fogsf.logs.measure.bias import pair_windows, second_difference_ratio
+from fogsf.logs.measure.pairs import find_pairs
 
 
 def _reversals(seed: int, n_plateaus: int = 400, per: int = 600) -> ChamberLog:

@@ -13,8 +13,9 @@ import pytest
 
 from fogsf.cli.main import main
 from fogsf.logs.chamber_log import ChamberLog, LogError
-from fogsf.logs.dialect import Dialect
-from fogsf.logs.logio import log_axes_of, read_log, write_log
+from fogsf.logs.logio import log_axes_of, read_log
+from fogsf.logs.read.dialect import Dialect
+from fogsf.logs.writer import write_log
 from fogsf.models import samples
 
 

@@ -11,28 +11,30 @@ import pytest
 from ramp_logs import short_ramp
 
 from fogsf.models import reference
-from fogsf.models.node_fit import discrete_lag, lag_alpha, ridge_fit
-from fogsf.models.physics_nodes import (
+from fogsf.models.stream import StreamModel
+from fogsf.models.structures.node_fit import discrete_lag, lag_alpha, ridge_fit
+from fogsf.models.structures.physics_nodes import (
     NodeTemperatures,
     fit_coefficients,
     identify_taus,
     node_design,
 )
-from fogsf.models.stream import StreamModel
-from fogsf.training.fitted import per_sample_prediction
+from fogsf.training.fitted_model import per_sample_prediction
 from fogsf.training.options import TrainOptions
-from fogsf.training.structure_choice import (
+from fogsf.training.structure.choice import (
     CANDIDATES,
     EVIDENCE_FACTOR,
-    MAX_CHOICE_STEPS,
-    MAX_PART_FOLDS,
     MULTI_SEGMENT_ORDER,
     PHYSICS,
+    choice_message,
+    choose,
+)
+from fogsf.training.structure.heldout import (
+    MAX_CHOICE_STEPS,
+    MAX_PART_FOLDS,
     SPLIT_PARTS,
     StepData,
-    choice_message,
     choice_step_s,
-    choose,
     heldout_score,
     part_folds,
 )
@@ -245,7 +247,7 @@ def test_several_ramps_keep_the_bank_unless_physics_is_evident(
         chosen: str) -> None:
     """The several-ramp rule on given held-out scores: the bank unless the best physics
     structure scores EVIDENCE_FACTOR x better, then the smallest within the tolerance."""
-    import fogsf.training.structure_choice as sc
+    import fogsf.training.structure.choice as sc
 
     scores = {"bank": bank, **dict(zip(PHYSICS, phys, strict=True))}
     monkeypatch.setattr(sc, "heldout_folds", lambda name, sd, **kw: [[scores[name] ** 2]])
@@ -258,11 +260,12 @@ def test_several_ramps_keep_the_bank_unless_physics_is_evident(
 def test_choose_scores_long_logs_at_the_coarser_step(monkeypatch: pytest.MonkeyPatch) -> None:
     """`choose` builds its steps at `choice_step_s` (here forced coarse by a small
     MAX_CHOICE_STEPS) and still chooses among every candidate."""
-    import fogsf.training.structure_choice as sc
+    import fogsf.training.structure.choice as sc
+    import fogsf.training.structure.heldout as sh
 
     logs = [short_ramp(0.6, 51, gyro_seed=4), short_ramp(2.4, 52, gyro_seed=4)]
     seen: list[float] = []
-    real = sc.step_data
+    real = sh.step_data
 
     def spy(lg, step_s=5.0, latitude_deg=None):
         seen.append(step_s)
@@ -271,7 +274,7 @@ def test_choose_scores_long_logs_at_the_coarser_step(monkeypatch: pytest.MonkeyP
     monkeypatch.setattr(sc, "step_data", spy)
     choose(logs)
     assert seen == [5.0]
-    monkeypatch.setattr(sc, "MAX_CHOICE_STEPS", 200)
+    monkeypatch.setattr(sh, "MAX_CHOICE_STEPS", 200)
     c = choose(logs)
     total = sum(lg.duration_s for lg in logs)
     assert seen[-1] > 5.0 and seen[-1] % 5.0 == 0 and total / seen[-1] <= 200

@@ -15,17 +15,11 @@ import numpy as np
 import pytest
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.logio import write_log
-from fogsf.logs.metrics import (
-    log_metrics,
-    sf_spans,
-    sf_windows,
-    start_note,
-    step_means,
-    step_windows,
-    windows_rms,
-)
-from fogsf.logs.pairs import find_pairs, plateau_pairs, rate_steps
+from fogsf.logs.measure.metrics import log_metrics, start_note
+from fogsf.logs.measure.model_steps import step_means, step_windows, windows_rms
+from fogsf.logs.measure.pairs import find_pairs, plateau_pairs, rate_steps
+from fogsf.logs.measure.windows import sf_spans, sf_windows
+from fogsf.logs.writer import write_log
 from fogsf.models.features import step_targets
 from fogsf.sim.config import TableConfig
 from fogsf.sim.gyro import SimResult, simulate

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fogsf.cli.main import main
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.sim import SimConfig, simulate
 from fogsf.sim import population as pop
 from fogsf.sim.config import SF_FACTORS, validate

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.metrics import log_metrics, sf_windows
+from fogsf.logs.measure.metrics import log_metrics
+from fogsf.logs.measure.windows import sf_windows
 from fogsf.sim.config import TableConfig
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import paper

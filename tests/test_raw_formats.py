@@ -1,4 +1,4 @@
-"""The field's formats (logs/field_formats.py; `pip install fogsf[rigs]`): a small file of
+"""The field's formats (logs/read/field_formats.py; `pip install fogsf[rigs]`): a small file of
 each written with its own library (a minimal writer for ULog, which pyulog only reads),
 read through a column map to the numbers of the same run's plain CSV. Each test skips, and
 says which package is missing, when the extra is not installed."""
@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 from fogsf.cli.main import main
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import read_log
-from fogsf.sim import rigs
+from fogsf.logs.read.dialect import Dialect
+from fogsf.sim.rigs import chambers, rig_logs
+from fogsf.sim.rigs import protocols as rigs
 
 SEED = 7_0039
 EPOCH_NS = 1_772_612_100 * 10**9
@@ -24,7 +25,7 @@ EPOCH_NS = 1_772_612_100 * 10**9
 def run() -> rigs.RigRun:
     rng = np.random.default_rng(SEED)
     gyro = int(rng.integers(20000, 30000))
-    p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(15.0, 25.0, 4.0, 4.0,
+    p = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.loop(15.0, 25.0, 4.0, 4.0,
                                                               soak_s=60.0), rate_hz=5.0)
     return rigs.run_rig(p, gyro, int(rng.integers(0, 1000)))
 
@@ -108,7 +109,7 @@ def _write_ros(path: Path, run: rigs.RigRun, ros1: bool, mcap: bool = False) -> 
             m = T["sensor_msgs/msg/Imu"](
                 header=header(i), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0),
                 orientation_covariance=cov, angular_velocity=Vec(
-                    x=0.0, y=0.0, z=float(ax.gyro_dps[i] / rigs.DEG_PER_RAD)),
+                    x=0.0, y=0.0, z=float(ax.gyro_dps[i] / rig_logs.DEG_PER_RAD)),
                 angular_velocity_covariance=cov,
                 linear_acceleration=Vec(x=0.0, y=0.0, z=9.81),
                 linear_acceleration_covariance=cov)
@@ -168,7 +169,7 @@ def test_px4_ulog(run, tmp_path: Path) -> None:
     _ulog(path, {
         "sensor_gyro": ([("uint64_t", "timestamp"), ("float", "x"), ("float", "y"),
                          ("double", "z"), ("float", "temperature")],
-                        np.column_stack([us, 0 * us, 0 * us, ax.gyro_dps / rigs.DEG_PER_RAD,
+                        np.column_stack([us, 0 * us, 0 * us, ax.gyro_dps / rig_logs.DEG_PER_RAD,
                                          ax.temp_c])),
         "table_command": ([("uint64_t", "timestamp"), ("double", "rate_dps")],
                           np.column_stack([us[change], run.command_dps[change]]))})
@@ -200,7 +201,7 @@ def test_tdms(run, tmp_path: Path, capsys) -> None:
         w.write_segment([ChannelObject("rig", "Time", t),
                          ChannelObject("rig", "Board T", ax.temp_c),
                          ChannelObject("rig", "Table (deg/s)", run.command_dps),
-                         ChannelObject("rig", "Gyro (rad/s)", ax.gyro_dps / rigs.DEG_PER_RAD)])
+                         ChannelObject("rig", "Gyro (rad/s)", ax.gyro_dps / rig_logs.DEG_PER_RAD)])
     cols = ("time_s=Time,temp_c=Board T,table_rate_dps=Table (deg/s),"
             "gyro_dps=`Gyro (rad/s)` * 57.29577951308232,earth_rate_dps=0.00234")
     lg = read_log(path, Dialect(columns=Dialect.parse_columns(cols)))

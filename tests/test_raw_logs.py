@@ -1,7 +1,7 @@
 """Raw logger output (docs/logs.md, "Raw logger output"): text columns, ISO-8601 time,
 unwrap(), exact duplicate rows, units refused (rad/s vs deg/s, Kelvin, Fahrenheit), and
 several loggers joined onto the gyro's clock, each written the way loggers write them
-(sim/rig_logs.py `write_loggers`, `write_plain`)."""
+(sim/rigs/raw_loggers.py `write_loggers`, sim/rigs/rig_logs.py `write_plain`)."""
 
 from __future__ import annotations
 
@@ -14,12 +14,13 @@ import pytest
 from fogsf.cli.main import main
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import LogError
-from fogsf.logs.dialect import Dialect
-from fogsf.logs.expressions import parse_expression
 from fogsf.logs.logio import read_log
-from fogsf.logs.metrics import reference_sf_of_logs
-from fogsf.logs.stream_read import in_memory, read_log_on_disk
-from fogsf.sim import rig_logs, rigs
+from fogsf.logs.mapping.expressions import parse_expression
+from fogsf.logs.measure.sf_reference import reference_sf_of_logs
+from fogsf.logs.read.dialect import Dialect
+from fogsf.logs.read.stream_read import in_memory, read_log_on_disk
+from fogsf.sim.rigs import chambers, raw_loggers, rig_logs
+from fogsf.sim.rigs import protocols as rigs
 
 SEED = 20260304
 
@@ -27,7 +28,7 @@ SEED = 20260304
 def short_run(gyro_seed: int, seed: int, rate_hz: float = 10.0, lo: float = 5.0,
               hi: float = 35.0) -> rigs.RigRun:
     """+/-100 deg/s reversals, 60 s plateaus, over a loop lo -> hi -> lo at 3 C/min."""
-    p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(lo, hi, 3.0, 3.0, soak_s=120.0),
+    p = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.loop(lo, hi, 3.0, 3.0, soak_s=120.0),
                                rate_hz=rate_hz)
     return rigs.run_rig(p, gyro_seed, seed)
 
@@ -87,7 +88,7 @@ def test_iso_time_reads_as_epoch_seconds(run, tmp_path: Path) -> None:
     plain = rig_logs.write_plain(tmp_path / "a" / "plain.csv", run, gyro_unit="deg/s").path
     a = read_log(plain)
     lines = plain.read_text().splitlines()
-    stamps = rig_logs.iso_stamps(a.time_s)
+    stamps = raw_loggers.iso_stamps(a.time_s)
     iso = tmp_path / "b" / "iso.csv"
     iso.parent.mkdir()
     iso.write_text("\n".join(["wall," + lines[0].split(",", 1)[1]]
@@ -125,7 +126,7 @@ def test_loggers_joined_on_the_gyros_clock(tmp_path: Path, capsys) -> None:
     gyro, seed = int(rng.integers(20000, 30000)), int(rng.integers(0, 1000))
     dropout = float(rng.uniform(20.0, 40.0))
     r = short_run(gyro, seed, rate_hz=20.0)
-    rl = rig_logs.write_loggers(tmp_path / "imu.csv", r, seed=seed, dropout_s=dropout)
+    rl = raw_loggers.write_loggers(tmp_path / "imu.csv", r, seed=seed, dropout_s=dropout)
     truth = rl.truth[""]
     lg = read_log(rl.path)
     msg = f"gyro {gyro} seed {seed} dropout {dropout:.1f}"
@@ -164,7 +165,7 @@ def read_log_times(path: Path) -> np.ndarray:
 
 def test_a_missing_join_file_is_refused(tmp_path: Path, capsys) -> None:
     r = short_run(20003, 1)
-    rl = rig_logs.write_loggers(tmp_path / "imu.csv", r, seed=1)
+    rl = raw_loggers.write_loggers(tmp_path / "imu.csv", r, seed=1)
     rl.path.with_name("imu.table.csv").unlink()
     err = _refused(capsys, "inspect", str(rl.path))
     assert "[join.table]" in err and "imu.table.csv" in err
@@ -259,7 +260,7 @@ def test_a_ros2_bag_exported_to_csv(tmp_path: Path) -> None:
     rng = np.random.default_rng(SEED + 4)
     gyro, seed = int(rng.integers(20000, 30000)), int(rng.integers(0, 1000))
     r = short_run(gyro, seed)
-    rl = rig_logs.write_ros2_export(tmp_path / "imu.csv", r)
+    rl = raw_loggers.write_ros2_export(tmp_path / "imu.csv", r)
     lg = read_log(rl.path)
     msg = f"gyro {gyro} seed {seed}"
     assert np.abs(lg.time_s - rl.truth[""].time_s).max() < 1e-6, msg
@@ -271,7 +272,7 @@ def test_a_ros2_bag_exported_to_csv(tmp_path: Path) -> None:
 
 def test_clocks_that_disagree_are_said_loudly(tmp_path: Path) -> None:
     r = short_run(20004, 2)
-    rl = rig_logs.write_loggers(tmp_path / "imu.csv", r, seed=2)
+    rl = raw_loggers.write_loggers(tmp_path / "imu.csv", r, seed=2)
     text = rl.mapping_path.read_text()
     off = text.split("* 1e-6 + ")[1].split('"')[0]
     rl.mapping_path.write_text(text.replace(off, repr(float(off) + 600.0)))  # 10 min off

@@ -1,6 +1,6 @@
-"""Irregular sampling, gaps, bursts and clock resets (logs/sampling.py; docs/logs.md,
+"""Irregular sampling, gaps, bursts and clock resets (logs/read/sampling.py; docs/logs.md,
 "Irregular sampling, gaps and bursts"), on logs written the way loggers write them
-(sim/rig_logs.py `write_px4`, `write_bursts`)."""
+(sim/rigs/raw_loggers.py `write_px4`, `write_bursts`)."""
 
 from __future__ import annotations
 
@@ -11,20 +11,21 @@ import numpy as np
 import pytest
 
 from fogsf.cli.main import main
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import parse_log, read_log
-from fogsf.logs.sampling import common_rate, on_grid
-from fogsf.logs.stream_read import in_memory, read_log_on_disk
-from fogsf.sim import rig_logs, rigs
+from fogsf.logs.read.dialect import Dialect
+from fogsf.logs.read.sampling import common_rate, on_grid
+from fogsf.logs.read.stream_read import in_memory, read_log_on_disk
+from fogsf.sim.rigs import chambers, raw_loggers, rig_logs
+from fogsf.sim.rigs import protocols as rigs
 
 SEED = 39_2026
 
 
 def px4(folder: Path, rate_hz: float, gyro: int, seed: int, lo: float = 5.0,
         hi: float = 35.0) -> rig_logs.RigLog:
-    p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.loop(lo, hi, 3.0, 3.0, soak_s=120.0),
+    p = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.loop(lo, hi, 3.0, 3.0, soak_s=120.0),
                                rate_hz=rate_hz)
-    return rig_logs.write_px4(folder / "gyro.csv", rigs.run_rig(p, gyro, seed), seed=seed)
+    return raw_loggers.write_px4(folder / "gyro.csv", rigs.run_rig(p, gyro, seed), seed=seed)
 
 
 def test_jitter_and_drops_are_read_as_logged_and_counted(tmp_path: Path) -> None:
@@ -68,11 +69,11 @@ def test_two_rates_train_together_and_replay_on_a_third(tmp_path: Path, capsys) 
     """A model trained on jittered logs with drops at two rates, tested on a third, scores
     as one trained on the same runs logged without jitter or drops."""
     runs = {name: (rigs.run_rig(rigs.reversal_protocol(
-        100.0, 60.0, chamber=rigs.loop(lo, hi, 3.0, 3.0, soak_s=120.0), rate_hz=rate),
+        100.0, 60.0, chamber=chambers.loop(lo, hi, 3.0, 3.0, soak_s=120.0), rate_hz=rate),
         20005, seed), seed) for name, rate, seed, lo, hi in (("a", 20.0, 1, 5.0, 35.0),
                                                             ("b", 40.0, 2, 0.0, 40.0),
                                                             ("c", 50.0, 3, 10.0, 30.0))}
-    logs = {name: rig_logs.write_px4(tmp_path / "px4" / name / "gyro.csv", r, seed=seed)
+    logs = {name: raw_loggers.write_px4(tmp_path / "px4" / name / "gyro.csv", r, seed=seed)
             for name, (r, seed) in runs.items()}
     clean = {name: rig_logs.write_plain(tmp_path / "clean" / name / "gyro.csv", r,
                                         mapping=True) for name, (r, _) in runs.items()}
@@ -99,9 +100,9 @@ def test_two_rates_train_together_and_replay_on_a_third(tmp_path: Path, capsys) 
 
 
 def burst_log(folder: Path, gyro: int, seed: int) -> rig_logs.RigLog:
-    p = rigs.stationary_protocol(chamber=rigs.Chamber([[0.0, 30.0], [3600.0, 22.0]]),
+    p = rigs.stationary_protocol(chamber=chambers.Chamber([[0.0, 30.0], [3600.0, 22.0]]),
                                  rate_hz=20.0, arw_deg_per_sqrt_h=0.01)
-    return rig_logs.write_bursts(folder / "tvac.csv", rigs.run_rig(p, gyro, seed),
+    return raw_loggers.write_bursts(folder / "tvac.csv", rigs.run_rig(p, gyro, seed),
                                  burst_s=5.0, every_s=120.0)
 
 

@@ -16,9 +16,10 @@ from ramp_logs import short_ramp
 from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog, LogError
-from fogsf.logs.dialect import Dialect
-from fogsf.logs.logio import _read_plain, parse_log, read_log, write_log
-from fogsf.logs.metrics import sf_windows
+from fogsf.logs.logio import _read_plain, parse_log, read_log
+from fogsf.logs.measure.windows import sf_windows
+from fogsf.logs.read.dialect import Dialect
+from fogsf.logs.writer import write_log
 from fogsf.models import reference, samples
 from fogsf.models.features import front_end_for
 from fogsf.models.front_end import filter_alpha
@@ -108,7 +109,7 @@ def test_fast_and_general_readers_agree(tmp_path: Path) -> None:
 def test_write_rows_writes_what_savetxt_writes(tmp_path: Path) -> None:
     import io
 
-    from fogsf.logs.logio import write_rows
+    from fogsf.logs.writer import write_rows
 
     rng = np.random.default_rng(3)
     data = rng.normal(size=(1234, 3)) * np.array([1e-9, 1.0, 1e6])

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from fogsf.errors import UserError
-from fogsf.logs.logio import read_log, write_log
+from fogsf.logs.logio import read_log
+from fogsf.logs.writer import write_log
 from fogsf.sim import SimConfig, simulate
 from fogsf.sim.config import (
     EffectConfig,
@@ -194,7 +195,8 @@ def test_arw_and_quantization() -> None:
 
 
 def test_noise_floor_of_a_window_is_near_8_ppm_at_10_dps() -> None:
-    from fogsf.logs.metrics import noise_floor_ppm, sf_windows
+    from fogsf.logs.measure.metrics import noise_floor_ppm
+    from fogsf.logs.measure.windows import sf_windows
 
     cfg = SimConfig(seed=4)
     cfg.profile = ProfileConfig(kind="soak", start_c=20.0, duration_s=3 * 3600.0)
@@ -206,7 +208,7 @@ def test_noise_floor_of_a_window_is_near_8_ppm_at_10_dps() -> None:
 
 
 def test_bias_leaks_into_the_apparent_sf_as_bias_over_rate() -> None:
-    from fogsf.logs.metrics import sf_windows
+    from fogsf.logs.measure.windows import sf_windows
 
     cfg = SimConfig(seed=0)
     cfg.profile = ProfileConfig(kind="soak", start_c=20.0, duration_s=1000.0)

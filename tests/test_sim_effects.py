@@ -3,7 +3,7 @@
 Planted effects: strength, ramp rate and seed are drawn from the stated ranges with a seeded
 generator (DRAW_SEEDS); every assertion message carries the draw seed. Each check compares a
 run with the effect against the same run (same seed, so the same noise) without it, on the
-apparent SF of 100 s windows computed from the gyro output (fogsf.logs.metrics.sf_windows).
+apparent SF of 100 s windows computed from the gyro output (fogsf.logs.measure.windows.sf_windows).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import copy
 import numpy as np
 import pytest
 
-from fogsf.logs.metrics import sf_windows
-from fogsf.logs.pairs import plateau_pairs, rate_steps
+from fogsf.logs.measure.pairs import plateau_pairs, rate_steps
+from fogsf.logs.measure.windows import sf_windows
 from fogsf.sim import SimConfig, simulate
 from fogsf.sim.config import ProfileConfig, TableConfig
 from fogsf.sim.effects import EFFECTS, EffectConfig, describe, parse_effect

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.logs.metrics import log_metrics, reference_sf, sf_error_ppm, sf_windows
+from fogsf.logs.measure.metrics import log_metrics, sf_error_ppm
+from fogsf.logs.measure.sf_reference import reference_sf
+from fogsf.logs.measure.windows import sf_windows
 from fogsf.sim import simulate
 from fogsf.sim.calibrate import noiseless
 from fogsf.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper

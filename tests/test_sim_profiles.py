@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fogsf.errors import UserError
-from fogsf.logs.plateaus import plateaus
+from fogsf.logs.measure.plateaus import plateaus
 from fogsf.sim.config import ProfileConfig, TableConfig
 from fogsf.sim.profiles import breakpoints, chamber_series, read_program, table_series
 

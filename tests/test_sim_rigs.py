@@ -1,4 +1,4 @@
-"""Rig protocols and log conventions (sim/rigs.py): schedules, the slewing and stalling
+"""Rig protocols and log conventions (sim/rigs/): schedules, the slewing and stalling
 table, the chamber's bang-bang set points, the writers, and the truth behind them."""
 
 from __future__ import annotations
@@ -12,25 +12,26 @@ import numpy as np
 import pytest
 
 from fogsf.errors import UserError
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import read_log
-from fogsf.sim import rig_logs, rigs
-from fogsf.sim.config import BiasConfig, SimConfig
+from fogsf.logs.read.dialect import Dialect
+from fogsf.sim.config import BiasConfig, ProfileConfig, SimConfig
 from fogsf.sim.gyro import simulate
 from fogsf.sim.profiles import chamber_series, table_series
+from fogsf.sim.rigs import benches, chambers, plateau_truth, rig_logs, schedules
+from fogsf.sim.rigs import protocols as rigs
 
 
 def small_staircase(rate_hz: float = 10.0, **kw: object) -> rigs.RigProtocol:
     """Two set points, one staircase 0..20 deg/s (11 steps of 16 s) each, 60 s settles."""
-    steps = rigs.staircase(4.0, 20.0, 16.0)
-    chamber = rigs.bang_bang((20.0, 30.0), hold_s=rigs.schedule_s(steps), settle_s=60.0,
+    steps = schedules.staircase(4.0, 20.0, 16.0)
+    chamber = chambers.bang_bang((20.0, 30.0), hold_s=schedules.schedule_s(steps), settle_s=60.0,
                              ramp_c_per_min=5.0, swing_c=0.75, period_s=120.0)
     return rigs.staircase_protocol(4.0, 20.0, 16.0, chamber=chamber, rate_hz=rate_hz, **kw)
 
 
 def small_reversals(**kw: object) -> rigs.RigProtocol:
     """+/-100 deg/s, 60 s plateaus, a 10 C ramp at 1 C/min between 2 min soaks."""
-    return rigs.reversal_protocol(100.0, 60.0, chamber=rigs.ramp(20.0, 30.0, 1.0, 120.0), **kw)
+    return rigs.reversal_protocol(100.0, 60.0, chamber=chambers.ramp(20.0, 30.0, 1.0, 120.0), **kw)
 
 
 def plateau_runs(x: np.ndarray) -> list[tuple[int, int, float]]:
@@ -42,7 +43,7 @@ def plateau_runs(x: np.ndarray) -> list[tuple[int, int, float]]:
 # --- schedules -------------------------------------------------------------------------------
 
 def test_staircase_both_directions_adjacent() -> None:
-    steps = rigs.staircase(4.0, 100.0, 16.0)
+    steps = schedules.staircase(4.0, 100.0, 16.0)
     rates = [s.rate_dps for s in steps]
     assert rates[:5] == [0.0, 4.0, -4.0, 8.0, -8.0] and rates[-2:] == [100.0, -100.0]
     assert len(steps) == 51 and all(s.dwell_s == 16.0 for s in steps)
@@ -51,7 +52,7 @@ def test_staircase_both_directions_adjacent() -> None:
 def test_staircase_timing_restarts_after_each_stop() -> None:
     run = rigs.run_rig(small_staircase(accel_dps2=0.0), gyro_seed=0, seed=1)
     dt = run.protocol.dt_s
-    for a, b in rigs._runs(run.enabled):
+    for a, b in schedules._runs(run.enabled):
         plats = plateau_runs(run.command_dps[a:b])
         if plats[-1][1] - plats[-1][0] < 160:  # the log's last sample starts a new one
             plats = plats[:-1]
@@ -75,7 +76,7 @@ def test_slew_lags_the_command() -> None:
     dt = run.protocol.dt_s
     assert np.max(np.abs(np.diff(run.table_dps))) <= accel * dt + 1e-9
     lag = run.table_dps != run.command_dps
-    starts = rigs._runs(lag)
+    starts = schedules._runs(lag)
     assert starts[0] == (0, 5)  # spinning up from rest to 100 deg/s in 0.5 s
     for a, b in starts[1:]:
         if b == lag.shape[0]:  # the log ends while slewing
@@ -84,14 +85,14 @@ def test_slew_lags_the_command() -> None:
     a = plateau_runs(run.command_dps)[1][0]
     assert run.table_dps[a] == 100.0 and run.table_dps[a + 5] == pytest.approx(0.0)
     assert run.table_dps[a + 10] == -100.0
-    instant = rigs.slew(run.command_dps, dt, 0.0)
+    instant = schedules.slew(run.command_dps, dt, 0.0)
     np.testing.assert_array_equal(instant, run.command_dps)
 
 
 def test_stalls_flagged_and_slower_than_commanded() -> None:
     run = rigs.run_rig(small_reversals(stalls_per_h=60.0), gyro_seed=0, seed=3)
-    assert 3 <= len(rigs._runs(run.stalled)) <= 60
-    clean = rigs.slew(run.command_dps, run.protocol.dt_s, run.protocol.accel_dps2)
+    assert 3 <= len(schedules._runs(run.stalled)) <= 60
+    clean = schedules.slew(run.command_dps, run.protocol.dt_s, run.protocol.accel_dps2)
     off = run.table_dps != clean
     assert np.all(run.stalled[off])  # every row the stall touched is flagged
     assert np.all(np.abs(run.table_dps[off]) < np.abs(clean[off]))
@@ -102,9 +103,9 @@ def test_bang_bang_set_points_and_stopped_table() -> None:
     p = small_staircase()
     run = rigs.run_rig(p, gyro_seed=0, seed=1)
     t, chamber = chamber_series(
-        rigs.ProfileConfig(kind="program", points=p.chamber.points), p.dt_s)
+        ProfileConfig(kind="program", points=p.chamber.points), p.dt_s)
     for (a0, _), centre in zip(p.chamber.stopped, (20.0, 30.0), strict=True):
-        hold = (t >= a0) & (t < a0 + 60.0 + rigs.schedule_s(p.schedule))
+        hold = (t >= a0) & (t < a0 + 60.0 + schedules.schedule_s(p.schedule))
         if centre == 30.0:
             hold &= t >= p.chamber.stopped[1][1] - 60.0
         assert np.max(np.abs(chamber[hold] - centre)) == pytest.approx(0.75, abs=1e-6)
@@ -129,7 +130,7 @@ def test_truth_is_the_output_formula() -> None:
 
 
 def test_pairs_give_true_sf_and_bias_at_one_temperature() -> None:
-    chamber = rigs.Chamber([[0.0, 25.0], [1200.0, 25.0]])
+    chamber = chambers.Chamber([[0.0, 25.0], [1200.0, 25.0]])
     p = rigs.reversal_protocol(100.0, 60.0, chamber=chamber, arw_deg_per_sqrt_h=0.0,
                                bias=BiasConfig(bias_dph=1.0, lin_dph_per_c=0.05))
     run = rigs.run_rig(p, gyro_seed=11, seed=0)
@@ -176,7 +177,7 @@ def test_ros_log_columns_and_mapping(tmp_path: Path) -> None:
     np.testing.assert_allclose(np.diff(t), 0.1, atol=1e-6)
     np.testing.assert_allclose(raw[:, 2] * 57.29577951308232, run.axes[""].gyro_dps,
                                rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(raw[:, 4] * 360 / rigs.STEPS_PER_REV, run.command_dps,
+    np.testing.assert_allclose(raw[:, 4] * 360 / rig_logs.STEPS_PER_REV, run.command_dps,
                                rtol=1e-11, atol=1e-12)
     np.testing.assert_array_equal(raw[:, 6:8].astype(bool), np.column_stack(
         [run.enabled, run.stalled]))
@@ -207,8 +208,8 @@ def test_plain_log_reads_back_with_quantised_thermometer(tmp_path: Path, lsb: fl
     lg = rig_logs.write_plain(tmp_path / "plain.csv", run, gyro_unit="deg/s")
     assert lg.columns == {}
     log = read_log(lg.path)
-    assert log.time_s[0] == pytest.approx(rigs.EPOCH_S) and log.sample_rate_hz == 10.0
-    np.testing.assert_allclose(log.time_s - rigs.EPOCH_S, run.time_s, atol=2e-6)
+    assert log.time_s[0] == pytest.approx(rig_logs.EPOCH_S) and log.sample_rate_hz == 10.0
+    np.testing.assert_allclose(log.time_s - rig_logs.EPOCH_S, run.time_s, atol=2e-6)
     np.testing.assert_array_equal(log.temp_c / lsb, np.round(log.temp_c / lsb))
     np.testing.assert_allclose(log.temp_c, run.axes[""].temp_c, atol=1e-9)
     np.testing.assert_array_equal(log.table_rate_dps, run.command_dps)
@@ -219,7 +220,7 @@ def test_plain_log_reads_back_with_quantised_thermometer(tmp_path: Path, lsb: fl
 
 @pytest.mark.parametrize("hz", [10.0, 50.0, 100.0])
 def test_plain_log_at_sample_rates(tmp_path: Path, hz: float) -> None:
-    p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.ramp(20.0, 22.0, 2.0, 60.0),
+    p = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.ramp(20.0, 22.0, 2.0, 60.0),
                                rate_hz=hz)
     run = rigs.run_rig(p, gyro_seed=9, seed=0)
     log = read_log(rig_logs.write_plain(tmp_path / "plain.csv", run, gyro_unit="deg/s").path)
@@ -229,7 +230,7 @@ def test_plain_log_at_sample_rates(tmp_path: Path, hz: float) -> None:
 
 
 def test_plain_log_in_rad_s(tmp_path: Path) -> None:
-    p = rigs.reversal_protocol(100.0, 60.0, chamber=rigs.ramp(20.0, 22.0, 2.0, 60.0),
+    p = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.ramp(20.0, 22.0, 2.0, 60.0),
                                rate_hz=50.0)
     run = rigs.run_rig(p, gyro_seed=9, seed=0)
     lg = rig_logs.write_plain(tmp_path / "plain.csv", run, mapping=True)
@@ -293,9 +294,9 @@ def test_simulate_with_the_schedule_given_as_a_series_is_unchanged() -> None:
 
 def test_plateaus_and_pairs_carry_the_truth() -> None:
     run = rigs.run_rig(small_staircase(arw_deg_per_sqrt_h=0.0), gyro_seed=2, seed=0)
-    plats = rig_logs.plateaus(run, settle_s=2.0)
+    plats = plateau_truth.plateaus(run, settle_s=2.0)
     assert len(plats) == 20 and all(p.stop - p.start == 140 for p in plats)
-    prs = rig_logs.pairs(plats)
+    prs = plateau_truth.pairs(plats)
     assert [q.rate_dps for q in prs] == [4.0, 8.0, 12.0, 16.0, 20.0] * 2
     r = run.axes[""].result
     for q in prs:
@@ -304,14 +305,14 @@ def test_plateaus_and_pairs_carry_the_truth() -> None:
         assert ((gp - gm) / (2 * q.rate_dps) - 1) * 1e6 == pytest.approx(q.sf_ppm, abs=0.5)
         assert q.plus.rate_dps > 0 > q.minus.rate_dps
     stalled = rigs.run_rig(small_staircase(stalls_per_h=120.0), gyro_seed=2, seed=0)
-    for p in rig_logs.plateaus(stalled):
+    for p in plateau_truth.plateaus(stalled):
         assert stalled.measures[p.start:p.stop].all()
 
 
 @pytest.mark.parametrize("kind", rig_logs.RIG_KINDS)
 def test_rig_log_in_one_call(tmp_path: Path, kind: str) -> None:
     seeds = (20001, 20002, 20003) if kind == "imu3" else (20001,)
-    chamber = rigs.ramp(20.0, 21.0, 1.0, 30.0)
+    chamber = chambers.ramp(20.0, 21.0, 1.0, 30.0)
     lg = rig_logs.rig_log(kind, tmp_path / f"{kind}.csv", "reversals", seeds, seed=1,
                       chamber=chamber, rate_hz=20.0)
     assert lg.path.is_file() and lg.mapping_path is not None
@@ -353,14 +354,14 @@ def test_rate_effects_see_the_axis_rate() -> None:
 
 
 def test_bench_cases_write_train_and_test(tmp_path: Path) -> None:
-    cases = rig_logs.bench_cases()
+    cases = benches.bench_cases()
     assert set(cases) >= {"ros-staircase", "ros-bias", "plain-reversals", "imu3-reversals",
                           "thermometer-1c", "thermometer-0.25c"}
-    short = rigs.ramp(20.0, 21.0, 1.0, 30.0)
+    short = chambers.ramp(20.0, 21.0, 1.0, 30.0)
     case = replace(cases["thermometer-1c"], train=replace(cases["thermometer-1c"].train,
                                                           chamber=short),
                    test=replace(cases["thermometer-1c"].test, chamber=short))
-    train, test = rig_logs.write_case(tmp_path, case, (20005,), seed=3)
+    train, test = benches.write_case(tmp_path, case, (20005,), seed=3)
     assert train.path.parent.name == "train" and test.path.parent.name == "test"
     assert (tmp_path / "test" / "fogsf-columns.toml").is_file()
     assert train.path.read_bytes() != test.path.read_bytes()  # another noise seed
@@ -372,7 +373,7 @@ def test_bench_cases_write_train_and_test(tmp_path: Path) -> None:
     ({"rate_hz": 0.5}, "rate_hz"), ({"accel_dps2": -1.0}, "accel_dps2"),
     ({"stalls_per_h": 1e9}, "stalls_per_h"), ({"stall_share": (0.5, 1.5)}, "stall_share"),
     ({"temp_lsb_c": float("nan")}, "temp_lsb_c"), ({"schedule": []}, "schedule"),
-    ({"schedule": [rigs.Step(10.0, 0.0)]}, "dwell_s"), ({"latitude_deg": 95.0}, "latitude"),
+    ({"schedule": [schedules.Step(10.0, 0.0)]}, "dwell_s"), ({"latitude_deg": 95.0}, "latitude"),
     ({"thermal_bias": True}, "thermal_bias"),
 ])
 def test_bad_protocols_refused(change: dict[str, object], word: str) -> None:
@@ -393,19 +394,19 @@ def test_thermal_bias_is_each_gyros_own() -> None:
     plain = rigs.run_rig(small_reversals(bias=None), gyro_seed=20003, seed=1)
     assert plain.axes[""].result.config.bias == gyro_for_seed(20003).bias
     assert not np.allclose(run.truth("").bias_dph, plain.truth("").bias_dph)
-    for case in rig_logs.bench_cases().values():
+    for case in benches.bench_cases().values():
         assert case.train.thermal_bias and case.test.thermal_bias and case.train.bias is None
 
 
 def test_bad_chambers_refused() -> None:
     with pytest.raises(UserError, match="period_s"):
-        rigs.bang_bang((20.0,), period_s=0.0)
+        chambers.bang_bang((20.0,), period_s=0.0)
     with pytest.raises(UserError, match="ramp_c_per_min"):
-        rigs.bang_bang((20.0, 30.0), ramp_c_per_min=0.0)
+        chambers.bang_bang((20.0, 30.0), ramp_c_per_min=0.0)
     with pytest.raises(UserError, match="rate_c_per_min"):
-        rigs.ramp(20.0, 30.0, 0.0)
+        chambers.ramp(20.0, 30.0, 0.0)
     with pytest.raises(UserError, match="leave -60..100"):
-        rigs.run_rig(rigs.reversal_protocol(chamber=rigs.ramp(20.0, 130.0, 10.0, 10.0)))
+        rigs.run_rig(rigs.reversal_protocol(chamber=chambers.ramp(20.0, 130.0, 10.0, 10.0)))
 
 
 def test_stamp_jitter(tmp_path: Path) -> None:
@@ -417,7 +418,7 @@ def test_stamp_jitter(tmp_path: Path) -> None:
     raw = np.loadtxt(lg.path, delimiter=",", skiprows=1, dtype=np.int64, usecols=(0, 1))
     ns = (raw[:, 0] - raw[0, 0]) * 1_000_000_000 + raw[:, 1]
     np.testing.assert_allclose(ns * 1e-9, run.stamp_s, atol=1e-9)
-    np.testing.assert_allclose(lg.truth[""].time_s - rigs.EPOCH_S, run.stamp_s, atol=1e-6)
+    np.testing.assert_allclose(lg.truth[""].time_s - rig_logs.EPOCH_S, run.stamp_s, atol=1e-6)
     log = read_log(rig_logs.write_plain(tmp_path / "p" / "plain.csv", run, gyro_unit="deg/s").path)
     assert log.sample_rate_hz == pytest.approx(100.0, rel=1e-3)
     with pytest.raises(UserError, match="stamp_jitter_s"):
@@ -434,11 +435,11 @@ def test_bench_rigs_scores_the_bias_head_against_the_truth(tmp_path: Path, name:
     scores 0, no prediction scores the true bias' own std."""
     from benchmarks.rigs import score_bias
 
-    case = rig_logs.bench_cases()[name]
-    short = rigs.loop(-10.0, 20.0, 2.0, 2.0, 300.0)
+    case = benches.bench_cases()[name]
+    short = chambers.loop(-10.0, 20.0, 2.0, 2.0, 300.0)
     case = replace(case, train=replace(case.train, chamber=short),
                    test=replace(case.test, chamber=short))
-    train, test = rig_logs.write_case(tmp_path, case, (20003,), seed=3)
+    train, test = benches.write_case(tmp_path, case, (20003,), seed=3)
     logs = [read_log(r.path) for r in (train, test)]
     truth = test.truth[""]
     exact = score_bias(logs[0], logs[1], truth.bias_dph, truth)

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from test_metric_blocks import reversals
 
-from fogsf.logs import columns, metrics
-from fogsf.logs.logio import write_log
-from fogsf.logs.plateaus import measuring_mask
-from fogsf.logs.stream_read import read_log_on_disk
+from fogsf.logs.measure import model_steps, windows
+from fogsf.logs.measure.plateaus import measuring_mask
+from fogsf.logs.read import columns
+from fogsf.logs.read.stream_read import read_log_on_disk
+from fogsf.logs.writer import write_log
 from fogsf.models.features import front_end_for
 from fogsf.models.reference import frontend
 from fogsf.models.step_inputs import frontend_s, step_targets
@@ -20,8 +21,8 @@ from fogsf.models.step_inputs import frontend_s, step_targets
 def whole_targets(log, decimation: int) -> np.ndarray:  # noqa: ANN001 - the code it replaces
     m = measuring_mask(log)
     table = np.where(m, log.table_rate_dps, 1.0)
-    ratio = np.where(m, metrics.sf_signal(log) / table, 0.0)
-    return (metrics.step_means(ratio, decimation, m) - 1.0) * 1e6
+    ratio = np.where(m, windows.sf_signal(log) / table, 0.0)
+    return (model_steps.step_means(ratio, decimation, m) - 1.0) * 1e6
 
 
 PLAYS = (((0.5, 0.5, 0.0), 6.0), ((0.0, 0.25, 0.75), 2.5))  # two plays of lag mixes

@@ -14,6 +14,14 @@ from fogsf.models import f32, reference, samples
 from fogsf.models import stream as st
 from fogsf.models.front_end import FrontEnd
 from fogsf.models.gate_order import onnx_to_torch_lstm, torch_to_onnx_lstm
+from fogsf.models.stream_flags import (
+    FLAG_GYRO_INVALID,
+    FLAG_SF_CLAMPED,
+    FLAG_TEMP_CLAMPED,
+    FLAG_TEMP_INVALID,
+    FLAG_TEMP_STUCK,
+    SF_LIMIT_PPM,
+)
 from fogsf.models.stream_forms import diagonal_features
 
 F32 = np.float32
@@ -40,16 +48,16 @@ def scalar_frontend(temp: np.ndarray, fe: FrontEnd) -> tuple[list[int], np.ndarr
         prev_bits = bits
         if not np.isfinite(t):
             tc = last_good
-            fl |= st.FLAG_TEMP_INVALID
+            fl |= FLAG_TEMP_INVALID
         else:
             tc = t
             if t < t_min:
-                tc, fl = t_min, fl | st.FLAG_TEMP_CLAMPED
+                tc, fl = t_min, fl | FLAG_TEMP_CLAMPED
             elif t > t_max:
-                tc, fl = t_max, fl | st.FLAG_TEMP_CLAMPED
+                tc, fl = t_max, fl | FLAG_TEMP_CLAMPED
             last_good = tc
         if fe.stuck_samples > 0 and run >= fe.stuck_samples:
-            fl |= st.FLAG_TEMP_STUCK
+            fl |= FLAG_TEMP_STUCK
         flags[i] = fl
         tm = None
         if i == 0:
@@ -97,10 +105,10 @@ def test_frontend_matches_per_sample_state_machine_bit_for_bit(seed: int) -> Non
                                   err_msg=f"seed {seed} D={decimation} K={k}")
     np.testing.assert_array_equal(out.flags, flags, err_msg=f"seed {seed}")
     assert np.all(np.isfinite(out.s))
-    for bit in (st.FLAG_TEMP_INVALID, st.FLAG_TEMP_CLAMPED):
+    for bit in (FLAG_TEMP_INVALID, FLAG_TEMP_CLAMPED):
         assert np.any(out.flags & bit), f"seed {seed}: flag {bit} never raised"
     if fe.stuck_samples:
-        assert np.any(out.flags & st.FLAG_TEMP_STUCK), f"seed {seed}"
+        assert np.any(out.flags & FLAG_TEMP_STUCK), f"seed {seed}"
 
 
 def test_invalid_first_samples_use_t_ref_and_stuck_counts_repeats() -> None:
@@ -196,7 +204,7 @@ def test_replay_is_total_and_flags_bad_gyro() -> None:
     gyro[[5, 50, 300]] = [np.nan, np.inf, 1.7e308]
     out = reference.replay(model, temp, gyro)
     assert np.all(np.isfinite(out.corrected_dps)) and np.all(np.isfinite(out.sf_ppm))
-    assert np.all(out.flags[[5, 50]] & st.FLAG_GYRO_INVALID)
+    assert np.all(out.flags[[5, 50]] & FLAG_GYRO_INVALID)
     assert out.corrected_dps[5] == 0.0
     ok = np.isfinite(gyro) & (np.abs(gyro) < 1e300)
     s = out.sf_ppm[ok] * np.float32(1e-6)  # the contract's float32 correction (no bias)
@@ -208,8 +216,8 @@ def test_sf_clamp_flags_a_broken_model() -> None:
     model = samples.random_model(seed=2)
     model.weights["out_scale"][0] = F32(1e30)
     out = reference.replay(model, np.full(30, 30.0), np.full(30, 10.0))
-    assert np.all(np.abs(out.sf_ppm) <= st.SF_LIMIT_PPM)
-    assert np.all(out.flags & st.FLAG_SF_CLAMPED)
+    assert np.all(np.abs(out.sf_ppm) <= SF_LIMIT_PPM)
+    assert np.all(out.flags & FLAG_SF_CLAMPED)
     assert np.all(np.isfinite(out.corrected_dps))
 
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fogsf.logs import columns
-from fogsf.logs.columns import LazyColumn, block_means, cumsum_at, cumsum_blocks_at
-from fogsf.logs.exact_stats import median_step
+from fogsf.logs.measure.exact_stats import median_step
+from fogsf.logs.read import columns
+from fogsf.logs.read.columns import LazyColumn, block_means, cumsum_at, cumsum_blocks_at
 from fogsf.sim.lag import first_order_lag, lag_blocks
 
 
@@ -95,7 +95,7 @@ def test_sign_flip_in_chunks(n: int, monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_profile_solve_in_chunks(monkeypatch: pytest.MonkeyPatch) -> None:
     """The profile over a grid, a few combinations at a time: the bits of all at once."""
-    from fogsf.models import node_fit
+    from fogsf.models.structures import node_fit
 
     rng = np.random.default_rng(5)
     x = rng.normal(size=(23, 300, 6))

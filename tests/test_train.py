@@ -14,7 +14,7 @@ from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.reference import replay
 from fogsf.models.stream import StreamModel
-from fogsf.training.fitted import per_sample_prediction
+from fogsf.training.fitted_model import per_sample_prediction
 from fogsf.training.options import TrainOptions
 from fogsf.training.train import run_training
 
@@ -50,7 +50,7 @@ def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path)
 def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="lag-lstm", progress=False, **FAST)
-    from fogsf.training.sf_fit import fit_sf
+    from fogsf.training.sf.fit import fit_sf
 
     fitted = fit_sf(opts, [train])
     torch_pred = per_sample_prediction(fitted, test, None)
@@ -65,8 +65,9 @@ def test_no_start_up_transient_after_reset(logs) -> None:
     """Firmware starts from reset at power-on: the exported model's first 10 minutes on an
     unseen run (the soak before its ramp) are no worse than the run as a whole, and within
     twice the noise floor (the LSTM state starting from zero once left ~200 ppm there)."""
-    from fogsf.logs.metrics import noise_floor_ppm, sf_error_ppm, sf_windows
-    from fogsf.training.sf_fit import fit_sf
+    from fogsf.logs.measure.metrics import noise_floor_ppm, sf_error_ppm
+    from fogsf.logs.measure.windows import sf_windows
+    from fogsf.training.sf.fit import fit_sf
 
     train, test = logs
     fitted = fit_sf(TrainOptions(model="lag-lstm", progress=False, **FAST), [train])
@@ -128,7 +129,7 @@ def test_gsa_fitness_is_the_same_in_worker_processes(logs) -> None:
 
     from fogsf.gsa.executors import open_executor
     from fogsf.models.features import step_targets
-    from fogsf.training.gsa_search import gsa_fitness
+    from fogsf.training.net.gsa_search import gsa_fitness
 
     train, _ = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_fitness_iters=4)
@@ -155,7 +156,7 @@ def test_static_models_are_refused_by_export_with_a_reason(logs, tmp_path: Path)
 
 def test_bad_options_refused(logs) -> None:
     train, _ = logs
-    from fogsf.training.sf_fit import fit_sf
+    from fogsf.training.sf.fit import fit_sf
 
     with pytest.raises(UserError, match="unknown model"):
         fit_sf(TrainOptions(model="svm"), [train])

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from fogsf.cli.main import main
-from fogsf.logs import columns, stream_read
 from fogsf.logs.logio import read_log
+from fogsf.logs.read import columns, stream_read
 
 
 def _trained(tmp: Path, logs: list[Path], model: str, monkeypatch: pytest.MonkeyPatch,

@@ -13,11 +13,11 @@ import pytest
 from ramp_logs import short_ramp
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.logio import write_log
+from fogsf.logs.writer import write_log
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import soak
-from fogsf.training.transfer import ramp_rate_c_per_min
-from fogsf.training.transfer_interval import rate_transfer
+from fogsf.training.interval.rate_transfer import rate_transfer
+from fogsf.training.interval.transfer import ramp_rate_c_per_min
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +90,7 @@ def test_train_without_test_log_says_one_rate_is_an_extrapolation(runs, tmp_path
 def test_long_run_ratio_of_white_and_structured_residuals() -> None:
     import numpy as np
 
-    from fogsf.training.transfer import long_run_ratio
+    from fogsf.training.interval.transfer import long_run_ratio
 
     rng = np.random.default_rng(9)
     white = rng.normal(size=4000)
@@ -110,7 +110,7 @@ def _program_log(points: list[list[float]], seed: int) -> ChamberLog:
 
 
 def test_ramp_segments_read_up_and_down_rates_of_one_log() -> None:
-    from fogsf.training.transfer import ramp_rates, ramp_segments
+    from fogsf.training.interval.transfer import ramp_rates, ramp_segments
 
     # 20 min soak, up 60 C at 1 C/min, 20 min soak, down 60 C at 2 C/min, 20 min soak
     log = _program_log([[0, -10], [1200, -10], [4800, 50], [6000, 50], [7800, -10],
@@ -123,7 +123,7 @@ def test_ramp_segments_read_up_and_down_rates_of_one_log() -> None:
 
 
 def test_a_ramp_whose_rate_changes_is_two_segments() -> None:
-    from fogsf.training.transfer import ramp_rates
+    from fogsf.training.interval.transfer import ramp_rates
 
     # 0.5 C/min for 50 min, then 2 C/min for 20 min, no soak between
     log = _program_log([[0, -20], [600, -20], [3600, 5], [4800, 45]], seed=42)
@@ -143,12 +143,12 @@ def test_interval_scales_what_the_training_logs_leave_open() -> None:
     farthest structure candidate times K_SEVERAL; the floor in quadrature either way."""
     import numpy as np
 
-    from fogsf.training.transfer import INTERVAL_LO
-    from fogsf.training.transfer_interval import (
+    from fogsf.training.interval.rate_transfer import (
         K_ONE_SEGMENT,
         K_SEVERAL,
         rms_interval,
     )
+    from fogsf.training.interval.transfer import INTERVAL_LO
 
     lo, hi = rms_interval(5.0, 40.0, 10.0, one_segment=True)
     assert lo == INTERVAL_LO * 5.0 and hi == pytest.approx(np.hypot(5.0, K_ONE_SEGMENT * 40.0))
@@ -158,8 +158,9 @@ def test_interval_scales_what_the_training_logs_leave_open() -> None:
 
 
 def test_rate_transfer_reports_every_structure_and_what_the_logs_hold(runs) -> None:
-    from fogsf.training.structure_choice import CANDIDATES, candidate_compensation
-    from fogsf.training.transfer_interval import rms_interval
+    from fogsf.training.interval.rate_transfer import rms_interval
+    from fogsf.training.structure.choice import CANDIDATES
+    from fogsf.training.structure.heldout import candidate_compensation
 
     def judged(train: list) -> object:  # the lag bank by least squares, as the judged model
         return rate_transfer(train, runs["mid"], prediction_ppm=candidate_compensation(
@@ -182,7 +183,7 @@ def test_rate_transfer_reports_every_structure_and_what_the_logs_hold(runs) -> N
 def test_a_slow_start_is_not_a_second_ramp() -> None:
     """The first 10 min of a ramp at 0.2 C/min (the board catching up with the chamber) and
     then 0.5 C/min: one ramp, not two segments."""
-    from fogsf.training.transfer import ramp_segments
+    from fogsf.training.interval.transfer import ramp_segments
 
     log = _program_log([[0, -30], [600, -28], [4800, 7]], seed=44)
     segs = ramp_segments(log)

@@ -9,10 +9,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.models.features import FrontEnd, prepare
-from fogsf.models.physics_nodes import NodeTemperatures
 from fogsf.models.reference import expand
+from fogsf.models.structures.physics_nodes import NodeTemperatures
 
 
 def ratio(log: ChamberLog, pred: np.ndarray) -> float:

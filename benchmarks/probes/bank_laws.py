@@ -31,17 +31,17 @@ import numpy as np
 
 from benchmarks.probes import StepScorer, finish, spread_cells
 from benchmarks.probes.sf_oracle import Run, partial_case, protocol_cases
-from fogsf.models.lag_bank import (
+from fogsf.models.structures.lag_bank import (
     BANK_LAMBDA,
     CURVED_MAX_TAU_S,
     bank_design,
     fit_bank,
     n_curved,
 )
-from fogsf.models.least_squares import TAU_GRID_S
-from fogsf.models.node_fit import varpro
-from fogsf.models.physics_nodes import identify_taus
-from fogsf.training import structure_choice as sc
+from fogsf.models.structures.least_squares import TAU_GRID_S
+from fogsf.models.structures.node_fit import varpro
+from fogsf.models.structures.physics_nodes import identify_taus
+from fogsf.training.structure import heldout as sh
 
 Law = Callable[[np.ndarray], np.ndarray]
 
@@ -95,7 +95,7 @@ def subset_law(z: np.ndarray, y: np.ndarray, sub: tuple[int, ...]) -> Law:
 
 def case(train: list[Run], test: Run) -> dict:
     logs = [r.log for r, _ in train]
-    full = sc.step_data(logs)
+    full = sh.step_data(logs)
     z, y = full.nodes.z(TAU_GRID_S), full.y
     s = float(np.std(y)) or 1.0
     on_test = StepScorer.of(test[0].log, full.fe)
@@ -120,9 +120,9 @@ def case(train: list[Run], test: Run) -> dict:
     subs = [(i,) for i in range(nc)] + list(itertools.combinations(range(nc), 2))
     on_test = [score(subset_law(z, y / s, sub)) for sub in subs]
     out["sub-test"] = min(on_test)
-    sd = sc.step_data(logs, sc.choice_step_s(logs))
+    sd = sh.step_data(logs, sh.choice_step_s(logs))
     if not sd.one_segment:
-        sd.fold = sc.part_folds(sd)
+        sd.fold = sh.part_folds(sd)
         zs, ss = sd.nodes.z(TAU_GRID_S), float(np.std(sd.y)) or 1.0
         held = []
         for sub in [tuple(range(nc)), *subs]:

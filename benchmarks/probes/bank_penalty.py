@@ -4,9 +4,9 @@ at each, and the rule that chooses them.
 Least squares only (no LSTM). For each gyro and protocol of `benchmarks.population` (and,
 with `--partial`, the partial-cycle programs of `benchmarks.hysteresis`, the hysteresis check
 run for each base), prints the test RMS / noise floor of the lag bank at the prior
-(`lag_bank.BANK_LAMBDA`) and at every penalty of `structure_choice.PENALTIES`, each without
+(`lag_bank.BANK_LAMBDA`) and at every penalty of `structure.penalty.PENALTIES`, each without
 and with the cross terms ("x" after the penalty), of the bank
-`structure_choice.choose_penalty` takes ("rule"; the prior where the logs hold fewer than
+`structure.penalty.choose_penalty` takes ("rule"; the prior where the logs hold fewer than
 PENALTY_MIN_FOLDS held-out parts), the number of held-out parts and the bank chosen.
 Every case scores the bank, also where `fogsf train` would take physics nodes instead (on
 these protocols it keeps the bank on every development gyro of (e), (f) and partial cycles).
@@ -25,41 +25,42 @@ import time
 import numpy as np
 
 from benchmarks.probes import StepScorer, finish, spread_cells
-from fogsf.models.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
+from fogsf.models.structures.lag_bank import BANK_LAMBDA, bank_cross, bank_name, bank_penalty
 
 
 def case(train: list, test, hysteresis: bool) -> dict:  # noqa: ANN001 - ChamberLogs
     """Every penalty's test ratio (with the hysteresis term where the check keeps it on the
     bank at the prior, as `fogsf train` decides it), the rule's choice, and every penalty's
     held-out parts (mean squared window error per part) for trying other rules."""
-    from fogsf.training import structure_choice as sc
-    from fogsf.training.hysteresis_choice import decide, fit_with_term
+    from fogsf.training.structure import heldout as sh
+    from fogsf.training.structure import penalty as sp
+    from fogsf.training.structure.hysteresis import decide, fit_with_term
 
-    step = sc.choice_step_s(train)
-    sd = sc.step_data(train, step)
+    step = sh.choice_step_s(train)
+    sd = sh.step_data(train, step)
     if not sd.one_segment:
-        sd.fold = sc.part_folds(sd)
+        sd.fold = sh.part_folds(sd)
     names = {column(lam, x): bank_name(lam, x) for x in (False, True)
-             for lam in (BANK_LAMBDA, *sc.PENALTIES)}
-    folds = {k: sc.heldout_folds(v, sd) for k, v in names.items()}
+             for lam in (BANK_LAMBDA, *sp.PENALTIES)}
+    folds = {k: sh.heldout_folds(v, sd) for k, v in names.items()}
     rule = bank_name()
-    if not sd.one_segment and sd.n_folds >= sc.PENALTY_MIN_FOLDS:
-        pc = sc.choose_penalty(sd, folds[f"{BANK_LAMBDA:g}"])
+    if not sd.one_segment and sd.n_folds >= sp.PENALTY_MIN_FOLDS:
+        pc = sp.choose_penalty(sd, folds[f"{BANK_LAMBDA:g}"])
         rule = pc.name
     used = hysteresis and decide(train, bank_name(), step)["used"]
     if used and bank_cross(rule):  # as `fogsf train`: judged again with the term in
-        from fogsf.training.hysteresis_choice import cross_with_term
+        from fogsf.training.structure.hysteresis import cross_with_term
 
         if not cross_with_term(train, pc.plain, rule, step)["kept"]:
             rule = pc.plain
-    full = sc.step_data(train)
+    full = sh.step_data(train)
     every = np.arange(full.y.size)
     on_test = StepScorer.of(test, full.fe)
     out: dict = {"parts": sd.n_folds, "term": bool(used), "rule_penalty": bank_penalty(rule),
                  "rule_cross": bank_cross(rule),
                  "part_mse": {k: [float(np.mean(f)) for f in v] for k, v in folds.items()}}
     for key, name in names.items():
-        pred = fit_with_term(name, full, every)[0] if used else sc.fit_candidate(name, full,
+        pred = fit_with_term(name, full, every)[0] if used else sh.fit_candidate(name, full,
                                                                                   every)
         out[key] = on_test(pred(on_test.nt))
     out["rule"] = out[column(out["rule_penalty"], out["rule_cross"])]
@@ -86,13 +87,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
     from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
-    from fogsf.training import structure_choice
-    from fogsf.training.structure_choice import PENALTIES
+    from fogsf.training.structure import penalty as structure_penalty
+    from fogsf.training.structure.penalty import PENALTIES
 
     if args.min_parts is not None:
-        structure_choice.PENALTY_MIN_FOLDS = args.min_parts
+        structure_penalty.PENALTY_MIN_FOLDS = args.min_parts
     if args.share is not None:
-        structure_choice.PENALTY_WIN_SHARE = args.share
+        structure_penalty.PENALTY_WIN_SHARE = args.share
 
     rows: list[dict] = []
     t0 = time.perf_counter()

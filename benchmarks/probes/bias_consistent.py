@@ -31,14 +31,15 @@ import numpy as np
 
 from benchmarks.bias_eval import FAST_TRAIN_LOOP, SHUPE, TEST_LOOP, TRAIN_LOOP, bias_law, protocol
 from benchmarks.probes import finish
-from fogsf.logs.bias import BiasWindows, bias_windows
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.dialect import Dialect
 from fogsf.logs.logio import read_log, with_mapping_beside
-from fogsf.sim import rig_logs
+from fogsf.logs.measure.bias import BiasWindows, bias_windows
+from fogsf.logs.read.dialect import Dialect
 from fogsf.sim.population import gyro_for_seed
-from fogsf.training import bias_structure as bs
-from fogsf.training.bias_model import FeatureMap, bank_feature_map, fit_bias
+from fogsf.sim.rigs import rig_logs
+from fogsf.training.bias import structure as bs
+from fogsf.training.bias.features import FeatureMap, bank_feature_map
+from fogsf.training.bias.fit import fit_bias
 
 LOOPS = {"slow": TRAIN_LOOP, "fast": FAST_TRAIN_LOOP}
 MAX_POINTS = 40  # consistent points refitted per gyro (evenly by SSE rank)

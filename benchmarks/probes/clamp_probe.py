@@ -19,7 +19,7 @@ import numpy as np
 
 from benchmarks.population import protocol_logs
 from benchmarks.probes.structure_rules import bank_inputs, ratio
-from fogsf.models.lag_bank import fit_bank, n_curved
+from fogsf.models.structures.lag_bank import fit_bank, n_curved
 from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
 
 

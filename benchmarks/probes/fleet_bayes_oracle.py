@@ -21,9 +21,9 @@ import numpy as np
 
 from benchmarks.fleet import NEW_FIRST, RUN_OFFSET, profile, simulate_run
 from benchmarks.probes import ratio
-from fogsf.fleet.prior_train import test_series
-from fogsf.fleet.unit_fit import step_series
 from fogsf.models.reference import expand
+from fogsf.prior.unit_fit import step_series
+from fogsf.training.with_prior import test_series
 
 ORACLE_FIRST = 1000
 RUNS = ("loop2h", "up05")

@@ -1,6 +1,6 @@
 """Probe: what the design's structure missed on a 2 h loop: the cubes of its nodes.
 
-The fleet's structure (`fogsf.fleet.unit_fit`: T and K first-order lags of T, their
+The fleet's structure (`fogsf.prior.unit_fit`: T and K first-order lags of T, their
 quadratic with every cross term, the cube of T, and now the nodes' cubes) fitted to a unit's
 full program (the program of `make bench-fleet`'s fleet) predicts the unit's test loop,
 which that program holds; without the nodes' cubes it can miss a 2 h loop at 2 C/min with
@@ -23,8 +23,8 @@ import numpy as np
 
 from benchmarks.fleet import FULL, NEW_FIRST, simulate_run
 from benchmarks.probes import ratio
-from fogsf.fleet.prior_train import test_series
-from fogsf.fleet.unit_fit import (
+from fogsf.models.reference import expand
+from fogsf.prior.unit_fit import (
     StepSeries,
     all_steps,
     design_matrix,
@@ -32,7 +32,7 @@ from fogsf.fleet.unit_fit import (
     fit_unit,
     step_series,
 )
-from fogsf.models.reference import expand
+from fogsf.training.with_prior import test_series
 
 
 def fit(s: StepSeries, k: int, cubes: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -2,7 +2,7 @@
 
 For each design (development designs by default: tuning belongs there), a fleet of units on
 the full program of `make bench-fleet`, the design's prior learned from it
-(`fogsf.fleet.prior.learn`), new units 100.. on a 2 h loop and on one 0.5 C/min ramp,
+(`fogsf.prior.design_prior.learn`), new units 100.. on a 2 h loop and on one 0.5 C/min ramp,
 scored on the test loop (1 C/min up, 1.5 down; test RMS / noise floor):
 - `map`: the MAP of the parameters (`prior_map.map_fit`, the fit before the response prior);
 - `resp U,P`: the posterior mean response (`prior_function`) with weights LAM_UNITS = U on
@@ -25,13 +25,13 @@ import numpy as np
 
 from benchmarks.fleet import FULL, NEW_FIRST, simulate_run
 from benchmarks.probes import ratio
-from fogsf.fleet import prior as fp
-from fogsf.fleet import prior_function as pf
-from fogsf.fleet.prior_map import map_fit
-from fogsf.fleet.prior_train import INTERVAL_Z, law_prediction, test_series
-from fogsf.fleet.unit_fit import fit_unit, step_series
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.models.reference import expand
+from fogsf.prior import design_prior as fp
+from fogsf.prior import response_prior as pf
+from fogsf.prior.map_estimate import map_fit
+from fogsf.prior.unit_fit import fit_unit, step_series
+from fogsf.training.with_prior import INTERVAL_Z, law_prediction, test_series
 
 WEIGHTS = ((1.0, 0.0), (1.0, 0.3), (1.0, 1.0), (2.0, 0.3), (0.0, 1.0))
 NOISE_SCALES = (1.0, 10.0)

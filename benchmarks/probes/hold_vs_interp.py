@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.logs.logio import read_log
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.models import reference
 from fogsf.models import stream as st
 

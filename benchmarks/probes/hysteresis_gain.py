@@ -4,7 +4,7 @@ For development gyros with and without SF hysteresis (`benchmarks.hysteresis`'s 
 partial-cycle programs), the structure the default takes on `partial_train` (`bank`: the
 logs hold several segments) is fitted with and without the hysteresis term on every step,
 and both predict `partial_test`; the check's held-out RMS with and without the term
-(`training.hysteresis_choice.decide`) is recorded beside the two test ratios. Then, per
+(`training.structure.hysteresis.decide`) is recorded beside the two test ratios. Then, per
 threshold on the held-out gain, how many gyros of each group keep the term and what the
 test ratio does: what `HYST_GAIN` trades.
 
@@ -29,8 +29,8 @@ THRESHOLDS = (0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.40)
 
 
 def one(item: tuple[int, str]) -> dict:
-    from fogsf.training.hysteresis_choice import decide, fit_with_term
-    from fogsf.training.structure_choice import fit_candidate, step_data
+    from fogsf.training.structure.heldout import fit_candidate, step_data
+    from fogsf.training.structure.hysteresis import decide, fit_with_term
 
     seed, group = item
     _, train, test = partial_runs(seed, group)

@@ -2,7 +2,7 @@
 rate-transfer interval's upper end, calibrated for 90 % coverage.
 
 For each gyro and protocol of `benchmarks.population` (least squares: the default's
-structure chosen by `training.structure_choice`, no LSTM), it records the test RMS the model
+structure chosen by `training.structure.choice`, no LSTM), it records the test RMS the model
 leaves, the test's noise floor, and predictors computed without the test's gyro output:
 - quantiles of the distance from the model to the lag models consistent with the training
   logs (`transfer.target_spreads`; the interval uses the largest);
@@ -28,15 +28,11 @@ import numpy as np
 
 from benchmarks.population import protocol_logs
 from benchmarks.probes import finish
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.training.structure_choice import (
-    CANDIDATES,
-    candidate_compensations,
-    choose,
-    heldout_score,
-)
-from fogsf.training.transfer import target_spreads
+from fogsf.training.interval.transfer import target_spreads
+from fogsf.training.structure.choice import CANDIDATES, choose
+from fogsf.training.structure.heldout import candidate_compensations, heldout_score
 
 QUANTILES = (50, 75, 90, 100)
 EXTRA = ("chain1", "chain2")  # more structures for the disagreement (`cand_max_extra`)

@@ -2,7 +2,7 @@
 
 For each gyro and protocol (b)-(e) of `benchmarks.population` (and, with `--paper`, the
 default gyro trained on 0.5 and 2 C/min and tested on 1 C/min, noise seeds FIRST..), prints
-per candidate of `training.structure_choice` the test RMS / noise floor (least squares) and
+per candidate of `training.structure.choice` the test RMS / noise floor (least squares) and
 its held-out score under several fold schemes:
 
   loso    leave one segment out (a ramp at another rate or direction: extrapolation in rate)
@@ -23,11 +23,11 @@ import time
 
 from benchmarks.population import protocol_logs
 from benchmarks.probes import finish
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.training.structure_choice import (
+from fogsf.training.structure.choice import choose
+from fogsf.training.structure.heldout import (
     candidate_compensations,
-    choose,
     heldout_score,
     part_folds,
     step_data,

@@ -21,13 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.sim.population import gyro_for_seed
-from fogsf.training.structure_choice import (
-    CANDIDATES,
-    candidate_compensation,
-    choose,
-)
+from fogsf.training.structure.choice import CANDIDATES, choose
+from fogsf.training.structure.heldout import candidate_compensation
 
 TOLERANCES = (0.0, 0.1, 0.2, 0.3, 0.5)
 

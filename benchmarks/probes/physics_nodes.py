@@ -3,7 +3,7 @@ choice among them.
 
 For each gyro and protocol of `benchmarks.population` (and the default gyro's paper
 protocol with `--paper`, noise seeds FIRST..), prints the test RMS / noise floor of every
-candidate of `training.structure_choice` (physics nodes with 1-3 nodes, the lag bank; with
+candidate of `training.structure.choice` (physics nodes with 1-3 nodes, the lag bank; with
 `--candidates`, others such as `node`), of the one the rule chooses ("default"), of plain
 averages of candidates' predictions, and the held-out scores the rule reads.
 Run it on development gyros (the rule is tuned there):
@@ -22,7 +22,8 @@ import numpy as np
 from benchmarks.population import protocol_logs
 from benchmarks.probes import finish, ratio, spread_cells
 from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
-from fogsf.training.structure_choice import CANDIDATES, candidate_compensation, choose
+from fogsf.training.structure.choice import CANDIDATES, choose
+from fogsf.training.structure.heldout import candidate_compensation
 
 CANDS = CANDIDATES
 
@@ -59,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-cube", action="store_true", help="no cube of T in the node law")
     ap.add_argument("--candidates", default=None, help="comma list (default CANDIDATES)")
     args = ap.parse_args(argv)
-    from fogsf.models import physics_nodes
+    from fogsf.models.structures import physics_nodes
 
     if args.lam is not None:
         physics_nodes.NODE_LAMBDA = args.lam

@@ -44,7 +44,7 @@ from benchmarks.population import PROTOCOLS, run_config
 from benchmarks.probes import StepScorer, finish, ratio, spread_cells
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.features import step_targets
-from fogsf.models.lag_bank import BANK_LAMBDA, bank_name, fit_bank
+from fogsf.models.structures.lag_bank import BANK_LAMBDA, bank_name, fit_bank
 from fogsf.sim.config import SimConfig
 from fogsf.sim.effects import EffectContext, apply_effects
 from fogsf.sim.gyro import SimResult, simulate
@@ -101,15 +101,15 @@ def bank_ratio(train: list[SimResult], test: SimResult, source: str,
     """The bank `name` (default: at the prior; least squares, as `fogsf train` fits it), its
     temperature input the log's thermometer (`source` "thermometer") or a true node's
     temperature ("board", "housing"): where the bank loses against the oracle."""
-    from fogsf.training import structure_choice as sc
+    from fogsf.training.structure import heldout as sh
 
     def log_of(r: SimResult) -> ChamberLog:
         if source == "thermometer":
             return r.log
         return replace(r.log, temp_c=np.asarray(r.nodes[source], dtype=np.float64))
 
-    full = sc.step_data([log_of(r) for r in train])
-    pred = sc.fit_candidate(name or bank_name(), full, np.arange(full.y.size))
+    full = sh.step_data([log_of(r) for r in train])
+    pred = sh.fit_candidate(name or bank_name(), full, np.arange(full.y.size))
     on_test = StepScorer.of(log_of(test), full.fe)
     return on_test(pred(on_test.nt))
 

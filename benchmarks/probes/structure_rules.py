@@ -10,7 +10,7 @@ for these rules (all fitted on the protocol's training logs, scored on its test 
                best (the rate-transfer check's set)
   oracle       the lag model (one or two nodes) best ON THE TEST LOG: what perfect
                selection within that family would reach (not a method)
-  bank:LAM     the lag bank (models.lag_bank: T and the lags up to 2000 s as cubics, the
+  bank:LAM     the lag bank (models.structures.lag_bank: T and the lags up to 2000 s as cubics, the
                slower lags linear) with a fixed ridge prior LAM (1e-3 is the default)
   bank:allcubic  every lag as a cubic, prior 1e-3
   bank:gcv     every lag as a cubic, the penalty chosen by GCV
@@ -31,20 +31,20 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.population import protocol_logs
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.models.features import MODEL_STEP_S, front_end_for, prepare
-from fogsf.models.lag_bank import BANK_LAMBDA, bank_design, bank_spec, fit_bank, n_curved
-from fogsf.models.least_squares import (
+from fogsf.models.reference import expand
+from fogsf.models.structures.lag_bank import BANK_LAMBDA, bank_design, bank_spec, fit_bank, n_curved
+from fogsf.models.structures.least_squares import (
     TAU_GRID_S,
     fit_candidates,
     grid_data,
     node_candidates,
 )
-from fogsf.models.reference import expand
 from fogsf.sim.population import DEV_SEEDS, gyro_for_seed
 from fogsf.training.inputs import bank_data, training_inputs
+from fogsf.training.interval.transfer import CHI2_ALLOWANCE, long_run_ratio
 from fogsf.training.options import TrainOptions
-from fogsf.training.transfer import CHI2_ALLOWANCE, long_run_ratio
 
 BANK_LAMBDAS = (1e-4, 1e-3, 1e-2)
 GCV_GRID = tuple(float(x) for x in np.geomspace(1e-8, 1e2, 41))

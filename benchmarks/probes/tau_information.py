@@ -40,17 +40,17 @@ import numpy as np
 
 from benchmarks.probes import StepScorer, finish, spread_cells
 from benchmarks.probes.sf_oracle import Run, partial_case, protocol_cases
-from fogsf.models.least_squares import TAU_GRID_S
-from fogsf.models.physics_nodes import fit_coefficients, identify_taus, node_design
-from fogsf.training import structure_choice as sc
+from fogsf.models.structures.least_squares import TAU_GRID_S
+from fogsf.models.structures.physics_nodes import fit_coefficients, identify_taus, node_design
+from fogsf.training.structure import heldout as sh
 
 CHI2_95 = {2: 5.99, 3: 7.81}  # the chi-square 95 % points of 2 and 3 parameters
 
 
 def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
     """`ident`, `train`, `parts`, `test` and `dchi2` per node count, `bank` and `mix`."""
-    sd = sc.step_data([r.log for r, _ in train])
-    by_parts = dataclasses.replace(sd, fold=sc.part_folds(sd))
+    sd = sh.step_data([r.log for r, _ in train])
+    by_parts = dataclasses.replace(sd, fold=sh.part_folds(sd))
     on_test = StepScorer.of(test[0].log, sd.fe)
     nt = on_test.nt
 
@@ -60,14 +60,14 @@ def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
         p = f.predict(nt.z(taus))
         return float(np.sum((f.predict(z) - sd.y) ** 2)), on_test(p), p
 
-    def fit_at(taus: tuple[float, ...]) -> Callable[[sc.StepData, np.ndarray], sc.Predictor]:
-        def fit(s: sc.StepData, rows: np.ndarray) -> sc.Predictor:
+    def fit_at(taus: tuple[float, ...]) -> Callable[[sh.StepData, np.ndarray], sh.Predictor]:
+        def fit(s: sh.StepData, rows: np.ndarray) -> sh.Predictor:
             f = fit_coefficients(s.nodes.z(taus)[rows], s.y[rows], taus)
             return lambda nt: f.predict(nt.z(taus))
         return fit
 
     out: dict = {}
-    bank = sc.fit_candidate("bank", sd, np.arange(sd.y.size))(nt)
+    bank = sh.fit_candidate("bank", sd, np.arange(sd.y.size))(nt)
     out["bank"] = on_test(bank)
     for k in nodes:
         ident = identify_taus(sd.nodes, sd.y, k)
@@ -79,7 +79,7 @@ def score(train: list[Run], test: Run, nodes: tuple[int, ...]) -> dict:
         p = node_design(sd.nodes.z(best_train[0]), best_train[0]).shape[1] + 1
         s2 = sse_min / (sd.y.size - p)
         out[f"train{k}"] = best_train[2]
-        held = min(grid, key=lambda g: sc.heldout_score("", by_parts, fit_at(g[0])))
+        held = min(grid, key=lambda g: sh.heldout_score("", by_parts, fit_at(g[0])))
         out[f"parts{k}"] = held[2]
         out[f"test{k}"] = best_test[2]
         out[f"dchi2_{k}"] = (best_test[1] - sse_min) / s2

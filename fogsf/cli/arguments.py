@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 
 from fogsf.errors import UserError
-from fogsf.logs import stream_read
-from fogsf.logs.columns import Spill
-from fogsf.logs.dialect import DELIMITERS, Dialect
-from fogsf.logs.metrics import forget_notes
+from fogsf.logs.measure.sf_reference import forget_notes
+from fogsf.logs.read import stream_read
+from fogsf.logs.read.columns import Spill
+from fogsf.logs.read.dialect import DELIMITERS, Dialect
 
 
 def _number(text: str) -> float:
@@ -168,7 +168,7 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
                         "off: the next segment's first temperature held, the power-on rule)")
 
 
-def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.dialect.Dialect
+def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.read.dialect.Dialect
     """The `Dialect` the options of `add_log_options` give."""
     gyro = getattr(args, "gyro_column", None)
     axis = getattr(args, "axis", None)
@@ -203,7 +203,7 @@ def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - Strea
 def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False) -> list:
     """Read logs with the options of `add_log_options`; how a log was read when it is not
     in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr. Each log
-    is read a block at a time with a progress bar on a terminal (logs/stream_read.py); with
+    is read a block at a time with a progress bar on a terminal (logs/read/stream_read.py); with
     `on_disk` its columns stay in a spill on disk (replay, inspect, train, diagnose, plan
     --from-logs; what the command itself makes may still grow with the log), else they are
     then held in memory."""

@@ -25,21 +25,20 @@ import sys
 
 from fogsf.cli.arguments import add_log_options, add_metric_options, positive_float, read_logs
 from fogsf.cli.axes import run_all, wants_all
-from fogsf.logs.bias import BiasWindows, bias_summary, bias_windows
 from fogsf.logs.chamber_log import ChamberLog, is_stationary, rate_text
-from fogsf.logs.columns import col_max, col_min
-from fogsf.logs.metrics import (
+from fogsf.logs.measure.bias import BiasWindows, bias_summary, bias_windows
+from fogsf.logs.measure.metrics import (
     log_metrics,
     noise_floor_ppm,
-    reference_sf,
-    reference_temp_c,
     sf_error_ppm,
-    sf_windows,
     start_note,
     start_ramp_c_per_min,
 )
-from fogsf.logs.pairs import find_pairs, rate_steps
-from fogsf.logs.plateaus import DPS_TO_DPH, SETTLE_S, plateaus
+from fogsf.logs.measure.pairs import find_pairs, rate_steps
+from fogsf.logs.measure.plateaus import DPS_TO_DPH, SETTLE_S, plateaus
+from fogsf.logs.measure.sf_reference import reference_sf, reference_temp_c
+from fogsf.logs.measure.windows import sf_windows
+from fogsf.logs.read.columns import col_max, col_min
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -93,7 +92,7 @@ def stationary_summary(log: ChamberLog, window_s: float, latitude_deg: float | N
 
 
 def sampling_summary(log: ChamberLog) -> dict | None:
-    """How the rows lie in time (logs/sampling.py): the nominal rate, steps off it, dropped
+    """How the rows lie in time (logs/read/sampling.py): the nominal rate, steps off it, dropped
     samples, gaps and resets; None for a log made in memory."""
     s = log.sampling
     if s is None:

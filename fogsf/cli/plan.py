@@ -43,11 +43,11 @@ from fogsf.cli.arguments import (
 )
 from fogsf.diagnose import extend, verdict
 from fogsf.errors import UserError
-from fogsf.fleet.prior_plan import shortest, write
-from fogsf.fleet.prior_train import prior_from_store
+from fogsf.fleet.new_unit import prior_from_store
 from fogsf.gsa.executors import add_executor_options, executor_from_args
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.plan.evaluate import test_rates
+from fogsf.plan.prior_program import shortest, write
 from fogsf.plan.programs import Limits, candidates
 from fogsf.plan.report import table_md, write_outputs
 from fogsf.plan.search import search
@@ -206,7 +206,7 @@ def run_prior(args: argparse.Namespace) -> int:
           + ", ".join(f"{r:.2g}" for r in rates) + " C/min")
     t0 = time.perf_counter()
 
-    def said(r) -> None:  # noqa: ANN001 - prior_plan.PlanResult
+    def said(r) -> None:  # noqa: ANN001 - prior_program.PlanResult
         print(f"  {r.program.name:<48} {r.program.hours:5.2f} h: median {r.median:.2f}, "
               f"worst {r.worst:.2f} x the floor", flush=True)
 

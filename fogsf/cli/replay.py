@@ -40,11 +40,14 @@ from fogsf.cli.arguments import (
 )
 from fogsf.cli.axes import run_all, wants_all
 from fogsf.errors import UserError
-from fogsf.logs.bias import before_after, bias_windows
-from fogsf.logs.columns import Column, Spill, is_lazy
 from fogsf.logs.corrected_out import CorrectedWriter
-from fogsf.logs.metrics import log_metrics, reference_sf, sf_error_ppm, sf_windows, start_note
-from fogsf.models.stream import FLAG_NAMES, StreamModel
+from fogsf.logs.measure.bias import before_after, bias_windows
+from fogsf.logs.measure.metrics import log_metrics, sf_error_ppm, start_note
+from fogsf.logs.measure.sf_reference import reference_sf
+from fogsf.logs.measure.windows import sf_windows
+from fogsf.logs.read.columns import Column, Spill, is_lazy
+from fogsf.models.stream import StreamModel
+from fogsf.models.stream_flags import FLAG_NAMES
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

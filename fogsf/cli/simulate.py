@@ -37,13 +37,15 @@ from typing import Any
 from fogsf.cli.inspect import summary as log_summary
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import check_rate_hz
-from fogsf.logs.logio import write_log
-from fogsf.sim import profiles, rig_logs, rigs
+from fogsf.logs.writer import write_log
+from fogsf.sim import profiles
 from fogsf.sim.config import SimConfig, validate
 from fogsf.sim.effects import describe, parse_effect
 from fogsf.sim.gyro import SimResult, simulate
 from fogsf.sim.plot import plot_runs, runs_for_plot
 from fogsf.sim.population import gyro_for_seed, with_gyro
+from fogsf.sim.rigs import protocols as rigs
+from fogsf.sim.rigs import rig_logs
 from fogsf.sim.scenarios import SCENARIOS, scenario
 
 
@@ -314,7 +316,7 @@ def _rig_protocol(args: argparse.Namespace) -> Any:
 
 
 def run_rig(args: argparse.Namespace) -> int:
-    """--rig: a calibration rig's protocol written in its convention (sim/rigs.py)."""
+    """--rig: a calibration rig's protocol written in its convention (sim/rigs/protocols.py)."""
     from pathlib import Path
 
     given = [f"--{o.replace('_', '-')}" for o in RIG_REFUSES if getattr(args, o, None)]

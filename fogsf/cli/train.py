@@ -46,15 +46,16 @@ from fogsf.cli.arguments import (
 )
 from fogsf.cli.axes import run_all, wants_all
 from fogsf.errors import UserError
-from fogsf.fleet.prior_train import prior_lines, train_on_prior
+from fogsf.fleet.new_unit import train_on_prior
 from fogsf.gsa.executors import add_executor_options
-from fogsf.models.lag_bank import BANK_LSTM_INPUTS, bank_spec
-from fogsf.training.bias_model import bias_lines
-from fogsf.training.hysteresis_choice import choice_line
+from fogsf.models.structures.lag_bank import BANK_LSTM_INPUTS, bank_spec
+from fogsf.training.bias.model import bias_lines
+from fogsf.training.interval.transfer import RateTransfer, spans_ramp_rates
 from fogsf.training.options import DEFAULT_MODEL, MODELS, STRUCTURES, TrainOptions
-from fogsf.training.structure_choice import choice_message
+from fogsf.training.structure.choice import choice_message
+from fogsf.training.structure.hysteresis import choice_line
 from fogsf.training.train import run_training
-from fogsf.training.transfer import RateTransfer, spans_ramp_rates
+from fogsf.training.with_prior import prior_lines
 
 
 def _chunk(text: str) -> tuple[float, float]:
@@ -162,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
     if args.prior:
-        m = train_on_prior(args, opts, train_logs, test_log, out)
+        m = train_on_prior(args.prior, getattr(args, "unit", None), opts, train_logs, test_log, out)
         print(format_metrics(m))
         print("\n".join(textwrap.fill(x, 96) for x in prior_lines(m["prior"])))
     else:

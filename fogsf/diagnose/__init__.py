@@ -6,7 +6,7 @@ Stages (one small module each):
 - `driver`: the housing temperature that drives the internal thermal nodes, identified from
   the chamber air and the board thermometer (first-order lags, profiled on a grid).
 - `design`: the columns of the base model and of each catalogue effect, per window.
-- `catalogue`: the candidate effects (the simulator's seven), their columns, grids, units.
+- `effects.catalogue`: the candidate effects (the simulator's seven), their columns, grids, units.
 - `profile_ls`: weighted linear least squares, profiled over grids of time constants.
 - `crossval`: held-out residuals by leaving out contiguous blocks (or whole runs).
 - `stats`: whiteness (Ljung-Box), the structured share of a residual, paired sign-flip
@@ -20,7 +20,8 @@ Stages (one small module each):
 - `extend`: the fitted, extended model as a simulator configuration, and its distance
   to the measured logs.
 - `report`: the JSON of docs/diagnose.md and a Markdown report with plots.
+- `effects.hysteresis_form`: the play (backlash) form of a coil temperature.
 - `cases`: planted-effect cases (simulated) for the tests and `benchmarks.diagnose_rate`;
-  `case_programs` their chamber programs and tables, `case_kinds` the coil bias on a log
-  pair and the source mode hop, `case_judge` whether a diagnosis got a case right.
+  `cases.programs` their chamber programs and tables, `cases.kinds` the coil bias on a log
+  pair and the source mode hop, `cases.judge` whether a diagnosis got a case right.
 """

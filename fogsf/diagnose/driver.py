@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fogsf.logs.columns import Column, Spill, blocks, derived, is_lazy
-from fogsf.logs.exact_stats import median_step
+from fogsf.logs.measure.exact_stats import median_step
+from fogsf.logs.read.columns import Column, Spill, blocks, derived, is_lazy
 from fogsf.sim.lag import STREAM_BLOCK, first_order_lag, lag_blocks
 
 TAU_GRID_S = (0.0, 15.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.0, 240.0, 300.0, 360.0, 480.0,

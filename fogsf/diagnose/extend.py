@@ -31,13 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from fogsf.diagnose import catalogue, design
+from fogsf.diagnose import design
 from fogsf.diagnose.design import RunContext
+from fogsf.diagnose.effects import catalogue
 from fogsf.diagnose.fits import Diagnosis, ModelFit
 from fogsf.logs.chamber_log import EARTH_RATE_DPS
-from fogsf.logs.columns import Column, derived, exact_mean
-from fogsf.logs.metrics import sf_windows
-from fogsf.logs.plateaus import plateaus
+from fogsf.logs.measure.plateaus import plateaus
+from fogsf.logs.measure.windows import sf_windows
+from fogsf.logs.read.columns import Column, derived, exact_mean
 from fogsf.sim.config import SimConfig
 from fogsf.sim.gyro import simulate
 

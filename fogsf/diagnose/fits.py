@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsf.diagnose import crossval, profile_ls, runs
-from fogsf.diagnose.catalogue import Candidate
 from fogsf.diagnose.design import RunContext
+from fogsf.diagnose.effects.catalogue import Candidate
 from fogsf.diagnose.profile_ls import Stack
 
 

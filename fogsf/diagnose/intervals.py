@@ -18,9 +18,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from fogsf.diagnose import catalogue, profile_ls
-from fogsf.diagnose.catalogue import Candidate, GridValue, first
+from fogsf.diagnose import profile_ls
 from fogsf.diagnose.design import RunContext
+from fogsf.diagnose.effects import catalogue
+from fogsf.diagnose.effects.catalogue import Candidate, GridValue, first
 from fogsf.diagnose.fits import ModelFit, fit_model
 
 Z95 = 1.959964

@@ -4,8 +4,8 @@ A model is the base columns (which depend on the base time constants) plus, opti
 candidate column (which may depend on its own grid parameter). Every admissible combination
 of grid values gives one design matrix; all are stacked into one (G, n, p) array and solved
 at once (batched normal equations on scaled columns, a whisker of ridge for columns that
-are collinear on a given set of logs; `models.node_fit`, the fit the trainer's physics-node
-model uses too), and the combination with the least weighted squared
+are collinear on a given set of logs; `models.structures.node_fit`, the fit the trainer's
+physics-node model uses too), and the combination with the least weighted squared
 error wins. The same stack serves every cross-validation fold (only the rows change).
 """
 
@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from fogsf.diagnose import design
-from fogsf.diagnose.catalogue import Candidate, GridValue
 from fogsf.diagnose.design import RunContext
-from fogsf.models.node_fit import PROFILE_RIDGE, ProfileFit, profile_solve
+from fogsf.diagnose.effects.catalogue import Candidate, GridValue
+from fogsf.models.structures.node_fit import PROFILE_RIDGE, ProfileFit, profile_solve
 
 KEEP_NUMBERS = 1 << 23  # a stack up to this many numbers (64 MB) is kept whole
 RIDGE = PROFILE_RIDGE  # on scaled columns: keeps nearly collinear node terms from cancelling
@@ -120,7 +120,7 @@ Fit = ProfileFit  # one profile over the grid (the shared physics fit's record)
 
 def solve(stack: Stack, y: np.ndarray, w: np.ndarray, rows: np.ndarray) -> Fit:
     """Fit on `rows` (index array) with weights w (1/sigma^2): the shared physics fit's
-    profile over every stacked combination (`models.node_fit.profile_solve`)."""
+    profile over every stacked combination (`models.structures.node_fit.profile_solve`)."""
     return profile_solve(stack.x, y, w, rows, RIDGE)
 
 

@@ -1,6 +1,6 @@
 """Chamber logs as per-window observations for system identification.
 
-A window is one of `logs.metrics.sf_windows` (whole windows on one settled table-rate
+A window is one of `logs.measure.windows.sf_windows` (whole windows on one settled table-rate
 plateau, or a whole plateau shorter than a window), with the gyro's bias left in: the
 catalogue models bias drift and asymmetry by what they do to the apparent SF (a bias b
 reads as b / rate), so the +/- pairs' bias is not taken off here as other commands do.
@@ -19,9 +19,9 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.columns import Column, blocks, cumsum_blocks_at, derived
-from fogsf.logs.exact_stats import median_step
-from fogsf.logs.metrics import SFWindows, sf_windows
+from fogsf.logs.measure.exact_stats import median_step
+from fogsf.logs.measure.windows import SFWindows, sf_windows
+from fogsf.logs.read.columns import Column, blocks, cumsum_blocks_at, derived
 from fogsf.sim.lag import STREAM_BLOCK, lag_blocks
 
 

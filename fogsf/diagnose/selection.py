@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.diagnose import catalogue, hysteresis_form, intervals, stats
-from fogsf.diagnose.catalogue import Candidate, GridValue
+from fogsf.diagnose import intervals, stats
 from fogsf.diagnose.design import RunContext
+from fogsf.diagnose.effects import catalogue, hysteresis_form
+from fogsf.diagnose.effects.catalogue import Candidate, GridValue
 from fogsf.diagnose.fits import (
     CandidateResult,
     ModelFit,
@@ -26,7 +27,7 @@ from fogsf.diagnose.fits import (
     visible_fraction,
     weighted_rms,
 )
-from fogsf.logs.columns import block_means
+from fogsf.logs.read.columns import block_means
 
 ALPHA = 0.01
 MIN_GAIN_PCT = 5.0

@@ -44,17 +44,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.diagnose import (
-    catalogue,
-    crossval,
-    design,
-    driver,
-    profile_ls,
-    runs,
-    selection,
-    stats,
-)
+from fogsf.diagnose import crossval, design, driver, profile_ls, runs, selection, stats
 from fogsf.diagnose.design import RunContext
+from fogsf.diagnose.effects import catalogue
 from fogsf.diagnose.fits import (
     CandidateResult,
     Diagnosis,

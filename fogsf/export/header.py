@@ -15,7 +15,8 @@ import jinja2
 import numpy as np
 
 from fogsf.models.front_end import play_half_c, play_source_w
-from fogsf.models.stream import FORMAT, StreamModel
+from fogsf.models.stream import StreamModel
+from fogsf.models.stream_format import FORMAT
 
 # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
 # also holds lstm_inputs and quad_diag (and feat_diag); 4 and 5: the model as the first

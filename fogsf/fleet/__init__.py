@@ -1,4 +1,4 @@
 """Units of one design calibrated together (`fogsf fleet`): the fleet database
-(`fleet.store`, `fleet.records`), the design's prior (`fleet.prior*`, `fleet.unit_fit`,
-`fleet.unit_summary`), units unlike the line (`fleet.check`) and the report
-(`fleet.report`)."""
+(`fleet.store`, `fleet.records`, `fleet.manifest`), a new unit trained under the design's
+prior and recorded (`fleet.new_unit`; the prior itself is `fogsf.prior`), units unlike the
+line (`fleet.check`) and the report (`fleet.report`)."""

@@ -18,15 +18,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fogsf import __version__
-from fogsf.fleet.unit_summary import summarize_unit
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.metrics import sf_error_ppm, sf_windows
-from fogsf.training.fitted import per_sample_prediction
-from fogsf.training.transfer import ramp_segments
+from fogsf.logs.measure.metrics import sf_error_ppm
+from fogsf.logs.measure.windows import sf_windows
+from fogsf.prior.unit_summary import summarize_unit
+from fogsf.training.fitted_model import per_sample_prediction
+from fogsf.training.interval.transfer import ramp_segments
 
 if TYPE_CHECKING:
     from fogsf.logs.chamber_log import ChamberLog
-    from fogsf.training.fitted import Fitted
+    from fogsf.training.fitted_model import Fitted
 
 # SF error against temperature (the report's curves) in bins of this width, C
 SF_CURVE_BIN_C = 2.0
@@ -55,7 +56,7 @@ class UnitRecord:
     model's metrics.json (train/test RMS before and after, noise floor, their ratio, the SF
     error against temperature); interval: the test RMS interval `train --test` printed (None
     without a test log); summary: what the design's prior needs
-    (`fogsf.fleet.unit_summary.summarize_unit`), JSON-able."""
+    (`fogsf.prior.unit_summary.summarize_unit`), JSON-able."""
 
     unit: str
     logs: list[LogRecord]
@@ -267,7 +268,7 @@ def unit_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | 
     curve_log = test_log if test_log is not None else train_logs[0]
     figures["sf_curve_log"] = "test" if test_log is not None else "train"
     # torch: loaded only when a record is built from a trained model
-    from fogsf.training.fit import SMALL_NET_UNITS, torch_threads
+    from fogsf.training.net.loops import SMALL_NET_UNITS, torch_threads
 
     sm = fitted.stream_model
     with contextlib.ExitStack() as stack:

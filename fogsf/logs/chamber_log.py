@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.logs.columns import (
+from fogsf.logs.measure.exact_stats import mean_in_order, median, step_blocks
+from fogsf.logs.read.columns import (
     LazyColumn,
     any_true,
     blocks,
@@ -21,7 +22,6 @@ from fogsf.logs.columns import (
     derived,
     is_lazy,
 )
-from fogsf.logs.exact_stats import mean_in_order, median, step_blocks
 
 REQUIRED = ("time_s", "temp_c", "table_rate_dps", "gyro_dps")
 OPTIONAL = ("earth_rate_dps", "chamber_c", "valid")
@@ -76,9 +76,9 @@ class ChamberLog:
     # a latitude is scaled by it (`--axis-cosine`); an earth_rate_dps column is used as given
     axis_cosine: float = 1.0
     # the board temperature whose SF is the reference of the SF error (--ref-temp-c; a log
-    # that never comes near it takes the nearest it holds: metrics.reference_sf)
+    # that never comes near it takes the nearest it holds: sf_reference.reference_sf)
     ref_temp_c: float = 20.0
-    # how the rows lie in time (logs/sampling.py `Sampling`: jitter, drops, gaps, resets);
+    # how the rows lie in time (logs/read/sampling.py `Sampling`: jitter, drops, gaps, resets);
     # None: not surveyed (a log made in memory)
     sampling: Any = None
 

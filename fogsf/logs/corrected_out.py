@@ -14,7 +14,7 @@ from typing import BinaryIO
 
 import numpy as np
 
-from fogsf.logs.parquet_log import ParquetColumns, arrow_table, is_parquet
+from fogsf.logs.read.parquet_log import ParquetColumns, arrow_table, is_parquet
 
 NAMES = ("time_s", "gyro_dps", "gyro_corrected_dps", "sf_error_ppm", "bias_dph")
 DTYPES = (np.float64, np.float64, np.float64, np.float32, np.float32)

@@ -1,4 +1,4 @@
-"""Reading and writing chamber logs (docs/logs.md), with every refusal it lists.
+"""Reading chamber logs (docs/logs.md), with every refusal it lists.
 
 A log is one gyro run in the chamber at a constant sample rate between 1 Hz and 4 kHz (the
 paper's rigs log at 10 Hz; gyro firmware runs at its output rate). The nominal rate is the
@@ -6,13 +6,14 @@ median step of time_s, or `--sample-rate-hz` when given; every step must lie wit
 DT_TOLERANCE (20 %) of it. Reading never fixes or drops anything: a bad file is refused
 with one `LogError` that names the file, the line, the rule and, where one exists, the
 option that fixes it. How the file writes the format (delimiter, column names, quotes,
-decimal commas) is its `Dialect` (logs/dialect.py); every column of the file is parsed as
-numbers, then ours are built from them by the column map (logs/column_map.py: renames,
-numbers, expressions of logs/expressions.py; --gyro-column / --axis); the log in memory is
+decimal commas) is its `Dialect` (logs/read/dialect.py); every column of the file is parsed as
+numbers, then ours are built from them by the column map (logs/mapping/column_map.py: renames,
+numbers, expressions of logs/mapping/expressions.py; --gyro-column / --axis); the log in memory is
 a `ChamberLog` (logs/chamber_log.py). The fast path parses a file with pyarrow's CSV reader
-straight from disk (logs/arrow_csv.py: any delimiter, quoted cells, decimal commas); a file
+straight from disk (logs/read/arrow_csv.py: any delimiter, quoted cells, decimal commas); a file
 it cannot read as numbers takes the general path, which names the offending line. Both
-apply the same column map.
+apply the same column map, and the columns become a validated log in logs/validation.py;
+logs/writer.py writes a log.
 """
 
 from __future__ import annotations
@@ -23,28 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.logs.arrow_csv import NotFast, read_numbers
-from fogsf.logs.cell_kinds import numeric_cells, row_kinds
-from fogsf.logs.chamber_log import (
-    DT_TOLERANCE,
-    EPOCH_S,
-    NOMINAL_DT_S,
-    RATE_RANGE_HZ,
-    RATE_SLACK,
-    REQUIRED,
-    TEMP_RANGE_C,
-    ChamberLog,
-    LogError,
-    check_rate_hz,
-    epoch_text,
-    is_temperature,
-    nominal_step_s,
-    rate_text,
-    time_text,
-)
-from fogsf.logs.column_map import ColumnPlan, with_kinds
-from fogsf.logs.columns import Column, blocks, col_max, col_min, derived, is_lazy
-from fogsf.logs.dialect import (
+from fogsf.logs.chamber_log import ChamberLog, LogError
+from fogsf.logs.mapping.column_map import ColumnPlan, with_kinds
+from fogsf.logs.read.arrow_csv import NotFast, read_numbers
+from fogsf.logs.read.cell_kinds import numeric_cells, row_kinds
+from fogsf.logs.read.dialect import (
     Dialect,
     checked_names,
     find_delimiter,
@@ -56,17 +40,10 @@ from fogsf.logs.dialect import (
     read_header,
     unquote_lines,
 )
-from fogsf.logs.field_formats import as_table, format_of, main_stream
-from fogsf.logs.joins import apply_joins
-from fogsf.logs.line_scan import bad_cell_in, first_bad_line
-from fogsf.logs.parquet_log import (
-    in_rows,
-    is_parquet,
-    parquet_names,
-    read_parquet_log,
-    write_columns,
-)
-from fogsf.logs.sampling import default_max_gap_s, mend_segments, survey
+from fogsf.logs.read.field_formats import as_table, format_of, main_stream
+from fogsf.logs.read.line_scan import bad_cell_in, first_bad_line
+from fogsf.logs.read.parquet_log import in_rows, is_parquet, parquet_names, read_parquet_log
+from fogsf.logs.validation import _log_of
 
 
 def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
@@ -90,7 +67,7 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
 
 
 def read_field_log(path: str | Path, dialect: Dialect) -> ChamberLog:
-    """A field-format file's main stream (logs/field_formats.py) read as a log: its columns
+    """A field-format file's main stream (logs/read/field_formats.py) read as a log: its columns
     through the column map, as a CSV's."""
     p = str(path)
     name, stream = main_stream(path, dialect.stream, dialect.columns_from)
@@ -180,7 +157,7 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
 
 def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:
     """The fast path for large logs: the header line, then pyarrow's CSV reader straight from
-    the file, block by block (logs/arrow_csv.py). None when the file needs the general path,
+    the file, block by block (logs/read/arrow_csv.py). None when the file needs the general path,
     which names the line: a cell that is not a finite number, a row of another length, a
     blank line inside (blank lines at the end are dropped, as every reader does), quotes in
     the data rows of a file whose header has none, a quoted file whose header is refused
@@ -241,7 +218,7 @@ def plain_header(path: str | Path, dialect: Dialect) -> PlainHeader | None:
 
 def first_row_kinds(path: str | Path, delim: str, quoted: bool, decimal_comma: bool
                     ) -> tuple[str, ...] | None:
-    """What each column of the first data row holds (logs/cell_kinds.py); None when there
+    """What each column of the first data row holds (logs/read/cell_kinds.py); None when there
     is no such row or it cannot be read."""
     try:
         with open(path, encoding="utf-8-sig") as f:
@@ -284,85 +261,6 @@ def _data_lines(path: str | Path) -> int:
     return n - 1 - blank_end.count(b"\n") + 1
 
 
-def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
-            notes: list[str]) -> ChamberLog:
-    """The parsed cells (every column of the log) as a validated ChamberLog: our columns
-    built by the plan, then checked."""
-    return log_from_columns(plan.apply(data, path), path, dialect, notes)
-
-
-def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes: list[str]
-                     ) -> ChamberLog:
-    """Our columns (in memory or on disk) as a validated ChamberLog: exact duplicate rows
-    dropped, other files joined on its clock, its gaps and resets mended into segments
-    (logs/sampling.py), then checked."""
-    cols = without_duplicates(cols, notes)
-    cols, _ = apply_joins(cols, dialect.joins, path, notes)
-    if dialect.sample_rate_hz is not None:
-        check_rate_hz(dialect.sample_rate_hz)
-    t = cols["time_s"]
-    nominal = (1.0 / dialect.sample_rate_hz if dialect.sample_rate_hz is not None
-               else nominal_step_s(t))
-    max_gap = (dialect.max_gap_s if dialect.max_gap_s is not None
-               else default_max_gap_s(nominal))
-    if dialect.sample_rate_hz is None:
-        check_rate_range(nominal, path)
-    sampling = survey(t, nominal, max_gap)
-    if dialect.sample_rate_hz is None and sampling.jittered > 0.01 * sampling.steps:
-        # a jittered clock: its period is the mean step (each counted in samples), not the
-        # median of jittered steps
-        nominal = 1.0 / float(f"{1.0 / sampling.mean_step_s:.6g}")
-        sampling = survey(t, nominal, max_gap)
-    cols = mend_segments(cols, sampling, dialect.gap_states)
-    dt = validate(cols, path, dialect.sample_rate_hz, nominal)
-    if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
-        notes.append(f"sample rate {1.0 / dt:.6g} Hz ("
-                     f"{'--sample-rate-hz' if dialect.sample_rate_hz else 'from time_s'})")
-    if sampling.irregular:
-        notes.append(sampling.text())
-    extra = {k: v for k, v in cols.items()
-             if k not in REQUIRED and k not in ("earth_rate_dps", "valid")}
-    valid = cols.get("valid")
-    if valid is not None:
-        v = valid
-        valid = derived(len(v), np.dtype(bool), lambda s: v[s] != 0.0) if is_lazy(v) \
-            else v != 0.0
-    return ChamberLog(
-        time_s=cols["time_s"],
-        temp_c=cols["temp_c"],
-        table_rate_dps=cols["table_rate_dps"],
-        gyro_dps=cols["gyro_dps"],
-        earth_rate_dps=cols.get("earth_rate_dps"),
-        valid=valid,
-        extra=extra,
-        path=path,
-        read_notes=tuple(notes),
-        nominal_dt_s=dt,
-        sampling=sampling,
-    )
-
-
-def without_duplicates(cols: dict[str, Column], notes: list[str]) -> dict[str, Column]:
-    """`cols` without the rows that repeat the row before them exactly (a logger that wrote a
-    sample twice), counted in `notes`; a row at the same time with other values stays (and
-    is refused as time not increasing). A log with such rows is then held in memory."""
-    t = cols["time_s"]
-    same: list[np.ndarray] = []
-    for a in range(0, max(len(t) - 1, 0), VALIDATE_BLOCK):
-        dt = np.diff(np.asarray(t[a:a + VALIDATE_BLOCK + 1]))
-        same.append(a + 1 + np.flatnonzero(dt == 0.0))
-    rows = np.concatenate(same) if same else np.zeros(0, dtype=np.int64)
-    if not rows.size:
-        return cols
-    for v in cols.values():
-        rows = rows[np.asarray(v[rows]) == np.asarray(v[rows - 1])]
-    if not rows.size:
-        return cols
-    notes.append(f"{rows.size} exact duplicate row{'s' if rows.size > 1 else ''} dropped "
-                 f"(the first at line {int(rows[0]) + 2})")
-    return {k: np.delete(np.asarray(v[:]), rows) for k, v in cols.items()}
-
-
 def _parse_numbers(lines: list[str], header: list[str], path: str, delim: str = ","
                    ) -> np.ndarray:
     ncol = len(header)
@@ -389,129 +287,3 @@ def _find_bad_cell(lines: list[str], header: list[str], path: str, delim: str = 
         err = bad_cell_in(line, i, header, path, delim)
         if err is not None:
             raise err
-
-
-def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None,
-             nominal: float | None = None) -> float:
-    """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s):
-    1 / rate_hz, else `nominal` (the reader's, logs/sampling.py), else time_s's median step."""
-    t = cols["time_s"]
-    if rate_hz is not None:
-        check_rate_hz(rate_hz)
-        nominal = 1.0 / rate_hz
-    elif nominal is None:
-        nominal = nominal_step_s(t)
-    if t.shape[0] >= 2:
-        first_off: tuple[int, float] | None = None  # (index, step) of the first step off
-        for a in range(0, t.shape[0] - 1, VALIDATE_BLOCK):  # no log-long temporaries
-            dt = np.diff(t[a:a + VALIDATE_BLOCK + 1])
-            nonincr = np.flatnonzero(dt <= 0)
-            if nonincr.size:
-                i = a + int(nonincr[0])
-                raise LogError(path, i + 3, "time not increasing",
-                               f"time_s {time_text(t, i + 1)} after {time_text(t, i)}"
-                               f"{epoch_text(t)}")
-            if first_off is None:
-                off = np.flatnonzero(np.abs(dt - nominal) > DT_TOLERANCE * nominal)
-                if off.size:
-                    first_off = (a + int(off[0]), float(dt[off[0]]))
-        if rate_hz is None:
-            check_rate_range(nominal, path)
-        if rate_hz is not None and first_off is not None:
-            median_step = nominal_step_s(t)
-            if abs(median_step - nominal) > DT_TOLERANCE * nominal:
-                raise LogError(path, None, "sample rate",
-                               f"the median step of time_s is {median_step:.4g} s "
-                               f"({rate_text(median_step)}), not {nominal:.4g} s +/- "
-                               f"{DT_TOLERANCE:.0%} (--sample-rate-hz {rate_hz:g})"
-                               f"{epoch_text(t)}")
-    # a log with the table stopped on every row is stationary: it measures the bias (the
-    # SF figures refuse it, logs.bias); a log whose every row is invalid measures nothing
-    turning = kept = measures = False
-    valid = cols.get("valid")
-    for a, tab in blocks(cols["table_rate_dps"], size=VALIDATE_BLOCK):  # no log-long copies
-        turn = tab != 0.0
-        keep = np.ones(turn.shape[0], dtype=bool) if valid is None else \
-            np.asarray(valid[a:a + turn.shape[0]]) != 0.0
-        turning, kept = turning or bool(turn.any()), kept or bool(keep.any())
-        measures = measures or bool((turn & keep).any())
-    stationary = kept and not turning
-    if not measures and not stationary:
-        raise LogError(path, None, "no row measures",
-                       "every row has a zero table rate or valid = 0: the SF is measured "
-                       "while the table turns, the bias on a log with the table stopped "
-                       "throughout")
-    lo, hi = TEMP_RANGE_C
-    for name, v in cols.items():
-        if not is_temperature(name):
-            continue
-        for a, x in blocks(v, size=VALIDATE_BLOCK):
-            out = np.flatnonzero((x < lo) | (x > hi))
-            if out.size:
-                i = int(out[0])
-                raise LogError(path, a + i + 2, "temperature out of range",
-                               f"{name} = {x[i]:g} C, allowed {lo:g}..{hi:g} C"
-                               + temperature_unit_hint(v))
-    return nominal
-
-
-def temperature_unit_hint(v: np.ndarray) -> str:
-    """What a temperature column outside TEMP_RANGE_C is likely in, by its range: Kelvin
-    (every value 173 .. 400), Fahrenheit (every value -76 .. 212 and more than 1 % of them
-    above 100: one spike is not a unit)."""
-    lo, hi = col_min(v), col_max(v)
-    if 173.0 <= lo and hi <= 400.0:
-        return (f" (the column spans {lo:g} .. {hi:g}: Kelvin? map it as "
-                "`NAME - 273.15`)")
-    hot = sum(int(np.count_nonzero(x > TEMP_RANGE_C[1])) for _, x in blocks(v))
-    if -76.0 <= lo and hi <= 212.0 and hot > 0.01 * len(v):
-        return (f" (the column spans {lo:g} .. {hi:g}: Fahrenheit? map it as "
-                "`(NAME - 32) / 1.8`)")
-    return ""
-
-
-VALIDATE_BLOCK = 1 << 20  # time steps checked at a time
-
-
-def check_rate_range(nominal: float, path: str) -> None:
-    """Refuse a median step outside RATE_RANGE_HZ (+/- RATE_SLACK): time_s not in seconds."""
-    lo_hz, hi_hz = RATE_RANGE_HZ
-    slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
-    if not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
-        raise LogError(path, None, "sample rate out of range",
-                       f"the median step of time_s is {nominal:.6g} s "
-                       f"({1.0 / nominal:.6g} Hz); allowed {lo_hz:g} Hz .. "
-                       f"{hi_hz / 1000:g} kHz, +/- {RATE_SLACK:.0%} (time_s in seconds?)")
-
-
-def write_log(path: str | Path, log: ChamberLog) -> None:
-    """Write a log as CSV, or as Parquet when `path` ends in .parquet (every column float64);
-    the same log gives the same bytes."""
-    cols = log.columns()
-    if is_parquet(path):
-        write_columns(path, {k: np.asarray(v, dtype=np.float64) for k, v in cols.items()})
-        return
-    names = list(cols)
-    data = np.column_stack([np.asarray(cols[n], dtype=np.float64) for n in names])
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write(",".join(names) + "\n")
-        t_fmt = time_format(log.time_s)
-        write_rows(f, data, [t_fmt if n == "time_s" else "%d" if n == "valid" else "%.10g"
-                             for n in names])
-
-
-def time_format(time_s: np.ndarray) -> str:
-    """The printf format of a time column: 12 digits keep a 4 kHz step (0.25 ms) exact past
-    10^5 s; an epoch time base (1.7e9 s) takes 17, float64's every digit."""
-    return "%.17g" if time_s.size and np.abs(time_s).max() >= EPOCH_S else "%.12g"
-
-
-def write_rows(f: io.TextIOBase, data: np.ndarray, fmts: list[str], chunk: int = 50_000
-               ) -> None:
-    """Rows of `data` as CSV lines, one printf format per column: the bytes np.savetxt
-    writes, about 4x faster (a 24 h 100 Hz log is 8.6 million rows)."""
-    line = ",".join(fmts) + "\n"
-    for a in range(0, data.shape[0], chunk):
-        block = data[a:a + chunk]
-        f.write((line * block.shape[0]) % tuple(block.ravel().tolist()))

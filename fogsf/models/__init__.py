@@ -1,2 +1,3 @@
-"""Compensation models: the streaming artifact and its numpy reference, features, the
-lag bank, least squares, torch networks."""
+"""Compensation models: the streaming artifact and its numpy reference, features, torch
+networks; the structures (`structures`: physics nodes, the lag bank, least squares,
+hysteresis)."""

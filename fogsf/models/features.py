@@ -9,8 +9,8 @@ is exactly what the C kernel computes.
 
 The target of step j is the measured SF error (ppm vs nominal) over the samples that step's
 prediction is applied to: [jD, (j+1)D), i.e. the mean of (gyro - bias - earth) / table over
-those of them that measure SF (`logs.plateaus.measuring_mask`: settled table-rate plateaus;
-the bias is the +/- pairs' when the log has pairs, `logs.pairs.bias_track`).
+those of them that measure SF (`logs.measure.plateaus.measuring_mask`: settled table-rate plateaus;
+the bias is the +/- pairs' when the log has pairs, `logs.measure.pairs.bias_track`).
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import DT_TOLERANCE, ChamberLog, rate_text
-from fogsf.logs.columns import col_max, col_min
-from fogsf.logs.metrics import step_windows
-from fogsf.logs.plateaus import SETTLE_S
+from fogsf.logs.measure.model_steps import step_windows
+from fogsf.logs.measure.plateaus import SETTLE_S
+from fogsf.logs.read.columns import col_max, col_min
 from fogsf.models.front_end import FrontEnd, decimation_for, filter_alpha
 from fogsf.models.step_inputs import frontend_s
 from fogsf.models.step_inputs import step_targets as in_blocks
@@ -39,7 +39,7 @@ SEC_PER_MIN = 60.0
 class FeatureSpec:
     """Features as rows of A over s: z_raw = A s, with A [F, 1+K+P] for filters `taus_s`
     and play operators `plays` ((source weights over [T, lag_1..lag_K], width_c) each;
-    `models.stream.FrontEnd`)."""
+    `models.front_end.FrontEnd`)."""
 
     taus_s: tuple[float, ...]
     rows: tuple[tuple[float, ...], ...]
@@ -96,7 +96,7 @@ class SeqData:
     decimation: int
     step_s: float  # seconds per model step
     measured: np.ndarray  # [n_steps] bool: the step holds a row that measures (settled)
-    # [k, 2] step ranges of the SF windows (`logs.metrics.step_windows`): what the error
+    # [k, 2] step ranges of the SF windows (`logs.measure.model_steps.step_windows`): what the error
     # is averaged over before its RMS (validation, the rate-transfer check)
     windows: np.ndarray | None = None
 

@@ -20,7 +20,8 @@ import numpy as np
 from fogsf.errors import UserError
 from fogsf.models.f32 import F32, _f32, sigmoid_f32, tanh_f32
 from fogsf.models.front_end import FrontEnd, play_source_w
-from fogsf.models.stream import (
+from fogsf.models.stream import StreamModel
+from fogsf.models.stream_flags import (
     BIAS_LIMIT_DPH,
     FLAG_BIAS_CLAMPED,
     FLAG_GYRO_INVALID,
@@ -29,7 +30,6 @@ from fogsf.models.stream import (
     FLAG_TEMP_INVALID,
     FLAG_TEMP_STUCK,
     SF_LIMIT_PPM,
-    StreamModel,
 )
 
 # --- the front end -------------------------------------------------------------------------

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fogsf.logs import columns
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.metrics import _signal_at, _signal_parts, step_means
-from fogsf.logs.plateaus import SETTLE_S, settled_plateaus
+from fogsf.logs.measure.model_steps import step_means
+from fogsf.logs.measure.plateaus import SETTLE_S, settled_plateaus
+from fogsf.logs.measure.windows import _signal_at, _signal_parts
+from fogsf.logs.read import columns
 from fogsf.models.f32 import F32
 from fogsf.models.front_end import FrontEnd
 from fogsf.models.reference import state_of

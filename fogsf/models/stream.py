@@ -1,18 +1,5 @@
-"""The streaming model artifact "fogsf-stream-1" (docs/stream-contract.md).
-
-One computation, three implementations: the trainer (torch), the ONNX step (onnxruntime) and
-the C kernel (firmware/c), all checked against the numpy reference (`models.reference`).
-This module holds what they share:
-
-- `StreamModel`: the artifact (stream.json + stream_weights.npz): load, save, validate,
-  `model_id` (a hash of weights and config), re-rating to another sample rate.
-- The status flags (the C kernel's FOGSF_FLAG_* have the same values) and SF_LIMIT_PPM.
-
-Beside it: the front end's configuration (`models.front_end`: `FrontEnd`, `filter_alpha`,
-`decimation_for`), the artifact's equivalent forms (`models.stream_forms`:
-`diagonal_features`, `pure_play_rows`) and the LSTM gate-order converters
-(`models.gate_order`).
-"""
+"""The streaming model artifact "fogsf-stream-1" (docs/stream-contract.md): `StreamModel` (load,
+save, validate, `model_id`, re-rate); its files and keys: `stream_format`; flags: `stream_flags`."""
 
 from __future__ import annotations
 
@@ -27,52 +14,23 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.models.front_end import FrontEnd, filter_alpha
-
-FORMAT = "fogsf-stream-1"
-CONFIG_FILE = "stream.json"
-WEIGHTS_FILE = "stream_weights.npz"
-
-# Status flags, one bit each (the C kernel's FOGSF_FLAG_* have the same values).
-FLAG_TEMP_INVALID = 1  # temperature not finite: last good value (or t_ref) used
-FLAG_TEMP_CLAMPED = 2  # temperature outside [t_min, t_max]: clamped
-FLAG_TEMP_STUCK = 4  # raw temperature bitwise unchanged for >= stuck_samples samples
-FLAG_GYRO_INVALID = 8  # gyro input (or corrected output) not finite: corrected = 0.0
-FLAG_SF_CLAMPED = 16  # model output not finite or beyond +-SF_LIMIT_PPM: clamped
-FLAG_BIAS_CLAMPED = 64  # bias head output not finite or beyond +-BIAS_LIMIT_DPH: clamped
-FLAG_NAMES = {FLAG_TEMP_INVALID: "TEMP_INVALID", FLAG_TEMP_CLAMPED: "TEMP_CLAMPED",
-              FLAG_TEMP_STUCK: "TEMP_STUCK", FLAG_GYRO_INVALID: "GYRO_INVALID",
-              FLAG_SF_CLAMPED: "SF_CLAMPED", FLAG_BIAS_CLAMPED: "BIAS_CLAMPED"}
-SF_LIMIT_PPM = 1.0e5  # |predicted SF error| beyond 10 % is a broken model, never a gyro
-BIAS_LIMIT_DPH = 3.6e4  # |predicted bias| beyond 10 deg/s is a broken model
-
-
-_CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {
-    "format": str, "model": str, "decimation": int, "sample_dt_s": (int, float),
-    "t_ref_c": (int, float), "t_min_c": (int, float), "t_max_c": (int, float),
-    "stuck_samples": int, "filter_tau_s": list, "n_features": int, "layers": int,
-    "hidden": int,
-}
-POLY_KEY = "poly_head"  # optional stream.json key (absent = false): quad_w and cube_w present
-POLY_ARRAYS = ("quad_w", "cube_w")
-# optional stream.json key (absent = n_features): the first LSTM layer reads z[0:N] only
-LSTM_INPUTS_KEY = "lstm_inputs"
-# optional stream.json key (absent = false; needs the polynomial head): quad_w is [F], the
-# diagonal only (y += quad_w[i] * (z_i * z_i))
-QUAD_DIAG_KEY = "quad_diag"
-# optional stream.json key (absent = false): the bias head over the same z, in deg/h:
-# bias = bias_b + bias_w.z + bias_quad_w.z^2 + bias_cube_w.z^3 (each [F], bias_b [1])
-BIAS_KEY = "bias_head"
-BIAS_ARRAYS = ("bias_b", "bias_w", "bias_quad_w", "bias_cube_w")
-# optional stream.json keys (absent = no plays): play (backlash) operators in the front end,
-# p_j = min(max(p_j, x_j - w_j/2), x_j + w_j/2), x_j = v_j . [Tm, y_1, ..., y_K] (the
-# source weights v_j, float32, summed in index order); s gains p_j - t_ref after the
-# filters, so feat_w is [F, 1+K+P]
-PLAY_WIDTH_KEY = "play_width_c"
-PLAY_SOURCE_KEY = "play_source_w"
-MAX_PLAY_WIDTH_C = 200.0
-# optional stream.json key (absent = false; needs F == 1+K+P): feat_w is [F], the diagonal
-# only (z_i = feat_w[i] * s_i + feat_b[i]; `diagonal_features` converts a model to it)
-FEAT_DIAG_KEY = "feat_diag"
+from fogsf.models.stream_format import (
+    _CONFIG_KEYS,
+    BIAS_ARRAYS,
+    BIAS_KEY,
+    CONFIG_FILE,
+    FEAT_DIAG_KEY,
+    FORMAT,
+    LSTM_INPUTS_KEY,
+    MAX_PLAY_WIDTH_C,
+    PLAY_SOURCE_KEY,
+    PLAY_WIDTH_KEY,
+    POLY_ARRAYS,
+    POLY_KEY,
+    QUAD_DIAG_KEY,
+    WEIGHTS_FILE,
+    _trained_kind,
+)
 
 
 @dataclass
@@ -440,12 +398,3 @@ class StreamModel:
         )
         model.validate(where=str(d))
         return model
-
-
-def _trained_kind(directory: Path) -> str | None:
-    """The model kind `fogsf train` recorded in the directory's metrics.json, if any."""
-    try:
-        kind = json.loads((directory / "metrics.json").read_text()).get("model")
-    except (OSError, ValueError, AttributeError):
-        return None
-    return kind if isinstance(kind, str) else None

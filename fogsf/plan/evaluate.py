@@ -16,14 +16,14 @@ import time
 
 import numpy as np
 
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.plan.programs import START_SOAK_S, Limits, Program, _path
 from fogsf.sim import simulate
 from fogsf.sim.config import ProfileConfig, SimConfig
 from fogsf.sim.population import gyro_for_seed, run_on_gyro
 from fogsf.training.inputs import bank_compensation
-from fogsf.training.transfer import INTERVAL_LO
-from fogsf.training.transfer_interval import rate_transfer
+from fogsf.training.interval.rate_transfer import rate_transfer
+from fogsf.training.interval.transfer import INTERVAL_LO
 
 TEST_SOAK_S = 1800.0
 RATE_NEAR = 0.10  # a test rate within 10 % of a program's ramp rate counts as trained on

@@ -3,7 +3,7 @@
 `python -m fogsf.sim.calibrate`
 
 The paper's 1 C/min run (Table 2, "before"): max|SF error| 835.1 ppm and RMS 450.24 ppm
-about the SF at 20 C, on the apparent SF of 100 s windows (logs.metrics). The *shape* of
+about the SF at 20 C, on the apparent SF of 100 s windows (logs.measure.metrics). The *shape* of
 the coefficients is fixed here on physical grounds (coil diameter dominates, then source
 wavelength, Y-waveguide Km and D/A gain residuals; the coil's L term is silica's expansion,
 0.55 ppm/C, and is not scaled). Two numbers are solved: alpha scales every other linear
@@ -18,7 +18,7 @@ import copy
 
 import numpy as np
 
-from fogsf.logs.metrics import log_metrics
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.sim.config import ScaleFactorConfig, SFTermConfig, SimConfig
 from fogsf.sim.gyro import simulate
 from fogsf.sim.scenarios import PAPER_TARGET_MAX_PPM, PAPER_TARGET_RMS_PPM, paper

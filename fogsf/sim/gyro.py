@@ -66,8 +66,8 @@ def simulate(cfg: SimConfig, table_dps: np.ndarray | None = None,
 
     table_dps: the rate the gyro's axis actually turns at, per sample (deg/s; any values,
     zero included), instead of `cfg.table`'s schedule: a slewing or stalling table, or a
-    skew axis' share of it (sim/rigs.py). earth_dps: the earth rate on the axis (per sample
-    or one number) instead of the vertical axis' at `cfg.latitude_deg`. Without them the
+    skew axis' share of it (sim/rigs/protocols.py). earth_dps: the earth rate on the axis (per
+    sample or one number) instead of the vertical axis' at `cfg.latitude_deg`. Without them the
     output is exactly the configuration's.
     """
     validate(cfg)

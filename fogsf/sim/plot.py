@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.logs.metrics import reference_sf, sf_error_ppm, sf_windows
+from fogsf.logs.measure.metrics import sf_error_ppm
+from fogsf.logs.measure.sf_reference import reference_sf
+from fogsf.logs.measure.windows import sf_windows
 from fogsf.sim.config import SimConfig
 from fogsf.sim.gyro import SimResult, simulate
 from fogsf.sim.thermal import effective_tau_s

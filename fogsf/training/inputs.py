@@ -21,10 +21,10 @@ from fogsf.models.features import (
     prepare,
 )
 from fogsf.models.front_end import FrontEnd
-from fogsf.models.lag_bank import BANK_LAMBDA, BankFit, bank_spec, fit_bank, n_curved
 from fogsf.models.reference import expand
+from fogsf.models.structures.lag_bank import BANK_LAMBDA, BankFit, bank_spec, fit_bank, n_curved
 from fogsf.training.options import TrainOptions
-from fogsf.training.structure_choice import bank_prior
+from fogsf.training.structure.penalty import bank_prior
 
 
 @dataclass
@@ -73,7 +73,7 @@ def bank_compensation(logs: list[ChamberLog], opts: TrainOptions | None = None
                       ) -> Callable[[ChamberLog], np.ndarray]:
     """The lag bank at its prior for `logs` (least squares; the default model's fixed part
     wherever the logs hold fewer than PENALTY_MIN_FOLDS held-out parts,
-    `training.structure_choice.bank_prior`) trained on `logs`: a function giving a log's SF
+    `training.structure.penalty.bank_prior`) trained on `logs`: a function giving a log's SF
     error prediction (ppm vs nominal) per sample, held over each model step as the kernel
     holds it. Fast (no LSTM), for benches and the planner."""
     ti = training_inputs(opts or TrainOptions(model="lag-lstm"), logs, bank_spec(),

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.plateaus import SETTLE_S
+from fogsf.logs.measure.plateaus import SETTLE_S
 from fogsf.models.features import MODEL_STEP_S
 
 MODELS = ("poly", "polyrate", "mlp", "lstm", "lag-lstm", "gsa-lstm")
@@ -24,7 +24,7 @@ class TrainOptions:
     seed: int = 0
     val_chunk: tuple[float, float] = (0.4, 0.6)
     window_s: float = 100.0
-    settle_s: float = SETTLE_S  # left out after each change of table rate (logs.metrics)
+    settle_s: float = SETTLE_S  # left out after each change of table rate (logs.measure.metrics)
     latitude_deg: float | None = None
     rate_tau_s: float = 120.0
     poly_degree: int = 3
@@ -32,7 +32,7 @@ class TrainOptions:
     nodes: int = 1  # nodes of lag-lstm's node (1-2) or physics (1-3) structure
     structure: str = "auto"  # lag-lstm: "auto" (chosen by the logs), "physics", "bank", "node"
     # lag-lstm (bank, physics): a play (hysteresis) term: "auto" (when the training logs'
-    # held-out blocks say it helps, `training.hysteresis_choice`), "on", "off"
+    # held-out blocks say it helps, `training.structure.hysteresis`), "on", "off"
     hysteresis: str = "auto"
     layers: int | None = None
     hidden: int | None = None

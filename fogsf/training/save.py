@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.training.fitted import Fitted
+from fogsf.training.fitted_model import Fitted
 
 
 def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:

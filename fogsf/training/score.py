@@ -7,14 +7,15 @@ from collections.abc import Callable
 from dataclasses import asdict
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.columns import Column
-from fogsf.logs.metrics import log_metrics, reference_sf_of_logs
-from fogsf.logs.plateaus import SETTLE_S
-from fogsf.training.bias_model import BiasModel, score_logs
-from fogsf.training.fitted import Fitted, per_sample_prediction
+from fogsf.logs.measure.metrics import log_metrics
+from fogsf.logs.measure.plateaus import SETTLE_S
+from fogsf.logs.measure.sf_reference import reference_sf_of_logs
+from fogsf.logs.read.columns import Column
+from fogsf.training.bias.model import BiasModel, score_logs
+from fogsf.training.fitted_model import Fitted, per_sample_prediction
+from fogsf.training.interval.rate_transfer import rate_transfer
+from fogsf.training.interval.transfer import ramp_segments, training_ramp_rates
 from fogsf.training.options import TrainOptions
-from fogsf.training.transfer import ramp_segments, training_ramp_rates
-from fogsf.training.transfer_interval import rate_transfer
 
 
 def score(fitted: Fitted, logs: list[ChamberLog], ref: float, window_s: float,

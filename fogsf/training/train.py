@@ -8,17 +8,17 @@ Models (all causal, all from the board thermometer and time only):
   lr 0.02, Adam);
 - `lag-lstm` (the default): the physics part fitted by least squares and carried exactly in
   the polynomial head, a 1 x 16 LSTM learning what it leaves. Its structure is chosen by
-  the training logs (`structure="auto"`, `training.structure_choice`: held-out prediction
+  the training logs (`structure="auto"`, `training.structure.choice`: held-out prediction
   of their parts among physics nodes with 1-3 nodes and the lag bank), or given: physics nodes
-  (`models.physics_nodes`: T and N first-order lags of it with identified time constants,
-  a quadratic with cross terms), the lag bank (`models.lag_bank`: T and its lags at 11 time
-  constants, ridge with a prior that logs of many held-out parts may lower; in the head's
+  (`models.structures.physics_nodes`: T and N first-order lags of it with identified time constants,
+  a quadratic with cross terms), the lag bank (`models.structures.lag_bank`: T and its lags at 11
+  time constants, ridge with a prior that logs of many held-out parts may lower; in the head's
   diagonal quadratic, or the full one with the cross terms those logs may add) or, with
   `structure="node"`, one or two effective sensing temperatures
   T_eff = w T + (1 - w) lag(T, tau), (tau, w) profiled over a grid; the LSTM reads the
   first BANK_LSTM_INPUTS features (T). A hysteresis (play) term joins the bank or the
   physics nodes when logs that turn back in temperature ask for it
-  (`training.hysteresis_choice`; `hysteresis="on"` / `"off"` to force it);
+  (`training.structure.hysteresis`; `hysteresis="on"` / `"off"` to force it);
 - `gsa-lstm`: GSA searches batch size, layers, hidden units and learning rate (Table 1's
   four) and (tau, w) of T_eff; fitness is the error on the validation part of the training
   logs, never the test log.
@@ -26,9 +26,9 @@ Models (all causal, all from the board thermometer and time only):
 The LSTM models run at the model rate (one step per D samples, state carried) and are
 written in the firmware artifact format (stream.json + stream_weights.npz) for `fogsf export`.
 
-`run_training` is the recipe: fit the SF part (`training.sf_fit`), the bias part
-(`training.bias_head`), score (`training.score`), save (`training.save`); stationary logs
-alone train a bias-only model (`training.bias_only`).
+`run_training` is the recipe: fit the SF part (`training.sf.fit`), the bias part
+(`training.bias.head`), score (`training.score`), save (`training.save`); stationary logs
+alone train a bias-only model (`training.bias.stationary`).
 """
 
 from __future__ import annotations
@@ -38,16 +38,16 @@ from collections.abc import Callable
 from pathlib import Path
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.sampling import common_rate
+from fogsf.logs.read.sampling import common_rate
 from fogsf.models.front_end import decimation_for
-from fogsf.training.bias_head import finish_artifact, fit_bias_part
-from fogsf.training.bias_model import check_mixed
-from fogsf.training.bias_only import train_bias_only
-from fogsf.training.fitted import Fitted, sf_predictions
+from fogsf.training.bias.head import finish_artifact, fit_bias_part
+from fogsf.training.bias.stationary import train_bias_only
+from fogsf.training.bias.targets import check_mixed
+from fogsf.training.fitted_model import Fitted, sf_predictions
 from fogsf.training.options import TrainOptions
 from fogsf.training.save import save
 from fogsf.training.score import training_metrics
-from fogsf.training.sf_fit import fit_sf
+from fogsf.training.sf.fit import fit_sf
 
 
 def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
@@ -56,7 +56,7 @@ def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
                  ) -> tuple[dict, Fitted]:
     """Train, score, and write the model directory; returns metrics.json's content and the
     fitted model. `fit`: what fits the SF part instead of `fit_sf` (the fleet's prior,
-    `fleet.prior_train`)."""
+    `training.with_prior`)."""
     train_logs = common_rate(train_logs)  # other rates, jitter, drops: on one grid of time
     for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
         decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after

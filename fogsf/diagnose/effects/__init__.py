@@ -1,0 +1,1 @@
+"""The candidate effects diagnose scores: the catalogue and the hysteresis form."""

@@ -1,0 +1,2 @@
+"""The column map: our columns from a log's own (renames, expressions, joins of several
+files)."""

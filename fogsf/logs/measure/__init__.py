@@ -1,0 +1,2 @@
+"""What a log measures: SF windows and metrics, the bias, +/- pairs and plateaus, exact
+statistics."""

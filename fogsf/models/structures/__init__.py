@@ -1,0 +1,2 @@
+"""Compensation structures: physics nodes, chain nodes, the lag bank, least squares,
+hysteresis."""

@@ -1,0 +1,1 @@
+"""Calibration rigs as people build them and the logs they write, with the truth."""

@@ -1,0 +1,2 @@
+"""The bias part of a model: its features and targets, its structure, its fit and interval,
+stationary logs."""

@@ -1,0 +1,1 @@
+"""How sure a model is on another log: the rate-transfer check and its interval."""

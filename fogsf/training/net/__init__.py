@@ -1,0 +1,1 @@
+"""The networks of a model: their hyper-parameters, training loops, the GSA search."""

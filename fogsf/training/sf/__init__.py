@@ -1,0 +1,1 @@
+"""The SF part of `fogsf train`: the model's features fitted to the training logs."""

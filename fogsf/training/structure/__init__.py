@@ -1,0 +1,2 @@
+"""The default's structure chosen by the training logs: physics nodes or the lag bank, a
+hysteresis term."""
