@@ -40,8 +40,8 @@ NESTED_MIN_GAIN_PCT = 2.0
 # pairs that forward selection does not put together unless a log has the chamber air: a
 # bias on a coil the board thermometer lags or leads, which bias_drift's one-node forms only
 # approximate, leaves a residual in the board's rate, the Shupe bias's signature; without
-# the housing (chamber_c) a Shupe bias is not told from that (dev gyros 100-105: 4 of 6
-# coil biases on a log pair named bias_shupe beside bias_drift before this rule)
+# the housing (chamber_c) a Shupe bias is not told from that (benchmarks/probes/README.md,
+# "Diagnose thresholds")
 NEEDS_CHAMBER_TOGETHER = (frozenset(("bias_drift", "bias_shupe")),)
 SEPARATES_WITH_CHAMBER = ("the chamber air logged (chamber_c), with a ramp of 5 C or more "
                           "and a soak after it")

@@ -60,7 +60,7 @@ from fogsf.logs.chamber_log import ChamberLog
 STRUCTURE_P = 1e-8
 STRUCTURE_EXCESS = 2.5  # held-out trimmed mean (e/sigma)^2 above which structure remains
 TRIM = 0.95
-MODEL_FLOOR_FRAC = 0.02  # see model_floor (dev gyros 0-39, mixed-rate nulls)
+MODEL_FLOOR_FRAC = 0.02  # see model_floor (benchmarks/probes/README.md, "Diagnose thresholds")
 WHITE_EXCESS = 1.5  # non-whiteness counts as structure only above this excess variance
 # ... for naming causes. Reported as unexplained structure, whatever its variance, is a
 # held-out residual that is not white: Ljung-Box p below WHITE_P with a structured share
@@ -70,7 +70,7 @@ WHITE_P = 1e-6
 WHITE_SHARE = 0.1
 # ... and that structure at least this mean square in noise variances (the noise including
 # the base's resolution, model_floor): structure finer than the base resolves is not
-# reported (dev gyro 308's slow warm-up: 176 ppm of structure under a 20000 ppm floor)
+# reported (benchmarks/probes/README.md, "Diagnose whiteness threshold")
 WHITE_MIN_VARIANCE = 0.1
 DOMINANT_SHARE = 0.8  # a cause is named with structure remaining if it explains this much
 # effects tied to no logged quantity or event (aging: elapsed time only; warmup is tied to

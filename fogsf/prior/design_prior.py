@@ -58,15 +58,13 @@ STRUCTURE_TOLERANCE = 0.05
 OUTLIER_Z = 4.0
 FLOOR = 1e-3
 # the spread's shrinkage toward its diagonal for the MAP (None: p / (p + N)): none, the
-# units' own directions of variation kept (development design 12, 10 units, 3 new: the
-# 2 h loop's median 2.88 x the floor against 5.54 x with p / (p + N); before the nodes' cubes)
+# units' own directions of variation kept; shrinking them costs the new units' accuracy
+# (benchmarks/probes/README.md, "Fleet prior: where it stops")
 SHRINK: float | None = 0.0
 MIN_UNITS = 3
 # the play's widths (C) and the units it is chosen on; it is kept when it lowers their
-# pooled squared error by more than PLAY_GAIN (development designs 3, 4, 10, 17, 19, 21,
-# before the nodes' cubes: 0.0016-0.029 where a play helped or did no harm, 0.0001 on
-# design 21, which has none; with them, against the whole law, designs 4, 19 and 23, which
-# draw hysteresis, get none)
+# pooled squared error by more than PLAY_GAIN, above what a design without hysteresis gains
+# (benchmarks/probes/README.md, "Fleet prior: where it stops", "The design's play")
 PLAY_WIDTHS_C = tuple(float(w) for w in range(2, 13))
 PLAY_UNITS = 8
 PLAY_GAIN = 0.001
@@ -89,7 +87,7 @@ class DesignPrior:
     step_noise_ppm2: float  # the units' median residual variance per model step
     # the kept units' fits at k from the design's time constants, their coefficients by
     # least squares (`unit_fit.plain_refit`; one row a unit): their responses are the prior
-    # in the space of responses (`prior_function`)
+    # in the space of responses (`response_prior`)
     unit_thetas: np.ndarray | None = None
     # a full program the units ran (every step): where a new unit's law is fitted
     reference: StepSeries | None = None

@@ -1,6 +1,6 @@
 """A new unit's parameters under the design's prior: their MAP, what the check against the
 design and the prior's share per parameter group read (the unit's law `train --prior`
-exports is fitted in the space of responses, `prior_function`).
+exports is fitted in the space of responses, `response_prior`).
 
 theta = [log taus, coefficients] minimises
     J(theta) = |y - f(theta)|^2 / s^2 + (theta - mu)^T Sigma^-1 (theta - mu),
@@ -9,13 +9,13 @@ correlation, `unit_fit.correlation_factor`). For fixed time constants the coeffi
 a generalised ridge toward the prior's conditional mean (closed form); the time constants
 by Levenberg-Marquardt on the stacked residual [(y - f) / s, L (theta - mu)], L^T L =
 Sigma^-1: a penalised variable projection. The posterior covariance, at the noise the
-unit's law is fitted with (NOISE_SCALE s^2, `prior_function`), is (J^T J / (NOISE_SCALE s^2)
+unit's law is fitted with (NOISE_SCALE s^2, `response_prior`), is (J^T J / (NOISE_SCALE s^2)
 + Sigma^-1)^-1: the prior's share per group reads it.
 
 The unit's data disagree with the design when its data-only fit lies outside the prior
 predictive: (theta_alone - mu)^T (Sigma_check + C)^-1 (theta_alone - mu) over the
 chi-square(p) quantile at DISAGREE_LEVEL (C the fit's estimation covariance at NOISE_SCALE
-times s^2, the noise `prior_function` fits with; Sigma_check the spread shrunk toward its
+times s^2, the noise `response_prior` fits with; Sigma_check the spread shrunk toward its
 diagonal, `prior.DesignPrior.sigma_check`).
 """
 
@@ -37,12 +37,8 @@ DATA_WEIGHT = 1.0
 # the unit's own estimate, because the design's responses also miss a run the fleet never
 # ran (their common misfit, which the unit's own fit absorbs, counted as noise rather than
 # bent into the unit's coefficients or read as the unit's difference from the design).
-# Development designs 3-23, fleets of 20, the fit (`prior_function`), before the nodes' cubes
-# (docs/fleet.md has the figures with them): 3 against 1 took the
-# 2 h loop from 1.34 / 7.75 to 1.30 / 6.46 x the floor, the 0.5 C/min ramp from 1.56 / 5.07
-# to 1.36 / 4.25 (benchmarks/probes/README.md); the check: of development designs 11 and
-# 12's 18 2 h loops and 0.5 C/min ramps (their structure fails) it sent 7 alone at 1, 3 at
-# 3 (alone, 3 ramps left 12.7-26.4 x against 1.8-2.7 x under the prior)
+# Figures, for the fit and the check: benchmarks/probes/README.md, "Fleet prior: where it
+# stops" ("The short run's noise").
 NOISE_SCALE = 3.0
 GROUPS = ("time constants", "intercept and linear", "quadratic and cross", "cubes")
 
@@ -141,7 +137,7 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
     assert best is not None
     obj, theta = best
     jac = jacobian(series, theta, k, play=prior.play)
-    # at the noise the unit's law is fitted with (prior_function)
+    # at the noise the unit's law is fitted with (response_prior)
     cov = np.linalg.inv(jac.T @ jac / (s2 * NOISE_SCALE) + np.linalg.inv(prior.sigma))
     alone_obj = alone.sse / s2
     p = theta.size

@@ -11,7 +11,7 @@ physics has), J the response's Jacobian at the design's parameters times a squar
 their spread (`DesignPrior.sigma`: the directions a few units did not happen to span).
 The short run's steps y = f + e, e ~ N(0, NOISE_SCALE s^2), s^2 the unit's own residual
 variance with its correlation (`unit_fit.correlation_factor`), NOISE_SCALE > 1
-(`prior_map`: the design's responses also miss a run the fleet never ran); the posterior
+(`map_estimate`: the design's responses also miss a run the fleet never ran); the posterior
 of (a, b) is a ridge in closed form, its mean the unit's response on any history
 (`predict`), its covariance the spread of that response (`variance`, the interval's).
 
@@ -21,9 +21,8 @@ in its front end when the design has one): `law` fits the design's structure (as
 `unit_fit.fit_unit` fits a unit) to the posterior mean response on the fleet's reference
 program and the unit's own runs, the law the model's head carries.
 
-The weights LAM_UNITS and LAM_PARAMS were chosen on development designs 3, 4, 10, 15, 21,
-22 (3 new units each, fleets of 12 and 20; benchmarks/probes/README.md, "The design's
-prior in the space of responses").
+The weights LAM_UNITS and LAM_PARAMS: benchmarks/probes/README.md, "Fleet prior: where it
+stops" ("The response prior against the MAP of the parameters").
 """
 
 from __future__ import annotations

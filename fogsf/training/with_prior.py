@@ -1,6 +1,6 @@
 """`fogsf train --prior FLEET`: a new unit fitted under its design's prior.
 
-The prior is learned from the fleet database's unit summaries (`prior.learn`); the unit's
+The prior is learned from the fleet database's unit summaries (`design_prior.learn`); the unit's
 response is its posterior under the prior in the space of responses
 (`response_prior.function_fit`), its physics-node law (`FunctionFit.law`) carried exactly in
 the default model's polynomial head, the LSTM on what it leaves (as `fogsf train`'s lag-lstm:
@@ -52,15 +52,13 @@ def prior_from_summaries(summaries: dict[str, dict]) -> DesignPrior:
 
 
 # the interval's upper end: the floor and this many posterior standard deviations of the
-# response and of its misfit on the unit's own runs (development designs 3-23, fleets of
-# 20, map_estimate.NOISE_SCALE 3, the nodes' cubes: it held 26 of 27 2 h loops and 26 of 27
-# ramps; `benchmarks.probes.fleet_response_prior`)
+# response and of its misfit on the unit's own runs (`benchmarks.probes.fleet_response_prior`;
+# benchmarks/probes/README.md, "Fleet prior: where it stops")
 INTERVAL_Z = 2.0
 # `train --prior` says the design's structure misses the fleet's units when it leaves more
-# than this on their own programs (`DesignPrior.structure_misfit`; development designs,
-# fleets of 20, before the nodes' cubes: 1.57 on 11 and 1.38 on 23, whose 2 h loops the
-# prior left at 4-10 x the floor, 1.00-1.12 on the others; with them 1.00-1.02 on designs
-# 1-13, 15-17, 19, 23)
+# than this on their own programs (`DesignPrior.structure_misfit`, 1: noise only): there the
+# prior's figures are not to be trusted (benchmarks/probes/README.md, "Fleet structure: the
+# nodes' cubes")
 STRUCTURE_MISS = 1.2
 
 

@@ -34,8 +34,8 @@ STEP_PPM = (20.0, 60.0)
 GAP_C = (3.0, 8.0)
 T_UP_FRACTION = (0.3, 0.7)
 # under this visible part (x the floor) a 1.5-2 h log's residual cannot be told from a
-# correct model's at verdict.WHITE_P (dev gyros 300-304: a hop at 0.7 x gave p = 6e-4, a
-# mixed-rate null p = 1e-4)
+# correct model's at verdict.WHITE_P (benchmarks/probes/README.md, "Diagnose whiteness
+# threshold")
 MODE_HOP_MIN_VISIBLE = 1.0
 
 

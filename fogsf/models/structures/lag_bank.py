@@ -36,26 +36,20 @@ from fogsf.models.features import FeatureSpec
 from fogsf.models.structures.least_squares import TAU_GRID_S
 
 # The ridge penalty, as a multiple of the centred design's mean diagonal (so it does not
-# depend on the logs' length): a fixed physics prior, chosen on development gyros 1-24 over
-# 1e-4 .. 1e-2 (docs/decisions.md). Penalties chosen from the training data (GCV, GCV
-# with the residual's long-run variance, leave-one-log-or-segment-out) were each worse in
-# the tail: collinear lags let in-sample criteria take small penalties whose cubic terms
-# extrapolate (one case: 24 x the noise floor with GCV, 1.1 x with this prior).
+# depend on the logs' length): a fixed physics prior, the same for every gyro. Penalties
+# chosen from the training data lose in the tail: collinear lags let them go small, and the
+# cubes then extrapolate (docs/decisions.md; benchmarks/probes/README.md, "The bank's prior").
 BANK_LAMBDA = 1e-3
 # The prior of logs that ramp both up and down (a loop; fewer held-out parts than the
 # penalty rule needs, `training.structure.penalty.bank_prior`): ramps in both directions
 # decide the lags' fine structure better than ramps one way, and a chain of parts' delay
-# is a difference of lags that BANK_LAMBDA shrinks. Development gyros 1-120, protocol (e),
-# least squares: 1.21 / 1.85 / 3.60 -> 1.17 / 1.55 / 3.42 x the floor (59 better by over
-# 5 %, 20 worse, by at most 23 %; docs/decisions.md). On two up-ramps (b) 1e-4 lost (1.34
-# -> 1.42 median, gyros 1-40): BANK_LAMBDA there.
+# is a difference of lags that BANK_LAMBDA shrinks; ramps one way keep BANK_LAMBDA
+# (docs/decisions.md; benchmarks/probes/README.md, "The loop's prior").
 LOOP_LAMBDA = 1e-4
 # Lags slower than this enter linearly only: the SF's curvature is carried by T and the
 # faster lags, the slow lags carry the hysteresis as a first-order correction. Cubics of slow
-# lags extrapolate worst where a run takes them beyond the training range. Development gyros
-# 1-24, least squares, median test RMS / noise floor with every lag cubic -> lags to 1712 s
-# cubic: protocol a 5.5 -> 3.2, b 1.31 -> 1.23, d 6.5 -> 5.3 (worst 27 -> 22), e 1.17 ->
-# 1.18 (worst 1.64 -> 1.52), c 10.5 -> 11.5 (cut-offs at 250-1000 s were worse in c and e).
+# lags extrapolate worst where a run takes them beyond the training range
+# (docs/decisions.md; benchmarks/probes/README.md, "Bank time constants").
 CURVED_MAX_TAU_S = 2000.0
 # The LSTM that learns what the bank leaves reads the first this many bank features (T, then
 # the fastest lags): its input weights are most of a model's flash (4H per input), and three

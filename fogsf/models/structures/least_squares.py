@@ -177,8 +177,7 @@ def _profile(logs: list, fe: FrontEnd, latitude_deg: float | None,
 
     The whole logs, not a held-out chunk: the middle of a ramp is its steady part, where
     the lag structures differ least, so a held-out middle chunk picks structures that fit
-    it by chance (with two ramp rates it picked one 6 x the noise floor on the rate between,
-    where the best in-sample fit was at 1.1 x)."""
+    it by chance (benchmarks/probes/README.md, "The default model's structure")."""
     data, y = grid_data(logs, fe, grid, latitude_deg)
     fits = fit_candidates(candidates, measured_rows(data), y)
     pool = [f for f in fits if f.plausible] or fits

@@ -16,8 +16,8 @@ from fogsf.training.bias.structure import CANDIDATES, NODES, CandidateFit, Colum
 
 CHOICE_TOLERANCE = 0.10
 # the cubic in T's held-out score over the best: above this the log shows a Shupe term and,
-# with a front end of its own, the bias takes `lead` (development gyros 1-8: 2.0 at most
-# without a Shupe term, 4.4 at least with 2 deg/h per C/min; docs/decisions.md)
+# with a front end of its own, the bias takes `lead` (the gap between logs with and without
+# a Shupe term: benchmarks/probes/README.md, "Bias structure")
 SHUPE_EVIDENT = 3.0
 SCORE_WINDOW_S = 100.0
 

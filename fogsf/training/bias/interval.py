@@ -40,9 +40,8 @@ from fogsf.training.bias.structure import CandidateFit, Columns, fit_candidate, 
 from fogsf.training.interval.transfer import INTERVAL_LO, long_run_ratio
 
 # The multiples of the noise figure and of the model's spread and parameter uncertainty in
-# the interval's top, chosen on development gyros 1-16 over `make bench-bias`'s nine
-# protocols (144 cases; docs/decisions.md): the pairs' floor from second differences reads
-# 5-15 % low, and the model's own error adds to the noise
+# the interval's top: the pairs' floor from second differences reads low, and the model's
+# own error adds to the noise (docs/decisions.md, "The bias interval")
 BIAS_NOISE_K = 1.2
 BIAS_INTERVAL_K = 1.5
 # A structure whose held-out score is within this fraction of the best is consistent with

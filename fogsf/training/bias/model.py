@@ -97,10 +97,8 @@ def ramp_rate_check(train_logs: list[ChamberLog], test_log: ChamberLog, structur
                     ) -> dict:
     """The fastest ramp (C/min) of the training logs and of the test log, and whether the
     bias's rate term is extrapolated there: a structure with one (every one but the cubic)
-    and a test ramp faster than any training ramp by more than the rate tolerance. From a
-    loop at 1 up / 0.7 down C/min, a 1.5 C/min test ramp leaves 0.134 deg/h median with a
-    Shupe term (evaluation gyros 20000-20031); from 1 up / 2 down, 0.064 (docs/train.md,
-    "Bias")."""
+    and a test ramp faster than any training ramp by more than the rate tolerance: a slower
+    loop's pairs leave the rate term open (benchmarks/probes/README.md, "Bias structure")."""
     def fastest_of(logs: list[ChamberLog]) -> float:
         return max((abs(sg.rate_c_per_min) for lg in logs for sg in ramp_segments(lg)),
                    default=0.0)

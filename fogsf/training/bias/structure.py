@@ -64,8 +64,8 @@ class Columns:
 
 NODES = {"cubic": 0, "shupe": 1, "node": 1, "shupe2": 2, "lead": 2, "bank": 0}
 # lead: the board's derivative from a 20 s lag (on the SF model's z, its fastest lag if at
-# most LEAD_FAST_MAX_S: the bank's 60 s, no filter more; development gyros 1-16, reversals
-# with a Shupe term, 0.114 deg/h median at 20 s, 0.118 at 60 s); the coil's time constant
+# most LEAD_FAST_MAX_S: the bank's 60 s, no filter more, as good within the noise;
+# benchmarks/probes/README.md, "Bias structure"); the coil's time constant
 # and the lead-lag weight profiled over a grid (a coil lags the housing by 100-3000 s in
 # the population, and w = the board's time constant over the coil's)
 LEAD_FAST_S = 20.0
@@ -268,10 +268,8 @@ def pure_columns(feat_w: np.ndarray) -> tuple[int | None, dict[int, int]]:
 # generalised cross-validation. Unlike the SF's fixed prior (lag_bank.BANK_LAMBDA, 1e-3):
 # a bias target is white noise about the law (the gyro's angle random walk over a model
 # step or a pair), which GCV is made for, and a Shupe term needs large coefficients of
-# opposite sign on neighbouring lags (T - lag is a rate of change) that 1e-3 shrinks away.
-# Development gyros 1-8 (`benchmarks.bias_eval`), median std(predicted - true): coil Shupe
-# term 0.375 -> 0.186 deg/h (reversals), 0.376 -> 0.208 (stationary); without it 0.094 ->
-# 0.136 (reversals: few pairs) and 0.085 -> 0.071 (stationary); docs/decisions.md.
+# opposite sign on neighbouring lags (T - lag is a rate of change) that 1e-3 shrinks away
+# (docs/decisions.md; benchmarks/probes/README.md, "Bias penalty").
 BIAS_LAMBDAS = tuple(10.0 ** e for e in range(-8, 0))
 
 

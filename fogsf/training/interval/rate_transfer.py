@@ -15,8 +15,7 @@ hold, both calibrated on development gyros for 90 % coverage (docs/decisions.md)
   (`transfer.target_spreads`), K_ONE_SEGMENT. On one ramp every structure is fitted to the
   same temperature history, so they agree more than their errors at another rate do; the
   lag family spans the rate dependences one ramp leaves open.
-Before, one K (1.25) scaled the farthest lag model whatever the logs held: it held the
-error but its upper end was a median 10 x the actual error with one ramp.
+The predictors compared: benchmarks/probes/README.md, "Rate-transfer interval".
 """
 
 from __future__ import annotations

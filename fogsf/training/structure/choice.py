@@ -2,13 +2,13 @@
 
 The candidates, smallest and most physical first: physics nodes with 1, 2 and 3 nodes
 (`physics1`..`physics3`, `models.structures.physics_nodes`) and the lag bank (`bank`). One effective
-node with a cubic (`node`, `--structure node`) is not among them: on development gyros its
-held-out score chose it where it then left 4-30 x the noise floor on loops
-(docs/decisions.md). The logs are cut into segments (from one ramp's start to the next,
-so the first holds the soak before it; a log without a ramp is one segment). Each candidate
-is fitted by least squares to the training logs with one fold held out, predicts it, and
-scores the RMS of its error over 100 s windows; a candidate's score is the RMS over every
-held-out fold. The folds and the rule depend on what the logs hold:
+node with a cubic (`node`, `--structure node`) is not among them: its held-out score chose
+it on loops, where it then left the most (docs/decisions.md, "Not candidates"). The logs
+are cut into segments (from one ramp's start to the next, so the first holds the soak
+before it; a log without a ramp is one segment). Each candidate is fitted by least squares
+to the training logs with one fold held out, predicts it, and scores the RMS of its error
+over 100 s windows; a candidate's score is the RMS over every held-out fold. The folds and
+the rule depend on what the logs hold:
 - one segment (one ramp; split into SPLIT_PARTS contiguous parts): its held-out parts test
   extrapolation in temperature, not in rate, so the data cannot tell the structures'
   rate dependence apart: the smaller, more physical structure first (physics nodes with
@@ -72,8 +72,8 @@ MULTI_SEGMENT_ORDER = ("bank", "physics1", "physics2", "physics3")
 # such in CANDIDATES is chosen. Chosen on development gyros (docs/decisions.md).
 CHOICE_TOLERANCE = 0.20
 # Several segments: a physics structure replaces the bank when its held-out-part score is
-# this many times better (development gyros 1-48: of 2, 2.5 and 3, the one that improved
-# on the bank with no median or worst case above it, docs/decisions.md).
+# this many times better: a smaller factor loses to the bank in the tail, a larger one never
+# leaves it (docs/decisions.md, "From several ramps").
 EVIDENCE_FACTOR = 2.5
 PHYSICS = ("physics1", "physics2", "physics3")
 

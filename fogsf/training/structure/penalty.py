@@ -33,9 +33,9 @@ from fogsf.training.structure.heldout import (
 )
 
 # The bank's penalty: the lower ones tried in turn (multiples of the design's mean diagonal,
-# as BANK_LAMBDA), and the held-out parts the logs must hold for the rule to run
-# (development gyros 1-80, docs/decisions.md: the envelope's 18 parts, not a loop's or two
-# ramps' 6).
+# as BANK_LAMBDA), and the held-out parts the logs must hold for the rule to run: an
+# envelope's 18, not a loop's or two ramps' 6, on which the rule lost (docs/decisions.md;
+# benchmarks/probes/README.md, "The penalty walk").
 PENALTIES = (1e-4, 1e-5, 1e-6)
 PENALTY_MIN_FOLDS = 12
 # the share of the held-out parts a lower penalty must predict better
