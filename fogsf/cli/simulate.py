@@ -12,6 +12,8 @@ bytes.
 
 Start from a scenario (--scenario, default paper) or a full configuration (--config
 sim.json, e.g. from --write-config or from fogsf diagnose); the options below override it.
+--plateaus writes the run as a rig's DAQ does: one row per rate plateau (means only), at set
+points --levels-c (36,43,50,57 C), with fogsf-columns.toml (layout = "plateaus") beside it.
 
 examples:
   fogsf simulate --scenario paper --ramp-rate 1.0 --seed 7 --out run10.csv --summary
@@ -24,6 +26,7 @@ examples:
   fogsf simulate --list-effects
   fogsf simulate --rig ros --protocol staircase --random-gyro 17 --out rig/ros.csv
   fogsf simulate --rig imu3 --protocol reversals --gyro-seeds 1,2,3 --out imu/imu.csv
+  fogsf simulate --plateaus --random-gyro 17 --effect open_loop=0.2 --out plat/table.csv
 """
 
 from __future__ import annotations
@@ -44,6 +47,7 @@ from fogsf.sim.effects import describe, parse_effect
 from fogsf.sim.gyro import SimResult, simulate
 from fogsf.sim.plot import plot_runs, runs_for_plot
 from fogsf.sim.population import gyro_for_seed, with_gyro
+from fogsf.sim.rigs import plateau_tables as plateaus
 from fogsf.sim.rigs import protocols as rigs
 from fogsf.sim.rigs import rig_logs
 from fogsf.sim.scenarios import SCENARIOS, scenario
@@ -77,8 +81,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--random-gyro", type=int, metavar="GYRO_SEED",
                    help="a gyro drawn from the population (docs/population.md; "
                         "0 is the default gyro) instead of the default gyro; the run's noise "
-                        "seed is GYRO_SEED unless --seed is given. Development seeds "
-                        "0-9999, evaluation seeds 20000-29999")
+                        "seed is GYRO_SEED unless --seed is given. Seeds 0-9999 are the "
+                        "development range, 20000-29999 the evaluation range")
     g.add_argument("--thermal-bias", action="store_true",
                    help="with --random-gyro: the gyro's thermal bias as the population draws "
                         "it for make bench-bias (on its coil: a Shupe term, a quadratic and a "
@@ -149,6 +153,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     r.add_argument("--truth", metavar="TRUTH.CSV",
                    help="also write the truth per sample (one file per axis for imu3)")
 
+    q = parser.add_argument_group(
+        "plateau table (docs/simulate.md, 'Plateau tables'): at each set point --levels-c, "
+        "after --soak-min (20) with the table stopped, --passes staircases 0, +dw ... +max, "
+        "0, -dw ... -max; one row per plateau (time_s its start, duration_s, table_rate_dps, "
+        "gyro_dps and temp_c the means over it after 2 s)")
+    q.add_argument("--plateaus", action="store_true", help="write the run as a plateau table")
+    q.add_argument("--plateau-s", type=float, help="a plateau's length, s (default 18)")
+    q.add_argument("--max-rate", type=float, metavar="DPS", help="top rate (default 150)")
+    q.add_argument("--rate-steps", type=int, help="steps from 0 to the top (default 5)")
+    q.add_argument("--passes", type=int, help="staircases at each set point (default 2)")
+
     o = parser.add_argument_group("output")
     o.add_argument("--out", metavar="LOG.CSV", help="write the chamber log here (Parquet when "
                    "it ends in .parquet)")
@@ -188,8 +203,7 @@ def build_config(args: argparse.Namespace) -> SimConfig:
     for opt, attr, scale in (("ramp_rate", "rate_c_per_min", 1.0), ("start_c", "start_c", 1.0),
                              ("stop_c", "stop_c", 1.0), ("soak_before_min", "soak_before_s", 60),
                              ("soak_after_min", "soak_after_s", 60), ("soak_min", "soak_s", 60),
-                             ("cycles", "cycles", 1),
-                             ("levels_c", "levels_c", 1)):
+                             ("cycles", "cycles", 1), ("levels_c", "levels_c", 1)):
         v = getattr(args, opt)
         if v is not None:
             setattr(pr, attr, v * scale if scale != 1 else v)
@@ -252,6 +266,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.rig:
         return run_rig(args)
+    if args.plateaus or any(getattr(args, o) is not None for o in PLATEAU_OPTIONS):
+        return run_plateaus(args)
     if not (args.out or args.summary or args.plot or args.write_config):
         raise UserError("nothing to do: give --out LOG.CSV, --summary, --plot FILE.png or "
                         "--write-config SIM.JSON")
@@ -281,7 +297,7 @@ def run(args: argparse.Namespace) -> int:
 RIG_REFUSES = ("scenario", "config", "ramp_rate", "profile", "start_c", "stop_c",
                "soak_before_min", "soak_after_min", "soak_min", "duration_min", "cycles",
                "levels_c", "program", "start", "table", "rates_dps", "pulse_arcsec",
-               "temp_noise_c", "plot", "write_config", "summary")
+               "temp_noise_c", "plot", "write_config", "summary", "plateaus")
 
 
 def _rig_protocol(args: argparse.Namespace) -> Any:
@@ -351,4 +367,34 @@ def run_rig(args: argparse.Namespace) -> int:
             out = p.with_name(f"{p.stem}_{axis}{p.suffix}") if axis else p
             rig_logs.write_truth(out, truth)
             print(f"truth -> {out}", file=sys.stderr)
+    return 0
+
+
+# options of the chamber-program and table groups that the plateau program replaces
+PLATEAU_REFUSES = ("profile", "start_c", "stop_c", "soak_before_min", "soak_after_min",
+                   "duration_min", "cycles", "program", "start", "table", "rate_dps",
+                   "rates_dps", "dwell_s", "plot", "summary", "write_config")
+
+
+PLATEAU_OPTIONS = ("plateau_s", "max_rate", "rate_steps", "passes")
+
+
+def run_plateaus(args: argparse.Namespace) -> int:
+    """--plateaus: the gyro of build_config through a rig's set points, as a plateau table."""
+    if not args.plateaus:
+        raise UserError("--plateau-s, --max-rate, --rate-steps and --passes need --plateaus")
+    given = [f"--{o.replace('_', '-')}" for o in PLATEAU_REFUSES if getattr(args, o, None)]
+    if given or not args.out:
+        raise UserError(f"--plateaus runs its own program: {', '.join(given)} does not apply"
+                        if given else "--plateaus needs --out TABLE.CSV (and writes its map)")
+    plan = plateaus.plan_from(plateau_s=args.plateau_s, max_rate_dps=args.max_rate,
+                              rate_steps=args.rate_steps, passes=args.passes,
+                              ramp_c_per_min=args.ramp_rate, set_points_c=args.levels_c,
+                              soak_s=None if args.soak_min is None else args.soak_min * 60.0)
+    args.ramp_rate = args.levels_c = args.soak_min = None  # the plan's, not a profile's
+    table = plateaus.plateau_table(plateaus.run_plateaus(build_config(args), plan))
+    out, toml = plateaus.write_plateau_table(args.out, table)
+    print(f"{len(table)} plateaus -> {out}, column map -> {toml}", file=sys.stderr)
+    if args.truth:
+        print(f"truth -> {plateaus.write_plateau_truth(args.truth, table)}", file=sys.stderr)
     return 0

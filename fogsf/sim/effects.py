@@ -39,6 +39,16 @@ bias_shupe=DPH_PER_C_PER_MIN (deg/h per C/min)
 aging=PPM_PER_H (ppm/h)
     Slow SF drift with elapsed time (source ageing, fiber and potting relaxation): SF term =
     STRENGTH * t / 3600, at any temperature.
+open_loop=FRACTION (of pi/2 at full_scale_dps; params full_scale_dps=150,
+        tc_ppm_per_c=-400, ref_c=20)
+    An open-loop FOG: the output follows the sine of the Sagnac phase, phi = K * w (w the
+    rate the coil turns at, table + earth; K in rad per deg/s, K = FRACTION * (pi/2) /
+    full_scale_dps at ref_c, so full scale reaches FRACTION of pi/2). Output =
+    (1 + SF) * sin(phi) / K: the SF at small rate is the closed-loop law's (every SF term
+    above), at full scale the output falls short by the factor sin(phi)/phi (FRACTION 0.2:
+    1.6 %). K = 2 pi L D / (lambda c) moves with temperature: K(T) = K * (1 + tc_ppm_per_c
+    * 1e-6 * (T - ref_c)), T the source node's (the wavelength; the coil's mean without a
+    source node). Not an SF term: a gain on the whole rate response (EffectTerms.gain).
 hysteresis=PPM_PER_C (ppm/C; params width_c=6, plays=1)
     Rate-independent hysteresis of the coil's potting stress, which sticks and releases: a
     play (backlash) operator of the coil temperature T_coil (the mean of the coil nodes),
@@ -79,6 +89,7 @@ class EffectContext:
     table_dps: np.ndarray
     nodes: dict[str, np.ndarray]
     board_node: str = "board"
+    earth_dps: np.ndarray | float = 0.0  # the earth rate on the axis (the coil turns at both)
 
     def coil_c(self) -> np.ndarray:
         names = [k for k in self.nodes if k.startswith("coil")]
@@ -92,10 +103,13 @@ class EffectContext:
 
 @dataclass
 class EffectTerms:
-    """An effect's additive terms (zeros where it has none)."""
+    """An effect's additive terms (zeros where it has none), and for a response effect
+    (open_loop) its gain on the whole rate response: the output is (rate) * (1 + SF) * gain,
+    so sf_ppm is then (gain - 1) * 1e6, what the gain is on its own."""
 
     sf_ppm: np.ndarray
     bias_dps: np.ndarray
+    gain: np.ndarray | None = None
 
 
 def _terms(ctx: EffectContext, sf_ppm: np.ndarray | float = 0.0,
@@ -128,6 +142,33 @@ def rate_nonlinearity(ctx: EffectContext, strength: float, ref_rate_dps: float =
 
 def asymmetry(ctx: EffectContext, strength: float) -> EffectTerms:
     return _terms(ctx, sf_ppm=0.5 * strength * np.sign(ctx.table_dps))
+
+
+def open_loop_gain(rate_dps: np.ndarray, phase_rad_per_dps: np.ndarray | float
+                   ) -> np.ndarray:
+    """sin(K w) / (K w), 1 at w = 0: the open-loop output over the closed-loop one."""
+    phi = np.asarray(phase_rad_per_dps, dtype=np.float64) * np.asarray(rate_dps, np.float64)
+    # np.sinc(x) = sin(pi x) / (pi x), exact 1 at 0 (no 0/0 at a zero-rate plateau)
+    return np.sinc(phi / np.pi)
+
+
+def open_loop(ctx: EffectContext, strength: float, full_scale_dps: float = 150.0,
+              tc_ppm_per_c: float = -400.0, ref_c: float = 20.0) -> EffectTerms:
+    """A gain, not an additive SF term: (1 + SF) * gain keeps the closed-loop SF at small
+    rate whatever the other terms are (an additive ppm would be off by SF * (gain - 1)).
+
+    An effect rather than a field of the gyro's configuration: every existing configuration
+    (and every population gyro's, hashed in tests) keeps its JSON and its bytes, off unless
+    given; `--effect`, the rigs' `effects=`, `--config` files and diagnose's extended models
+    carry it as they carry rate_nonlinearity and asymmetry; and the population's
+    `GYRO_EFFECTS` carries it as the gyro's own physics onto any run."""
+    temp = ctx.nodes["source"] if "source" in ctx.nodes else ctx.coil_c()
+    k = strength * (0.5 * math.pi) / full_scale_dps * (1.0 + tc_ppm_per_c * 1e-6
+                                                      * (temp - ref_c))
+    gain = open_loop_gain(ctx.table_dps + ctx.earth_dps, k)
+    out = _terms(ctx, sf_ppm=(gain - 1.0) * 1e6)
+    out.gain = gain
+    return out
 
 
 def bias_drift(ctx: EffectContext, strength: float, ref_c: float = 20.0,
@@ -223,6 +264,12 @@ EFFECTS: dict[str, EffectInfo] = {e.name: e for e in [
                "(source ageing, fiber/potting relaxation); linear, or settling with "
                "settle_tau_s > 0 (initial slope STRENGTH)", aging, {"settle_tau_s": 0.0},
                20.0),
+    EffectInfo("open_loop", "of pi/2 at full_scale_dps", "an open-loop FOG: output "
+               "(1 + SF) sin(K w) / K, w the rate (table + earth), K = STRENGTH (pi/2) / "
+               "full_scale_dps rad per deg/s moving tc_ppm_per_c per C of the source node "
+               "from ref_c; the SF at small rate is the closed-loop one", open_loop,
+               {"full_scale_dps": 150.0, "tc_ppm_per_c": -400.0, "ref_c": 20.0}, 0.2,
+               positive=True),
     EffectInfo("hysteresis", "ppm/C", "rate-independent hysteresis of the coil's potting "
                "stress: STRENGTH * (play(T_coil, width_c) - T_coil), a backlash that holds "
                "through a soak; plays > 1: a Preisach sum of plays up to width_c",
@@ -259,6 +306,11 @@ def check_effect(e: EffectConfig) -> None:
                         "in 1..16")
     if e.name == "rate_nonlinearity" and e.params.get("ref_rate_dps", 1.0) <= 0:
         raise UserError("effect rate_nonlinearity: ref_rate_dps must be > 0")
+    # past pi/2 the sine turns back: two rates give one output, no gyro is run there
+    if e.name == "open_loop" and (e.strength >= 1.0 or e.params.get("full_scale_dps", 1.0) <= 0
+                                  or abs(e.params.get("tc_ppm_per_c", 0.0)) >= 1e4):
+        raise UserError("effect open_loop: the strength (a fraction of pi/2 at full scale) "
+                        "must lie in 0..1, full_scale_dps > 0, |tc_ppm_per_c| < 10000")
 
 
 def parse_effect(text: str) -> EffectConfig:
@@ -293,15 +345,26 @@ def effect_terms(ctx: EffectContext, e: EffectConfig) -> EffectTerms:
     return info.func(ctx, e.strength, **{**info.params, **e.params})
 
 
-def apply_effects(ctx: EffectContext, effects: list[EffectConfig]
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Sum of every effect's SF term (ppm) and bias term (deg/s)."""
+def apply_effects(ctx: EffectContext, effects: list[EffectConfig],
+                  base_sf_ppm: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Sum of every effect's SF term (ppm) and bias term (deg/s). A response effect's gain
+    (open_loop) multiplies the whole SF, 1 + (base_sf_ppm + the sum) * 1e-6; the SF term
+    returned is then that product's less base_sf_ppm, so base + it stays the exact total."""
     sf = np.zeros(ctx.t_s.shape)
     bias = np.zeros(ctx.t_s.shape)
+    gains = []
     for e in effects:
         terms = effect_terms(ctx, e)
+        if terms.gain is not None:
+            gains.append(terms.gain)
+            continue
         sf += terms.sf_ppm
         bias += terms.bias_dps
+    if gains:  # only here: runs without a gain keep their bytes
+        total = 1.0 + (base_sf_ppm + sf) * 1e-6
+        for g in gains:
+            total = total * g
+        sf = (total - 1.0) * 1e6 - base_sf_ppm
     return sf, bias
 
 

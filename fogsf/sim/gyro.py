@@ -1,6 +1,7 @@
 """The gyro's output and thermometers, and `simulate()`: configuration -> chamber log.
 
-gyro_dps = (table + earth) * (1 + SF error) + bias(T) + angle random walk, quantised as a
+gyro_dps = (table + earth) * (1 + SF error) + bias(T) + angle random walk (an open-loop FOG,
+the `open_loop` effect: (1 + SF error) times sin(K w) / (K w), in the SF error), quantised as a
 closed-loop FOG does it: whole output pulses of `pulse_arcsec` counted per 0.1 s sample, the
 remainder carried to the next sample (so quantization never accumulates into angle).
 Thermometers (board, each internal node) add white noise and round to their resolution.
@@ -78,12 +79,13 @@ def simulate(cfg: SimConfig, table_dps: np.ndarray | None = None,
     nodes = thermal.network(chamber, cfg.thermal, dt)
     sf = sf_error_ppm(nodes, cfg.sf)
     bias = bias_dps(nodes, cfg.bias, dt)
-    ctx = EffectContext(t, dt, table, nodes, cfg.thermal.board_node)
-    sf_fx, bias_fx = apply_effects(ctx, cfg.effects)
-    sf = sf + sf_fx
-    bias = bias + bias_fx
     earth = np.full(t.shape, earth_rate_vertical_dps(cfg.latitude_deg)) if earth_dps is None \
         else _per_sample(earth_dps, t, "earth_dps")
+    ctx = EffectContext(t, dt, table, nodes, cfg.thermal.board_node, earth)
+    # the law's SF goes in as the base: an open-loop gain multiplies the whole of it
+    sf_fx, bias_fx = apply_effects(ctx, cfg.effects, sf)
+    sf = sf + sf_fx
+    bias = bias + bias_fx
     ideal = (table + earth) * (1.0 + sf * 1e-6) + bias
 
     gyro_ss, temp_ss = np.random.SeedSequence(cfg.seed).spawn(2)

@@ -80,6 +80,13 @@ HYST_SHARE = 0.3
 HYST_WIDTH_C = (4.0, 10.0)
 HYST_PPM_PER_C = (3.0, 8.0)
 HYST_STREAM = 0x4857  # the hysteresis draws' own stream: [seed, HYST_STREAM]
+# An open-loop FOG (the `open_loop` effect), drawn only when asked for (`open_loop=True`):
+# full scale (150 deg/s) reaches a fraction of pi/2 uniform over OPEN_LOOP_FRACTION, the
+# phase scale moving uniform over OPEN_LOOP_TC_PPM_PER_C per C (the source's wavelength);
+# its own stream, so every other draw stays what it was.
+OPEN_LOOP_FRACTION = (0.1, 0.4)
+OPEN_LOOP_TC_PPM_PER_C = (-600.0, -200.0)
+OPEN_LOOP_STREAM = 0x0915
 # Forms outside the population's (`outside_form`, benches only): the thermometer behind the
 # board ("sensor", its lag log-uniform over SENSOR_TAU_S), or one internal part that carries
 # an SF factor moved behind the chamber air ("vent", VENT_TAU_S; the parts behind it follow
@@ -90,7 +97,7 @@ SENSOR_TAU_S = (30.0, 300.0)
 VENT_TAU_S = (100.0, 1500.0)
 OUTSIDE_STREAM = 0x0F0E
 # effects that are the gyro's own physics (carried by `with_gyro`), not the run's
-GYRO_EFFECTS = ("hysteresis",)
+GYRO_EFFECTS = ("hysteresis", "open_loop")
 
 # Internal parts in the order they are added; the first three are always there.
 _ROLES = ("coil_inner", "source", "preamp", "coil_outer", "waveguide", "coil_mid")
@@ -225,10 +232,24 @@ def hysteresis_for_seed(seed: int) -> EffectConfig | None:
     return EffectConfig("hysteresis", strength, {"width_c": width})
 
 
-def gyro_for_seed(seed: int, hysteresis: bool = True, thermal_bias: bool = False) -> SimConfig:
+def open_loop_for_seed(seed: int) -> EffectConfig:
+    """Gyro `seed`'s open-loop response (an `open_loop` effect) from a stream of its own."""
+    rng = np.random.default_rng([seed, OPEN_LOOP_STREAM])
+    return EffectConfig("open_loop", round(_uniform(rng, OPEN_LOOP_FRACTION), 4),
+                        {"tc_ppm_per_c": round(_uniform(rng, OPEN_LOOP_TC_PPM_PER_C), 1)})
+
+
+def gyro_for_seed(seed: int, hysteresis: bool = True, thermal_bias: bool = False,
+                  open_loop: bool = False) -> SimConfig:
     """The population's gyro number `seed` (seed 0: the default gyro). hysteresis=False:
     the same gyro without its SF hysteresis, if it draws one; with `thermal_bias`, its bias
-    on the coil with a Shupe term, a quadratic and a cubic (`with_thermal_bias`)."""
+    on the coil with a Shupe term, a quadratic and a cubic (`with_thermal_bias`); with
+    `open_loop`, the same gyro as an open-loop FOG (`open_loop_for_seed`)."""
+    if open_loop:
+        cfg = gyro_for_seed(seed, hysteresis, thermal_bias)
+        cfg.effects.append(open_loop_for_seed(seed))
+        cfg.scenario += ":open-loop"
+        return cfg
     if seed == 0:
         cfg = SimConfig(scenario="population:default")
     else:
