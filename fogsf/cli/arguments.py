@@ -182,12 +182,14 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.read.dia
     from_file = bool(given) and "=" not in given and given.lower().endswith((".json", ".toml"))
     joins = Dialect.mapping_joins(given) if from_file else ()
     stream = Dialect.mapping_stream(given) if from_file else None
+    layout = Dialect.mapping_layout(given) if from_file else None  # layout = "plateaus"
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
                    decimal_comma=getattr(args, "decimal_comma", False),
                    sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis,
                    joins=joins, max_gap_s=getattr(args, "max_gap_s", None),
-                   gap_states=getattr(args, "gap_states", None) or "carry", stream=stream)
+                   gap_states=getattr(args, "gap_states", None) or "carry", stream=stream,
+                   layout=layout)
 
 
 def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel

@@ -12,6 +12,8 @@ table stopped throughout (stationary, earth rate known) shows its bias (output -
 in windows of --window-s and no SF, and a
 staircase (three or more |rates|) the SF per rate step, its nonlinearity and asymmetry
 (IEEE Std 952). A log that starts while the temperature moves is said so (--skip-s).
+A plateau table (a row per rate plateau: `layout = "plateaus"` in its column map) gives
+the IEEE Std 952 figures per temperature group: SF, nonlinearity, asymmetry, bias.
 
 Example:
   fogsf simulate --scenario paper --ramp-rate 1.0 --out run10.csv && fogsf inspect run10.csv
@@ -23,7 +25,14 @@ import argparse
 import json
 import sys
 
-from fogsf.cli.arguments import add_log_options, add_metric_options, positive_float, read_logs
+from fogsf.cli.arguments import (
+    add_log_options,
+    add_metric_options,
+    cosine_for,
+    dialect_from_args,
+    positive_float,
+    read_logs,
+)
 from fogsf.cli.axes import run_all, wants_all
 from fogsf.logs.chamber_log import ChamberLog, is_stationary, rate_text
 from fogsf.logs.measure.bias import BiasWindows, bias_summary, bias_windows
@@ -37,12 +46,15 @@ from fogsf.logs.measure.metrics import (
 from fogsf.logs.measure.pairs import find_pairs, rate_steps
 from fogsf.logs.measure.plateaus import DPS_TO_DPH, SETTLE_S, plateaus
 from fogsf.logs.measure.sf_reference import reference_sf, reference_temp_c
+from fogsf.logs.measure.table_figures import TEMP_GROUP_C, table_figures
 from fogsf.logs.measure.windows import sf_windows
+from fogsf.logs.plateau_table import PlateauTable, is_plateau_table, read_plateau_table
 from fogsf.logs.read.columns import col_max, col_min
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("log", help="chamber log, CSV or Parquet (format: docs/logs.md)")
+    parser.add_argument("log", help="chamber log, CSV or Parquet, or a plateau table (format: "
+                        "docs/logs.md)")
     parser.add_argument("--json", action="store_true",
                         help="print the summary as JSON (samples, duration_s, sample_rate_hz, "
                              "temp_range_c, table_rates_dps, metrics, settle_s, skip_s, "
@@ -189,6 +201,8 @@ def print_stationary(log: ChamberLog, s: dict) -> None:
 def run(args: argparse.Namespace) -> int:
     if wants_all(args):  # --plot NAME_A.png per axis, then one summary
         return run_all(args, run, "inspect")
+    if is_plateau_table(args.log, dialect_from_args(args)):
+        return run_table(args)
     log = read_logs(args, [args.log], on_disk=True)[0]
     s = summary(log, args.window_s, args.latitude_deg, args.ref_sf, args.settle_s, args.skip_s)
     note = start_note(log, args.skip_s)  # after the summary: a refused log is one line
@@ -290,3 +304,70 @@ def plot_sf(row, log: ChamberLog, window_s: float,  # noqa: ANN001 - matplotlib 
     a2.set_xlabel("time since the log's first sample (min)")
     a2.set_ylabel("SF error (ppm)")
     a2.legend(loc="best")
+
+
+def table_summary(table: PlateauTable, latitude_deg: float | None, cosine: float) -> dict:
+    """A plateau table's summary: its rows and times, and its IEEE Std 952 figures."""
+    keep = table.measures
+    m = (table.gyro_dps - table.earth(latitude_deg, cosine))[keep]
+    r, temp = table.table_rate_dps[keep], table.temp_c[keep]
+    return {"plateau_table": True, "plateaus": len(table), "measuring": int(keep.sum()),
+            "bias_plateaus": int((r == 0.0).sum()),
+            "duration_s": float(table.time_s[-1] + table.duration_s[-1] - table.time_s[0]),
+            "time_from": table.time_from,
+            "temp_range_c": [float(temp.min()), float(temp.max())],
+            "figures": table_figures(r, m, temp).as_dict()}
+
+
+def _ppm(x: float | None, fmt: str) -> str:
+    return f"{'-':>{len(format(0.0, fmt))}}" if x is None else format(x, fmt)
+
+
+def print_table(table: PlateauTable, s: dict) -> None:
+    """The table's rows, then the figures: the whole table's fit, a row per group."""
+    lo, hi = s["temp_range_c"]
+    f = s["figures"]
+    rates = f["rates_dps"]
+    print(f"{table.path}: plateau table, {s['plateaus']} plateaus ({s['bias_plateaus']} at "
+          f"0 deg/s), {s['duration_s']:.1f} s ({s['duration_s'] / 3600:.2f} h; times from "
+          f"{s['time_from']})")
+    print(f"  board temperature {lo:.2f} .. {hi:.2f} C in {len(f['groups'])} groups (rows "
+          f"within {TEMP_GROUP_C:g} C); table rates {rates[0]:+g} .. {rates[-1]:+g} deg/s, "
+          f"{len(rates)} rates")
+    o = f["overall"]
+    if o is not None:
+        print(f"  all plateaus (SF and bias as polynomials of temperature): SF "
+              f"{o['sf_ppm']:+.1f} ppm vs nominal at {o['temp_c']:.1f} C, nonlinearity "
+              f"{o['sf_nonlinearity_ppm_fs']:.1f} ppm of full scale, asymmetry "
+              f"{o['sf_asymmetry_ppm']:+.1f} ppm, bias {o['bias_dph']:+.4f} deg/h")
+    print("  per temperature group (IEEE Std 952; SF vs nominal):")
+    print("      T (C)   plateaus     SF (ppm)   nonlin (ppm FS)   asym (ppm)   bias (deg/h)")
+    for g in f["groups"]:
+        print(f"    {g['temp_c']:7.2f}   {g['plateaus']:8d}   {_ppm(g['sf_ppm'], '+10.1f')}"
+              f"   {_ppm(g['sf_nonlinearity_ppm_fs'], '15.1f')}"
+              f"   {_ppm(g['sf_asymmetry_ppm'], '+10.1f')}   {_ppm(g['bias_dph'], '+12.4f')}")
+    drift = [f"SF {f['sf_drift_ppm_per_c']:+.3f} ppm/C" if f["sf_drift_ppm_per_c"] is not None
+             else "", f"bias {f['bias_drift_dph_per_c']:+.4f} deg/h/C"
+             if f["bias_drift_dph_per_c"] is not None else ""]
+    if any(drift):
+        print(f"  drift with temperature (a line through the groups): "
+              f"{', '.join(d for d in drift if d)}")
+
+
+def run_table(args: argparse.Namespace) -> int:
+    """`fogsf inspect` on a plateau table: its figures; the sample log's options that have
+    no meaning for one (--plot, --ref-sf) are said unused on stderr."""
+    table = read_plateau_table(args.log, dialect_from_args(args))
+    if table.read_notes:
+        print(f"fogsf: read {table.path}: {'; '.join(table.read_notes)}", file=sys.stderr)
+    unused = [o for o, v in (("--plot", args.plot), ("--ref-sf", args.ref_sf)) if v]
+    if unused:
+        print(f"fogsf: {' and '.join(unused)} not used: a plateau table", file=sys.stderr)
+    s = table_summary(table, args.latitude_deg,
+                      cosine_for(getattr(args, "axis_cosine", None), args.axis))
+    if args.json:
+        print(json.dumps(s, indent=2))
+    else:
+        print_table(table, s)
+    args.axis_result = s
+    return 0

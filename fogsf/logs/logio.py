@@ -19,6 +19,7 @@ logs/writer.py writes a log.
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -26,6 +27,7 @@ import numpy as np
 
 from fogsf.logs.chamber_log import ChamberLog, LogError
 from fogsf.logs.mapping.column_map import ColumnPlan, with_kinds
+from fogsf.logs.mapping.layout import SUPPORTED
 from fogsf.logs.read.arrow_csv import NotFast, read_numbers
 from fogsf.logs.read.cell_kinds import numeric_cells, row_kinds
 from fogsf.logs.read.dialect import (
@@ -51,6 +53,7 @@ def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
     --columns in `dialect`, a mapping file beside the log (MAPPING_FILES) applies."""
     p = str(path)
     dialect = with_mapping_beside(path, dialect or Dialect())
+    refuse_plateaus(p, dialect)
     if is_parquet(path):
         return read_parquet_log(path, dialect, _log_of)
     if format_of(path) is not None:
@@ -95,7 +98,17 @@ def with_mapping_beside(path: str | Path, dialect: Dialect) -> Dialect:
     if beside is None:
         return dialect
     return replace(dialect, columns=Dialect.mapping_file(beside), columns_from=str(beside),
-                   joins=Dialect.mapping_joins(beside), stream=Dialect.mapping_stream(beside))
+                   joins=Dialect.mapping_joins(beside), stream=Dialect.mapping_stream(beside),
+                   layout=Dialect.mapping_layout(beside))
+
+
+def refuse_plateaus(path: str, dialect: Dialect) -> None:
+    """A plateau table (`layout = "plateaus"` in its map) read as a sample log is refused in
+    one line naming what reads it: its rows are means, not samples, and a sample log's rules
+    (sample rate, windows) would refuse it obscurely or measure nonsense."""
+    if dialect.layout is not None:
+        raise LogError(path, None, "a plateau table",
+                       f"layout = \"plateaus\" ({dialect.layout.origin}): {SUPPORTED}")
 
 
 def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
@@ -125,8 +138,10 @@ def log_axes_of(path: str | Path, dialect: Dialect) -> list[str]:
     return log_axes(map_plan(raw_header(first, delim, p), dialect, p, notes).names)
 
 
-def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
-              ) -> ChamberLog:
+def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None,
+              build: Callable[..., object] = _log_of) -> ChamberLog:
+    """A log's text read through `dialect`; `build` makes the result from the parsed cells,
+    the plan, the path, the dialect and the notes (a plateau table's reader gives its own)."""
     dialect = dialect or Dialect()
     notes: list[str] = []
     if text.startswith("\ufeff"):  # a UTF-8 byte-order mark: encoding, not data
@@ -152,7 +167,7 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None
         kinds = plan.kinds
         lines = [lines[0], *((numeric_cells(line, delim, kinds) or line) for line in lines[1:])]
     data = _parse_numbers(lines, list(plan.raw), path, delim)
-    return _log_of(data, plan, path, dialect, notes)
+    return build(data, plan, path, dialect, notes)  # type: ignore[return-value]
 
 
 def _read_plain(path: str | Path, dialect: Dialect) -> ChamberLog | None:

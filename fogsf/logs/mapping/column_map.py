@@ -230,8 +230,9 @@ def moved_notes(plan: ColumnPlan) -> list[str]:
     return [f"columns {', '.join(items)} ({origin})" for origin, items in by_origin.items()]
 
 
-def missing_required(plan: ColumnPlan) -> list[str]:
-    return [c for c in REQUIRED if c not in plan.names]
+def missing_required(plan: ColumnPlan, required: tuple[str, ...] | None = None) -> list[str]:
+    """The names of `required` (default: a sample log's REQUIRED) the plan does not give."""
+    return [c for c in (REQUIRED if required is None else required) if c not in plan.names]
 
 
 def _entry(ours: str, text: str, raw: list[str], origin: str, path: str) -> Source:

@@ -299,58 +299,88 @@ def _rate_levels(rates: np.ndarray) -> np.ndarray:
 
 def rate_steps(log: ChamberLog, latitude_deg: float | None = None,
                settle_s: float = SETTLE_S) -> RateSteps | None:
-    """The staircase figures (`RateSteps`); None for a log with fewer than MIN_RATE_LEVELS
-    |rates| or without both signs."""
+    """The staircase figures (`RateSteps`) of a sample log's settled plateaus; None for a log
+    with fewer than MIN_RATE_LEVELS |rates| or without both signs."""
     pl = _plateau_means(log, latitude_deg, settle_s)
     if not pl:
         return None
-    r = np.array([p.rate for p in pl])
-    m = np.array([p.mean for p in pl])
-    temp = np.array([p.temp_c for p in pl])
-    level = _rate_levels(r)
-    if level.max() + 1 < MIN_RATE_LEVELS or not ((r > 0).any() and (r < 0).any()):
+    return steps_of_means(np.array([p.rate for p in pl]), np.array([p.mean for p in pl]),
+                          np.array([p.temp_c for p in pl]))
+
+
+def steps_of_means(r: np.ndarray, m: np.ndarray, temp: np.ndarray,
+                   max_degree: int | None = None) -> RateSteps | None:
+    """`RateSteps` from plateau means: commanded rate `r`, mean output less the earth rate
+    `m`, mean board temperature `temp` (a sample log's settled plateaus, or a plateau
+    table's rows: both paths measure with this one fit). A zero-rate plateau (a table's bias
+    plateau) enters both fits, where it pins the bias, but is no rate level. `max_degree`
+    caps the thermal polynomials' (a table at k set points tells k - 1 powers of temperature
+    apart, whatever its span). None with fewer than MIN_RATE_LEVELS |rates| or without both
+    signs."""
+    moving = r != 0.0
+    rm = r[moving]
+    if rm.size == 0:
         return None
-    t0, thermal = _thermal_columns(r, temp)
+    level = _rate_levels(rm)
+    if level.max() + 1 < MIN_RATE_LEVELS or not ((rm > 0).any() and (rm < 0).any()):
+        return None
+    t0, thermal = _thermal_columns(r, temp, max_degree)
     one = np.ones_like(r)
     line_x = np.column_stack([r, one, *thermal])
     line, *_ = np.linalg.lstsq(line_x, m, rcond=None)
     split_x = np.column_stack([np.where(r > 0, r, 0.0), np.where(r < 0, r, 0.0), one, *thermal])
     split, *_ = np.linalg.lstsq(split_x, m, rcond=None)
-    resid = m - line_x @ line
-    sign = np.sign(r)
+    resid = (m - line_x @ line)[moving]
+    sign = np.sign(rm)
     groups = [(level == k) & (sign == s) for k in range(level.max() + 1) for s in (-1, 1)]
     dev = max(abs(float(resid[g].mean())) for g in groups if g.any())
     # per plateau: SF with the split fit's bias and thermal terms taken off (the split fit's
     # intercept is the bias whatever the asymmetry; the line's holds asymmetry x rate / 2)
     bias = float(split[2])
     per = m - bias - (np.column_stack(thermal) @ split[3:] if thermal else 0.0)
-    per_sf = (per / r - 1.0) * 1e6
+    per_sf = (per[moving] / rm - 1.0) * 1e6
     levels = range(level.max() + 1)
-    rates = np.array([np.abs(r[level == k]).mean() for k in levels])
+    rates = np.array([np.abs(rm[level == k]).mean() for k in levels])
 
     def side(k: int, positive: bool) -> float:
-        sel = (level == k) & ((r > 0) if positive else (r < 0))
+        sel = (level == k) & ((rm > 0) if positive else (rm < 0))
         return float(per_sf[sel].mean()) if sel.any() else float("nan")
 
     pos = np.array([side(k, True) for k in levels])
     neg = np.array([side(k, False) for k in levels])
     sf = float(line[0])
-    full_scale = abs(sf) * float(np.abs(r).max())
+    full_scale = abs(sf) * float(np.abs(rm).max())
     asym = float((split[0] - split[1]) / (0.5 * (split[0] + split[1]))) * 1e6
     return RateSteps(rates, pos, neg, (sf - 1.0) * 1e6, bias, dev / full_scale * 1e6, asym, t0)
 
 
-def _thermal_columns(r: np.ndarray, temp: np.ndarray) -> tuple[float, list[np.ndarray]]:
-    """(T0, columns r u^k and u^k for k = 1..degree), u = (T - T0) / the largest |T - T0|:
-    the SF's and the bias's change with board temperature in `rate_steps` (degree by span:
-    0 under 1 C, 1 under 5 C, 2 under 20 C, else 3)."""
+def _thermal_columns(r: np.ndarray, temp: np.ndarray, max_degree: int | None = None
+                     ) -> tuple[float, list[np.ndarray]]:
+    """(T0, the SF's and the bias's change with board temperature in `rate_steps`): the
+    columns of `thermal_columns` on the basis the plateaus' temperatures give."""
+    basis = thermal_basis(temp, max_degree)
+    return basis[0], thermal_columns(r, temp, basis)
+
+
+def thermal_basis(temp: np.ndarray, max_degree: int | None = None
+                  ) -> tuple[float, float, int]:
+    """(T0, scale, degree) of the thermal polynomials: T0 is 20 C when the plateaus span it,
+    else their mean; u = (T - T0) / scale spans +/-1; the degree goes by the span (0 under
+    1 C, 1 under 5 C, 2 under 20 C, else 3): what the span can tell apart."""
     span = float(np.ptp(temp))
     t0 = T_REF_C if temp.min() <= T_REF_C <= temp.max() else float(temp.mean())
     degree = 0 if span < 1.0 else 1 if span < 5.0 else 2 if span < 20.0 else 3
+    if max_degree is not None:  # what the plateaus' distinct temperatures tell apart
+        degree = min(degree, max_degree)
+    return t0, max(float(np.max(np.abs(temp - t0))), 1e-9), degree
+
+
+def thermal_columns(r: np.ndarray, temp: np.ndarray, basis: tuple[float, float, int]
+                    ) -> list[np.ndarray]:
+    """Columns r u^k and u^k, k = 1..degree, at temperatures `temp` on `basis`."""
+    t0, scale, degree = basis
     if degree == 0:
-        return t0, []
-    u = (temp - t0) / max(float(np.max(np.abs(temp - t0))), 1e-9)
+        return []
+    u = (temp - t0) / scale
     powers = [u**k for k in range(1, degree + 1)]
-    return t0, [r * p for p in powers] + powers
-
-
+    return [r * p for p in powers] + powers

@@ -26,6 +26,13 @@ from fogsf.logs.mapping.column_map import (
 )
 from fogsf.logs.mapping.expressions import ExpressionError, parse_expression, split_top_level
 from fogsf.logs.mapping.join_spec import Join, join_names, joins_of
+from fogsf.logs.mapping.layout import (
+    LAYOUT_KEYS,
+    PLATEAU_NAMES,
+    PLATEAU_REQUIRED,
+    PlateauLayout,
+    layout_of,
+)
 
 DELIMITERS = {",": ",", ";": ";", "tab": "\t"}
 DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
@@ -59,6 +66,8 @@ class Dialect:
     # a field-format file's stream read as the log (logs/read/field_formats.py): the map's
     # `stream = "/imu"`; None: the file's only one
     stream: str | None = None
+    # `layout = "plateaus"` in the map file: a row per rate plateau (logs/plateau_table.py)
+    layout: PlateauLayout | None = None
 
     @property
     def gyro_name(self) -> str | None:
@@ -71,13 +80,23 @@ class Dialect:
         number, or an expression over the log's columns."""
         p = Path(path)
         m = _map_file(p)
-        m = ({k: v for k, v in m.items() if k not in ("join", "stream")}
+        plateaus = isinstance(m, dict) and layout_of(m, str(p)) is not None
+        m = ({k: v for k, v in m.items() if k not in ("join", "stream", *LAYOUT_KEYS)}
              if isinstance(m, dict) else m)
-        if not isinstance(m, dict) or not m or not all(_is_value(v) for v in m.values()):
+        # a plateau table in the format's names needs no column map, only its layout keys
+        if (not isinstance(m, dict) or not (m or plateaus)
+                or not all(_is_value(v) for v in m.values())):
             raise UserError(f"{p}: expected a mapping of our names to the log's columns, "
                             'numbers or expressions, e.g. {"time_s": "t", "earth_rate_dps": '
                             '0.00234} (TOML: time_s = "t")')
-        return Dialect._checked([(k, _text(v)) for k, v in m.items()], str(p))
+        return Dialect._checked([(k, _text(v)) for k, v in m.items()], str(p),
+                                PLATEAU_NAMES if plateaus else ())
+
+    @staticmethod
+    def mapping_layout(path: str | Path) -> PlateauLayout | None:
+        """The layout keys of a column map file (logs/mapping/layout.py); None: samples."""
+        m = _map_file(Path(path))
+        return layout_of(m, str(path)) if isinstance(m, dict) else None
 
     @staticmethod
     def mapping_joins(path: str | Path) -> tuple[Join, ...]:
@@ -112,10 +131,12 @@ class Dialect:
         return Dialect._checked(pairs, "--columns")
 
     @staticmethod
-    def _checked(pairs: list[tuple[str, str]], source: str) -> tuple[tuple[str, str], ...]:
+    def _checked(pairs: list[tuple[str, str]], source: str, extra: tuple[str, ...] = ()
+                 ) -> tuple[tuple[str, str], ...]:
+        """`pairs` with every name one the format has (or in `extra`: a plateau table's)."""
         ours_seen: set[str] = set()
         for ours, theirs in pairs:
-            if not is_our_name(ours):
+            if not is_our_name(ours) and ours not in extra:
                 raise UserError(f"{source}: {ours!r} is not a column of the format "
                                 f"({', '.join(OUR_NAMES)})")
             if ours in ours_seen:
@@ -313,7 +334,9 @@ def names_plan(raw: list[str], path: str, dialect: Dialect, notes: list[str]) ->
             raise LogError(path, 1, "bad header", f"column {h!r} appears twice"
                            " (after --columns / --gyro-column)")
         seen.add(h)
-    missing = [m for m in missing_required(plan) if m not in join_names(dialect.joins)]
+    # a plateau table may stand for its times with duration_s or plateau_s (its own check)
+    required = PLATEAU_REQUIRED if dialect.layout is not None else None
+    missing = [m for m in missing_required(plan, required) if m not in join_names(dialect.joins)]
     if missing:
         raise LogError(path, 1, "missing required column",
                        f"{', '.join(missing)} (header has: {', '.join(raw)})"

@@ -25,6 +25,7 @@ from fogsf.logs.logio import (
     plain_header,
     read_log,
     refuse_bad_line,
+    refuse_plateaus,
     with_mapping_beside,
 )
 from fogsf.logs.mapping.column_map import ColumnPlan
@@ -43,6 +44,7 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
     (rows read, rows) after every block."""
     p = str(path)
     dialect = with_mapping_beside(path, dialect or Dialect())
+    refuse_plateaus(p, dialect)
     spill = spill or Spill()
     if format_of(path) is not None:  # a field format: its streams are read whole
         return read_log(path, dialect)
