@@ -1,8 +1,9 @@
 """fogsf fleet: the units of one design, calibrated together, in one database.
 
-FLEET is an SQLite file (created on first use) or a postgresql:// URL that several chambers
-share. `add` trains a unit exactly as `fogsf train` does (the same options) and records it:
-its logs (path, sha256, rows, span, ramp rates), its model (id, what it was fitted with, the
+FLEET is an SQLite file (`add` and `add-many` create it; the other actions need it) or a
+postgresql:// URL that several chambers share (the password in PGPASSWORD or ~/.pgpass).
+`add` trains a unit exactly as `fogsf train` does (the same options) and records it: its
+logs (path, sha256, rows, span, ramp rates), its model (id, what it was fitted with, the
 parameters the design's prior needs), its figures and interval, the fogsf version and the
 time, in one transaction (a killed add leaves the database as it was). `add-many` adds the
 units of a manifest in parallel; `list` and `remove` what the title says; `check` names the
@@ -21,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import shlex
 import sys
 import tempfile
@@ -32,14 +34,18 @@ from fogsf.cli.main import main
 from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
 from fogsf.fleet.check import DEFAULT_FALSE_ALARM, check_fleet
+from fogsf.fleet.faults import db_faults
 from fogsf.fleet.manifest import ManifestRow, read_manifest
+from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.records import structure_of, unit_record
 from fogsf.fleet.report import write_report
+from fogsf.fleet.report_dir import check_out_dir
 from fogsf.fleet.store import open_store
 from fogsf.gsa.executors import open_executor
 from fogsf.training.train import run_training
 
-FLEET_HELP = "the fleet: an SQLite file (created on first use) or a postgresql:// URL"
+FLEET_HELP = ("the fleet: an SQLite file or a postgresql:// URL (its password from "
+              "PGPASSWORD or ~/.pgpass, not the URL)")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -123,22 +129,29 @@ def _action(sub: argparse._SubParsersAction, name: str, help_text: str, example:
 
 
 def run(args: argparse.Namespace) -> int:
-    return int(args._fleet_run(args) or 0)
+    try:
+        with db_faults(masked(args.fleet)):  # a database's fault: one line, exit status 2
+            return int(args._fleet_run(args) or 0)
+    except BrokenPipeError:  # the reader went (`fogsf fleet list | head`): stop quietly
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # stdout is no file (captured): nothing to silence
+            pass
+        return 141  # a shell's status for a writer its pipe's reader left (128 + SIGPIPE)
 
 
 # --- add ------------------------------------------------------------------------------------
 
 def run_add(args: argparse.Namespace) -> int:
 
-    if not (getattr(args, "unit", None) or "").strip():
-        raise UserError("--unit must name the unit (its serial number)")
+    check_unit_name(args.unit)  # before anything is opened or trained
     if getattr(args, "prior", None):
         raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
                         "under the design's prior and record it: fogsf train --prior FLEET "
                         "--unit SN ...")
-    with open_store(args.fleet) as store:  # refuse a unit already there before training it
+    with open_store(args.fleet, "create") as store:  # refuse a unit there before training
         if store.has(args.unit) and not args.replace:
-            raise UserError(f"unit {args.unit!r} is already in {store.location} (--replace "
+            raise UserError(f"unit {shown(args.unit)} is already in {store.location} (--replace "
                             "to record it again, or `fogsf fleet remove`)")
     train_logs = read_logs(args, args.train, on_disk=True)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
@@ -153,9 +166,13 @@ def run_add(args: argparse.Namespace) -> int:
                    if k not in ("progress", "workers", "dask", "extra")}
         record = unit_record(args.unit, train_logs, test_log, metrics, fitted, out,
                              options, keep_dir=bool(args.out))
-    with open_store(args.fleet) as store:
-        store.add(record, replace=args.replace)
-        n = len(store.units())
+    try:
+        with db_faults(masked(args.fleet)), open_store(args.fleet, "create") as store:
+            store.add(record, replace=args.replace)
+            n = len(store.units())
+    except UserError as e:  # the hour of training is not lost with the record
+        raise UserError(f"{e}; the trained model is kept in {args.out}" if args.out else
+                        f"{e}; not recorded (--out DIR keeps the trained model)") from None
     print(f"recorded unit {record.unit} in {store.location} ({n} units); "
           f"structure {structure_of(record)}"
           + (f", model in {args.out}" if args.out else ""))
@@ -185,11 +202,12 @@ def run_add_many(args: argparse.Namespace) -> int:
     for bad in ("--unit", "--train", "--test", "--out"):
         if bad in extra:
             raise UserError(f"--train-options: {bad} comes from the manifest's columns")
-    with open_store(args.fleet) as store:  # created and migrated once, before the workers
+    with open_store(args.fleet, "create") as store:  # created, migrated, before the workers
         have = {r.unit for r in store.units()}
+        where = store.location  # password masked: the URL itself is never printed
     clash = [r.unit for r in rows if r.unit in have]
     if clash and not args.replace:
-        raise UserError(f"{args.manifest}: {len(clash)} unit(s) already in {args.fleet}: "
+        raise UserError(f"{args.manifest}: {len(clash)} unit(s) already in {where}: "
                         f"{', '.join(clash[:5])} (--replace to record them again)")
     argvs = []
     for r in rows:
@@ -226,7 +244,7 @@ def run_add_many(args: argparse.Namespace) -> int:
             for f in as_completed(futs):
                 said(futs[f], *f.result())
                 bar.update()
-    print(f"{len(rows) - len(failed)} of {len(rows)} units recorded in {args.fleet}")
+    print(f"{len(rows) - len(failed)} of {len(rows)} units recorded in {where}")
     if failed:
         raise UserError(f"{len(failed)} unit(s) not recorded: {', '.join(failed)}")
     return 0
@@ -249,9 +267,16 @@ def json_safe(x: object) -> object:
     return x
 
 
+def _cell(name: str, width: int) -> str:
+    """A unit's name in a table cell: escaped when a database an older fogsf wrote holds
+    a name the rule now refuses (a newline would forge a row), cut to the column."""
+    text = name if name.isprintable() else shown(name, width)
+    return text[:width]
+
+
 def run_list(args: argparse.Namespace) -> int:
 
-    with open_store(args.fleet) as store:
+    with open_store(args.fleet, "read") as store:
         units = store.units()
         where = store.location
     if args.json:
@@ -269,7 +294,7 @@ def run_list(args: argparse.Namespace) -> int:
         iv = u.interval
         interval = (f"{iv['rms_lo_ppm'] / floor:.1f}-{iv['rms_hi_ppm'] / floor:.1f}"
                     if iv and floor else "-")
-        print(row.format(u.unit[:16], f"{u.chamber_hours:.1f} h", len(u.logs),
+        print(row.format(_cell(u.unit, 16), f"{u.chamber_hours:.1f} h", len(u.logs),
                          structure_of(u)[:24],
                          _fmt(f.get("train_rms_over_floor")), _fmt(f.get("test_rms_over_floor")),
                          interval, u.created_utc))
@@ -279,10 +304,10 @@ def run_list(args: argparse.Namespace) -> int:
 
 def run_remove(args: argparse.Namespace) -> int:
 
-    with open_store(args.fleet) as store:
+    with open_store(args.fleet, "write") as store:  # the fleet first: swapped arguments
         store.remove(args.unit)
         n = len(store.units())
-    print(f"removed unit {args.unit} from {args.fleet} ({n} units left)")
+    print(f"removed unit {args.unit} from {store.location} ({n} units left)")
     return 0
 
 
@@ -290,7 +315,7 @@ def run_remove(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
 
-    with open_store(args.fleet) as store:
+    with open_store(args.fleet, "read") as store:
         units = store.units()
     result = check_fleet(units, false_alarm=args.false_alarm)
     print(result.message())
@@ -302,7 +327,8 @@ def run_check(args: argparse.Namespace) -> int:
 
 def run_report(args: argparse.Namespace) -> int:
 
-    with open_store(args.fleet) as store:
+    check_out_dir(Path(args.out))  # refused before the check's minutes, not after
+    with open_store(args.fleet, "read") as store:
         units = store.units()
         where = store.location
     if not units:

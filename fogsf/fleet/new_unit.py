@@ -6,6 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from fogsf.errors import UserError
+from fogsf.fleet.faults import db_faults
+from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.records import unit_record
 from fogsf.fleet.store import open_store
 from fogsf.logs.chamber_log import ChamberLog
@@ -14,19 +16,10 @@ from fogsf.training.options import TrainOptions
 from fogsf.training.with_prior import prior_from_summaries, train_with_prior
 
 
-def existing_fleet(path: str) -> str:
-    """`path` if it names a fleet database that exists (a file) or a server's URL: the
-    prior reads a fleet, it does not create one."""
-
-    if "://" not in path and not Path(path).is_file():
-        raise UserError(f"{path}: no such fleet database (`fogsf fleet add` creates one)")
-    return path
-
-
 def prior_from_store(path: str) -> DesignPrior:
     """The design's prior from the fleet database at `path` (its units' summaries)."""
 
-    with open_store(existing_fleet(path)) as store:
+    with db_faults(masked(path)), open_store(path, "read") as store:  # never creates one
         units = store.units()
     return prior_from_summaries({u.unit: u.summary for u in units if u.summary})
 
@@ -36,13 +29,17 @@ def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
     """`fogsf train --prior FLEET [--unit SN]`: the prior from FLEET, the unit trained under
     it into `out`, recorded in FLEET with --unit; metrics.json's content."""
 
-    with open_store(existing_fleet(fleet)) as store:
-        if unit is not None and store.has(unit):
-            raise UserError(f"unit {unit!r} is already in {store.location} (`fogsf fleet "
-                            "remove` it first)")
-        summaries = {u.unit: u.summary for u in store.units() if u.summary.get("series")}
+    if unit is not None:
+        check_unit_name(unit)  # before the fleet is read or the unit trained
+    with db_faults(masked(fleet)), open_store(fleet, "read") as store:
+        units = store.units()
+        where = store.location  # the password masked
+    if unit is not None and any(u.unit == unit for u in units):
+        raise UserError(f"unit {shown(unit)} is already in {where} (`fogsf fleet remove` "
+                        "it first)")
+    summaries = {u.unit: u.summary for u in units if u.summary.get("series")}
     if len(summaries) < 2:
-        raise UserError(f"the design's prior needs at least two units in {fleet} "
+        raise UserError(f"the design's prior needs at least two units in {where} "
                         f"with their logs' summary, it has {len(summaries)} (fogsf fleet add)")
     prior = prior_from_summaries(summaries)
     metrics, fitted = train_with_prior(opts, train_logs, test_log, out, prior)
@@ -51,8 +48,11 @@ def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
                    if k not in ("progress", "workers", "dask", "extra")}
         options["prior"] = {"fleet_units": prior.units, "used": metrics["prior"]["used"]}
         record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
-        with open_store(fleet) as store:
-            store.add(record)
+        try:
+            with db_faults(masked(fleet)), open_store(fleet, "write") as store:
+                store.add(record)
+        except UserError as e:  # the model is written: say where, the training not lost
+            raise UserError(f"{e}; the trained model is kept in {out}") from None
         metrics["prior"]["recorded"] = f"recorded unit {unit} in {store.location}"
     return metrics
 

@@ -6,22 +6,21 @@ units' features with the outliers marked, residual against chamber hours) and a 
 unit (units/unit-NNN.html with its own plot). No server, no script, nothing fetched: the
 pages are HTML and images only. Every string that comes from users (serial numbers, paths,
 the fleet's name, the summary) is escaped; file names are made from the unit's index,
-never from its name. The folder is written beside DIR and then put in its place, so a
-killed report leaves the previous one whole.
+never from its name. DIR is a folder the report owns (report_dir.py): one it did not write
+is refused; the new report is written beside it and swapped in, so a killed report leaves
+the previous one whole.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
 from html import escape
 from pathlib import Path
 
-from fogsf.errors import UserError
 from fogsf.fleet.check import RESIDUAL, CheckResult, unit_features
 from fogsf.fleet.records import UnitRecord
+from fogsf.fleet.report_dir import write_owned
 
 CSS = """body{font-family:sans-serif;margin:1.5em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;
@@ -251,16 +250,12 @@ out)</p>
 
 
 def write_report(units: list[UnitRecord], result: CheckResult, out: Path, title: str) -> Path:
-    """Write the report into `out` (replacing a previous one whole); returns index.html."""
+    """Write the report into `out`, a folder it owns (report_dir: a folder it did not write
+    is refused, the previous report replaced whole); returns index.html."""
     out = Path(out)
-    if out.exists() and not out.is_dir():
 
-        raise UserError(f"--out {out} exists and is not a folder")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
-    (tmp / "units").mkdir(parents=True)
-    try:
+    def write(tmp: Path) -> None:
+        (tmp / "units").mkdir()
         _plots(units, result, tmp)
         pages = []
         for i, u in enumerate(units):
@@ -270,12 +265,6 @@ def write_report(units: list[UnitRecord], result: CheckResult, out: Path, title:
                                                          encoding="utf-8")
             pages.append(f"units/{name}.html")
         (tmp / "index.html").write_text(_index(units, result, title, pages), encoding="utf-8")
-        old = out.parent / f".{out.name}.old-{os.getpid()}"
-        if out.exists():
-            out.rename(old)
-        tmp.rename(out)
-        shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+
+    write_owned(out, write)
     return out / "index.html"

@@ -1,6 +1,7 @@
 """The fleet store: the units of one design, in an SQLite file or a PostgreSQL database.
 
     store = open_store("line.fleet")                 # SQLite, created on first use
+    store = open_store("line.fleet", "read")         # must exist and be a fleet; read-only
     store = open_store("postgresql://host/fleet")    # a server several chambers share
     store.add(record)                                # one transaction
     store.units(); store.unit("SN042"); store.remove("SN042")
@@ -25,6 +26,8 @@ from pathlib import Path
 from typing import Any
 
 from fogsf.errors import UserError
+from fogsf.fleet.faults import sqlite_begin_waiting
+from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.records import LogRecord, UnitRecord, structure_of
 
 # Test hook, used only by tests/test_fleet_store.py: while this variable names a file, `add`
@@ -35,6 +38,10 @@ PAUSE_S_HOOK = "FOGSF_FLEET_TEST_PAUSE_S"
 BUSY_TIMEOUT_S = 60.0
 PG_PREFIXES = ("postgresql://", "postgres://")
 MIGRATION_LOCK = 0x0F05F1EE7  # PostgreSQL advisory lock key of the fleet's migrations
+# How a command opens a fleet: "read" (list, check, report, the prior: read-only, the fleet
+# must exist), "write" (remove, recording a unit trained under the prior: must exist),
+# "create" (add, add-many: a new fleet where nothing is, an existing fleet, nothing else).
+MODES = ("read", "write", "create")
 
 
 def _v1(db: FleetStore) -> None:
@@ -129,6 +136,9 @@ class FleetStore:
 
     def _current_version(self) -> int | None:
         """The schema version, read without a transaction (None: no schema_version yet)."""
+        return self.schema_version() if self._table_exists("schema_version") else None
+
+    def _table_exists(self, name: str) -> bool:
         raise NotImplementedError
 
     def schema_version(self) -> int:
@@ -138,12 +148,19 @@ class FleetStore:
     def migrate(self, upto: int = SCHEMA_VERSION) -> None:
         """Bring the schema forward to version `upto`, one migration after another, in one
         transaction; refuse a database a newer fogsf wrote."""
-        if self._current_version() == upto:  # nothing to do: no write lock taken
+        now = self._current_version()
+        if now == upto:  # nothing to do: no write lock taken
             return
+        if now is not None and now > SCHEMA_VERSION:  # refused before any write
+            raise UserError(f"{self.location}: fleet schema version {now} is newer than "
+                            f"this fogsf's ({SCHEMA_VERSION}): upgrade fogsf")
         with self.transaction():
             self._lock_version()
             self.execute("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)")
             have = self.schema_version()
+            if have == 0 and now is not None and self._table_exists("units"):
+                raise UserError(f"{self.location}: the fleet's schema_version row is "
+                                "missing (a damaged fleet: restore it from a backup)")
             if have > SCHEMA_VERSION:
                 raise UserError(f"{self.location}: fleet schema version {have} is newer than "
                                 f"this fogsf's ({SCHEMA_VERSION}): upgrade fogsf")
@@ -161,12 +178,11 @@ class FleetStore:
     def add(self, record: UnitRecord, replace: bool = False) -> None:
         """Record a unit (one transaction); a unit of that serial number already there is
         refused, or replaced when `replace`."""
-        if not record.unit or not record.unit.strip():
-            raise UserError("a unit needs a serial number (--unit SN)")
+        check_unit_name(record.unit)  # the last guard: no command records a bad name
         with self.transaction():
             if self.has(record.unit):
                 if not replace:
-                    raise UserError(f"unit {record.unit!r} is already in {self.location} "
+                    raise UserError(f"unit {shown(record.unit)} is already in {self.location} "
                                     "(--replace to record it again, or `fogsf fleet remove`)")
                 self._delete(record.unit)
             self.execute(
@@ -194,15 +210,16 @@ class FleetStore:
 
     def remove(self, sn: str) -> None:
         """Remove a unit and its logs (one transaction)."""
+        check_unit_name(sn)  # a name no command may record is named in no lookup either
         with self.transaction():
             if not self.has(sn):
-                raise UserError(f"no unit {sn!r} in {self.location}")
+                raise UserError(f"no unit {shown(sn)} in {self.location}")
             self._delete(sn)
 
     def unit(self, sn: str) -> UnitRecord:
         found = self._read("WHERE sn = ?", (sn,))
         if not found:
-            raise UserError(f"no unit {sn!r} in {self.location}")
+            raise UserError(f"no unit {shown(sn)} in {self.location}")
         return found[0]
 
     def units(self) -> list[UnitRecord]:
@@ -249,33 +266,45 @@ def _pause_hook() -> None:
 class SQLiteStore(FleetStore):
     """A fleet in one SQLite file (write-ahead log, writers queue on a busy timeout)."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, mode: str = "create") -> None:
         p = Path(path)
         self.location = str(p)
         if p.exists() and not p.is_file():
             raise UserError(f"fleet {p} is not a file (give an SQLite file or a "
                             "postgresql:// URL)")
+        if mode != "create" and not p.exists():  # a read never creates: a typo says so
+            raise UserError(f"{p}: no such fleet database (`fogsf fleet add` creates one)")
         if not p.parent.is_dir():
             raise UserError(f"fleet {p}: folder {p.parent} does not exist")
+        # SQLite's own open modes: ro cannot write, rw cannot create, rwc may create.
+        uri = f"{p.resolve().as_uri()}?mode={dict(read='ro', write='rw').get(mode, 'rwc')}"
         try:
-            self.db = sqlite3.connect(p, timeout=BUSY_TIMEOUT_S, isolation_level=None)
-            self.db.execute("PRAGMA journal_mode=WAL")
+            self.db = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S,
+                                      isolation_level=None)
+            tables = {r[0] for r in self.db.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'").fetchall()}
         except sqlite3.DatabaseError as e:
             raise UserError(f"fleet {p} is not a fleet database (SQLite: {e})") from None
+        # A file another program wrote is never written into: only an empty file or a fleet.
+        if "schema_version" not in tables and (tables or mode != "create"):
+            self.db.close()
+            raise UserError(f"{p} is not a fleet database (an SQLite file without the "
+                            "fleet's tables)" + ("" if mode != "create" else
+                                                 ": give a new file"))
+        if mode != "read":
+            self.db.execute("PRAGMA journal_mode=WAL")
         self.db.execute("PRAGMA foreign_keys=ON")
         self.db.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
 
     def execute(self, sql: str, params: tuple = ()) -> Any:
         return self.db.execute(sql, params)
 
-    def _current_version(self) -> int | None:
-        if not self.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND "
-                            "name = 'schema_version'").fetchall():
-            return None
-        return self.schema_version()
+    def _table_exists(self, name: str) -> bool:
+        return bool(self.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND "
+                                 "name = ?", (name,)).fetchall())
 
-    def _begin(self) -> None:
-        self.db.execute("BEGIN IMMEDIATE")  # the write lock now: no upgrade deadlock later
+    def _begin(self) -> None:  # the write lock now (no upgrade deadlock later), waits said
+        sqlite_begin_waiting(self.db, self.location, BUSY_TIMEOUT_S)
 
     def close(self) -> None:
         self.db.close()
@@ -284,18 +313,25 @@ class SQLiteStore(FleetStore):
 class PostgresStore(FleetStore):
     """A fleet in a PostgreSQL database (psycopg 3), for several chambers at once."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, mode: str = "create") -> None:
         try:
             import psycopg
         except ImportError:
             raise UserError("a postgresql:// fleet needs psycopg: pip install 'psycopg[binary]'"
                             ) from None
-        self.location = _redact(url)
+        self.location = masked(url)
         try:
             self.db = psycopg.connect(url, autocommit=True, connect_timeout=20)
         except psycopg.OperationalError as e:
             first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
             raise UserError(f"cannot connect to fleet {self.location}: {first}") from None
+        if mode != "create" and self._current_version() is None:
+            self.db.close()
+            raise UserError(f"{self.location} holds no fleet (`fogsf fleet add` creates one)")
+
+    def read_only(self) -> None:
+        """Every later transaction of this session read-only (the server refuses writes)."""
+        self.db.execute("SET SESSION CHARACTERISTICS AS TRANSACTION READ ONLY")
 
     def execute(self, sql: str, params: tuple = ()) -> Any:
         return self.db.execute(sql.replace("?", "%s"), params)
@@ -306,10 +342,8 @@ class PostgresStore(FleetStore):
     def _lock_version(self) -> None:  # one migration at a time, even before the table exists
         self.db.execute("SELECT pg_advisory_xact_lock(%s)", (MIGRATION_LOCK,))
 
-    def _current_version(self) -> int | None:
-        if self.execute("SELECT to_regclass('schema_version')").fetchall()[0][0] is None:
-            return None
-        return self.schema_version()
+    def _table_exists(self, name: str) -> bool:
+        return self.execute("SELECT to_regclass(?)", (name,)).fetchall()[0][0] is not None
 
     def add(self, record: UnitRecord, replace: bool = False) -> None:
         import psycopg
@@ -317,7 +351,7 @@ class PostgresStore(FleetStore):
         try:
             super().add(record, replace)
         except psycopg.IntegrityError:  # another add of that unit committed first
-            raise UserError(f"unit {record.unit!r} was added to {self.location} by another "
+            raise UserError(f"unit {shown(record.unit)} was added to {self.location} by another "
                             "process meanwhile (--replace to record it again)") from None
 
     def has(self, sn: str) -> bool:  # a unit's row locked until the transaction ends
@@ -328,26 +362,25 @@ class PostgresStore(FleetStore):
         self.db.close()
 
 
-def _redact(url: str) -> str:
-    """A URL with its password left out (for messages)."""
-    from urllib.parse import urlsplit, urlunsplit
-
-    parts = urlsplit(url)
-    if parts.password:
-        host = parts.hostname or ""
-        netloc = f"{parts.username}:***@{host}" + (f":{parts.port}" if parts.port else "")
-        return urlunsplit(parts._replace(netloc=netloc))
-    return url
-
-
-def open_store(url_or_path: str) -> FleetStore:
-    """The fleet at `url_or_path`: an SQLite file (created on first use) or a
-    postgresql:// URL; its schema brought to the current version."""
+def open_store(url_or_path: str, mode: str = "create") -> FleetStore:
+    """The fleet at `url_or_path`: an SQLite file or a postgresql:// URL, opened as `mode`
+    says (MODES); its schema brought to the current version (a read of an older fleet
+    migrates it first, through a connection that may write)."""
+    if mode not in MODES:
+        raise ValueError(f"mode {mode!r} not in {MODES}")
     text = str(url_or_path)
-    store: FleetStore = (PostgresStore(text) if text.startswith(PG_PREFIXES)
-                         else SQLiteStore(text))
+
+    def connect(m: str) -> FleetStore:
+        return PostgresStore(text, m) if text.startswith(PG_PREFIXES) else SQLiteStore(text, m)
+
+    store = connect(mode)
     try:
+        if mode == "read" and (store._current_version() or 0) < SCHEMA_VERSION:
+            store.close()
+            store = connect("write")
         store.migrate()
+        if mode == "read" and isinstance(store, PostgresStore):
+            store.read_only()
     except BaseException:
         store.close()
         raise
