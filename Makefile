@@ -6,11 +6,12 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test lint demo firmware firmware-cores misra export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias bench-fleet paper clean
+.PHONY: help venv test test-fast lint demo firmware firmware-cores misra export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias bench-fleet paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
 	@echo "make test      create .venv and run the whole test suite"
+	@echo "make test-fast ruff and the tests not marked slow: the check to run on every change"
 	@echo "make firmware  build the C kernel (host library; Cortex-M4F image + size if arm-none-eabi-gcc exists)"
 	@echo "make firmware-cores  golden vectors under QEMU on Cortex-M4F, M3 and M0: PASS/FAIL per core, flash, RAM, stack bound"
 	@echo "make export    export the demo model to ONNX and C headers"
@@ -48,6 +49,11 @@ lint: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check fogsf tests benchmarks
 	$(PY) -m pytest -q -rs tests
+
+# the tests a change can afford on every edit (under 3 min on 2 cores): the slow-marked ones left out
+test-fast: $(STAMP)
+	$(VENV)/bin/ruff check fogsf tests benchmarks
+	$(PY) -m pytest -q -rs -m "not slow" tests
 
 demo: $(STAMP)
 	bash scripts/demo.sh $(OUT)/demo

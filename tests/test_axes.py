@@ -165,6 +165,7 @@ def test_inspect_all_json_is_one_object_keyed_by_axis(
     assert rms[2] > rms[0] > rms[1]  # gains 2, 1, -0.5
 
 
+@pytest.mark.slow
 def test_replay_all_writes_one_output_per_axis(
         imu_log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from fogsf.models import samples
@@ -310,6 +311,7 @@ def test_a_skew_mounted_imu_reads_as_three_vertical_gyros(
                                                              abs=0.01)
 
 
+@pytest.mark.slow
 def test_a_stationary_imu_trains_a_bias_only_model_per_axis_titled_as_the_bias(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A skew IMU logged with the table stopped, in the rig's own columns: `--axis all`

@@ -118,6 +118,7 @@ def test_logs_with_few_parts_keep_the_prior() -> None:
     assert "bank_penalty" not in c.as_dict() and "penalty" not in c.message()
 
 
+@pytest.mark.slow
 def test_logs_that_ramp_both_ways_take_the_loop_prior(tmp_path: Path) -> None:
     """An up-ramp and a down-ramp (6 held-out parts, under PENALTY_MIN_FOLDS): the bank at
     LOOP_LAMBDA, said, recorded, and trained; ramps one way keep BANK_LAMBDA."""
@@ -171,6 +172,7 @@ def envelope() -> list:
 ENVELOPE_STEP_S = 20.0
 
 
+@pytest.mark.slow
 def test_many_parts_lower_the_penalty_and_the_model_carries_it(envelope: list,
                                                                 tmp_path: Path) -> None:
     """The choice lowers the penalty; the trained bank is the ridge fit at that penalty, the

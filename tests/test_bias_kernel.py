@@ -146,6 +146,7 @@ def test_load_refuses_broken_bias_artifacts(breakage: str, message: str,
     assert message in str(e.value)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size", SIZES, ids=[f"K{s[0]}F{s[1]}L{s[2]}H{s[3]}" for s in SIZES])
 def test_kernel_equals_numpy_with_a_bias_head_bit_for_bit(size: tuple, kroot: Path) -> None:
     model = bias_model(size)
@@ -203,6 +204,7 @@ def test_a_model_whose_bias_head_lacks_an_array_is_invalid(kroot: Path) -> None:
     assert lib.fogsf_model_check(kernel.m) == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size", SIZES[:3], ids=["lag-bank", "small", "two-layers"])
 def test_onnx_bias_output_matches_the_kernel(size: tuple, kroot: Path) -> None:
     from fogsf.bindings.kernel import trace_steps
@@ -222,6 +224,7 @@ def test_onnx_bias_output_matches_the_kernel(size: tuple, kroot: Path) -> None:
     assert np.max(np.abs(sf_o - sf_c)) <= 0.01
 
 
+@pytest.mark.slow
 def test_host_golden_driver_with_asan_checks_the_bias(tmp_path: Path) -> None:
     model = bias_model(SIZES[0])
     build = build_kernel(model, root=tmp_path / "host")

@@ -61,6 +61,7 @@ def truth_in_windows(log: ChamberLog, bias: np.ndarray) -> tuple[np.ndarray, obj
     return np.array([bias[a:b].mean() for a, b in zip(w.start, w.stop, strict=True)]), w
 
 
+@pytest.mark.slow
 def test_the_bank_carries_a_shupe_bias_a_cubic_in_t_does_not() -> None:
     train, _ = soak_log(TRAIN, 1)
     test, true_bias = soak_log(TEST, 2)
@@ -78,6 +79,7 @@ def test_the_bank_carries_a_shupe_bias_a_cubic_in_t_does_not() -> None:
     assert err_cubic > 2.0 * err, (err_cubic, err)
 
 
+@pytest.mark.slow
 def test_before_after_metrics_and_the_noise_floor() -> None:
     train, _ = soak_log(TRAIN, 3)
     test, _ = soak_log(TEST, 4)
@@ -107,6 +109,7 @@ def test_mixed_stationary_and_turning_logs_are_refused() -> None:
         check_mixed([log, turning])
 
 
+@pytest.mark.slow
 def test_train_on_stationary_logs_is_a_bias_only_model(tmp_path: Path,
                                                        capsys: pytest.CaptureFixture[str]
                                                        ) -> None:
@@ -134,6 +137,7 @@ def test_train_on_stationary_logs_is_a_bias_only_model(tmp_path: Path,
     assert not rr["rate_term_extrapolated"] and "extrapolated" not in text
 
 
+@pytest.mark.slow
 def test_train_says_when_the_test_ramps_faster_than_any_training_ramp(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A Shupe term fitted on 1 C/min ramps and tested on a 3 C/min ramp is extrapolated:
@@ -157,6 +161,7 @@ def test_train_says_when_the_test_ramps_faster_than_any_training_ramp(
         in text
 
 
+@pytest.mark.slow
 def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]
                                                            ) -> None:
@@ -213,6 +218,7 @@ def test_the_bias_only_artifact_replays_through_the_kernel(tmp_path: Path,
     assert np.array_equal(got[:, 2], (g32 - b32).astype(np.float64))
 
 
+@pytest.mark.slow
 def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
                                                            capsys: pytest.CaptureFixture[str]
                                                            ) -> None:
@@ -242,6 +248,7 @@ def test_train_on_reversals_gives_the_sf_model_a_bias_head(tmp_path: Path,
     assert b["after"]["std_dph"] < 2.0 * b["after"]["noise_floor_dph"]
 
 
+@pytest.mark.slow
 def test_same_logs_same_bias_model_bytes(tmp_path: Path) -> None:
     from fogsf.export.onnx_step import build_step_onnx
     from fogsf.models.stream import StreamModel
@@ -258,6 +265,7 @@ def test_same_logs_same_bias_model_bytes(tmp_path: Path) -> None:
     assert outputs[0] == "sf_ppm" and outputs[-1] == "bias_dph"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("structure", ["cubic", "shupe", "node", "shupe2", "lead", "bank"])
 def test_every_bias_structure_goes_through_the_bias_head(structure: str) -> None:
     """Each structure, forced, as a bias-only artifact: the kernel's reference (float32,
@@ -293,6 +301,7 @@ def test_every_bias_structure_goes_through_the_bias_head(structure: str) -> None
         assert np.max(np.abs(own - head)) < 0.01, structure
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("shupe", [0.0, SHUPE_DPH_PER_C_PER_MIN])
 def test_a_shupe_bias_takes_the_coils_own_rate(shupe: float) -> None:
     """On a front end of its own, a bias the cubic in T misses by far (a Shupe term) takes
@@ -313,6 +322,7 @@ def test_a_shupe_bias_takes_the_coils_own_rate(shupe: float) -> None:
     assert np.std(p - truth) < max(0.2, 0.1 * np.std(truth)), (model.choice.name, scores)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("poly, diag, n_in", [(True, True, 1), (True, False, None),
                                               (False, False, None)])
 def test_bias_rows_of_their_own_leave_the_sf_model_as_it_was(poly: bool, diag: bool,
@@ -365,6 +375,7 @@ def reversal_rig_log(path: Path, gyro: int, shupe: float, loop: tuple, seed: int
         bias_law(gyro, shupe))), (gyro,), seed=seed)
 
 
+@pytest.mark.slow
 def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
         tmp_path: Path) -> None:
     """Reversal logs (the bias head on the SF model's z): a Shupe term the cubic in T misses
@@ -442,6 +453,7 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     assert e_lead < 0.8 * e_shared, (e_lead, e_shared)
 
 
+@pytest.mark.slow
 def test_a_model_with_a_play_leaves_lead_out(tmp_path: Path) -> None:
     """The same reversal log with the hysteresis term forced: the bias head does not take
     `lead` (its filter and feature beside the play would overflow the three-model M4F
@@ -498,6 +510,7 @@ def test_the_choice_message_says_why_lead_was_taken() -> None:
     assert "the smallest within 10 % of the best" in msg and "misses" not in msg
 
 
+@pytest.mark.slow
 def test_train_takes_the_sf_models_prediction_off_a_staircases_pairs(tmp_path: Path) -> None:
     """A rate staircase through a ramp: the SF (linear in T here) moves between the two
     plateaus of each pair, and a staircase pair has no neighbour at its own rate to cancel
@@ -545,6 +558,7 @@ def test_the_bias_interval_is_not_the_most_flexible_fits_distance() -> None:
     assert lo <= r["after_rms_dph"] <= hi <= 2.0 * r["after_rms_dph"], (lo, r["after_rms_dph"], hi)
 
 
+@pytest.mark.slow
 def test_a_stationary_logs_partial_last_step_is_no_target() -> None:
     """A log one sample longer than whole steps: that sample's step is no target (a mean of
     one sample holds its noise alone; it set every held-out score before)."""
@@ -575,6 +589,7 @@ def test_train_knows_before_the_fit_whether_the_logs_measure_the_bias() -> None:
     assert not measures_bias(opts, [turning])
 
 
+@pytest.mark.slow
 def test_the_bias_interval_spans_the_coil_time_constants_the_pairs_leave_open() -> None:
     """With `lead` chosen, the interval refits it at the grid points of its time constants
     that the training targets cannot tell from the best (`bias_structure.lead_set`): the

@@ -70,6 +70,7 @@ def test_replay_writes_the_kernel_output_and_prints_metrics(tmp_path, capsys, mo
     assert (tmp_path / "replay.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_replay_of_the_true_model_removes_the_sf_error(tmp_path, capsys, monkeypatch) -> None:
     """A model whose prediction is the log's true SF error must flatten it: a planted SF
     error is made with a random model, then replayed with that same model."""
@@ -104,6 +105,7 @@ def _build_in(root: str) -> str:
     return str(build_kernel(samples.random_model(seed=4), root=root).shared)
 
 
+@pytest.mark.slow
 def test_concurrent_builds_of_one_model_share_one_complete_folder(tmp_path) -> None:
     """The user cache is shared by every run: processes building the same kernel at once
     each compile in a private folder; one folder is kept, complete, and loads."""

@@ -34,6 +34,7 @@ def diagnosed(tmp_path_factory: pytest.TempPathFactory) -> dict:
             "log": log_path}
 
 
+@pytest.mark.slow
 def test_json_has_the_contract(diagnosed: dict) -> None:
     j = diagnosed["json"]
     assert {"base", "candidates", "cause", "unexplained", "extended_model"} <= set(j)

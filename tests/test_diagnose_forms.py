@@ -33,6 +33,7 @@ def _run(case: cases.Case) -> tuple[case_judge.Outcome, dict]:
     return out, j
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("effect", "variant"), VARIANTS)
 def test_form_variant_is_named(effect: str, variant: str) -> None:
     seed = SEED + VARIANTS.index((effect, variant))
@@ -44,6 +45,7 @@ def test_form_variant_is_named(effect: str, variant: str) -> None:
         assert j["causes"][0] == j["cause"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("pair", cases.PAIRS)
 def test_two_effects_both_named(pair: tuple[str, str]) -> None:
     seed = SEED + 20 + cases.PAIRS.index(pair)
@@ -59,6 +61,7 @@ def test_two_effects_both_named(pair: tuple[str, str]) -> None:
     assert {e["name"] for e in cfg["effects"]} >= set(pair)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("noise_seed", "chamber"), [(1000, False), (1001, True)])
 def test_mixed_rate_null_stays_clean(noise_seed: int, chamber: bool) -> None:
     """The default gyro (population seed 0) with the table at +/- 10, 50, 100, 200 deg/s:
@@ -127,6 +130,7 @@ def test_refuses_nan_cells(null_log) -> None:
     assert "gyro_dps" in _one_line(e) and "NaN" in _one_line(e)
 
 
+@pytest.mark.slow
 def test_refuses_logs_of_different_gyros(null_log) -> None:
     other = cases.draw_population("null", "", "", SEED + 61)
     other.chamber = True

@@ -16,6 +16,7 @@ hysteresis form in the catalogue.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fogsf.diagnose import report, verdict
 from fogsf.diagnose.cases import build as case_build
@@ -32,6 +33,7 @@ def _seeds() -> list[int]:
     return [int(s) for s in rng.integers(1, DEV_SEEDS.stop, N_CASES)]
 
 
+@pytest.mark.slow
 def test_planted_hysteresis_is_named_and_never_misnamed() -> None:
     results = []
     named = 0

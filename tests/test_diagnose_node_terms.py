@@ -46,6 +46,7 @@ def _run(case: cases.Case) -> tuple[case_judge.Outcome, dict, fits.Diagnosis]:
     return case_judge.judge_report(case, truth, j), j, d
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("seed", "multiple"), _draws("strong temp_rate", 2, STRONG))
 def test_strong_dtdt_term_is_named_and_extends_to_a_layered_coil(seed: int,
                                                                  multiple: float) -> None:
@@ -63,6 +64,7 @@ def test_strong_dtdt_term_is_named_and_extends_to_a_layered_coil(seed: int,
     assert len(simulate(sim).log) == len(d.runs[0].log)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("seed", "multiple"), _draws("weak temp_rate", 2, WEAK))
 def test_weak_dtdt_term_strength_within_tolerance(seed: int, multiple: float) -> None:
     case = cases.draw("effect", "temp_rate", seed)
@@ -87,6 +89,7 @@ def _long_soak_nulls(n: int) -> list[int]:
 
 # 1412: the long-soak null on which the previous version named temp_rate (benchmark seeds
 # 400-419); the others are drawn
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1412, *_long_soak_nulls(2)])
 def test_long_soak_null_names_no_node_term(seed: int) -> None:
     case = cases.draw("null", "", seed)
@@ -112,6 +115,7 @@ def test_one_layer_coil_is_the_single_node_dtdt() -> None:
     assert not np.allclose(two, ref)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("seed", "multiple"), _draws("weak aging", 2, (3.0, 5.0)))
 def test_weak_aging_on_a_warm_start_is_not_taken_for_a_warmup(seed: int,
                                                               multiple: float) -> None:
@@ -156,6 +160,7 @@ def test_short_soak_never_lets_the_extra_lag_win(soak_s: float) -> None:
     assert not ambiguous and kept[0].name == "extra_lag"
 
 
+@pytest.mark.slow
 def test_short_soak_dtdt_seed_711_is_not_named_extra_lag() -> None:
     case = cases.draw("short_soak", "temp_rate", 711)
     out, j, _ = _run(case)
@@ -177,6 +182,7 @@ def _population_dtdt_gyros(n: int) -> list[int]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", _population_dtdt_gyros(2))
 def test_dtdt_term_on_a_population_gyro_gets_its_housing_coupling(seed: int) -> None:
     """On a population gyro (unseen coil nodes at 150-4000 s, any topology) the strength in

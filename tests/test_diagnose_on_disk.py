@@ -38,6 +38,7 @@ def _outputs(tmp: Path, log: Path, earlier: Path, monkeypatch: pytest.MonkeyPatc
     return files
 
 
+@pytest.mark.slow
 def test_diagnose_and_plan_on_disk_are_in_memory(tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(columns, "READ_SAMPLES", 97)

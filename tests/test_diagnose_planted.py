@@ -41,6 +41,7 @@ def _run(kind: str, name: str, seed: int) -> tuple[cases.Case, case_judge.Outcom
     return case, out, j
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("effect", cases.PLANTED)
 def test_planted_effect_is_named(effect: str) -> None:
     results = []
@@ -54,6 +55,7 @@ def test_planted_effect_is_named(effect: str) -> None:
     assert len(bad) <= 1, "\n".join(bad)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["temp_rate", "extra_lag"])
 def test_short_soaks_leave_lag_and_rate_term_ambiguous_never_swapped(kind: str) -> None:
     for seed in _seeds("short" + kind, 2):
@@ -61,6 +63,7 @@ def test_short_soaks_leave_lag_and_rate_term_ambiguous_never_swapped(kind: str) 
         assert out.ok, f"[{case.describe()}] -> {out.reason}; ambiguous={j['ambiguous']}"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", _seeds("null", 6))
 def test_null_names_nothing(seed: int) -> None:
     case, out, j = _run("null", "", seed)
@@ -68,6 +71,7 @@ def test_null_names_nothing(seed: int) -> None:
     assert not j["ambiguous"] or j["cause"] is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", cases.OOC_KINDS)
 def test_out_of_catalogue_is_unexplained(kind: str) -> None:
     for seed in _seeds(kind, 3):
@@ -85,6 +89,7 @@ def test_ramp_only_lag_or_rate_term_is_not_guessed(kind: str) -> None:
             assert c["evidence"], "a candidate without evidence"
 
 
+@pytest.mark.slow
 def test_a_shupe_bias_on_population_gyros_is_named() -> None:
     """The Shupe bias planted on development gyros of the population (gyro, profile, table,
     strength and simulator seed drawn by `cases.draw_population` from a seeded generator):

@@ -88,6 +88,7 @@ def test_a_form_that_cannot_apply_is_skipped_not_an_error(
     assert "skipped: aging in the scoring: needs coil nodes" in report.summary_text(j)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", _gyros(3, 2))
 def test_a_coil_bias_on_a_reversing_table_without_chamber_air_is_bias_drift(seed: int) -> None:
     """The held-out case's kind: one log pair, a reversing table, a bias on the coil, no

@@ -52,6 +52,7 @@ def _mode_hop(seed: int, visible: float) -> tuple[cases.Case, dict, dict]:
     return case, truth, j
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", _gyros(1, 2))
 def test_a_faint_mode_hop_is_reported_as_unexplained_structure(seed: int) -> None:
     case, truth, j = _mode_hop(seed, 0.6)
@@ -67,6 +68,7 @@ def test_a_faint_mode_hop_is_reported_as_unexplained_structure(seed: int) -> Non
     assert case_judge.judge_report(case, truth, j).ok, where
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", _gyros(2, 3))
 def test_a_null_is_not_flagged(seed: int) -> None:
     case = cases.draw_population("null", "", "", seed)

@@ -131,6 +131,7 @@ def test_base_model_fits_numpy_physics_to_the_noise() -> None:
     assert 600 <= tau1 < tau2 <= 4000
 
 
+@pytest.mark.slow
 def test_warmup_found_in_numpy_data_with_its_time_constant() -> None:
     n = 100 * 600 + 1
     t = np.arange(n) * DT

@@ -41,6 +41,7 @@ def random_inputs(model: st.StreamModel, seed: int, n: int) -> np.ndarray:
     return rng.normal(0, 1.5, (n, model.n_features)).astype(np.float32)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("params", POLY_SIZES + FORMS)
 def test_onnx_step_matches_torch_and_reference(params) -> None:
     model = form_model(*params)
@@ -77,6 +78,7 @@ def test_onnx_step_matches_torch_and_reference(params) -> None:
         np.testing.assert_allclose(ort_h, np.stack(ref_state[0::2])[:, 0], atol=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("poly, n_in, diag, fdiag", [
     (False, None, False, False), (True, None, False, False), (True, 1, True, False),
     (True, 3, False, False), (True, 1, True, True)])

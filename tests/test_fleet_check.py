@@ -89,6 +89,7 @@ def simulated_fleet(tmp_path_factory: pytest.TempPathFactory) -> tuple[list, dic
     return units, defect or {}, design
 
 
+@pytest.mark.slow
 def test_a_defective_unit_is_flagged_and_normal_units_are_not(simulated_fleet) -> None:
     units, defect, gyro = simulated_fleet
     say = f"seed {SEED}, design gyro {gyro}, defect {defect}"

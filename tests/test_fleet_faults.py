@@ -51,6 +51,7 @@ def _hold_write_lock(fleet: str) -> sqlite3.Connection:
     return db
 
 
+@pytest.mark.slow
 def test_a_locked_fleet_is_waited_for_then_refused(tmp_path: Path, short_waits: None,
                                                    capsys) -> None:
     fleet = _fleet(tmp_path)
@@ -129,6 +130,7 @@ def test_list_into_a_closed_pipe(tmp_path: Path) -> None:
     assert run.stderr == "" and run.returncode in (0, 141)
 
 
+@pytest.mark.slow
 def test_an_add_that_cannot_record_keeps_the_training(tmp_path: Path, short_waits: None,
                                                       monkeypatch: pytest.MonkeyPatch,
                                                       capsys) -> None:

@@ -68,6 +68,7 @@ def prior(hysteretic: dict) -> fp.DesignPrior:
     return fp.learn({sn: s for sn, (s, _) in hysteretic["units"].items()}, k=2)
 
 
+@pytest.mark.slow
 def test_the_planted_play_is_chosen(hysteretic: dict, prior: fp.DesignPrior) -> None:
     p = prior
     msg = hysteretic["msg"]
@@ -78,6 +79,7 @@ def test_the_planted_play_is_chosen(hysteretic: dict, prior: fp.DesignPrior) -> 
     assert p.as_dict()["play"]["form"].startswith("play("), msg
 
 
+@pytest.mark.slow
 def test_the_play_carries_a_short_run_to_another_rate(hysteretic: dict, prior: fp.DesignPrior,
                                                        monkeypatch: pytest.MonkeyPatch
                                                        ) -> None:
@@ -123,6 +125,7 @@ def test_the_exported_head_is_the_law_with_its_play(hysteretic: dict) -> None:
     assert np.allclose(head.predict(z) * scale + offset, want, atol=1e-6 * np.abs(want).max())
 
 
+@pytest.mark.slow
 def test_a_line_without_hysteresis_gets_no_play() -> None:
     from tests.test_fleet_prior import _unit as plain_unit
 

@@ -39,6 +39,7 @@ def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_no_command_prints_the_password(fleet: str, log: Path, tmp_path: Path,
                                         capsys: pytest.CaptureFixture) -> None:
     said: list[str] = []

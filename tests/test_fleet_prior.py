@@ -85,6 +85,7 @@ def prior(line: dict) -> fp.DesignPrior:
     return fp.learn({sn: s for sn, (s, _) in line["units"].items()}, k=2)
 
 
+@pytest.mark.slow
 def test_prior_learns_the_design_and_its_spread(line: dict, prior: fp.DesignPrior) -> None:
     p = prior
     truth = np.stack([th for _, th in line["units"].values()])
@@ -98,6 +99,7 @@ def test_prior_learns_the_design_and_its_spread(line: dict, prior: fp.DesignPrio
     assert not p.left_out, msg
 
 
+@pytest.mark.slow
 def test_structure_misfit_says_when_the_structure_misses(line: dict,
                                                          prior: fp.DesignPrior) -> None:
     """The structure leaves noise only on a line of its own form; on a line whose units all
@@ -124,6 +126,7 @@ def test_structure_misfit_says_when_the_structure_misses(line: dict,
     assert "misses" not in prior_lines(rec)[0]
 
 
+@pytest.mark.slow
 def test_stored_fits_of_another_layout_are_refitted(line: dict) -> None:
     """A fleet's summaries written by an older fogsf keep fits without the nodes' cubes
     (a shorter theta): the prior refits them (the node count chosen on the refits) and
@@ -139,6 +142,7 @@ def test_stored_fits_of_another_layout_are_refitted(line: dict) -> None:
     assert np.allclose(p.mu, fp.learn(series, k=p.k).mu), f"seed {SEED}"
 
 
+@pytest.mark.slow
 def test_unit_unlike_the_line_is_left_out(line: dict) -> None:
     rng = np.random.default_rng(SEED + 1)
     lt, coef = line["design"]

@@ -35,6 +35,7 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
     return {"db": db, "new": new, "test": test, "tmp": tmp, "design": design}
 
 
+@pytest.mark.slow
 def test_train_with_the_prior_records_the_unit(fleet: dict, capsys: pytest.CaptureFixture
                                                ) -> None:
     out = fleet["tmp"] / "m-new"

@@ -69,6 +69,7 @@ def _chromium(args: list[str], tmp_path: Path) -> subprocess.CompletedProcess:
         capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed (scripts/toolchain.sh "
                     "installs Debian's chromium): the report is not rendered")
 def test_report_renders_in_headless_chromium(report: Path, tmp_path: Path) -> None:

@@ -58,6 +58,7 @@ def test_report_refuses_folders_it_did_not_write(tmp_path: Path, capsys) -> None
     assert main(["fleet", "list", fleet]) == 0  # the database still answers
 
 
+@pytest.mark.slow
 def test_report_replaces_its_own_report_and_nothing_else(tmp_path: Path, capsys) -> None:
     fleet = _fleet(tmp_path / "line")
     rep = tmp_path / "rep"

@@ -69,6 +69,7 @@ def test_records_round_trip_and_user_strings_stay_data(fleet: str) -> None:
             store.unit("nope")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("replace", [False, True])
 def test_kill_inside_an_add_leaves_the_database_as_before(fleet: str, tmp_path: Path,
                                                           replace: bool) -> None:
@@ -97,6 +98,7 @@ def test_kill_inside_an_add_leaves_the_database_as_before(fleet: str, tmp_path: 
         assert [u.unit for u in store.units()] == ["SN001", "SN010"]
 
 
+@pytest.mark.slow
 def test_two_adds_at_once_both_land(fleet: str, tmp_path: Path) -> None:
     open_store(fleet).close()  # created: both processes find the schema
     marker = tmp_path / "first-inside"

@@ -57,6 +57,7 @@ def test_add_list_remove(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     assert "no unit 'SN1'" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_add_many_from_a_manifest(logs: dict[str, Path], tmp_path: Path, capsys) -> None:
     for name, p in logs.items():  # relative paths: from the manifest's folder
         (tmp_path / f"{name}.csv").write_bytes(p.read_bytes())

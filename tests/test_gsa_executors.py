@@ -84,6 +84,7 @@ def test_unpicklable_fitness_is_refused_before_any_work() -> None:
                  progress=False)
 
 
+@pytest.mark.slow
 def test_unreachable_scheduler_is_a_clear_user_error() -> None:
     with pytest.raises(UserError, match="cannot reach the Dask scheduler"):
         with dask_executor("tcp://127.0.0.1:9", timeout_s=1.0):

@@ -4,6 +4,7 @@ trained model with a play carried by the C kernel bit for bit."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from kernel_helpers import kernel_for
 
 from fogsf.models import reference
@@ -122,6 +123,7 @@ def _ramp():  # noqa: ANN202
 PLAY_MODEL_STEP_S = 10.0
 
 
+@pytest.mark.slow
 def test_trained_play_model_runs_bit_for_bit_in_c(tmp_path) -> None:
     train = simulate(_partial_run(1)).log
     test = simulate(_partial_run(2)).log
@@ -157,6 +159,7 @@ def test_trained_play_model_runs_bit_for_bit_in_c(tmp_path) -> None:
     assert m["test"]["after"]["rms_ppm"] < off
 
 
+@pytest.mark.slow
 def test_the_check_is_the_default(tmp_path) -> None:
     """`fogsf train` without --hysteresis on the docs' example (development gyro 17, 5.7
     ppm/C, 9 C wide, on the partial-cycle program): the check runs and keeps the term."""
@@ -196,6 +199,7 @@ def test_long_logs_are_checked_at_the_choice_step(monkeypatch) -> None:
     assert want > 5.0 and seen == [want]
 
 
+@pytest.mark.slow
 def test_cross_terms_are_left_out_beside_a_play_and_a_bias_head(tmp_path, monkeypatch) -> None:  # noqa: ANN001
     """Logs that measure the bias give the model a bias head: with a play as well, the bank
     keeps its diagonal quadratic (three such models with the full one would not fit 24 KB),

@@ -45,6 +45,7 @@ def two_rates_gyro() -> dict:
             "mid": short_ramp(1.2, 33, gyro_seed=2)}
 
 
+@pytest.mark.slow
 def test_bank_transfers_between_two_rates_where_one_node_does_not(two_rates_gyro,
                                                                   tmp_path: Path) -> None:
     logs = two_rates_gyro
@@ -152,6 +153,7 @@ def test_bench_population_forces_the_structures_it_names(model: str, structure: 
     assert opts.transfer_check == (model == "default")
 
 
+@pytest.mark.slow
 def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> None:  # noqa: ANN001
     import json
 
@@ -199,6 +201,7 @@ def test_train_cli_structure_option(two_rates_gyro, tmp_path: Path, capsys) -> N
                                                   pytest.approx(2.2, rel=0.15)]
 
 
+@pytest.mark.slow
 def test_default_model_same_seed_same_header_bytes(two_rates_gyro, tmp_path: Path) -> None:
     """The default model (its structure chosen by the logs, its LSTM narrowed): the same seed
     gives the same artifact and the same generated C, byte for byte; another seed another

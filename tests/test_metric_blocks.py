@@ -43,6 +43,7 @@ def figures(log: ChamberLog) -> dict:
     }
 
 
+@pytest.mark.slow
 def test_metrics_in_blocks_are_the_same_bits(monkeypatch: pytest.MonkeyPatch) -> None:
     log = reversals()
     whole = figures(log)

@@ -145,6 +145,7 @@ def test_physics_model_exports_and_the_reference_matches(tmp_path: Path) -> None
     assert "quad_w[9]" in text and "IMU_Z_QUAD_DIAG" in (tmp_path / "b" / "imu_z.h").read_text()
 
 
+@pytest.mark.slow
 def test_choice_is_the_first_within_tolerance() -> None:
     """The rule on the training logs alone: several ramps score every candidate on held-out
     parts and keep the bank unless a physics structure is EVIDENCE_FACTOR x better; one ramp
@@ -289,6 +290,7 @@ def test_part_folds_of_short_segments_leave_no_empty_fold() -> None:
     assert np.array_equal(np.unique(f), np.arange(f.max() + 1)) and f.max() + 1 == 6
 
 
+@pytest.mark.slow
 def test_choice_progress_bar_counts_every_fit(capsys: pytest.CaptureFixture[str]) -> None:
     """`choose(progress=True)` draws a bar over candidates x folds on stderr (what `fogsf
     train` shows while a week of logs is scored); without it nothing is printed."""

@@ -48,6 +48,7 @@ def test_violations_names_what_breaks_the_limits() -> None:
         Limits(30, 80, 1, 4)
 
 
+@pytest.mark.slow
 def test_a_two_rate_program_ranks_above_a_one_rate_program_of_the_same_length() -> None:
     limits = Limits(-40, 50, 3, 4.5)
     # 3.5 h each: one up-ramp at 0.5 C/min with soaks, against up 1 / down 2 with soaks
@@ -64,6 +65,7 @@ def test_a_two_rate_program_ranks_above_a_one_rate_program_of_the_same_length() 
     assert ranked[0].median < ranked[1].median
 
 
+@pytest.mark.slow
 def test_plan_cli_writes_a_program_that_simulate_reads_back(tmp_path: Path, capsys) -> None:
     out = tmp_path / "plan"
     assert main(["plan", "--hours", "3", "--max-ramp", "2", "--gyros", "2", "--test-rates",
@@ -111,6 +113,7 @@ def test_axes_score_each_imu_by_its_worst_axis() -> None:
     assert two.median == pytest.approx(np.median([3.0, 4.0, 1.5, 1.1]))
 
 
+@pytest.mark.slow
 def test_plan_from_logs_fits_a_gyro_to_each_log(tmp_path: Path, capsys) -> None:
     log = tmp_path / "earlier.csv"
     assert main(["simulate", "--random-gyro", "5", "--profile", "cycle", "--start-c", "-40",

@@ -240,6 +240,7 @@ def _run(*argv: str) -> subprocess.CompletedProcess:
                           text=True)
 
 
+@pytest.mark.slow
 def test_train_test_on_reversal_logs_honours_window_s(tmp_path: Path) -> None:
     for name, seed in (("a", 11), ("b", 12)):
         write_log(tmp_path / f"{name}.csv", reversal_run(seed, ramp_c_per_min=2.0).log)
@@ -289,6 +290,7 @@ def test_inspect_reports_pairs_rate_steps_and_a_moving_start(tmp_path: Path) -> 
     assert w.start[0] >= 6000
 
 
+@pytest.mark.slow
 def test_diagnose_runs_on_staircase_and_reversal_logs(tmp_path: Path) -> None:
     from fogsf.cli import main as cli
 
@@ -307,6 +309,7 @@ def test_diagnose_runs_on_staircase_and_reversal_logs(tmp_path: Path) -> None:
     assert "Traceback" not in out.stderr and out.returncode in (0, 2), out.stderr
 
 
+@pytest.mark.slow
 def test_replay_of_a_log_that_starts_mid_ramp_says_so_and_skips(tmp_path: Path) -> None:
     from ramp_logs import short_ramp
 

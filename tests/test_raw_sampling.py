@@ -65,6 +65,7 @@ def test_on_grid_keeps_true_time() -> None:
     assert common_rate([lg])[0].sample_dt_s == lg.sample_dt_s  # irregular: on a grid
 
 
+@pytest.mark.slow
 def test_two_rates_train_together_and_replay_on_a_third(tmp_path: Path, capsys) -> None:
     """A model trained on jittered logs with drops at two rates, tested on a third, scores
     as one trained on the same runs logged without jitter or drops."""

@@ -180,6 +180,7 @@ def test_kernel_at_1khz_is_bit_exact() -> None:
     assert got[0].tobytes() == want.corrected_dps.tobytes()
 
 
+@pytest.mark.slow
 def test_a_day_at_100hz_through_the_kernel_is_bit_exact() -> None:
     """24 h at 100 Hz (8.64 million samples): counters and the held output stay exact."""
     model = samples.random_model(2, 3, 1, 8, decimation=50, seed=9, taus_s=[300.0, 1800.0],
@@ -195,6 +196,7 @@ def test_a_day_at_100hz_through_the_kernel_is_bit_exact() -> None:
     assert np.array_equal(got[2], want.flags) and not got[2].any()
 
 
+@pytest.mark.slow
 def test_train_at_100hz_runs_at_10_and_1000hz(tmp_path: Path) -> None:
     """The command line end to end: a model trained on a 100 Hz log (D = 500 for 5 s) is
     replayed at 10 Hz and 1 kHz through the C kernel, re-rated, with about the same error

@@ -221,6 +221,7 @@ def test_sf_clamp_flags_a_broken_model() -> None:
     assert np.all(np.isfinite(out.corrected_dps))
 
 
+@pytest.mark.slow
 def test_random_model_is_seeded_and_not_saturated() -> None:
     a = samples.random_model(filters=2, n_features=4, layers=2, hidden=16, decimation=10, seed=5)
     b = samples.random_model(filters=2, n_features=4, layers=2, hidden=16, decimation=10, seed=5)
@@ -392,6 +393,7 @@ def test_new_forms_roundtrip_and_enter_the_id(n_in, diag, tmp_path) -> None:
     assert len(ids) == 2 or (n_in == 5 and not diag)
 
 
+@pytest.mark.slow
 def test_new_forms_compute_the_full_model_with_zeros_bit_for_bit() -> None:
     """quad_diag = a full quad_w with that diagonal; lstm_inputs N = a full lstm0_w whose
     columns N.. are zero: adding the zero terms changes no bit, so the narrowed forms compute
@@ -465,6 +467,7 @@ def _square_diagonal(model: st.StreamModel) -> st.StreamModel:
     return replace(model, weights={**model.weights, "feat_w": w}, feat_diag=False)
 
 
+@pytest.mark.slow
 def test_diagonal_features_stores_the_diagonal_with_the_same_bits() -> None:
     diag = samples.random_model(3, 4, 1, 6, 5, seed=17, feat_diag=True, bias_head=True)
     diag.weights["feat_w"][1] = F32(0.0)

@@ -27,6 +27,7 @@ def logs() -> tuple[ChamberLog, ChamberLog]:
 FAST = {"iters": 40, "hidden": 8, "layers": 1, "batch_size": 8}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["poly", "polyrate", "mlp", "lstm", "lag-lstm"])
 def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path) -> None:
     train, test = logs
@@ -109,6 +110,7 @@ def test_same_seed_same_model(logs, tmp_path: Path) -> None:
     assert wa == wb
 
 
+@pytest.mark.slow
 def test_gsa_lstm_small_budget(logs, tmp_path: Path) -> None:
     train, test = logs
     opts = TrainOptions(model="gsa-lstm", progress=False, gsa_agents=3, gsa_iters=2,
@@ -123,6 +125,7 @@ def test_gsa_lstm_small_budget(logs, tmp_path: Path) -> None:
     assert m["test"]["after"]["rms_ppm"] < m["test"]["before"]["rms_ppm"]
 
 
+@pytest.mark.slow
 def test_gsa_fitness_is_the_same_in_worker_processes(logs) -> None:
     """The fitness pickles to worker processes and gives the same value there as inline."""
     import functools

@@ -40,6 +40,7 @@ def _untimed(x: object) -> object:
     return x
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["poly", "default"])
 def test_train_on_disk_is_train_in_memory(model: str, tmp_path: Path,
                                           monkeypatch: pytest.MonkeyPatch) -> None:

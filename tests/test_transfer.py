@@ -55,6 +55,7 @@ def test_two_rates_pin_the_rate_between(runs) -> None:
     assert two.spread_median_ppm < 0.6 * one.spread_median_ppm
 
 
+@pytest.mark.slow
 def test_train_command_reports_rate_transfer(runs, tmp_path: Path) -> None:
     write_log(tmp_path / "a.csv", runs["a"])
     write_log(tmp_path / "fast.csv", runs["fast"])
@@ -70,6 +71,7 @@ def test_train_command_reports_rate_transfer(runs, tmp_path: Path) -> None:
     assert not rt["covered"] and rt["consistent"] >= 1 and rt["spread_max_ppm"] > 0
 
 
+@pytest.mark.slow
 def test_train_without_test_log_says_one_rate_is_an_extrapolation(runs, tmp_path: Path) -> None:
     write_log(tmp_path / "a.csv", runs["a"])
     write_log(tmp_path / "fast.csv", runs["fast"])
