@@ -75,6 +75,7 @@ def imu3_build(tmp_path_factory):
     return [m.at_rate(1.0 / IMU3_RATE_HZ) for m in models], build
 
 
+@pytest.mark.slow
 @need_tools
 def test_imu3_under_qemu_is_bit_exact_per_axis(imu3_build) -> None:
     models, build = imu3_build
@@ -114,7 +115,7 @@ def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
     write_model(model, tmp_path / "app" / "gen", "big_one")  # beside the app: DIR gen
     (tmp_path / "app" / "main.c").write_text(
         '#include "big_one.h"\nint main(void)\n{\n    fogsf_state s;\n'
-        "    return (int)fogsf_init(&big_one, &s);\n}\n")
+        "    return (int)fogsf_init(&big_one, &s, sizeof s);\n}\n")
     (tmp_path / "app" / "CMakeLists.txt").write_text(  # as a firmware project finds fogsf
         "cmake_minimum_required(VERSION 3.13)\nproject(app C)\n"
         "add_subdirectory(${FOGSF_DIR} fogsf)\nadd_executable(app main.c)\n"
@@ -132,6 +133,7 @@ def test_fogsf_add_model_with_an_exported_dir_on_the_host(tmp_path) -> None:
     assert proc.returncode != 0 and "no big_one.h/.c" in proc.stderr, proc.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(arm_tools_missing() is not None, reason=f"{arm_tools_missing()}")
 @pytest.mark.parametrize("filters,extras", [(1, {}), (11, {}),
                                              (11, {"bias_head": True, "own": 1}),
@@ -164,6 +166,7 @@ def test_three_small_models_in_one_image_meet_the_size_target(filters, extras,
     assert three["instructions_per_sample_worst"] > 2 * one["instructions_per_sample_worst"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("cmake") is None or shutil.which("gcc") is None,
                     reason="needs cmake and gcc")
 def test_fogsf_add_model_sample_rate_is_passed_to_export(tmp_path) -> None:

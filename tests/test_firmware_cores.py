@@ -3,6 +3,8 @@ call-graph stack walk of a linked image."""
 
 from __future__ import annotations
 
+import shutil
+
 import pytest
 
 from fogsf.bindings.cores import main
@@ -49,27 +51,54 @@ def test_the_walk_sums_frames_along_the_deepest_path() -> None:
     assert "loop" in rec.unbounded  # recursion has no bound
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(arm_tools_missing() is not None, reason=f"{arm_tools_missing()}")
 def test_make_firmware_cores_passes_on_every_core(tmp_path, capsys) -> None:
+    """Every core, both builds, and each toolchain of the default set: arm-none-eabi-gcc
+    with the strict flags and in its GNU default (-ffp-contract=fast), clang with its
+    defaults and with -ffp-contract=fast: the golden vectors bit for bit and the self-test 0
+    (the kernel's pragmas hold the bits whatever those flags say)."""
     assert main(["tests/fixtures/small_model", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     for label in ("Cortex-M4F (FPv4-SP hard float) under qemu-system-arm -M mps2-an386: PASS",
                   "Cortex-M3 (soft float) under qemu-system-arm -M mps2-an385: PASS",
                   "Cortex-M0 (soft float) under qemu-system-arm -M microbit: PASS"):
         assert label in out, out
-    assert out.count("PASS: 12000 outputs bit-exact") == 6, out  # default and even time
+    toolchains = 4 if shutil.which("clang") else 2
+    runs = 2 * toolchains * 3  # builds x toolchains x cores
+    assert out.count("PASS: 12000 outputs bit-exact") == runs, out
+    assert out.count("selftest 0 (the reference's bits)") == runs, out
+    assert "toolchain gcc-gnu: arm-none-eabi-gcc's GNU default" in out, out
     assert "build: even-time (-DFOGSF_EVEN_TIME=1)" in out, out
     assert "__aeabi_" in out  # the M0's deepest chain runs into libgcc's soft float
 
 
 @pytest.mark.skipif(arm_tools_missing() is not None, reason=f"{arm_tools_missing()}")
-def test_a_contracted_m4f_build_fails_its_golden_vectors(tmp_path, monkeypatch, capsys) -> None:
-    """The check can fail: the M4F image built with -ffp-contract=fast (VFMA emitted; gcc in
-    ISO C mode contracts only when told)."""
-    import fogsf.bindings.firmware as fw
-    monkeypatch.setattr(fw, "STRICT", tuple("-ffp-contract=fast" if f == "-ffp-contract=off"
-                                            else f for f in fw.STRICT))
-    assert main(["tests/fixtures/small_model", "--out", str(tmp_path),
-                 "--cores", "cortex-m4f", "--builds", "default"]) == 1
+def test_a_build_with_other_bits_fails_its_golden_vectors(tmp_path, monkeypatch,
+                                                          capsys) -> None:
+    """The check can fail: an M4F image whose kernel computes otherwise (here the power-on
+    rule's plausible range moved to 0..125 C, so the golden log's cold start waits) FAILs on
+    its mismatches while its self-test (which starts at 15 C) still passes."""
+    import fogsf.bindings.cores as cores
+    strict = cores.TOOLCHAINS["gcc-c99"]
+    monkeypatch.setitem(cores.TOOLCHAINS, "gcc-c99", cores.Toolchain(
+        strict.name, strict.cc, (*strict.flags, "-DFOGSF_TEMP_PLAUSIBLE_MIN_C=0.0f"),
+        strict.label))
+    assert main(["tests/fixtures/small_model", "--out", str(tmp_path), "--cores",
+                 "cortex-m4f", "--builds", "default", "--toolchains", "gcc-c99"]) == 1
     out = capsys.readouterr().out
-    assert "FAIL" in out and "mismatch" in out, out
+    assert ": FAIL: " in out and "mismatch" in out and "selftest 0" in out, out
+
+
+@pytest.mark.skipif(arm_tools_missing() is not None or shutil.which("clang") is None,
+                    reason="needs the cross tools and clang")
+def test_value_changing_flags_are_refused_or_caught(tmp_path, capsys) -> None:
+    """gcc -ffast-math stops at fogsf_fp.h's #error; clang -freciprocal-math, which no macro
+    announces and clang 14 has no pragma against on ARM, compiles, and the M4F image's
+    self-test fails (FOGSF_SELFTEST_AT_INIT would refuse the model at init)."""
+    assert main(["tests/fixtures/small_model", "--out", str(tmp_path), "--cores",
+                 "cortex-m4f", "--builds", "default", "--toolchains",
+                 "gcc-fast-math,clang-reciprocal-math"]) == 0
+    out = capsys.readouterr().out
+    assert "REFUSED to compile: fogsf: built with -ffast-math" in out, out
+    assert "mps2-an386: CAUGHT:" in out and "selftest 2 (FAIL" in out, out

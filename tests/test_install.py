@@ -39,6 +39,7 @@ def plant_decoys(folder: Path) -> None:
         (folder / f"{name}.py").write_text(f"raise ImportError('decoy {name}.py was imported')\n")
 
 
+@pytest.mark.slow
 def test_every_module_imports_beside_decoys(tmp_path: Path) -> None:
     """Every fogsf module, the lazily imported ones too, with the decoys first on the path."""
     plant_decoys(tmp_path)
@@ -53,6 +54,7 @@ def test_every_module_imports_beside_decoys(tmp_path: Path) -> None:
     assert n > 50, n
 
 
+@pytest.mark.slow
 def test_decoy_modules_in_the_working_folder_do_not_break_the_cli(tmp_path: Path) -> None:
     plant_decoys(tmp_path)
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
@@ -142,7 +144,7 @@ def test_a_wheel_in_a_fresh_venv_runs_from_a_temporary_folder(tmp_path: Path) ->
         app = work / "app"
         app.mkdir()
         (app / "main.c").write_text('#include "imu_x.h"\nint main(void)\n{\n    fogsf_state s;\n'
-                                    "    return (int)fogsf_init(&imu_x, &s);\n}\n")
+                                    "    return (int)fogsf_init(&imu_x, &s, sizeof s);\n}\n")
         (app / "CMakeLists.txt").write_text(
             "cmake_minimum_required(VERSION 3.13)\nproject(app C)\n"
             "add_subdirectory(${FOGSF_DIR} fogsf)\nadd_executable(app main.c)\n"

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from kernel_helpers import FLAGS
 
 from fogsf.bindings.firmware import golden_inputs
 from fogsf.bindings.kernel import Kernel, build_kernel
@@ -31,6 +32,7 @@ def kroot(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("even_kernels")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("shape", SHAPES)
 def test_even_time_kernel_is_the_reference_held_one_period_later(shape, kroot: Path) -> None:
     k, f, layers, hidden, d, seed, extra = shape
@@ -67,22 +69,23 @@ def test_even_time_activations_and_selftest(kroot: Path) -> None:
     for name in ("exp", "sigmoid", "tanh"):
         assert even.activation(name, x).tobytes() == plain.activation(name, x).tobytes(), name
     for k in (even, plain):
-        assert k.lib.fogsf_selftest(k.ffi.new("fogsf_state *")) == 0
+        assert k.lib.fogsf_selftest(k.ffi.new("fogsf_state *"), k.ffi.sizeof("fogsf_state")) == 0
 
 
 def test_even_time_model_changed_in_ram_is_refused_at_its_next_part(kroot: Path) -> None:
     """A part runs on most samples after a step: the sizes are checked there, so a model
-    changed after init is refused at once, and the state left as it was."""
+    changed after init is flagged at once (MODEL_CHANGED), with the verified correction
+    held (none yet right after init: the gyro as it is) and no part run."""
     model = samples.random_model(2, 4, 1, 8, decimation=20, seed=66)
     even = Kernel(model, build_kernel(model, root=kroot, even_time=True))
     ffi, lib = even.ffi, even.lib
     live = ffi.new("fogsf_model *", even.m[0])
     state = ffi.new("fogsf_state *")
     out = ffi.new("fogsf_output *")
-    assert lib.fogsf_init(live, state) == 0
+    assert lib.fogsf_init(live, state, ffi.sizeof("fogsf_state")) == 0
     lib.fogsf_step(live, state, 20.0, 10.0, out)  # the step's front; its units follow
     live.hidden = model.hidden + 100
-    before = bytes(ffi.buffer(state))
+    h_before = bytes(ffi.buffer(state.h))
     lib.fogsf_step(live, state, 20.0, 10.0, out)
-    assert (out.corrected_dps, out.flags) == (0.0, 32)  # MODEL_INVALID only
-    assert bytes(ffi.buffer(state)) == before
+    assert (out.corrected_dps, out.sf_ppm, out.flags) == (10.0, 0.0, FLAGS["MODEL_CHANGED"])
+    assert bytes(ffi.buffer(state.h)) == h_before and state.part == 0  # no unit ran

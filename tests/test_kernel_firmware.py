@@ -45,6 +45,7 @@ def test_fixture_is_the_documented_random_model() -> None:
     assert st.StreamModel.load(FIXTURE).model_id == want.model_id
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sanitize", [False, True], ids=["plain", "asan+ubsan"])
 def test_host_driver_passes_golden_vectors(golden, sanitize) -> None:
     model, build, golden_dir, root = golden
@@ -69,6 +70,7 @@ def test_golden_check_detects_a_wrong_bit(golden, tmp_path) -> None:
     assert not ok and "mismatch step sample 0:" in out and "FAIL: 2 mismatching" in out, out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cc", ["gcc", "clang"])
 @pytest.mark.parametrize("size", [(0, 1, 1, 1, 1, 0, False), (3, 4, 2, 9, 50, 600, False),
                                   (0, 1, 1, 1, 1, 0, True), (2, 5, 1, 3, 10, 600, True)])
@@ -118,6 +120,7 @@ def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
     ok, out = run_qemu(arm.golden_elf)
     assert ok, out
     assert f"model {model.model_id}" in out and "PASS: 12000 outputs bit-exact" in out, out
+    golden_text = out
     out = subprocess.run(["arm-none-eabi-nm", "-u", *map(str, arm.kernel_objs)],
                          capture_output=True, text=True, check=True).stdout
     undefined = {line.split()[-1] for line in out.splitlines() if line.strip().startswith("U")}
@@ -131,12 +134,16 @@ def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
                 if re.match(r"__aeabi_(d[a-z]|f2d|i2d|ui2d|l2d|ul2d)", u)], undefined
     size = arm_size(arm, model)
     assert 0 < size.kernel_flash_bytes <= size.flash_bytes
-    # the model pointer, then h, c, h_prev, z, y, p (one play's slot), 17 scalars (the held
-    # outputs and the step's next ones, the correction's k and b, counters), all 4 bytes
-    words = 1 + 2 * 16 + 16 + 4 + 3 + 1 + 17
+    # the model pointer, then h, c, z, y, p (one play's slot), 17 scalars (the held outputs
+    # and the step's next ones, the correction's k and b, counters), 13 of the run-time
+    # check (the model's crc32 and sizes, the pass, the fault, the verified outputs), all 4
+    # bytes (h_prev only in the even-time build): what the kernel's own sizeof says on the core
+    words = 1 + 2 * 16 + 4 + 3 + 1 + 17 + 13
     assert size.ram_bytes >= size.state_bytes == 4 * words
+    assert f"state {4 * words} bytes" in golden_text, golden_text
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(arm_tools_missing() is not None,
                     reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
 @pytest.mark.parametrize("poly", [False, True], ids=["plain", "poly-head"])
@@ -153,6 +160,7 @@ def test_cortex_m4f_two_layers_no_filters_no_stuck_check(poly, tmp_path) -> None
     assert ok and "PASS: 12000 outputs bit-exact" in out, out
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(arm_tools_missing() is not None,
                     reason=f"Cortex-M4F check needs the cross tools: {arm_tools_missing()}")
 @pytest.mark.parametrize("k, f, layers, hidden, d, n_in, diag, fdiag", [

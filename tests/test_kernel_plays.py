@@ -38,6 +38,7 @@ def model_of(size: tuple) -> st.StreamModel:
                                 feat_diag=bool(fdiag and fdiag[0]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size", PLAY_SIZES)
 def test_kernel_with_plays_equals_reference_bit_for_bit(size, kroot) -> None:
     model = model_of(size)
@@ -142,6 +143,7 @@ def _hysteresis_term_model(seed: int = 26, quad_diag: bool = False, n_plays: int
     return replace(m, weights=w)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("quad_diag, n_plays", [(False, 1), (True, 1), (False, 2)],
                          ids=["full-quad", "quad-diag", "two-plays"])
 def test_a_play_terms_sources_move_to_the_linear_weights(quad_diag, n_plays, kroot) -> None:

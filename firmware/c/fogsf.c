@@ -4,7 +4,10 @@
  * polynomial terms) and the per-sample correction, exactly in the float32 order of
  * docs/stream-contract.md (with the optional narrowed LSTM input, diagonal quadratic and
  * diagonal feature map). Sizes and weights come from the model struct at run time; the
- * state arrays are sized by FOGSF_MAX_* (fogsf_model_check).
+ * state arrays are sized by FOGSF_MAX_* (fogsf_model_check). Around it, the guards of a
+ * model in the field: the power-on rule (the filters wait for a plausible temperature), the
+ * NULL and state-size checks, and the run-time integrity check (the sizes against init's
+ * before the arrays are read, a CRC pass over the model half a float a sample).
  */
 #include "fogsf_fp.h" /* first: the floating-point build checks */
 #include "fogsf.h"
@@ -83,141 +86,209 @@ static uint32_t plays_finite(const fogsf_plays *p, uint32_t n_filters)
     return bad;
 }
 
-/* CRC-32 (reflected 0xEDB88320), four bits at a time: 16 words of table. */
-static uint32_t crc_word(uint32_t crc, uint32_t v)
+/* The sizes the table lengths come from, packed in two words (the state records them at
+ * init; the run-time pass reads its table lengths from that record, never from the model):
+ * a = K | F << 8 | N << 16 | P << 24 (N = lstm_inputs, 0 = all F), b = H | L << 16 |
+ * (feat_diag | quad_diag << 1 | polynomial head << 2 | bias head << 3) << 24. A layer count
+ * beyond FOGSF_MAX_LAYERS packs as 0 (no table is then read through lstm_w). */
+#if (FOGSF_MAX_FILTERS > 255) || (FOGSF_MAX_FEATURES > 255) || (FOGSF_MAX_PLAYS > 255) || \
+    (FOGSF_MAX_LAYERS > 255) || (FOGSF_MAX_HIDDEN > 65535)
+#error "fogsf: FOGSF_MAX_FILTERS, _FEATURES, _PLAYS, _LAYERS above 255 or FOGSF_MAX_HIDDEN above 65535: the state records sizes in 8 and 16 bits"
+#endif
+static uint32_t sizes_a(const fogsf_model *m)
+{
+    return (m->n_filters & 0xffu) | ((m->n_features & 0xffu) << 8u) |
+           ((m->lstm_inputs & 0xffu) << 16u) | ((n_plays_of(m) & 0xffu) << 24u);
+}
+
+static uint32_t sizes_b(const fogsf_model *m)
+{
+    const uint32_t layers = (m->layers <= (uint32_t)FOGSF_MAX_LAYERS) ? m->layers : 0u;
+    uint32_t parts = 0u; /* set bit by bit: no narrow constant widened (Rule 10.6) */
+    if (m->feat_diag != 0u) {
+        parts |= 1u;
+    }
+    if (m->quad_diag != 0u) {
+        parts |= 2u;
+    }
+    if (m->quad_w != NULL) {
+        parts |= 4u;
+    }
+    if (m->bias != NULL) {
+        parts |= 8u;
+    }
+    return (m->hidden & 0xffffu) | (layers << 16u) | (parts << 24u);
+}
+
+/* 0 when m still has the sizes the state recorded at init and fits the state (its pointers
+ * present), else FOGSF_FLAG_MODEL_CHANGED: checked before a sample reads the model's arrays
+ * for a model step, so no loop of the step runs to a size other than init's (model_fits
+ * bounds every size by FOGSF_MAX_*, so the packed fields hold them whole) */
+static uint32_t sizes_changed(const fogsf_model *m, const fogsf_state *st)
+{
+    const bool same = (model_fits(m) == 0u) && (sizes_a(m) == st->sizes_a) &&
+                      (sizes_b(m) == st->sizes_b);
+    return same ? 0u : FOGSF_FLAG_MODEL_CHANGED;
+}
+
+/* CRC-32 (reflected 0xEDB88320) of the 16 bits h16, four bits at a time (16 words of table,
+ * not 256: flash), least significant first */
+static inline uint32_t crc_half(uint32_t crc, uint32_t h16)
 {
     static const uint32_t nibble[16] = {
         0x00000000u, 0x1db71064u, 0x3b6e20c8u, 0x26d930acu, 0x76dc4190u, 0x6b6b51f4u,
         0x4db26158u, 0x5005713cu, 0xedb88320u, 0xf00f9344u, 0xd6d6a3e8u, 0xcb61b38cu,
         0x9b64c2b0u, 0x86d3d2d4u, 0xa00ae278u, 0xbdbdf21cu};
-    uint32_t c = crc;
-    uint32_t k;
-    for (k = 0u; k < 32u; k += 4u) { /* the word's bytes least significant first */
-        c = (c >> 4u) ^ nibble[(c ^ (v >> k)) & 0xfu];
-    }
+    uint32_t c = crc ^ h16;
+    c = (c >> 4u) ^ nibble[c & 0xfu];
+    c = (c >> 4u) ^ nibble[c & 0xfu];
+    c = (c >> 4u) ^ nibble[c & 0xfu];
+    c = (c >> 4u) ^ nibble[c & 0xfu];
     return c;
 }
 
-/* the most tables a model has: filter_alpha, feat_w, feat_b, W/R/B per layer, head_w,
- * skip_w, quad_w, cube_w, the bias head's three, the plays' two */
-#define CRC_TABLES (3u + (3u * (uint32_t)FOGSF_MAX_LAYERS) + 9u)
-#define CRC_HEAD_WORDS 21u
-
-/* the CRC register over n words, each least significant byte first */
-static uint32_t crc_words(uint32_t crc, const uint32_t *w, uint32_t n)
+/* the word's bytes least significant first */
+static uint32_t crc_word(uint32_t crc, uint32_t v)
 {
-    uint32_t c = crc;
-    uint32_t i;
-    for (i = 0u; i < n; ++i) {
-        c = crc_word(c, w[i]);
+    return crc_half(crc_half(crc, v & 0xffffu), v >> 16u);
+}
+
+/* The model's head words as the CRCs read them: sizes, scalars, which parts it has */
+#define HEAD_WORDS 21u /* the last only with a bias head */
+#define SEG_HIGH 0x10000u /* in crc_seg: the high half of the float at crc_at is next */
+
+static uint32_t head_count(const fogsf_model *m)
+{
+    return (m->bias != NULL) ? HEAD_WORDS : (HEAD_WORDS - 1u);
+}
+
+static uint32_t head_word(const fogsf_model *m, uint32_t i)
+{
+    uint32_t w;
+    switch (i) {
+    case 0u: w = m->format_version; break;
+    case 1u: w = m->n_filters; break;
+    case 2u: w = m->n_features; break;
+    case 3u: w = m->layers; break;
+    case 4u: w = m->hidden; break;
+    case 5u: w = m->decimation; break;
+    case 6u: w = m->stuck_samples; break;
+    case 7u: w = float_bits(m->sample_dt_s); break;
+    case 8u: w = float_bits(m->t_ref_c); break;
+    case 9u: w = float_bits(m->t_min_c); break;
+    case 10u: w = float_bits(m->t_max_c); break;
+    case 11u: w = float_bits(m->head_b); break;
+    case 12u: w = float_bits(m->out_scale); break;
+    case 13u: w = float_bits(m->out_offset); break;
+    case 14u: w = m->lstm_inputs; break;
+    case 15u: w = m->quad_diag; break;
+    case 16u: w = m->feat_diag; break;
+    case 17u: w = (sizes_b(m) >> 26u) & 1u; break; /* 1: the polynomial head */
+    case 18u: w = (sizes_b(m) >> 27u) & 1u; break; /* 1: a bias head */
+    case 19u: w = n_plays_of(m); break;
+    default: w = (m->bias != NULL) ? float_bits(m->bias->b) : 0u; break;
     }
-    return c;
+    return w;
+}
+
+/* the tables in the CRC's order: filter_alpha, feat_w, feat_b, W/R/B per layer, head_w,
+ * skip_w, quad_w, cube_w, the bias head's three, the plays' two (absent ones: length 0) */
+static uint32_t n_tables(uint32_t b)
+{
+    return 12u + (3u * ((b >> 16u) & 0xffu));
+}
+
+/* table t of m and its length *len by the packed sizes a, b (NULL and 0 for a table the
+ * sizes say is absent, or that m no longer has) */
+static const float *table_at(const fogsf_model *m, uint32_t a, uint32_t b, uint32_t t,
+                             uint32_t *len)
+{
+    const uint32_t k = a & 0xffu;
+    const uint32_t f = (a >> 8u) & 0xffu;
+    const uint32_t p = a >> 24u;
+    const uint32_t h = b & 0xffffu;
+    const uint32_t lstm_end = n_tables(b) - 9u;
+    const float *tab = NULL;
+    uint32_t n = f;
+    if (t == 0u) {
+        tab = m->filter_alpha;
+        n = k;
+    } else if (t == 1u) {
+        tab = m->feat_w;
+        n = (((b >> 24u) & 1u) != 0u) ? f : (f * (1u + k + p));
+    } else if (t == 2u) {
+        tab = m->feat_b;
+    } else if (t < lstm_end) {
+        const uint32_t l = (t - 3u) / 3u;
+        const uint32_t g = (t - 3u) - (3u * l);
+        const uint32_t n_in = ((a >> 16u) & 0xffu) != 0u ? ((a >> 16u) & 0xffu) : f;
+        const float *const *rows = (g == 0u) ? m->lstm_w : ((g == 1u) ? m->lstm_r : m->lstm_b);
+        tab = (rows != NULL) ? rows[l] : NULL;
+        n = (g == 2u) ? (8u * h) : (4u * h * (((g == 0u) && (l == 0u)) ? n_in : h));
+    } else {
+        const fogsf_bias_head *bh = (((b >> 27u) & 1u) != 0u) ? m->bias : NULL;
+        const fogsf_plays *pl = (p != 0u) ? m->plays : NULL;
+        const float *poly_w = (((b >> 26u) & 1u) != 0u) ? m->quad_w : NULL;
+        switch (t - lstm_end) { /* n stays F where not set */
+        case 0u:
+            tab = m->head_w;
+            n = h;
+            break;
+        case 1u:
+            tab = m->skip_w;
+            break;
+        case 2u:
+            tab = poly_w;
+            n = (((b >> 25u) & 1u) != 0u) ? f : (f * f);
+            break;
+        case 3u:
+            tab = (poly_w != NULL) ? m->cube_w : NULL;
+            break;
+        case 4u:
+            tab = (bh != NULL) ? bh->w : NULL;
+            break;
+        case 5u:
+            tab = (bh != NULL) ? bh->quad_w : NULL;
+            break;
+        case 6u:
+            tab = (bh != NULL) ? bh->cube_w : NULL;
+            break;
+        case 7u:
+            tab = (pl != NULL) ? pl->half_c : NULL;
+            n = p;
+            break;
+        default:
+            tab = (pl != NULL) ? pl->source_w : NULL;
+            n = p * (1u + k);
+            break;
+        }
+    }
+    *len = (tab != NULL) ? n : 0u;
+    return tab;
 }
 
 uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only)
 {
-    const uint32_t nk = m->n_filters;
-    const uint32_t nf = m->n_features;
-    const uint32_t nh = m->hidden;
-    const uint32_t np = n_plays_of(m);
-    const float *tab[CRC_TABLES];
-    uint32_t len[CRC_TABLES];
-    uint32_t head[CRC_HEAD_WORDS];
-    uint32_t n_head = 20u;
-    uint32_t n_tab = 0u;
-    uint32_t c;
-    uint32_t l;
-    uint32_t t;
-    head[0] = m->format_version;
-    head[1] = nk;
-    head[2] = nf;
-    head[3] = m->layers;
-    head[4] = nh;
-    head[5] = m->decimation;
-    head[6] = m->stuck_samples;
-    head[7] = float_bits(m->sample_dt_s);
-    head[8] = float_bits(m->t_ref_c);
-    head[9] = float_bits(m->t_min_c);
-    head[10] = float_bits(m->t_max_c);
-    head[11] = float_bits(m->head_b);
-    head[12] = float_bits(m->out_scale);
-    head[13] = float_bits(m->out_offset);
-    head[14] = m->lstm_inputs;
-    head[15] = m->quad_diag;
-    head[16] = m->feat_diag;
-    head[17] = 0u; /* 1: the polynomial head */
-    if (m->quad_w != NULL) {
-        head[17] = 1u;
-    }
-    head[18] = 0u; /* 1: a bias head */
-    if (m->bias != NULL) {
-        head[18] = 1u;
-    }
-    head[19] = np;
-    if (m->bias != NULL) {
-        head[20] = float_bits(m->bias->b);
-        n_head = 21u;
-    }
-    c = crc_words(0xffffffffu, head, n_head);
-    if (sizes_only == 0u) {
-        const uint32_t n_in0 = (m->lstm_inputs != 0u) ? m->lstm_inputs : nf;
-        const uint32_t layers = (m->layers <= (uint32_t)FOGSF_MAX_LAYERS) ? m->layers : 0u;
-        tab[0] = m->filter_alpha;
-        len[0] = nk;
-        tab[1] = m->feat_w;
-        len[1] = (m->feat_diag != 0u) ? nf : (nf * (1u + nk + np));
-        tab[2] = m->feat_b;
-        len[2] = nf;
-        n_tab = 3u;
-        for (l = 0u; (l < layers) && (m->lstm_w != NULL) && (m->lstm_r != NULL) &&
-                     (m->lstm_b != NULL); ++l) {
-            tab[n_tab] = m->lstm_w[l];
-            len[n_tab] = 4u * nh * ((l == 0u) ? n_in0 : nh);
-            tab[n_tab + 1u] = m->lstm_r[l];
-            len[n_tab + 1u] = 4u * nh * nh;
-            tab[n_tab + 2u] = m->lstm_b[l];
-            len[n_tab + 2u] = 8u * nh;
-            n_tab += 3u;
+    uint32_t c = 0xffffffffu;
+    if (m != NULL) {
+        uint32_t i;
+        for (i = 0u; i < head_count(m); ++i) {
+            c = crc_word(c, head_word(m, i));
         }
-        tab[n_tab] = m->head_w;
-        len[n_tab] = nh;
-        tab[n_tab + 1u] = m->skip_w;
-        len[n_tab + 1u] = nf;
-        n_tab += 2u;
-        if (m->quad_w != NULL) {
-            tab[n_tab] = m->quad_w;
-            len[n_tab] = (m->quad_diag != 0u) ? nf : (nf * nf);
-            tab[n_tab + 1u] = m->cube_w;
-            len[n_tab + 1u] = nf;
-            n_tab += 2u;
-        }
-        if (m->bias != NULL) {
-            tab[n_tab] = m->bias->w;
-            tab[n_tab + 1u] = m->bias->quad_w;
-            tab[n_tab + 2u] = m->bias->cube_w;
-            len[n_tab] = nf;
-            len[n_tab + 1u] = nf;
-            len[n_tab + 2u] = nf;
-            n_tab += 3u;
-        }
-        if (m->plays != NULL) {
-            tab[n_tab] = m->plays->half_c;
-            len[n_tab] = np;
-            tab[n_tab + 1u] = m->plays->source_w;
-            len[n_tab + 1u] = np * (1u + nk);
-            n_tab += 2u;
-        }
-    }
-    for (t = 0u; t < n_tab; ++t) { /* a NULL table adds nothing (the model is refused) */
-        const float *a = tab[t];
-        if (a != NULL) {
-            uint32_t i;
-            for (i = 0u; i < len[t]; ++i) {
-                c = crc_word(c, float_bits(a[i]));
+        if (sizes_only == 0u) {
+            const uint32_t a = sizes_a(m);
+            const uint32_t b = sizes_b(m);
+            uint32_t t;
+            for (t = 0u; t < n_tables(b); ++t) { /* a NULL table adds nothing (refused) */
+                uint32_t len = 0u;
+                const float *tab = table_at(m, a, b, t, &len);
+                for (i = 0u; i < len; ++i) {
+                    c = crc_word(c, float_bits(tab[i]));
+                }
             }
         }
     }
-    return c ^ 0xffffffffu;
+    return (m != NULL) ? (c ^ 0xffffffffu) : 0u;
 }
 
 uint32_t fogsf_model_check(const fogsf_model *m)
@@ -236,7 +307,117 @@ uint32_t fogsf_model_check(const fogsf_model *m)
     return bad;
 }
 
-uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
+uint32_t fogsf_check_period(const fogsf_model *m)
+{
+    uint32_t n = 0u;
+    if (fogsf_model_check(m) == 0u) {
+        const uint32_t a = sizes_a(m);
+        const uint32_t b = sizes_b(m);
+        uint32_t t;
+        /* half a float a sample; each head word, table start and the compare on a sample
+         * that reads the arrays, at most D samples after the one before */
+        n = (HEAD_WORDS + n_tables(b) + 1u) * m->decimation;
+        for (t = 0u; t < n_tables(b); ++t) {
+            uint32_t len = 0u;
+            (void)table_at(m, a, b, t, &len);
+            n += 2u * len;
+        }
+    }
+    return n;
+}
+
+/* k = s / (1 + s), s = sf * 1e-6, and the bias in deg/s: the correction's two factors, once
+ * per model step (or when a fault restores verified outputs) */
+static float k_of(float sf)
+{
+    const float s_rel = sf * 1e-6f;
+    return s_rel / (1.0f + s_rel);
+}
+
+static float dps_of(float bias_dph)
+{
+    return bias_dph / 3600.0f;
+}
+
+/* A check failed: the held outputs become those verified last, until a reset */
+static void set_fault(fogsf_state *st)
+{
+    st->fault = FOGSF_FLAG_MODEL_CHANGED;
+    st->sf_ppm = st->good_sf;
+    st->sf_k = k_of(st->good_sf);
+    st->bias_dph = st->good_bias;
+    st->bias_dps = dps_of(st->good_bias);
+    st->sf_flags = st->snap_flags & 0xffffu;
+    st->part = 0u;
+}
+
+/* The pass read every word: the model is as init recorded it, so the outputs held at the
+ * pass's start came from intact tables (they become the verified ones), or it is not */
+static void pass_end(fogsf_state *st)
+{
+    if ((st->crc_reg ^ 0xffffffffu) == st->model_crc) {
+        st->good_sf = st->cand_sf;
+        st->good_bias = st->cand_bias;
+        st->snap_flags = (st->snap_flags >> 16u) | (st->sf_flags << 16u);
+        st->cand_sf = st->sf_ppm;
+        st->cand_bias = st->bias_dph;
+    } else {
+        set_fault(st);
+    }
+    st->crc_reg = 0xffffffffu;
+    st->crc_seg = 0u;
+}
+
+/* true on a sample that reads the model's arrays anyway: priming, a model step, with
+ * FOGSF_EVEN_TIME a part of one */
+static bool reads_arrays(const fogsf_model *m, const fogsf_state *st)
+{
+    bool r = (st->started == 0u) || ((st->n_acc + 1u) >= m->decimation);
+#if FOGSF_EVEN_TIME
+    r = r || (st->part != 0u);
+#endif
+    return r;
+}
+
+/* One slice of the run-time check: half a float of the table under way (every sample, about
+ * 25 instructions on a Cortex-M4F), else, on a sample that reads the arrays anyway (so a
+ * plain sample never pays more), one head word, or the start of the next table (its length
+ * from the sizes init recorded: the pass never reads past a table whatever the model's sizes
+ * say now), or the pass's end. Returns the state's fault flags after it. */
+static uint32_t check_slice(const fogsf_model *m, fogsf_state *st)
+{
+    uint32_t fault = 0u;
+    if (st->crc_at != st->crc_end) { /* half a float a sample: its low half, then its high */
+        const uint32_t w = float_bits(st->crc_at[0]);
+        if ((st->crc_seg & SEG_HIGH) == 0u) {
+            st->crc_reg = crc_half(st->crc_reg, w & 0xffffu);
+        } else {
+            st->crc_reg = crc_half(st->crc_reg, w >> 16u);
+            st->crc_at = &st->crc_at[1];
+        }
+        st->crc_seg ^= SEG_HIGH;
+    } else if (!reads_arrays(m, st)) {
+        /* the table is read: what comes next waits for such a sample */
+    } else if (st->crc_seg < HEAD_WORDS) {
+        if (st->crc_seg < head_count(m)) {
+            st->crc_reg = crc_word(st->crc_reg, head_word(m, st->crc_seg));
+        }
+        st->crc_seg += 1u;
+    } else if ((st->crc_seg - HEAD_WORDS) < n_tables(st->sizes_b)) {
+        uint32_t len = 0u;
+        const float *tab = table_at(m, st->sizes_a, st->sizes_b, st->crc_seg - HEAD_WORDS, &len);
+        st->crc_at = tab;
+        st->crc_end = (tab != NULL) ? &tab[len] : NULL;
+        st->crc_seg += 1u;
+    } else {
+        pass_end(st);
+        fault = st->fault;
+    }
+    return fault;
+}
+
+/* Zero the state and start it with m (fogsf_model_check): records its crc32 and sizes */
+static uint32_t start(const fogsf_model *m, fogsf_state *st)
 {
     uint32_t bad;
     uint32_t l;
@@ -247,9 +428,11 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
             st->c[l][j] = 0.0f;
         }
     }
+#if FOGSF_EVEN_TIME
     for (j = 0u; j < (uint32_t)FOGSF_MAX_HIDDEN; ++j) {
         st->h_prev[j] = 0.0f;
     }
+#endif
     for (j = 0u; j < (uint32_t)FOGSF_MAX_FEATURES; ++j) {
         st->z[j] = 0.0f;
     }
@@ -276,14 +459,56 @@ uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st)
     st->stuck_run = 0u;
     st->n_acc = 0u;
     st->started = 0u;
+    st->model_crc = 0u;
+    st->sizes_a = 0u;
+    st->sizes_b = 0u;
+    st->crc_at = NULL;
+    st->crc_end = NULL;
+    st->crc_seg = 0u;
+    st->crc_reg = 0xffffffffu;
+    st->fault = 0u;
+    st->good_sf = 0.0f;
+    st->good_bias = 0.0f;
+    st->snap_flags = 0u;
+    st->cand_sf = 0.0f;
+    st->cand_bias = 0.0f;
     bad = fogsf_model_check(m);
+    if (bad == 0u) { /* model_fits bounded the sizes: the packed record holds them whole */
+        st->sizes_a = sizes_a(m);
+        st->sizes_b = sizes_b(m);
+        st->model_crc = m->crc32;
+    }
     st->model = (bad == 0u) ? m : NULL;
-    return bad;
+    return (bad == 0u) ? 0u : FOGSF_FLAG_MODEL_INVALID;
 }
 
-uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st)
+uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st, size_t state_size)
 {
-    return fogsf_reset(m, st);
+    /* the caller's state of this kernel's size, or nothing is written */
+    return ((st != NULL) && (state_size == sizeof(fogsf_state))) ? start(m, st)
+                                                                 : FOGSF_FLAG_CALL_INVALID;
+}
+
+uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st, size_t state_size)
+{
+#if FOGSF_SELFTEST_AT_INIT
+    /* the build's arithmetic first, on the caller's state (then reset): a build that gives
+     * other bits than the reference never steps a model */
+    uint32_t failed = 0u;
+    uint32_t bad;
+    if ((st != NULL) && (state_size == sizeof(fogsf_state))) {
+        if (fogsf_selftest(st, state_size) != 0u) {
+            failed = FOGSF_FLAG_SELFTEST_FAILED | FOGSF_FLAG_MODEL_INVALID;
+        }
+    }
+    bad = fogsf_reset(m, st, state_size);
+    if ((failed != 0u) && (st != NULL)) {
+        st->model = NULL;
+    }
+    return bad | failed;
+#else
+    return fogsf_reset(m, st, state_size);
+#endif
 }
 
 /* A model step (contract step 4) runs as parts, in this order: 0 the front (lag filters,
@@ -340,7 +565,7 @@ static void part_front(const fogsf_model *m, fogsf_state *st, float tm)
 }
 
 /* LSTM unit u = l * H + j: unit j of layer l (its h_prev taken at the layer's first unit) */
-static void part_unit(const fogsf_model *m, fogsf_state *st, uint32_t u)
+static void part_unit(const fogsf_model *m, fogsf_state *st, uint32_t u, float *h_prev)
 {
     const uint32_t nh = m->hidden;
     const uint32_t l = u / nh;
@@ -352,14 +577,14 @@ static void part_unit(const fogsf_model *m, fogsf_state *st, uint32_t u)
         n_in = nh;
     }
     fogsf_lstm_unit(n_in, nh, m->lstm_w[l], m->lstm_r[l], m->lstm_b[l], NULL, x, st->h[l],
-                    st->c[l], st->h_prev, j);
+                    st->c[l], h_prev, j);
 }
 
 /* the head: sf_ppm (NaN or beyond +-FOGSF_SF_LIMIT_PPM clamped and flagged) and k */
 static void part_head(const fogsf_model *m, fogsf_state *st)
 {
     const uint32_t nf = m->n_features, nh = m->hidden;
-    float y, sf, mag, s_rel;
+    float y, sf, mag;
     uint32_t i, j;
 
     y = m->head_b;
@@ -395,8 +620,7 @@ static void part_head(const fogsf_model *m, fogsf_state *st)
     st->sf_next = sf;
     /* the correction's factor, once per model step: k = s / (1 + s), s = sf * 1e-6, so that a
      * sample is corrected by d - d * k = d / (1 + s) with one rounding that matters */
-    s_rel = sf * 1e-6f;
-    st->k_next = s_rel / (1.0f + s_rel);
+    st->k_next = k_of(sf);
 }
 
 /* The bias head on the features z of this step (deg/h): the bias, then the squares, then
@@ -425,18 +649,19 @@ static void part_bias(const fogsf_model *m, fogsf_state *st)
             st->flags_next |= FOGSF_FLAG_BIAS_CLAMPED;
         }
         st->bias_next = y;
-        st->bias_dps_next = y / 3600.0f; /* once per model step, not per sample */
+        st->bias_dps_next = dps_of(y); /* once per model step, not per sample */
     }
 }
 
 /* part p of the model step (tm is read by part 0 only) */
-static void run_part(const fogsf_model *m, fogsf_state *st, uint32_t p, float tm)
+static void run_part(const fogsf_model *m, fogsf_state *st, uint32_t p, float tm,
+                     float *h_prev)
 {
     const uint32_t units = m->layers * m->hidden;
     if (p == 0u) {
         part_front(m, st, tm);
     } else if (p <= units) {
-        part_unit(m, st, p - 1u);
+        part_unit(m, st, p - 1u, h_prev);
     } else if (p == (units + 1u)) {
         part_head(m, st);
     } else {
@@ -463,51 +688,85 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
 {
 #if FOGSF_EVEN_TIME
     while (st->part != 0u) {
-        run_part(m, st, st->part, 0.0f);
+        run_part(m, st, st->part, 0.0f, st->h_prev);
         st->part = ((st->part + 1u) < n_parts(m)) ? (st->part + 1u) : 0u;
     }
     publish(st);
-    run_part(m, st, 0u, tm);
+    run_part(m, st, 0u, tm, st->h_prev);
     st->part = 1u;
 #else
+    float h_prev[FOGSF_MAX_HIDDEN]; /* one layer's scratch: on the stack, not in each state */
     uint32_t p;
     for (p = 0u; p < n_parts(m); ++p) {
-        run_part(m, st, p, tm);
+        run_part(m, st, p, tm, h_prev);
     }
     publish(st);
 #endif
 }
 
-#if FOGSF_EVEN_TIME
-/* one pending part of the step started at the last model step, if any */
-static void spread_part(const fogsf_model *m, fogsf_state *st)
+/* Before a sample reads the model's arrays (priming, a model step, a part of one): the sizes
+ * and pointers still init's, so no loop runs past a table or the state. false (the fault
+ * set, nothing read) when they are not. */
+static bool arrays_usable(const fogsf_model *m, fogsf_state *st)
 {
-    if (st->part != 0u) {
-        run_part(m, st, st->part, 0.0f);
-        st->part = ((st->part + 1u) < n_parts(m)) ? (st->part + 1u) : 0u;
+    const bool ok = sizes_changed(m, st) == 0u;
+    if (!ok) {
+        set_fault(st);
     }
+    return ok;
 }
-#endif
 
-/* true when this sample runs a model step or a part of one (the arrays are read by size) */
-static bool runs_model(const fogsf_model *m, const fogsf_state *st)
-{
-    bool r = (st->started == 0u) || ((st->n_acc + 1u) >= m->decimation);
 #if FOGSF_EVEN_TIME
-    r = r || (st->part != 0u);
+/* one pending part of the step started at the last model step, if any; false when the
+ * model changed (arrays_usable) */
+static bool spread_part(const fogsf_model *m, fogsf_state *st)
+{
+    bool ok = true;
+    if (st->part != 0u) {
+        ok = arrays_usable(m, st);
+        if (ok) {
+            run_part(m, st, st->part, 0.0f, st->h_prev);
+            st->part = ((st->part + 1u) < n_parts(m)) ? (st->part + 1u) : 0u;
+        }
+    }
+    return ok;
+}
 #endif
-    return r;
+
+/* A first temperature the filters may be primed with: within [FOGSF_TEMP_PLAUSIBLE_MIN_C,
+ * FOGSF_TEMP_PLAUSIBLE_MAX_C] (so finite) and not the sensor's power-on value. */
+static bool temp_plausible(float t)
+{
+    const bool power_on = float_bits(t) == float_bits(FOGSF_TEMP_POWER_ON_C);
+    return (t >= FOGSF_TEMP_PLAUSIBLE_MIN_C) && (t <= FOGSF_TEMP_PLAUSIBLE_MAX_C) && !power_on;
 }
 
-/* One sample with a model that fits the state (contract steps 1-5). */
-static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
-                        fogsf_output *out)
+/* 5. the held bias and SF error correct this sample, float32: d = g - b / 3600, then d - d * k
+ * (b / 3600 and k computed at the model step; both 0 before the first). A gyro that is NaN or
+ * Inf gives a corrected value that is NaN or Inf (b and k are finite), so one test covers
+ * both. */
+static void correct(const fogsf_state *st, float gyro_dps, uint32_t flags, fogsf_output *out)
+{
+    const float d = gyro_dps - st->bias_dps;
+    float corrected = d - (d * st->sf_k);
+    uint32_t f = flags;
+    if (!float_finite(corrected)) {
+        corrected = 0.0f;
+        f |= FOGSF_FLAG_GYRO_INVALID;
+    }
+    out->corrected_dps = corrected;
+    out->sf_ppm = st->sf_ppm;
+    out->bias_dph = st->bias_dph;
+    out->flags = f | st->sf_flags;
+}
+
+/* Contract steps 1-4 of one sample with a model that fits the state: its flags
+ * (FOGSF_FLAG_MODEL_CHANGED alone when it found the model changed: nothing stepped). */
+static uint32_t sample_front(const fogsf_model *m, fogsf_state *st, float temp_c)
 {
     uint32_t flags = 0u;
     const uint32_t bits = float_bits(temp_c);
     float tc;
-    float d;
-    float corrected;
 
     /* 1. temperature: stuck run on the raw bits, then sanitise and clamp */
     if ((st->started != 0u) && (bits == st->raw_prev_bits)) {
@@ -538,17 +797,22 @@ static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, flo
         st->t_last_good = tc;
     }
 
-    /* 2.-3. priming at the first sample, then one model step per m->decimation samples */
+    /* 2.-3. priming at the first (plausible) sample, then one model step per m->decimation
+     * samples */
     if (st->started == 0u) {
-        uint32_t k;
-        st->started = 1u;
-        for (k = 0; k < m->n_filters; ++k) {
-            st->y[k] = tc;
+        if (arrays_usable(m, st)) {
+            uint32_t k;
+            st->started = 1u;
+            for (k = 0; k < m->n_filters; ++k) {
+                st->y[k] = tc;
+            }
+            for (k = 0; k < n_plays_of(m); ++k) {
+                st->p[k] = tc;
+            }
+            model_step(m, st, tc);
+        } else {
+            flags = FOGSF_FLAG_MODEL_CHANGED;
         }
-        for (k = 0; k < n_plays_of(m); ++k) {
-            st->p[k] = tc;
-        }
-        model_step(m, st, tc);
     } else {
         st->acc = st->acc + tc;
         st->n_acc += 1u;
@@ -556,44 +820,61 @@ static void sample_step(const fogsf_model *m, fogsf_state *st, float temp_c, flo
             const float tm = st->acc / (float)m->decimation;
             st->acc = 0.0f;
             st->n_acc = 0u;
-            model_step(m, st, tm);
+            if (arrays_usable(m, st)) {
+                model_step(m, st, tm);
+            } else {
+                flags = FOGSF_FLAG_MODEL_CHANGED;
+            }
         } else {
             /* between model steps: with FOGSF_EVEN_TIME one part of the pending step */
 #if FOGSF_EVEN_TIME
-            spread_part(m, st);
+            if (!spread_part(m, st)) {
+                flags = FOGSF_FLAG_MODEL_CHANGED;
+            }
 #endif
         }
     }
+    return flags;
+}
 
-    /* 5. the held bias and SF error correct this sample, float32: d = g - b / 3600, then
-     * d - d * k (b / 3600 and k computed at the model step). A gyro that is NaN or Inf gives
-     * a corrected value that is NaN or Inf (b and k are finite), so one test covers both. */
-    d = gyro_dps - st->bias_dps;
-    corrected = d - (d * st->sf_k);
-    if (!float_finite(corrected)) {
-        corrected = 0.0f;
-        flags |= FOGSF_FLAG_GYRO_INVALID;
-    }
-    out->corrected_dps = corrected;
-    out->sf_ppm = st->sf_ppm;
-    out->bias_dph = st->bias_dph;
-    out->flags = flags | st->sf_flags;
+/* corrected 0 and the flags: the sample was not computed */
+static void refuse(fogsf_output *out, uint32_t flags)
+{
+    out->corrected_dps = 0.0f;
+    out->sf_ppm = 0.0f;
+    out->bias_dph = 0.0f;
+    out->flags = flags;
 }
 
 void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
                 fogsf_output *out)
 {
-    /* only the model the reset accepted (NULL when it refused one), its sizes and pointers
-     * checked again on a sample that reads its arrays (one that runs a model step, or a part
-     * of one), before anything of the state changes: never index past the state or through
-     * NULL. The other samples read only scalars of the model and the state. */
-    if ((m == NULL) || (m != st->model) || (runs_model(m, st) && (model_fits(m) != 0u))) {
-        out->corrected_dps = 0.0f;
-        out->sf_ppm = 0.0f;
-        out->bias_dph = 0.0f;
-        out->flags = FOGSF_FLAG_MODEL_INVALID;
+    if (out == NULL) {
+        /* nowhere to say anything: nothing is done */
+    } else if ((m == NULL) || (st == NULL)) {
+        refuse(out, FOGSF_FLAG_MODEL_INVALID | FOGSF_FLAG_CALL_INVALID);
+    } else if (m != st->model) { /* only the model the reset accepted (NULL if it refused) */
+        refuse(out, FOGSF_FLAG_MODEL_INVALID);
     } else {
-        sample_step(m, st, temp_c, gyro_dps, out);
+        /* the run-time checks: half a float of the pass here, then the sizes and pointers,
+         * against init's, before a sample reads the arrays (arrays_usable); the other
+         * samples read only scalars of the model and the state */
+        uint32_t flags = st->fault;
+        if (flags == 0u) {
+            flags = check_slice(m, st);
+        }
+        if (flags != 0u) {
+            /* the verified correction held; the temperature unread */
+        } else if ((st->started == 0u) && !temp_plausible(temp_c)) {
+            /* power-on: no plausible temperature yet, nothing primed (sf 0, bias 0) */
+            flags = FOGSF_FLAG_TEMP_UNPRIMED;
+            if (!float_finite(temp_c)) {
+                flags |= FOGSF_FLAG_TEMP_INVALID;
+            }
+        } else {
+            flags = sample_front(m, st, temp_c);
+        }
+        correct(st, gyro_dps, flags, out);
     }
 }
 
@@ -612,21 +893,25 @@ uint32_t fogsf_run_bias(const fogsf_model *m, fogsf_state *st, const float *temp
     size_t i;
     fogsf_output out;
 
-    for (i = 0; i < n; ++i) {
-        fogsf_step(m, st, temp_c[i], gyro_dps[i], &out);
-        if (corrected_dps != NULL) {
-            corrected_dps[i] = out.corrected_dps;
+    if ((n > 0u) && ((temp_c == NULL) || (gyro_dps == NULL) || (st == NULL))) {
+        all = FOGSF_FLAG_CALL_INVALID; /* nothing stepped or written */
+    } else {
+        for (i = 0; i < n; ++i) {
+            fogsf_step(m, st, temp_c[i], gyro_dps[i], &out);
+            if (corrected_dps != NULL) {
+                corrected_dps[i] = out.corrected_dps;
+            }
+            if (sf_ppm != NULL) {
+                sf_ppm[i] = out.sf_ppm;
+            }
+            if (bias_dph != NULL) {
+                bias_dph[i] = out.bias_dph;
+            }
+            if (flags != NULL) {
+                flags[i] = out.flags;
+            }
+            all |= out.flags;
         }
-        if (sf_ppm != NULL) {
-            sf_ppm[i] = out.sf_ppm;
-        }
-        if (bias_dph != NULL) {
-            bias_dph[i] = out.bias_dph;
-        }
-        if (flags != NULL) {
-            flags[i] = out.flags;
-        }
-        all |= out.flags;
     }
     return all;
 }

@@ -20,8 +20,11 @@
  * Totality: fogsf_step() cannot fail. A NaN/Inf temperature reuses the last good one, a
  * temperature outside the trained range is clamped, a stuck thermometer is flagged, a
  * non-finite gyro gives corrected = 0.0f, a model that does not fit the state (or a NULL
- * one) gives corrected = 0.0 and FOGSF_FLAG_MODEL_INVALID; the output is always finite and
- * the flags say why.
+ * one) gives corrected = 0.0 and FOGSF_FLAG_MODEL_INVALID; until the first plausible
+ * temperature the lag filters wait (FOGSF_FLAG_TEMP_UNPRIMED); a model changed after init
+ * holds the last verified correction (FOGSF_FLAG_MODEL_CHANGED); a NULL pointer or a state
+ * of another size is refused (FOGSF_FLAG_CALL_INVALID). The output is always finite and the
+ * flags say why.
  */
 #ifndef FOGSF_H
 #define FOGSF_H
@@ -55,6 +58,27 @@
 #define FOGSF_EVEN_TIME 0
 #endif
 
+/* 1: fogsf_init runs fogsf_selftest on the caller's state first and refuses the model when
+ * the build's arithmetic gives other bits (a flag no macro announces: firmware/c/MISRA.md,
+ * Dir 1.1); it costs the self-test's flash and its run time at every init. */
+#ifndef FOGSF_SELFTEST_AT_INIT
+#define FOGSF_SELFTEST_AT_INIT 0
+#endif
+
+/* A first temperature is plausible when finite, within [FOGSF_TEMP_PLAUSIBLE_MIN_C,
+ * FOGSF_TEMP_PLAUSIBLE_MAX_C] (the range of common board sensors: DS18B20, LM75) and not
+ * FOGSF_TEMP_POWER_ON_C (a DS18B20 reads 85 C until its first conversion; define it outside
+ * the range to drop that test). The reference (docs/stream-contract.md) uses these values. */
+#ifndef FOGSF_TEMP_PLAUSIBLE_MIN_C
+#define FOGSF_TEMP_PLAUSIBLE_MIN_C (-55.0f)
+#endif
+#ifndef FOGSF_TEMP_PLAUSIBLE_MAX_C
+#define FOGSF_TEMP_PLAUSIBLE_MAX_C 125.0f
+#endif
+#ifndef FOGSF_TEMP_POWER_ON_C
+#define FOGSF_TEMP_POWER_ON_C 85.0f
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -67,6 +91,15 @@ extern "C" {
 #define FOGSF_FLAG_SF_CLAMPED 16u  /* model output NaN or beyond +-FOGSF_SF_LIMIT_PPM */
 #define FOGSF_FLAG_MODEL_INVALID 32u /* model NULL or larger than FOGSF_MAX_*: corrected = 0 */
 #define FOGSF_FLAG_BIAS_CLAMPED 64u /* bias head output NaN or beyond +-FOGSF_BIAS_LIMIT_DPH */
+#define FOGSF_FLAG_TEMP_UNPRIMED 128u /* no plausible temperature since reset: the gyro as it
+                                        is (sf 0, bias 0), the filters wait for one */
+#define FOGSF_FLAG_MODEL_CHANGED 256u /* the model's sizes or tables changed since init: the
+                                        last verified correction held until a reset */
+#define FOGSF_FLAG_CALL_INVALID 512u /* a NULL pointer, or a state of another size: nothing
+                                       read or written (corrected 0) */
+#define FOGSF_FLAGS_ALL 1023u /* every flag above: what a sample's flags can hold */
+#define FOGSF_FLAG_SELFTEST_FAILED 1024u /* fogsf_init only (FOGSF_SELFTEST_AT_INIT): the
+                                           build's arithmetic failed the self-test */
 
 #define FOGSF_SF_LIMIT_PPM 1.0e5f
 #define FOGSF_BIAS_LIMIT_DPH 3.6e4f /* 10 deg/s: a bias beyond it is a broken model */
@@ -147,7 +180,11 @@ typedef struct fogsf_state {
                                                     (fogsf_model_check), NULL if refused */
     float h[FOGSF_MAX_LAYERS][FOGSF_MAX_HIDDEN]; /* LSTM hidden state per layer */
     float c[FOGSF_MAX_LAYERS][FOGSF_MAX_HIDDEN]; /* LSTM cell state per layer */
-    float h_prev[FOGSF_MAX_HIDDEN];              /* scratch of one LSTM layer update */
+#if FOGSF_EVEN_TIME
+    float h_prev[FOGSF_MAX_HIDDEN];              /* one LSTM layer's previous h, kept from
+                                                    sample to sample (the default build
+                                                    keeps it on the stack of a step) */
+#endif
     float z[FOGSF_MAX_FEATURES];                 /* features of the latest model step */
     float y[FOGSF_MAX_FILTERS];                  /* first-order lag filters of the temperature */
     float p[FOGSF_MAX_PLAYS];                    /* play operators' outputs */
@@ -164,7 +201,22 @@ typedef struct fogsf_state {
     uint32_t raw_prev_bits;                      /* previous raw temperature, bitwise */
     uint32_t stuck_run;                          /* repeats of it (saturates at the threshold) */
     uint32_t n_acc;                              /* samples in acc */
-    uint32_t started;                            /* 0 until the first sample since reset */
+    uint32_t started;                            /* 0 until the first plausible temperature
+                                                    since reset (it primes the filters) */
+    /* run-time integrity: what init recorded, the CRC pass under way (half a float a
+     * sample), the held outputs at the start of the last verified pass and of this one */
+    uint32_t model_crc;                          /* the model's crc32 at init */
+    uint32_t sizes_a, sizes_b;                   /* its sizes at init, packed */
+    const float *crc_at, *crc_end;               /* the next float of the pass, the end of
+                                                    its table */
+    uint32_t crc_seg;                            /* the pass's next head word or table;
+                                                    bit 16: the float's high half next */
+    uint32_t crc_reg;                            /* the pass's CRC register */
+    uint32_t fault;                              /* FOGSF_FLAG_MODEL_CHANGED once a check
+                                                    failed, until a reset */
+    float good_sf, good_bias;                    /* verified held outputs */
+    float cand_sf, cand_bias;                    /* held at this pass's start */
+    uint32_t snap_flags;                         /* their sf_flags: good | cand << 16 */
 } fogsf_state;
 
 /* What one sample gives. */
@@ -182,47 +234,66 @@ typedef struct fogsf_output {
  * fogsf_state (FOGSF_MAX_*), is complete (lstm_inputs <= F, quad_diag 0 or 1 and only with
  * the polynomial head, feat_diag 0 or 1 and only with F == 1+K+P, the bias head's and the
  * plays' arrays present, half widths and source weights finite) and its tables are intact
- * (crc32_sizes, then crc32: fogsf_model_crc32), else FOGSF_FLAG_MODEL_INVALID. Reads every
- * table once (about 10 instructions a byte): call it at power-on (fogsf_init does) and,
- * if the application wants, now and then; fogsf_step itself checks that the state was
- * started with m at every sample, and the sizes and pointers on every sample that reads the
- * model's arrays (one that runs a model step or, with FOGSF_EVEN_TIME, a part of one). */
+ * (crc32_sizes, then crc32: fogsf_model_crc32), else FOGSF_FLAG_MODEL_INVALID (a NULL m
+ * too). Reads every table once (about 5 instructions a byte): fogsf_init calls it. After
+ * init fogsf_step checks at every sample that the state was started with m, and on every
+ * sample that reads the model's arrays for a model step (or, with FOGSF_EVEN_TIME, a part
+ * of one) the sizes and pointers, the sizes against those init recorded; and it re-reads
+ * half a float of the model's tables a sample into a CRC, so the whole model is compared
+ * with the crc32 init recorded at least every fogsf_check_period(m) samples
+ * (FOGSF_FLAG_MODEL_CHANGED). */
 uint32_t fogsf_model_check(const fogsf_model *m);
 
 /* The CRC-32 (IEEE 802.3, reflected, as zlib.crc32) of m's sizes and scalars
  * (sizes_only != 0: what crc32_sizes holds), or of those and then every table in the order
  * of the struct (what crc32 holds); every value is taken as its 32 bits, least significant
  * byte first. m must have passed the size checks of fogsf_model_check: the table lengths come
- * from its sizes. */
+ * from its sizes (a NULL m: 0). */
 uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only);
+
+/* The most samples one run-time check of m takes (a pass): fogsf_step reads half a float of
+ * the tables a sample; a head word, the start of a table and the pass's compare each wait
+ * for a sample that reads the arrays anyway (a model step's; with FOGSF_EVEN_TIME a part's):
+ * (21 + T + 1) D + 2 (the floats of m's tables), T = 12 + 3 L table slots. A model changed
+ * after init is flagged within two passes. 0 for a model fogsf_model_check refuses. */
+uint32_t fogsf_check_period(const fogsf_model *m);
 
 /* Power-on check of the arithmetic this build gives: runs the kernel's activations and a
  * built-in 1x1 model (one filter, one play, polynomial and bias heads, bad inputs planted)
  * through fogsf_step on *scratch, and compares every output bit for bit with the values the
  * numpy reference gives (generated into fogsf_selftest.c). 0 when all match, else the OR of
  * FOGSF_SELFTEST_*: a compiler flag or a toolchain broke the float32 order (FMA contraction,
- * fast math, a wrong soft-float library). *scratch is overwritten: fogsf_init it afterwards. */
-uint32_t fogsf_selftest(fogsf_state *scratch);
+ * fast math, a wrong soft-float library). state_size is sizeof(fogsf_state) as the caller
+ * compiled it (another size, or a NULL scratch: the model part fails, nothing is written).
+ * *scratch is overwritten: fogsf_init it afterwards. */
+uint32_t fogsf_selftest(fogsf_state *scratch, size_t state_size);
 
 #define FOGSF_SELFTEST_ACTIVATIONS 1u /* fogsf_expf / sigmoidf / tanhf gave other bits */
 #define FOGSF_SELFTEST_MODEL 2u       /* the built-in model's outputs differ */
 #define FOGSF_SELFTEST_CHECK 4u       /* fogsf_model_check refused the built-in model */
 
-/* Start a log: zero LSTM state, filters primed by the first sample. init == reset. Returns
- * fogsf_model_check(m); a model it refuses is never stepped: every fogsf_step with this state
- * gives corrected 0 and FOGSF_FLAG_MODEL_INVALID until a reset with a model it accepts. */
-uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st);
-uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st);
+/* Start a log: zero LSTM state, the filters primed by the first plausible temperature.
+ * state_size is sizeof(fogsf_state) as the caller compiled it: a NULL st or another size (a
+ * kernel built with other FOGSF_MAX_*) returns FOGSF_FLAG_CALL_INVALID and writes nothing.
+ * Else returns fogsf_model_check(m) and records the model (its crc32 and sizes) for the
+ * run-time checks of fogsf_step; a model it refuses is never stepped: every fogsf_step with
+ * this state gives corrected 0 and FOGSF_FLAG_MODEL_INVALID until a reset with a model it
+ * accepts. fogsf_init is fogsf_reset, with FOGSF_SELFTEST_AT_INIT 1 after fogsf_selftest on
+ * st (a failure: FOGSF_FLAG_SELFTEST_FAILED | FOGSF_FLAG_MODEL_INVALID, the model refused). */
+uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st, size_t state_size);
+uint32_t fogsf_reset(const fogsf_model *m, fogsf_state *st, size_t state_size);
 
 /* One sample: board temperature (C) and raw gyro output (deg/s, nominal SF), both float32
  * (the correction is float32: a float32 rate carries 2^-24 = 0.06 ppm of itself, far below
  * any SF figure; docs/stream-contract.md, "Precisions"), with the model
- * st was started with (another model, or one refused at reset: corrected 0, MODEL_INVALID). */
+ * st was started with (another model, or one refused at reset: corrected 0, MODEL_INVALID).
+ * A NULL m or st: corrected 0, MODEL_INVALID | CALL_INVALID; a NULL out: nothing done. */
 void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_dps,
                 fogsf_output *out);
 
 /* A whole log from the current state, sample by sample through fogsf_step(); any output
- * pointer may be NULL. Returns the OR of all flags. */
+ * pointer may be NULL. Returns the OR of all flags (n > 0 with a NULL input array or a NULL
+ * st: FOGSF_FLAG_CALL_INVALID, nothing stepped or written). */
 uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
                    const float *gyro_dps, size_t n, float *corrected_dps, float *sf_ppm,
                    uint32_t *flags);
@@ -246,7 +317,9 @@ void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
                      float *h_prev);
 
 /* Unit j of fogsf_lstm_cell (the same arguments): its c[j] and h[j], from h_prev [H], which
- * unit 0 first fills with h. fogsf_lstm_cell is this for j = 0 .. H-1 in order. */
+ * unit 0 first fills with h. fogsf_lstm_cell is this for j = 0 .. H-1 in order. It checks
+ * nothing (the model step's innermost call): its arrays non-NULL and j < hidden are the
+ * caller's; fogsf_lstm_cell refuses NULL arrays. */
 void fogsf_lstm_unit(size_t n_in, size_t hidden, const float *w, const float *r,
                      const float *b, const float *p, const float *x, float *h, float *c,
                      float *h_prev, size_t j);

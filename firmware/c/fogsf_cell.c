@@ -11,22 +11,25 @@
 
 #include <stdbool.h>
 
-float fogsf_expf(float x_in)
+/* the parameters are named as in fogsf.h (Rule 8.3) and copied before they are clamped
+ * (Rule 17.8) */
+float fogsf_expf(float x)
 {
-    float x = x_in;
-    float t, nf, r, z, p, e;
+    float xc = x;
+    float t, tr, nf, r, z, p, e;
     int32_t n;
     fogsf_f32_bits scale;
 
     /* selects, not branches (one path for every input): NaN counts as -87, so exp stays
      * finite and the cast below defined */
-    x = (x > -87.0f) ? x : -87.0f;
-    x = (x > 88.0f) ? 88.0f : x;
-    /* x = n ln2 + r, |r| <= ln2/2, ln2 split in two so that n*ln2_hi is exact */
-    t = x * 1.44269502f;
-    n = (int32_t)(t + (t >= 0.0f ? 0.5f : -0.5f));
+    xc = (xc > -87.0f) ? xc : -87.0f;
+    xc = (xc > 88.0f) ? 88.0f : xc;
+    /* xc = n ln2 + r, |r| <= ln2/2, ln2 split in two so that n*ln2_hi is exact */
+    t = xc * 1.44269502f;
+    tr = t + ((t >= 0.0f) ? 0.5f : -0.5f); /* rounded in a variable: only it is cast (10.8) */
+    n = (int32_t)tr;
     nf = (float)n;
-    r = (x - nf * 0.693359375f) - nf * -0.000212194442f;
+    r = (xc - nf * 0.693359375f) - nf * -0.000212194442f;
     z = r * r;
     p = 0.000198756912f;
     p = p * r + 0.00139819994f;
@@ -78,37 +81,37 @@ static float select_f(bool c, float a, float b)
 
 /* tanh with one path for every input: the exp form and the polynomial both computed, the
  * one the default build would take selected (the same bits) */
-float fogsf_tanhf(float x_in)
+float fogsf_tanhf(float x)
 {
-    float x = x_in;
+    float xc = x;
     float a, big, small;
 
-    x = (x >= -10.0f) ? x : -10.0f; /* tanh(10) rounds to 1.0f; NaN counts as -10 */
-    x = (x > 10.0f) ? 10.0f : x;
-    a = (x < 0.0f) ? -x : x;
+    xc = (xc >= -10.0f) ? xc : -10.0f; /* tanh(10) rounds to 1.0f; NaN counts as -10 */
+    xc = (xc > 10.0f) ? 10.0f : xc;
+    a = (xc < 0.0f) ? -xc : xc;
     big = tanh_big(a);
-    big = select_f(x < 0.0f, -big, big);
-    small = tanh_small(x);
+    big = select_f(xc < 0.0f, -big, big);
+    small = tanh_small(xc);
     return select_f(a > 0.625f, big, small);
 }
 #else
-float fogsf_tanhf(float x_in)
+float fogsf_tanhf(float x)
 {
-    float x = x_in;
+    float xc = x;
     float a, y;
 
-    if (!(x >= -10.0f)) { /* tanh(10) rounds to 1.0f; NaN counts as -10 */
-        x = -10.0f;
+    if (!(xc >= -10.0f)) { /* tanh(10) rounds to 1.0f; NaN counts as -10 */
+        xc = -10.0f;
     }
-    if (x > 10.0f) {
-        x = 10.0f;
+    if (xc > 10.0f) {
+        xc = 10.0f;
     }
-    a = (x < 0.0f) ? -x : x;
+    a = (xc < 0.0f) ? -xc : xc;
     if (a > 0.625f) {
         const float big = tanh_big(a);
-        y = (x < 0.0f) ? -big : big;
+        y = (xc < 0.0f) ? -big : big;
     } else {
-        y = tanh_small(x);
+        y = tanh_small(xc);
     }
     return y;
 }
@@ -184,7 +187,11 @@ void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
 {
     size_t j;
 
-    for (j = 0; j < hidden; ++j) {
-        fogsf_lstm_unit(n_in, hidden, w, r, b, p, x, h, c, h_prev, j);
+    /* a NULL array: nothing is read or written (b and p may be NULL) */
+    if ((w != NULL) && (r != NULL) && (x != NULL) && (h != NULL) && (c != NULL) &&
+        (h_prev != NULL)) {
+        for (j = 0; j < hidden; ++j) {
+            fogsf_lstm_unit(n_in, hidden, w, r, b, p, x, h, c, h_prev, j);
+        }
     }
 }

@@ -5,14 +5,18 @@
  * The kernel reproduces the numpy reference bit for bit only when every float32 operation is
  * one IEEE 754 operation, rounded to nearest, in the order the source writes it
  * (docs/stream-contract.md). Flags that let the compiler reorder, fuse, replace a division by
- * a reciprocal, or assume no NaN/Inf break that silently: -ffast-math failed 6426 of 12000
- * golden outputs on the host, -ffinite-math-only removed the NaN/Inf handling. So:
- * - a build that announces such a flag stops here (#error);
+ * a reciprocal, or assume no NaN/Inf break that silently. So, whatever flags the caller's
+ * build passes (which flags each compiler announces: firmware/c/MISRA.md, Dir 1.1):
+ * - a build that announces such a flag by a predefined macro stops here (#error);
  * - float expressions must be evaluated in float (FLT_EVAL_METHOD 0: no x87 excess precision);
- * - contraction into FMA is switched off by `#pragma STDC FP_CONTRACT OFF` where the compiler
- *   honours it (clang and the compilers built on it), and by -ffp-contract=off everywhere
- *   (gcc ignores the pragma: the CMake library, the Makefile's builds and the bindings pass the
- *   flag). Contraction leaves no macro to test, so fogsf_selftest() catches it at power-on.
+ * - the rest is switched off in the kernel's own sources by pragmas: on clang,
+ *   fp reassociate(off) and STDC FP_CONTRACT OFF, and on x86 float_control(precise, on) (no
+ *   reciprocal, NaN/Inf or signed-zero assumptions); on gcc, which ignores those,
+ *   optimize("fp-contract=off") (its GNU modes default to -ffp-contract=fast); elsewhere
+ *   the standard STDC FP_CONTRACT OFF. What no macro announces and no pragma undoes
+ *   (clang's -ffp-contract=fast on a target with FMA; -freciprocal-math, -fno-honor-nans
+ *   on clang for ARM; a flush-to-zero mode) is left to fogsf_selftest()
+ *   (FOGSF_SELFTEST_AT_INIT: fogsf_init refuses the model when it fails).
  */
 #ifndef FOGSF_FP_H
 #define FOGSF_FP_H
@@ -38,6 +42,21 @@
 #endif
 
 #if defined(__clang__)
+#if defined(__x86_64__) || defined(__i386__)
+/* clang announces -freciprocal-math, -fno-signed-zeros and -fno-honor-nans/-infinities by no
+ * macro: precise arithmetic here whatever the command line says (clang 14 has this pragma
+ * on x86 only; elsewhere fogsf_selftest catches those flags: MISRA.md, Dir 1.1) */
+#pragma float_control(precise, on)
+#endif
+/* -fassociative-math (no macro either), then FMA contraction (clang's default fuses within a
+ * statement) */
+#pragma clang fp reassociate(off)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(__GNUC__)
+/* gcc ignores the STDC pragma and defaults to -ffp-contract=fast outside -std=c99: no FMA
+ * contraction in the functions that follow, whatever -ffp-contract says */
+#pragma GCC optimize("fp-contract=off")
+#else
 #pragma STDC FP_CONTRACT OFF
 #endif
 

@@ -239,12 +239,13 @@ static uint32_t model_outputs(fogsf_state *st)
     return bad;
 }
 
-uint32_t fogsf_selftest(fogsf_state *scratch)
+uint32_t fogsf_selftest(fogsf_state *scratch, size_t state_size)
 {
     uint32_t bad = activations();
-    if (scratch == NULL) {
-        bad |= FOGSF_SELFTEST_MODEL;
-    } else if (fogsf_init(&selftest_model, scratch) != 0u) {
+    if ((scratch == NULL) || (state_size != sizeof(fogsf_state))) {
+        bad |= FOGSF_SELFTEST_MODEL; /* nothing written */
+    } else if (fogsf_reset(&selftest_model, scratch, state_size) != 0u) {
+        /* fogsf_reset, not fogsf_init: init may call this (FOGSF_SELFTEST_AT_INIT) */
         bad |= FOGSF_SELFTEST_CHECK;
     } else {
         bad |= model_outputs(scratch);

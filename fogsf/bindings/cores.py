@@ -1,22 +1,29 @@
 """The kernel on three Cortex-M cores under QEMU, and a stack bound from the linked image.
 
 `python -m fogsf.bindings.cores MODEL_DIR --out build/cores` is what `make firmware-cores`
-runs: the golden vectors (the host build's outputs, bit for bit) in an image for each core of
-`CORES` (Cortex-M4F hard float on mps2-an386, Cortex-M3 on mps2-an385 and Cortex-M0 on
-microbit, both soft float), one PASS or FAIL line a core with the image's flash, RAM and
-stack bound (fogsf.bindings.stack: a call-graph walk of the linked image, libgcc included),
-for the default build of the kernel and its even-time build (FOGSF_EVEN_TIME, whose golden
-vectors come from its own host build).
+runs: the golden vectors (the host build's outputs, bit for bit) and the power-on self-test
+(fogsf_selftest) in an image for each core of `CORES` (Cortex-M4F hard float on mps2-an386,
+Cortex-M3 on mps2-an385 and Cortex-M0 on microbit, both soft float), one line a core with the
+image's flash, RAM and stack bound (fogsf.bindings.stack: a call-graph walk of the linked
+image, libgcc included), for the default build of the kernel and its even-time build
+(FOGSF_EVEN_TIME, whose golden vectors come from its own host build), and for each
+toolchain of `TOOLCHAINS` the kernel's sources are compiled with (the strict flags; gcc's GNU
+default; clang): PASS (every output bit for bit, self-test 0), REFUSED (the kernel stops the
+build: fogsf_fp.h's #error), CAUGHT (it compiles, the self-test fails: FOGSF_SELFTEST_AT_INIT
+refuses the model at init) or FAIL (other bits with a passing self-test, or another error).
 """
 
 from __future__ import annotations
 
 import argparse
+import re
+import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from fogsf.bindings.firmware import (
+    ARM_CC,
     CORES,
     Core,
     arm_tools_missing,
@@ -25,32 +32,83 @@ from fogsf.bindings.firmware import (
     section_sizes,
     write_golden,
 )
-from fogsf.bindings.kernel import EVEN_TIME, Kernel, build_kernel
+from fogsf.bindings.kernel import EVEN_TIME, STRICT, Kernel, build_kernel
 from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, StackBound, stack_bound
 from fogsf.errors import UserError
 from fogsf.models.stream import StreamModel
 
 
+@dataclass(frozen=True)
+class Toolchain:
+    """How the kernel's and the models' sources are compiled (the drivers and the link are
+    arm-none-eabi-gcc's)."""
+    name: str
+    cc: tuple[str, ...]
+    flags: tuple[str, ...]
+    label: str
+
+
+WARN = ("-Wall", "-Wextra", "-Werror")
+CLANG = ("clang", "--target=arm-none-eabi", "-fshort-enums")  # arm-none-eabi-gcc's enums
+TOOLCHAINS = {
+    "gcc-c99": Toolchain("gcc-c99", (ARM_CC,), STRICT,
+                         "arm-none-eabi-gcc, the strict flags (-std=c99 -ffp-contract=off)"),
+    "gcc-gnu": Toolchain("gcc-gnu", (ARM_CC,), WARN,
+                         "arm-none-eabi-gcc's GNU default (no -std: gnu17, -ffp-contract=fast)"),
+    "clang": Toolchain("clang", CLANG, ("-std=c99", *WARN, "-pedantic"),
+                       "clang, its defaults (-ffp-contract=on)"),
+    "clang-contract-fast": Toolchain("clang-contract-fast", CLANG,
+                                     ("-std=c99", *WARN, "-pedantic", "-ffp-contract=fast"),
+                                     "clang -ffp-contract=fast"),
+    # the value-changing flags, for `--toolchains`: what each one does on the cores
+    "gcc-fast-math": Toolchain("gcc-fast-math", (ARM_CC,), (*STRICT, "-ffast-math"),
+                               "arm-none-eabi-gcc -ffast-math"),
+    "clang-reciprocal-math": Toolchain("clang-reciprocal-math", CLANG,
+                                       ("-std=c99", *WARN, "-freciprocal-math"),
+                                       "clang -freciprocal-math (no macro announces it)"),
+    "clang-no-honor-nans": Toolchain("clang-no-honor-nans", CLANG,
+                                     ("-std=c99", *WARN, "-fno-honor-nans"),
+                                     "clang -fno-honor-nans (no macro announces it)"),
+    "clang-no-signed-zeros": Toolchain("clang-no-signed-zeros", CLANG,
+                                       ("-std=c99", *WARN, "-fno-signed-zeros"),
+                                       "clang -fno-signed-zeros (no macro announces it)"),
+}
+DEFAULT_TOOLCHAINS = ("gcc-c99", "gcc-gnu", "clang", "clang-contract-fast")
+
+
 @dataclass
 class CoreResult:
     core: str
-    passed: bool
+    verdict: str  # PASS, REFUSED, CAUGHT or FAIL
     output: str
-    flash_bytes: int
-    ram_bytes: int  # data + bss + the deeper of the step's and the init's stack bound
-    step_stack: StackBound
-    init_stack: StackBound
+    flash_bytes: int = 0
+    ram_bytes: int = 0  # data + bss + the deeper of the step's and the init's stack bound
+    step_stack: StackBound | None = None
+    init_stack: StackBound | None = None
 
 
-def run_core(core: Core, build_dir: Path, golden_dir: Path, out: Path, defines: tuple[str, ...]
-             ) -> CoreResult:
-    arm = build_arm(build_dir, golden_dir, out / core.name, defines=defines, core=core)
+def run_core(core: Core, build_dir: Path, golden_dir: Path, out: Path, defines: tuple[str, ...],
+             toolchain: Toolchain = TOOLCHAINS["gcc-c99"]) -> CoreResult:
+    try:
+        arm = build_arm(build_dir, golden_dir, out / core.name, defines=defines, core=core,
+                        kernel_cc=toolchain.cc, kernel_flags=toolchain.flags)
+    except UserError as e:
+        refused = re.search(r'#error "(fogsf: built with[^"]*)"', str(e))
+        return CoreResult(core.name, "REFUSED" if refused else "FAIL",
+                          refused[1] if refused else str(e))
     assert arm.golden_elf is not None
     ok, text = run_qemu(arm.golden_elf, timeout=600.0, machine=core.machine)
     text_b, data, bss = section_sizes(arm.size_elf)
     step = stack_bound(arm.size_elf, STEP_ROOTS)
     init = stack_bound(arm.size_elf, INIT_ROOTS)
-    return CoreResult(core.name, ok and not step.unbounded, text, text_b + data,
+    selftest = re.search(r"^selftest (\d+)", text, flags=re.M)
+    if ok and not step.unbounded:
+        verdict = "PASS"
+    elif selftest is not None and selftest[1] != "0":
+        verdict = "CAUGHT"
+    else:
+        verdict = "FAIL"
+    return CoreResult(core.name, verdict, text, text_b + data,
                       data + bss + max(step.bytes, init.bytes), step, init)
 
 
@@ -58,7 +116,8 @@ BUILDS = {"default": False, "even-time": True}  # the kernel's builds: FOGSF_EVE
 
 
 def firmware_cores(model_dir: Path, out: Path, cores: list[str],
-                   builds: tuple[str, ...] = tuple(BUILDS)) -> int:
+                   builds: tuple[str, ...] = tuple(BUILDS),
+                   toolchains: tuple[str, ...] = DEFAULT_TOOLCHAINS) -> int:
     missing = arm_tools_missing()
     if missing:
         print(f"firmware-cores: {missing}", file=sys.stderr)
@@ -66,35 +125,58 @@ def firmware_cores(model_dir: Path, out: Path, cores: list[str],
     model = StreamModel.load(model_dir)
     print(f"model {model_dir}: id {model.model_id}, {model.summary}")
     failed = False
+    verdicts: set[str] = set()
     for kind in builds:
         even = BUILDS[kind]
         print(f"build: {kind}" + (f" ({EVEN_TIME})" if even else ""))
-        failed |= not cores_of(model, out / kind, cores, even)
-    print("FAIL" if failed else f"PASS on {', '.join(cores)} ({', '.join(builds)})")
+        ok, seen = cores_of(model, out / kind, cores, even, toolchains)
+        failed |= not ok
+        verdicts |= seen
+    print("FAIL" if failed else f"PASS on {', '.join(cores)} ({', '.join(builds)}; "
+          f"{', '.join(toolchains)}: every build bit for bit or refused"
+          + (", or caught by the self-test" if "CAUGHT" in verdicts else "") + ")")
     return 1 if failed else 0
 
 
-def cores_of(model: StreamModel, out: Path, cores: list[str], even_time: bool) -> bool:
-    """The golden vectors of one build of the kernel on each core; True when all pass."""
+def cores_of(model: StreamModel, out: Path, cores: list[str], even_time: bool,
+             toolchains: tuple[str, ...] = ("gcc-c99",)) -> tuple[bool, set[str]]:
+    """The golden vectors of one build of the kernel on each core, compiled by each
+    toolchain: (True when none FAILs, the verdicts seen)."""
     build = build_kernel(model, root=out / "host", even_time=even_time)
     golden_dir = out / "golden"
     write_golden(model, Kernel(model, build), golden_dir)
     failed = False
-    for name in cores:
-        core = CORES[name]
-        r = run_core(core, build.directory, golden_dir, out, build.defines)
-        last = [ln for ln in r.output.strip().splitlines() if ln.startswith(("PASS", "FAIL"))]
-        print(f"{core.label} under qemu-system-arm -M {core.machine}: "
-              f"{'PASS' if r.passed else 'FAIL'}: {last[-1] if last else 'no result'}")
-        print(f"  flash {r.flash_bytes} B, RAM {r.ram_bytes} B (stack bound: fogsf_step "
-              f"{r.step_stack.bytes} B via {' > '.join(r.step_stack.path)}; init "
-              f"{r.init_stack.bytes} B)")
-        if r.step_stack.unbounded:
-            print(f"  no static stack bound through: {', '.join(r.step_stack.unbounded)}")
-        if not r.passed:
-            print("\n".join(f"  {ln}" for ln in r.output.strip().splitlines()[-12:]))
-        failed |= not r.passed
-    return not failed
+    seen: set[str] = set()
+    for tname in toolchains:
+        tc = TOOLCHAINS[tname]
+        print(f" toolchain {tc.name}: {tc.label}")
+        if shutil.which(tc.cc[0]) is None:
+            print(f"  skipped: {tc.cc[0]} not installed")
+            continue
+        for name in cores:
+            core = CORES[name]
+            r = run_core(core, build.directory, golden_dir, out / tc.name, build.defines, tc)
+            seen.add(r.verdict)
+            failed |= r.verdict == "FAIL"
+            if r.verdict == "REFUSED":
+                print(f"  {core.label}: REFUSED to compile: {r.output}")
+                continue
+            lines = r.output.strip().splitlines()
+            last = [ln for ln in lines if ln.startswith(("PASS", "FAIL"))]
+            selftest = [ln for ln in lines if ln.startswith("selftest")]
+            detail = re.sub(r"^(PASS|FAIL): ", "", last[-1]) if last else "no result"
+            print(f"  {core.label} under qemu-system-arm -M {core.machine}: {r.verdict}: "
+                  f"{detail}" + (f"; {selftest[0]}" if selftest else ""))
+            if r.step_stack is not None and r.init_stack is not None:
+                print(f"    flash {r.flash_bytes} B, RAM {r.ram_bytes} B (stack bound: "
+                      f"fogsf_step {r.step_stack.bytes} B via {' > '.join(r.step_stack.path)}; "
+                      f"init {r.init_stack.bytes} B)")
+                if r.step_stack.unbounded:
+                    print(f"    no static stack bound through: "
+                          f"{', '.join(r.step_stack.unbounded)}")
+            if r.verdict == "FAIL":
+                print("\n".join(f"    {ln}" for ln in lines[-12:]))
+    return not failed, seen
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,6 +187,8 @@ def main(argv: list[str] | None = None) -> int:
                    help=f"comma-separated, of {', '.join(CORES)}")
     p.add_argument("--builds", default=",".join(BUILDS),
                    help=f"comma-separated, of {', '.join(BUILDS)}")
+    p.add_argument("--toolchains", default=",".join(DEFAULT_TOOLCHAINS),
+                   help=f"comma-separated, of {', '.join(TOOLCHAINS)}")
     args = p.parse_args(argv)
     cores = [c for c in args.cores.split(",") if c]
     unknown = [c for c in cores if c not in CORES]
@@ -113,8 +197,11 @@ def main(argv: list[str] | None = None) -> int:
     builds = tuple(b for b in args.builds.split(",") if b)
     if not builds or set(builds) - set(BUILDS):
         p.error(f"--builds {args.builds!r}: choose from {', '.join(BUILDS)}")
+    toolchains = tuple(t for t in args.toolchains.split(",") if t)
+    if not toolchains or set(toolchains) - set(TOOLCHAINS):
+        p.error(f"--toolchains {args.toolchains!r}: choose from {', '.join(TOOLCHAINS)}")
     try:
-        return firmware_cores(args.model, args.out, cores, builds)
+        return firmware_cores(args.model, args.out, cores, builds, toolchains)
     except UserError as e:
         print(f"firmware-cores: error: {e}", file=sys.stderr)
         return 2

@@ -7,7 +7,6 @@ with ASan+UBSan), and the Cortex-M4F images (golden check under QEMU, size probe
 from __future__ import annotations
 
 import argparse
-import re
 import shutil
 import subprocess
 import sys
@@ -185,27 +184,31 @@ def image_models_header(names: list[str]) -> str:
 
 def build_arm(model_dir: Path, golden_dir: Path | None, out: Path,
               names: tuple[str, ...] = (BOUND_NAME,), defines: tuple[str, ...] = (),
-              core: Core = M4F) -> ArmBuild:
+              core: Core = M4F, kernel_cc: tuple[str, ...] = (ARM_CC,),
+              kernel_flags: tuple[str, ...] = STRICT) -> ArmBuild:
     """Kernel and model objects (model_dir/NAME.c for each name) with the strict flags and the
     state sized by `defines` (FOGSF_MAX_*), then the golden (unless golden_dir is None; it
-    checks the first model), size and bench images stepping every model."""
+    checks the first model), size and bench images stepping every model. `kernel_cc` and
+    `kernel_flags`: another compiler (clang --target=arm-none-eabi) or other flags (a GNU
+    default) for the kernel's and the models' sources; the drivers and the link stay
+    arm-none-eabi-gcc's."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "image_models.h").write_text(image_models_header(list(names)))
     inc = ["-I", str(out), "-I", str(model_dir), "-I", str(C_DIR), "-I", str(C_DIR / "test"),
            "-I", str(C_DIR / "arm"), *(["-I", str(golden_dir)] if golden_dir else [])]
     common = [*core.flags, "-O2", "-ffunction-sections", "-fdata-sections", *defines]
 
-    def obj(src: Path, strict: bool) -> Path:
+    def obj(src: Path, cc: tuple[str, ...] = (ARM_CC,), flags: tuple[str, ...] = TEST_FLAGS
+            ) -> Path:
         o = out / (src.stem + ".o")
-        flags = [*STRICT] if strict else [*TEST_FLAGS]
-        run_cmd([ARM_CC, *flags, *common, "-fstack-usage", *inc, "-c", str(src), "-o", str(o)],
+        run_cmd([*cc, *flags, *common, "-fstack-usage", *inc, "-c", str(src), "-o", str(o)],
                 f"compiling {src.name} for {core.name}")
         return o
 
-    kernel = [*(obj(C_DIR / name, True) for name in SOURCES),
-              *(obj(model_dir / f"{n}.c", True) for n in names)]
-    startup = obj(C_DIR / "arm" / "startup.c", False)
-    mains = {name: obj(C_DIR / "arm" / f"{name}_main.c", False)
+    kernel = [*(obj(C_DIR / name, kernel_cc, kernel_flags) for name in SOURCES),
+              *(obj(model_dir / f"{n}.c", kernel_cc, kernel_flags) for n in names)]
+    startup = obj(C_DIR / "arm" / "startup.c")
+    mains = {name: obj(C_DIR / "arm" / f"{name}_main.c")
              for name in (("golden", "size", "bench") if golden_dir else ("size", "bench"))}
 
     def link(name: str, objs: list[Path]) -> Path:
@@ -217,7 +220,7 @@ def build_arm(model_dir: Path, golden_dir: Path | None, out: Path,
 
     golden = None
     if golden_dir:
-        check = obj(C_DIR / "test" / "golden_check.c", True)
+        check = obj(C_DIR / "test" / "golden_check.c", flags=STRICT)
         golden = link("golden", [startup, check, mains["golden"], *kernel])
     return ArmBuild(out, golden, link("size", [startup, mains["size"], *kernel]),
                     link("bench", [startup, mains["bench"], *kernel]), kernel)
@@ -253,7 +256,7 @@ def section_sizes(path: Path) -> tuple[int, int, int]:
 class ArmSize:
     flash_bytes: int  # text + data of the size probe: kernel + model + libgcc + start-up
     ram_bytes: int  # data + bss of the probe (the states) + the stack bound (walk)
-    kernel_flash_bytes: int  # kernel and model objects alone
+    kernel_flash_bytes: int  # what the probe links of the kernel and model objects
     state_bytes: int
     stack_bytes: int
 
@@ -262,27 +265,35 @@ def arm_size(arm: ArmBuild, models: StreamModel | list[StreamModel]) -> ArmSize:
     """Sizes of the probe image; RAM counts one state per model, sized for the largest."""
     models = models if isinstance(models, list) else [models]
     text, data, bss = section_sizes(arm.size_elf)
-    # the kernel's and the models' objects, the self-test's only when the image calls it
-    linked = run_cmd([ARM_CC.replace("gcc", "nm"), str(arm.size_elf)], "arm-none-eabi-nm").stdout
-    objs = [o for o in arm.kernel_objs if o.stem != "fogsf_selftest"
-            or re.search(r"\bT fogsf_selftest$", linked, flags=re.M)]
-    ktext = sum(section_sizes(o)[0] + section_sizes(o)[1] for o in objs)
+    # the kernel's and the models' functions and tables the image links (-ffunction-sections,
+    # --gc-sections: an API function the image never calls is not in it), by their symbols
+    nm = ARM_CC.replace("gcc", "nm")
+    names = {line.split()[-1] for o in arm.kernel_objs for line in run_cmd(
+        [nm, "--defined-only", str(o)], "arm-none-eabi-nm").stdout.splitlines()
+        if len(line.split()) == 3}
+    linked = {(f[0], f[3]): int(f[1], 16) for f in (line.split() for line in run_cmd(
+        [nm, "-S", "--defined-only", str(arm.size_elf)], "arm-none-eabi-nm").stdout.splitlines())
+        if len(f) == 4 and f[3] in names}
+    ktext = sum(linked.values())
     stack = max(stack_bound(arm.size_elf, STEP_ROOTS).bytes,
                 stack_bound(arm.size_elf, INIT_ROOTS).bytes)
     return ArmSize(text + data, data + bss + stack, ktext, state_bytes(models), stack)
 
 
-def state_bytes(models: StreamModel | list[StreamModel]) -> int:
+def state_bytes(models: StreamModel | list[StreamModel], even_time: bool = False) -> int:
     """sizeof(fogsf_state) on a 32-bit core for the largest of the models (FOGSF_MAX_* =
-    their maxima): the model pointer, then 4-byte floats/uint32."""
+    their maxima): the model pointer, then 4-byte floats/uint32 (h_prev [H] only in the
+    even-time build: the default build keeps it on the stack of a model step)."""
     models = models if isinstance(models, list) else [models]
     lay = max(m.layers for m in models)
     h = max(m.hidden for m in models)
     f = max(m.n_features for m in models)
     k = max(max(m.n_filters, 1) for m in models)
     p = max(max(m.n_plays, 1) for m in models)
-    # 17 scalars: acc .. started, the held outputs, k and b, the next step's outputs, part
-    return 4 * (1 + 2 * lay * h + h + f + k + p + 17)
+    # 17 scalars: acc .. started, the held outputs, k and b, the next step's outputs, part;
+    # 13 of the run-time check: the model's crc32 and sizes (3), the pass (crc_at, crc_end,
+    # crc_seg, crc_reg), the fault, the verified and candidate outputs (4) and their flags
+    return 4 * (1 + 2 * lay * h + (h if even_time else 0) + f + k + p + 17 + 13)
 
 
 # --- make firmware -------------------------------------------------------------------------

@@ -107,15 +107,17 @@ EVEN_TIME = "-DFOGSF_EVEN_TIME=1"  # the kernel's bounded, even-time build (fogs
 
 
 def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "gcc",
-                 opt: str = "-O2", sanitize: bool = False, even_time: bool = False
-                 ) -> KernelBuild:
+                 opt: str = "-O2", sanitize: bool = False, even_time: bool = False,
+                 extra: tuple[str, ...] = ()) -> KernelBuild:
     """Export the model as C and compile the kernel (cached by model id + sources + flags);
     `even_time`: with FOGSF_EVEN_TIME (the step spread over D samples, branch-free
-    activations; `reference.replay(..., even_time=True)` gives its outputs)."""
+    activations; `reference.replay(..., even_time=True)` gives its outputs); `extra`: flags
+    after the strict ones (a later -std or -ffp-contract overrides theirs), for the tests of
+    what a caller's flags do to the kernel."""
     if shutil.which(cc) is None:
         raise UserError(f"C compiler '{cc}' not found: install gcc (or pass another cc)")
     defines = (*max_defines(model), *((EVEN_TIME,) if even_time else ()))
-    flags = (*STRICT, opt, "-fPIC", *defines, *(SANITIZE if sanitize else ()))
+    flags = (*STRICT, opt, "-fPIC", *defines, *(SANITIZE if sanitize else ()), *extra)
     files = render_model(model, BOUND_NAME)
     header = "".join(files.values())
     # the compiler by its name and a hash of how it was given (a path has slashes)
@@ -164,14 +166,17 @@ def build_kernel(model: StreamModel, root: str | Path | None = None, cc: str = "
     return KernelBuild(out, shared, static, model.model_id, defines)
 
 
-def cdef(model: StreamModel) -> str:
+def cdef(model: StreamModel, even_time: bool = False) -> str:
     """The cffi declarations of fogsf.h for this model's sizes: the header's declarations
     (between its extern "C" guards) without comments and preprocessor lines, with the
-    state's size macros replaced by this model's sizes, so there is one statement of the API;
-    plus the bound model's symbol."""
+    state's size macros replaced by this model's sizes and its `#if FOGSF_EVEN_TIME` members
+    kept for that build only, so there is one statement of the API; plus the bound model's
+    symbol."""
     text = (C_DIR / "fogsf.h").read_text()
     body = text.split('extern "C" {\n#endif\n', 1)[1].split("#ifdef __cplusplus\n}", 1)[0]
     body = re.sub(r"/\*.*?\*/", "", body, flags=re.DOTALL)
+    body = re.sub(r"^#if FOGSF_EVEN_TIME\n(.*?)^#endif\n", lambda m: m[1] if even_time else "",
+                  body, flags=re.DOTALL | re.MULTILINE)
     body = "\n".join(line for line in body.splitlines() if not line.lstrip().startswith("#"))
     sizes = state_sizes(model)
     unknown = set(re.findall(r"\bFOGSF_[A-Z_0-9]+\b", body)) - set(sizes)
@@ -190,7 +195,7 @@ class Kernel:
         self.model = model
         self.build = build or build_kernel(model)
         self.ffi = cffi.FFI()
-        self.ffi.cdef(cdef(model))
+        self.ffi.cdef(cdef(model, EVEN_TIME in self.build.defines))
         self.lib = self.ffi.dlopen(str(self.build.shared))
         self.m = self.ffi.addressof(self.lib, BOUND_NAME)
         got = self.ffi.string(self.m.model_id).decode()
@@ -202,7 +207,7 @@ class Kernel:
 
     def new_state(self):  # noqa: ANN201 - a cffi cdata pointer
         st = self.ffi.new("fogsf_state *")
-        if self.lib.fogsf_init(self.m, st) != 0:
+        if self.lib.fogsf_init(self.m, st, self.ffi.sizeof("fogsf_state")) != 0:
             raise UserError(f"{self.build.shared}: the model does not fit the kernel's state")
         return st
 

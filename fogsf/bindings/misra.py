@@ -8,6 +8,10 @@ rule table below (MISRA C:2012 with Amendments 1 and 2: the addon reports only n
 Fails (exit 1) on any Mandatory or Required finding, on any cppcheck error, on any Advisory
 rule firmware/c/MISRA.md does not record as `Rule N.M`, and where the kernel's sources name a
 plain integer type (Dir 4.6; the addon does not see an `int` used as a boolean, 10.1/14.4).
+Three checks of its own cover Required rules the addon misses (firmware/c/MISRA.md, the
+coverage matrix): parameter names of fogsf.h's prototypes and the definitions (8.3), no
+cast of a parenthesized expression (10.8), and gcc's warnings that map to rules (5.3, 8.2,
+8.4, 9.1, 11.8, 13.2, 16.3, 16.4, 17.3, 17.4, 18.8, 20.9) as errors on the kernel's sources.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from collections import Counter
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from fogsf.bindings.kernel import C_DIR, SOURCES, state_sizes
+from fogsf.bindings.kernel import C_DIR, EVEN_TIME, SOURCES, STRICT, state_sizes
 from fogsf.errors import UserError
 from fogsf.export.header import write_model
 from fogsf.models import samples
@@ -42,6 +46,18 @@ ADVISORY = frozenset({
     "1.2", "2.3", "2.4", "2.5", "2.6", "2.7", "4.2", "5.9", "8.7", "8.9", "8.11", "8.13",
     "10.5", "11.4", "11.5", "12.1", "12.3", "12.4", "13.3", "13.4", "15.1", "15.4", "15.5",
     "17.5", "17.8", "18.4", "18.5", "19.2", "20.1", "20.5", "20.10", "21.12"})
+
+
+# the rules of each chapter and the directives (MISRA C:2012 with Amendments 1 and 2)
+RULES_PER_CHAPTER = {1: 4, 2: 7, 3: 2, 4: 2, 5: 9, 6: 2, 7: 4, 8: 14, 9: 5, 10: 8, 11: 9, 12: 5,
+                     13: 6, 14: 4, 15: 7, 16: 7, 17: 8, 18: 8, 19: 2, 20: 14, 21: 21, 22: 10}
+DIRECTIVES = ("1.1", "2.1", "3.1", *(f"4.{i}" for i in range(1, 15)))
+
+
+def all_rules() -> list[str]:
+    """Every rule ("10.4") and directive ("Dir 4.6") of MISRA C:2012 with Amendments 1, 2."""
+    return ([f"{c}.{i}" for c, n in RULES_PER_CHAPTER.items() for i in range(1, n + 1)]
+            + [f"Dir {d}" for d in DIRECTIVES])
 
 
 def category(rule: str) -> str:
@@ -130,10 +146,114 @@ def plain_integer_lines(paths: list[Path]) -> list[Finding]:
 
 
 def recorded_rules(md: Path = MISRA_MD) -> set[str]:
-    """The Advisory rules firmware/c/MISRA.md records (`Rule N.M` / `Dir N.M`)."""
+    """The rules firmware/c/MISRA.md records as kept: its bullets `- **Rule N.M**` and
+    `- **Dir N.M**` (the coverage matrix and the prose name rules without recording them)."""
     text = md.read_text() if md.is_file() else ""
-    return ({m for m in re.findall(r"\bRule (\d+\.\d+)\b", text)}
-            | {f"Dir {m}" for m in re.findall(r"\bDir (\d+\.\d+)\b", text)})
+    return ({m for m in re.findall(r"^- \*\*Rule (\d+\.\d+)\*\*", text, flags=re.M)}
+            | {f"Dir {m}" for m in re.findall(r"^- \*\*Dir (\d+\.\d+)\*\*", text, flags=re.M)})
+
+
+MATRIX_ROW = re.compile(r"^\| ((?:Dir )?\d+\.\d+) \| (\w+) \| ([^|]+?) \|", re.M)
+
+
+def matrix_problems(md: Path = MISRA_MD) -> list[str]:
+    """Where MISRA.md's coverage matrix falls short: a Required or Mandatory rule it does not
+    list, a row whose category is not the rule's, or one that says nothing checks it."""
+    text = md.read_text() if md.is_file() else ""
+    rows = {m[1]: (m[2], m[3].strip()) for m in MATRIX_ROW.finditer(text)}
+    out = []
+    for rule in all_rules():
+        cat = category(rule)
+        if cat == "Advisory":
+            continue
+        if rule not in rows:
+            out.append(f"{cat} rule {rule} missing from {md.name}'s coverage matrix")
+        elif rows[rule][0] != cat or not rows[rule][1]:
+            out.append(f"{md.name}'s coverage matrix: rule {rule} is {cat}, checked by "
+                       f"something: row says {rows[rule]}")
+    return out
+
+
+def _code(path: Path) -> str:
+    """The file without its comments (newlines kept, so line numbers hold)."""
+    return re.sub(r"/\*.*?\*/", lambda m: "\n" * m[0].count("\n"), path.read_text(),
+                  flags=re.DOTALL)
+
+
+def _params(text: str) -> list[str]:
+    """The parameter names of a C parameter list (`void`: none)."""
+    names = []
+    for p in text.split(","):
+        words = re.findall(r"\w+", p.split("[")[0])
+        if words and words != ["void"]:
+            names.append(words[-1])
+    return names
+
+
+FUNC_DECL = re.compile(r"^[\w \*]*?\b(\w+)\(([^()]*)\);", re.M)
+FUNC_DEF = re.compile(r"^[\w \*]*?\b(\w+)\(([^()]*)\)\s*\{", re.M)
+
+
+def parameter_names(header: Path, sources: list[Path]) -> list[Finding]:
+    """Rule 8.3: each function fogsf.h declares has, where a source defines it, the same
+    parameter names (the addon leaves this to cppcheck's style checks, which `make misra`
+    does not run)."""
+    declared = {m[1]: _params(m[2]) for m in FUNC_DECL.finditer(_code(header))}
+    out = []
+    for path in sources:
+        code = _code(path)
+        for m in FUNC_DEF.finditer(code):
+            if m[1] in declared and _params(m[2]) != declared[m[1]]:
+                out.append(Finding(path.name, code[:m.start()].count("\n") + 1, "8.3",
+                                   "Required", f"{m[1]}: parameters {_params(m[2])} where "
+                                   f"{header.name} declares {declared[m[1]]}"))
+    return out
+
+
+CAST_OF_EXPRESSION = re.compile(
+    r"\(\s*(?:const\s+)?(?:u?int(?:8|16|32|64)_t|float|double|size_t|bool)\s*\)\s*\(")
+
+
+def composite_casts(paths: list[Path]) -> list[Finding]:
+    """Rule 10.8 made strict: no cast of a parenthesized expression in the kernel (a composite
+    expression is computed in a variable of its own type, and the variable cast), which the
+    addon misses for a float expression cast to int32_t."""
+    out = []
+    for path in paths:
+        for no, line in enumerate(_code(path).splitlines(), 1):
+            if CAST_OF_EXPRESSION.search(line):
+                out.append(Finding(path.name, no, "10.8", "Required",
+                                   f"a cast of a parenthesized expression: {line.strip()}"))
+    return out
+
+
+# gcc's warnings that check a MISRA rule (or part of one) the addon does not, as errors
+WARNING_RULES = {"-Wshadow": "5.3", "-Wstrict-prototypes": "8.2", "-Wold-style-definition": "8.2",
+                 "-Wmissing-prototypes": "8.4", "-Wuninitialized": "9.1",
+                 "-Wmaybe-uninitialized": "9.1", "-Wcast-qual": "11.8",
+                 "-Wsequence-point": "13.2", "-Wimplicit-fallthrough": "16.3",
+                 "-Wswitch-default": "16.4", "-Wimplicit-function-declaration": "17.3",
+                 "-Wreturn-type": "17.4", "-Wvla": "18.8", "-Wundef": "20.9"}
+
+
+def compiler_warnings(cc: str = "gcc") -> list[Finding]:
+    """The kernel's sources compiled with the strict flags and WARNING_RULES as errors, in
+    the default and the even-time build: each warning a finding of its rule."""
+    if shutil.which(cc) is None:
+        return [Finding("-", 0, f"{cc}-missing", "cppcheck", f"{cc} not found")]
+    out = []
+    for extra in ((), (EVEN_TIME,)):
+        for name in SOURCES:
+            proc = subprocess.run([cc, *STRICT, "-O2", *WARNING_RULES, *extra, "-I", str(C_DIR),
+                                   "-fsyntax-only", str(C_DIR / name)],
+                                  capture_output=True, text=True)
+            for m in re.finditer(r"^[^\n:]*:(\d+):\d+: (?:error|warning): (.*?)\[(-W[\w=-]+)\]",
+                                 proc.stderr, flags=re.M):
+                rule = WARNING_RULES.get(m[3].replace("-Werror=", "-W"), m[3])
+                out.append(Finding(name, int(m[1]), rule, category(rule), m[2].strip()))
+            if proc.returncode != 0 and not out:
+                out.append(Finding(name, 0, "compile", "cppcheck", proc.stderr[-500:]))
+    return out
 
 
 def check(out: Path, extra: list[Path] = ()) -> tuple[list[Finding], list[str]]:
@@ -155,12 +275,17 @@ def check(out: Path, extra: list[Path] = ()) -> tuple[list[Finding], list[str]]:
                                          {**sizes, "FOGSF_EVEN_TIME": 1}, [C_DIR], out)
                  if (f.file, f.line, f.rule) not in seen]
     findings += plain_integer_lines([C_DIR / n for n in (*SOURCES, *KERNEL_HEADERS)])
+    kernel = [C_DIR / n for n in (*SOURCES, *KERNEL_HEADERS)]
+    findings += parameter_names(C_DIR / "fogsf.h", kernel)
+    findings += composite_casts(kernel)
+    findings += compiler_warnings()
     problems = [f"{f.file}:{f.line}: {f.category} {'rule ' if f.category != 'cppcheck' else ''}"
                 f"{f.rule}: {f.message}" for f in findings
                 if f.category in ("Mandatory", "Required", "cppcheck")]
     recorded = recorded_rules()
     for rule in sorted({f.rule for f in findings if f.category == "Advisory"} - recorded):
         problems.append(f"Advisory rule {rule} found but not recorded in {MISRA_MD.name}")
+    problems += matrix_problems()
     return findings, problems
 
 

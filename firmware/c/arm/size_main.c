@@ -19,10 +19,10 @@ int main(void)
     fogsf_output out;
     uint32_t i, a;
 #if defined(FOGSF_BENCH_SELFTEST)
-    probe_selftest = fogsf_selftest(&states[0]);
+    probe_selftest = fogsf_selftest(&states[0], sizeof states[0]);
 #endif
     for (a = 0; a < IMAGE_N_MODELS; ++a) {
-        (void)fogsf_init(models[a], &states[a]);
+        (void)fogsf_init(models[a], &states[a], sizeof states[a]);
     }
     for (i = 0; i < probe_samples; ++i) {
         for (a = 0; a < IMAGE_N_MODELS; ++a) {

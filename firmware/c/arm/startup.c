@@ -85,3 +85,47 @@ void *memcpy(void *d, const void *s, size_t n)
     }
     return d;
 }
+
+/* clang calls the ARM run-time ABI's forms (newlib has them; this image links no libc) */
+void __aeabi_memclr(void *s, size_t n);
+void __aeabi_memclr4(void *s, size_t n);
+void __aeabi_memclr8(void *s, size_t n);
+void __aeabi_memset(void *s, size_t n, int c);
+void __aeabi_memset4(void *s, size_t n, int c);
+void __aeabi_memcpy(void *d, const void *s, size_t n);
+void __aeabi_memcpy4(void *d, const void *s, size_t n);
+
+void __aeabi_memclr(void *s, size_t n)
+{
+    (void)memset(s, 0, n);
+}
+
+void __aeabi_memclr4(void *s, size_t n)
+{
+    (void)memset(s, 0, n);
+}
+
+void __aeabi_memclr8(void *s, size_t n)
+{
+    (void)memset(s, 0, n);
+}
+
+void __aeabi_memset(void *s, size_t n, int c)
+{
+    (void)memset(s, c, n);
+}
+
+void __aeabi_memset4(void *s, size_t n, int c)
+{
+    (void)memset(s, c, n);
+}
+
+void __aeabi_memcpy(void *d, const void *s, size_t n)
+{
+    (void)memcpy(d, s, n);
+}
+
+void __aeabi_memcpy4(void *d, const void *s, size_t n)
+{
+    (void)memcpy(d, s, n);
+}

@@ -91,7 +91,7 @@ static void check(uint32_t refused, const fogsf_output *out)
     const float b = out->bias_dph < 0.0f ? -out->bias_dph : out->bias_dph;
     ++steps;
     if (!finite_f(out->corrected_dps) || !finite_f(out->sf_ppm) || !(sf <= FOGSF_SF_LIMIT_PPM) ||
-        !(b <= FOGSF_BIAS_LIMIT_DPH) || (out->flags & ~127u) != 0u) {
+        !(b <= FOGSF_BIAS_LIMIT_DPH) || (out->flags & ~FOGSF_FLAGS_ALL) != 0u) {
         fprintf(stderr, "totality violated: corrected %g sf %g flags %u\n",
                 (double)out->corrected_dps,
                 (double)out->sf_ppm, (unsigned)out->flags);
@@ -108,7 +108,7 @@ static void run_samples(const fogsf_model *m, reader *r)
 {
     fogsf_state st;
     fogsf_output out;
-    const uint32_t refused = fogsf_init(m, &st);
+    const uint32_t refused = fogsf_init(m, &st, sizeof st);
     while (r->at < r->n) {
         const float t = next_f32(r);
         const float g = next_gyro(r);

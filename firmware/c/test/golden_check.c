@@ -118,7 +118,15 @@ unsigned long fogsf_golden_check(fogsf_puts_fn out)
         out("FAIL: vectors are for model " FOGSF_GOLDEN_MODEL_ID "\n");
         return 1u;
     }
-    (void)fogsf_init(FOGSF_GOLDEN_MODEL, &state);
+    /* the power-on self-test of this build (the flags it was compiled with) first */
+    {
+        const uint32_t st = fogsf_selftest(&state, sizeof state);
+        out("selftest ");
+        put_uint(out, (unsigned long)st);
+        out(st == 0u ? " (the reference's bits)\n" : " (FAIL: this build's arithmetic differs)\n");
+        bad += (st != 0u) ? 1u : 0u;
+    }
+    (void)fogsf_init(FOGSF_GOLDEN_MODEL, &state, sizeof state);
     for (i = 0; i < FOGSF_GOLDEN_N; ++i) {
         fogsf_step(FOGSF_GOLDEN_MODEL, &state, temp_of(i), gyro_of(i), &o);
         bad = compare(out, "step", i, o.sf_ppm, o.corrected_dps, o.flags, bad);
@@ -142,7 +150,7 @@ unsigned long fogsf_golden_check(fogsf_puts_fn out)
 #endif
     }
     /* fogsf_run over the log in chunks, the state carried from one to the next */
-    (void)fogsf_reset(FOGSF_GOLDEN_MODEL, &state);
+    (void)fogsf_reset(FOGSF_GOLDEN_MODEL, &state, sizeof state);
     for (i = 0; i < FOGSF_GOLDEN_N; i += GOLDEN_CHUNK) {
         unsigned long j, n = FOGSF_GOLDEN_N - i < GOLDEN_CHUNK ? FOGSF_GOLDEN_N - i : GOLDEN_CHUNK;
         for (j = 0; j < n; ++j) {

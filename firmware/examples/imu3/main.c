@@ -34,7 +34,7 @@ int main(void)
     char line[48];
     uint32_t i, a, bad = 0u;
     for (a = 0; a < 3u; ++a) {
-        bad |= fogsf_init(models[a], &states[a]);
+        bad |= fogsf_init(models[a], &states[a], sizeof states[a]);
     }
     for (i = 0; i < IMU3_SAMPLES; ++i) {
         for (a = 0; a < 3u; ++a) {
