@@ -9,10 +9,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from kernel_helpers import FLAGS, first_plausible, kernel_for, replay_from_power_on
+from kernel_helpers import FLAGS, kernel_for
 
 from fogsf.bindings.kernel import Kernel, build_kernel
 from fogsf.models import reference, samples
+from fogsf.models import stream_flags as sf
 
 UNPRIMED, INVALID = FLAGS["TEMP_UNPRIMED"], FLAGS["TEMP_INVALID"]
 NAN = float("nan")
@@ -52,7 +53,7 @@ def test_an_implausible_start_waits_for_a_plausible_temperature(start, even_time
     temp = np.concatenate([head, temp])
     gyro = np.concatenate([np.full(head.size, 7.5, np.float32), gyro])
     i0 = head.size
-    assert first_plausible(temp) == i0
+    assert reference.first_plausible(temp) == i0
     corrected, sf, bias, flags = kernel.run_bias(temp, gyro)
     # before it: the flag on every sample (with TEMP_INVALID where not finite), no correction
     want_head = np.where(np.isfinite(head), UNPRIMED, UNPRIMED | INVALID)
@@ -63,7 +64,7 @@ def test_an_implausible_start_waits_for_a_plausible_temperature(start, even_time
     for got, want in zip((corrected, sf, bias, flags), clean, strict=True):
         assert got[i0:].tobytes() == want.tobytes()
     assert not (flags[i0:] & UNPRIMED).any()
-    ref = replay_from_power_on(model, temp, gyro, even_time=even_time)
+    ref = reference.replay(model, temp, gyro, even_time=even_time)
     assert corrected.tobytes() == ref.corrected_dps.tobytes()
     assert sf.tobytes() == ref.sf_ppm.tobytes() and bias.tobytes() == ref.bias_dph.tobytes()
     assert np.array_equal(flags, ref.flags)
@@ -82,7 +83,7 @@ def test_the_error_after_85c_is_that_of_a_clean_start_not_a_primed_85(kroot) -> 
     _, sf, flags = kernel.run(temp85, gyro85)
     _, sf_clean, _ = kernel.run(temp, gyro)
     assert flags[0] == UNPRIMED and sf[1:].tobytes() == sf_clean.tobytes()
-    old = reference.replay(model, temp85, gyro85)  # the filters primed at t_max
+    old = reference.replay_primed(model, temp85, gyro85)  # the filters primed at t_max
     assert old.flags[0] & FLAGS["TEMP_CLAMPED"] and not (old.flags[1:] & UNPRIMED).any()
     assert np.max(np.abs(old.sf_ppm[1:] - sf_clean)) > 1.0  # the prime's error it removes
 
@@ -119,3 +120,13 @@ def test_no_plausible_temperature_at_all_keeps_the_flag_and_finite_outputs(kroot
     bad_gyro = ~np.isfinite(gyro)
     assert (flags[bad_gyro] & FLAGS["GYRO_INVALID"]).all() and not corrected[bad_gyro].any()
     assert corrected[~bad_gyro].tolist() == gyro[~bad_gyro].tolist()
+
+
+def test_the_reference_holds_the_kernels_flags_and_rule() -> None:
+    """stream_flags' values and the power-on rule's constants are the header's."""
+    for value, name in sf.FLAG_NAMES.items():
+        assert FLAGS[name] == value, name
+    header = (Path(__file__).resolve().parents[1] / "firmware" / "c" / "fogsf.h").read_text()
+    assert "FOGSF_TEMP_PLAUSIBLE_MIN_C (-55.0f)" in header and sf.PLAUSIBLE_C == (-55.0, 125.0)
+    assert "FOGSF_TEMP_PLAUSIBLE_MAX_C 125.0f" in header
+    assert "FOGSF_TEMP_POWER_ON_C 85.0f" in header and sf.POWER_ON_C == 85.0

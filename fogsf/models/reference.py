@@ -29,6 +29,9 @@ from fogsf.models.stream_flags import (
     FLAG_TEMP_CLAMPED,
     FLAG_TEMP_INVALID,
     FLAG_TEMP_STUCK,
+    FLAG_TEMP_UNPRIMED,
+    PLAUSIBLE_C,
+    POWER_ON_C,
     SF_LIMIT_PPM,
 )
 
@@ -339,11 +342,44 @@ class ReplayOut(NamedTuple):
     bias_dph: np.ndarray | None = None  # [N] float32, held (0 without a bias head)
 
 
+def first_plausible(temp_c: np.ndarray) -> int:
+    """Index of the first temperature the kernel primes its filters with (the power-on rule:
+    finite, within PLAUSIBLE_C, not POWER_ON_C); len(temp_c) if none."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        t = np.asarray(temp_c, dtype=np.float32)
+        ok = ((t >= np.float32(PLAUSIBLE_C[0])) & (t <= np.float32(PLAUSIBLE_C[1]))
+              & (t != np.float32(POWER_ON_C)))
+    hits = np.flatnonzero(ok)
+    return int(hits[0]) if hits.size else int(t.shape[0])
+
+
 def replay(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray,
            even_time: bool = False) -> ReplayOut:
     """The whole contract per sample from reset: what the C kernel returns, bit for bit
     (`even_time`: what a kernel built with FOGSF_EVEN_TIME returns, the same step outputs
-    held D samples later, `expand_late`)."""
+    held D samples later, `expand_late`). Before the first plausible temperature the gyro
+    passes as it is (sf 0, bias 0, TEMP_UNPRIMED); from it on, a clean start there."""
+    i0 = first_plausible(temp_c)
+    if i0 == 0:
+        return replay_primed(model, temp_c, gyro_dps, even_time)
+    with np.errstate(over="ignore", invalid="ignore"):
+        t = np.asarray(temp_c, dtype=np.float32)
+        g = np.asarray(gyro_dps, dtype=np.float64).astype(np.float32)
+    head, gflags = correct(g[:i0], np.zeros(i0, np.float32))
+    head_flags = (np.uint32(FLAG_TEMP_UNPRIMED) | gflags
+                  | np.where(np.isfinite(t[:i0]), 0, FLAG_TEMP_INVALID).astype(np.uint32))
+    rest = replay_primed(model, t[i0:], g[i0:], even_time)
+    zeros = np.zeros(i0, np.float32)
+    return ReplayOut(np.concatenate([head, rest.corrected_dps]),
+                     np.concatenate([zeros, rest.sf_ppm]),
+                     np.concatenate([head_flags, rest.flags]).astype(np.uint32),
+                     np.concatenate([zeros, rest.bias_dph]))
+
+
+def replay_primed(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray,
+                  even_time: bool = False) -> ReplayOut:
+    """The contract with the filters primed at the first sample whatever it holds (`replay`
+    from its first plausible temperature on; what a kernel without the power-on rule did)."""
     fe = frontend(temp_c, model.front_end)
     steps = run_steps(model, fe.s)
     n = fe.flags.shape[0]
