@@ -23,11 +23,11 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs.read.dialect import MAPPING_FILES
-from fogsf.logs.writer import write_rows
 from fogsf.sim.config import ProfileConfig, SimConfig, TableConfig
 from fogsf.sim.gyro import SimResult, simulate
 from fogsf.sim.profiles import chamber_series
 from fogsf.sim.rigs.chambers import Chamber, bang_bang
+from fogsf.sim.rigs.rig_logs import write_csv
 from fogsf.sim.rigs.schedules import Step, schedule_s, slew
 
 SET_POINTS_C = (36.0, 43.0, 50.0, 57.0)  # the heated-box range of the issue's real FOG
@@ -199,15 +199,6 @@ def plateau_table(run: PlateauRun) -> PlateauTable:
     return PlateauTable(cols, float(earth.flat[0]), truth)
 
 
-def _write_csv(path: Path, cols: dict[str, np.ndarray], fmts: list[str]) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()])
-    with open(path, "w", encoding="utf-8", newline="\n") as f:
-        f.write(",".join(cols) + "\n")
-        write_rows(f, data, fmts)
-    return path
-
-
 def mapping_text(table: PlateauTable) -> str:
     """fogsf-columns.toml for the table: the layout, which instant time_s gives (a plateau's
     start), the earth rate (the table's columns have the format's names: no rename)."""
@@ -221,7 +212,7 @@ def mapping_text(table: PlateauTable) -> str:
 
 def write_plateau_table(path: str | Path, table: PlateauTable) -> tuple[Path, Path]:
     """The table as CSV (COLUMNS) and fogsf-columns.toml beside it: (table, map)."""
-    out = _write_csv(Path(path), table.columns, list(FORMATS))
+    out = write_csv(Path(path), table.columns, list(FORMATS))
     toml = Path(out.parent) / next(n for n in MAPPING_FILES if n.endswith(".toml"))
     toml.write_text(mapping_text(table), encoding="utf-8")
     return out, toml
@@ -229,4 +220,4 @@ def write_plateau_table(path: str | Path, table: PlateauTable) -> tuple[Path, Pa
 
 def write_plateau_truth(path: str | Path, table: PlateauTable) -> Path:
     """The truth per plateau (TRUTH_COLUMNS) as CSV; keep it out of the table's folder."""
-    return _write_csv(Path(path), table.truth, ["%.3f", "%.10g", "%.10g", "%.12g", "%.6f"])
+    return write_csv(Path(path), table.truth, ["%.3f", "%.10g", "%.10g", "%.12g", "%.6f"])

@@ -21,7 +21,7 @@ from fogsf.sim.rigs.rig_logs import (
     ColumnMap,
     RigLog,
     _one_axis,
-    _write_csv,
+    write_csv,
     write_mapping,
 )
 
@@ -166,7 +166,7 @@ def write_bursts(path: str | Path, run: RigRun, burst_s: float = 5.0,
     t = run.stamp_s
     keep = np.mod(t - t[0] + 1e-9, every_s) < burst_s - 1e-9
     cols = {"time": EPOCH_S + t[keep], "temp": ax.temp_c[keep], "rate": ax.gyro_dps[keep]}
-    out = _write_csv(path, cols, ["%.6f", "%.10g", "%.12g"])
+    out = write_csv(path, cols, ["%.6f", "%.10g", "%.12g"])
     cmap: ColumnMap = {"time_s": "time", "temp_c": "temp", "gyro_dps": "rate",
                        "table_rate_dps": 0,
                        "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine)}

@@ -50,7 +50,8 @@ class RigLog:
     mapping_path: Path | None = None
 
 
-def _write_csv(path: str | Path, cols: dict[str, np.ndarray], fmts: list[str]) -> Path:
+def write_csv(path: str | Path, cols: dict[str, np.ndarray], fmts: list[str]) -> Path:
+    """`cols` as a CSV with a header row, each column in its printf format (the rigs' writer)."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     data = np.column_stack([np.asarray(v, dtype=np.float64) for v in cols.values()])
@@ -84,7 +85,7 @@ def write_ros(path: str | Path, run: RigRun, steps_per_rev: float = STEPS_PER_RE
             "gyro_raw": ax.gyro_dps / DEG_PER_RAD, "gyro_temp": ax.temp_c,
             "rig_rate": run.command_dps * steps_per_rev / 360.0,
             "rig_heating": run.heating, "rig_enabled": run.enabled, "rig_stalled": run.stalled}
-    out = _write_csv(path, cols, ["%d", "%d", "%.12g", "%.10g", "%.12g", "%d", "%d", "%d"])
+    out = write_csv(path, cols, ["%d", "%d", "%.12g", "%.10g", "%.12g", "%d", "%d", "%d"])
     cmap: ColumnMap = {
         "time_s": "sec + nanosec * 1e-9",
         "temp_c": "gyro_temp",
@@ -111,7 +112,7 @@ def write_plain(path: str | Path, run: RigRun, gyro_unit: str = "rad/s",
             "gyro_rad_s" if rad else "gyro_dps": ax.gyro_dps / DEG_PER_RAD if rad
             else ax.gyro_dps,
             "earth_rate_dps": ax.result.log.earth_rate_dps, "valid": run.measures}
-    out = _write_csv(path, cols, ["%.6f", "%.10g", "%.12g", "%.12g", "%.10g", "%d"])
+    out = write_csv(path, cols, ["%.6f", "%.10g", "%.12g", "%.12g", "%.10g", "%d"])
     cmap: ColumnMap = {"gyro_dps": f"gyro_rad_s * {DEG_PER_RAD!r}"} if rad else {}
     return RigLog(out, cmap, {"": run.truth(_one_axis(run), epoch_s)},
                   write_mapping(out.parent, cmap) if mapping and cmap else None)
@@ -131,7 +132,7 @@ def write_imu3(path: str | Path, run: RigRun, epoch_s: float = EPOCH_S,
     cols.update({f"temp_{a}_c": run.axes[a].temp_c for a in names})
     cols["valid"] = run.measures
     fmts = ["%.6f", "%.10g", "%.12g", *["%.12g"] * len(names), *["%.10g"] * len(names), "%d"]
-    out = _write_csv(path, cols, fmts)
+    out = write_csv(path, cols, fmts)
     cmap: ColumnMap = {}
     for a in names:
         cmap[f"table_rate_{a}_dps"] = f"table_rate_dps * {run.axes[a].cosine!r}"
@@ -146,7 +147,7 @@ def write_truth(path: str | Path, truth: Truth) -> Path:
     """One axis' truth as CSV (for benches; keep it out of a folder of logs)."""
     cols = truth.columns()
     fmts = ["%.6f", *["%.12g"] * (len(cols) - 2), "%d"]
-    return _write_csv(path, cols, fmts)
+    return write_csv(path, cols, fmts)
 
 
 def _one_axis(run: RigRun) -> str:
