@@ -157,3 +157,17 @@ def test_a_clock_reset_starts_a_segment(tmp_path: Path) -> None:
     assert lg.time_s[b] == pytest.approx(59.9 + 3600.0)
     assert np.all(lg.temp_c[600:b] == 26.0)  # states restart at the next segment's start
     assert any("clock reset" in n and "line 602" in n for n in lg.read_notes)
+
+
+def test_a_burst_log_takes_its_windows_from_the_bursts_unless_told(tmp_path: Path,
+                                                                    capsys) -> None:
+    """No --window-s: 5 s bursts every 2 min are 5 s windows, one a burst, said on stderr;
+    a --window-s given is kept (and a window longer than a burst measures nothing)."""
+    rl = burst_log(tmp_path, 20011, 5)
+    assert main(["train", "--train", str(rl.path), "--out", str(tmp_path / "m")]) == 0
+    err = capsys.readouterr().err
+    assert "written in bursts of 5 s: windows of 5 s, one a burst" in err
+    m = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    assert m["bias"]["train"]["log0"]["windows"] == 30
+    assert main(["inspect", str(rl.path), "--window-s", "100"]) == 2
+    assert "written in bursts" not in capsys.readouterr().err

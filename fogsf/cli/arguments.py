@@ -9,6 +9,7 @@ from fogsf.logs.measure.sf_reference import forget_notes
 from fogsf.logs.read import stream_read
 from fogsf.logs.read.columns import Spill
 from fogsf.logs.read.dialect import DELIMITERS, Dialect
+from fogsf.logs.read.sampling import burst_window_s
 
 
 def _number(text: str) -> float:
@@ -46,11 +47,17 @@ def non_negative_float(text: str) -> float:
     return v
 
 
+class DefaultWindow(float):
+    """--window-s's default, told from a value the user gave: a log written in bursts
+    shorter than it takes its windows from the bursts (`read_logs`)."""
+
+
 def add_metric_options(parser: argparse.ArgumentParser, skip: bool = False) -> None:
     """--window-s, --settle-s and --latitude-deg (with `skip`, --skip-s too), as every
     command that measures SF error takes them (docs/logs.md, "What the figures mean")."""
-    parser.add_argument("--window-s", type=positive_float, default=100.0,
-                        help="SF window length in seconds for the metrics (default 100): a "
+    parser.add_argument("--window-s", type=positive_float, default=DefaultWindow(100.0),
+                        help="SF window length in seconds for the metrics (default 100; a "
+                             "log written in shorter bursts: a burst's length): a "
                              "table-rate plateau is cut into windows of this length; a "
                              "shorter plateau (from 5 s) is one window")
     parser.add_argument("--settle-s", type=non_negative_float, default=2.0,
@@ -156,12 +163,18 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
                         "replay and export: every axis of the log in one run (docs/train.md)")
     g.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                    help="the log's sample rate, 1 .. 4000 Hz (default: from the median step "
-                        "of time_s, which must lie within 20 %% of 1/HZ)")
+                        "of time_s, which must lie within 20 %% of 1/HZ); time stamps rounded "
+                        "coarser than the rows (a 10 Hz logger printing whole seconds) are "
+                        "then replaced by the first stamp + row / HZ")
     g.add_argument("--max-gap-s", type=positive_float, default=None, metavar="S",
                    help="a step of time_s longer than S seconds is a gap: the log is then "
                         "segments, the gap filled with rows that measure nothing (default: "
                         "1 s, or 10 samples under 10 Hz); shorter steps are jitter or "
                         "dropped samples, kept as logged")
+    g.add_argument("--allow-clock-offset", action="store_true",
+                   help="join a stream ([join.NAME]) whose clock lies whole hours off the "
+                        "log's as it is (default: refused as a time zone read as UTC; "
+                        "tz = \"Europe/Berlin\" in the join puts a local clock on UTC)")
     g.add_argument("--gap-states", choices=("carry", "restart"), default="carry",
                    help="how a model's states cross a gap: carry (default: the gyro stayed "
                         "on, the temperature interpolated over the gap) or restart (it was "
@@ -189,7 +202,8 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.read.dia
                    sample_rate_hz=getattr(args, "sample_rate_hz", None), axis=axis,
                    joins=joins, max_gap_s=getattr(args, "max_gap_s", None),
                    gap_states=getattr(args, "gap_states", None) or "carry", stream=stream,
-                   layout=layout)
+                   layout=layout,
+                   allow_clock_offset=getattr(args, "allow_clock_offset", False))
 
 
 def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel
@@ -225,6 +239,7 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
     given = getattr(args, "axis_cosine", None)
     cosine = cosine_for(given, dialect.axis)
     ref_temp = getattr(args, "ref_temp_c", None)
+    _windows_from_bursts(args, logs)
     for lg in logs:
         lg.axis_cosine = cosine
         if ref_temp is not None:
@@ -235,6 +250,23 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
         if lg.read_notes:
             print(f"fogsf: read {lg.path}: {'; '.join(lg.read_notes)}", file=sys.stderr)
     return logs
+
+
+def _windows_from_bursts(args: argparse.Namespace, logs: list) -> None:
+    """--window-s not given and every log written in bursts shorter than the default: the
+    windows are the bursts (the shortest log's), said on stderr."""
+    import sys
+
+    given = getattr(args, "window_s", None)
+    if not isinstance(given, DefaultWindow) or not logs:
+        return
+    bursts = [burst_window_s(lg.extra.get("logged"), lg.sample_dt_s, float(given))
+              for lg in logs]
+    if any(b is None for b in bursts):
+        return
+    args.window_s = min(b for b in bursts if b is not None)
+    print(f"fogsf: the logs are written in bursts of {args.window_s:g} s: windows of "
+          f"{args.window_s:g} s, one a burst (--window-s to choose)", file=sys.stderr)
 
 
 def progress_bar(desc: str, unit: str):  # noqa: ANN201 - a callable (done, total) or None

@@ -30,6 +30,7 @@ from fogsf.logs.mapping.joins import apply_joins
 from fogsf.logs.read.columns import Column, blocks, col_max, col_min, derived, is_lazy
 from fogsf.logs.read.dialect import Dialect
 from fogsf.logs.read.sampling import default_max_gap_s, mend_segments, survey
+from fogsf.logs.read.stamps import rounded_stamps
 
 
 def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
@@ -44,10 +45,11 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
     """Our columns (in memory or on disk) as a validated ChamberLog: exact duplicate rows
     dropped, other files joined on its clock, its gaps and resets mended into segments
     (logs/read/sampling.py), then checked."""
-    cols = without_duplicates(cols, notes)
-    cols, _ = apply_joins(cols, dialect.joins, path, notes)
     if dialect.sample_rate_hz is not None:
         check_rate_hz(dialect.sample_rate_hz)
+    cols = rounded_stamps(cols, path, dialect.sample_rate_hz, notes)
+    cols = without_duplicates(cols, notes)
+    cols, _ = apply_joins(cols, dialect.joins, path, notes, dialect.allow_clock_offset)
     t = cols["time_s"]
     nominal = (1.0 / dialect.sample_rate_hz if dialect.sample_rate_hz is not None
                else nominal_step_s(t))
@@ -197,6 +199,9 @@ def check_rate_range(nominal: float, path: str) -> None:
     """Refuse a median step outside RATE_RANGE_HZ (+/- RATE_SLACK): time_s not in seconds."""
     lo_hz, hi_hz = RATE_RANGE_HZ
     slack = 1.0 + RATE_SLACK  # a device clock a little off its nominal rate
+    if not nominal > 0.0:  # NaN or a step back: time_s mostly decreasing
+        raise LogError(path, None, "time not increasing",
+                       f"the median step of time_s is {nominal:.6g} s: time_s must increase")
     if not 1.0 / (hi_hz * slack) <= nominal <= slack / lo_hz:
         raise LogError(path, None, "sample rate out of range",
                        f"the median step of time_s is {nominal:.6g} s "

@@ -7,9 +7,10 @@ import math
 from dataclasses import dataclass
 
 from fogsf.errors import UserError
+from fogsf.logs.mapping.time_zone import parse_tz
 
 HOW = ("interpolate", "hold")
-JOIN_KEYS = ("file", "stream", "time_s", "how", "max_gap_s")
+JOIN_KEYS = ("file", "stream", "time_s", "how", "max_gap_s", "tz")
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,7 @@ class Join:
     max_gap_s: float | None = None
     origin: str = ""
     stream: str | None = None  # a topic, message or group of the same field-format file
+    tz: str | None = None  # its time_s is local time in this zone (logs/mapping/time_zone.py)
 
 
 def joins_of(table: object, origin: str, is_ours) -> tuple[Join, ...]:  # noqa: ANN001
@@ -52,6 +54,9 @@ def joins_of(table: object, origin: str, is_ours) -> tuple[Join, ...]:  # noqa: 
         if gap is not None and (isinstance(gap, bool) or not isinstance(gap, int | float)
                                 or not math.isfinite(gap) or gap <= 0):
             raise UserError(f"{where}: max_gap_s = {gap!r}; expected seconds > 0")
+        tz = t.get("tz")
+        if tz is not None:
+            parse_tz(tz, where)
         cols = []
         for ours, theirs in t.items():
             if ours in JOIN_KEYS:
@@ -65,7 +70,7 @@ def joins_of(table: object, origin: str, is_ours) -> tuple[Join, ...]:  # noqa: 
         if not cols:
             raise UserError(f"{where}: names no column to join (e.g. temp_c = \"board_T\")")
         out.append(Join(str(name), t.get("file", ""), t["time_s"], tuple(cols), how,
-                        None if gap is None else float(gap), origin, stream))
+                        None if gap is None else float(gap), origin, stream, tz))
     return tuple(out)
 
 

@@ -24,6 +24,7 @@ from fogsf.errors import UserError
 from fogsf.logs.chamber_log import LogError, time_text
 from fogsf.logs.mapping.column_map import plan_map, with_kinds
 from fogsf.logs.mapping.join_spec import Join
+from fogsf.logs.mapping.time_zone import local_to_utc, parse_tz, whole_hours_off
 from fogsf.logs.read.cell_kinds import numeric_cells, row_kinds
 from fogsf.logs.read.columns import Column
 from fogsf.logs.read.dialect import Dialect, find_delimiter, raw_header
@@ -146,10 +147,27 @@ class JoinReport:
                 "time_s, or a counter that wrapped before the first row?)")
 
 
+def zone_check(j: Join, path: str, start_off_s: float, end_off_s: float) -> None:
+    """Refuse a stream whose both ends lie the same whole number of hours (within
+    CLOCK_CHECK_S) off the log's: a local time read as UTC, or a zone given wrong."""
+    h = whole_hours_off(start_off_s, end_off_s, CLOCK_CHECK_S)
+    if h is None:
+        return
+    raise UserError(
+        f"{path}: [join.{j.name}] ({j.origin}): time zone: the stream's clock is {h:+d} h off "
+        f"the log's at both ends ({start_off_s:+.1f} s, {end_off_s:+.1f} s): local time read "
+        f"as UTC? give its zone in [join.{j.name}]: tz = \"Europe/Berlin\" (or an offset, "
+        f"\"{'+' if h > 0 else '-'}{abs(h):02d}:00\"), or --allow-clock-offset to join it as "
+        "it is")
+
+
 def apply_joins(cols: dict[str, Column], joins: tuple[Join, ...], path: str,
-                notes: list[str]) -> tuple[dict[str, Column], list[JoinReport]]:
+                notes: list[str], allow_clock_offset: bool = False
+                ) -> tuple[dict[str, Column], list[JoinReport]]:
     """The main log's columns with each join's on its clock; the rows a join does not cover
-    made not to measure (`valid` 0). What each join did goes to `notes`."""
+    made not to measure (`valid` 0). What each join did goes to `notes`. A stream a whole
+    number of hours off the log at both ends is refused (a time zone) unless
+    `allow_clock_offset`."""
     if not joins:
         return cols, []
     t = np.asarray(cols["time_s"][:], dtype=np.float64)
@@ -158,7 +176,11 @@ def apply_joins(cols: dict[str, Column], joins: tuple[Join, ...], path: str,
     reports = []
     for j in joins:
         p, s = read_stream(j, path)
+        if j.tz is not None:
+            s["time_s"] = local_to_utc(s["time_s"], parse_tz(j.tz, f"[join.{j.name}]"))
         ts = s["time_s"]
+        if not allow_clock_offset and ts.size and t.size:
+            zone_check(j, path, float(ts[0] - t[0]), float(ts[-1] - t[-1]))
         step = float(np.median(np.diff(ts))) if ts.size > 1 else 0.0
         gap = j.max_gap_s if j.max_gap_s is not None else (
             3.0 * step if j.how == "interpolate" else math.inf)

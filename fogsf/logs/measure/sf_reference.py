@@ -10,7 +10,7 @@ import numpy as np
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.logs.measure.plateaus import SETTLE_S, T_REF_C
-from fogsf.logs.measure.units import UNITS_FIX, UNITS_TOL, units_factor
+from fogsf.logs.measure.units import INVERTED_FIX, UNITS_FIX, UNITS_TOL, units_factor
 from fogsf.logs.measure.windows import SFWindows, sf_windows
 
 REF_BAND_C = 5.0  # windows within this of T_REF_C are fitted to find the SF at T_REF_C
@@ -104,14 +104,18 @@ def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
 
 
 def same_units(logs: list[ChamberLog], ws: list[SFWindows]) -> None:
-    """Refuse logs (trained together) whose SF ratios differ by more than UNITS_TOL: one
-    gyro's SF moves by parts per thousand at most; more is another unit or scaling."""
+    """Refuse logs (trained together) whose SF ratios differ by more than UNITS_TOL of the
+    smaller in size, or differ in sign: one gyro's SF moves by parts per thousand at most;
+    more is another unit or scaling, a sign is an inverted axis."""
     meds = [(float(np.median(w.sf_ratio)), lg.path) for w, lg in zip(ws, logs, strict=True)
             if w.sf_ratio.size]
     if len(meds) < 2:
         return
     lo, hi = min(meds), max(meds)
-    if hi[0] > lo[0] * (1.0 + UNITS_TOL):
+    if lo[0] < 0.0 < hi[0] or lo[0] == 0.0 or hi[0] == 0.0:
+        raise UserError(f"units: the logs' SF ratios differ in sign: {lo[1]} {lo[0]:.6g}, "
+                        f"{hi[1]} {hi[0]:.6g}: one axis is inverted ({INVERTED_FIX})")
+    if hi[0] - lo[0] > UNITS_TOL * min(abs(lo[0]), abs(hi[0])):
         factor = units_factor(hi[0] / lo[0])
         why = (f" ({factor}: one in rad/s, the other in deg/s; {UNITS_FIX})" if factor
                else ": another unit or scaling in one of them (check the column maps)")

@@ -158,6 +158,7 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
     parts = _signal_parts(log, latitude_deg, correction_ppm, settle_s, remove_bias)
     k = spans.shape[0]
     out = {f: np.empty(k) for f in ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm")}
+    earth_per_table = np.empty(k)  # for the units check: the earth's share of the ratio
     lengths = spans[:, 1] - spans[:, 0]
     for n in np.unique(lengths):  # windows of one length at a time (most are window_s)
         same = np.flatnonzero(lengths == n)
@@ -171,6 +172,7 @@ def sf_windows(log: ChamberLog, window_s: float = 100.0, latitude_deg: float | N
             out["t_s"][sel] = log.time_s[idx].mean(axis=1)
             out["temp_c"][sel] = log.temp_c[idx].mean(axis=1)
             out["rate_dps"][sel] = tab.mean(axis=1)
-    check_units(log, out["sf_ratio"], spans[:, 0])
+            earth_per_table[sel] = parts[2][idx].mean(axis=1) / out["rate_dps"][sel]
+    check_units(log, out["sf_ratio"], spans[:, 0], earth_per_table, correction_ppm is None)
     return SFWindows(start=spans[:, 0].copy(), stop=spans[:, 1].copy(),
                      window_s=float(window_s), **out)

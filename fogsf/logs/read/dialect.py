@@ -68,6 +68,9 @@ class Dialect:
     stream: str | None = None
     # `layout = "plateaus"` in the map file: a row per rate plateau (logs/plateau_table.py)
     layout: PlateauLayout | None = None
+    # --allow-clock-offset: a join whole hours off the log's clock is joined as it is, not
+    # refused as a time zone read as UTC (logs/mapping/time_zone.py)
+    allow_clock_offset: bool = False
 
     @property
     def gyro_name(self) -> str | None:

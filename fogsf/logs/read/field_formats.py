@@ -160,9 +160,51 @@ def _tdms(path: Path) -> dict[str, Stream]:
             elif data.dtype.kind == "M":  # a time channel: epoch seconds
                 cols[c.name] = data.astype("datetime64[ns]").astype(np.int64) * 1e-9
         lengths = {v.shape[0] for v in cols.values()}
+        if "time_s" not in cols and lengths:
+            wf = _waveform_time(g, str(path), max(lengths))
+            if wf is not None:
+                cols["time_s"] = wf
         if len(lengths) > 1:
             raise UserError(f"{path}: group {g.name!r}: channels of different lengths "
                             f"({', '.join(str(n) for n in sorted(lengths))})")
         if cols:
             out[g.name] = cols
     return out
+
+
+def _waveform_time(group, path: str, n: int) -> np.ndarray | None:  # noqa: ANN001 - nptdms
+    """A DAQmx waveform group's time (epoch seconds: TDMS times are UTC): wf_start_time +
+    wf_start_offset + i x wf_increment, the same on every waveform channel of the group;
+    None when no channel has wf_increment."""
+    timing = set()
+    for c in group.channels():
+        p = c.properties
+        if "wf_increment" not in p:
+            continue
+        start = p.get("wf_start_time")
+        t0 = 0.0 if start is None else _epoch_s(start)
+        timing.add((t0 + float(p.get("wf_start_offset", 0.0)), float(p["wf_increment"])))
+    if not timing:
+        return None
+    if len(timing) > 1:
+        raise UserError(f"{path}: group {group.name!r}: waveform channels of different timing "
+                        f"(wf_start_time + wf_start_offset, wf_increment: "
+                        f"{', '.join(f'{a:.6f} s, {b:g} s' for a, b in sorted(timing))}): "
+                        "map a time channel, or write the group at one rate")
+    t0, inc = timing.pop()
+    if not (np.isfinite(t0) and np.isfinite(inc) and inc > 0):
+        raise UserError(f"{path}: group {group.name!r}: waveform timing wf_increment {inc:g} "
+                        "s: not a sample period")
+    return t0 + np.arange(n, dtype=np.float64) * inc
+
+
+def _epoch_s(when: object) -> float:
+    """A TDMS time property (numpy datetime64, or a datetime: UTC) as epoch seconds."""
+    if isinstance(when, np.datetime64):
+        return float(when.astype("datetime64[ns]").astype(np.int64)) * 1e-9
+    import datetime as dt
+
+    if isinstance(when, dt.datetime):
+        aware = when if when.tzinfo else when.replace(tzinfo=dt.UTC)
+        return aware.timestamp()
+    return float(when)  # type: ignore[arg-type]

@@ -99,9 +99,16 @@ def parquet_blocks(path: str | Path) -> tuple[list[str], int, Iterator[np.ndarra
     if rows == 0:
         raise LogError(p, None, "empty file", "column names but no data rows")
 
+    def read() -> Iterator[pa.RecordBatch]:
+        # a file damaged past its footer fails where its pages are read: one line too
+        try:
+            yield from pf.iter_batches(batch_size=BATCH_ROWS, use_threads=True)
+        except (pa.ArrowException, OSError) as e:
+            raise LogError(p, None, "cannot read", f"a damaged Parquet file ({e})") from None
+
     def batches() -> Iterator[np.ndarray]:
         at = 0
-        for batch in pf.iter_batches(batch_size=BATCH_ROWS, use_threads=True):
+        for batch in read():
             k = batch.num_rows
             out = np.empty((k, len(names)), dtype=np.float64, order="F")
             for i, col in enumerate(batch.columns):

@@ -32,7 +32,9 @@ from fogsf.logs.chamber_log import DT_TOLERANCE, GAP_STEPS, ChamberLog, rate_tex
 from fogsf.logs.read.columns import Column
 
 RESET_GAP_S = 3600.0  # a reset's segment starts this long after the last row (states settle)
-MAX_FILL_ROWS = 50_000_000  # rows a log's gaps may add (about 0.4 GB a column)
+# cells (rows x columns) a log's gaps may add: 2 GB of float64, 50 million rows of a
+# five-column log; a wide log (a ROS message's every field) gets fewer rows
+MAX_FILL_CELLS = 250_000_000
 GAP_STATES = ("carry", "restart")
 
 
@@ -138,10 +140,12 @@ def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
     dt = np.diff(t)
     cuts = np.flatnonzero(dt > s.max_gap_s) + 1
     n_fill = [max(int(np.floor((t[i] - t[i - 1]) / s.nominal_s - 1e-9)), 0) for i in cuts]
-    if sum(n_fill) > MAX_FILL_ROWS:
-
-        raise UserError(f"the log's gaps would take {sum(n_fill)} rows to fill at "
-                        f"{rate_text(s.nominal_s)}: raise --max-gap-s, or split the log")
+    if sum(n_fill) * (len(c) + 1) > MAX_FILL_CELLS:
+        longest = max(float(t[i] - t[i - 1]) for i in cuts)
+        raise UserError(f"the log's gaps would take {sum(n_fill)} rows of {len(c) + 1} "
+                        f"columns to fill at {rate_text(s.nominal_s)} (the longest gap "
+                        f"{longest:.6g} s: a time stamp off?): raise --max-gap-s, or split "
+                        "the log")
     restart = set(s.resets)
     out: dict[str, list[np.ndarray]] = {k: [] for k in c}
     out["logged"] = []
@@ -237,3 +241,19 @@ def common_rate(logs: list[ChamberLog]) -> list[ChamberLog]:
     if same and not irregular:
         return logs
     return [on_grid(lg, slow) for lg in logs]
+
+
+def burst_window_s(logged: np.ndarray | None, dt_s: float, default_s: float) -> float | None:
+    """The SF window a log written in bursts (runs of logged rows between unlogged gaps)
+    holds: its median burst's length, when that is shorter than `default_s`; None for a
+    log without gaps or with bursts as long as the default window. A 5 s burst every 5 min
+    (a thermal-vacuum logger) gives 5 s windows, one a burst."""
+    if logged is None:
+        return None
+    mask = np.asarray(logged) != 0
+    if mask.all() or not mask.any():
+        return None
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    lengths = (edges[1::2] - edges[::2]) * dt_s
+    burst = float(np.floor(np.median(lengths) * 10.0 + 1e-6) / 10.0)
+    return burst if 0.0 < burst < default_s else None
