@@ -69,8 +69,11 @@ FORMAT_6_NOTE = "\n/* the model; its optional parts through their own pointers (
 def before_format_6(files: dict[str, str], model: st.StreamModel) -> tuple[str, str]:
     """NAME.h and NAME.c as the generator wrote them before format 6 (the bias head and plays
     behind pointers, the CRCs) for a model without either: the version, the comment above the
-    struct and the struct's last three fields are the only changes."""
+    struct and the struct's last three fields are the only changes (and the rate part's
+    fields after them since, NULL and 0 without one)."""
     header, text = files["imu_x.h"], files["imu_x.c"]
+    crc_note = " /* CRC-32 of the sizes and scalars; of those and every table */\n"
+    text = text.replace("," + crc_note + "    NULL, 0u, 0u, 0.0f /* no rate part */\n", crc_note)
     crc = "0x{:08x}u, 0x{:08x}u".format(*model_crc32(model))
     assert crc in text and text.count(FORMAT_6_NOTE) == 1
     text, n = FORMAT_6_TAIL.subn(FEAT_DIAG_INIT + "\n", text.replace(FORMAT_6_NOTE, "\n"))

@@ -3,7 +3,7 @@
  * block means, lag filters), model step (features, LSTM layers, head with the optional
  * polynomial terms) and the per-sample correction, exactly in the float32 order of
  * docs/stream-contract.md (with the optional narrowed LSTM input, diagonal quadratic and
- * diagonal feature map). Sizes and weights come from the model struct at run time; the
+ * diagonal feature map, and the rate part). Sizes and weights come from the model struct at run time; the
  * state arrays are sized by FOGSF_MAX_* (fogsf_model_check). Around it, the guards of a
  * model in the field: the power-on rule (the filters wait for a plausible temperature), the
  * NULL and state-size checks, and the run-time integrity check (the sizes against init's
@@ -21,6 +21,15 @@ static uint32_t float_bits(float v)
     return b.u;
 }
 
+#if FOGSF_MAX_RATE_ROWS > 0
+static float bits_float(uint32_t u)
+{
+    fogsf_f32_bits b;
+    b.u = u;
+    return b.f;
+}
+#endif
+
 static bool float_finite(float v)
 {
     return (float_bits(v) & 0x7f800000u) != 0x7f800000u;
@@ -31,6 +40,55 @@ static uint32_t n_plays_of(const fogsf_model *m)
     return m->plays != NULL ? m->plays->n_plays : 0u;
 }
 
+#if (FOGSF_MAX_RATE_ROWS < 0) || (FOGSF_MAX_RATE_ROWS > 9)
+#error "fogsf: FOGSF_MAX_RATE_ROWS must lie in 0 .. 9 (FOGSF_RATE_ROWS_LIMIT; 0: no rate part)"
+#endif
+
+/* The rate part's fields: those of a model with it (format FOGSF_FORMAT_VERSION_RATE), or
+ * all NULL and 0 (FOGSF_FORMAT_VERSION), so a field value never reaches a loop unchecked. */
+static bool rate_fits(const fogsf_model *m)
+{
+    bool ok;
+    if (m->format_version == FOGSF_FORMAT_VERSION_RATE) {
+#if FOGSF_MAX_RATE_ROWS == 0
+        ok = false; /* a kernel built without the rate part */
+#else
+        ok = (m->rate_w != NULL) && (m->rate_rows >= 1u) &&
+             (m->rate_rows <= (uint32_t)FOGSF_MAX_RATE_ROWS) && (m->rate_coefs >= 1u) &&
+             (m->rate_coefs <= FOGSF_RATE_COEFS_LIMIT) && (m->rate_inv_fs > 0.0f) &&
+             float_finite(m->rate_inv_fs);
+#endif
+    } else {
+        ok = (m->rate_w == NULL) && (m->rate_rows == 0u) && (m->rate_coefs == 0u) &&
+             (float_bits(m->rate_inv_fs) == 0u);
+    }
+    return ok;
+}
+
+/* R | Q << 8 of a model rate_fits accepts (0 without a rate part, and always in a kernel
+ * built without it, which refuses a model with one: its rate code then folds away) */
+static uint32_t sizes_c(const fogsf_model *m)
+{
+#if FOGSF_MAX_RATE_ROWS > 0
+    return (m->rate_w != NULL) ? ((m->rate_rows & 0xffu) | ((m->rate_coefs & 0xffu) << 8u))
+                               : 0u;
+#else
+    (void)m;
+    return 0u;
+#endif
+}
+
+/* sizes_c as init recorded it */
+static uint32_t recorded_c(const fogsf_state *st)
+{
+#if FOGSF_MAX_RATE_ROWS > 0
+    return st->sizes_c;
+#else
+    (void)st;
+    return 0u;
+#endif
+}
+
 /* The sizes and pointers fogsf_step relies on: 0 when m can be stepped with a fogsf_state
  * without reading past an array of the state or through NULL. */
 static uint32_t model_fits(const fogsf_model *m)
@@ -38,7 +96,8 @@ static uint32_t model_fits(const fogsf_model *m)
     uint32_t bad = 0u;
     if (m == NULL) {
         bad = FOGSF_FLAG_MODEL_INVALID;
-    } else if ((m->format_version != FOGSF_FORMAT_VERSION) ||
+    } else if (((m->format_version != FOGSF_FORMAT_VERSION) &&
+                (m->format_version != FOGSF_FORMAT_VERSION_RATE)) || !rate_fits(m) ||
                (m->n_filters > (uint32_t)FOGSF_MAX_FILTERS) ||
                (m->n_features > (uint32_t)FOGSF_MAX_FEATURES) || (m->n_features < 1u) ||
                (m->layers > (uint32_t)FOGSF_MAX_LAYERS) || (m->layers < 1u) ||
@@ -86,6 +145,20 @@ static uint32_t plays_finite(const fogsf_plays *p, uint32_t n_filters)
     return bad;
 }
 
+/* The rate part's weights (finite: its coefficients are finite at any finite s0 short of
+ * overflow, which the per-sample path catches as GYRO_INVALID) */
+static uint32_t rate_finite(const fogsf_model *m)
+{
+    uint32_t bad = 0u;
+    uint32_t i;
+    for (i = 0u; i < (m->rate_rows * m->rate_coefs); ++i) {
+        if (!float_finite(m->rate_w[i])) {
+            bad = FOGSF_FLAG_MODEL_INVALID;
+        }
+    }
+    return bad;
+}
+
 /* The sizes the table lengths come from, packed in two words (the state records them at
  * init; the run-time pass reads its table lengths from that record, never from the model):
  * a = K | F << 8 | N << 16 | P << 24 (N = lstm_inputs, 0 = all F), b = H | L << 16 |
@@ -127,7 +200,7 @@ static uint32_t sizes_b(const fogsf_model *m)
 static uint32_t sizes_changed(const fogsf_model *m, const fogsf_state *st)
 {
     const bool same = (model_fits(m) == 0u) && (sizes_a(m) == st->sizes_a) &&
-                      (sizes_b(m) == st->sizes_b);
+                      (sizes_b(m) == st->sizes_b) && (sizes_c(m) == recorded_c(st));
     return same ? 0u : FOGSF_FLAG_MODEL_CHANGED;
 }
 
@@ -153,13 +226,23 @@ static uint32_t crc_word(uint32_t crc, uint32_t v)
     return crc_half(crc_half(crc, v & 0xffffu), v >> 16u);
 }
 
-/* The model's head words as the CRCs read them: sizes, scalars, which parts it has */
-#define HEAD_WORDS 21u /* the last only with a bias head */
+/* The model's head words as the CRCs read them: sizes, scalars, which parts it has. Slot 20
+ * holds bias_b with a bias head, slots 21 .. 23 R, Q and 1/FS with a rate part; a slot the
+ * model lacks adds nothing, so a model without them has the CRCs it had before they existed */
+#define HEAD_WORDS 21u /* the slots of every model */
+#define RATE_HEAD_WORDS 3u /* the slots after them, of a model with a rate part */
 #define SEG_HIGH 0x10000u /* in crc_seg: the high half of the float at crc_at is next */
 
-static uint32_t head_count(const fogsf_model *m)
+static bool head_present(const fogsf_model *m, uint32_t i)
 {
-    return (m->bias != NULL) ? HEAD_WORDS : (HEAD_WORDS - 1u);
+    return (i < (HEAD_WORDS - 1u)) || ((i == (HEAD_WORDS - 1u)) && (m->bias != NULL)) ||
+           ((i >= HEAD_WORDS) && (i < (HEAD_WORDS + RATE_HEAD_WORDS)) && (sizes_c(m) != 0u));
+}
+
+/* head slots a pass walks: by the sizes init recorded (sizes_c: the rate part) */
+static uint32_t head_slots(uint32_t c)
+{
+    return (c != 0u) ? (HEAD_WORDS + RATE_HEAD_WORDS) : HEAD_WORDS;
 }
 
 static uint32_t head_word(const fogsf_model *m, uint32_t i)
@@ -186,28 +269,33 @@ static uint32_t head_word(const fogsf_model *m, uint32_t i)
     case 17u: w = (sizes_b(m) >> 26u) & 1u; break; /* 1: the polynomial head */
     case 18u: w = (sizes_b(m) >> 27u) & 1u; break; /* 1: a bias head */
     case 19u: w = n_plays_of(m); break;
-    default: w = (m->bias != NULL) ? float_bits(m->bias->b) : 0u; break;
+    case 20u: w = (m->bias != NULL) ? float_bits(m->bias->b) : 0u; break;
+    case 21u: w = m->rate_rows; break;
+    case 22u: w = m->rate_coefs; break;
+    default: w = float_bits(m->rate_inv_fs); break;
     }
     return w;
 }
 
 /* the tables in the CRC's order: filter_alpha, feat_w, feat_b, W/R/B per layer, head_w,
- * skip_w, quad_w, cube_w, the bias head's three, the plays' two (absent ones: length 0) */
-static uint32_t n_tables(uint32_t b)
+ * skip_w, quad_w, cube_w, the bias head's three, the plays' two (absent ones: length 0),
+ * then rate_w when the sizes c say there is a rate part (a slot only then, so a model
+ * without it is read as before it existed) */
+static uint32_t n_tables(uint32_t b, uint32_t c)
 {
-    return 12u + (3u * ((b >> 16u) & 0xffu));
+    return 12u + (3u * ((b >> 16u) & 0xffu)) + ((c != 0u) ? 1u : 0u);
 }
 
-/* table t of m and its length *len by the packed sizes a, b (NULL and 0 for a table the
+/* table t of m and its length *len by the packed sizes a, b, c (NULL and 0 for a table the
  * sizes say is absent, or that m no longer has) */
-static const float *table_at(const fogsf_model *m, uint32_t a, uint32_t b, uint32_t t,
-                             uint32_t *len)
+static const float *table_at(const fogsf_model *m, uint32_t a, uint32_t b, uint32_t c,
+                             uint32_t t, uint32_t *len)
 {
     const uint32_t k = a & 0xffu;
     const uint32_t f = (a >> 8u) & 0xffu;
     const uint32_t p = a >> 24u;
     const uint32_t h = b & 0xffffu;
-    const uint32_t lstm_end = n_tables(b) - 9u;
+    const uint32_t lstm_end = n_tables(b, 0u) - 9u;
     const float *tab = NULL;
     uint32_t n = f;
     if (t == 0u) {
@@ -257,9 +345,13 @@ static const float *table_at(const fogsf_model *m, uint32_t a, uint32_t b, uint3
             tab = (pl != NULL) ? pl->half_c : NULL;
             n = p;
             break;
-        default:
+        case 8u:
             tab = (pl != NULL) ? pl->source_w : NULL;
             n = p * (1u + k);
+            break;
+        default: /* rate_w [R][Q] */
+            tab = (c != 0u) ? m->rate_w : NULL;
+            n = (c & 0xffu) * ((c >> 8u) & 0xffu);
             break;
         }
     }
@@ -272,16 +364,19 @@ uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only)
     uint32_t c = 0xffffffffu;
     if (m != NULL) {
         uint32_t i;
-        for (i = 0u; i < head_count(m); ++i) {
-            c = crc_word(c, head_word(m, i));
+        for (i = 0u; i < (HEAD_WORDS + RATE_HEAD_WORDS); ++i) {
+            if (head_present(m, i)) {
+                c = crc_word(c, head_word(m, i));
+            }
         }
         if (sizes_only == 0u) {
             const uint32_t a = sizes_a(m);
             const uint32_t b = sizes_b(m);
+            const uint32_t rc = sizes_c(m);
             uint32_t t;
-            for (t = 0u; t < n_tables(b); ++t) { /* a NULL table adds nothing (refused) */
+            for (t = 0u; t < n_tables(b, rc); ++t) { /* a NULL table adds nothing (refused) */
                 uint32_t len = 0u;
-                const float *tab = table_at(m, a, b, t, &len);
+                const float *tab = table_at(m, a, b, rc, t, &len);
                 for (i = 0u; i < len; ++i) {
                     c = crc_word(c, float_bits(tab[i]));
                 }
@@ -304,6 +399,9 @@ uint32_t fogsf_model_check(const fogsf_model *m)
     if ((bad == 0u) && (m->plays != NULL)) {
         bad = plays_finite(m->plays, m->n_filters);
     }
+    if ((bad == 0u) && (sizes_c(m) != 0u)) {
+        bad = rate_finite(m);
+    }
     return bad;
 }
 
@@ -313,13 +411,14 @@ uint32_t fogsf_check_period(const fogsf_model *m)
     if (fogsf_model_check(m) == 0u) {
         const uint32_t a = sizes_a(m);
         const uint32_t b = sizes_b(m);
+        const uint32_t c = sizes_c(m);
         uint32_t t;
         /* half a float a sample; each head word, table start and the compare on a sample
          * that reads the arrays, at most D samples after the one before */
-        n = (HEAD_WORDS + n_tables(b) + 1u) * m->decimation;
-        for (t = 0u; t < n_tables(b); ++t) {
+        n = (head_slots(c) + n_tables(b, c) + 1u) * m->decimation;
+        for (t = 0u; t < n_tables(b, c); ++t) {
             uint32_t len = 0u;
-            (void)table_at(m, a, b, t, &len);
+            (void)table_at(m, a, b, c, t, &len);
             n += 2u * len;
         }
     }
@@ -342,6 +441,12 @@ static float dps_of(float bias_dph)
 /* A check failed: the held outputs become those verified last, until a reset */
 static void set_fault(fogsf_state *st)
 {
+#if FOGSF_MAX_RATE_ROWS > 0
+    uint32_t r;
+    for (r = 0u; r < (uint32_t)FOGSF_MAX_RATE_ROWS; ++r) {
+        st->rate_a[r] = st->good_rate[r];
+    }
+#endif
     st->fault = FOGSF_FLAG_MODEL_CHANGED;
     st->sf_ppm = st->good_sf;
     st->sf_k = k_of(st->good_sf);
@@ -356,6 +461,13 @@ static void set_fault(fogsf_state *st)
 static void pass_end(fogsf_state *st)
 {
     if ((st->crc_reg ^ 0xffffffffu) == st->model_crc) {
+#if FOGSF_MAX_RATE_ROWS > 0
+        uint32_t r;
+        for (r = 0u; r < (uint32_t)FOGSF_MAX_RATE_ROWS; ++r) {
+            st->good_rate[r] = st->cand_rate[r];
+            st->cand_rate[r] = st->rate_a[r];
+        }
+#endif
         st->good_sf = st->cand_sf;
         st->good_bias = st->cand_bias;
         st->snap_flags = (st->snap_flags >> 16u) | (st->sf_flags << 16u);
@@ -398,14 +510,16 @@ static uint32_t check_slice(const fogsf_model *m, fogsf_state *st)
         st->crc_seg ^= SEG_HIGH;
     } else if (!reads_arrays(m, st)) {
         /* the table is read: what comes next waits for such a sample */
-    } else if (st->crc_seg < HEAD_WORDS) {
-        if (st->crc_seg < head_count(m)) {
+    } else if (st->crc_seg < head_slots(recorded_c(st))) {
+        if (head_present(m, st->crc_seg)) {
             st->crc_reg = crc_word(st->crc_reg, head_word(m, st->crc_seg));
         }
         st->crc_seg += 1u;
-    } else if ((st->crc_seg - HEAD_WORDS) < n_tables(st->sizes_b)) {
+    } else if ((st->crc_seg - head_slots(recorded_c(st))) <
+               n_tables(st->sizes_b, recorded_c(st))) {
         uint32_t len = 0u;
-        const float *tab = table_at(m, st->sizes_a, st->sizes_b, st->crc_seg - HEAD_WORDS, &len);
+        const float *tab = table_at(m, st->sizes_a, st->sizes_b, recorded_c(st),
+                                    st->crc_seg - head_slots(recorded_c(st)), &len);
         st->crc_at = tab;
         st->crc_end = (tab != NULL) ? &tab[len] : NULL;
         st->crc_seg += 1u;
@@ -442,6 +556,17 @@ static uint32_t start(const fogsf_model *m, fogsf_state *st)
     for (j = 0u; j < (uint32_t)FOGSF_MAX_PLAYS; ++j) {
         st->p[j] = 0.0f;
     }
+#if FOGSF_MAX_RATE_ROWS > 0
+    for (j = 0u; j < (uint32_t)FOGSF_MAX_RATE_ROWS; ++j) { /* +0 from R on: rate_corrected */
+        st->rate_a[j] = 0.0f;
+        st->rate_next[j] = 0.0f;
+        st->good_rate[j] = 0.0f;
+        st->cand_rate[j] = 0.0f;
+    }
+    st->rate_inv_fs = 0.0f;
+    st->rate_on = 0u;
+    st->sizes_c = 0u;
+#endif
     st->acc = 0.0f;
     st->t_last_good = (m != NULL) ? m->t_ref_c : 0.0f;
     st->sf_ppm = 0.0f;
@@ -476,6 +601,10 @@ static uint32_t start(const fogsf_model *m, fogsf_state *st)
     if (bad == 0u) { /* model_fits bounded the sizes: the packed record holds them whole */
         st->sizes_a = sizes_a(m);
         st->sizes_b = sizes_b(m);
+#if FOGSF_MAX_RATE_ROWS > 0
+        st->sizes_c = sizes_c(m);
+        st->rate_inv_fs = m->rate_inv_fs; /* 0 without a rate part */
+#endif
         st->model_crc = m->crc32;
     }
     st->model = (bad == 0u) ? m : NULL;
@@ -522,6 +651,27 @@ static uint32_t n_parts(const fogsf_model *m)
     return (m->layers * m->hidden) + 3u;
 }
 
+#if FOGSF_MAX_RATE_ROWS > 0
+/* The rate part's coefficients of this step, float32: a_r = Horner over q = Q-1 .. 0 of
+ * rate_w[r][q] in s0 = Tm - t_ref. They depend on s0 alone, so computing them with the
+ * front (not after the bias, as the contract lists them) changes no bit. */
+static void rate_coefficients(const fogsf_model *m, fogsf_state *st, float s0)
+{
+    const uint32_t nr = m->rate_rows, nq = m->rate_coefs;
+    uint32_t r, q;
+    if (m->rate_w != NULL) {
+        for (r = 0u; r < nr; ++r) {
+            const float *w = &m->rate_w[r * nq];
+            float a = w[nq - 1u];
+            for (q = nq - 1u; q > 0u; --q) {
+                a = (a * s0) + w[q - 1u];
+            }
+            st->rate_next[r] = a;
+        }
+    }
+}
+#endif
+
 /* part 0 on the block-mean temperature tm */
 static void part_front(const fogsf_model *m, fogsf_state *st, float tm)
 {
@@ -534,6 +684,9 @@ static void part_front(const fogsf_model *m, fogsf_state *st, float tm)
         st->y[k] = st->y[k] + m->filter_alpha[k] * (tm - st->y[k]);
     }
     s[0] = tm - m->t_ref_c;
+#if FOGSF_MAX_RATE_ROWS > 0
+    rate_coefficients(m, st, s[0]);
+#endif
     for (k = 0; k < nk; ++k) {
         s[1u + k] = st->y[k] - m->t_ref_c;
     }
@@ -672,6 +825,12 @@ static void run_part(const fogsf_model *m, fogsf_state *st, uint32_t p, float tm
 /* the step's outputs become the held ones */
 static void publish(fogsf_state *st)
 {
+#if FOGSF_MAX_RATE_ROWS > 0
+    uint32_t r;
+    for (r = 0u; r < (uint32_t)FOGSF_MAX_RATE_ROWS; ++r) {
+        st->rate_a[r] = st->rate_next[r];
+    }
+#endif
     st->sf_ppm = st->sf_next;
     st->sf_k = st->k_next;
     st->bias_dph = st->bias_next;
@@ -741,15 +900,78 @@ static bool temp_plausible(float t)
     return (t >= FOGSF_TEMP_PLAUSIBLE_MIN_C) && (t <= FOGSF_TEMP_PLAUSIBLE_MAX_C) && !power_on;
 }
 
+#if FOGSF_MAX_RATE_ROWS > 0
+/* The rate part on a corrected rate c, float32 in the contract's order: x = c * (1/FS),
+ * clamped to [-1, 1] (RATE_CLAMPED into *flags beyond); p = Horner of a_(R-1) .. a_1 in x, then
+ * (p * x) * x; c - (p + a_0 |x|). The Horner runs over all FOGSF_MAX_RATE_ROWS held terms,
+ * those from R on +0, so it is written out once per term (no loop bound read, compared and
+ * branched on per sample): a leading +0 term gives p the value of the first real one but
+ * for the sign of a zero, so c - e differs at most in the sign of a zero c - +-0, which
+ * only a c of -0 shows; then x is -0 and (+0 * -0) + a is a, sign and all: the same bits as
+ * the contract's loop from R-1 for every R. */
+static float rate_corrected(const fogsf_state *st, float c, uint32_t *flags)
+{
+    const float *a = st->rate_a;
+    float x = c * st->rate_inv_fs;
+    float ax;
+    float p;
+    uint32_t xb = float_bits(x);
+    uint32_t ab = xb & 0x7fffffffu; /* |x| by its bits: +0 for -0, as the contract's */
+    if (ab > 0x3f800000u) { /* |x| > 1, or x NaN */
+        ab = 0x3f800000u;   /* the calibrated full scale's edge, +-1 */
+        xb = (xb & 0x80000000u) | ab;
+        x = bits_float(xb);
+        if (float_finite(c)) { /* a c not finite is GYRO_INVALID alone */
+            *flags |= FOGSF_FLAG_RATE_CLAMPED;
+        }
+    }
+    ax = bits_float(ab);
+#if FOGSF_MAX_RATE_ROWS > 1
+    p = a[FOGSF_MAX_RATE_ROWS - 1];
+#if FOGSF_MAX_RATE_ROWS > 8
+    p = (p * x) + a[7];
+#endif
+#if FOGSF_MAX_RATE_ROWS > 7
+    p = (p * x) + a[6];
+#endif
+#if FOGSF_MAX_RATE_ROWS > 6
+    p = (p * x) + a[5];
+#endif
+#if FOGSF_MAX_RATE_ROWS > 5
+    p = (p * x) + a[4];
+#endif
+#if FOGSF_MAX_RATE_ROWS > 4
+    p = (p * x) + a[3];
+#endif
+#if FOGSF_MAX_RATE_ROWS > 3
+    p = (p * x) + a[2];
+#endif
+#if FOGSF_MAX_RATE_ROWS > 2
+    p = (p * x) + a[1];
+#endif
+    p = (p * x) * x;
+#else
+    p = 0.0f; /* R = 1 */
+#endif
+    return c - (p + (a[0] * ax));
+}
+#endif
+
 /* 5. the held bias and SF error correct this sample, float32: d = g - b / 3600, then d - d * k
- * (b / 3600 and k computed at the model step; both 0 before the first). A gyro that is NaN or
- * Inf gives a corrected value that is NaN or Inf (b and k are finite), so one test covers
- * both. */
+ * (b / 3600 and k computed at the model step; both 0 before the first), then the rate part
+ * once primed with one. A gyro that is NaN or Inf gives a corrected value that is NaN or Inf
+ * (b, k and the rate part's terms are finite), so one test covers both, and covers a rate
+ * correction that overflows (a broken model) too. */
 static void correct(const fogsf_state *st, float gyro_dps, uint32_t flags, fogsf_output *out)
 {
     const float d = gyro_dps - st->bias_dps;
     float corrected = d - (d * st->sf_k);
     uint32_t f = flags;
+#if FOGSF_MAX_RATE_ROWS > 0
+    if (st->rate_on != 0u) {
+        corrected = rate_corrected(st, corrected, &f);
+    }
+#endif
     if (!float_finite(corrected)) {
         corrected = 0.0f;
         f |= FOGSF_FLAG_GYRO_INVALID;
@@ -768,18 +990,20 @@ static uint32_t sample_front(const fogsf_model *m, fogsf_state *st, float temp_c
     const uint32_t bits = float_bits(temp_c);
     float tc;
 
-    /* 1. temperature: stuck run on the raw bits, then sanitise and clamp */
+    /* 1. temperature: stuck run on the raw bits, then sanitise and clamp. A run of 0 is
+     * never stuck (the threshold is 0, off, or >= 1), so only a repeat tests it: a changing
+     * temperature, the common sample, skips the test */
     if ((st->started != 0u) && (bits == st->raw_prev_bits)) {
         if (st->stuck_run < m->stuck_samples) {
             st->stuck_run += 1u;
+        }
+        if ((m->stuck_samples > 0u) && (st->stuck_run >= m->stuck_samples)) {
+            flags |= FOGSF_FLAG_TEMP_STUCK;
         }
     } else {
         st->stuck_run = 0u;
     }
     st->raw_prev_bits = bits;
-    if ((m->stuck_samples > 0u) && (st->stuck_run >= m->stuck_samples)) {
-        flags |= FOGSF_FLAG_TEMP_STUCK;
-    }
     if (!float_finite(temp_c)) {
         tc = st->t_last_good;
         flags |= FOGSF_FLAG_TEMP_INVALID;
@@ -803,6 +1027,9 @@ static uint32_t sample_front(const fogsf_model *m, fogsf_state *st, float temp_c
         if (arrays_usable(m, st)) {
             uint32_t k;
             st->started = 1u;
+#if FOGSF_MAX_RATE_ROWS > 0
+            st->rate_on = st->sizes_c; /* nonzero with a part: from the first sample primed */
+#endif
             for (k = 0; k < m->n_filters; ++k) {
                 st->y[k] = tc;
             }
@@ -876,44 +1103,6 @@ void fogsf_step(const fogsf_model *m, fogsf_state *st, float temp_c, float gyro_
         }
         correct(st, gyro_dps, flags, out);
     }
-}
-
-uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                   const float *gyro_dps, size_t n, float *corrected_dps, float *sf_ppm,
-                   uint32_t *flags)
-{
-    return fogsf_run_bias(m, st, temp_c, gyro_dps, n, corrected_dps, sf_ppm, NULL, flags);
-}
-
-uint32_t fogsf_run_bias(const fogsf_model *m, fogsf_state *st, const float *temp_c,
-                        const float *gyro_dps, size_t n, float *corrected_dps,
-                        float *sf_ppm, float *bias_dph, uint32_t *flags)
-{
-    uint32_t all = 0u;
-    size_t i;
-    fogsf_output out;
-
-    if ((n > 0u) && ((temp_c == NULL) || (gyro_dps == NULL) || (st == NULL))) {
-        all = FOGSF_FLAG_CALL_INVALID; /* nothing stepped or written */
-    } else {
-        for (i = 0; i < n; ++i) {
-            fogsf_step(m, st, temp_c[i], gyro_dps[i], &out);
-            if (corrected_dps != NULL) {
-                corrected_dps[i] = out.corrected_dps;
-            }
-            if (sf_ppm != NULL) {
-                sf_ppm[i] = out.sf_ppm;
-            }
-            if (bias_dph != NULL) {
-                bias_dph[i] = out.bias_dph;
-            }
-            if (flags != NULL) {
-                flags[i] = out.flags;
-            }
-            all |= out.flags;
-        }
-    }
-    return all;
 }
 
 size_t fogsf_state_size(void)

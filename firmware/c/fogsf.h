@@ -12,8 +12,9 @@
  * of its own), one per gyro. fogsf_init() or fogsf_reset() starts a log; every fogsf_step()
  * consumes one sample in order, always with the same model. fogsf_state is sized for the
  * largest model of the image by FOGSF_MAX_LAYERS, FOGSF_MAX_HIDDEN, FOGSF_MAX_FEATURES,
- * FOGSF_MAX_FILTERS and FOGSF_MAX_PLAYS (defaults below; the CMake function fogsf_add_model raises them to the
- * largest model added; NAME.c refuses to compile when its model does not fit).
+ * FOGSF_MAX_FILTERS, FOGSF_MAX_PLAYS and FOGSF_MAX_RATE_ROWS (defaults below; the CMake
+ * function fogsf_add_model raises them to the largest model added; NAME.c refuses to compile
+ * when its model does not fit).
  * The kernel never allocates, never recurses, holds no state in globals, and calls no libm:
  * its exp/sigmoid/tanh are its own float32 code, so host and Cortex-M4F give the same bits.
  *
@@ -48,6 +49,17 @@
 #ifndef FOGSF_MAX_PLAYS
 #define FOGSF_MAX_PLAYS 1
 #endif
+/* the held coefficients of the rate part: R of a model, at most FOGSF_RATE_ROWS_LIMIT; 0 (the
+ * default) builds the kernel without the rate part (no state, code or time for it; a model
+ * with one is refused) */
+#ifndef FOGSF_MAX_RATE_ROWS
+#define FOGSF_MAX_RATE_ROWS 0
+#endif
+
+/* The rate part's bounds (docs/stream-contract.md, "Optional rate part"): R terms (|x| and
+ * x^2 .. x^R), Q coefficients a term (a polynomial of degree Q-1 in temperature). */
+#define FOGSF_RATE_ROWS_LIMIT 9u
+#define FOGSF_RATE_COEFS_LIMIT 3u
 
 /* Bounded, even time (define to 1 for the kernel's sources, all alike): the model step is
  * spread over the D samples up to the next one (its front at the step's sample, then one LSTM
@@ -97,9 +109,11 @@ extern "C" {
                                         last verified correction held until a reset */
 #define FOGSF_FLAG_CALL_INVALID 512u /* a NULL pointer, or a state of another size: nothing
                                        read or written (corrected 0) */
-#define FOGSF_FLAGS_ALL 1023u /* every flag above: what a sample's flags can hold */
 #define FOGSF_FLAG_SELFTEST_FAILED 1024u /* fogsf_init only (FOGSF_SELFTEST_AT_INIT): the
                                            build's arithmetic failed the self-test */
+#define FOGSF_FLAG_RATE_CLAMPED 2048u /* |corrected| beyond the rate part's full scale: the
+                                        rate correction at the edge (x = +-1) used */
+#define FOGSF_FLAGS_ALL 3071u /* every flag a sample's flags can hold (not SELFTEST_FAILED) */
 
 #define FOGSF_SF_LIMIT_PPM 1.0e5f
 #define FOGSF_BIAS_LIMIT_DPH 3.6e4f /* 10 deg/s: a bias beyond it is a broken model */
@@ -159,11 +173,22 @@ typedef struct fogsf_model {
     const fogsf_plays *plays;     /* the play operators, NULL without them */
     uint32_t crc32_sizes;         /* CRC-32 of the sizes and scalars (fogsf_model_crc32) */
     uint32_t crc32;               /* CRC-32 of the sizes, scalars and every table */
+    /* the rate part, only with format_version FOGSF_FORMAT_VERSION_RATE (NULL and 0
+     * without it): per sample, after the SF and bias, x = corrected * rate_inv_fs clamped
+     * to [-1, 1], corrected -= a_0 |x| + a_1 x^2 + ... + a_(R-1) x^R, each a_r a polynomial
+     * of degree Q-1 in s0 = Tm - t_ref held from the model step (docs/stream-contract.md) */
+    const float *rate_w;          /* [R][Q]: row r's coefficients of s0^0 .. s0^(Q-1) */
+    uint32_t rate_rows;           /* R, 1 .. FOGSF_RATE_ROWS_LIMIT */
+    uint32_t rate_coefs;          /* Q, 1 .. FOGSF_RATE_COEFS_LIMIT */
+    float rate_inv_fs;            /* 1 / full scale (deg/s), float32, finite and > 0 */
 } fogsf_model;
 
 /* format_version of a fogsf_model laid out as above (explicit pointers to the bias head and
- * the plays, the two CRCs); fogsf_model_check refuses every other value. */
+ * the plays, the two CRCs) without a rate part (its rate fields NULL and 0), and of one with
+ * it; fogsf_model_check refuses every other value, so a kernel from before the rate part
+ * refuses a model that has one rather than run it without. */
 #define FOGSF_FORMAT_VERSION 6u
+#define FOGSF_FORMAT_VERSION_RATE 7u
 
 /* The streaming contract this kernel computes (docs/stream-contract.md): 2 = "fogsf-stream-2",
  * the per-sample correction in float32 (float gyro in and corrected rate out); 1 corrected in
@@ -217,6 +242,18 @@ typedef struct fogsf_state {
     float good_sf, good_bias;                    /* verified held outputs */
     float cand_sf, cand_bias;                    /* held at this pass's start */
     uint32_t snap_flags;                         /* their sf_flags: good | cand << 16 */
+#if FOGSF_MAX_RATE_ROWS > 0
+    /* the rate part: the held a_r (+0 from R on), the step's, the verified and candidate
+     * ones; R | Q << 8 and 1/FS as init recorded them (0 without the part); rate_on nonzero
+     * once primed with a rate part */
+    uint32_t sizes_c;
+    float rate_a[FOGSF_MAX_RATE_ROWS];
+    float rate_next[FOGSF_MAX_RATE_ROWS];
+    float good_rate[FOGSF_MAX_RATE_ROWS];
+    float cand_rate[FOGSF_MAX_RATE_ROWS];
+    float rate_inv_fs;
+    uint32_t rate_on;
+#endif
 } fogsf_state;
 
 /* What one sample gives. */
@@ -224,16 +261,20 @@ typedef struct fogsf_output {
     float corrected_dps;  /* (gyro - bias_dph / 3600) / (1 + sf_ppm * 1e-6): the rate with the
                              nominal SF restored and the bias taken off, float32: d = gyro -
                              b, b = bias_dph / 3600, then d - d * k, k = s / (1 + s),
-                             s = sf_ppm * 1e-6 (b and k once per model step) */
+                             s = sf_ppm * 1e-6 (b and k once per model step); with a rate
+                             part, less its rate error at that rate */
     float sf_ppm;         /* predicted SF error vs nominal, ppm (held between model steps) */
     uint32_t flags;       /* FOGSF_FLAG_* */
     float bias_dph;       /* predicted bias, deg/h (held; 0 without a bias head) */
 } fogsf_output;
 
-/* 0 when m is a whole model of this kernel's format (FOGSF_FORMAT_VERSION), fits
- * fogsf_state (FOGSF_MAX_*), is complete (lstm_inputs <= F, quad_diag 0 or 1 and only with
- * the polynomial head, feat_diag 0 or 1 and only with F == 1+K+P, the bias head's and the
- * plays' arrays present, half widths and source weights finite) and its tables are intact
+/* 0 when m is a whole model of this kernel's format (FOGSF_FORMAT_VERSION, or
+ * FOGSF_FORMAT_VERSION_RATE with a rate part), fits fogsf_state (FOGSF_MAX_*), is complete
+ * (lstm_inputs <= F, quad_diag 0 or 1 and only with the polynomial head, feat_diag 0 or 1
+ * and only with F == 1+K+P, the bias head's and the plays' arrays present, half widths and
+ * source weights finite; the rate part's rate_w present with 1 <= R <= FOGSF_MAX_RATE_ROWS,
+ * 1 <= Q <= FOGSF_RATE_COEFS_LIMIT, its weights finite and rate_inv_fs finite and > 0, or
+ * all its fields NULL and 0 in format FOGSF_FORMAT_VERSION) and its tables are intact
  * (crc32_sizes, then crc32: fogsf_model_crc32), else FOGSF_FLAG_MODEL_INVALID (a NULL m
  * too). Reads every table once (about 5 instructions a byte): fogsf_init calls it. After
  * init fogsf_step checks at every sample that the state was started with m, and on every
@@ -254,7 +295,8 @@ uint32_t fogsf_model_crc32(const fogsf_model *m, uint32_t sizes_only);
 /* The most samples one run-time check of m takes (a pass): fogsf_step reads half a float of
  * the tables a sample; a head word, the start of a table and the pass's compare each wait
  * for a sample that reads the arrays anyway (a model step's; with FOGSF_EVEN_TIME a part's):
- * (21 + T + 1) D + 2 (the floats of m's tables), T = 12 + 3 L table slots. A model changed
+ * (21 + T + 1) D + 2 (the floats of m's tables), T = 12 + 3 L table slots (with a rate
+ * part 24 head slots and T = 13 + 3 L: its three scalars and rate_w). A model changed
  * after init is flagged within two passes. 0 for a model fogsf_model_check refuses. */
 uint32_t fogsf_check_period(const fogsf_model *m);
 

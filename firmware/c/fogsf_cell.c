@@ -1,5 +1,8 @@
 /*
- * Model-independent parts of the kernel: float32 activations and the generic LSTM cell.
+ * Model-independent parts of the kernel: float32 activations, the generic LSTM cell, and the
+ * whole-log calls fogsf_run / fogsf_run_bias. These loop over fogsf_step from here, not from
+ * fogsf.c: a caller of fogsf_step in its own file lets GCC split it into an inlinable header
+ * and a body, which costs the per-sample path a call and a second prologue.
  *
  * The activations are Cephes-style (range reduction + polynomial) in float32 only, written
  * so that every operation is a single IEEE float32 op: with -ffp-contract=off any IEEE
@@ -194,4 +197,42 @@ void fogsf_lstm_cell(size_t n_in, size_t hidden, const float *w, const float *r,
             fogsf_lstm_unit(n_in, hidden, w, r, b, p, x, h, c, h_prev, j);
         }
     }
+}
+
+uint32_t fogsf_run(const fogsf_model *m, fogsf_state *st, const float *temp_c,
+                   const float *gyro_dps, size_t n, float *corrected_dps, float *sf_ppm,
+                   uint32_t *flags)
+{
+    return fogsf_run_bias(m, st, temp_c, gyro_dps, n, corrected_dps, sf_ppm, NULL, flags);
+}
+
+uint32_t fogsf_run_bias(const fogsf_model *m, fogsf_state *st, const float *temp_c,
+                        const float *gyro_dps, size_t n, float *corrected_dps,
+                        float *sf_ppm, float *bias_dph, uint32_t *flags)
+{
+    uint32_t all = 0u;
+    size_t i;
+    fogsf_output out;
+
+    if ((n > 0u) && ((temp_c == NULL) || (gyro_dps == NULL) || (st == NULL))) {
+        all = FOGSF_FLAG_CALL_INVALID; /* nothing stepped or written */
+    } else {
+        for (i = 0; i < n; ++i) {
+            fogsf_step(m, st, temp_c[i], gyro_dps[i], &out);
+            if (corrected_dps != NULL) {
+                corrected_dps[i] = out.corrected_dps;
+            }
+            if (sf_ppm != NULL) {
+                sf_ppm[i] = out.sf_ppm;
+            }
+            if (bias_dph != NULL) {
+                bias_dph[i] = out.bias_dph;
+            }
+            if (flags != NULL) {
+                flags[i] = out.flags;
+            }
+            all |= out.flags;
+        }
+    }
+    return all;
 }

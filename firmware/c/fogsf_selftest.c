@@ -91,7 +91,8 @@ static const fogsf_model selftest_model = {
     -0.0259913672f, 300.0f, 40.0f, /* head_b, out_scale, out_offset */
     1u, 0u, 0u, /* LSTM inputs z[0:N], diagonal quadratic, diagonal feat_w */
     &bias_head, &plays, /* bias head, backlash operators */
-    0xa4fef23cu, 0xfe44f5f7u /* CRC-32 of the sizes and scalars; of those and every table */
+    0xa4fef23cu, 0xfe44f5f7u, /* CRC-32 of the sizes and scalars; of those and every table */
+    NULL, 0u, 0u, 0.0f /* no rate part */
 };
 
 #define SELFTEST_N_ACT 26u

@@ -24,6 +24,7 @@ from fogsf.bindings.kernel import (
     Kernel,
     KernelBuild,
     build_kernel,
+    rate_rows,
 )
 from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, stack_bound
 from fogsf.errors import UserError
@@ -290,10 +291,14 @@ def state_bytes(models: StreamModel | list[StreamModel], even_time: bool = False
     f = max(m.n_features for m in models)
     k = max(max(m.n_filters, 1) for m in models)
     p = max(max(m.n_plays, 1) for m in models)
+    r = max(rate_rows(m) for m in models)
     # 17 scalars: acc .. started, the held outputs, k and b, the next step's outputs, part;
     # 13 of the run-time check: the model's crc32 and sizes (3), the pass (crc_at, crc_end,
-    # crc_seg, crc_reg), the fault, the verified and candidate outputs (4) and their flags
-    return 4 * (1 + 2 * lay * h + (h if even_time else 0) + f + k + p + 17 + 13)
+    # crc_seg, crc_reg), the fault, the verified and candidate outputs (4) and their flags;
+    # with a rate part its held, next, verified and candidate a_r (4 R), its sizes, 1/FS and
+    # whether it is on
+    rate = 4 * r + 3 if r else 0
+    return 4 * (1 + 2 * lay * h + (h if even_time else 0) + f + k + p + 17 + 13 + rate)
 
 
 # --- make firmware -------------------------------------------------------------------------

@@ -25,6 +25,7 @@ import fogsf
 from fogsf.errors import UserError
 from fogsf.export.header import render_model
 from fogsf.models.stream import StreamModel
+from fogsf.models.stream_format import RATE_ARRAY
 
 C_DIR = Path(fogsf.cmake_dir)
 """The kernel's C sources: firmware/c in a checkout, fogsf/firmware/c in an installed wheel."""
@@ -84,7 +85,13 @@ def state_sizes(model: StreamModel) -> dict[str, int]:
     return {"FOGSF_MAX_LAYERS": model.layers, "FOGSF_MAX_HIDDEN": model.hidden,
             "FOGSF_MAX_FEATURES": model.n_features,
             "FOGSF_MAX_FILTERS": max(model.n_filters, 1),
-            "FOGSF_MAX_PLAYS": max(model.n_plays, 1)}
+            "FOGSF_MAX_PLAYS": max(model.n_plays, 1),
+            "FOGSF_MAX_RATE_ROWS": rate_rows(model)}  # 0: the kernel without the part
+
+
+def rate_rows(model: StreamModel) -> int:
+    """R, the rate part's terms (0 without one)."""
+    return model.weights[RATE_ARRAY].shape[0] if model.has_rate_part else 0
 
 
 def _source_hash(header: str, extra: tuple[str, ...]) -> str:
@@ -170,13 +177,17 @@ def cdef(model: StreamModel, even_time: bool = False) -> str:
     """The cffi declarations of fogsf.h for this model's sizes: the header's declarations
     (between its extern "C" guards) without comments and preprocessor lines, with the
     state's size macros replaced by this model's sizes and its `#if FOGSF_EVEN_TIME` members
-    kept for that build only, so there is one statement of the API; plus the bound model's
+    kept for that build only (the `#if FOGSF_MAX_RATE_ROWS > 0` ones for a model with a rate
+    part only), so there is one statement of the API; plus the bound model's
     symbol."""
     text = (C_DIR / "fogsf.h").read_text()
     body = text.split('extern "C" {\n#endif\n', 1)[1].split("#ifdef __cplusplus\n}", 1)[0]
     body = re.sub(r"/\*.*?\*/", "", body, flags=re.DOTALL)
     body = re.sub(r"^#if FOGSF_EVEN_TIME\n(.*?)^#endif\n", lambda m: m[1] if even_time else "",
                   body, flags=re.DOTALL | re.MULTILINE)
+    body = re.sub(r"^#if FOGSF_MAX_RATE_ROWS > 0\n(.*?)^#endif\n",
+                  lambda m: m[1] if rate_rows(model) > 0 else "", body,
+                  flags=re.DOTALL | re.MULTILINE)
     body = "\n".join(line for line in body.splitlines() if not line.lstrip().startswith("#"))
     sizes = state_sizes(model)
     unknown = set(re.findall(r"\bFOGSF_[A-Z_0-9]+\b", body)) - set(sizes)

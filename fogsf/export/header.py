@@ -15,15 +15,18 @@ import jinja2
 import numpy as np
 
 from fogsf.models.front_end import play_half_c, play_source_w
+from fogsf.models.rate_part import inverse_full_scale
 from fogsf.models.stream import StreamModel
-from fogsf.models.stream_format import FORMAT
+from fogsf.models.stream_format import FORMAT, RATE_ARRAY
 
 # 1: one fogsf_model.h per build; 2: the model as data (NAME.h/.c); 3: the model struct
 # also holds lstm_inputs and quad_diag (and feat_diag); 4 and 5: the model as the first
 # member of a larger struct with a bias head or plays; 6: one fogsf_model for every model, its
 # bias head and plays through their own pointers (NULL when absent), and two CRC-32s of its
-# sizes and tables (fogsf_model_check). The kernel accepts its own version only.
+# sizes and tables (fogsf_model_check); 7: a model with the rate part, in fields appended to
+# the struct (format 6 holds them NULL and 0). The kernel accepts these two only.
 FORMAT_VERSION = 6
+FORMAT_VERSION_RATE = 7
 DEFAULT_NAME = "gyro_model"
 NAME_RULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,62}")
 PER_LINE = 6
@@ -61,6 +64,21 @@ def check_name(name: str) -> str:
     return name
 
 
+def format_version(model: StreamModel) -> int:
+    """The generated C's format version of the model: 7 with a rate part, else 6."""
+    return FORMAT_VERSION_RATE if model.has_rate_part else FORMAT_VERSION
+
+
+def _rate_context(model: StreamModel) -> dict:
+    """The rate part's template values: R = 0 without it (the struct's fields NULL and 0)."""
+    if not model.has_rate_part:
+        return {"rate_rows": 0, "rate_coefs": 0}
+    rate_w = model.weights[RATE_ARRAY]
+    return {"rate_rows": rate_w.shape[0], "rate_coefs": rate_w.shape[1],
+            "rate_w": c_array(rate_w), "rate_inv_fs": c_float(inverse_full_scale(model)),
+            "rate_fs_dps": f"{model.rate_fs_dps:g}"}
+
+
 def _context(model: StreamModel, name: str) -> dict:
     w = model.weights
     names = range(model.layers)
@@ -68,7 +86,7 @@ def _context(model: StreamModel, name: str) -> dict:
     return {
         "name": name, "upper": name.upper(), "guard": f"{name.upper()}_FOGSF_MODEL_H",
         "format": FORMAT, "model_id": model.model_id,
-        "format_version": FORMAT_VERSION, "embedded": False,
+        "format_version": format_version(model), "embedded": False, **_rate_context(model),
         **{key: f"0x{value:08x}u" for key, value in
            zip(("crc32_sizes", "crc32"), model_crc32(model), strict=True)},
         "kind": model.model.replace('"', "'").replace("*/", "* /"), "params": model.params,
@@ -119,7 +137,7 @@ def model_crc32(model: StreamModel) -> tuple[int, int]:
     then of every table in the struct's order (docs/firmware.md, "Model integrity")."""
     w = model.weights
     k, f, h, p = model.n_filters, model.n_features, model.hidden, model.n_plays
-    head = _words([FORMAT_VERSION, k, f, model.layers, h, model.decimation,
+    head = _words([format_version(model), k, f, model.layers, h, model.decimation,
                    model.stuck_samples])
     head += _floats([model.sample_dt_s, model.t_ref_c, model.t_min_c, model.t_max_c,
                      w["head_b"][0], w["out_scale"][0], w["out_offset"][0]])
@@ -127,6 +145,8 @@ def model_crc32(model: StreamModel) -> tuple[int, int]:
                     int(model.poly_head), int(model.bias_head), p])
     if model.bias_head:
         head += _floats(w["bias_b"][0])
+    if model.has_rate_part:  # R, Q and 1/FS after them, rate_w after the other tables
+        head += _words(list(w[RATE_ARRAY].shape)) + _floats(inverse_full_scale(model))
     tables = [w["filter_alpha"][:k], w["feat_w"], w["feat_b"]]
     for layer in range(model.layers):
         tables += [w[f"lstm{layer}_w"], w[f"lstm{layer}_r"], w[f"lstm{layer}_b"]]
@@ -138,6 +158,8 @@ def model_crc32(model: StreamModel) -> tuple[int, int]:
     if p:
         tables += [play_half_c(model.play_width_c),
                    play_source_w(model.play_source_w, model.n_filters)]
+    if model.has_rate_part:
+        tables.append(w[RATE_ARRAY])
     sizes = zlib.crc32(head)
     return sizes, zlib.crc32(b"".join(_floats(t) for t in tables), sizes)
 

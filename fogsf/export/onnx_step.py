@@ -17,6 +17,11 @@ needs two numbers per model step, which the graph outputs after the states, floa
 op as the kernel: `sf_k` [1, 1] = s / (1 + s), s = sf_ppm * 1e-6, and with a bias head
 `bias_dps` [1, 1] = bias_dph / 3600 (before `bias_dph`, which stays last). A sample g is then
 corrected as d = g - bias_dps, d - d * sf_k, in float32.
+A model with the rate part has one more input, `s0` [1, 1] (Tm - t_ref, the step's s[0]),
+and one more output after `sf_k`, `rate_a` [1, R]: the held coefficients a_r (Horner of
+rate_w's rows in s0); the property `rate_inv_fs` holds 1/FS (float32, 9 digits), and
+`OrtStepper.correct` applies the per-sample polynomial. Without the part the graph is
+unchanged.
 """
 
 from __future__ import annotations
@@ -25,7 +30,12 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
+from fogsf.models.rate_part import inverse_full_scale
 from fogsf.models.stream import StreamModel
+from fogsf.models.stream_flags import FLAG_GYRO_INVALID, FLAG_RATE_CLAMPED
+from fogsf.models.stream_format import RATE_ARRAY
+
+F32 = np.float32
 
 OPSET = 17
 IR_VERSION = 8
@@ -102,6 +112,15 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
         helper.make_node("Add", ["one", "sf_rel"], ["sf_one_plus"]),
         helper.make_node("Div", ["sf_rel", "sf_one_plus"], ["sf_k"]),
     ]
+    props = {}
+    if model.has_rate_part:  # s0 in, the held a_r out after sf_k
+        rate_init, rate_node_list = rate_nodes(model)
+        inits += rate_init
+        nodes += rate_node_list
+        inputs.append(helper.make_tensor_value_info("s0", TensorProto.FLOAT, [1, 1]))
+        outputs.append(helper.make_tensor_value_info(
+            "rate_a", TensorProto.FLOAT, [1, model.weights[RATE_ARRAY].shape[0]]))
+        props["rate_inv_fs"] = f"{float(inverse_full_scale(model)):.9g}"
     if model.bias_head:
         inits += bias_initializers(model)
         inits.append(numpy_helper.from_array(np.array([3600.0], np.float32), "s_per_h"))
@@ -115,9 +134,46 @@ def build_step_onnx(model: StreamModel) -> onnx.ModelProto:
                               doc_string="fogsf-stream-2 streaming step: z, (h, c) per layer "
                                          "-> sf_ppm, new (h, c), sf_k")
     helper.set_model_props(proto, {"format": "fogsf-stream-2", "model_id": model.model_id,
-                                   "decimation": str(model.decimation)})
+                                   "decimation": str(model.decimation), **props})
     onnx.checker.check_model(proto, full_check=True)
     return proto
+
+
+def rate_nodes(model: StreamModel) -> tuple[list[onnx.TensorProto], list[onnx.NodeProto]]:
+    """rate_a [1, R] = Horner over q = Q-1 .. 0 of rate_w[:, q] in s0 (a Mul and an Add a
+    power, float32 as the kernel's)."""
+    w = model.weights[RATE_ARRAY]
+    q = w.shape[1]
+    inits = [numpy_helper.from_array(np.ascontiguousarray(w[:, j].reshape(1, -1)), f"rate_c{j}")
+             for j in range(q)]
+    nodes: list[onnx.NodeProto] = []
+    acc = f"rate_c{q - 1}"
+    for j in range(q - 2, -1, -1):
+        nodes += [helper.make_node("Mul", [acc, "s0"], [f"rate_m{j}"]),
+                  helper.make_node("Add", [f"rate_m{j}", f"rate_c{j}"], [f"rate_h{j}"])]
+        acc = f"rate_h{j}"
+    nodes.append(helper.make_node("Identity", [acc], ["rate_a"]))
+    return inits, nodes
+
+
+def rate_correct(corrected: np.ndarray, a: np.ndarray, inv_fs: np.float32
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The rate part per sample on finite corrected rates (float32, the contract's order):
+    (corrected - e, RATE_CLAMPED flags), `a` [N, R] the held coefficients."""
+    c = np.asarray(corrected, np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):
+        x = c * inv_fs
+    clamped = (x > F32(1)) | (x < F32(-1))
+    x = np.clip(x, F32(-1), F32(1)).astype(np.float32)
+    r = a.shape[1]
+    p = np.zeros_like(c)
+    if r >= 2:
+        p = a[:, r - 1].astype(np.float32)
+        for k in range(r - 2, 0, -1):
+            p = (p * x).astype(np.float32) + a[:, k]
+        p = ((p * x).astype(np.float32) * x).astype(np.float32)
+    e = (p + (a[:, 0] * np.abs(x)).astype(np.float32)).astype(np.float32)
+    return (c - e).astype(np.float32), np.where(clamped, FLAG_RATE_CLAMPED, 0).astype(np.uint32)
 
 
 def bias_initializers(model: StreamModel) -> list[onnx.TensorProto]:
@@ -191,6 +247,11 @@ class OrtStepper:
         self.layers, self.hidden = layers, hidden
         self.in_names, self.out_names = state_names(layers)
         self.has_bias = any(o.name == "bias_dph" for o in proto.graph.output)
+        props = {p.key: p.value for p in proto.metadata_props}
+        self.has_rate = "rate_inv_fs" in props
+        self.rate_inv_fs = F32(float(props.get("rate_inv_fs", "0")))
+        self.rate_a = np.zeros(0, np.float32)  # the held a_r of the latest step
+        self.rate_seq = np.zeros((0, 0), np.float32)
         self.bias_dph = 0.0  # the bias head's output of the latest step (0 without one)
         self.bias_dps = np.float32(0)  # bias_dph / 3600 of the latest step (float32)
         self.sf_k = np.float32(0)  # the correction's factor of the latest step (float32)
@@ -202,13 +263,18 @@ class OrtStepper:
     def reset(self) -> None:
         self.state = [np.zeros((1, self.hidden), np.float32) for _ in self.in_names]
 
-    def step(self, z: np.ndarray) -> tuple[float, np.ndarray]:
-        """One step: (sf_ppm, last layer's new h [H])."""
+    def step(self, z: np.ndarray, s0: float = 0.0) -> tuple[float, np.ndarray]:
+        """One step (s0 = Tm - t_ref, read with a rate part): (sf_ppm, last layer's new h
+        [H])."""
         feeds = {"z": np.asarray(z, np.float32).reshape(1, -1)}
         feeds.update(zip(self.in_names, self.state, strict=True))
+        if self.has_rate:
+            feeds["s0"] = np.array([[s0]], np.float32)
         names = ["sf_ppm", *self.out_names, "sf_k",
                  *(["bias_dps", "bias_dph"] if self.has_bias else [])]
-        outs = self.session.run(names, feeds)
+        outs = self.session.run(names + (["rate_a"] if self.has_rate else []), feeds)
+        if self.has_rate:
+            self.rate_a = outs.pop()[0].astype(np.float32)
         if self.has_bias:
             self.bias_dph = float(outs.pop()[0, 0])
             self.bias_dps = np.float32(outs.pop()[0, 0])
@@ -216,19 +282,46 @@ class OrtStepper:
         self.state = outs[1:]
         return float(outs[0][0, 0]), self.state[-2][0]
 
-    def run(self, z_seq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """From reset over a sequence of z: (sf_ppm [n], h_last [n, H]); the bias, sf_k and
-        bias_dps per step are kept in bias_seq, k_seq and bias_dps_seq."""
+    def run(self, z_seq: np.ndarray, s0_seq: np.ndarray | None = None
+            ) -> tuple[np.ndarray, np.ndarray]:
+        """From reset over a sequence of z (and of s0 with a rate part): (sf_ppm [n], h_last
+        [n, H]); the bias, sf_k, bias_dps and a_r per step are kept in bias_seq, k_seq,
+        bias_dps_seq and rate_seq."""
         self.reset()
         n = z_seq.shape[0]
+        s0 = np.zeros(n, np.float32) if s0_seq is None else np.asarray(s0_seq, np.float32)
+        self.rate_seq = np.zeros((n, 0), np.float32)  # [n, R] once the first step gave R
         sf = np.empty(n, np.float32)
         hl = np.empty((n, self.hidden), np.float32)
         self.bias_seq = np.zeros(n, np.float32)
         self.k_seq = np.zeros(n, np.float32)
         self.bias_dps_seq = np.zeros(n, np.float32)
         for m in range(n):
-            sf[m], hl[m] = self.step(z_seq[m])
+            sf[m], hl[m] = self.step(z_seq[m], float(s0[m]))
+            if self.has_rate:
+                if m == 0:
+                    self.rate_seq = np.zeros((n, self.rate_a.shape[0]), np.float32)
+                self.rate_seq[m] = self.rate_a
             self.bias_seq[m] = self.bias_dph
             self.k_seq[m] = self.sf_k
             self.bias_dps_seq[m] = self.bias_dps
         return sf, hl
+
+    def correct(self, gyro_dps: np.ndarray, decimation: int) -> tuple[np.ndarray, np.ndarray]:
+        """The samples of the latest `run` (step m held over samples mD .. mD + D - 1)
+        corrected as the kernel does, float32: d = g - bias_dps, d - d * sf_k, then with a
+        rate part its polynomial; (corrected, GYRO_INVALID | RATE_CLAMPED flags)."""
+        g = np.asarray(gyro_dps, np.float64).astype(np.float32)
+        idx = np.arange(g.shape[0]) // decimation
+        with np.errstate(all="ignore"):
+            d = g - self.bias_dps_seq[idx]
+            c = (d - d * self.k_seq[idx]).astype(np.float32)
+        flags = np.zeros(g.shape[0], np.uint32)
+        if self.has_rate:
+            ok = np.isfinite(c)
+            out, rflags = rate_correct(np.where(ok, c, F32(0)), self.rate_seq[idx],
+                                       self.rate_inv_fs)
+            c, flags = np.where(ok, out, c), np.where(ok, rflags, 0).astype(np.uint32)
+        bad = ~np.isfinite(c)
+        c[bad] = 0.0
+        return c, (flags | np.where(bad, FLAG_GYRO_INVALID, 0)).astype(np.uint32)

@@ -20,6 +20,7 @@ import numpy as np
 from fogsf.errors import UserError
 from fogsf.models.f32 import F32, _f32, sigmoid_f32, tanh_f32
 from fogsf.models.front_end import FrontEnd, play_source_w
+from fogsf.models.rate_part import apply_rate, rate_coefficients
 from fogsf.models.stream import StreamModel
 from fogsf.models.stream_flags import (
     BIAS_LIMIT_DPH,
@@ -303,7 +304,8 @@ def expand_late(step_values: np.ndarray, n_samples: int, decimation: int) -> np.
     v = np.asarray(step_values)
     idx = np.arange(n_samples) // decimation - 1
     out = v[np.maximum(idx, 0)] if v.shape[0] else np.zeros(n_samples, v.dtype)
-    return np.where(idx >= 0, out, np.zeros((), v.dtype)).astype(v.dtype)
+    before = (idx >= 0).reshape(-1, *([1] * (v.ndim - 1)))  # per sample, per row of v
+    return np.where(before, out, np.zeros((), v.dtype)).astype(v.dtype)
 
 
 def correction_terms(sf_ppm: np.ndarray, bias_dph: np.ndarray | None = None
@@ -388,4 +390,8 @@ def replay_primed(model: StreamModel, temp_c: np.ndarray, gyro_dps: np.ndarray,
     b = held(steps.bias_dph, n, model.decimation)
     corrected, gflags = correct(gyro_dps, sf, b if model.bias_head else None)
     flags = fe.flags | gflags | held(steps.flags, n, model.decimation)
+    if model.has_rate_part:
+        a = held(rate_coefficients(model, fe.s[:, 0]), n, model.decimation)
+        out, rflags = apply_rate(model, corrected, a, flags)
+        corrected, flags = out.astype(np.float64), flags | rflags
     return ReplayOut(corrected, sf, flags.astype(np.uint32), b)

@@ -32,7 +32,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                  lstm_inputs: int | None = None, quad_diag: bool = False,
                  bias_head: bool = False, bias_dph: float = 2.0,
                  plays: tuple[tuple[tuple[float, ...], float], ...] = (),
-                 feat_diag: bool = False) -> StreamModel:
+                 feat_diag: bool = False, rate_part: tuple[int, int] | None = None,
+                 rate_fs_dps: float = 150.0) -> StreamModel:
     """A seeded random model in the artifact format.
 
     Scaled so nothing saturates on chamber temperatures: z is O(1) over -45..55 C, every gate's
@@ -48,7 +49,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     ((source weights over [Tm, y_1..y_K], width_c) each): play operators in the front end;
     feat_w is then [F, 1+K+P] (so the draws after it differ). `feat_diag` (F must be 1+K+P):
     feat_w is the diagonal [F] only, from a fourth generator at the scale of a row's sum, so
-    z_i = feat_w[i] * s_i + feat_b[i] is O(1) too (the other arrays stay put).
+    z_i = feat_w[i] * s_i + feat_b[i] is O(1) too (the other arrays stay put). `rate_part`
+    (R, Q): a rate part of full scale `rate_fs_dps`, rate_w from a fifth generator.
     """
     rng = np.random.default_rng(seed)
     if taus_s is None:
@@ -92,6 +94,11 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
         weights["bias_b"] = np.array([bias_dph], np.float32) + u((1,), 0.1 * bias_dph, bias_rng)
         for name in ("bias_w", "bias_quad_w", "bias_cube_w"):
             weights[name] = u((f,), scale, bias_rng)
+    if rate_part is not None:  # (R, Q): an open-loop-sized rate error, ~0.1 % of FS a term
+        rate_rng = np.random.default_rng([seed, 4])
+        r, q = rate_part
+        scale = 1e-3 * rate_fs_dps / (10.0 ** np.arange(q))  # per C, per C^2: smaller
+        weights["rate_w"] = (rate_rng.uniform(-1.0, 1.0, (r, q)) * scale).astype(np.float32)
     model = StreamModel(model="random-lstm", decimation=decimation, t_ref_c=t_ref_c,
                         t_min_c=t_min_c, t_max_c=t_max_c, stuck_samples=stuck_samples,
                         filter_tau_s=list(taus_s), n_features=f, layers=layers, hidden=h,
@@ -99,7 +106,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
                         lstm_inputs=lstm_inputs, quad_diag=quad_diag, bias_head=bias_head,
                         play_width_c=[float(w) for _, w in plays],
                         play_source_w=[[float(v) for v in src] for src, _ in plays],
-                        feat_diag=feat_diag)
+                        feat_diag=feat_diag,
+                        rate_fs_dps=rate_fs_dps if rate_part is not None else 0.0)
     model.validate()
     return model
 

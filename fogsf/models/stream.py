@@ -5,29 +5,27 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.models.front_end import FrontEnd, filter_alpha
+from fogsf.models.front_end import FrontEnd
+from fogsf.models.stream_checks import validate_model
 from fogsf.models.stream_format import (
     _CONFIG_KEYS,
-    BIAS_ARRAYS,
     BIAS_KEY,
     CONFIG_FILE,
     FEAT_DIAG_KEY,
     FORMAT,
     LSTM_INPUTS_KEY,
-    MAX_PLAY_WIDTH_C,
     PLAY_SOURCE_KEY,
     PLAY_WIDTH_KEY,
-    POLY_ARRAYS,
     POLY_KEY,
     QUAD_DIAG_KEY,
+    RATE_ARRAY,
+    RATE_KEY,
     WEIGHTS_FILE,
     _trained_kind,
 )
@@ -57,6 +55,7 @@ class StreamModel:
     play_width_c: list[float] = field(default_factory=list)  # P plays' widths (C)
     play_source_w: list[list[float]] = field(default_factory=list)  # [P][1+K] sources
     feat_diag: bool = False  # F == 1+K+P and feat_w [F] is the diagonal of the feature map
+    rate_fs_dps: float = 0.0  # > 0: the rate part's full scale, rate_w [R, Q] present
 
     def __post_init__(self) -> None:
         extra = dict(self.extra)
@@ -72,10 +71,18 @@ class StreamModel:
             self.quad_diag = self.quad_diag or extra.pop(QUAD_DIAG_KEY)
         if FEAT_DIAG_KEY in extra:
             self.feat_diag = self.feat_diag or extra.pop(FEAT_DIAG_KEY)
+        if RATE_KEY in extra:
+            self.rate_fs_dps = self.rate_fs_dps or extra.pop(RATE_KEY)
         if LSTM_INPUTS_KEY in extra:
             value = extra.pop(LSTM_INPUTS_KEY)
             self.lstm_inputs = value if self.lstm_inputs is None else self.lstm_inputs
         self.extra = extra
+
+    @property
+    def has_rate_part(self) -> bool:
+        """True when the model corrects the SF's dependence on rate (docs/stream-contract.md,
+        "Optional rate part")."""
+        return self.rate_fs_dps != 0.0
 
     @property
     def n_lstm_inputs(self) -> int:
@@ -111,6 +118,10 @@ class StreamModel:
         if self.bias_head:
             shapes.update({"bias_b": (1,), "bias_w": (f,), "bias_quad_w": (f,),
                            "bias_cube_w": (f,)})
+        if self.has_rate_part:  # its sizes are the array's own, bounded by the checks
+            rate = self.weights.get(RATE_ARRAY)
+            shapes[RATE_ARRAY] = tuple(rate.shape) if rate is not None and rate.ndim == 2 \
+                else (1, 1)
         for layer in range(self.layers):
             n_in = self.n_lstm_inputs if layer == 0 else h
             shapes[f"lstm{layer}_w"] = (4 * h, n_in)
@@ -133,6 +144,10 @@ class StreamModel:
         plays = (f", {self.n_plays} play(s) of width "
                  f"{', '.join(f'{w:g}' for w in self.play_width_c)} C" if self.n_plays else "")
         feats = " (diagonal feat_w)" if self.feat_diag else ""
+        if self.has_rate_part:
+            r, q = self.weights[RATE_ARRAY].shape
+            poly += (f" + rate part (|x|{f', x^2..x^{r}' if r > 1 else ''}, {q} "
+                     f"coefficient(s) in T, full scale {self.rate_fs_dps:g} deg/s)")
         return (f"K={self.n_filters} filters{plays}, F={self.n_features} features{feats}, "
                 f"{self.layers}x{self.hidden} LSTM{reads}{poly}, D={self.decimation}, "
                 f"{self.params} parameters")
@@ -190,6 +205,8 @@ class StreamModel:
             cfg[FEAT_DIAG_KEY] = True
         if self.bias_head:
             cfg[BIAS_KEY] = True
+        if self.has_rate_part:
+            cfg[RATE_KEY] = self.rate_fs_dps
         if self.n_plays:
             cfg[PLAY_WIDTH_KEY] = [float(w) for w in self.play_width_c]
             cfg[PLAY_SOURCE_KEY] = [[float(v) for v in r] for r in self.play_source_w]
@@ -200,11 +217,11 @@ class StreamModel:
         """16 hex digits of SHA-256 over the contract config and the float32 weight bytes.
 
         `poly_head` enters only when true, `lstm_inputs` only when below F, `quad_diag`,
-        `feat_diag` and `bias_head` only when true, the plays only when there are some, so
-        models without them keep the ids they had before the keys existed."""
+        `feat_diag` and `bias_head` only when true, the rate part and the plays only when
+        there are some, so models without them keep the ids they had before the keys existed."""
         optional = {POLY_KEY: self.poly_head, LSTM_INPUTS_KEY: self.lstm_inputs_narrowed,
                     QUAD_DIAG_KEY: self.quad_diag, FEAT_DIAG_KEY: self.feat_diag,
-                    BIAS_KEY: self.bias_head,
+                    BIAS_KEY: self.bias_head, RATE_KEY: self.has_rate_part,
                     PLAY_WIDTH_KEY: self.n_plays > 0, PLAY_SOURCE_KEY: self.n_plays > 0}
         cfg = {k: v for k, v in self.config().items()
                if k in _CONFIG_KEYS or optional.get(k, False)}
@@ -217,113 +234,9 @@ class StreamModel:
 
     # -- validation
     def validate(self, where: str = "model") -> None:
-        """Refuse an inconsistent artifact with one message naming what is wrong."""
-        def bad(msg: str) -> UserError:
-            return UserError(f"{where}: {msg}")
-
-        for name, value in (("decimation", self.decimation), ("layers", self.layers),
-                            ("hidden", self.hidden), ("n_features", self.n_features)):
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise bad(f"'{name}' must be an integer >= 1, got {value!r}")
-        if not isinstance(self.stuck_samples, int) or not 0 <= self.stuck_samples < 2**31:
-            raise bad(f"'stuck_samples' must be an integer in [0, 2^31), got "
-                      f"{self.stuck_samples!r}")
-        if self.decimation >= 2**31:  # the kernel counts samples in uint32
-            raise bad(f"'decimation' must be below 2^31, got {self.decimation}")
-        if not (isinstance(self.sample_dt_s, (int, float)) and self.sample_dt_s > 0):
-            raise bad(f"'sample_dt_s' must be > 0, got {self.sample_dt_s!r}")
-        temps = {"t_ref_c": self.t_ref_c, "t_min_c": self.t_min_c, "t_max_c": self.t_max_c}
-        for name, value in temps.items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value)
-                    and -273.15 < value < 1000.0):
-                raise bad(f"'{name}' must be a finite temperature in C, got {value!r}")
-        if not isinstance(self.poly_head, bool):
-            raise bad(f"'{POLY_KEY}' must be true or false, got {self.poly_head!r}")
-        if not isinstance(self.quad_diag, bool):
-            raise bad(f"'{QUAD_DIAG_KEY}' must be true or false, got {self.quad_diag!r}")
-        if not isinstance(self.bias_head, bool):
-            raise bad(f"'{BIAS_KEY}' must be true or false, got {self.bias_head!r}")
-        if not isinstance(self.feat_diag, bool):
-            raise bad(f"'{FEAT_DIAG_KEY}' must be true or false, got {self.feat_diag!r}")
-        if self.quad_diag and not self.poly_head:
-            raise bad(f"'{QUAD_DIAG_KEY}' is true but '{POLY_KEY}' is false: a diagonal "
-                      f"quadratic needs the polynomial head")
-        n_in = self.lstm_inputs
-        if n_in is not None and (not isinstance(n_in, int) or isinstance(n_in, bool)
-                                 or not 1 <= n_in <= self.n_features):
-            raise bad(f"'{LSTM_INPUTS_KEY}' must be an integer in [1, n_features = "
-                      f"{self.n_features}], got {n_in!r}")
-        if not self.t_min_c < self.t_max_c:
-            raise bad(f"t_min_c ({self.t_min_c}) must be below t_max_c ({self.t_max_c})")
-        if not self.t_min_c <= self.t_ref_c <= self.t_max_c:
-            raise bad(f"t_ref_c ({self.t_ref_c}) must lie in [t_min_c, t_max_c] = "
-                      f"[{self.t_min_c}, {self.t_max_c}]")
-        for tau in self.filter_tau_s:
-            if not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0):
-                raise bad(f"'filter_tau_s' must hold positive time constants, got {tau!r}")
-        self._validate_plays(bad)
-        n_s = 1 + self.n_filters + self.n_plays
-        if self.feat_diag and self.n_features != n_s:
-            raise bad(f"'{FEAT_DIAG_KEY}' is true but n_features = {self.n_features} is not "
-                      f"1+K+P = {n_s} (K={self.n_filters} filters, P={self.n_plays} plays): "
-                      f"a diagonal feat_w maps each entry of s to one feature")
-        expected = self.expected_shapes()
-        missing = sorted(set(expected) - set(self.weights))
-        if missing:
-            quad = "[F]" if self.quad_diag else "[F, F]"
-            why = (f" ({POLY_KEY} is true: the polynomial head needs quad_w {quad} and cube_w "
-                   f"[F])" if self.poly_head and set(missing) & set(POLY_ARRAYS) else "")
-            why += (f" ({BIAS_KEY} is true: the bias head needs {', '.join(BIAS_ARRAYS)})"
-                    if self.bias_head and set(missing) & set(BIAS_ARRAYS) else "")
-            raise bad(f"{WEIGHTS_FILE} lacks array(s) {', '.join(missing)}{why}")
-        stray = sorted(set(POLY_ARRAYS) & set(self.weights) - set(expected))
-        if stray:
-            raise bad(f"{WEIGHTS_FILE} holds {', '.join(stray)} but {POLY_KEY} is false: set "
-                      f"\"{POLY_KEY}\": true in {CONFIG_FILE} or drop the array(s)")
-        stray = sorted(set(BIAS_ARRAYS) & set(self.weights) - set(expected))
-        if stray:
-            raise bad(f"{WEIGHTS_FILE} holds {', '.join(stray)} but {BIAS_KEY} is false: set "
-                      f"\"{BIAS_KEY}\": true in {CONFIG_FILE} or drop the array(s)")
-        for name, shape in expected.items():
-            arr = self.weights[name]
-            if arr.dtype != np.float32:
-                raise bad(f"array '{name}' must be float32, got {arr.dtype}")
-            if arr.shape != shape:
-                extra = (f" {LSTM_INPUTS_KEY}={self.n_lstm_inputs}" if name == "lstm0_w"
-                         and self.lstm_inputs_narrowed else "")
-                extra += f" {QUAD_DIAG_KEY}=true" if name == "quad_w" and self.quad_diag else ""
-                extra += f" {FEAT_DIAG_KEY}=true" if name == "feat_w" and self.feat_diag else ""
-                raise bad(f"array '{name}' has shape {arr.shape}, expected {shape} from "
-                          f"K={self.n_filters} F={self.n_features} L={self.layers} "
-                          f"H={self.hidden}{extra}")
-            if not np.all(np.isfinite(arr)):
-                raise bad(f"array '{name}' holds NaN or Inf")
-        alpha = self.weights["filter_alpha"].astype(np.float64)
-        if np.any(alpha <= 0) or np.any(alpha > 1):
-            raise bad(f"filter_alpha must lie in (0, 1], got {alpha.tolist()}")
-        want = filter_alpha(self.filter_tau_s, self.decimation, self.sample_dt_s)
-        if not np.allclose(alpha, want, rtol=1e-5, atol=0):
-            raise bad(f"filter_alpha {alpha.tolist()} does not match 1-exp(-D*dt/tau) = "
-                      f"{want.tolist()} for filter_tau_s={self.filter_tau_s}, D={self.decimation}")
-
-    def _validate_plays(self, bad: Callable[[str], UserError]) -> None:
-        widths, sources = self.play_width_c, self.play_source_w
-        if not isinstance(widths, list) or not isinstance(sources, list) \
-                or len(widths) != len(sources):
-            raise bad(f"'{PLAY_WIDTH_KEY}' and '{PLAY_SOURCE_KEY}' must be lists of one "
-                      f"length, got {widths!r} and {sources!r}")
-        for w in widths:
-            if not (isinstance(w, (int, float)) and not isinstance(w, bool)
-                    and math.isfinite(w) and 0 <= w <= MAX_PLAY_WIDTH_C):
-                raise bad(f"'{PLAY_WIDTH_KEY}' must hold widths in [0, {MAX_PLAY_WIDTH_C:g}] "
-                          f"C, got {w!r}")
-        for r in sources:
-            if not (isinstance(r, list) and len(r) == 1 + self.n_filters
-                    and all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                            and math.isfinite(v) and abs(v) <= 1e3 for v in r)):
-                raise bad(f"'{PLAY_SOURCE_KEY}' must hold one row of 1+K = "
-                          f"{1 + self.n_filters} finite weights (|w| <= 1000) per play over "
-                          f"[Tm, y_1..y_K], got {r!r}")
+        """Refuse an inconsistent artifact with one message naming what is wrong
+        (`stream_checks.validate_model`)."""
+        validate_model(self, where)
 
     # -- I/O
     def save(self, directory: str | Path) -> Path:
@@ -391,10 +304,10 @@ class StreamModel:
             extra={k: v for k, v in cfg.items()
                    if k not in _CONFIG_KEYS and k not in (POLY_KEY, LSTM_INPUTS_KEY,
                                                           QUAD_DIAG_KEY, BIAS_KEY,
-                                                          FEAT_DIAG_KEY)},
+                                                          FEAT_DIAG_KEY, RATE_KEY)},
             poly_head=cfg.get(POLY_KEY, False), lstm_inputs=n_in,
             quad_diag=cfg.get(QUAD_DIAG_KEY, False), bias_head=cfg.get(BIAS_KEY, False),
-            feat_diag=cfg.get(FEAT_DIAG_KEY, False),
+            feat_diag=cfg.get(FEAT_DIAG_KEY, False), rate_fs_dps=cfg.get(RATE_KEY, 0.0),
         )
         model.validate(where=str(d))
         return model

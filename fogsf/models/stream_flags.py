@@ -15,11 +15,13 @@ FLAG_TEMP_UNPRIMED = 128  # no plausible temperature yet since reset: the gyro p
 FLAG_MODEL_CHANGED = 256  # the kernel's run-time check found the model changed since init
 FLAG_CALL_INVALID = 512  # a NULL pointer or a state of another size (C only)
 FLAG_SELFTEST_FAILED = 1024  # init's self-test failed (C only, FOGSF_SELFTEST_AT_INIT)
+FLAG_RATE_CLAMPED = 2048  # |corrected| beyond the rate part's full scale: its edge value used
 FLAG_NAMES = {FLAG_TEMP_INVALID: "TEMP_INVALID", FLAG_TEMP_CLAMPED: "TEMP_CLAMPED",
               FLAG_TEMP_STUCK: "TEMP_STUCK", FLAG_GYRO_INVALID: "GYRO_INVALID",
               FLAG_SF_CLAMPED: "SF_CLAMPED", FLAG_BIAS_CLAMPED: "BIAS_CLAMPED",
               FLAG_TEMP_UNPRIMED: "TEMP_UNPRIMED", FLAG_MODEL_CHANGED: "MODEL_CHANGED",
-              FLAG_CALL_INVALID: "CALL_INVALID", FLAG_SELFTEST_FAILED: "SELFTEST_FAILED"}
+              FLAG_CALL_INVALID: "CALL_INVALID", FLAG_SELFTEST_FAILED: "SELFTEST_FAILED",
+              FLAG_RATE_CLAMPED: "RATE_CLAMPED"}
 # The power-on rule (fogsf.h): the filters prime from the first temperature that is finite,
 # within PLAUSIBLE_C and not a DS18B20's power-on value (a bad first reading primes nothing)
 PLAUSIBLE_C = (-55.0, 125.0)

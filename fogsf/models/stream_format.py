@@ -48,3 +48,11 @@ def _trained_kind(directory: Path) -> str | None:
     except (OSError, ValueError, AttributeError):
         return None
     return kind if isinstance(kind, str) else None
+# optional stream.json key (absent = no rate part): the full scale FS (deg/s) of the rate
+# part, whose array rate_w [R, Q] holds, per term (row 0: |x|; row r >= 1: x^(r+1), with
+# x = corrected / FS), its coefficients in deg/s of powers 0..Q-1 of s0 = Tm - t_ref
+RATE_KEY = "rate_fs_dps"
+RATE_ARRAY = "rate_w"
+MAX_RATE_ROWS = 9  # |x| and x^2 .. x^9
+MAX_RATE_TEMP_COEFS = 3  # coefficients at most quadratic in temperature
+MAX_RATE_FS_DPS = 1.0e4
