@@ -36,6 +36,9 @@ from fogsf.models.stream import StreamModel
 CPPCHECK = "cppcheck"
 MISRA_MD = C_DIR / "MISRA.md"
 KERNEL_HEADERS = ("fogsf.h", "fogsf_fp.h")
+# the calibration block loader (fogsf_block.c): flight code beside the kernel, checked as it is
+LOADER = ("fogsf_block.c",)
+LOADER_HEADER = "fogsf_block.h"
 
 # MISRA C:2012 (third edition, with Amendments 1 and 2): the Mandatory and the Advisory rules;
 # every other rule and directive is Required (an unknown number counts as Required too).
@@ -77,6 +80,8 @@ def shapes() -> dict[str, StreamModel]:
         "misra_play": samples.random_model(2, 4, 1, 16, 10, seed=3, poly_head=True,
                                            bias_head=True, plays=(((0.2, 0.5, 0.3), 2.0),)),
         "misra_cross": samples.random_model(3, 4, 2, 8, 10, seed=4, poly_head=True),
+        "misra_rate": samples.random_model(2, 4, 1, 16, 10, seed=5, poly_head=True,
+                                           bias_head=True, rate_part=(8, 3)),
     }
 
 
@@ -243,7 +248,7 @@ def compiler_warnings(cc: str = "gcc") -> list[Finding]:
         return [Finding("-", 0, f"{cc}-missing", "cppcheck", f"{cc} not found")]
     out = []
     for extra in ((), (EVEN_TIME,)):
-        for name in SOURCES:
+        for name in (*SOURCES, *LOADER):
             proc = subprocess.run([cc, *STRICT, "-O2", *WARNING_RULES, *extra, "-I", str(C_DIR),
                                    "-fsyntax-only", str(C_DIR / name)],
                                   capture_output=True, text=True)
@@ -260,7 +265,7 @@ def check(out: Path, extra: list[Path] = ()) -> tuple[list[Finding], list[str]]:
     """(findings, problems): problems are what makes `make misra` fail."""
     gen = out / "models"
     models = shapes()
-    files = [C_DIR / n for n in SOURCES]
+    files = [C_DIR / n for n in (*SOURCES, *LOADER)]
     for name, model in models.items():
         write_model(model, gen, name)
         files.append(gen / f"{name}.c")
@@ -274,9 +279,10 @@ def check(out: Path, extra: list[Path] = ()) -> tuple[list[Finding], list[str]]:
     findings += [f for f in run_cppcheck([C_DIR / n for n in SOURCES],
                                          {**sizes, "FOGSF_EVEN_TIME": 1}, [C_DIR], out)
                  if (f.file, f.line, f.rule) not in seen]
-    findings += plain_integer_lines([C_DIR / n for n in (*SOURCES, *KERNEL_HEADERS)])
-    kernel = [C_DIR / n for n in (*SOURCES, *KERNEL_HEADERS)]
+    kernel = [C_DIR / n for n in (*SOURCES, *LOADER, *KERNEL_HEADERS, LOADER_HEADER)]
+    findings += plain_integer_lines(kernel)
     findings += parameter_names(C_DIR / "fogsf.h", kernel)
+    findings += parameter_names(C_DIR / LOADER_HEADER, kernel)
     findings += composite_casts(kernel)
     findings += compiler_warnings()
     problems = [f"{f.file}:{f.line}: {f.category} {'rule ' if f.category != 'cppcheck' else ''}"
@@ -318,8 +324,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     try:
         args.out.mkdir(parents=True, exist_ok=True)
-        print(f"cppcheck --addon=misra (MISRA C:2012) on {', '.join(SOURCES)} and models "
-              f"{', '.join(shapes())}")
+        print(f"cppcheck --addon=misra (MISRA C:2012) on {', '.join((*SOURCES, *LOADER))} "
+              f"and models {', '.join(shapes())}")
         findings, problems = check(args.out.resolve(), args.extra)
     except (UserError, subprocess.TimeoutExpired) as e:
         print(f"misra: error: {e}", file=sys.stderr)

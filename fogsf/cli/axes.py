@@ -148,7 +148,8 @@ SPECS: dict[str, Spec] = {
     "replay": Spec(lambda a: [a.log],
                    {"model": "dir", "out": "file", "json": "file", "plot": "file"},
                    _replay_row),
-    "export": Spec(lambda a: [], {"model": "dir", "out": "dir", "name": "name"}, _export_row,
+    "export": Spec(lambda a: [], {"model": "dir", "out": "dir", "name": "name", "blob": "file"},
+                   _export_row,
                    title="one C model per axis"),
 }
 
