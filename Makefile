@@ -6,7 +6,7 @@ FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: help venv test test-fast lint demo firmware firmware-cores misra export toolchain bench fuzz bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias bench-fleet paper clean
+.PHONY: help venv test test-fast lint demo firmware firmware-cores misra export toolchain bench fuzz block-cores fuzz-block bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias bench-plateaus bench-fleet paper clean
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
@@ -19,6 +19,8 @@ help:
 	@echo "make bench     speed / size benchmarks (one and three models per image) -> out/bench.json"
 	@echo "make misra     cppcheck's MISRA C:2012 addon on the kernel and generated models; fails on Mandatory/Required"
 	@echo "make fuzz      libFuzzer + ASan + UBSan over the kernel until FUZZ_STEPS (1e7) steps"
+	@echo "make block-cores  the calibration block's model: golden vectors under QEMU on M4F, M3, M0"
+	@echo "make fuzz-block   libFuzzer + ASan + UBSan over the block loader until FUZZ_INPUTS (1e7) blocks"
 	@echo "make paper     the paper's protocol: Table 2 side by side -> out/paper/"
 	@echo "make bench-transfer  one ramp rate vs two, over seeds -> out/bench-transfer.json"
 	@echo "make bench-diagnose  diagnose success rate over planted effects -> out/bench-diagnose.json"
@@ -32,6 +34,7 @@ help:
 	@echo "make bench-sim   simulator speed and its calibration to the paper -> out/bench-sim.json"
 	@echo "make bench-rigs  rig logs (ROS, staircase, reversals, skew IMU) trained and scored against the truth -> out/bench-rigs.json"
 	@echo "make bench-bias  the bias model on evaluation gyros (reversals from a standard and a fast loop, stationary; with and without a Shupe term) vs a PX4-style cubic -> out/bench-bias.json"
+	@echo "make bench-plateaus  the plateau model on evaluation gyros (open- and closed-loop), three splits, vs the best polynomial in rate and T -> out/bench-plateaus.json"
 	@echo "make lint      ruff"
 
 $(STAMP): pyproject.toml constraints.txt
@@ -79,6 +82,13 @@ bench: $(STAMP)
 
 fuzz: $(STAMP)
 	bash scripts/fuzz.sh build/fuzz
+
+# the calibration block (docs/firmware.md, "Calibration block")
+block-cores: $(STAMP)
+	$(PY) -m fogsf.bindings.block_cores $${FIRMWARE_MODEL:-tests/fixtures/small_model} --out build/block-cores
+
+fuzz-block: $(STAMP)
+	$(PY) -m fogsf.bindings.fuzz_block --out build/fuzz-block --inputs $${FUZZ_INPUTS:-10000000}
 
 # --- the paper's protocol, Table 2 side by side (default gyro), ~4 min ---
 paper: $(STAMP)
@@ -148,6 +158,10 @@ bench-rigs: $(STAMP)
 BIAS_GYROS ?= 20000:20032
 bench-bias: $(STAMP)
 	$(PY) -m benchmarks.bias_eval --gyros $(BIAS_GYROS) --out $(OUT)/bench-bias.json
+
+PLATEAU_GYROS ?= 20000:20016
+bench-plateaus: $(STAMP)
+	$(PY) -m benchmarks.plateaus --gyros $(PLATEAU_GYROS) --out $(OUT)/bench-plateaus.json
 
 clean:
 	rm -rf build out models

@@ -46,6 +46,7 @@ import sys
 from pathlib import Path
 
 from fogsf.cli.arguments import add_earth_options, add_log_options, read_logs
+from fogsf.cli.plateau_commands import any_plateau_table, diagnose_tables
 from fogsf.diagnose import extend, report, verdict
 from fogsf.errors import UserError
 
@@ -81,6 +82,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.window_s <= 0:
         raise UserError("--window-s must be > 0")
+    if any_plateau_table(args, args.logs):
+        return diagnose_tables(args)
     logs = read_logs(args, args.logs, on_disk=True)
     effects = [e.strip() for e in args.effects.split(",")] if args.effects else None
     d = verdict.diagnose(logs, window_s=args.window_s, latitude_deg=args.latitude_deg,

@@ -39,6 +39,7 @@ from fogsf.cli.arguments import (
     read_logs,
 )
 from fogsf.cli.axes import run_all, wants_all
+from fogsf.cli.plateau_commands import any_plateau_table, replay_table
 from fogsf.errors import UserError
 from fogsf.logs.corrected_out import CorrectedWriter
 from fogsf.logs.measure.bias import before_after, bias_windows
@@ -159,6 +160,8 @@ def flag_counts(flags: np.ndarray) -> dict[str, int]:
 def run(args: argparse.Namespace) -> int:
     if wants_all(args):  # MODEL_DIR/A, --out NAME_A.csv (--json, --plot) per axis
         return run_all(args, run, "replay")
+    if any_plateau_table(args, [args.log]):
+        return replay_table(args)
     model = StreamModel.load(args.model)
     log = read_logs(args, [args.log], on_disk=True)[0]
     note = start_note(log, args.skip_s)

@@ -45,6 +45,7 @@ from fogsf.cli.arguments import (
     read_logs,
 )
 from fogsf.cli.axes import run_all, wants_all
+from fogsf.cli.plateau_commands import any_plateau_table, train_tables
 from fogsf.errors import UserError
 from fogsf.fleet.new_unit import train_on_prior
 from fogsf.gsa.executors import add_executor_options
@@ -156,6 +157,8 @@ def run(args: argparse.Namespace) -> int:
     if args.prior and (args.model != "lag-lstm" or args.structure or args.nodes or args.node):
         raise UserError("--prior fits the default model (lag-lstm) on the design's physics "
                         "nodes: drop --model, --structure, --nodes and --node")
+    if any_plateau_table(args, args.train + ([args.test] if args.test else [])):
+        return train_tables(args)
     train_logs = read_logs(args, args.train, on_disk=True)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
     opts = train_options(args)

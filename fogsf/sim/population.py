@@ -87,6 +87,14 @@ HYST_STREAM = 0x4857  # the hysteresis draws' own stream: [seed, HYST_STREAM]
 OPEN_LOOP_FRACTION = (0.1, 0.4)
 OPEN_LOOP_TC_PPM_PER_C = (-600.0, -200.0)
 OPEN_LOOP_STREAM = 0x0915
+# A closed-loop FOG's rate response (`rate_response=True`): an SF nonlinearity of
+# CLOSED_LOOP_NONLIN_PPM at 100 deg/s growing as |rate|^CLOSED_LOOP_EXPONENT (a fractional
+# power: no polynomial holds it exactly) and an asymmetry of CLOSED_LOOP_ASYM_PPM between
+# + and - rates, each uniform, its own stream.
+CLOSED_LOOP_NONLIN_PPM = (20.0, 200.0)
+CLOSED_LOOP_EXPONENT = (1.0, 2.0)
+CLOSED_LOOP_ASYM_PPM = (10.0, 100.0)
+RATE_RESPONSE_STREAM = 0x0A7E
 # Forms outside the population's (`outside_form`, benches only): the thermometer behind the
 # board ("sensor", its lag log-uniform over SENSOR_TAU_S), or one internal part that carries
 # an SF factor moved behind the chamber air ("vent", VENT_TAU_S; the parts behind it follow
@@ -239,12 +247,28 @@ def open_loop_for_seed(seed: int) -> EffectConfig:
                         {"tc_ppm_per_c": round(_uniform(rng, OPEN_LOOP_TC_PPM_PER_C), 1)})
 
 
+def rate_response_for_seed(seed: int) -> list[EffectConfig]:
+    """Gyro `seed`'s closed-loop rate response: a `rate_nonlinearity` and an `asymmetry`."""
+    rng = np.random.default_rng([seed, RATE_RESPONSE_STREAM])
+    nonlin = round(_uniform(rng, CLOSED_LOOP_NONLIN_PPM), 2)
+    exponent = round(_uniform(rng, CLOSED_LOOP_EXPONENT), 3)
+    asym = round(_uniform(rng, CLOSED_LOOP_ASYM_PPM), 2)
+    return [EffectConfig("rate_nonlinearity", nonlin, {"exponent": exponent}),
+            EffectConfig("asymmetry", asym)]
+
+
 def gyro_for_seed(seed: int, hysteresis: bool = True, thermal_bias: bool = False,
-                  open_loop: bool = False) -> SimConfig:
+                  open_loop: bool = False, rate_response: bool = False) -> SimConfig:
     """The population's gyro number `seed` (seed 0: the default gyro). hysteresis=False:
     the same gyro without its SF hysteresis, if it draws one; with `thermal_bias`, its bias
     on the coil with a Shupe term, a quadratic and a cubic (`with_thermal_bias`); with
-    `open_loop`, the same gyro as an open-loop FOG (`open_loop_for_seed`)."""
+    `open_loop`, the same gyro as an open-loop FOG (`open_loop_for_seed`); with
+    `rate_response`, as a closed-loop FOG with its rate terms (`rate_response_for_seed`)."""
+    if rate_response:
+        cfg = gyro_for_seed(seed, hysteresis, thermal_bias, open_loop)
+        cfg.effects.extend(rate_response_for_seed(seed))
+        cfg.scenario += ":rate-response"
+        return cfg
     if open_loop:
         cfg = gyro_for_seed(seed, hysteresis, thermal_bias)
         cfg.effects.append(open_loop_for_seed(seed))
