@@ -32,8 +32,12 @@ wrong, name the cause, extend the model and measure the gain.
 5. Writes the extended model as a simulator configuration (--config-out, and in the JSON as
    extended_model) and simulates it to report how much closer it comes to the logs.
 
+On plateau tables (docs/diagnose.md, "Plateau tables"): the rate terms beyond the
+simulator's linear SF (an open-loop FOG's sine, a polynomial, the asymmetry), named.
+
 examples:
   fogsf diagnose run.csv --json diag.json --report diag.md
+  fogsf diagnose rig/table.csv --json diag.json
   fogsf diagnose up.csv down.csv --json diag.json --cv runs
   fogsf simulate --config diag.sim.json --out sim.csv      # data from the extended model
 """

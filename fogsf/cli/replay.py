@@ -16,8 +16,10 @@ A log at another sample rate than the model's training logs runs the model re-ra
 The kernel starts from reset at the log's first sample, its lag states at that sample's
 temperature: a log that starts while the temperature moves is said so, and --skip-s S
 leaves its first S seconds out of the metrics (the kernel still runs over them).
-Example:
+A plateau table (docs/train.md, "Plateau tables") is corrected one row a plateau.
+Examples:
   fogsf replay models/m run10.csv --out corrected.csv --plot replay.png
+  fogsf replay models/plat rig/table.csv --out corrected.csv
 """
 
 from __future__ import annotations

@@ -24,10 +24,13 @@ that `fogsf export` reads.
 
 With --prior FLEET the unit is fitted under its design's prior, learned from the units
 already in the fleet database (docs/fleet.md, "The design's prior"); --unit SN records it.
+On plateau tables (a rig's means per rate plateau) it fits the plateau model: the SF as a
+function of rate and temperature (docs/train.md, "Plateau tables").
 
 Examples:
   fogsf train --train run05.csv --train run20.csv --test run10.csv --out models/m
   fogsf train --prior line.fleet --unit SN0042 --train short.csv --test test.csv --out m42
+  fogsf train --train rig/run1.csv --test rig/run2.csv --out models/plat
 """
 
 from __future__ import annotations
