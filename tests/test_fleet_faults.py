@@ -143,11 +143,11 @@ def test_an_add_that_cannot_record_keeps_the_training(tmp_path: Path, short_wait
     holder = None
     real_add = store.FleetStore.add
 
-    def add_under_a_lock(self: store.FleetStore, record: object, replace: bool = False
-                         ) -> None:  # the lock taken once training is over, as in a line
+    def add_under_a_lock(self: store.FleetStore, record: object, replace: bool = False,
+                         guard: object = None) -> None:  # the lock taken after training
         nonlocal holder
         holder = _hold_write_lock(fleet)
-        real_add(self, record, replace)
+        real_add(self, record, replace, guard)
 
     monkeypatch.setattr(store.SQLiteStore, "add", add_under_a_lock, raising=False)
     try:

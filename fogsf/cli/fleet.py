@@ -15,6 +15,7 @@ Examples:
   fogsf fleet list line.fleet
   fogsf fleet check line.fleet --json outliers.json
   fogsf fleet report line.fleet --out report/
+  fogsf fleet export line.fleet --out blocks/
 """
 
 from __future__ import annotations
@@ -26,22 +27,27 @@ import os
 import shlex
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
+from fogsf.cli import fleet_export
 from fogsf.cli import train as train_cli
 from fogsf.cli.arguments import read_logs
 from fogsf.cli.main import main
 from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
+from fogsf.fleet.batch import run_local
 from fogsf.fleet.check import DEFAULT_FALSE_ALARM, check_fleet
 from fogsf.fleet.faults import db_faults
+from fogsf.fleet.lease import BatchLease, check_batch
 from fogsf.fleet.manifest import ManifestRow, read_manifest
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.records import structure_of, unit_record
 from fogsf.fleet.report import write_report
 from fogsf.fleet.report_dir import check_out_dir
+from fogsf.fleet.scratch import temp_dir
 from fogsf.fleet.store import open_store
-from fogsf.gsa.executors import open_executor
+from fogsf.gsa.executors import default_workers, open_executor
 from fogsf.training.train import run_training
 
 FLEET_HELP = ("the fleet: an SQLite file or a postgresql:// URL (its password from "
@@ -68,6 +74,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         p.add_argument("--unit", required=True, metavar="SN", help="the unit's serial number")
     p.add_argument("--replace", action="store_true",
                    help="record the unit again if FLEET already has it")
+    p.add_argument("--batch", default=None, help=argparse.SUPPRESS)  # add-many's lease id
     p.set_defaults(_fleet_run=run_add)
 
     p = _action(sub, "add-many", "add the units of a manifest, several at once",
@@ -120,6 +127,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help=f"the check's false-alarm rate (default {DEFAULT_FALSE_ALARM:g})")
     p.set_defaults(_fleet_run=run_report)
 
+    fleet_export.configure(_action(sub, "export", "one calibration block per unit and a "
+                                   "manifest (firmware: docs/firmware.md)",
+                                   fleet_export.EXAMPLE), FLEET_HELP)
+
 
 def _action(sub: argparse._SubParsersAction, name: str, help_text: str, example: str
             ) -> argparse.ArgumentParser:
@@ -156,8 +167,8 @@ def run_add(args: argparse.Namespace) -> int:
     train_logs = read_logs(args, args.train, on_disk=True)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
     opts = train_options(args)
-    with tempfile.TemporaryDirectory(prefix="fogsf-fleet-") as tmp:
-        out = Path(args.out) if args.out else Path(tmp)
+    with temp_dir("fleet-") as tmp:
+        out = Path(args.out) if args.out else tmp
         if out.exists() and not out.is_dir():
             raise UserError(f"--out {out} exists and is not a directory")
         metrics, fitted = run_training(opts, train_logs, test_log, out)
@@ -168,7 +179,8 @@ def run_add(args: argparse.Namespace) -> int:
                              options, keep_dir=bool(args.out))
     try:
         with db_faults(masked(args.fleet)), open_store(args.fleet, "create") as store:
-            store.add(record, replace=args.replace)
+            store.add(record, replace=args.replace, guard=None if not args.batch else
+                      lambda s: check_batch(s, args.batch))
             n = len(store.units())
     except UserError as e:  # the hour of training is not lost with the record
         raise UserError(f"{e}; the trained model is kept in {args.out}" if args.out else
@@ -209,14 +221,6 @@ def run_add_many(args: argparse.Namespace) -> int:
     if clash and not args.replace:
         raise UserError(f"{args.manifest}: {len(clash)} unit(s) already in {where}: "
                         f"{', '.join(clash[:5])} (--replace to record them again)")
-    argvs = []
-    for r in rows:
-        argv = [args.fleet, "--unit", r.unit, "--workers", "1", "--no-progress", *extra]
-        for t in r.train:
-            argv += ["--train", t]
-        argv += ["--test", r.test] if r.test else []
-        argv += ["--out", r.out] if r.out else []
-        argvs.append(argv + (["--replace"] if args.replace else []))
     failed: list[str] = []
 
     def said(r: ManifestRow, code: int, text: str) -> None:  # each unit as it ends
@@ -228,26 +232,61 @@ def run_add_many(args: argparse.Namespace) -> int:
             print(f"{r.unit}: FAILED: {last[-1] if last else f'exit status {code}'}",
                   flush=True)
 
-    from concurrent.futures import as_completed
-
     from tqdm import tqdm
 
-    with open_executor(workers=args.workers, dask=args.dask) as ex, \
+    workers = default_workers() if args.workers is None else args.workers
+    if workers < 1:
+        raise UserError(f"--workers must be at least 1, got {workers}")
+    # The batch's lease: a unit whose batch is gone (this process killed) is not recorded.
+    with BatchLease(args.fleet) as lease, \
             tqdm(total=len(rows), desc="units", unit="unit",
                  disable=args.no_progress or not sys.stderr.isatty()) as bar:
-        if ex is None:
-            for r, argv in zip(rows, argvs, strict=True):
-                said(r, *add_one(argv))
-                bar.update()
-        else:
-            futs = {ex.submit(add_one, argv): r for r, argv in zip(rows, argvs, strict=True)}
-            for f in as_completed(futs):
-                said(futs[f], *f.result())
-                bar.update()
+        argvs = [_unit_argv(args, r, extra, lease.id) for r in rows]
+
+        def done(i: int, code: int, text: str) -> None:
+            said(rows[i], code, text)
+            bar.update()
+
+        if args.dask:
+            _run_dask(args.dask, argvs, done)
+        elif workers == 1:  # here, one after another: nothing outlives this process
+            for i, argv in enumerate(argvs):
+                done(i, *add_one(argv))
+        else:  # children that die with this process (fleet.batch)
+            run_local(argvs, workers, done)
     print(f"{len(rows) - len(failed)} of {len(rows)} units recorded in {where}")
     if failed:
         raise UserError(f"{len(failed)} unit(s) not recorded: {', '.join(failed)}")
     return 0
+
+
+def _unit_argv(args: argparse.Namespace, r: ManifestRow, extra: list[str], batch: str
+               ) -> list[str]:
+    """`fogsf fleet add` arguments of one manifest row."""
+    argv = [args.fleet, "--unit", r.unit, "--workers", "1", "--no-progress", *extra]
+    for t in r.train:
+        argv += ["--train", t]
+    argv += ["--test", r.test] if r.test else []
+    argv += ["--out", r.out] if r.out else []
+    return argv + (["--replace"] if args.replace else []) + ["--batch", batch]
+
+
+def _run_dask(address: str, argvs: list[list[str]], done: Callable[[int, int, str], None]
+              ) -> None:
+    """The units on a Dask cluster. Units not started when this process goes are
+    forgotten with its client (the scheduler drops a lost client's futures); a unit
+    already training finishes there, and its batch's lease refuses it."""
+    from concurrent.futures import as_completed
+
+    with open_executor(dask=address) as ex:
+        assert ex is not None
+        futs = {ex.submit(add_one, argv): i for i, argv in enumerate(argvs)}
+        try:
+            for f in as_completed(futs):
+                done(futs[f], *f.result())
+        finally:  # an error or Ctrl-C here: the rest is not run
+            for f in futs:
+                f.cancel()
 
 
 # --- list, remove -----------------------------------------------------------------------------

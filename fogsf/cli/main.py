@@ -7,12 +7,14 @@ from __future__ import annotations
 import argparse
 import importlib
 import re
+import signal
 import sys
 from collections.abc import Collection
 from typing import NoReturn
 
 from fogsf import __version__
 from fogsf.errors import UserError
+from fogsf.fleet import batch, scratch
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -106,7 +108,17 @@ def build_parser(configure: Collection[str] | None = None) -> argparse.ArgumentP
     return parser
 
 
+def _exit_on_signal(signum: int, _frame: object) -> None:
+    raise SystemExit(128 + signum)  # unwinds: temporary folders go, children are stopped
+
+
 def main(argv: list[str] | None = None) -> int:
+    scratch.sweep()  # the temporary folders of fogsf processes that were killed
+    if argv is None:  # the `fogsf` process itself: every temporary file in its own folder
+        batch.watch_parent()  # a unit of add-many: it ends with its batch, from its start
+        scratch.claim_tempdir()
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, _exit_on_signal)
     argv = join_negative_ranges(sys.argv[1:] if argv is None else list(argv))
     command = chosen_command(argv)
     args = build_parser(() if command is None else (command,)).parse_args(argv)

@@ -42,6 +42,7 @@ MIGRATION_LOCK = 0x0F05F1EE7  # PostgreSQL advisory lock key of the fleet's migr
 # must exist), "write" (remove, recording a unit trained under the prior: must exist),
 # "create" (add, add-many: a new fleet where nothing is, an existing fleet, nothing else).
 MODES = ("read", "write", "create")
+Guard = Callable[["FleetStore"], None]  # last in an add's transaction; raises to refuse
 
 
 def _v1(db: FleetStore) -> None:
@@ -82,7 +83,13 @@ def _v2(db: FleetStore) -> None:
     db.execute("CREATE INDEX units_structure ON units (structure)")
 
 
-MIGRATIONS: list[Callable[[FleetStore], None]] = [_v1, _v2]
+def _v3(db: FleetStore) -> None:
+    """Version 3: the leases of running add-many batches (`fleet.lease`)."""
+    db.execute("CREATE TABLE batches (id TEXT PRIMARY KEY, host TEXT NOT NULL, pid BIGINT "
+               "NOT NULL, started TEXT NOT NULL, heartbeat DOUBLE PRECISION NOT NULL)")
+
+
+MIGRATIONS: list[Callable[[FleetStore], None]] = [_v1, _v2, _v3]
 SCHEMA_VERSION = len(MIGRATIONS)
 
 
@@ -101,6 +108,7 @@ class FleetStore:
     placeholders; values only ever as parameters."""
 
     location: str
+    now_sql: str  # the database's clock in SQL, seconds since 1970 (leases' heartbeats)
 
     def execute(self, sql: str, params: tuple = ()) -> Any:
         raise NotImplementedError
@@ -175,9 +183,10 @@ class FleetStore:
     def has(self, sn: str) -> bool:
         return bool(self.execute("SELECT 1 FROM units WHERE sn = ?", (sn,)).fetchall())
 
-    def add(self, record: UnitRecord, replace: bool = False) -> None:
+    def add(self, record: UnitRecord, replace: bool = False, guard: Guard | None = None) -> None:
         """Record a unit (one transaction); a unit of that serial number already there is
-        refused, or replaced when `replace`."""
+        refused, or replaced when `replace`; `guard(self)` runs last before COMMIT and
+        refuses the unit by raising (a batch's lease, `fleet.lease.check_batch`)."""
         check_unit_name(record.unit)  # the last guard: no command records a bad name
         with self.transaction():
             if self.has(record.unit):
@@ -203,6 +212,8 @@ class FleetStore:
                      float(lg.sample_rate_hz), _dumps(lg.ramp_rates_c_per_min),
                      _finite_or_none(lg.temp_min_c), _finite_or_none(lg.temp_max_c), lg.role))
             _pause_hook()
+            if guard is not None:  # last, after the hook's pause (a kill there is tested)
+                guard(self)
 
     def _delete(self, sn: str) -> None:
         self.execute("DELETE FROM logs WHERE sn = ?", (sn,))
@@ -265,6 +276,7 @@ def _pause_hook() -> None:
 
 class SQLiteStore(FleetStore):
     """A fleet in one SQLite file (write-ahead log, writers queue on a busy timeout)."""
+    now_sql = "((julianday('now') - 2440587.5) * 86400.0)"
 
     def __init__(self, path: str | Path, mode: str = "create") -> None:
         p = Path(path)
@@ -312,6 +324,7 @@ class SQLiteStore(FleetStore):
 
 class PostgresStore(FleetStore):
     """A fleet in a PostgreSQL database (psycopg 3), for several chambers at once."""
+    now_sql = "CAST(EXTRACT(EPOCH FROM clock_timestamp()) AS DOUBLE PRECISION)"
 
     def __init__(self, url: str, mode: str = "create") -> None:
         try:
@@ -345,11 +358,11 @@ class PostgresStore(FleetStore):
     def _table_exists(self, name: str) -> bool:
         return self.execute("SELECT to_regclass(?)", (name,)).fetchall()[0][0] is not None
 
-    def add(self, record: UnitRecord, replace: bool = False) -> None:
+    def add(self, record: UnitRecord, replace: bool = False, guard: Guard | None = None) -> None:
         import psycopg
 
         try:
-            super().add(record, replace)
+            super().add(record, replace, guard)
         except psycopg.IntegrityError:  # another add of that unit committed first
             raise UserError(f"unit {shown(record.unit)} was added to {self.location} by another "
                             "process meanwhile (--replace to record it again)") from None

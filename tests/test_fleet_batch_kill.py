@@ -1,0 +1,165 @@
+"""A killed batch stops: `fleet add-many` killed with SIGKILL (its pid, or its process group)
+leaves no process, lands no unit after the kill, and leaves no temporary folder once the
+next command ran; a worker that outlives its batch records nothing; every fogsf process's
+temporary folder goes at exit, or with the next command when the process was killed."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from fogsf.errors import UserError
+from fogsf.fleet import scratch
+from fogsf.fleet.lease import BatchLease, check_batch, host_key
+from fogsf.fleet.store import PAUSE_HOOK, PAUSE_S_HOOK, open_store
+from tests.fleet_kill import count_units, kill_trial, make_logs
+from tests.fleet_units import fake_record, fleet_urls, wait_for
+
+FAST = ["--structure", "physics", "--iters", "2", "--hysteresis", "off", "--no-progress"]
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    return make_logs(tmp_path_factory.mktemp("logs"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("how", ["pid", "group"])
+@pytest.mark.parametrize("make_fleet", fleet_urls())
+def test_a_killed_batch_stops(make_fleet, how: str, logs: list[Path], tmp_path: Path) -> None:
+    fleet = make_fleet(tmp_path)
+    t = kill_trial(tmp_path, fleet, logs, how)
+    assert t.at_kill >= 1, f"killed before any unit landed, or never killed: {t}"
+    assert not t.alive_soon and not t.alive, f"processes of the batch alive after the kill: {t}"
+    assert t.later == t.at_kill, f"units landed after the kill: {t}"
+    assert t.integrity == "ok", f"the fleet's integrity check: {t}"
+    assert not t.fogsf_left(), f"temporary folders left after the next command: {t}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("make_fleet", fleet_urls())
+def test_a_worker_outliving_its_batch_records_nothing(make_fleet, logs: list[Path],
+                                                      tmp_path: Path) -> None:
+    """A worker inside its unit's transaction when its batch is killed, and left running
+    (no pipe, no parent-death signal): its unit is refused, nothing recorded."""
+    fleet = make_fleet(tmp_path)
+    ready = tmp_path / "lease-id"
+    holder = subprocess.Popen(  # the batch: holds the lease until killed
+        [sys.executable, "-c", "import sys, time, pathlib\n"
+         "from fogsf.fleet.lease import BatchLease\n"
+         "with BatchLease(sys.argv[1]) as lease:\n"
+         "    pathlib.Path(sys.argv[2]).write_text(lease.id)\n"
+         "    time.sleep(600)\n", fleet, str(ready)])
+    marker = tmp_path / "in-transaction"
+    worker = None
+    try:
+        wait_for(ready.exists, 60, "the lease was never taken")
+        env = dict(os.environ, **{PAUSE_HOOK: str(marker), PAUSE_S_HOOK: "2"})
+        worker = subprocess.Popen(
+            [sys.executable, "-m", "fogsf", "fleet", "add", fleet, "--unit", "W1",
+             "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", ready.read_text()],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        wait_for(lambda: marker.exists() or worker.poll() is not None, 120,
+                 "the worker never reached its transaction")
+        holder.kill()  # the batch dies while the worker's unit is written, not committed
+        holder.wait()
+        said = worker.communicate(timeout=60)[0]
+    finally:
+        for p in (holder, worker):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait()
+    assert marker.exists(), f"the worker never paused in its transaction: {said}"
+    assert worker.returncode == 2 and "not recorded" in said, said
+    assert count_units(fleet) == (0, "ok"), said
+
+
+@pytest.mark.parametrize("make_fleet", fleet_urls())
+def test_a_unit_lands_only_while_its_batch_runs(make_fleet, tmp_path: Path) -> None:
+    fleet = make_fleet(tmp_path)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    with BatchLease(fleet) as lease, open_store(fleet) as store:
+        store.add(fake_record("A1"), guard=lambda s: check_batch(s, lease.id))  # ours: lands
+        rows = {  # id -> (host, pid, started, heartbeat age in s)
+            "dead": (host_key(), dead.pid, "1", 0.0),  # a pid that no longer runs
+            "reused": (host_key(), os.getpid(), "1", 0.0),  # our pid, another start
+            "far-stale": ("another-host", 1, "1", 30.0),
+            "far-fresh": ("another-host", 1, "1", 1.0),
+        }
+        with store.transaction():
+            for bid, (host, pid, started, age) in rows.items():
+                store.execute("INSERT INTO batches (id, host, pid, started, heartbeat) "
+                              f"VALUES (?, ?, ?, ?, {store.now_sql} - ?)",
+                              (bid, host, pid, started, age))
+        for i, bid in enumerate(["dead", "reused", "far-stale", "gone"]):
+            with pytest.raises(UserError, match="not recorded"):
+                store.add(fake_record(f"B{i}"), guard=lambda s, b=bid: check_batch(s, b))
+        store.add(fake_record("C1"), guard=lambda s: check_batch(s, "far-fresh"))
+        assert [u.unit for u in store.units()] == ["A1", "C1"]
+    with open_store(fleet, "read") as store:  # the lease's row went with the batch
+        assert lease.id not in {r[0] for r in store.execute("SELECT id FROM batches")}
+
+
+def _owned(base: Path, pid: int, start: str | None) -> Path:
+    p = base / f"fogsf-{pid}-{start}"
+    (p / "inner").mkdir(parents=True)
+    return p
+
+
+def test_sweep_removes_only_the_folders_of_gone_processes(tmp_path: Path) -> None:
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    me = os.getpid()
+    gone = [_owned(tmp_path, dead.pid, "123"),  # its owner ended
+            _owned(tmp_path, me, "1")]  # our pid, but another start: a reused pid
+    kept = [_owned(tmp_path, me, scratch.start_time(me)),  # alive
+            tmp_path / "fogsf-spill-abc", tmp_path / "fogsf-12-x", tmp_path / "other"]
+    for k in kept[1:]:
+        k.mkdir()
+    assert sorted(scratch.sweep(tmp_path)) == sorted(gone)
+    assert sorted(tmp_path.iterdir()) == sorted(kept)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", ["add", "train"])
+def test_a_killed_command_leaves_no_folder_after_the_next(command: str, logs: list[Path],
+                                                          tmp_path: Path) -> None:
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    argv = {"add": ["fleet", "add", str(tmp_path / "f.fleet"), "--unit", "K1"],
+            "train": ["train", "--out", str(tmp_path / "m")]}[command]
+    env = dict(os.environ, TMPDIR=str(tmp))
+    p = subprocess.Popen([sys.executable, "-m", "fogsf", *argv, "--train", str(logs[0]),
+                          "--workers", "1", "--structure", "physics", "--iters", "400",
+                          "--hysteresis", "off", "--no-progress"], env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        wait_for(lambda: any(tmp.iterdir()) or p.poll() is not None, 60, "no folder made")
+        time.sleep(3.0)  # into its work (the logs read, training)
+        assert p.poll() is None, p.stderr.read().decode() if p.stderr else ""
+        made = sorted(x.name for x in tmp.iterdir())
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait()
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert [n for n in made if n.startswith(f"fogsf-{p.pid}-")], made
+    subprocess.run([sys.executable, "-m", "fogsf", "--version"], env=env, check=True,
+                   capture_output=True)
+    assert not list(tmp.iterdir()), (made, sorted(x.name for x in tmp.iterdir()))
+
+
+def test_a_process_folder_goes_at_exit(tmp_path: Path) -> None:
+    code = ("import sys; from fogsf.fleet import scratch; p = scratch.process_dir(); "
+            "(p / 'x').write_text('1'); print(p)")
+    out = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, TMPDIR=str(tmp_path)),
+                         capture_output=True, text=True, check=True).stdout.strip()
+    assert Path(out).parent == tmp_path and not Path(out).exists()
