@@ -16,6 +16,7 @@ from fogsf.models.structures.lag_bank import (
     bank_name,
     bank_penalty,
 )
+from fogsf.sim.config import ProfileConfig
 from fogsf.training.options import TrainOptions
 from fogsf.training.structure import penalty as sp
 from fogsf.training.structure.choice import PHYSICS, choose
@@ -146,19 +147,38 @@ def test_logs_that_ramp_both_ways_take_the_loop_prior(tmp_path: Path) -> None:
             assert f'"ridge_lambda": {lam}' in info, (structure, lam)
 
 
+def envelope_runs() -> list[tuple[str, ProfileConfig, int]]:
+    """The envelope protocol's training runs (`make bench-population`'s (f)): name, chamber
+    program (-40..50 C) and seed offset: 0.5 and 2 C/min up-ramps, a loop (1 C/min up,
+    2 C/min down, 30 min soaks) and the test loop (1 C/min up, 1.5 C/min down) run again."""
+    lo, hi = -40.0, 50.0
+
+    def loop(up: float, down: float, soak_s: float = 1800.0) -> list[list[float]]:
+        t1 = soak_s
+        t2 = t1 + (hi - lo) / up * 60.0
+        t3 = t2 + soak_s
+        t4 = t3 + (hi - lo) / down * 60.0
+        return [[0.0, lo], [t1, lo], [t2, hi], [t3, hi], [t4, lo], [t4 + soak_s, lo]]
+
+    return [("up05", ProfileConfig(kind="ramp", start_c=lo, stop_c=hi, rate_c_per_min=0.5), 1),
+            ("up20", ProfileConfig(kind="ramp", start_c=lo, stop_c=hi, rate_c_per_min=2.0), 3),
+            ("loop_train", ProfileConfig(kind="program", points=loop(1.0, 2.0)), 6),
+            ("loop_test_again", ProfileConfig(kind="program", points=loop(1.0, 1.5)), 8)]
+
+
 @pytest.fixture(scope="module")
 def envelope() -> list:
-    """The envelope protocol's training logs (benchmarks.population (f): two ramps, a loop
-    and the test loop, 18 held-out parts) of development gyro 19 without hysteresis, at 1 Hz:
+    """The envelope protocol's training logs (two ramps, a loop and the test loop, 18
+    held-out parts: `envelope_runs`) of development gyro 19 without hysteresis, at 1 Hz:
     a penalty of 1e-4 predicts 16 of the 18 parts better than the prior (ENVELOPE_STEP_S)."""
-    from benchmarks.population import PROTOCOLS, run_config
     from fogsf.sim import simulate
-    from fogsf.sim.population import gyro_for_seed
+    from fogsf.sim.population import gyro_for_seed, run_on_gyro
 
-    gyro = gyro_for_seed(19, hysteresis=False)
+    gyro_seed = 19
+    gyro = gyro_for_seed(gyro_seed, hysteresis=False)
     logs = []
-    for run in PROTOCOLS["f"][0]:
-        cfg = run_config(gyro, run, 19)
+    for name, profile, offset in envelope_runs():
+        cfg = run_on_gyro(gyro, profile, gyro_seed * 16 + offset, name)
         cfg.dt_s = 1.0
         logs.append(simulate(cfg).log)
     return logs

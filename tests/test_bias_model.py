@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
-from tempfile import TemporaryDirectory
 
 import numpy as np
 import pytest
@@ -363,16 +362,31 @@ def test_bias_rows_of_their_own_leave_the_sf_model_as_it_was(poly: bool, diag: b
     assert np.array_equal(z_new[:, 5:], own.z(log))
 
 
+# chamber loops (lo, hi C, up, down C/min, soak s) for the reversal logs: a training loop
+# and a test loop on another path (those of `make bench-bias`)
+TRAIN_LOOP = (-10.0, 50.0, 1.0, 0.7, 1200.0)
+TEST_LOOP = (0.0, 40.0, 0.5, 1.5, 900.0)
+
+
 def reversal_rig_log(path: Path, gyro: int, shupe: float, loop: tuple, seed: int) -> object:
     """A plain rig's reversal log (+/-100 deg/s every 60 s) through a chamber loop, the
-    gyro's bias with a Shupe term on its coil (`benchmarks.bias_eval`'s law)."""
-    from dataclasses import replace
+    gyro's bias with a Shupe term on its coil: the population gyro's own offset and slope,
+    a quadratic of 0.001 deg/h/C^2 and `shupe` deg/h per C/min, on its first coil* node (else
+    the population's bias node)."""
+    from dataclasses import asdict
 
-    from benchmarks.bias_eval import bias_law, protocol
-    from fogsf.sim.rigs import rig_logs
+    from fogsf.sim.config import BiasConfig
+    from fogsf.sim.population import gyro_for_seed
+    from fogsf.sim.rigs import chambers, rig_logs
+    from fogsf.sim.rigs import protocols as rigs
 
-    return rig_logs.rig_log("plain", path, protocol("reversals", loop, replace(
-        bias_law(gyro, shupe))), (gyro,), seed=seed)
+    cfg = gyro_for_seed(gyro)
+    coils = [n.name for n in cfg.thermal.nodes if n.name.startswith("coil")]
+    bias = BiasConfig(**{**asdict(cfg.bias), "quad_dph_per_c2": 0.001,
+                         "node": coils[0] if coils else cfg.bias.node,
+                         "shupe_dph_per_c_per_min": shupe})
+    protocol = rigs.reversal_protocol(100.0, 60.0, chamber=chambers.loop(*loop), bias=bias)
+    return rig_logs.rig_log("plain", path, protocol, (gyro,), seed=seed)
 
 
 @pytest.mark.slow
@@ -382,7 +396,6 @@ def test_a_shupe_bias_on_reversals_adds_the_coils_filters_to_the_sf_model(
     takes `lead`, its coil node on a filter of its own added after the SF model's; the SF
     the artifact gives is the SF model's bit for bit, the kernel's bias the fit's, and the
     test loop's bias nearer the truth than the same SF model's z alone gives."""
-    from benchmarks.bias_eval import TEST_LOOP, TRAIN_LOOP
     from fogsf.logs.logio import read_log, with_mapping_beside
     from fogsf.logs.read.dialect import Dialect
     from fogsf.models import reference
@@ -458,7 +471,6 @@ def test_a_model_with_a_play_leaves_lead_out(tmp_path: Path) -> None:
     """The same reversal log with the hysteresis term forced: the bias head does not take
     `lead` (its filter and feature beside the play would overflow the three-model M4F
     image), says so, and the artifact carries the play and no filter of the bias's own."""
-    from benchmarks.bias_eval import TRAIN_LOOP
     from fogsf.models.stream import StreamModel
     from fogsf.models.structures.lag_bank import bank_spec
     from fogsf.training.bias.fit import LEAD_LEFT_OUT
@@ -481,7 +493,6 @@ def test_a_model_with_a_play_leaves_lead_out(tmp_path: Path) -> None:
 def test_a_bank_with_cross_terms_leaves_lead_out(tmp_path: Path) -> None:
     """Beside the bank's cross terms (a full quadratic) the bias head does not take `lead`
     either (three such models would overflow the M4F image), and says why."""
-    from benchmarks.bias_eval import TRAIN_LOOP
     from fogsf.logs.logio import read_log, with_mapping_beside
     from fogsf.logs.read.dialect import Dialect
     from fogsf.training.bias.fit import LEAD_LEFT_OUT_CROSS
@@ -541,21 +552,6 @@ def test_train_takes_the_sf_models_prediction_off_a_staircases_pairs(tmp_path: P
     assert before["std_dph"] < 0.03, before
     assert abs(before["rms_dph"] - 1.0) < 0.03  # the constant bias, 1 deg/h
     assert after["std_dph"] < 0.03 and after["rms_dph"] < 0.03, after  # the model fitted it
-
-
-def test_the_bias_interval_is_not_the_most_flexible_fits_distance() -> None:
-    """Reversals from a loop with a fast down-ramp (development gyro 1, its population bias):
-    the bank fits the training pairs best and extrapolates worst; the interval's family is
-    the structures as good on held-out blocks, with the chosen one, so its top stays near
-    the test's actual RMS (before: the bank's distance alone, 6 x it) and still holds it."""
-    from benchmarks.bias_eval import one
-
-    with TemporaryDirectory() as tmp:
-        r = one(1, "reversals-fast", None, Path(tmp))
-    iv = r["interval"]
-    assert r["structure"]["chosen"] in iv["consistent"]
-    lo, hi = iv["rms_interval_dph"]
-    assert lo <= r["after_rms_dph"] <= hi <= 2.0 * r["after_rms_dph"], (lo, r["after_rms_dph"], hi)
 
 
 @pytest.mark.slow

@@ -179,24 +179,3 @@ def test_the_thermometer_behind_the_board_reads_it_late() -> None:
     lag_c = float(np.mean(board - np.asarray(r.log.temp_c)[mid]))
     assert lag_c == pytest.approx(tau * slope, rel=0.1)
     assert lag_c > 0.9  # the form is visible: tau >= 30 s at ~2 C/min
-
-
-def test_the_population_bench_runs_gyros_outside_the_forms(
-        capsys: pytest.CaptureFixture[str]) -> None:
-    """`benchmarks.population --outside FORM` trains and scores the gyros with the form (its
-    scenario says so, and the figures differ from the gyro as drawn); an unknown form, or
-    one with --magnitudes (which would ignore it), is refused before any work."""
-    from benchmarks import population as bench
-
-    row = bench.bench_gyro(3, ("poly",), ("a",), "sensor")
-    plain = bench.bench_gyro(3, ("poly",), ("a",))
-    assert row["gyro"] == plain["gyro"] + ":sensor"
-    a, b = row["cases"]["a"]["poly"], plain["cases"]["a"]["poly"]
-    assert a["ratio"] != pytest.approx(b["ratio"], rel=1e-3)
-    for argv in (["--outside", "draft", "--n", "1"],
-                 ["--outside", "vent", "--magnitudes", "--n", "1"]):
-        with pytest.raises(SystemExit) as e:
-            bench.main(argv)
-        assert e.value.code == 2
-    err = capsys.readouterr().err
-    assert "sensor" in err and "vent" in err and "--magnitudes" in err
