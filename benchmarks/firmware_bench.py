@@ -14,8 +14,8 @@ adds trained artifacts.
 
 Images: one and three small models (1x16 LSTM with the polynomial head, seeded random weights:
 one-feature models, the lag bank's shape in the default model's form, the same with a full
-12 x 12 quadratic, and the shape in the form before lstm_inputs/quad_diag/feat_diag, for
-comparison) linked into one Cortex-M4F image
+12 x 12 quadratic, the same with a rate part (R 8, Q 3), and the shape in the form before
+lstm_inputs/quad_diag/feat_diag, for comparison) linked into one Cortex-M4F image
 through the model-as-data API (`fogsf export --name`), with its flash, RAM (one state per
 model, sized for the largest, + the step's stack bound) and the instructions of the worst
 sample stepping every model; the target for three is <= 24 KB flash
@@ -61,7 +61,8 @@ AXES = ("imu_x", "imu_y", "imu_z")
 
 def small_poly_models(n: int, filters: int = 1, bank_form: bool = True,
                       bias_head: bool = False, own: int = 0, play: bool = False,
-                      full_quad: bool = False) -> list[st.StreamModel]:
+                      full_quad: bool = False, rate_part: tuple[int, int] | None = None
+                      ) -> list[st.StreamModel]:
     """n 1x16 LSTM models with the polynomial head (seeded random weights), one per gyro:
     one filter and feature (one effective node), or `filters` lags plus T (the lag bank's
     shape, the default model: 11 filters, 12 features). The bank's shape is the default
@@ -73,7 +74,7 @@ def small_poly_models(n: int, filters: int = 1, bank_form: bool = True,
     logs: one, its coil node, whose feature mixes T and its lag, so such a model keeps the
     full feat_w); `play` a hysteresis term (one play of a mix of T and the fifth lag, and
     its feature), which the default takes when its logs turn back in temperature and ask
-    for it."""
+    for it; `rate_part` (R, Q) a rate part (the other weights stay those drawn without it)."""
     bank = filters > 1 and bank_form
     k = filters + own
     plays = (((0.5,) + (0.0,) * 4 + (0.5,) + (0.0,) * (k - 5), 6.0),) if play else ()
@@ -81,8 +82,13 @@ def small_poly_models(n: int, filters: int = 1, bank_form: bool = True,
                                  decimation=50, seed=300 + a, poly_head=True,
                                  lstm_inputs=BANK_LSTM_INPUTS if bank else None,
                                  quad_diag=bank and not full_quad, bias_head=bias_head,
-                                 plays=plays, feat_diag=bank and not own)
+                                 plays=plays, feat_diag=bank and not own, rate_part=rate_part)
             for a in range(n)]
+
+
+# the rate part of the image and core rows with one: R 8 terms (|x|, x^2 .. x^8), Q 3
+RATE_PART = (8, 3)
+RATE_LABEL = "lag-bank-1x16-rate-8x3"
 
 
 # (filters, label, bank_form, bias_head, the bias's own filters, a play, a full quadratic)
@@ -171,6 +177,10 @@ def core_rows(root: Path) -> list[dict]:
             label = "lag-bank-1x16" + ("-even-time" if even else "")
             print(f"{core.name}: {n} x {label}", flush=True)
             rows.append(bench_core(core, small_poly_models(n, k), root, label, even))
+    # the default shape with a rate part, on the M4F: what the part adds to a sample
+    print(f"{M4F.name}: 1 x {RATE_LABEL}", flush=True)
+    rows.append(bench_core(M4F, small_poly_models(1, 11, rate_part=RATE_PART), root,
+                           RATE_LABEL))
     return rows
 
 
@@ -322,9 +332,11 @@ def main(argv: list[str] | None = None) -> int:
             bench_image(small_poly_models(n, k, form, bias, own, play, full_quad),
                         args.build.resolve(), label)
             for k, label, form, bias, own, play, full_quad in IMAGES for n in (1, 3)]
-        if images:  # the default shape with the power-on self-test linked
+        if images:  # the default shape with the power-on self-test linked, with a rate part
             images.append(bench_image(small_poly_models(3, 11), args.build.resolve(),
                                       "lag-bank-1x16-with-fogsf_selftest", selftest=True))
+            images += [bench_image(small_poly_models(n, 11, rate_part=RATE_PART),
+                                   args.build.resolve(), RATE_LABEL) for n in (1, 3)]
         cores = [] if arm_tools_missing() else core_rows(args.build.resolve())
     except UserError as e:
         print(f"bench: error: {e}", file=sys.stderr)

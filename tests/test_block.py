@@ -4,6 +4,7 @@ generated C of the same model, bit for bit (cffi), for every shape the export wr
 
 from __future__ import annotations
 
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -18,6 +19,7 @@ from fogsf.models import samples
 from fogsf.models.stream import StreamModel
 
 FIXTURE = Path(__file__).parent / "fixtures" / "small_model"
+RATE_FIXTURE = Path(__file__).parent / "fixtures" / "rate_model"
 
 
 def shapes() -> dict[str, StreamModel]:
@@ -32,6 +34,8 @@ def shapes() -> dict[str, StreamModel]:
                                      bias_head=True, plays=play),
         "cross": samples.random_model(3, 4, 2, 8, 10, seed=4, poly_head=True),
         "no_filters": samples.random_model(0, 2, 1, 4, 5, seed=5, taus_s=[]),
+        "rate": samples.random_model(2, 4, 1, 8, 10, seed=6, poly_head=True, bias_head=True,
+                                     plays=play, rate_part=(4, 3), rate_fs_dps=12.0),
     }
 
 
@@ -51,6 +55,9 @@ def test_round_trip_bit_for_bit(name: str) -> None:
 def test_round_trip_of_a_saved_artifact_and_a_rerated_one() -> None:
     model = StreamModel.load(FIXTURE)
     assert read_block(block_bytes(model)).model_id == model.model_id
+    rate = StreamModel.load(RATE_FIXTURE)
+    back = read_block(block_bytes(rate))
+    assert back.model_id == rate.model_id and back.rate_fs_dps == rate.rate_fs_dps
     rated = model.at_rate(model.sample_dt_s / 2)  # `extra` gains rated_from
     assert read_block(block_bytes(rated)).config() == rated.config()
 
@@ -61,14 +68,28 @@ def test_same_model_same_bytes_and_the_layout() -> None:
     assert data == block_bytes(shapes()["play"])
     hd = head_of(data)
     assert data[:4] == b"FSFB" and hd["version"] == 1 and hd["total"] == len(data)
-    assert hd["tables"] == len(TABLES) and hd["header"] == 108 + 8 * len(TABLES) + 4
+    # without the rate part the directory stops at meta: the first layout's 17 slots
+    assert hd["tables"] == 17 and hd["header"] == 108 + 8 * 17 + 4
     spans = sorted((off, off + n) for off, n in directory_of(data) if off)
-    assert len(spans) == len(TABLES)  # the play shape fills every slot
+    assert len(spans) == 17  # the play shape fills every slot but the rate part's
     assert all(off % 4 == 0 for off, _ in spans)
     assert all(b0 >= a1 for (_, a1), (b0, _) in zip(spans, spans[1:], strict=False))
     # float32 weights as their exact bits
     off, n = directory_of(data)[TABLES.index("head_w")]
     assert data[off:off + n] == model.weights["head_w"].astype("<f4").tobytes()
+
+
+def test_the_rate_part_fills_the_last_two_slots() -> None:
+    model = shapes()["rate"]
+    data = block_bytes(model)
+    hd = head_of(data)
+    assert hd["format"] == 7 and hd["tables"] == len(TABLES) == 19
+    assert len([off for off, _ in directory_of(data) if off]) == 19
+    off, n = directory_of(data)[TABLES.index("rate_head")]
+    inv_fs = np.array([1.0 / 12.0], np.float32).view("<u4")[0]
+    assert struct.unpack_from("<III", data, off) == (4, 3, inv_fs) and n == 12
+    off, n = directory_of(data)[TABLES.index("rate_w")]
+    assert data[off:off + n] == model.weights["rate_w"].astype("<f4").tobytes()
 
 
 def test_plain_model_leaves_the_optional_slots_absent() -> None:
@@ -136,18 +157,24 @@ def test_block_and_generated_c_give_the_same_bits(name: str, tmp_path: Path) -> 
     block_model = kernel.ffi.addressof(bm, "model")
     assert kernel.ffi.string(block_model.model_id).decode() == model.model_id
     temp, gyro = golden_inputs(model, 3000)
+    if model.has_rate_part:  # rates across +-2 full scales: RATE_CLAMPED beyond one
+        sweep = np.linspace(-2.0, 2.0, gyro.size).astype(np.float32) * np.float32(12.0)
+        gyro = np.where(np.abs(gyro) < 1e30, sweep, gyro).astype(np.float32)
     want = kernel.run(kernel.generated, temp, gyro)
     got = kernel.run(block_model, temp, gyro)
     assert want[4] == got[4] == 0  # fogsf_init accepted both
     for a, b in zip(want[:4], got[:4], strict=True):
         assert a.tobytes() == b.tobytes()
+    assert np.any(got[3] & 2048) == model.has_rate_part  # RATE_CLAMPED reached
     # the model struct: the same sizes, scalars and CRCs as the generated one's
     gen = kernel.generated
     for field in ("format_version", "n_filters", "n_features", "layers", "hidden",
                   "decimation", "stuck_samples", "sample_dt_s", "t_ref_c", "t_min_c",
                   "t_max_c", "head_b", "out_scale", "out_offset", "lstm_inputs", "quad_diag",
-                  "feat_diag", "crc32_sizes", "crc32"):
+                  "feat_diag", "crc32_sizes", "crc32", "rate_rows", "rate_coefs",
+                  "rate_inv_fs"):
         assert getattr(block_model, field) == getattr(gen, field), field
+    assert (block_model.rate_w == kernel.ffi.NULL) == (not model.has_rate_part)
     assert (block_model.bias == kernel.ffi.NULL) == (not model.bias_head)
     assert (block_model.plays == kernel.ffi.NULL) == (not model.n_plays)
     assert (block_model.quad_w == kernel.ffi.NULL) == (not model.poly_head)

@@ -48,8 +48,8 @@ def _entry(data: bytes, slot: str, offset: int | None = None, length: int | None
     return bytes(seal(out) if resealed else out)
 
 
-def _entry_of(slot: str) -> tuple[int, int]:
-    return struct.unpack_from("<II", GOOD, HEAD_BYTES + 8 * TABLES.index(slot))
+def _entry_of(slot: str, data: bytes = GOOD) -> tuple[int, int]:
+    return struct.unpack_from("<II", data, HEAD_BYTES + 8 * TABLES.index(slot))
 
 
 def _flip(data: bytes, at: int) -> bytes:
@@ -139,6 +139,89 @@ PY_STATUS = {"truncated", "bad magic", "bad version", "bad length", "model versi
              "payload crc"}
 
 
+# the same sizes with a rate part (R 3, Q 2): its two slots filled, format 7
+RATE_MODEL = samples.random_model(2, 4, 1, 16, 10, seed=3, poly_head=True, bias_head=True,
+                                  plays=(((0.2, 0.5, 0.3), 2.0),), rate_part=(3, 2),
+                                  rate_fs_dps=20.0)
+RATE_GOOD = block_bytes(RATE_MODEL)
+
+
+def _rate_word(i: int, value: int) -> bytes:
+    """Word i of the rate part's slot (R, Q, 1/FS bits) set, the block resealed."""
+    out = bytearray(RATE_GOOD)
+    struct.pack_into("<I", out, _entry_of("rate_head", RATE_GOOD)[0] + 4 * i, value)
+    return bytes(seal(out))
+
+
+def _rate_entry(slot: str, shift: int = 0, length: int | None = None) -> bytes:
+    off, n = _entry_of(slot, RATE_GOOD)
+    return _entry(RATE_GOOD, slot, offset=off + shift if off else 0, length=length)
+
+
+RATE_CASES: dict[str, tuple[Callable[[], bytes], str]] = {
+    "R above FOGSF_MAX_RATE_ROWS": (lambda: _rate_word(0, 4), "too large"),
+    "R 10, past the format's bound": (lambda: _rate_word(0, 10), "too large"),
+    "R zero": (lambda: _rate_word(0, 0), "bad sizes"),
+    "Q zero": (lambda: _rate_word(1, 0), "bad sizes"),
+    "Q 4": (lambda: _rate_word(1, 4), "bad sizes"),
+    "Q 1: rate_w longer than R Q": (lambda: _rate_word(1, 1), "table length"),
+    "rate_w short by a float": (lambda: _rate_entry("rate_w", length=4 * 3 * 2 - 4),
+                                "table length"),
+    "rate head short by a word": (lambda: _rate_entry("rate_head", length=8), "table length"),
+    "rate_w misaligned": (lambda: _rate_entry("rate_w", shift=-2), "misaligned"),
+    "rate head misaligned": (lambda: _rate_entry("rate_head", shift=1), "misaligned"),
+    "rate_w absent": (lambda: _entry(RATE_GOOD, "rate_w", offset=0, length=0),
+                      "table missing"),
+    "rate_w past the end": (lambda: _rate_entry("rate_w", length=4096), RANGE),
+    "format 7 without the slots": (lambda: _set(GOOD, "format", 7), "table missing"),
+    "format 6 with the slots filled": (lambda: _set(RATE_GOOD, "format", 6), "table length"),
+    "1/FS infinite, resealed": (lambda: _rate_word(2, 0x7F800000), "model refused"),
+    "1/FS changed, resealed": (lambda: _rate_word(2, _rate_word_of(2) + 1), "model refused"),
+    "rate_w weight changed, resealed": (
+        lambda: bytes(seal(bytearray(_flip(RATE_GOOD, _entry_of("rate_w", RATE_GOOD)[0] + 2)))),
+        "model refused"),
+    "flipped byte in rate_w": (lambda: _flip(RATE_GOOD, _entry_of("rate_w", RATE_GOOD)[0] + 5),
+                               "payload crc"),
+}
+
+
+def _rate_word_of(i: int) -> int:
+    return struct.unpack_from("<I", RATE_GOOD, _entry_of("rate_head", RATE_GOOD)[0] + 4 * i)[0]
+
+
+@pytest.fixture(scope="module")
+def rate_kernel(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201 - BlockKernel
+    from fogsf.bindings.block import BlockKernel, build_block_lib
+    return BlockKernel(RATE_MODEL, build_block_lib(RATE_MODEL,
+                                                   tmp_path_factory.mktemp("ratelib")))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", list(RATE_CASES))
+def test_each_rate_part_corruption_has_its_reason(case: str, rate_kernel) -> None:  # noqa: ANN001
+    make, want = RATE_CASES[case]
+    data = make()
+    status, bm = rate_kernel.load(data)
+    assert STATUS[status] == want
+    assert bm.model.format_version == 0
+    if want in PY_STATUS:
+        assert block_status(data) == want
+    with pytest.raises(UserError):
+        read_block(data)
+
+
+@pytest.mark.slow
+def test_a_rate_block_in_builds_with_and_without_the_part(kernel, rate_kernel) -> None:  # noqa: ANN001
+    status, bm = rate_kernel.load(RATE_GOOD)
+    assert STATUS[status] == "ok" and bm.model.format_version == 7
+    assert (bm.model.rate_rows, bm.model.rate_coefs) == (3, 2)
+    assert STATUS[rate_kernel.load(GOOD)[0]] == "ok"  # a block without it: as before
+    assert STATUS[rate_kernel.load(RATE_GOOD, shift=2)[0]] == "misaligned"
+    # FOGSF_MAX_RATE_ROWS 0 (the default): the kernel has no rate code and refuses the block
+    assert STATUS[kernel.load(RATE_GOOD)[0]] == "too large"
+    assert read_block(RATE_GOOD).model_id == RATE_MODEL.model_id
+
+
 @pytest.fixture(scope="module")
 def kernel(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201 - BlockKernel
     from fogsf.bindings.block import BlockKernel, build_block_lib
@@ -201,3 +284,23 @@ def test_every_corruption_under_asan(tmp_path: Path) -> None:
             assert lines[-1].split()[2:4] == ["init", "0"]
         else:  # misaligned first, unless the header itself is short or not a block's
             assert got[-1] == good_status
+
+
+@pytest.mark.slow
+def test_every_rate_part_corruption_under_asan(tmp_path: Path) -> None:
+    """RATE_CASES through the host driver (ASan + UBSan), its state sized for RATE_MODEL."""
+    import subprocess
+
+    from fogsf.bindings.block import build_block_driver
+    exe = build_block_driver(RATE_MODEL, tmp_path / "drv")
+    files = [tmp_path / f"rate{i:02d}.bin" for i in range(len(RATE_CASES))]
+    for path, (make, _) in zip(files, RATE_CASES.values(), strict=True):
+        path.write_bytes(make())
+    (tmp_path / "good.bin").write_bytes(RATE_GOOD)
+    proc = subprocess.run([str(exe), "0", *map(str, files), str(tmp_path / "good.bin")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    lines = proc.stdout.splitlines()
+    assert [STATUS[int(line.split()[1])] for line in lines] == [
+        *(w for _, w in RATE_CASES.values()), "ok"]
+    assert lines[-1].split()[2:4] == ["init", "0"]

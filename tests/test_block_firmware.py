@@ -20,6 +20,7 @@ from fogsf.models.stream_flags import FLAG_TEMP_INVALID
 
 ROOT = Path(__file__).resolve().parents[1]
 FIXTURE = ROOT / "tests" / "fixtures" / "small_model"
+RATE_FIXTURE = ROOT / "tests" / "fixtures" / "rate_model"  # with the rate part (R 8, Q 3)
 EXAMPLE = ROOT / "firmware" / "examples" / "block2"
 TOOLCHAIN = ROOT / "firmware" / "cmake" / "cortex-m4f.cmake"
 SAMPLES = 1200  # BLOCK2_SAMPLES of main.c
@@ -32,8 +33,9 @@ need_tools = pytest.mark.skipif(
 
 @pytest.mark.slow
 @need_tools
-def test_block_golden_vectors_on_every_core(tmp_path: Path) -> None:
-    proc = subprocess.run([sys.executable, "-m", "fogsf.bindings.block_cores", str(FIXTURE),
+@pytest.mark.parametrize("fixture", [FIXTURE, RATE_FIXTURE], ids=["small", "rate"])
+def test_block_golden_vectors_on_every_core(fixture: Path, tmp_path: Path) -> None:
+    proc = subprocess.run([sys.executable, "-m", "fogsf.bindings.block_cores", str(fixture),
                            "--out", str(tmp_path)], capture_output=True, text=True,
                           timeout=1800)
     assert proc.returncode == 0, proc.stdout + proc.stderr

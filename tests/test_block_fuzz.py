@@ -16,5 +16,5 @@ def test_block_fuzzer_short_run(tmp_path: Path, capsys) -> None:
     from fogsf.bindings.fuzz_block import fuzz_block
     assert fuzz_block(tmp_path, inputs=3000, per_round=3000) == 0
     out = capsys.readouterr().out
-    assert "seeds" in out and "6 accepted" in out.splitlines()[0]
+    assert "seeds" in out and "8 accepted" in out.splitlines()[0]
     assert out.splitlines()[-1].startswith("PASS: ")

@@ -39,6 +39,7 @@
 #define AT_CRC_SIZES 100u
 #define AT_CRC 104u
 #define HEADER_MIN 112u /* the header without a directory: its words and its CRC */
+#define RATE_HEAD_LEN 12u /* the rate part's R, Q and 1/FS bits (slot RATE_HEAD) */
 
 /* what a slot must hold for the block's sizes */
 #define NEED_NONE 0u /* absent (offset 0, length 0) */
@@ -51,7 +52,10 @@ typedef struct block_head {
     uint32_t total;
     uint32_t header;
     uint32_t tables;
+    uint32_t format;
     uint32_t k, f, l, h, d, n_in, quad_diag, feat_diag, p;
+    uint32_t rate_rows;  /* R from slot RATE_HEAD; 0 until check_rate_head passes */
+    uint32_t rate_coefs; /* Q, likewise */
 } block_head;
 
 /* word `at` of blk, least significant byte first (blk[at .. at+4) checked by the caller) */
@@ -136,7 +140,9 @@ static fogsf_block_status check_head(const uint8_t *blk, size_t n, block_head *h
         hd->quad_diag = rd32(blk, AT_QUAD_DIAG);
         hd->feat_diag = rd32(blk, AT_FEAT_DIAG);
         hd->p = rd32(blk, AT_P);
-        if (rd32(blk, AT_FORMAT) != FOGSF_FORMAT_VERSION) {
+        hd->format = rd32(blk, AT_FORMAT);
+        if ((hd->format != FOGSF_FORMAT_VERSION) &&
+            (hd->format != FOGSF_FORMAT_VERSION_RATE)) {
             st = FOGSF_BLOCK_MODEL_VERSION;
         } else if ((hd->k > (uint32_t)FOGSF_MAX_FILTERS) ||
                    (hd->f > (uint32_t)FOGSF_MAX_FEATURES) ||
@@ -162,8 +168,12 @@ static uint32_t slot_need(const block_head *hd, uint32_t t, uint32_t *len)
     const uint32_t f = hd->f;
     const uint32_t h = hd->h;
     const uint32_t n_in = (hd->n_in != 0u) ? hd->n_in : f;
+    uint32_t rate_need = NEED_NONE; /* the rate part's two slots: only with format 7 */
     uint32_t need = NEED_ONE;
     uint32_t floats = f;
+    if (hd->format == FOGSF_FORMAT_VERSION_RATE) {
+        rate_need = NEED_ONE;
+    }
     switch (t) {
     case FOGSF_BLOCK_T_MODEL_ID:
         floats = 0u;
@@ -214,6 +224,15 @@ static uint32_t slot_need(const block_head *hd, uint32_t t, uint32_t *len)
     case FOGSF_BLOCK_T_META:
         need = NEED_ANY;
         break;
+    case FOGSF_BLOCK_T_RATE_HEAD:
+        floats = RATE_HEAD_LEN / 4u;
+        need = rate_need;
+        break;
+    case FOGSF_BLOCK_T_RATE_W:
+        /* R, Q as checked from slot RATE_HEAD (before this slot: bounded products) */
+        floats = hd->rate_rows * hd->rate_coefs;
+        need = rate_need;
+        break;
     case FOGSF_BLOCK_T_FEAT_B:
     case FOGSF_BLOCK_T_SKIP_W:
         break; /* [F] */
@@ -225,9 +244,30 @@ static uint32_t slot_need(const block_head *hd, uint32_t t, uint32_t *len)
     return need;
 }
 
+/* The rate part's R and Q from slot RATE_HEAD, whose place and length check_tables has
+ * checked: R within the state (FOGSF_MAX_RATE_ROWS, 0 in a build without the part) and Q
+ * within the format, before slot RATE_W's length is computed from them. */
+static fogsf_block_status check_rate_head(const uint8_t *blk, block_head *hd)
+{
+    fogsf_block_status st = FOGSF_BLOCK_OK;
+    const uint32_t off = entry_offset(blk, FOGSF_BLOCK_T_RATE_HEAD);
+    const uint32_t r = rd32(blk, off);
+    const uint32_t q = rd32(blk, off + 4u);
+    if (r > (uint32_t)FOGSF_MAX_RATE_ROWS) {
+        st = FOGSF_BLOCK_TOO_LARGE;
+    } else if ((r < 1u) || (q < 1u) || (q > FOGSF_RATE_COEFS_LIMIT)) {
+        st = FOGSF_BLOCK_BAD_SIZES;
+    } else {
+        hd->rate_rows = r;
+        hd->rate_coefs = q;
+    }
+    return st;
+}
+
 /* Every table against the header: inside [header, total), 4-aligned, of the length the
- * sizes give, present where they need it, no two sharing a byte. Reads the directory only. */
-static fogsf_block_status check_tables(const uint8_t *blk, const block_head *hd)
+ * sizes give, present where they need it, no two sharing a byte. Reads the directory, and
+ * the rate part's R and Q once their slot has passed (check_rate_head). */
+static fogsf_block_status check_tables(const uint8_t *blk, block_head *hd)
 {
     fogsf_block_status st = FOGSF_BLOCK_OK;
     uint32_t t;
@@ -251,6 +291,8 @@ static fogsf_block_status check_tables(const uint8_t *blk, const block_head *hd)
             st = FOGSF_BLOCK_UNKNOWN_TABLE;
         } else if ((need != NEED_ANY) && (len != ((need == NEED_NONE) ? 0u : want))) {
             st = FOGSF_BLOCK_TABLE_LENGTH;
+        } else if ((t == FOGSF_BLOCK_T_RATE_HEAD) && (need == NEED_ONE)) {
+            st = check_rate_head(blk, hd);
         } else {
             st = FOGSF_BLOCK_OK;
         }
@@ -333,7 +375,7 @@ static void fill(const uint8_t *blk, const block_head *hd, fogsf_block_model *ou
     const void *id = &blk[entry_offset(blk, FOGSF_BLOCK_T_MODEL_ID)];
     uint32_t l;
     m->model_id = (const char *)id;
-    m->format_version = FOGSF_FORMAT_VERSION;
+    m->format_version = hd->format;
     m->n_filters = hd->k;
     m->n_features = hd->f;
     m->layers = hd->l;
@@ -379,6 +421,13 @@ static void fill(const uint8_t *blk, const block_head *hd, fogsf_block_model *ou
     m->plays = (hd->p > 0u) ? &out->plays : NULL;
     m->crc32_sizes = rd32(blk, AT_CRC_SIZES);
     m->crc32 = rd32(blk, AT_CRC);
+    if (hd->format == FOGSF_FORMAT_VERSION_RATE) {
+        const uint32_t rate_at = entry_offset(blk, FOGSF_BLOCK_T_RATE_HEAD);
+        m->rate_w = floats_at(blk, hd, FOGSF_BLOCK_T_RATE_W);
+        m->rate_rows = hd->rate_rows;
+        m->rate_coefs = hd->rate_coefs;
+        m->rate_inv_fs = rdf(blk, rate_at + 8u);
+    }
 }
 
 fogsf_block_status fogsf_model_from_block(const uint8_t *blk, size_t n, fogsf_block_model *out)
@@ -386,7 +435,7 @@ fogsf_block_status fogsf_model_from_block(const uint8_t *blk, size_t n, fogsf_bl
     /* all zero: the fields this loader does not fill (a later optional part) stay absent */
     static const fogsf_block_model zero_model;
     fogsf_block_status st = FOGSF_BLOCK_OK;
-    block_head hd = {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u};
+    block_head hd = {0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u, 0u};
     if (out != NULL) {
         *out = zero_model;
     }

@@ -17,7 +17,10 @@
  * 108 T entries {offset, length in bytes}, slot t = FOGSF_BLOCK_T_*; offset 0 = absent
  * 108 + 8 T: header CRC (bytes [0, 108 + 8 T)); header length = 112 + 8 T.
  * A future optional table is one more slot: an older loader refuses a block that fills a
- * slot it does not know (FOGSF_BLOCK_UNKNOWN_TABLE) rather than run without it.
+ * slot it does not know (FOGSF_BLOCK_UNKNOWN_TABLE) rather than run without it. The rate
+ * part is such a pair (a model of format FOGSF_FORMAT_VERSION_RATE): its three words R, Q
+ * and the bits of 1/FS in slot RATE_HEAD, its rate_w in slot RATE_W; a block without it
+ * declares T = 17 (the slots through META), one with it T = 19.
  */
 #ifndef FOGSF_BLOCK_H
 #define FOGSF_BLOCK_H
@@ -51,7 +54,9 @@ extern "C" {
 #define FOGSF_BLOCK_T_PLAY_HALF_C 14u   /* [P]; present when P > 0 */
 #define FOGSF_BLOCK_T_PLAY_SOURCE_W 15u /* [P][1+K]; present when P > 0 */
 #define FOGSF_BLOCK_T_META 16u          /* the artifact's stream.json (bytes): not read here */
-#define FOGSF_BLOCK_N_TABLES 17u        /* the slots this loader knows */
+#define FOGSF_BLOCK_T_RATE_HEAD 17u     /* R, Q, 1/FS bits (3 words); with the rate part */
+#define FOGSF_BLOCK_T_RATE_W 18u        /* [R][Q]; with the rate part */
+#define FOGSF_BLOCK_N_TABLES 19u        /* the slots this loader knows */
 
 /* Why a block was refused: one reason each, the first check that failed. The structure is
  * checked against n before any table is read, then the two CRCs, then the model. */
@@ -63,16 +68,20 @@ typedef enum fogsf_block_status {
     FOGSF_BLOCK_BAD_VERSION = 4,     /* a block version other than FOGSF_BLOCK_VERSION */
     FOGSF_BLOCK_BAD_LENGTH = 5,      /* T above the maximum, header length not 112 + 8 T,
                                         total below it or not a multiple of 4 */
-    FOGSF_BLOCK_MODEL_VERSION = 6,   /* model format version not FOGSF_FORMAT_VERSION */
-    FOGSF_BLOCK_TOO_LARGE = 7,       /* K, F, L, H or P beyond FOGSF_MAX_* */
+    FOGSF_BLOCK_MODEL_VERSION = 6,   /* model format version not FOGSF_FORMAT_VERSION or
+                                        FOGSF_FORMAT_VERSION_RATE */
+    FOGSF_BLOCK_TOO_LARGE = 7,       /* K, F, L, H, P or the rate part's R beyond
+                                        FOGSF_MAX_* */
     FOGSF_BLOCK_BAD_SIZES = 8,       /* F, L, H or D zero, N > F, quad_diag or feat_diag
-                                        not 0/1, feat_diag with F != 1+K+P */
+                                        not 0/1, feat_diag with F != 1+K+P; R or Q zero,
+                                        Q above FOGSF_RATE_COEFS_LIMIT */
     FOGSF_BLOCK_MISALIGNED = 9,      /* blk or a table offset not a multiple of 4 */
     FOGSF_BLOCK_OFFSET_RANGE = 10,   /* a table outside [header length, total length) */
     FOGSF_BLOCK_OVERLAP = 11,        /* two tables share a byte */
     FOGSF_BLOCK_TABLE_LENGTH = 12,   /* a table's length is not what the sizes give */
-    FOGSF_BLOCK_TABLE_MISSING = 13,  /* a table the sizes need is absent, or one of a pair
-                                        (quad/cube, the bias head's three, the plays') */
+    FOGSF_BLOCK_TABLE_MISSING = 13,  /* a table the sizes need is absent (the rate part's
+                                        two with format 7), or one of a pair (quad/cube,
+                                        the bias head's three, the plays') */
     FOGSF_BLOCK_UNKNOWN_TABLE = 14,  /* a slot at or past FOGSF_BLOCK_N_TABLES is filled */
     FOGSF_BLOCK_HEADER_CRC = 15,     /* the header's CRC-32 differs */
     FOGSF_BLOCK_PAYLOAD_CRC = 16,    /* the payload's CRC-32 differs */

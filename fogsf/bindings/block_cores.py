@@ -67,7 +67,8 @@ def build_block_image(core: Core, block: Path, golden_dir: Path, defines: tuple[
            "-I", str(C_DIR / "arm")]
     common = [*core.flags, "-O2", "-ffunction-sections", "-fdata-sections", *defines]
     objs = []
-    srcs = [(C_DIR / n, STRICT) for n in (*SOURCES, *BLOCK_SOURCES)]
+    srcs: list[tuple[Path, tuple[str, ...]]] = [(C_DIR / n, STRICT)
+                                                for n in (*SOURCES, *BLOCK_SOURCES)]
     srcs += [(C_DIR / "test" / "golden_check.c", STRICT),
              (C_DIR / "arm" / "startup.c", TEST_FLAGS),
              (C_DIR / "arm" / "block_main.c", TEST_FLAGS), (out / "block_data.S", ())]

@@ -2,12 +2,13 @@
 
 `python -m fogsf.bindings.fuzz_block --out build/fuzz-block --inputs 10000000` compiles the
 harness with clang -fsanitize=fuzzer,address,undefined (strict C99 flags) and the kernel's
-state sized for small models, writes seed blocks of three small models (plain; polynomial and
-bias heads with a play on two layers; the diagonal quadratic and feature map on z[0:1]), each
-as given, resealed and shifted (the harness's mode byte), then fuzzes in rounds until the
-harness has loaded at least --inputs blocks. A sanitizer finding or a broken promise (a block
-accepted that fogsf_init refuses, a non-finite output, a refused block leaving a model)
-stops it with the input in OUT/crashes/.
+state sized for small models, writes seed blocks of four small models (plain; polynomial and
+bias heads with a play on two layers; the diagonal quadratic and feature map on z[0:1]; a
+rate part with R 3 of the state's 4), each as given, resealed and shifted (the harness's mode
+byte), then fuzzes in rounds until the harness has loaded at least --inputs blocks. A
+sanitizer finding or a broken promise (a block accepted that fogsf_init refuses, a
+non-finite output, a refused block leaving a model) stops it with the input in
+OUT/crashes/.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from fogsf.models import samples
 from fogsf.models.stream import StreamModel
 
 BLOCK_MAX = ("-DFOGSF_MAX_LAYERS=2", "-DFOGSF_MAX_HIDDEN=4", "-DFOGSF_MAX_FEATURES=4",
-             "-DFOGSF_MAX_FILTERS=2", "-DFOGSF_MAX_PLAYS=2")
+             "-DFOGSF_MAX_FILTERS=2", "-DFOGSF_MAX_PLAYS=2", "-DFOGSF_MAX_RATE_ROWS=4")
 INPUTS_RE = re.compile(r"fuzz blocks: (\d+) \(accepted (\d+)\)")
 PLAY = (((0.2, 0.5, 0.3), 2.0),)
 
@@ -41,6 +42,8 @@ def seed_models() -> dict[str, StreamModel]:
                                            bias_head=True, plays=PLAY, stuck_samples=5),
         "diag": samples.random_model(2, 4, 1, 4, 2, seed=3, poly_head=True, quad_diag=True,
                                      feat_diag=True, lstm_inputs=1, plays=PLAY),
+        "rate": samples.random_model(2, 3, 1, 4, 2, seed=4, bias_head=True, rate_part=(3, 2),
+                                     rate_fs_dps=20.0, stuck_samples=5),
     }
 
 

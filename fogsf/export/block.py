@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.export.header import FORMAT_VERSION, model_crc32
+from fogsf.export.header import FORMAT_VERSION, FORMAT_VERSION_RATE, format_version, model_crc32
 from fogsf.models.front_end import play_half_c, play_source_w
+from fogsf.models.rate_part import inverse_full_scale
 from fogsf.models.stream import StreamModel
 from fogsf.models.stream_format import (
     _CONFIG_KEYS,
@@ -33,6 +34,8 @@ from fogsf.models.stream_format import (
     LSTM_INPUTS_KEY,
     POLY_KEY,
     QUAD_DIAG_KEY,
+    RATE_ARRAY,
+    RATE_KEY,
 )
 
 MAGIC = 0x42465346  # the bytes "FSFB"
@@ -49,7 +52,10 @@ FLOATS = frozenset(HEAD_FIELDS[17:25])
 # name at the end, and an older loader refuses a block that fills a slot it does not know
 TABLES = ("model_id", "filter_alpha", "feat_w", "feat_b", "lstm_w", "lstm_r", "lstm_b",
           "head_w", "skip_w", "quad_w", "cube_w", "bias_w", "bias_quad_w", "bias_cube_w",
-          "play_half_c", "play_source_w", "meta")
+          "play_half_c", "play_source_w", "meta", "rate_head", "rate_w")
+# the directory always holds the slots through meta (the first layout's 17), so a block of
+# a model without a later part keeps its bytes; later slots only up to the last one filled
+BASE_TABLES = TABLES.index("meta") + 1
 # fogsf_block_status, by value: what the C loader returns and read_block names
 STATUS = ("ok", "null", "truncated", "bad magic", "bad version", "bad length",
           "model version", "too large", "bad sizes", "misaligned", "offset out of range",
@@ -58,7 +64,7 @@ STATUS = ("ok", "null", "truncated", "bad magic", "bad version", "bad length",
 # the arrays of a StreamModel the block carries (the C model's, scalars in the header)
 SCALARS = ("head_b", "out_scale", "out_offset", "bias_b")
 CARRIED = frozenset({"filter_alpha", "feat_w", "feat_b", "head_w", "skip_w", "quad_w",
-                     "cube_w", "bias_w", "bias_quad_w", "bias_cube_w", *SCALARS})
+                     "cube_w", "bias_w", "bias_quad_w", "bias_cube_w", RATE_ARRAY, *SCALARS})
 
 
 def header_length(n_tables: int) -> int:
@@ -69,7 +75,7 @@ def _f32(values: np.ndarray | list[float]) -> bytes:
     return np.asarray(values, np.float32).astype("<f4").ravel().tobytes()
 
 
-def _bits(value: float) -> int:
+def _bits(value: float | np.floating) -> int:
     return int(np.array([value], np.float32).view("<u4")[0])
 
 
@@ -107,14 +113,25 @@ def model_tables(model: StreamModel) -> dict[str, bytes]:
                       play_source_w=_f32(play_source_w(model.play_source_w,
                                                        model.n_filters)))
     tables["meta"] = meta_json(model)
+    if model.has_rate_part:  # R, Q and 1/FS as the kernel holds them, then rate_w [R][Q]
+        rows, coefs = w[RATE_ARRAY].shape
+        tables["rate_head"] = struct.pack("<III", rows, coefs, _bits(inverse_full_scale(model)))
+        tables["rate_w"] = _f32(w[RATE_ARRAY])
     return tables
+
+
+def directory_slots(tables: dict[str, bytes]) -> tuple[str, ...]:
+    """The slots a block of these tables declares: through meta, then through the last
+    slot filled."""
+    filled = [TABLES.index(name) + 1 for name in tables if name in TABLES]
+    return TABLES[:max([BASE_TABLES, *filled])]
 
 
 def head_values(model: StreamModel) -> dict[str, int]:
     """The header's model words (sizes, scalars as float32 bits, the model's own CRCs)."""
     w = model.weights
     crc_sizes, crc = model_crc32(model)
-    words = {"format": FORMAT_VERSION, "k": model.n_filters, "f": model.n_features,
+    words = {"format": format_version(model), "k": model.n_filters, "f": model.n_features,
              "l": model.layers, "h": model.hidden, "d": model.decimation,
              "stuck": model.stuck_samples, "n_in": model.n_lstm_inputs,
              "quad_diag": int(model.quad_diag), "feat_diag": int(model.feat_diag),
@@ -126,10 +143,12 @@ def head_values(model: StreamModel) -> dict[str, int]:
     return words
 
 
-def assemble(head: dict[str, int], tables: dict[str, bytes], slots: tuple[str, ...] = TABLES
-             ) -> bytearray:
+def assemble(head: dict[str, int], tables: dict[str, bytes],
+             slots: tuple[str, ...] | None = None) -> bytearray:
     """A sealed block from header words and tables by slot name: the tables in the order of
-    `slots` (the directory), each at a 4-aligned offset, zero padding, then the CRCs."""
+    `slots` (the directory; default directory_slots), each at a 4-aligned offset, zero
+    padding, then the CRCs."""
+    slots = directory_slots(tables) if slots is None else slots
     n_tables = len(slots)
     start = header_length(n_tables)
     directory = [(0, 0)] * n_tables
@@ -202,7 +221,7 @@ def block_status(data: bytes | bytearray) -> str:
         return "bad length"
     if hd["total"] > n:
         return "truncated"
-    if hd["format"] != FORMAT_VERSION:
+    if hd["format"] not in (FORMAT_VERSION, FORMAT_VERSION_RATE):
         return "model version"
     spans = []
     for slot, (off, length) in enumerate(directory_of(data)):
@@ -266,6 +285,8 @@ def read_block(data: bytes | bytearray, where: str = "block") -> StreamModel:
                         f"says {got_id}")
     # the header's words (what firmware runs) must be the artifact's, its CRCs included
     differ = sorted(k for k, v in head_values(model).items() if hd[k] != v)
+    if _table(data, "rate_head") != model_tables(model).get("rate_head"):
+        differ.append("rate_head")  # R, Q and 1/FS: the model's CRCs cover them, not meta
     if differ:
         raise UserError(f"{where}: header word(s) {', '.join(differ)} differ from model "
                         f"{got_id}'s")
@@ -296,12 +317,18 @@ def _weights(data: bytes | bytearray, cfg: dict, hd: dict[str, int]) -> dict[str
         w["bias_b"] = np.array([hd["bias_b"]], "<u4").view("<f4").astype(np.float32)
         for name in ("bias_w", "bias_quad_w", "bias_cube_w"):
             w[name] = _floats(data, name, (f,))
+    if cfg.get(RATE_KEY):
+        rate_head = _table(data, "rate_head") or b""
+        if len(rate_head) != 12:
+            raise ValueError(f"table rate_head holds {len(rate_head)} bytes, not 12")
+        rows, coefs = struct.unpack_from("<II", rate_head)
+        w[RATE_ARRAY] = _floats(data, "rate_w", (rows, coefs))
     return w
 
 
 def _model(cfg: dict, weights: dict[str, np.ndarray]) -> StreamModel:
     """A StreamModel from stream.json's keys and the weights, as StreamModel.load builds it."""
-    optional = (POLY_KEY, LSTM_INPUTS_KEY, QUAD_DIAG_KEY, BIAS_KEY, FEAT_DIAG_KEY)
+    optional = (POLY_KEY, LSTM_INPUTS_KEY, QUAD_DIAG_KEY, BIAS_KEY, FEAT_DIAG_KEY, RATE_KEY)
     return StreamModel(
         model=cfg["model"], decimation=cfg["decimation"], t_ref_c=float(cfg["t_ref_c"]),
         t_min_c=float(cfg["t_min_c"]), t_max_c=float(cfg["t_max_c"]),
@@ -312,7 +339,7 @@ def _model(cfg: dict, weights: dict[str, np.ndarray]) -> StreamModel:
         extra={k: v for k, v in cfg.items() if k not in _CONFIG_KEYS and k not in optional},
         poly_head=cfg.get(POLY_KEY, False), lstm_inputs=cfg.get(LSTM_INPUTS_KEY),
         quad_diag=cfg.get(QUAD_DIAG_KEY, False), bias_head=cfg.get(BIAS_KEY, False),
-        feat_diag=cfg.get(FEAT_DIAG_KEY, False))
+        feat_diag=cfg.get(FEAT_DIAG_KEY, False), rate_fs_dps=cfg.get(RATE_KEY, 0.0))
 
 
 def describe(data: bytes | bytearray) -> str:

@@ -8,7 +8,8 @@
  *   bit 1 set    the block one byte past an aligned start (MISALIGNED unless refused before).
  * The block sits in a heap buffer that ends exactly where it does, so ASan stops any read
  * past n. A block the loader accepts must be one fogsf_init accepts, and fogsf_step on it
- * must keep the totality contract (finite output, known flags) over 64 samples; a violation
+ * must keep the totality contract (finite output, known flags) over 64 samples (huge
+ * temperatures, and rates beyond a rate part's full scale of the seeds); a violation
  * aborts, which libFuzzer reports as a crash. "fuzz blocks: N (accepted A)" at exit.
  */
 #include <stdio.h>
@@ -126,7 +127,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             for (i = 0; i < 64; ++i) {
                 fogsf_output o;
                 const float t = (i & 8) ? 1.0e30f : -40.0f + 2.5f * (float)i;
-                fogsf_step(&bm.model, &st, t, 10.0f, &o);
+                const float g = (i & 4) ? -300.0f : 10.0f;
+                fogsf_step(&bm.model, &st, t, g, &o);
                 if (!finite_f(o.corrected_dps) || (o.flags & ~FOGSF_FLAGS_ALL) != 0u) {
                     abort();
                 }
