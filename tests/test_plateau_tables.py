@@ -228,7 +228,6 @@ def test_time_s_without_time_is_is_refused(tmp_path: Path, capsys) -> None:
 
 
 @pytest.mark.parametrize("argv", [
-    ["diagnose", "{t}"],
     ["fleet", "add", "{d}/line.fleet", "--unit", "SN1", "--train", "{t}"],
     ["plan", "--from-logs", "{t}", "--hours", "4", "--out", "{d}/plan"],
 ])
@@ -236,8 +235,8 @@ def test_other_commands_refuse_a_plateau_table_naming_inspect(argv: list[str], t
                                                               capsys) -> None:
     path = write_table(tmp_path / "rig", rig_rows())
     err = _refused(capsys, *(a.format(t=path, d=tmp_path) for a in argv))
-    assert "a plateau table" in err and "`fogsf inspect`, `train` and `replay` read" in err
-    with pytest.raises(LogError, match="`fogsf inspect`, `train` and `replay`"):
+    assert "a plateau table" in err and "`fogsf inspect`, `train`, `replay` and `diagnose`" in err
+    with pytest.raises(LogError, match="`fogsf inspect`, `train`, `replay` and `diagnose`"):
         read_log(path)
 
 
