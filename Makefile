@@ -10,8 +10,8 @@ OUT    ?= out
 
 help:
 	@echo "make demo      simulate the paper's chamber runs, train, export, build, replay, report"
-	@echo "make test      create .venv and run the whole test suite"
-	@echo "make test-fast ruff and the tests not marked slow: the check to run on every change"
+	@echo "make test      create .venv, ruff, mypy and the whole test suite"
+	@echo "make test-fast ruff, mypy and the tests not marked slow: the check to run on every change"
 	@echo "make firmware  build the C kernel (host library; Cortex-M4F image + size if arm-none-eabi-gcc exists)"
 	@echo "make firmware-cores  golden vectors under QEMU on Cortex-M4F, M3 and M0: PASS/FAIL per core, flash, RAM, stack bound"
 	@echo "make export    export the demo model to ONNX and C headers"
@@ -51,12 +51,14 @@ lint: $(STAMP)
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check fogsf tests benchmarks
-	$(PY) -m pytest -q -rs tests
+	$(VENV)/bin/mypy
+	$(PY) -m pytest -q -rs tests benchmarks/tests
 
 # the tests a change can afford on every edit (under 3 min on 2 cores): the slow-marked ones left out
 test-fast: $(STAMP)
 	$(VENV)/bin/ruff check fogsf tests benchmarks
-	$(PY) -m pytest -q -rs -m "not slow" tests
+	$(VENV)/bin/mypy
+	$(PY) -m pytest -q -rs -m "not slow" tests benchmarks/tests
 
 demo: $(STAMP)
 	bash scripts/demo.sh $(OUT)/demo

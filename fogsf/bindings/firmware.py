@@ -327,6 +327,7 @@ def firmware(model_dir: Path, out: Path, cc: str = "gcc", sanitize: bool = True)
         print(f"Cortex-M4F: skipped: {missing}")
         return 1 if failed else 0
     arm = build_arm(build.directory, golden_dir, out / "cortex-m4f", defines=build.defines)
+    assert arm.golden_elf is not None
     ok, text = run_qemu(arm.golden_elf)
     print(f"Cortex-M4F under {QEMU} -M mps2-an386: {arm.golden_elf}")
     for line in text.strip().splitlines():

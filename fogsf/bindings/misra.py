@@ -24,6 +24,7 @@ import subprocess
 import sys
 import tempfile
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -261,7 +262,7 @@ def compiler_warnings(cc: str = "gcc") -> list[Finding]:
     return out
 
 
-def check(out: Path, extra: list[Path] = ()) -> tuple[list[Finding], list[str]]:
+def check(out: Path, extra: Sequence[Path] = ()) -> tuple[list[Finding], list[str]]:
     """(findings, problems): problems are what makes `make misra` fail."""
     gen = out / "models"
     models = shapes()

@@ -192,10 +192,11 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.read.dia
                         "here give one axis, e.g. --axis x")
     given = getattr(args, "columns", None)
     cols = Dialect.parse_columns(given) if given else ()
-    from_file = bool(given) and "=" not in given and given.lower().endswith((".json", ".toml"))
-    joins = Dialect.mapping_joins(given) if from_file else ()
-    stream = Dialect.mapping_stream(given) if from_file else None
-    layout = Dialect.mapping_layout(given) if from_file else None  # layout = "plateaus"
+    map_file = given if given and "=" not in given \
+        and given.lower().endswith((".json", ".toml")) else None
+    joins = Dialect.mapping_joins(map_file) if map_file else ()
+    stream = Dialect.mapping_stream(map_file) if map_file else None
+    layout = Dialect.mapping_layout(map_file) if map_file else None  # layout = "plateaus"
     delim = getattr(args, "delimiter", None)
     return Dialect(DELIMITERS[delim] if delim else None, cols, gyro,
                    decimal_comma=getattr(args, "decimal_comma", False),

@@ -48,7 +48,7 @@ from fogsf.logs.measure.bias import before_after, bias_windows
 from fogsf.logs.measure.metrics import log_metrics, sf_error_ppm, start_note
 from fogsf.logs.measure.sf_reference import reference_sf
 from fogsf.logs.measure.windows import sf_windows
-from fogsf.logs.read.columns import Column, Spill, is_lazy
+from fogsf.logs.read.columns import Column, Spill, is_lazy, stand_in
 from fogsf.models.stream import StreamModel
 from fogsf.models.stream_flags import FLAG_NAMES
 
@@ -130,7 +130,9 @@ def replay_blocks(kernel, log, path: str | Path, bias_head: bool  # noqa: ANN001
             if tell is not None:
                 tell(b, n)
     if sf_out is not None:
-        return (sf_out.column(), None if bias_out is None else bias_out.column(), counts)
+        return (stand_in(sf_out.column()),
+                None if bias_out is None else stand_in(bias_out.column()), counts)
+    assert sf is not None  # in memory
     return sf, bias, counts
 
 
@@ -182,6 +184,8 @@ def run(args: argparse.Namespace) -> int:
     flagged = {k: v for k, v in counts.items() if v}
     print("flags: " + (", ".join(f"{k} {v}" for k, v in flagged.items()) if flagged
                        else "none"))
+    before: dict[str, float] | None
+    after: dict[str, float] | None
     try:
         span = {"settle_s": args.settle_s, "skip_s": args.skip_s}
         before = log_metrics(log, args.window_s, ref=args.ref_sf,
@@ -200,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {name:6s} max|e| {m['max_abs_ppm']:8.2f}  p-p {m['pp_ppm']:8.2f}  "
                   f"RMS {m['rms_ppm']:8.2f}  STD {m['std_ppm']:8.2f} ppm")
         print(f"  noise floor {before['noise_floor_ppm']:.2f} ppm")
-    bias_block = replay_bias(model, log, bias, sf, args) if model.bias_head else None
+    bias_block = replay_bias(model, log, bias, sf, args) if bias is not None else None
     args.axis_result = {"model_id": model.model_id, "bias_only": model.model == "bias",
                         "out": args.out, "before": before,
                         "after": after, "flags": counts, "bias": bias_block}

@@ -80,7 +80,7 @@ class Diagnosis:
     cause: str | None
     ambiguous: list[str]
     unexplained: bool
-    structure: dict[str, float]
+    structure: dict[str, float | list[str]]  # the figures; flagged_by: the tests that flag
     extended: ModelFit  # base + cause (the base when there is no cause)
     cv_mode: str
     window_s: float
@@ -133,4 +133,4 @@ def visible_fraction(model: ModelFit, w: np.ndarray) -> float:
     coef, *_ = np.linalg.lstsq(base * sw[:, None], c, rcond=None)
     r = c - (base * sw[:, None]) @ coef
     cm = c - sw * np.sum(col * w) / np.sum(w)
-    return float(np.linalg.norm(r) / max(np.linalg.norm(cm), 1e-300))
+    return float(np.linalg.norm(r) / max(float(np.linalg.norm(cm)), 1e-300))

@@ -11,6 +11,8 @@ error wins. The same stack serves every cross-validation fold (only the rows cha
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 from fogsf.diagnose import design
@@ -121,7 +123,8 @@ Fit = ProfileFit  # one profile over the grid (the shared physics fit's record)
 def solve(stack: Stack, y: np.ndarray, w: np.ndarray, rows: np.ndarray) -> Fit:
     """Fit on `rows` (index array) with weights w (1/sigma^2): the shared physics fit's
     profile over every stacked combination (`models.structures.node_fit.profile_solve`)."""
-    return profile_solve(stack.x, y, w, rows, RIDGE)
+    # Designs are indexed as the stacked array is
+    return profile_solve(cast(np.ndarray, stack.x), y, w, rows, RIDGE)
 
 
 def predict(stack: Stack, fit: Fit, rows: np.ndarray | None = None) -> np.ndarray:

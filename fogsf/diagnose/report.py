@@ -18,6 +18,7 @@ to the logs).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -157,7 +158,7 @@ def summary_text(j: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _fmt_param(k: str, v: Any, ci: Any = None) -> str:
+def _fmt_param(k: str, v: object, ci: Sequence[float] | None = None) -> str:
     s = f"{k} = {v:.4g}" if isinstance(v, float) else f"{k} = {v}"
     if ci:
         s += f" [{ci[0]:.4g}, {ci[1]:.4g}]"

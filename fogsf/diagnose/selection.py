@@ -225,8 +225,8 @@ def longest_soak_after_ramp(ctx: RunContext) -> float:
     k = max(1, int(round(300.0 / ctx.run.dt_s)))
     dm = block_means(ctx.driver.temp_c, k)  # 5-min means
     tm = block_means(ctx.run.log.time_s, k)
-    still = np.abs(np.gradient(dm, tm)) * 60.0 < SOAK_RATE_C_PER_MIN if dm.shape[0] > 1 \
-        else np.zeros(dm.shape, bool)
+    still: np.ndarray = np.abs(np.gradient(dm, tm)) * 60.0 < SOAK_RATE_C_PER_MIN \
+        if dm.shape[0] > 1 else np.zeros(dm.shape, bool)
     best = 0.0
     ref = float(dm[0])
     i = 0

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import jinja2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from fogsf.models.front_end import play_half_c, play_source_w
 from fogsf.models.rate_part import inverse_full_scale
@@ -127,7 +128,7 @@ def _words(values: list[int]) -> bytes:
     return b"".join(struct.pack("<I", v) for v in values)
 
 
-def _floats(values: np.ndarray | float) -> bytes:
+def _floats(values: ArrayLike) -> bytes:
     return np.asarray(values, np.float32).astype("<f4").ravel().tobytes()
 
 

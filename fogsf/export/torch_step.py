@@ -13,6 +13,15 @@ from fogsf.models.stream import StreamModel
 class TorchStep(torch.nn.Module):
     """z [1, F], h [L, 1, H], c [L, 1, H] -> (sf_ppm [1, 1], h, c), via torch.nn.LSTM."""
 
+    # the buffers __init__ registers (quad_w, cube_w with a polynomial head)
+    head_w: torch.Tensor
+    head_b: torch.Tensor
+    skip_w: torch.Tensor
+    out_scale: torch.Tensor
+    out_offset: torch.Tensor
+    quad_w: torch.Tensor
+    cube_w: torch.Tensor
+
     def __init__(self, model: StreamModel) -> None:
         super().__init__()
         w = model.weights

@@ -25,8 +25,8 @@ import os
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
-from contextlib import contextmanager
-from typing import Any, TypeVar
+from contextlib import AbstractContextManager, contextmanager
+from typing import Any, Protocol, TypeVar
 
 from fogsf.errors import UserError
 
@@ -119,10 +119,17 @@ def add_executor_options(parser: argparse.ArgumentParser, what: str = "fitness e
                         "`dask worker ADDRESS`); workers need fogsf installed")
 
 
-def executor_from_args(args: argparse.Namespace):
+class ExecutorOptions(Protocol):
+    """The options `add_executor_options` adds (parsed), or any options that have both."""
+
+    workers: int | None
+    dask: str | None
+
+
+def executor_from_args(opts: ExecutorOptions) -> AbstractContextManager[Executor | None]:
     """`open_executor` from the options `add_executor_options` added."""
-    return open_executor(workers=getattr(args, "workers", None),
-                         dask=getattr(args, "dask", None))
+    return open_executor(workers=getattr(opts, "workers", None),
+                         dask=getattr(opts, "dask", None))
 
 
 def run_all(ex: Executor | None, fn: Callable[..., T], items: Sequence[Any], *args: Any,

@@ -69,6 +69,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -162,7 +163,7 @@ class GSAResult:
     n_evals: int                        # fitness calls actually made (after de-duplication)
     n_agents: int
     n_iters: int
-    seed: int | list[int] | None
+    seed: int | Sequence[int] | None
     space: list[dict]
     settings: dict[str, Any] = field(default_factory=dict)
     wall_s: float = 0.0
@@ -243,19 +244,19 @@ def minimize(fitness_fn: Callable, space: Space | Iterable[Param | Mapping | Seq
         raise SpaceError(f"final_kbest must be in 1..n_agents, got {final_kbest!r}")
     n_agents, n_iters = int(n_agents), int(n_iters)
 
-    opts = dict(n_agents=n_agents, n_iters=n_iters, seed=seed, progress=progress,
-                vectorized=vectorized, cache=cache, g0=g0, alpha=alpha,
-                final_kbest=final_kbest, eps=eps, bounds=bounds, rand_per_dim=rand_per_dim,
-                normalize=normalize, callback=callback)
+    run = partial(_run, fitness_fn, space, n_agents=n_agents, n_iters=n_iters, seed=seed,
+                  progress=progress, vectorized=vectorized, cache=cache, g0=g0, alpha=alpha,
+                  final_kbest=final_kbest, eps=eps, bounds=bounds, rand_per_dim=rand_per_dim,
+                  normalize=normalize, callback=callback)
     if vectorized:                       # one array call per iteration, always inline
-        return _run(fitness_fn, space, None, **opts)
+        return run(None)
     if isinstance(executor, str):
         if executor != "local":
             raise SpaceError(f"executor must be 'local', None or a concurrent.futures "
                              f"Executor, got {executor!r}")
         with open_executor(workers=n_workers) as ex:
-            return _run(fitness_fn, space, ex, **opts)
-    return _run(fitness_fn, space, executor, **opts)
+            return run(ex)
+    return run(executor)
 
 
 def _check_picklable(fitness_fn: Callable, executor: Executor | None) -> None:

@@ -96,7 +96,7 @@ def _as_param(p: Param | Mapping | Sequence) -> Param:
 class Space:
     """An ordered box of `Param`s; converts between search coordinates and values."""
 
-    def __init__(self, params: Iterable[Param | Mapping | Sequence]) -> None:
+    def __init__(self, params: Space | Iterable[Param | Mapping | Sequence]) -> None:
         if isinstance(params, Space):
             params = params.params
         self.params: tuple[Param, ...] = tuple(_as_param(p) for p in params)

@@ -14,6 +14,7 @@ import numpy as np
 from fogsf.errors import UserError
 from fogsf.logs.measure.exact_stats import mean_in_order, median, step_blocks
 from fogsf.logs.read.columns import (
+    Column,
     LazyColumn,
     any_true,
     blocks,
@@ -21,6 +22,7 @@ from fogsf.logs.read.columns import (
     col_min,
     derived,
     is_lazy,
+    stand_in,
 )
 
 REQUIRED = ("time_s", "temp_c", "table_rate_dps", "gyro_dps")
@@ -106,8 +108,8 @@ class ChamberLog:
         (at rest the SF is undefined)."""
         if is_lazy(self.table_rate_dps):  # a log on disk: computed where it is read
             tab, valid = self.table_rate_dps, self.valid
-            return derived(len(self), np.dtype(bool), lambda s: (tab[s] != 0.0) if valid is None
-                           else (tab[s] != 0.0) & valid[s])
+            return stand_in(derived(len(self), np.dtype(bool), lambda s: (tab[s] != 0.0)
+                                    if valid is None else (tab[s] != 0.0) & valid[s]))
         m = self.table_rate_dps != 0.0
         return m if self.valid is None else m & self.valid
 
@@ -161,7 +163,7 @@ class ChamberLog:
         )
 
 
-def nominal_step_s(time_s: np.ndarray) -> float:
+def nominal_step_s(time_s: Column) -> float:
     """The median step of time_s, as 1 / (a rate of 6 significant digits) so that time
     stamps printed in decimal give 0.1 s, not 0.09999999999990905 (NOMINAL_DT_S for fewer
     than two samples)."""
@@ -201,14 +203,14 @@ def _nominal_step_on_disk(t: LazyColumn) -> float:
     return 1.0 / float(f"{1.0 / step:.6g}") if step > 0 else step
 
 
-def time_text(time_s: np.ndarray, i: int) -> str:
+def time_text(time_s: Column, i: int) -> str:
     """time_s[i] as a message shows it: as it is, or `t0+12.3` for an epoch time base."""
     if abs(float(time_s[0])) < EPOCH_S:
         return f"{time_s[i]:g}"
     return f"t0+{time_s[i] - time_s[0]:.6g}"
 
 
-def epoch_text(time_s: np.ndarray) -> str:
+def epoch_text(time_s: Column) -> str:
     """What `t0` is in `time_text`, when it is used ('' otherwise)."""
     if abs(float(time_s[0])) < EPOCH_S:
         return ""

@@ -39,9 +39,10 @@ class CorrectedWriter:
     def write(self, time_s: np.ndarray, gyro: np.ndarray, corrected: np.ndarray,
               sf_ppm: np.ndarray, bias_dph: np.ndarray | None = None) -> None:
         cols = [time_s, gyro, corrected, sf_ppm, bias_dph][:len(self.names)]
-        if any(c is None for c in cols):
+        given = [c for c in cols if c is not None]
+        if len(given) < len(cols):
             raise ValueError("bias_dph: a writer with bias takes it with every block")
-        block = dict(zip(self.names, cols, strict=True))
+        block = dict(zip(self.names, given, strict=True))
         if self._parquet is not None:
             self._parquet.write(block)
         else:

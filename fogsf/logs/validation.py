@@ -27,7 +27,15 @@ from fogsf.logs.chamber_log import (
 )
 from fogsf.logs.mapping.column_map import ColumnPlan
 from fogsf.logs.mapping.joins import apply_joins
-from fogsf.logs.read.columns import Column, blocks, col_max, col_min, derived, is_lazy
+from fogsf.logs.read.columns import (
+    Column,
+    blocks,
+    col_max,
+    col_min,
+    derived,
+    is_lazy,
+    stand_in,
+)
 from fogsf.logs.read.dialect import Dialect
 from fogsf.logs.read.sampling import default_max_gap_s, mend_segments, survey
 from fogsf.logs.read.stamps import rounded_stamps
@@ -37,7 +45,8 @@ def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
             notes: list[str]) -> ChamberLog:
     """The parsed cells (every column of the log) as a validated ChamberLog: our columns
     built by the plan, then checked."""
-    return log_from_columns(plan.apply(data, path), path, dialect, notes)
+    cols: dict[str, Column] = dict(plan.apply(data, path))
+    return log_from_columns(cols, path, dialect, notes)
 
 
 def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes: list[str]
@@ -77,14 +86,15 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
         v = valid
         valid = derived(len(v), np.dtype(bool), lambda s: v[s] != 0.0) if is_lazy(v) \
             else v != 0.0
+    earth = cols.get("earth_rate_dps")
     return ChamberLog(
-        time_s=cols["time_s"],
-        temp_c=cols["temp_c"],
-        table_rate_dps=cols["table_rate_dps"],
-        gyro_dps=cols["gyro_dps"],
-        earth_rate_dps=cols.get("earth_rate_dps"),
-        valid=valid,
-        extra=extra,
+        time_s=stand_in(cols["time_s"]),
+        temp_c=stand_in(cols["temp_c"]),
+        table_rate_dps=stand_in(cols["table_rate_dps"]),
+        gyro_dps=stand_in(cols["gyro_dps"]),
+        earth_rate_dps=None if earth is None else stand_in(earth),
+        valid=None if valid is None else stand_in(valid),
+        extra={k: stand_in(v) for k, v in extra.items()},
         path=path,
         read_notes=tuple(notes),
         nominal_dt_s=dt,
@@ -113,7 +123,7 @@ def without_duplicates(cols: dict[str, Column], notes: list[str]) -> dict[str, C
     return {k: np.delete(np.asarray(v[:]), rows) for k, v in cols.items()}
 
 
-def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = None,
+def validate(cols: dict[str, Column], path: str, rate_hz: float | None = None,
              nominal: float | None = None) -> float:
     """Refuse a broken log (the rules of docs/logs.md); return its nominal sample period (s):
     1 / rate_hz, else `nominal` (the reader's, logs/read/sampling.py), else time_s's median step."""
@@ -177,7 +187,7 @@ def validate(cols: dict[str, np.ndarray], path: str, rate_hz: float | None = Non
     return nominal
 
 
-def temperature_unit_hint(v: np.ndarray) -> str:
+def temperature_unit_hint(v: Column) -> str:
     """What a temperature column outside TEMP_RANGE_C is likely in, by its range: Kelvin
     (every value 173 .. 400), Fahrenheit (every value -76 .. 212 and more than 1 % of them
     above 100: one spike is not a unit)."""

@@ -270,7 +270,7 @@ class StepsOut(NamedTuple):
     sf_ppm: np.ndarray  # [n_steps] float32
     flags: np.ndarray  # [n_steps] uint32 (SF_CLAMPED, BIAS_CLAMPED)
     h_last: np.ndarray  # [n_steps, H] float32 last layer's hidden state
-    bias_dph: np.ndarray | None = None  # [n_steps] float32 (0 without a bias head)
+    bias_dph: np.ndarray  # [n_steps] float32 (0 without a bias head)
 
 
 def run_steps(model: StreamModel, s: np.ndarray) -> StepsOut:

@@ -97,8 +97,8 @@ def random_model(filters: int = 2, n_features: int = 4, layers: int = 1, hidden:
     if rate_part is not None:  # (R, Q): an open-loop-sized rate error, ~0.1 % of FS a term
         rate_rng = np.random.default_rng([seed, 4])
         r, q = rate_part
-        scale = 1e-3 * rate_fs_dps / (10.0 ** np.arange(q))  # per C, per C^2: smaller
-        weights["rate_w"] = (rate_rng.uniform(-1.0, 1.0, (r, q)) * scale).astype(np.float32)
+        scales = 1e-3 * rate_fs_dps / (10.0 ** np.arange(q))  # per C, per C^2: smaller
+        weights["rate_w"] = (rate_rng.uniform(-1.0, 1.0, (r, q)) * scales).astype(np.float32)
     model = StreamModel(model="random-lstm", decimation=decimation, t_ref_c=t_ref_c,
                         t_min_c=t_min_c, t_max_c=t_max_c, stuck_samples=stuck_samples,
                         filter_tau_s=list(taus_s), n_features=f, layers=layers, hidden=h,

@@ -245,8 +245,8 @@ class StreamModel:
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
         (out / CONFIG_FILE).write_text(json.dumps(self.config(), indent=2) + "\n")
-        np.savez(out / WEIGHTS_FILE, **{k: np.asarray(v, np.float32)
-                                        for k, v in sorted(self.weights.items())})
+        weights = {k: np.asarray(v, np.float32) for k, v in sorted(self.weights.items())}
+        np.savez(out / WEIGHTS_FILE, **weights)  # type: ignore[arg-type]  # ** read as allow_pickle
         return out
 
     @classmethod

@@ -88,10 +88,10 @@ def validate_model(self: Checked, where: str = "model") -> None:
     if not (isinstance(self.sample_dt_s, (int, float)) and self.sample_dt_s > 0):
         raise bad(f"'sample_dt_s' must be > 0, got {self.sample_dt_s!r}")
     temps = {"t_ref_c": self.t_ref_c, "t_min_c": self.t_min_c, "t_max_c": self.t_max_c}
-    for name, value in temps.items():
-        if not (isinstance(value, (int, float)) and math.isfinite(value)
-                and -273.15 < value < 1000.0):
-            raise bad(f"'{name}' must be a finite temperature in C, got {value!r}")
+    for name, temp in temps.items():
+        if not (isinstance(temp, (int, float)) and math.isfinite(temp)
+                and -273.15 < temp < 1000.0):
+            raise bad(f"'{name}' must be a finite temperature in C, got {temp!r}")
     if not isinstance(self.poly_head, bool):
         raise bad(f"'{POLY_KEY}' must be true or false, got {self.poly_head!r}")
     if not isinstance(self.quad_diag, bool):

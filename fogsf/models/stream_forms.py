@@ -59,7 +59,7 @@ def pure_play_rows(model: StreamModel) -> StreamModel:
     off = w.astype(np.float64) * (1.0 - np.eye(n))
     plays, others = np.arange(n - p, n), np.arange(n - p)
     diag = np.diagonal(w).astype(np.float64)
-    linear_only = model.n_lstm_inputs <= n - p and np.all(diag[others] != 0)
+    linear_only: bool | np.bool_ = model.n_lstm_inputs <= n - p and np.all(diag[others] != 0)
     if model.poly_head:
         q = wts["quad_w"]
         linear_only &= not (q[plays].any() if model.quad_diag else

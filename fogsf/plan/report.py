@@ -50,6 +50,10 @@ def identifiable(p: Program) -> list[str]:
 def _stats(x: list[float]) -> tuple[float | None, float | None]:
     if not x:
         return None, None
+    return _median_p90(x)
+
+
+def _median_p90(x: list[float]) -> tuple[float, float]:
     return float(np.median(x)), float(np.percentile(x, 90))
 
 
@@ -63,10 +67,11 @@ def score(programs: list[Program], results: list[dict], axes: int = 1) -> list[S
         rows = [{k: max(g[k] for g in each[i:i + axes]) for k in each[i]}
                 for i in range(0, len(each) - axes + 1, axes)]
         rates = sorted({k for row in rows for k in row})
-        per_rate = {k: _stats([row[k] for row in rows]) for k in rates}
+        per_rate = {k: _median_p90([row[k] for row in rows]) for k in rates}  # k in some row
         med, p90 = _stats([v for row in rows for v in row.values()])
         off = _stats([row[k] for row in rows for k in rates if not in_program(p, k)])
-        out.append(Scored(p, med, p90, off[0], off[1], per_rate, len(rows) * len(rates)))
+        out.append(Scored(p, med, p90,  # type: ignore[arg-type]  # None only without results
+                          off[0], off[1], per_rate, len(rows) * len(rates)))
     return sorted(out, key=lambda s: (s.p90, s.median))
 
 

@@ -29,6 +29,7 @@ parameters themselves: the check against the design.
 
 from __future__ import annotations
 
+import base64
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,6 +106,33 @@ class DesignPrior:
                 "tau_spread": np.sqrt(np.diag(self.sigma)[:self.k]).tolist(),
                 "play": None if self.play is None else self.play.as_dict(taus),
                 "structure_misfit": self.structure_misfit}
+
+    def to_cache(self) -> dict:
+        """Everything, exactly (arrays as float64 bytes): `from_cache` gives back a prior
+        that fits a new unit bit for bit as this one (the fleet's cache keeps it)."""
+        d = {k: v for k, v in vars(self).items() if k not in ("reference", "play")}
+        d = {k: _pack64(v) if isinstance(v, np.ndarray) else v for k, v in d.items()}
+        d["k_scores"] = [[k, v] for k, v in self.k_scores.items()]
+        d["reference"] = None if self.reference is None else self.reference.as_dict()
+        d["play"] = None if self.play is None else [self.play.node, self.play.width_c]
+        return d
+
+    @classmethod
+    def from_cache(cls, d: dict) -> DesignPrior:
+        d = {k: _unpack64(v) if isinstance(v, dict) and "f8" in v else v for k, v in d.items()}
+        d["k_scores"] = {int(k): float(v) for k, v in d["k_scores"]}
+        d["reference"] = None if d["reference"] is None else StepSeries.from_dict(d["reference"])
+        d["play"] = None if d["play"] is None else Play(int(d["play"][0]), float(d["play"][1]))
+        return cls(**d)
+
+
+def _pack64(a: np.ndarray) -> dict:
+    return {"f8": base64.b64encode(np.ascontiguousarray(a, dtype="<f8").tobytes()).decode(),
+            "shape": list(a.shape)}
+
+
+def _unpack64(d: dict) -> np.ndarray:
+    return np.frombuffer(base64.b64decode(d["f8"]), dtype="<f8").reshape(d["shape"]).copy()
 
 
 def choose_k(series: dict[str, StepSeries], fits: dict[int, dict[str, UnitFit]]
@@ -219,8 +247,8 @@ def choose_play(series: list[StepSeries], taus: list[np.ndarray], k: int) -> Pla
             h = np.vstack([plays_batch(np.repeat(x[:, None], widths.size, axis=1), widths)
                            for x in xs])[s.rows] / PHYSICAL_SCALE_C
             sse[a] += [_sse(np.column_stack([x0, h[:, i]]), s.y) for i in range(widths.size)]
-    a, i = np.unravel_index(int(np.argmin(sse)), sse.shape)
-    play = Play(nodes[int(a)], float(widths[i]))
+    ia, iw = np.unravel_index(int(np.argmin(sse)), sse.shape)
+    play = Play(nodes[int(ia)], float(widths[iw]))
     base = sum(_sse(design_matrix(s, t), s.y) for s, t in zip(series, taus, strict=True))
     with_play = sum(_sse(design_matrix(s, t, play), s.y)
                     for s, t in zip(series, taus, strict=True))

@@ -107,6 +107,7 @@ def response_basis(prior: DesignPrior, series: StepSeries, lam_units: float = LA
     """(m, B) on `series`' rows: the units' mean response and the basis [sqrt(lam_units) D,
     sqrt(lam_params) J R] (R R^T = Sigma)."""
     k = prior.k
+    assert prior.unit_thetas is not None  # function_fit refuses a prior without them
     f = np.stack([predict(series, th, k, prior.play) for th in prior.unit_thetas], axis=1)
     m = f.mean(axis=1)
     n = f.shape[1]

@@ -292,7 +292,7 @@ TABLE_KINDS = ("constant", "alternating", "levels")
 START_MODES = ("warm", "power-on")
 
 
-def _finite(x: Any) -> bool:
+def _finite(x: object) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
 

@@ -64,6 +64,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -95,7 +96,8 @@ class EffectContext:
         names = [k for k in self.nodes if k.startswith("coil")]
         if not names:
             raise UserError("this effect needs coil nodes (names starting with 'coil')")
-        return sum(self.nodes[k] for k in names) / len(names)
+        return cast(np.ndarray,  # names not empty: an array
+                    sum(self.nodes[k] for k in names) / len(names))
 
     def housing_c(self) -> np.ndarray:
         return self.nodes.get("housing", self.nodes["chamber"])
@@ -219,7 +221,8 @@ def preisach_offset(x: np.ndarray, width_c: float, plays: int = 1) -> np.ndarray
     strength (C)."""
     n = max(1, int(round(plays)))
     xs = np.asarray(x, dtype=np.float64)
-    return sum(play_operator(xs, width_c * (i + 1) / n) - xs for i in range(n)) / n
+    return cast(np.ndarray,  # n >= 1 terms: an array
+                sum(play_operator(xs, width_c * (i + 1) / n) - xs for i in range(n)) / n)
 
 
 def hysteresis(ctx: EffectContext, strength: float, width_c: float = 6.0,

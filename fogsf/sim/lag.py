@@ -4,9 +4,11 @@ effects and diagnose's design columns all use this one."""
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 
 import numpy as np
+
+from fogsf.logs.read.columns import Column
 
 STREAM_BLOCK = 1 << 20  # a bounded lag_blocks: samples made at a time (arrays of 8 MB)
 
@@ -26,7 +28,7 @@ def first_order_lag(u: np.ndarray, tau_s: float, dt_s: float, y0: float) -> np.n
     return y
 
 
-def lag_blocks(u: Sequence, tau_s: float, dt_s: float, y0: float,
+def lag_blocks(u: Column, tau_s: float, dt_s: float, y0: float,
                max_block: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
     """`first_order_lag(u, ...)` a block at a time: (start, y[start:start + len]) in order.
     u is anything sliced as u[a:b] (an array, or a column on disk read a block at a time).

@@ -12,6 +12,7 @@ is the exact product (1+eL)(1+eD) / ((1+eKm)(1+eDA)(1+elambda)) - 1, in ppm vs n
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import cast
 
 import numpy as np
 
@@ -20,7 +21,9 @@ from fogsf.sim.config import SF_FACTORS, BiasConfig, ScaleFactorConfig, SFTermCo
 
 def term_temperature(nodes: Mapping[str, np.ndarray], term: SFTermConfig) -> np.ndarray:
     """The weighted mean temperature a factor sees."""
-    return sum(w * np.asarray(nodes[name], dtype=np.float64) for name, w in term.nodes.items())
+    return cast(np.ndarray,  # term.nodes is never empty (sim.config checks): an array
+                sum(w * np.asarray(nodes[name], dtype=np.float64)
+                    for name, w in term.nodes.items()))
 
 
 def factor_change_ppm(temp_c: np.ndarray, term: SFTermConfig) -> np.ndarray:

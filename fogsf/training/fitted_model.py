@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.read.columns import Column, held
+from fogsf.logs.read.columns import Column, held, stand_in
 from fogsf.models.features import FeatureSpec, SeqData, prepare
 from fogsf.models.front_end import FrontEnd
 from fogsf.models.stream import StreamModel
@@ -34,7 +34,7 @@ def per_sample_prediction(fitted: Fitted, log: ChamberLog, latitude_deg: float |
                           ) -> np.ndarray:
     d = prepare(log, fitted.fe, None, latitude_deg)
     # a log on disk: the prediction made a block at a time too
-    return held(fitted.predict_steps(d), log.time_s, d.decimation)
+    return stand_in(held(fitted.predict_steps(d), log.time_s, d.decimation))
 
 
 def sf_predictions(fitted: Fitted, latitude_deg: float | None

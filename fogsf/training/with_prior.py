@@ -36,6 +36,7 @@ from fogsf.prior.unit_fit import (
     step_series,
 )
 from fogsf.prior.unit_summary import series_of
+from fogsf.training.fitted_model import Fitted
 from fogsf.training.options import TrainOptions
 from fogsf.training.sf.fit import fit_physics_head
 from fogsf.training.train import run_training
@@ -68,7 +69,7 @@ STRUCTURE_MISS = 1.2
 
 def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
                      test_log: ChamberLog | None, out_dir: Path, prior: DesignPrior
-                     ) -> tuple[dict, object]:
+                     ) -> tuple[dict, Fitted]:
     """Train the unit under `prior` (or alone, when its data disagree with the design);
     metrics.json gains `prior` (what the prior carried, the check, the interval)."""
 

@@ -145,10 +145,10 @@ def build(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
                 e.strength = scale
         case.multiple_reached = reached[0]
         if case.kind == "two":
-            truth = {"effects": [e.name for e in final.effects],
-                     **{f"{e.name}.strength": e.strength for e in final.effects}}
-            case.params = {**case.params, **truth}
-            return [_strip(simulate(final).log, case.chamber)], {"effect": None, **truth}
+            both = {"effects": [e.name for e in final.effects],
+                    **{f"{e.name}.strength": e.strength for e in final.effects}}
+            case.params = {**case.params, **both}  # type: ignore[dict-item]  # names the effects
+            return [_strip(simulate(final).log, case.chamber)], {"effect": None, **both}
         e = final.effects[0]
         if e.name == "extra_lag":
             truth = {"tau_s": e.strength, "sens_ppm_per_c": e.params["sens_ppm_per_c"],
@@ -204,7 +204,8 @@ def _build_coil_bias(case: Case) -> tuple[list[ChamberLog], dict[str, Any]]:
     slope, got = case_kinds.calibrate_coil_bias(case.multiple * floor, visible)
     case.config.bias.lin_dph_per_c = slope
     case.multiple_reached = got / floor
-    case.params = {"strength": slope, "node": case.config.bias.node}
+    case.params = {"strength": slope,
+                   "node": case.config.bias.node}  # type: ignore[dict-item]  # the node by name
     logs = [_strip(simulate(c).log, case.chamber) for c in case_kinds.pair_configs(case.config)]
     return logs, {"effect": case.name, **case.params}
 

@@ -215,7 +215,8 @@ CATALOGUE: dict[str, Candidate] = {c.name: c for c in [
               needs_power_on=True),
     Candidate("extra_lag", "sens_ppm_per_c", "tau_s", EXTRA_LAG_GRID_S, _extra_lag,
               "an extra slow thermal node lagging the housing",
-              admissible=lambda b, g: g is not None and g >= design.MIN_TAU_RATIO * b[1]),
+              admissible=lambda b, g: g is not None and not isinstance(g, tuple)
+              and g >= design.MIN_TAU_RATIO * b[1]),
     Candidate("temp_rate", "strength_ppm_per_c_per_min", "coil_tau_s", COIL_GRID,
               _temp_rate, "SF term in the coil's rate of temperature change",
               admissible=lambda b, g: b[1] <= COIL_TAU_GRID_S[-1], average=True),

@@ -10,6 +10,8 @@ samples), every width of the grid at once.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from fogsf.diagnose import design
@@ -42,11 +44,13 @@ def _plays(ctx: RunContext, tau_s: float, widths: tuple[float, ...] = WIDTHS_C
             d, tau_s, ctx.run.dt_s, float(d[0]), STREAM_BLOCK)])
         off = plays_batch(np.repeat(coarse[:, None], len(widths), axis=1),
                           np.asarray(widths))
+        def held(j: int) -> Callable[[slice], np.ndarray]:
+            return lambda s: off[np.arange(s.start, s.stop) // k, j]
+
         # each play value held for its k samples, summed over the windows a block at a time
-        return np.column_stack([ctx.run.window_mean(derived(
-            len(d), np.dtype(np.float64),
-            lambda s, j=j: off[np.arange(s.start, s.stop) // k, j]))
-            for j in range(len(widths))])
+        return np.column_stack([ctx.run.window_mean(derived(len(d), np.dtype(np.float64),
+                                                            held(j)))
+                                for j in range(len(widths))])
     return design._cached(ctx, ("play", float(tau_s), widths), make)
 
 

@@ -114,6 +114,7 @@ def plan_map(raw: list[str], columns: tuple[tuple[str, str], ...], origin: str, 
     renamed: dict[int | None, Source] = {}
     for s in entries:
         if s.expr is None and s.column in renamed:
+            assert s.column is not None  # a column as it is has its index
             raise LogError(path, 1, "column map", f"{origin}: the log's column "
                            f"{raw[s.column]!r} is mapped to two names "
                            f"({renamed[s.column].name}, {s.name})")

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-FUNCTIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+FUNCTIONS: dict[str, Callable[[Value], Value]] = {
     "abs": np.abs, "sqrt": np.sqrt, "sin": np.sin, "cos": np.cos}
 _BINARY = {ast.Add: np.add, ast.Sub: np.subtract, ast.Mult: np.multiply,
            ast.Div: np.divide, ast.Pow: np.power}
@@ -241,6 +241,7 @@ class _Evaluator:
 
     def _value(self, node: ast.expr) -> Value:  # noqa: PLR0911 - one return per node type
         if isinstance(node, ast.Constant):
+            assert isinstance(node.value, int | float)  # checked
             return float(node.value)
         if isinstance(node, ast.Name):
             return self.env[node.id]

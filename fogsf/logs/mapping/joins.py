@@ -216,8 +216,8 @@ def apply_joins(cols: dict[str, Column], joins: tuple[Join, ...], path: str,
         reports.append(JoinReport(j.name, p, int(t.shape[0]), int(ok.sum()), gaps,
                                   float(ts[0] - t[0]), float(ts[-1] - t[-1]), gap))
     if not covered_all.all():
-        v = out.get("valid")
-        out["valid"] = covered_all.astype(np.float64) if v is None else \
-            ((np.asarray(v[:]) != 0.0) & covered_all).astype(np.float64)
+        old = out.get("valid")
+        out["valid"] = covered_all.astype(np.float64) if old is None else \
+            ((np.asarray(old[:]) != 0.0) & covered_all).astype(np.float64)
     notes.extend(r.text(float(t[0])) for r in reports)
     return out, reports

@@ -45,7 +45,7 @@ def local_to_utc(t_s: np.ndarray, tz: tzinfo) -> np.ndarray:
     less its zone's UTC offset at that time. The offset is looked up once an hour of stamps
     (zones change offset on the hour or half hour, never between)."""
     if isinstance(tz, timezone):
-        off = tz.utcoffset(None)
+        off: timedelta | None = tz.utcoffset(None)
         return t_s - (0.0 if off is None else off.total_seconds())
     half_hours = np.floor(t_s / 1800.0)
     keys, inverse = np.unique(half_hours, return_inverse=True)

@@ -26,6 +26,7 @@ from fogsf.logs.read.columns import (
     exact_sum,
     is_lazy,
     span_means,
+    stand_in,
 )
 
 PAIR_RATE_TOL = 0.01  # |r1| and |r2| within 1 % (and 1e-6 deg/s) make a +/- pair
@@ -243,7 +244,7 @@ def bias_track(log: ChamberLog, latitude_deg: float | None = None,
         return out
 
     if is_lazy(log.time_s):  # a log on disk: computed where it is read
-        return derived(len(log), np.dtype(np.float64), track)
+        return stand_in(derived(len(log), np.dtype(np.float64), track))
     out = np.zeros(len(log))
     for a in range(0, len(log), BLOCK_SAMPLES):  # no log-long temporaries
         s = slice(a, a + BLOCK_SAMPLES)

@@ -8,7 +8,7 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.read.columns import is_lazy, searchsorted
+from fogsf.logs.read.columns import Column, is_lazy, searchsorted
 
 T_REF_C = 20.0
 SETTLE_S = 2.0  # left out after each change of commanded rate (covers a ~1 s table slew)
@@ -19,7 +19,7 @@ DPS_TO_DPH = 3600.0
 BLOCK_SAMPLES = 1 << 18
 
 
-def plateaus(table_rate_dps: np.ndarray, measures: np.ndarray | None = None
+def plateaus(table_rate_dps: Column, measures: Column | None = None
              ) -> list[tuple[int, int]]:
     """[start, stop) index ranges over which the table rate does not change; with `measures`
     (`ChamberLog.measures`), only the measuring runs inside them."""

@@ -62,9 +62,10 @@ def _say_once(text: str) -> None:
 
 
 def _reference_at(w: SFWindows, t_ref_c: float) -> float:
-    near = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C
-    deg = 2 if near.sum() >= 6 else 1
-    if near.sum() < 2 or np.ptp(w.temp_c[near]) < 0.5:
+    within = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C
+    near: np.ndarray | None = within
+    deg = 2 if within.sum() >= 6 else 1
+    if within.sum() < 2 or np.ptp(w.temp_c[within]) < 0.5:
         near, deg = _bracket(w.temp_c, t_ref_c), 1  # a line between two set points
     if near is None and np.any(np.abs(w.temp_c - t_ref_c) <= REF_BAND_C):
         near, deg = np.abs(w.temp_c - t_ref_c) <= REF_BAND_C, 0  # one set point: its mean
@@ -97,9 +98,11 @@ def reference_sf_of_logs(logs: list[ChamberLog], window_s: float = 100.0,
     (e.g. all training runs) together."""
     ws = [sf_windows(lg, window_s, latitude_deg, settle_s=settle_s) for lg in logs]
     same_units(logs, ws)
-    merged = SFWindows(*(np.concatenate([getattr(w, f) for w in ws]) for f in
-                         ("t_s", "temp_c", "rate_dps", "sf_ratio", "noise_ppm", "start",
-                          "stop")), window_s=float(window_s))
+    def cat(f: str) -> np.ndarray:
+        return np.concatenate([getattr(w, f) for w in ws])
+
+    merged = SFWindows(cat("t_s"), cat("temp_c"), cat("rate_dps"), cat("sf_ratio"),
+                       cat("noise_ppm"), cat("start"), cat("stop"), window_s=float(window_s))
     return reference_sf(merged, logs[0].ref_temp_c if t_ref_c is None else t_ref_c)
 
 

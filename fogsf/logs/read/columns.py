@@ -18,10 +18,15 @@ import shutil
 import tempfile
 from bisect import bisect_left
 from collections.abc import Callable, Iterable, Iterator
+from io import BufferedRandom
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
+from numpy.typing import DTypeLike
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeIs
 
 from fogsf.errors import UserError
 
@@ -196,7 +201,7 @@ class Spill:
         atexit.register(self.close)
         self._files: list[SpillFile] = []
 
-    def file(self, name: str, dtype: np.dtype) -> SpillFile:
+    def file(self, name: str, dtype: DTypeLike) -> SpillFile:
         f = SpillFile(self.dir / f"{len(self._files)}.bin", np.dtype(dtype))
         self._files.append(f)
         return f
@@ -214,14 +219,14 @@ class SpillFile:
         self.path = path
         self.dtype = dtype
         self.n = 0
-        self._file: BinaryIO | None = open(path, "w+b")  # noqa: SIM115 - closed by close()
+        self._file: BufferedRandom | None = open(path, "w+b")  # noqa: SIM115 - closed by close()
 
     def append(self, block: np.ndarray) -> None:
         assert self._file is not None
         b = np.ascontiguousarray(block, dtype=self.dtype)
         try:
             self._file.seek(self.n * self.dtype.itemsize)
-            self._file.write(memoryview(b).cast("B"))
+            self._file.write(b.data.cast("B"))
         except OSError as e:  # a full disk: one line, and what to do
 
             raise UserError(f"cannot write the log's columns to {self.path.parent}: "
@@ -236,7 +241,7 @@ class SpillFile:
             assert self._file is not None
             out = np.empty(b - a, self.dtype)
             self._file.seek(a * size)
-            if self._file.readinto(memoryview(out).cast("B")) != (b - a) * size:
+            if self._file.readinto(out.data.cast("B")) != (b - a) * size:
                 raise OSError(f"{self.path}: spill file shorter than expected")
             return out
 
@@ -251,8 +256,14 @@ class SpillFile:
 Column = np.ndarray | LazyColumn
 
 
-def is_lazy(col: object) -> bool:
+def is_lazy(col: object) -> TypeIs[LazyColumn]:
     return isinstance(col, LazyColumn)
+
+
+def stand_in(col: Column) -> np.ndarray:
+    """`col` where an array is declared (a `ChamberLog`'s columns, a model's input): a lazy
+    column stands in for one, answering len, indexing and slicing alike. Nothing is read."""
+    return cast(np.ndarray, col)
 
 
 def held(step_values: np.ndarray, like: Column, decimation: int) -> Column:

@@ -152,7 +152,7 @@ def _tdms(path: Path) -> dict[str, Stream]:
     f = TdmsFile.read(str(path))
     out: dict[str, Stream] = {}
     for g in f.groups():
-        cols = {}
+        cols: dict[str, np.ndarray] = {}
         for c in g.channels():
             data = np.asarray(c[:])
             if data.dtype.kind in "biuf":

@@ -135,8 +135,8 @@ def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
         return cols
     c = {k: np.asarray(v[:], dtype=np.float64) for k, v in cols.items()}
     t = c["time_s"]
-    for i in s.resets:  # later rows shifted: the reset's segment starts after the last row
-        t[i:] += (t[i - 1] + RESET_GAP_S) - t[i]
+    for r in s.resets:  # later rows shifted: the reset's segment starts after the last row
+        t[r:] += (t[r - 1] + RESET_GAP_S) - t[r]
     dt = np.diff(t)
     cuts = np.flatnonzero(dt > s.max_gap_s) + 1
     n_fill = [max(int(np.floor((t[i] - t[i - 1]) / s.nominal_s - 1e-9)), 0) for i in cuts]
@@ -170,11 +170,11 @@ def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
     for k, v in c.items():
         out[k].append(v[a:])
     out["logged"].append(np.ones(t.shape[0] - a))
-    merged = {k: np.concatenate(v) for k, v in out.items()}
+    merged: dict[str, Column] = {k: np.concatenate(v) for k, v in out.items()}
     s.segment_starts = [0, *(int(i) + int(sum(n_fill[:j + 1]))
                              for j, i in enumerate(cuts))]
     if "valid" not in merged:
-        merged["valid"] = merged["logged"].copy()
+        merged["valid"] = np.concatenate(out["logged"])
     s.filled_rows = int(sum(n_fill))
     return merged
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,7 @@ from fogsf.logs.logio import (
 )
 from fogsf.logs.mapping.column_map import ColumnPlan
 from fogsf.logs.read.arrow_csv import NotFast, number_blocks
-from fogsf.logs.read.columns import LazyColumn, Spill, is_lazy
+from fogsf.logs.read.columns import Column, Spill, is_lazy
 from fogsf.logs.read.dialect import Dialect, names_plan
 from fogsf.logs.read.field_formats import format_of
 from fogsf.logs.read.parquet_log import in_rows, is_parquet, parquet_blocks, parquet_names
@@ -59,7 +60,7 @@ def read_log_on_disk(path: str | Path, dialect: Dialect | None = None,
         _, rows, batches = parquet_blocks(path)
         cols, refused = _spilled(batches, plan, p, spill, _told(progress, rows))
         if refused is not None:
-            in_rows(p, lambda: _raise(refused))
+            in_rows(p, partial(_raise, refused))
         return in_rows(p, lambda: log_from_columns(cols, p, dialect, notes))
     head = plain_header(path, dialect)
     if head is None:
@@ -107,7 +108,7 @@ class _Counted:
 
 def _spilled(blocks: Iterator[np.ndarray] | _Counted, plan: ColumnPlan, path: str,
              spill: Spill, progress: Callable[[int], None] | None
-             ) -> tuple[dict[str, LazyColumn], LogError | None]:
+             ) -> tuple[dict[str, Column], LogError | None]:
     """({name: our column on disk} of every block, written to `spill`; the column map's
     refusal or None). The refusal is given, not raised: a bad cell after it comes first."""
     files = {s.name: spill.file(s.name, np.float64) for s in plan.sources}
@@ -130,7 +131,7 @@ def _spilled(blocks: Iterator[np.ndarray] | _Counted, plan: ColumnPlan, path: st
         row0 += data.shape[0]
         if progress is not None:
             progress(row0)
-    cols = {name: f.column() for name, f in files.items()}
+    cols: dict[str, Column] = {name: f.column() for name, f in files.items()}
     for i, s in enumerate(plan.sources):
         if i in refused:
             return cols, refused[i]

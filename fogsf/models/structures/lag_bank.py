@@ -117,6 +117,7 @@ def head_terms(coef: np.ndarray, k: int, curved: int, cross: bool = False
     """(lin, quad, cube) of the coefficients of `bank_design(z, curved, cross)` over k
     features (extra columns after them, e.g. a free term's, ignored): quad the diagonal [k],
     or with `cross` the upper-triangular [k, k] (z^T quad z, the firmware's full quad_w)."""
+    quad: np.ndarray
     quad, cube = np.zeros(k), np.zeros(k)
     quad[:curved], cube[:curved] = coef[k:k + curved], coef[k + curved:k + 2 * curved]
     if cross:

@@ -175,7 +175,7 @@ class RigRun:
         ax = self.axes[axis]
         r = ax.result
         return Truth(self.stamp_s + epoch_s, r.sf_ppm, r.bias_dps * 3600.0, self.table_dps,
-                     self.command_dps, self.table_dps * ax.cosine, r.log.earth_rate_dps,
+                     self.command_dps, self.table_dps * ax.cosine, r.log.earth(),
                      r.ideal_dps, ax.cosine, self.measures)
 
 

@@ -9,8 +9,8 @@ map that joins them, and the truth on the joined clock.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -89,11 +89,11 @@ def write_loggers(path: str | Path, run: RigRun, seed: int = 0, thermo_hz: float
         "gyro_dps": f"rate_z * {DEG_PER_RAD!r}",
         "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine),
     }
-    joins = {"thermo": {"file": "{stem}.thermo.csv", "time_s": "wall", "temp_c": "board_T",
-                        "chamber_c": "chamber_T", "how": "interpolate",
-                        "max_gap_s": max_gap_s},
-             "table": {"file": "{stem}.table.csv", "time_s": "wall",
-                       "table_rate_dps": "cmd_dps", "how": "hold"}}
+    joins: dict[str, dict[str, str | float]] = {
+        "thermo": {"file": "{stem}.thermo.csv", "time_s": "wall", "temp_c": "board_T",
+                   "chamber_c": "chamber_T", "how": "interpolate", "max_gap_s": max_gap_s},
+        "table": {"file": "{stem}.table.csv", "time_s": "wall", "table_rate_dps": "cmd_dps",
+                  "how": "hold"}}
     return RigLog(out, cmap, {"": run.truth(_one_axis(run), WALL_EPOCH_S)},
                   _write_map(out.parent, cmap, joins))
 
@@ -147,7 +147,8 @@ def write_px4(path: str | Path, run: RigRun, seed: int = 0, jitter: float = 0.15
     return RigLog(out, cmap, {"": truth}, _write_map(out.parent, cmap, joins))
 
 
-def _write_map(folder: Path, cmap: ColumnMap, joins: dict[str, dict[str, Any]]) -> Path:
+def _write_map(folder: Path, cmap: ColumnMap, joins: Mapping[str, Mapping[str, str | float]]
+               ) -> Path:
     text = "".join(f"{k} = {json.dumps(v)}\n" for k, v in cmap.items())
     for name, table in joins.items():
         text += f"\n[join.{name}]\n" + "".join(f"{k} = {json.dumps(v)}\n"
@@ -204,9 +205,10 @@ def write_ros2_export(path: str | Path, run: RigRun, thermo_hz: float = 1.0) -> 
     when = "`header.stamp.sec` + `header.stamp.nanosec` * 1e-9"
     cmap: ColumnMap = {"time_s": when, "gyro_dps": f"`angular_velocity.z` * {DEG_PER_RAD!r}",
                        "earth_rate_dps": earth_map_dps(run.protocol.latitude_deg, ax.cosine)}
-    joins = {"board": {"file": "{stem}.board_temperature.csv", "time_s": when,
-                       "temp_c": "temperature", "how": "interpolate", "max_gap_s": 5.0},
-             "table": {"file": "{stem}.table.csv", "time_s": when,
-                       "table_rate_dps": "data", "how": "hold"}}
+    joins: dict[str, dict[str, str | float]] = {
+        "board": {"file": "{stem}.board_temperature.csv", "time_s": when,
+                  "temp_c": "temperature", "how": "interpolate", "max_gap_s": 5.0},
+        "table": {"file": "{stem}.table.csv", "time_s": when,
+                  "table_rate_dps": "data", "how": "hold"}}
     return RigLog(out, cmap, {"": run.truth(_one_axis(run), WALL_EPOCH_S)},
                   _write_map(out.parent, cmap, joins))

@@ -8,7 +8,7 @@ writes in one call. The same inputs give the same bytes.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -111,7 +111,7 @@ def write_plain(path: str | Path, run: RigRun, gyro_unit: str = "rad/s",
             "table_rate_dps": run.command_dps,
             "gyro_rad_s" if rad else "gyro_dps": ax.gyro_dps / DEG_PER_RAD if rad
             else ax.gyro_dps,
-            "earth_rate_dps": ax.result.log.earth_rate_dps, "valid": run.measures}
+            "earth_rate_dps": ax.result.log.earth(), "valid": run.measures}
     out = write_csv(path, cols, ["%.6f", "%.10g", "%.12g", "%.12g", "%.10g", "%d"])
     cmap: ColumnMap = {"gyro_dps": f"gyro_rad_s * {DEG_PER_RAD!r}"} if rad else {}
     return RigLog(out, cmap, {"": run.truth(_one_axis(run), epoch_s)},
@@ -158,8 +158,9 @@ def _one_axis(run: RigRun) -> str:
 
 # --- one call: a protocol's log in a rig's convention ------------------------------------
 
-PROTOCOLS = {"reversals": reversal_protocol, "staircase": staircase_protocol,
-             "stationary": stationary_protocol}
+PROTOCOLS: dict[str, Callable[..., RigProtocol]] = {
+    "reversals": reversal_protocol, "staircase": staircase_protocol,
+    "stationary": stationary_protocol}
 RIG_KINDS = ("ros", "plain", "imu3")
 
 

@@ -6,8 +6,6 @@ terms, with its filters after the SF model's where the head shares the SF model'
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from fogsf.errors import UserError
@@ -129,6 +127,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
                  lambda lg: fe0.at_rate(lg.sample_dt_s).decimation)
     taus = fit.taus_s
     if choice.name == "lead":
+        assert fit.w is not None  # a lead fit has its weight
         own = lead_feature_map(logs, step_s, taus[1], float(fit.w), taus[0])
         z = np.concatenate([at_targets(own.z(lg), k) for lg, k in zip(logs, kernels, strict=True)]
                            ).astype(np.float64)[row]
@@ -143,7 +142,7 @@ def fit_bias(fm: FeatureMap | None, logs: list[ChamberLog], window_s: float = 10
     return BiasModel(own, _head(refit, own, i_t, lags), int(y.size), sources, choice, fam)
 
 
-def _free_columns(log: ChamberLog, fe0: FrontEnd) -> Any:
+def _free_columns(log: ChamberLog, fe0: FrontEnd) -> bs.Columns:
     """A log's columns at every model step on a front end with no filter of its own (the
     lags computed at any time constant)."""
     nodes = NodeTemperatures([frontend_s(log.temp_c, fe0.at_rate(log.sample_dt_s))[:, 0]
@@ -151,8 +150,8 @@ def _free_columns(log: ChamberLog, fe0: FrontEnd) -> Any:
     return bs.Columns(nodes.z(())[:, 0], nodes.lag, None, nodes.z(TAU_GRID_S), n_curved())
 
 
-def _shared_columns(fm: FeatureMap, z: np.ndarray, own: Any = None
-                    ) -> tuple[Any, int | None, dict[float, int]]:
+def _shared_columns(fm: FeatureMap, z: np.ndarray, own: bs.Columns | None = None
+                    ) -> tuple[bs.Columns, int | None, dict[float, int]]:
     """The candidates' columns on z (targets' rows): T and z's lags by time constant;
     `own`, the same rows' columns at any time constant (what `lead` reads)."""
     i_t, by_filter = bs.pure_columns(fm.feat_w)
@@ -162,7 +161,7 @@ def _shared_columns(fm: FeatureMap, z: np.ndarray, own: Any = None
     return cols, i_t, lags
 
 
-def _head(fit: Any, fm: FeatureMap, i_t: int | None, lags: dict[float, int]) -> BankFit:
+def _head(fit: bs.CandidateFit, fm: FeatureMap, i_t: int | None, lags: dict[float, int]) -> BankFit:
     if fit.bank is not None:
         return fit.bank
     assert i_t is not None
@@ -195,12 +194,13 @@ def _lead_head(z: np.ndarray, y: np.ndarray, taus: tuple[float, ...], w: float,
 
 
 def _shared_lead(fm: FeatureMap, logs: list[ChamberLog], kernels: list, row: np.ndarray,
-                 y: np.ndarray, fit: Any, lags: dict[float, int], i_t: int | None,
+                 y: np.ndarray, fit: bs.CandidateFit, lags: dict[float, int], i_t: int | None,
                  step_s: float, rest: tuple) -> BiasModel:
     """`lead` as the SF model's bias head: the coil node (and the fast lag, if z has none)
     on filters of their own after the SF model's (`with_rows`); T (and the fast lag) from
     z's own features."""
     fast, tau_c = fit.taus_s
+    assert fit.w is not None  # a lead fit has its weight
     w = float(fit.w)
     shared_fast = fast in lags
     own = lead_feature_map(logs, step_s, tau_c, w, None if shared_fast else fast,

@@ -18,7 +18,6 @@ over a log's bias windows; `with_bias_head` and `bias_only_stream_model`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -29,7 +28,7 @@ from fogsf.models.reference import expand
 from fogsf.models.structures.lag_bank import BankFit
 from fogsf.training.bias import choice as bc
 from fogsf.training.bias.features import FeatureMap
-from fogsf.training.bias.interval import bias_interval, interval_message
+from fogsf.training.bias.interval import Family, bias_interval, interval_message
 from fogsf.training.bias.targets import SFOf, _sf_for, measured_windows
 from fogsf.training.interval.transfer import RATE_TOLERANCE, ramp_segments
 
@@ -42,8 +41,8 @@ class BiasModel:
     fit: BankFit
     n_targets: int
     sources: list[str]
-    choice: Any = None  # bias.choice.BiasChoice: the structure and why
-    family: Any = None  # bias.interval.Family: what the rate-transfer interval needs
+    choice: bc.BiasChoice | None = None  # the structure and why
+    family: Family | None = None  # what the rate-transfer interval needs
     n_shared: int = 0  # z's features the SF model reads (those after are the bias's own)
 
     def predict_steps(self, z: np.ndarray) -> np.ndarray:

@@ -297,7 +297,7 @@ def target_spreads(train_logs: list[ChamberLog], target: ChamberLog,
     inflation = long_run_ratio(resid, [int(d.measured.sum()) for d in data],
                                max(1, int(round(LONG_RUN_S / step_s))))
     noise_var = sse[best] / max(1, y.size - 6)
-    ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation)
+    ok = np.flatnonzero(sse <= sse[best] + CHI2_ALLOWANCE * noise_var * inflation).tolist()
     preds = {i: fits[i].cand.design(tdata.s) @ fits[i].coef for i in ok}
     every = tdata.measured
     windows = step_windows(target, tdata.decimation, window_s, settle_s)

@@ -8,7 +8,9 @@ from __future__ import annotations
 import functools
 import time
 from dataclasses import asdict
+from typing import TypedDict
 
+import numpy as np
 import torch
 
 from fogsf.gsa.executors import open_executor
@@ -32,12 +34,22 @@ def gsa_space(kind: str) -> list[Param]:
     return space
 
 
-def gsa_fitness(params: dict, payload: dict) -> float:
+class Payload(TypedDict):
+    """What every fitness call is given (pickled to worker processes)."""
+
+    opts: TrainOptions
+    logs: list[ChamberLog]
+    targets: list[np.ndarray]
+    node: tuple[float, float] | None  # None: searched (the extended space)
+
+
+def gsa_fitness(params: dict, payload: Payload) -> float:
     """Validation RMS (ppm) of an LSTM trained with `params` on the payload's logs."""
     torch.set_num_threads(1)
     opts: TrainOptions = payload["opts"]
     logs: list[ChamberLog] = payload["logs"]
     node = (params["tau_s"], params["w"]) if "tau_s" in params else payload["node"]
+    assert node is not None  # searched when not given
     spec = effective_node_features(tuple(node))
     cfg = lstm_config(opts, layers=int(params["layers"]), hidden=int(params["hidden"]),
                       batch_size=int(params["batch_size"]), lr=float(params["lr"]),
@@ -53,9 +65,9 @@ def fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
     fe = front_end_for(logs, opts.model_step_s, ())
     targets = [step_targets(lg, fe.at_rate(lg.sample_dt_s).decimation, opts.latitude_deg,
                             opts.settle_s) for lg in logs]
-    payload = {"opts": opts, "logs": logs, "targets": targets,
-               "node": opts.node or (None if opts.gsa_space == "extended"
-                                     else identify_node(opts, logs))}
+    payload: Payload = {"opts": opts, "logs": logs, "targets": targets,
+                        "node": opts.node or (None if opts.gsa_space == "extended"
+                                              else identify_node(opts, logs))}
     fn = functools.partial(gsa_fitness, payload=payload)
     space = gsa_space(opts.gsa_space)
     t0 = time.perf_counter()
@@ -66,12 +78,14 @@ def fit_gsa(opts: TrainOptions, logs: list[ChamberLog]) -> Fitted:
     search_s = time.perf_counter() - t0
     best = res.best_params
     node = (best["tau_s"], best["w"]) if "tau_s" in best else payload["node"]
+    assert node is not None  # searched when not given
+    final_node = (float(node[0]), float(node[1]))
     final = TrainOptions(**{**asdict(opts), "model": "gsa-lstm",
                             "layers": int(best["layers"]), "hidden": int(best["hidden"]),
                             "batch_size": int(best["batch_size"]), "lr": float(best["lr"]),
-                            "node": (float(node[0]), float(node[1]))})
+                            "node": final_node})
     final.iters = opts.iters or lstm_defaults("gsa-lstm")["iters"]
-    spec = effective_node_features(final.node)
+    spec = effective_node_features(final_node)
     fitted = fit_with_spec(final, logs, spec, lstm_config(final))
     fitted.info["gsa"] = {"best_params": best, "best_fitness_ppm": res.best_fitness,
                           "best_curve": list(res.best_curve),

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.logs.read.columns import held
+from fogsf.logs.read.columns import held, stand_in
 from fogsf.models.features import MODEL_STEP_S, front_end_for, prepare
 from fogsf.models.front_end import FrontEnd
 from fogsf.models.structures.chain_nodes import chain_z, identify_chains, node_taus
@@ -185,7 +185,7 @@ def candidate_compensations(names: tuple[str, ...], logs: list[ChamberLog],
         def predict(log: ChamberLog) -> np.ndarray:
             d = prepare(log, sd.fe, None, None)
             steps = pred(NodeTemperatures([d.s[:, 0].astype(np.float64)], sd.fe.step_s))
-            return held(steps, log.time_s, d.decimation)
+            return stand_in(held(steps, log.time_s, d.decimation))
 
         return predict
 

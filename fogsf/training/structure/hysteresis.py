@@ -189,8 +189,10 @@ def cross_with_term(logs: list[ChamberLog], plain: str, cross: str, step_s: floa
     takes (`training.structure.penalty.step_won`)."""
     sd = step_data(logs, step_s, latitude_deg)
     sd.fold = part_folds(sd)
-    folds = {n: heldout_folds(n, sd, fit=lambda s, r, n=n: fit_with_term(n, s, r)[0])
-             for n in (plain, cross)}
+    def fit_of(n: str) -> Callable[[StepData, np.ndarray], Predictor]:
+        return lambda s, r: fit_with_term(n, s, r)[0]
+
+    folds = {n: heldout_folds(n, sd, fit=fit_of(n)) for n in (plain, cross)}
     wins, kept = step_won(folds[cross], folds[plain])
     rms = {n: pooled_rms(f) for n, f in folds.items()}
     return {"kept": bool(kept), "wins": wins, "parts": sd.n_folds, "heldout_rms_ppm": rms}
