@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 from kernel_helpers import FLAGS, init, kernel_for, seal
 
-from fogsf.bindings.firmware import golden_inputs
+from fogsf.bindings.cores import UNANNOUNCED
+from fogsf.bindings.cores import main as cores_main
+from fogsf.bindings.firmware import arm_tools_missing, golden_inputs
 from fogsf.bindings.kernel import C_DIR, SOURCES, STRICT, Kernel, build_kernel
 from fogsf.export.header import model_crc32, write_model
 from fogsf.export.selftest import render_selftest
@@ -112,8 +114,10 @@ int main(void) { static fogsf_state s; unsigned r = fogsf_selftest(&s, sizeof s)
 # kernel's sources given only these flags (no -std=c99, no -ffp-contract=off): "refused" (an
 # #error of fogsf_fp.h), "pass" (fogsf_selftest 0: the pragmas hold the bits), or the
 # self-test's code (compiles, and the self-test catches it: clang ignores every pragma under
-# -ffp-contract=fast, and a program linked with -funsafe-math-optimizations starts with
-# denormals flushed to zero, crtfastmath.o). firmware/c/MISRA.md, Dir 1.1, states the same.
+# -ffp-contract=fast; float_control(precise, on) does not hold -fno-honor-nans or
+# -fno-honor-infinities, whose folded compares the float-rule probes see (8); a program
+# linked with -funsafe-math-optimizations starts with denormals flushed to zero,
+# crtfastmath.o). firmware/c/MISRA.md, Dir 1.1, states the same.
 FLAG_MATRIX = [
     ("gcc", "", "pass"),  # GNU default: -std=gnu17 and -ffp-contract=fast
     ("gcc", "-std=gnu99", "pass"), ("gcc", "-ffp-contract=fast", "pass"),
@@ -125,7 +129,7 @@ FLAG_MATRIX = [
     ("clang", "", "pass"), ("clang", "-std=gnu99", "pass"),
     ("clang", "-ffast-math", "refused"), ("clang", "-Ofast", "refused"),
     ("clang", "-ffinite-math-only", "refused"), ("clang", "-ffp-model=fast", "refused"),
-    ("clang", "-fno-honor-nans", "pass"), ("clang", "-fno-honor-infinities", "pass"),
+    ("clang", "-fno-honor-nans", 8), ("clang", "-fno-honor-infinities", 8),
     ("clang", "-freciprocal-math", "pass"), ("clang", "-fno-signed-zeros", "pass"),
     ("clang", "-fassociative-math -fno-signed-zeros -fno-trapping-math", "pass"),
     ("clang", "-fdenormal-fp-math=preserve-sign", "pass"),
@@ -151,6 +155,25 @@ def test_every_value_changing_flag_is_refused_held_or_caught(cc, flags, want, tm
     assert proc.returncode == 0, proc.stderr
     got = int(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout)
     assert got == (0 if want == "pass" else want)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(arm_tools_missing() is not None or shutil.which("clang") is None,
+                    reason="needs the cross tools and clang")
+def test_every_unannounced_flag_fails_the_selftest_on_the_cores(tmp_path, capsys) -> None:
+    """clang for ARM announces -freciprocal-math, -fno-signed-zeros, -fno-honor-nans,
+    -fno-honor-infinities and -fassociative-math by no macro and has no pragma against the
+    first four there: each compiles, and fogsf_selftest's float-rule probes
+    (FOGSF_SELFTEST_FLOAT_RULES, 8) fail on the hard-float M4F and the soft-float M0, in the
+    default and the even-time build (-fassociative-math: its -fno-signed-zeros is what the
+    probes see; reassociation itself is held by the pragma)."""
+    assert cores_main(["tests/fixtures/small_model", "--out", str(tmp_path), "--cores",
+                       "cortex-m4f,cortex-m0", "--toolchains", ",".join(UNANNOUNCED)]) == 0
+    out = capsys.readouterr().out
+    runs = re.findall(r"under qemu-system-arm -M \S+: (\w+): .*; selftest (\d+)", out)
+    assert len(runs) == 2 * 2 * len(UNANNOUNCED), out  # builds x cores x flags
+    for verdict, code in runs:
+        assert verdict == "CAUGHT" and int(code) & 8, out
 
 
 # the flags the pragmas hold: the whole kernel's outputs on golden inputs (every bad input

@@ -37,6 +37,16 @@ def test_a_required_finding_fails(tmp_path: Path, capsys) -> None:
     assert "bad.c:6: Required rule 14.4" in out and out.rstrip().endswith("FAIL"), out
 
 
+def test_the_gsa_shape_is_the_largest_the_search_can_give() -> None:
+    from fogsf.training.net.gsa_search import gsa_space
+
+    for kind in ("paper", "extended"):
+        bounds = {p.name: p.high for p in gsa_space(kind)}
+        assert (bounds["layers"], bounds["hidden"]) == (misra.GSA_LAYERS, misra.GSA_HIDDEN)
+    model = misra.gsa_model()
+    assert (model.layers, model.hidden) == (misra.GSA_LAYERS, misra.GSA_HIDDEN)
+
+
 def test_the_rule_table_and_the_record() -> None:
     assert misra.category("9.1") == "Mandatory" and misra.category("10.4") == "Required"
     assert misra.category("12.1") == "Advisory" and misra.category("99.9") == "Required"

@@ -305,7 +305,8 @@ uint32_t fogsf_check_period(const fogsf_model *m);
  * through fogsf_step on *scratch, and compares every output bit for bit with the values the
  * numpy reference gives (generated into fogsf_selftest.c). 0 when all match, else the OR of
  * FOGSF_SELFTEST_*: a compiler flag or a toolchain broke the float32 order (FMA contraction,
- * fast math, a wrong soft-float library). state_size is sizeof(fogsf_state) as the caller
+ * fast math, a wrong soft-float library); it also checks the IEEE rules the kernel's NaN,
+ * signed-zero and division code relies on, each on its own probe. state_size is sizeof(fogsf_state) as the caller
  * compiled it (another size, or a NULL scratch: the model part fails, nothing is written).
  * *scratch is overwritten: fogsf_init it afterwards. */
 uint32_t fogsf_selftest(fogsf_state *scratch, size_t state_size);
@@ -313,6 +314,13 @@ uint32_t fogsf_selftest(fogsf_state *scratch, size_t state_size);
 #define FOGSF_SELFTEST_ACTIVATIONS 1u /* fogsf_expf / sigmoidf / tanhf gave other bits */
 #define FOGSF_SELFTEST_MODEL 2u       /* the built-in model's outputs differ */
 #define FOGSF_SELFTEST_CHECK 4u       /* fogsf_model_check refused the built-in model */
+#define FOGSF_SELFTEST_FLOAT_RULES 8u /* an IEEE rule the kernel relies on broken: a NaN
+                                         compared equal or ordered, -0 + 0 not +0, x / c
+                                         not correctly rounded, (a + b) - b reassociated, or
+                                         Inf compared as finite (clang's -fno-honor-nans,
+                                         -fno-signed-zeros, -freciprocal-math,
+                                         -fassociative-math, -fno-honor-infinities, which
+                                         no macro announces) */
 
 /* Start a log: zero LSTM state, the filters primed by the first plausible temperature.
  * state_size is sizeof(fogsf_state) as the caller compiled it: a NULL st or another size (a

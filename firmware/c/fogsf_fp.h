@@ -14,9 +14,11 @@
  *   reciprocal, NaN/Inf or signed-zero assumptions); on gcc, which ignores those,
  *   optimize("fp-contract=off") (its GNU modes default to -ffp-contract=fast); elsewhere
  *   the standard STDC FP_CONTRACT OFF. What no macro announces and no pragma undoes
- *   (clang's -ffp-contract=fast on a target with FMA; -freciprocal-math, -fno-honor-nans
- *   on clang for ARM; a flush-to-zero mode) is left to fogsf_selftest()
- *   (FOGSF_SELFTEST_AT_INIT: fogsf_init refuses the model when it fails).
+ *   (clang's -ffp-contract=fast on a target with FMA; -fno-honor-nans and
+ *   -fno-honor-infinities everywhere; -freciprocal-math and -fno-signed-zeros on clang for
+ *   ARM; a flush-to-zero mode) is left to fogsf_selftest(), whose float-rule probes fail on
+ *   each of those flags (FOGSF_SELFTEST_FLOAT_RULES; FOGSF_SELFTEST_AT_INIT: fogsf_init
+ *   refuses the model when it fails).
  */
 #ifndef FOGSF_FP_H
 #define FOGSF_FP_H
@@ -43,9 +45,9 @@
 
 #if defined(__clang__)
 #if defined(__x86_64__) || defined(__i386__)
-/* clang announces -freciprocal-math, -fno-signed-zeros and -fno-honor-nans/-infinities by no
- * macro: precise arithmetic here whatever the command line says (clang 14 has this pragma
- * on x86 only; elsewhere fogsf_selftest catches those flags: MISRA.md, Dir 1.1) */
+/* clang announces -freciprocal-math and -fno-signed-zeros by no macro: precise arithmetic
+ * here whatever the command line says (clang 14 has this pragma on x86 only, and it does not
+ * hold -fno-honor-nans/-infinities; fogsf_selftest catches the rest: MISRA.md, Dir 1.1) */
 #pragma float_control(precise, on)
 #endif
 /* -fassociative-math (no macro either), then FMA contraction (clang's default fuses within a

@@ -208,6 +208,50 @@ static uint32_t bits_of(float f)
     return b.u;
 }
 
+/* The IEEE rules a flag no macro announces lets the compiler drop (clang 14: none of
+ * -fno-honor-nans, -fno-signed-zeros, -freciprocal-math, -fassociative-math,
+ * -fno-honor-infinities defines one, and its float_control pragma exists on x86 only and
+ * does not hold -fno-honor-nans): each probe is one operation on a value read through
+ * volatile, so only the compiler's licence, not the value, can fold it. Values: a quiet NaN,
+ * -0.0f, x and its correctly rounded x / 3600 (x * (1 / 3600.0f) rounds one ulp above),
+ * 1.0f, 1.0e8f ((1 + 1e8) - 1e8 is 0 in float32) and +Inf. */
+static const uint32_t rule_bits[7] = {
+    0x7fc00000u, 0x80000000u, 0x40533334u, 0x3a704c76u, 0x3f800000u, 0x4cbebc20u,
+    0x7f800000u
+};
+
+static uint32_t float_rules(void)
+{
+    const float nan = f32_of(load32(&rule_bits[0]));
+    const float neg_zero = f32_of(load32(&rule_bits[1]));
+    const float x = f32_of(load32(&rule_bits[2]));
+    const float one = f32_of(load32(&rule_bits[4]));
+    const float big = f32_of(load32(&rule_bits[5]));
+    const float inf = f32_of(load32(&rule_bits[6]));
+    uint32_t bad = 0u;
+    /* -fno-honor-nans: the kernel's NaN clamps (!(mag <= limit)) read NaN as unordered */
+    if ((nan == nan) || (nan < one) || (nan >= one) || (!(nan != nan))) {
+        bad = FOGSF_SELFTEST_FLOAT_RULES;
+    }
+    /* -fno-signed-zeros: -0 + 0 is +0 (folded to -0 when signed zeros may be ignored) */
+    if (bits_of(neg_zero + 0.0f) != 0u) {
+        bad = FOGSF_SELFTEST_FLOAT_RULES;
+    }
+    /* -freciprocal-math: a division by a constant (the bias's / 3600) stays a division */
+    if (bits_of(x / 3600.0f) != load32(&rule_bits[3])) {
+        bad = FOGSF_SELFTEST_FLOAT_RULES;
+    }
+    /* -fassociative-math: the source's order, (1 + 1e8) - 1e8 = 0 */
+    if (bits_of((one + big) - big) != 0u) {
+        bad = FOGSF_SELFTEST_FLOAT_RULES;
+    }
+    /* -fno-honor-infinities: an Inf equals the constant Inf (FLT_MAX * 2 rounds to it) */
+    if (!(inf == (FLT_MAX * 2.0f))) {
+        bad = FOGSF_SELFTEST_FLOAT_RULES;
+    }
+    return bad;
+}
+
 static uint32_t activations(void)
 {
     uint32_t bad = 0u;
@@ -242,7 +286,7 @@ static uint32_t model_outputs(fogsf_state *st)
 
 uint32_t fogsf_selftest(fogsf_state *scratch, size_t state_size)
 {
-    uint32_t bad = activations();
+    uint32_t bad = activations() | float_rules();
     if ((scratch == NULL) || (state_size != sizeof(fogsf_state))) {
         bad |= FOGSF_SELFTEST_MODEL; /* nothing written */
     } else if (fogsf_reset(&selftest_model, scratch, state_size) != 0u) {

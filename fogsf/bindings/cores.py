@@ -72,7 +72,17 @@ TOOLCHAINS = {
     "clang-no-signed-zeros": Toolchain("clang-no-signed-zeros", CLANG,
                                        ("-std=c99", *WARN, "-fno-signed-zeros"),
                                        "clang -fno-signed-zeros (no macro announces it)"),
+    "clang-no-honor-infinities": Toolchain("clang-no-honor-infinities", CLANG,
+                                           ("-std=c99", *WARN, "-fno-honor-infinities"),
+                                           "clang -fno-honor-infinities (no macro announces it)"),
+    "clang-associative-math": Toolchain(
+        "clang-associative-math", CLANG,
+        ("-std=c99", *WARN, "-fassociative-math", "-fno-signed-zeros", "-fno-trapping-math"),
+        "clang -fassociative-math -fno-signed-zeros -fno-trapping-math (no macro)"),
 }
+# the value-changing flags no macro announces: each compiles, and the self-test fails
+UNANNOUNCED = ("clang-reciprocal-math", "clang-no-honor-nans", "clang-no-signed-zeros",
+               "clang-no-honor-infinities", "clang-associative-math")
 DEFAULT_TOOLCHAINS = ("gcc-c99", "gcc-gnu", "clang", "clang-contract-fast")
 
 

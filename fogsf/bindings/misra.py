@@ -1,7 +1,8 @@
 """MISRA C:2012 check of the kernel and of generated models (`make misra`).
 
 Exports a model of every shape through the export path (plain; bias head with the diagonal
-quadratic; a play; the full quadratic with its cross terms on two layers), then runs
+quadratic; a play; the full quadratic with its cross terms on two layers; a rate part; with
+--gsa also the largest LSTM the GSA search can give, 3x256, in a run of its own), then runs
 cppcheck's MISRA addon over the kernel's sources and the generated `NAME.c` files in one
 configuration (the state sized for the largest). Each finding gets its category from the
 rule table below (MISRA C:2012 with Amendments 1 and 2: the addon reports only numbers).
@@ -69,6 +70,21 @@ def category(rule: str) -> str:
     if rule in MANDATORY:
         return "Mandatory"
     return "Advisory" if rule in ADVISORY else "Required"
+
+
+# the largest LSTM the GSA search can give (fogsf/training/net/gsa_search.py, gsa_space: layers
+# 1..3, hidden 4..256; tests/test_misra.py checks these against it). Its NAME.c (21 MB, 1.3 M
+# floats) is checked on request only (--gsa, `make misra MISRA_GSA=1`), in a cppcheck run of
+# its own with its own time limit: cppcheck 2.10 takes more than 15 minutes over it alone,
+# which the routine run cannot afford.
+GSA_LAYERS = 3
+GSA_HIDDEN = 256
+GSA_TIMEOUT_S = 4 * 3600.0
+
+
+def gsa_model() -> StreamModel:
+    """The GSA-sized model: one filter, one feature, GSA_LAYERS x GSA_HIDDEN."""
+    return samples.random_model(1, 1, GSA_LAYERS, GSA_HIDDEN, 50, seed=6)
 
 
 def shapes() -> dict[str, StreamModel]:
@@ -262,8 +278,10 @@ def compiler_warnings(cc: str = "gcc") -> list[Finding]:
     return out
 
 
-def check(out: Path, extra: Sequence[Path] = ()) -> tuple[list[Finding], list[str]]:
-    """(findings, problems): problems are what makes `make misra` fail."""
+def check(out: Path, extra: Sequence[Path] = (), gsa: bool = False
+          ) -> tuple[list[Finding], list[str]]:
+    """(findings, problems): problems are what makes `make misra` fail. gsa: the GSA-sized
+    model too (gsa_model), in a cppcheck run of its own."""
     gen = out / "models"
     models = shapes()
     files = [C_DIR / n for n in (*SOURCES, *LOADER)]
@@ -280,6 +298,13 @@ def check(out: Path, extra: Sequence[Path] = ()) -> tuple[list[Finding], list[st
     findings += [f for f in run_cppcheck([C_DIR / n for n in SOURCES],
                                          {**sizes, "FOGSF_EVEN_TIME": 1}, [C_DIR], out)
                  if (f.file, f.line, f.rule) not in seen]
+    if gsa:
+        big = gsa_model()
+        write_model(big, gen, "misra_gsa")
+        seen = {(f.file, f.line, f.rule) for f in findings}
+        findings += [f for f in run_cppcheck([gen / "misra_gsa.c"], state_sizes(big),
+                                             [C_DIR, gen], out, timeout=GSA_TIMEOUT_S)
+                     if (f.file, f.line, f.rule) not in seen]
     kernel = [C_DIR / n for n in (*SOURCES, *LOADER, *KERNEL_HEADERS, LOADER_HEADER)]
     findings += plain_integer_lines(kernel)
     findings += parameter_names(C_DIR / "fogsf.h", kernel)
@@ -321,13 +346,16 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m fogsf.bindings.misra", description=__doc__)
     p.add_argument("--out", type=Path, default=Path("build/misra"))
     p.add_argument("--json", type=Path, default=None, help="also write the findings here")
+    p.add_argument("--gsa", action="store_true",
+                   help=f"also the GSA-sized model ({GSA_LAYERS}x{GSA_HIDDEN} LSTM, a 21 MB "
+                        "NAME.c: cppcheck takes more than 15 minutes over it)")
     p.add_argument("extra", nargs="*", type=Path, help="more C files to check with the kernel")
     args = p.parse_args(argv)
     try:
         args.out.mkdir(parents=True, exist_ok=True)
         print(f"cppcheck --addon=misra (MISRA C:2012) on {', '.join((*SOURCES, *LOADER))} "
-              f"and models {', '.join(shapes())}")
-        findings, problems = check(args.out.resolve(), args.extra)
+              f"and models {', '.join([*shapes(), *(['misra_gsa'] if args.gsa else [])])}")
+        findings, problems = check(args.out.resolve(), args.extra, args.gsa)
     except (UserError, subprocess.TimeoutExpired) as e:
         print(f"misra: error: {e}", file=sys.stderr)
         return 2

@@ -9,12 +9,15 @@ Reads MODEL_DIR (stream.json + stream_weights.npz, written by `fogsf train`) and
 Models exported under different names link into one image (docs/firmware.md).
 The same model and name always give the same bytes. `--sample-rate-hz` exports the model
 for firmware that runs at another rate than the training logs': the model step in seconds
-is kept, so D = step * rate (docs/stream-contract.md, "Sample rate").
+is kept, so D = step * rate (docs/stream-contract.md, "Sample rate"). `--even-time` exports
+for the kernel built with FOGSF_EVEN_TIME and refuses a model whose step D is below that
+build's bound, L*H + 3 samples (docs/firmware.md, "Bounded, even time").
 
 Examples:
   fogsf export models/m --out build/m --name imu_x
   fogsf export models/m --out build/m1k --name imu_x --sample-rate-hz 1000
   fogsf export models/m --blob build/unit.bin
+  fogsf export models/m --out build/m --name imu_x --even-time
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from fogsf.cli.axes import run_all, wants_all
 from fogsf.errors import UserError
 from fogsf.export import export_model
 from fogsf.export.block import describe, write_block
-from fogsf.export.header import check_name
+from fogsf.export.header import check_even_time, check_name
 from fogsf.logs.chamber_log import check_rate_hz
 from fogsf.models.stream import StreamModel
 
@@ -44,6 +47,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sample-rate-hz", type=positive_float, default=None, metavar="HZ",
                         help="the firmware's sample rate (default: the training logs'); "
                              "the model step must be a whole number of samples at it")
+    parser.add_argument("--even-time", action="store_true",
+                        help="the C model is for the kernel built with FOGSF_EVEN_TIME: "
+                             "refused when the step's D < L*H + 3 (the per-sample bound "
+                             "needs each step's parts to end before the next step)")
     parser.add_argument("--axis", choices=("all",), default=None,
                         help="all: MODEL_DIR holds one model folder per axis (A/, as `fogsf "
                              "train --axis all` writes): each is exported into OUT/A as "
@@ -64,7 +71,13 @@ def run(args: argparse.Namespace) -> int:
     if args.sample_rate_hz is not None:
         model = rated(model, 1.0 / check_rate_hz(args.sample_rate_hz),
                       f"{args.sample_rate_hz:g} Hz")
-    paths = export_model(model, args.out, args.name) if args.out is not None else {}
+    if args.even_time:
+        try:
+            check_even_time(model)
+        except ValueError as e:
+            raise UserError(str(e)) from None
+    paths = (export_model(model, args.out, args.name, args.even_time)
+             if args.out is not None else {})
     if args.blob is not None:
         paths["block"] = write_block(model, args.blob)
     args.axis_result = {"name": args.name, "model_id": model.model_id,

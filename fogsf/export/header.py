@@ -65,6 +65,29 @@ def check_name(name: str) -> str:
     return name
 
 
+def even_time_parts(model: StreamModel) -> int:
+    """The parts of a model step in the even-time build (firmware/c/fogsf.c, n_parts): the
+    front, one part per LSTM unit (L*H), the head and the bias head."""
+    return model.layers * model.hidden + 3
+
+
+def check_even_time(model: StreamModel) -> None:
+    """The even-time build's per-sample bound holds only when a step's parts end before the
+    next step (docs/stream-contract.md, "Even time"): the front at the step's sample and one
+    part on each of the D - 1 samples after it, so D >= L*H + 3. Below it the pending parts
+    run at the next step's sample, on top of its front (the same bits, not the bound), so a
+    model exported for that build is refused (ValueError, one line) rather than re-rated:
+    raising D would change the model's step in seconds, which its filters were trained for."""
+    bound = even_time_parts(model)
+    if model.decimation < bound:
+        rate_hz = bound / model.step_s
+        raise ValueError(
+            f"--even-time: the model step is D = {model.decimation} samples, below the "
+            f"even-time bound D >= L*H + 3 = {bound} (L={model.layers}, H={model.hidden}): "
+            f"export at --sample-rate-hz {rate_hz:g} or more (D = {model.step_s:g} s x rate), "
+            "train a smaller model, or build the kernel without FOGSF_EVEN_TIME")
+
+
 def format_version(model: StreamModel) -> int:
     """The generated C's format version of the model: 7 with a rate part, else 6."""
     return FORMAT_VERSION_RATE if model.has_rate_part else FORMAT_VERSION
@@ -80,12 +103,15 @@ def _rate_context(model: StreamModel) -> dict:
             "rate_fs_dps": f"{model.rate_fs_dps:g}"}
 
 
-def _context(model: StreamModel, name: str) -> dict:
+def _context(model: StreamModel, name: str, even_time: bool = False) -> dict:
     w = model.weights
     names = range(model.layers)
     check_name(name)
+    if even_time:
+        check_even_time(model)
     return {
         "name": name, "upper": name.upper(), "guard": f"{name.upper()}_FOGSF_MODEL_H",
+        "even_time": even_time, "even_time_parts": even_time_parts(model),
         "format": FORMAT, "model_id": model.model_id,
         "format_version": format_version(model), "embedded": False, **_rate_context(model),
         **{key: f"0x{value:08x}u" for key, value in
@@ -165,19 +191,24 @@ def model_crc32(model: StreamModel) -> tuple[int, int]:
     return sizes, zlib.crc32(b"".join(_floats(t) for t in tables), sizes)
 
 
-def render_model(model: StreamModel, name: str = DEFAULT_NAME) -> dict[str, str]:
-    """{'NAME.h': text, 'NAME.c': text}: the same model and name give the same bytes."""
-    ctx = _context(model, name)
+def render_model(model: StreamModel, name: str = DEFAULT_NAME, even_time: bool = False
+                 ) -> dict[str, str]:
+    """{'NAME.h': text, 'NAME.c': text}: the same model, name and even_time give the same
+    bytes. even_time: for the kernel built with FOGSF_EVEN_TIME (check_even_time; NAME.h
+    says so and NAME.c refuses to compile in another build)."""
+    ctx = _context(model, name, even_time)
     env = _environment()
     return {f"{name}.h": env.get_template("model.h.j2").render(**ctx),
             f"{name}.c": env.get_template("model.c.j2").render(**ctx)}
 
 
-def write_model(model: StreamModel, out_dir: Path, name: str = DEFAULT_NAME) -> list[Path]:
+def write_model(model: StreamModel, out_dir: Path, name: str = DEFAULT_NAME,
+                even_time: bool = False) -> list[Path]:
     """Write NAME.h and NAME.c into out_dir (created); returns their paths."""
+    texts = render_model(model, name, even_time)  # refused before anything is written
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for file_name, text in render_model(model, name).items():
+    for file_name, text in texts.items():
         path = out_dir / file_name
         path.write_text(text)
         paths.append(path)

@@ -35,6 +35,10 @@ TEMP = (15.0, 15.5, 16.25, float("nan"), 17.0, 18.5, 19.75, float("inf"), 21.0, 
 GYRO = (10.0, 10.25, -5.5, 10.0, float("nan"), 3.0, 1e308, 0.0, -0.0, 12.5, 250.0, -250.0,
         10.0, 3.4e38, float("inf"), 7.0, 7.0, 7.0, 1e-40, 5.0, -3.4e38, 6.0, -float("inf"), 2.0)
 PER_LINE = 6
+# the float rules' probe values (fogsf_selftest.c, float_rules): a quiet NaN, -0.0, x, then
+# x / 3600 (filled in by render_selftest), 1.0, 1.0e8, +Inf; x / 3600 and x * (1 / 3600)
+# differ by one ulp for this x
+RULE_X = 3.3000002
 
 
 def selftest_model() -> StreamModel:
@@ -71,13 +75,17 @@ def render_selftest() -> str:
             "corrected_want": _hex(out.corrected_dps.astype(np.float32).view(np.uint32), 8,
                                    "u"),
             "flags_want": _hex(out.flags, 2, "u")})
+    x_rule = np.float32(RULE_X)
+    rule = np.array([np.nan, -0.0, x_rule, x_rule / np.float32(3600.0), 1.0, 1.0e8, np.inf],
+                    np.float32)
+    assert rule[3] != x_rule * (np.float32(1.0) / np.float32(3600.0))  # the probe can fail
     return env.get_template("selftest.c.j2").render(
         name=NAME, model_id=model.model_id, summary=model.summary, model_c=model_c,
         n_act=len(ACT_X), n=len(TEMP),
         act_x=_hex(x.view(np.uint32), 8, "u"), act_want=_hex(want.view(np.uint32), 8, "u"),
         temp_bits=_hex(temp.view(np.uint32), 8, "u"),
         gyro_bits=_hex(gyro.view(np.uint32), 8, "u"),
-        wants=wants)
+        rule_bits=_hex(rule.view(np.uint32), 8, "u"), wants=wants)
 
 
 def main(argv: list[str] | None = None) -> int:
