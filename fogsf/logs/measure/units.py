@@ -21,6 +21,10 @@ UNITS_TOL = 0.01  # a ratio within 1 % of 180/pi (or pi/180) is a rad/s - deg/s 
 # The SF ratios a gyro scaled with its nominal SF can read: its SF is within parts per
 # thousand of nominal, a nominal SF a little off is a few percent; 10 % is neither.
 SF_BAND = (0.9, 1.1)
+# Outside SF_BAND a ratio a named cause explains is refused; one no cause explains is
+# refused only outside WIDE_BAND: a large bias over a slow table (a ratio that moves with
+# 1/rate) reads tens of percent off without any unit being wrong.
+WIDE_BAND = (0.5, 2.0)
 
 # (gyro factor, table factor, cause, fix): a log with the gyro column read as g x deg/s and
 # the table column as t x deg/s reads an SF ratio of g / t (plus the earth rate's share)
@@ -100,7 +104,9 @@ def check_units(log: ChamberLog, sf_ratio: np.ndarray, starts: np.ndarray,
     q = np.zeros_like(sf_ratio) if earth_per_table is None else earth_per_table
     med = float(np.median(sf_ratio))
     if raw and not in_band(med):
-        raise UserError(units_refusal(log.path, med, likely_cause(sf_ratio, q)))
+        cause = likely_cause(sf_ratio, q)
+        if cause is not None or not WIDE_BAND[0] <= med <= WIDE_BAND[1]:
+            raise UserError(units_refusal(log.path, med, cause))
     for i, r in enumerate(sf_ratio):
         factor = _switched(float(r), float(q[i]), med)
         if factor is not None:
