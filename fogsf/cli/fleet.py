@@ -7,44 +7,42 @@ logs (path, sha256, rows, span, ramp rates), its model (id, what it was fitted w
 parameters the design's prior needs), its figures and interval, the fogsf version and the
 time, in one transaction (a killed add leaves the database as it was). `add-many` adds the
 units of a manifest in parallel; `list` and `remove` what the title says; `check` names the
-units unlike the line; `report` writes a static HTML report (docs/fleet.md).
+units unlike the line; `report` writes a static HTML report (docs/fleet.md); `--spec-ppm X`
+(list, report) says of each unit within spec, out of spec or unsure. list, check and report
+live in `cli.fleet_views`.
 
 Examples:
   fogsf fleet add line.fleet --unit SN001 --train SN001_loop.csv --test SN001_test.csv
   fogsf fleet add-many line.fleet units.csv --workers 4
   fogsf fleet list line.fleet
   fogsf fleet check line.fleet --json outliers.json
-  fogsf fleet report line.fleet --out report/
+  fogsf fleet report line.fleet --out report/ --spec-ppm 12
   fogsf fleet export line.fleet --out blocks/
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import os
 import shlex
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 from fogsf.cli import fleet_export
 from fogsf.cli import train as train_cli
 from fogsf.cli.arguments import read_logs
+from fogsf.cli.fleet_views import run_check, run_list, run_report
 from fogsf.cli.main import main
 from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
 from fogsf.fleet.batch import run_local
-from fogsf.fleet.check import DEFAULT_FALSE_ALARM, check_fleet
+from fogsf.fleet.check import DEFAULT_FALSE_ALARM
 from fogsf.fleet.faults import db_faults
 from fogsf.fleet.lease import BatchLease, check_batch
 from fogsf.fleet.manifest import ManifestRow, read_manifest
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.records import structure_of, unit_record
-from fogsf.fleet.report import write_report
-from fogsf.fleet.report_dir import check_out_dir
 from fogsf.fleet.scratch import temp_dir
 from fogsf.fleet.store import open_store
 from fogsf.gsa.executors import default_workers, open_executor
@@ -100,6 +98,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                 "fogsf fleet list line.fleet --json")
     p.add_argument("fleet", metavar="FLEET", help=FLEET_HELP)
     p.add_argument("--json", action="store_true", help="every record as JSON on stdout")
+    _spec_option(p)
     p.set_defaults(_fleet_run=run_list)
 
     p = _action(sub, "remove", "remove a unit (its model folder stays)",
@@ -125,11 +124,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="folder to write")
     p.add_argument("--false-alarm", type=float, default=DEFAULT_FALSE_ALARM, metavar="P",
                    help=f"the check's false-alarm rate (default {DEFAULT_FALSE_ALARM:g})")
+    _spec_option(p)
     p.set_defaults(_fleet_run=run_report)
 
     fleet_export.configure(_action(sub, "export", "one calibration block per unit and a "
                                    "manifest (firmware: docs/firmware.md)",
                                    fleet_export.EXAMPLE), FLEET_HELP)
+
+
+def _spec_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--spec-ppm", type=float, default=None, metavar="X",
+                   help="each unit within spec (the interval training stated for its test "
+                        "RMS tops at or under X ppm), out of spec (its bottom over X) or "
+                        "unsure")
 
 
 def _action(sub: argparse._SubParsersAction, name: str, help_text: str, example: str
@@ -289,57 +296,7 @@ def _run_dask(address: str, argvs: list[list[str]], done: Callable[[int, int, st
                 f.cancel()
 
 
-# --- list, remove -----------------------------------------------------------------------------
-
-def _fmt(x: object, spec: str = ".2f") -> str:
-    return format(x, spec) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
-
-
-def json_safe(x: object) -> object:
-    """NaN and infinities as null (strict JSON)."""
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [json_safe(v) for v in x]
-    return x
-
-
-def _cell(name: str, width: int) -> str:
-    """A unit's name in a table cell: escaped when a database an older fogsf wrote holds
-    a name the rule now refuses (a newline would forge a row), cut to the column."""
-    text = name if name.isprintable() else shown(name, width)
-    return text[:width]
-
-
-def run_list(args: argparse.Namespace) -> int:
-
-    with open_store(args.fleet, "read") as store:
-        units = store.units()
-        where = store.location
-    if args.json:
-        print(json.dumps(json_safe([u.as_dict() for u in units]), indent=2))
-        return 0
-    print(f"{where}: {len(units)} unit(s)")
-    if not units:
-        return 0
-    row = "{:<16} {:>8} {:>5} {:<24} {:>10} {:>10} {:>13}  {}"
-    print(row.format("unit", "chamber", "logs", "structure", "train x", "test x",
-                     "interval x", "recorded (UTC)"))
-    for u in units:
-        f = u.figures
-        floor = f.get("noise_floor_ppm")
-        iv = u.interval
-        interval = (f"{iv['rms_lo_ppm'] / floor:.1f}-{iv['rms_hi_ppm'] / floor:.1f}"
-                    if iv and floor else "-")
-        print(row.format(_cell(u.unit, 16), f"{u.chamber_hours:.1f} h", len(u.logs),
-                         structure_of(u)[:24],
-                         _fmt(f.get("train_rms_over_floor")), _fmt(f.get("test_rms_over_floor")),
-                         interval, u.created_utc))
-    print("x: RMS SF error left / the noise floor")
-    return 0
-
+# --- remove ----------------------------------------------------------------------------------
 
 def run_remove(args: argparse.Namespace) -> int:
 
@@ -348,42 +305,3 @@ def run_remove(args: argparse.Namespace) -> int:
         n = len(store.units())
     print(f"removed unit {args.unit} from {store.location} ({n} units left)")
     return 0
-
-
-# --- check, report ----------------------------------------------------------------------------
-
-def run_check(args: argparse.Namespace) -> int:
-
-    with open_store(args.fleet, "read") as store:
-        units = store.units()
-    result = check_fleet(units, false_alarm=args.false_alarm)
-    print(result.message())
-    if args.json:
-        _write_atomic(Path(args.json), json.dumps(json_safe(result.as_dict()), indent=2) + "\n")
-        print(f"wrote {args.json}")
-    return 0
-
-
-def run_report(args: argparse.Namespace) -> int:
-
-    check_out_dir(Path(args.out))  # refused before the check's minutes, not after
-    with open_store(args.fleet, "read") as store:
-        units = store.units()
-        where = store.location
-    if not units:
-        raise UserError(f"{where} has no units (fogsf fleet add first)")
-    result = check_fleet(units, false_alarm=args.false_alarm)
-    index = write_report(units, result, Path(args.out), title=where)
-    print(f"wrote {index} ({len(units)} units, {len(result.outliers)} flagged)")
-    return 0
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    """Write a file whole or not at all (a temporary file beside it, then renamed)."""
-    import os
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False,
-                                     prefix=f".{path.name}.") as f:
-        f.write(text)
-    os.replace(f.name, path)

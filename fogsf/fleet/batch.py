@@ -14,6 +14,7 @@ checks the batch's lease (`fleet.lease`).
 from __future__ import annotations
 
 import ctypes
+import io
 import os
 import select
 import signal
@@ -22,6 +23,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
+from typing import cast
 
 from fogsf.fleet.scratch import remove_process_dir
 
@@ -95,8 +97,9 @@ class _Child:
         self.reader.start()
 
     def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for chunk in iter(lambda: self.proc.stdout.read1(65536), b""):  # type: ignore[union-attr]
+        out = cast(io.BufferedReader, self.proc.stdout)  # Popen's pipe: read1 is there
+        assert out is not None
+        for chunk in iter(lambda: out.read1(65536), b""):
             self.chunks.append(chunk)
 
     def output(self) -> str:

@@ -28,6 +28,7 @@ outside the design's spread, and why, at a stated false-alarm rate. Reads only t
 
 from __future__ import annotations
 
+import json
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -35,8 +36,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from fogsf import __version__
 from fogsf.errors import UserError
 from fogsf.fleet.records import UnitRecord, structure_of
+from fogsf.fleet.schema import cached, state_of
+from fogsf.fleet.store import keep_quietly, open_store
 
 DEFAULT_FALSE_ALARM = 0.01
 MIN_UNITS = 5  # fewer: the spread cannot be told from the units, nothing is checked
@@ -78,6 +82,18 @@ class CheckResult:
                 "threshold_z": self.threshold_z,
                 "threshold_residual_z": self.threshold_residual_z, "z": self.z,
                 "note": self.note}
+
+    def to_cache(self) -> dict:
+        """Everything, for the fleet's cache (`checked`); `from_cache` reads it back."""
+        d = self.as_dict()
+        d["outliers"] = [vars(o) for o in self.outliers]
+        return d
+
+    @classmethod
+    def from_cache(cls, d: dict) -> CheckResult:
+        d = dict(d)
+        d["outliers"] = [Outlier(**o) for o in d["outliers"]]
+        return cls(**d)
 
     def message(self) -> str:
         lines = [f"{self.units} units; the line's structure {self.structure or '-'}; "
@@ -130,38 +146,79 @@ structure_label = structure_of
 
 def _loo_z(x: np.ndarray, se: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """z of every unit (last axis) against the reference units other than itself.
-    x, se: [..., N]; ref: [N] bool."""
-    n = x.shape[-1]
-    z = np.empty_like(x)
-    for i in range(n):
-        others = ref.copy()
-        others[i] = False
-        k = int(others.sum())
-        xo, so = x[..., others], se[..., others]
-        mean = xo.mean(axis=-1)
-        var = xo.var(axis=-1, ddof=1)
-        design = np.maximum(var - np.mean(so ** 2, axis=-1), 0.0)
-        scale = np.sqrt(design + se[..., i] ** 2 + var / k)
-        tiny = 1e-12 * np.maximum(np.abs(mean), 1.0)
-        z[..., i] = (x[..., i] - mean) / np.maximum(scale, tiny)
-    return z
+    x, se: [..., N]; ref: [N] bool. O(N) along the last axis: the others' sums are the
+    reference's sums less the unit's own (taken about the reference's mean, so that the
+    variance's difference of sums loses no digits)."""
+    r = ref.astype(np.float64)
+    n_ref = float(r.sum())
+    k = n_ref - r  # each unit's others: the reference less itself
+    center = (x * r).sum(axis=-1, keepdims=True) / n_ref
+    xc = x - center
+    s1 = (xc * r).sum(axis=-1, keepdims=True) - r * xc
+    s2 = (xc * xc * r).sum(axis=-1, keepdims=True) - r * xc * xc
+    e2 = (se * se * r).sum(axis=-1, keepdims=True) - r * se * se
+    mean = s1 / k
+    var = np.maximum(s2 - k * mean * mean, 0.0) / (k - 1.0)
+    design = np.maximum(var - e2 / k, 0.0)
+    scale = np.sqrt(design + se * se + var / k)
+    tiny = 1e-12 * np.maximum(np.abs(mean + center), 1.0)
+    return (xc - mean) / np.maximum(scale, tiny)
 
 
-@lru_cache(maxsize=64)
+# Rows of Gaussian lines drawn at once: memory stays flat in the line's size (about
+# NULL_CHUNK_VALUES doubles an array), the draws the same whatever the chunk (one stream).
+NULL_CHUNK_VALUES = 1_000_000
+
+
+@lru_cache(maxsize=4)
+def null_maxima(n_units: int) -> tuple[np.ndarray, np.ndarray]:
+    """The null distribution of a line of `n_units` normal units: the largest leave-one-out
+    |z| and the largest z of NULL_DRAWS Gaussian lines (Monte Carlo, seed 0), each sorted.
+
+    In a line without standard errors a unit's z is an increasing odd function of its
+    deviation d from the line's mean (n units, S the sum of squared deviations):
+    x - mean_others = n d / (n - 1), (n - 2) s_others^2 = S - n d^2 / (n - 1), so
+    z = (n d / (n - 1)) / sqrt(s_others^2 n / (n - 1)): the largest z is that of the largest
+    d, the largest |z| that of the largest |d| (what `_loo_z` gives, read off in O(N))."""
+    rng = np.random.default_rng(0)
+    n = float(n_units)
+    rows = max(1, NULL_CHUNK_VALUES // max(1, n_units))
+    two, one = np.empty(NULL_DRAWS), np.empty(NULL_DRAWS)
+
+    def z_of(d: np.ndarray, ss: np.ndarray) -> np.ndarray:
+        var = np.maximum(ss - n * d * d / (n - 1.0), 0.0) / (n - 2.0)
+        scale = np.sqrt(var * n / (n - 1.0))
+        return (n * d / (n - 1.0)) / np.maximum(scale, 1e-300)
+
+    for start in range(0, NULL_DRAWS, rows):
+        m = min(rows, NULL_DRAWS - start)
+        x = rng.standard_normal((m, n_units))
+        mean = x.mean(axis=-1)
+        ss = x.var(axis=-1) * n
+        hi, lo = x.max(axis=-1) - mean, mean - x.min(axis=-1)
+        one[start:start + m] = z_of(hi, ss)
+        two[start:start + m] = z_of(np.maximum(hi, lo), ss)
+    two.sort()
+    one.sort()
+    return two, one
+
+
+# The thresholds this process knows, by line size, feature count, level and side: they do
+# not depend on the units, so `checked` keeps them in the fleet's cache for any state (an
+# add then costs one Monte Carlo, of the new line size, not one a flagged unit).
+NULL_KNOWN: dict[str, float] = {}
+
+
 def null_threshold(n_units: int, n_features: int, alpha: float, one_sided: bool = False
                    ) -> float:
     """z threshold: the (1 - alpha / n_features) quantile of the largest leave-one-out |z|
-    (z with `one_sided`) over `n_units` units of a Gaussian line (Monte Carlo, seed 0)."""
-    rng = np.random.default_rng(0)
-    ref = np.ones(n_units, dtype=bool)
-    chunk = 20_000
-    maxima = []
-    for _ in range(NULL_DRAWS // chunk):
-        x = rng.standard_normal((chunk, n_units))
-        z = _loo_z(x, np.zeros_like(x), ref)
-        maxima.append(np.max(z if one_sided else np.abs(z), axis=-1))
-    return float(np.quantile(np.concatenate(maxima),
-                             1.0 - MC_MARGIN * alpha / max(1, n_features)))
+    (z with `one_sided`) over `n_units` units of a Gaussian line (`null_maxima`)."""
+    key = f"{n_units} {n_features} {float(alpha)!r} {int(one_sided)}"
+    if key not in NULL_KNOWN:
+        two, one = null_maxima(n_units)
+        NULL_KNOWN[key] = float(np.quantile(one if one_sided else two,
+                                            1.0 - MC_MARGIN * alpha / max(1, n_features)))
+    return NULL_KNOWN[key]
 
 
 def thresholds(n_units: int, names: list[str], alpha: float) -> np.ndarray:
@@ -220,7 +277,7 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
         ref[j], limit[:, j] = False, t
     z = _loo_z(x, se, ref)
     z[one_sided] = np.maximum(z[one_sided], 0.0)
-    for j in np.flatnonzero(~ref):
+    for j in np.flatnonzero(~ref).tolist():
         ratio = np.abs(z[:, j]) / limit[:, j]
         far = [i for i in np.argsort(-ratio) if ratio[i] > 1.0]
         parts = []
@@ -237,3 +294,34 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
     return CheckResult(n, line, names, false_alarm, float(np.max(thr)), outliers, zmap,
                        threshold_residual_z=float(thr[one_sided][0]) if one_sided.any()
                        else math.nan)
+
+
+# what a cached check was computed by: a result another fogsf, or another method, computed
+# is not read (bump it when the check's method changes)
+CHECK_METHOD = 2
+
+
+def checked(fleet: str, false_alarm: float = DEFAULT_FALSE_ALARM, with_units: bool = False
+            ) -> tuple[CheckResult, list[UnitRecord] | None, str]:
+    """`check_fleet` of the fleet at `fleet` (a path or URL): read from the fleet's cache
+    when it holds the result for the fleet's state and this level, else computed from its
+    units and kept there (`fleet.schema`). Returns the result, the units (read only when
+    `with_units` or not cached) and the fleet's location as shown."""
+    key = f"fogsf {__version__}; method {CHECK_METHOD}; false alarm {float(false_alarm)!r}"
+    null_key = f"fogsf {__version__}; method {CHECK_METHOD}; draws {NULL_DRAWS}"
+    with open_store(fleet, "read") as store, store.snapshot():
+        state = state_of(store)
+        hit = cached(store, "check", key, state)
+        units = store.units() if with_units or hit is None else None
+        known = cached(store, "null", null_key, None) if hit is None else None
+        where = store.location
+    if hit is not None:
+        return CheckResult.from_cache(json.loads(hit)), units, where
+    assert units is not None
+    NULL_KNOWN.update(json.loads(known or "{}"))
+    had = len(NULL_KNOWN)
+    result = check_fleet(units, false_alarm)
+    keep_quietly(fleet, "check", key, state, json.dumps(result.to_cache()))
+    if len(NULL_KNOWN) > had:
+        keep_quietly(fleet, "null", null_key, state, json.dumps(NULL_KNOWN))
+    return result, units, where

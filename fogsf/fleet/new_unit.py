@@ -3,25 +3,56 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+from fogsf import __version__
 from fogsf.errors import UserError
 from fogsf.fleet.faults import db_faults
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.records import unit_record
-from fogsf.fleet.store import open_store
+from fogsf.fleet.schema import cached, state_of
+from fogsf.fleet.store import keep_quietly, open_store
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.prior.design_prior import DesignPrior
 from fogsf.training.options import TrainOptions
 from fogsf.training.with_prior import prior_from_summaries, train_with_prior
 
+# what a cached prior was learned by: a prior another fogsf, or another method, learned is
+# not read (bump it when the prior's learning changes)
+PRIOR_METHOD = 1
+
+
+def design_prior(fleet: str, unit: str | None = None) -> DesignPrior:
+    """The design's prior from the fleet database at `fleet` (its units' summaries): read
+    from the fleet's cache when it holds the prior of the fleet's state, else learned and
+    kept there (`fleet.schema`: every add and remove makes a new state). `unit`: refused if
+    the fleet has it (`train --prior --unit SN` records it)."""
+
+    key = f"fogsf {__version__}; method {PRIOR_METHOD}"
+    with db_faults(masked(fleet)), open_store(fleet, "read") as store, store.snapshot():
+        where = store.location  # the password masked
+        if unit is not None and store.execute("SELECT 1 FROM units WHERE sn = ?",
+                                              (unit,)).fetchall():  # no row lock: a read
+            raise UserError(f"unit {shown(unit)} is already in {where} (`fogsf fleet "
+                            "remove` it first)")
+        state = state_of(store)
+        hit = cached(store, "prior", key, state)
+        units = store.units() if hit is None else []
+    if hit is not None:
+        return DesignPrior.from_cache(json.loads(hit))
+    summaries = {u.unit: u.summary for u in units if u.summary.get("series")}
+    if len(summaries) < 2:
+        raise UserError(f"the design's prior needs at least two units in {where} "
+                        f"with their logs' summary, it has {len(summaries)} (fogsf fleet add)")
+    prior = prior_from_summaries(summaries)
+    keep_quietly(fleet, "prior", key, state, json.dumps(prior.to_cache()))
+    return prior
+
 
 def prior_from_store(path: str) -> DesignPrior:
-    """The design's prior from the fleet database at `path` (its units' summaries)."""
-
-    with db_faults(masked(path)), open_store(path, "read") as store:  # never creates one
-        units = store.units()
-    return prior_from_summaries({u.unit: u.summary for u in units if u.summary})
+    """The design's prior from the fleet database at `path` (`design_prior`)."""
+    return design_prior(path)
 
 
 def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
@@ -31,17 +62,7 @@ def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
 
     if unit is not None:
         check_unit_name(unit)  # before the fleet is read or the unit trained
-    with db_faults(masked(fleet)), open_store(fleet, "read") as store:
-        units = store.units()
-        where = store.location  # the password masked
-    if unit is not None and any(u.unit == unit for u in units):
-        raise UserError(f"unit {shown(unit)} is already in {where} (`fogsf fleet remove` "
-                        "it first)")
-    summaries = {u.unit: u.summary for u in units if u.summary.get("series")}
-    if len(summaries) < 2:
-        raise UserError(f"the design's prior needs at least two units in {where} "
-                        f"with their logs' summary, it has {len(summaries)} (fogsf fleet add)")
-    prior = prior_from_summaries(summaries)
+    prior = design_prior(fleet, unit)
     metrics, fitted = train_with_prior(opts, train_logs, test_log, out, prior)
     if unit is not None:
         options = {k: v for k, v in vars(opts).items()

@@ -137,17 +137,45 @@ def figures_of(metrics: dict) -> dict[str, Any]:
 
 
 def interval_of(metrics: dict) -> dict[str, Any] | None:
-    """The interval `train --test` states for the test RMS (ppm and x the floor) and
-    whether the test RMS fell in it; None without a test log."""
-    rt = metrics.get("rate_transfer")
-    if not rt or "test" not in metrics:
+    """The interval training stated for the test RMS (ppm and x the floor) and whether the
+    test RMS fell in it; None without a test log. A unit fitted under the design's prior:
+    the prior's (`train --prior --test`, "expected test RMS with the prior's spread"), else
+    the rate transfer's (`train --test`); `source` says which."""
+    if "test" not in metrics:
         return None
-    lo, hi = (float(x) for x in rt["rms_interval_ppm"])
-    floor = float(rt.get("noise_floor_ppm") or metrics.get("noise_floor_ppm", math.nan))
+    prior = (metrics.get("prior") or {}).get("interval_ppm")
+    rt = metrics.get("rate_transfer")
+    if prior:
+        (lo, hi), source = (float(x) for x in prior), "prior"
+    elif rt:
+        (lo, hi), source = (float(x) for x in rt["rms_interval_ppm"]), "rate transfer"
+    else:
+        return None
+    floor = float((rt or {}).get("noise_floor_ppm") or metrics.get("noise_floor_ppm", math.nan))
     rms = float(metrics["test"]["after"]["rms_ppm"])
     return {"rms_lo_ppm": lo, "rms_hi_ppm": hi, "noise_floor_ppm": floor,
             "test_rms_ppm": rms, "held": bool(lo <= rms <= hi) if hi > 0 else None,
-            "covered": bool(rt.get("covered", False))}
+            "covered": bool((rt or {}).get("covered", False)), "source": source}
+
+
+SPEC_VERDICTS = ("within spec", "out of spec", "unsure")
+
+
+def spec_verdict(rec: UnitRecord, spec_ppm: float) -> str:
+    """The unit against a spec of `spec_ppm` test RMS, from the interval training stated
+    for it (not its one test's RMS: the interval is what the unit will do on such a run):
+    within when the interval's top is at or under the spec, out when its bottom is over
+    it, else (the interval straddles it, or there is none: no test log) unsure."""
+    iv = rec.interval or {}
+    lo, hi = iv.get("rms_lo_ppm"), iv.get("rms_hi_ppm")
+    if not (isinstance(lo, (int, float)) and isinstance(hi, (int, float))
+            and math.isfinite(lo) and math.isfinite(hi) and hi > 0):
+        return "unsure"
+    if hi <= spec_ppm:
+        return "within spec"
+    if lo > spec_ppm:
+        return "out of spec"
+    return "unsure"
 
 
 def sf_curve(fitted: Fitted, log: ChamberLog, ref: float, window_s: float,

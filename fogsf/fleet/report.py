@@ -1,32 +1,80 @@
 """`fogsf fleet report`: a static HTML report of the fleet that opens from disk.
 
-DIR/index.html (a row per unit: chamber hours, residual, interval, verdict, outlier flag),
-three plots beside it as PNG files (SF error against temperature before and after, the
-units' features with the outliers marked, residual against chamber hours) and a page per
-unit (units/unit-NNN.html with its own plot). No server, no script, nothing fetched: the
-pages are HTML and images only. Every string that comes from users (serial numbers, paths,
-the fleet's name, the summary) is escaped; file names are made from the unit's index,
-never from its name. DIR is a folder the report owns (report_dir.py): one it did not write
-is refused; the new report is written beside it and swapped in, so a killed report leaves
-the previous one whole.
+DIR/index.html: the summary first (units in family, out of family: unlike the line, and
+with `spec_ppm` within spec, out of spec, unsure; the units that need a look named), the
+plots (`report_plots`: SF error against temperature, the features against the line, the
+residual against chamber hours, the test RMS and its interval over serial number and over
+date, the spec line when given; a legend on each), then a row per unit, the units out of
+family and out of spec first, sortable by any column (one inline script of the report's
+own, no user string in it; nothing fetched). units/unit-NNN.html: a page per unit with its
+plot (inline SVG). Every string that comes from users (serial numbers, paths, the fleet's
+name, the summary) is escaped; file names are made from the unit's index, never from its
+name. DIR is a folder the report owns (report_dir.py): one it did not write is refused;
+the new report is written beside it and swapped in, so a killed report leaves the previous
+one whole.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from html import escape
 from pathlib import Path
 
-from fogsf.fleet.check import RESIDUAL, CheckResult, unit_features
-from fogsf.fleet.records import UnitRecord
+from fogsf.fleet.check import CheckResult, unit_features
+from fogsf.fleet.records import UnitRecord, spec_verdict
 from fogsf.fleet.report_dir import write_owned
+from fogsf.fleet.report_plots import fleet_plots, residual_x, serial_key, unit_svg
+
+__all__ = ["residual_x", "write_report"]
 
 CSS = """body{font-family:sans-serif;margin:1.5em;color:#222}
 table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;
 text-align:right}td.l,th.l{text-align:left}tr.flag{background:#fde2e2}
+tr.spec{background:#fdf0dc}table.sortable th{cursor:pointer;background:#f0f0f0}
+th[aria-sort=ascending]::after{content:" \\25B2"}th[aria-sort=descending]::after{content:" \\25BC"}
 img{max-width:100%;border:1px solid #ddd;margin:4px 0}code{font-size:90%}
 .note{color:#555}pre{background:#f6f6f6;padding:8px;overflow-x:auto}"""
+
+# The index's one script: sorts a table.sortable by the clicked column (a cell's data-v
+# when it has one, as a number in a th.num column, else its text), and stamps the page's
+# load time (ms) on <html data-loaded-ms> (the report's tests read it). Fixed text: no user
+# string ever enters it.
+SORT_JS = """(function () {
+  document.querySelectorAll("table.sortable").forEach(function (t) {
+    var heads = t.tHead.rows[0].cells;
+    Array.prototype.forEach.call(heads, function (th, col) {
+      th.addEventListener("click", function () {
+        var asc = th.getAttribute("aria-sort") !== "ascending";
+        var num = th.classList.contains("num");
+        Array.prototype.forEach.call(heads, function (h) { h.removeAttribute("aria-sort"); });
+        th.setAttribute("aria-sort", asc ? "ascending" : "descending");
+        var key = function (r) {
+          var c = r.cells[col], v = c.hasAttribute("data-v") ? c.getAttribute("data-v")
+                                                              : c.textContent;
+          if (!num) { return v; }
+          v = parseFloat(v);
+          return isNaN(v) ? Infinity : v;
+        };
+        var rows = Array.prototype.map.call(t.tBodies[0].rows, function (r, i) {
+          return [key(r), i, r];
+        });
+        rows.sort(function (a, b) {  // stable: equal keys keep their order
+          var c = a[0] < b[0] ? -1 : a[0] > b[0] ? 1 : 0;
+          return c === 0 ? a[1] - b[1] : (asc ? c : -c);
+        });
+        var frag = document.createDocumentFragment();
+        rows.forEach(function (x) { frag.appendChild(x[2]); });
+        t.tBodies[0].appendChild(frag);
+      });
+    });
+  });
+  window.addEventListener("load", function () {
+    document.documentElement.setAttribute("data-loaded-ms",
+                                          String(Math.round(performance.now())));
+  });
+})();"""
 
 
 def _e(x: object) -> str:
@@ -35,22 +83,6 @@ def _e(x: object) -> str:
 
 def _num(x: object, spec: str = ".2f") -> str:
     return format(x, spec) if isinstance(x, (int, float)) and math.isfinite(x) else "-"
-
-
-def _mpl_text(s: str) -> str:
-    """A user string as plain text in a matplotlib label ($ would start mathtext)."""
-    return s.replace("$", r"\$")
-
-
-def residual_x(u: UnitRecord) -> tuple[float, str]:
-    """The unit's residual over its noise floor: on its test log when it has one, else on
-    its training logs; and which."""
-    f = u.figures
-    for part in ("test", "train"):
-        v = f.get(f"{part}_rms_over_floor")
-        if isinstance(v, (int, float)) and math.isfinite(v):
-            return float(v), part
-    return math.nan, "-"
 
 
 def interval_x(u: UnitRecord) -> str:
@@ -75,141 +107,87 @@ def verdict(u: UnitRecord, flagged: bool) -> str:
     return "within its interval"
 
 
-def _plots(units: list[UnitRecord], result: CheckResult, out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    flagged = result.flagged
-    # SF error against temperature, before and after
-    fig, (a0, a1) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for u in units:
-        c = u.figures.get("sf_curve") or {}
-        if not c.get("temp_c"):
-            continue
-        bad = u.unit in flagged
-        kw = {"color": "tab:red" if bad else "tab:blue", "alpha": 0.9 if bad else 0.5,
-              "lw": 1.6 if bad else 1.0}
-        a0.plot(c["temp_c"], c["before_ppm"], **kw)
-        a1.plot(c["temp_c"], c["after_ppm"], **kw)
-    a0.set(title="before compensation", xlabel="board temperature, C", ylabel="SF error, ppm")
-    a1.set(title="after (the unit's own model)", xlabel="board temperature, C",
-           ylabel="SF error, ppm")
-    for a in (a0, a1):
-        a.grid(alpha=0.3)
-    fig.suptitle("SF error against temperature, each unit (red: unlike the line)")
-    fig.tight_layout()
-    fig.savefig(out / "sf_vs_temperature.png", dpi=90)
-    plt.close(fig)
-
-    # the units' features (z against the line), outliers marked
-    names = result.parameters
-    fig, ax = plt.subplots(figsize=(11, 4.2))
-    if names and result.z:
-        for j, u in enumerate(units):
-            zz = result.z.get(u.unit)
-            if not zz:
-                continue
-            bad = u.unit in flagged
-            xs = [i + (j - len(units) / 2) * 0.02 for i in range(len(names))]
-            ax.scatter(xs, [zz.get(k, math.nan) for k in names], s=30 if bad else 12,
-                       color="tab:red" if bad else "tab:blue", zorder=3 if bad else 2,
-                       label=_mpl_text(u.unit) if bad else None)
-        thr = result.threshold_z
-        for i, k in enumerate(names):  # each feature's threshold (the residual's one-sided)
-            t = result.threshold_residual_z if k == RESIDUAL else thr
-            if math.isfinite(t):
-                for s in ((t,) if k == RESIDUAL else (-t, t)):
-                    ax.plot([i - 0.4, i + 0.4], [s, s], color="tab:red", ls="--", lw=0.9)
-        ax.set_xticks(range(len(names)))
-        ax.set_xticklabels([k.split(".", 1)[-1] for k in names], rotation=30, ha="right",
-                           fontsize=8)
-        if flagged:
-            ax.legend(fontsize=8, loc="upper right")
-    else:
-        ax.text(0.5, 0.5, result.note or "nothing compared", ha="center", va="center",
-                transform=ax.transAxes)
-    ax.set(ylabel="z against the other units", title="the units' features (red: unlike the "
-           "line; dashed: the threshold)")
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "parameters.png", dpi=90)
-    plt.close(fig)
-
-    # residual against chamber hours
-    fig, ax = plt.subplots(figsize=(7, 4.2))
-    for u in units:
-        r, _ = residual_x(u)
-        bad = u.unit in flagged
-        ax.scatter([u.chamber_hours], [r], color="tab:red" if bad else "tab:blue",
-                   s=30 if bad else 16)
-    ax.axhline(1.0, color="gray", lw=0.8, ls=":")
-    ax.set(xlabel="chamber hours (training logs)", ylabel="RMS SF error left / noise floor",
-           title="residual against chamber hours (test log, else training)")
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / "residual_vs_hours.png", dpi=90)
-    plt.close(fig)
-
-
-def _unit_plot(u: UnitRecord, path: Path) -> bool:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    c = u.figures.get("sf_curve") or {}
-    if not c.get("temp_c"):
-        return False
-    fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(c["temp_c"], c["before_ppm"], "o-", ms=3, label="before")
-    ax.plot(c["temp_c"], c["after_ppm"], "o-", ms=3, label="after")
-    ax.set(xlabel="board temperature, C", ylabel="SF error, ppm",
-           title=f"SF error against temperature ({u.figures.get('sf_curve_log', '')} log)")
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return True
-
-
-def _page(title: str, body: str) -> str:
+def _page(title: str, body: str, script: str = "") -> str:
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{_e(title)}</title><style>{CSS}</style></head>\n<body>\n{body}\n"
-            "</body></html>\n")
+            + (f"<script>{script}</script>\n" if script else "") + "</body></html>\n")
 
 
-def _index(units: list[UnitRecord], result: CheckResult, title: str, pages: list[str]) -> str:
+def _attention(u: UnitRecord, why: dict[str, str], spec: dict[str, str]) -> int:
+    """The table's first order: out of family, out of spec, unsure, then the rest."""
+    if u.unit in why:
+        return 0
+    return {"out of spec": 1, "unsure": 2}.get(spec.get(u.unit, ""), 3)
+
+
+def _summary(units: list[UnitRecord], result: CheckResult, spec_ppm: float | None,
+             spec: dict[str, str], pages: dict[str, str]) -> str:
     why = {o.unit: o.why for o in result.outliers}
+    n = Counter(spec.values())
+    counts = [("units", len(units)), ("in family", len(units) - len(why)),
+              ("out of family (unlike the line)", len(why))]
+    if spec_ppm is not None:
+        counts += [(f"out of spec ({spec_ppm:g} ppm test RMS)", n["out of spec"]),
+                   ("within spec", n["within spec"]), ("unsure", n["unsure"])]
+    cells = "".join(f"<tr><th class=\"l\">{_e(k)}</th><td>{v}</td></tr>" for k, v in counts)
+    look = [u for u in units if u.unit in why or spec.get(u.unit) == "out of spec"]
+    items = "\n".join(
+        f"<li><a href=\"{pages[u.unit]}\">{_e(u.unit)}</a>: "
+        + "; ".join(([f"unlike the line: {_e(why[u.unit])}"] if u.unit in why else [])
+                    + (["out of spec"] if spec.get(u.unit) == "out of spec" else []))
+        + "</li>" for u in look)
+    check = _e(result.message()).replace("\n", "<br>\n")
+    return f"""<section id="summary"><h2>Summary</h2>
+<table class="counts">{cells}</table>
+<h3>Out of family or out of spec ({len(look)})</h3>
+{f'<ul>{items}</ul>' if look else '<p>none</p>'}
+<p class="note">{check}</p></section>"""
+
+
+def _index(units: list[UnitRecord], result: CheckResult, title: str, pages: dict[str, str],
+           plots: list[tuple[str, str]], spec_ppm: float | None) -> str:
+    why = {o.unit: o.why for o in result.outliers}
+    spec = {} if spec_ppm is None else {u.unit: spec_verdict(u, spec_ppm) for u in units}
+    rank = {u.unit: i for i, u in enumerate(sorted(units, key=lambda u: serial_key(u.unit)))}
     rows = []
-    for u, page in zip(units, pages, strict=True):
+    for u in sorted(units, key=lambda u: (_attention(u, why, spec), rank[u.unit])):
         r, part = residual_x(u)
         bad = u.unit in why
+        iv = u.interval or {}
+        cls = "flag" if bad else "spec" if spec.get(u.unit) == "out of spec" else ""
         rows.append(
-            f"<tr class=\"{'flag' if bad else ''}\"><td class=\"l\"><a href=\"{page}\">"
-            f"{_e(u.unit)}</a></td><td>{u.chamber_hours:.1f}</td><td>{_num(r)} ({part})</td>"
-            f"<td>{_e(interval_x(u))}</td><td class=\"l\">{_e(verdict(u, bad))}</td>"
+            f"<tr class=\"{cls}\"><td class=\"l\" data-v=\"{rank[u.unit]}\"><a href=\""
+            f"{pages[u.unit]}\">{_e(u.unit)}</a></td><td class=\"l\">{_e(u.created_utc)}</td>"
+            f"<td>{u.chamber_hours:.1f}</td><td>{_num(r)} ({part})</td>"
+            f"<td>{_num(iv.get('test_rms_ppm'))}</td>"
+            f"<td data-v=\"{_num(iv.get('rms_hi_ppm'), '.6g')}\">{_num(iv.get('rms_lo_ppm'))}-"
+            f"{_num(iv.get('rms_hi_ppm'))}</td><td>{_e(interval_x(u))}</td>"
+            + ("" if spec_ppm is None else f"<td class=\"l\">{_e(spec[u.unit])}</td>")
+            + f"<td class=\"l\">{_e(verdict(u, bad))}</td>"
             f"<td class=\"l\">{'yes: ' + _e(why[u.unit]) if bad else 'no'}</td></tr>")
-    check = _e(result.message()).replace("\n", "<br>\n")
+    spec_head = "" if spec_ppm is None else f"<th class=\"l\">spec {spec_ppm:g} ppm</th>"
+    imgs = "\n".join(f"<figure><img src=\"{name}\" alt=\"{_e(what)}\"></figure>"
+                     for name, what in plots)
     return _page(f"fleet {title}", f"""<h1>Fleet <code>{_e(title)}</code></h1>
-<p>{len(units)} units. Residual: RMS SF error left by the unit's own model over the noise
-floor (x), on its test log (else its training logs); interval: where fogsf train --test
-said that RMS would fall (x the floor).</p>
-<h2>Units unlike the line</h2><p class="note">{check}</p>
-<table><tr><th class="l">unit</th><th>chamber h</th><th>residual x</th><th>interval x</th>
-<th class="l">verdict</th><th class="l">unlike the line</th></tr>
-{chr(10).join(rows)}
-</table>
+{_summary(units, result, spec_ppm, spec, pages)}
 <h2>Plots</h2>
-<img src="sf_vs_temperature.png" alt="SF error against temperature, before and after">
-<img src="parameters.png" alt="the units' features with the outliers marked">
-<img src="residual_vs_hours.png" alt="residual against chamber hours">
-""")
+{imgs}
+<h2>Units</h2>
+<p class="note">Out of family and out of spec first; click a column's head to sort by it.
+Residual: RMS SF error left by the unit's own model over the noise floor (x), on its test
+log (else its training logs); interval: where training said the test RMS would fall
+(ppm, and x the floor).</p>
+<table class="sortable"><thead><tr><th class="l num">unit</th><th class="l">recorded (UTC)
+</th><th class="num">chamber h</th><th class="num">residual x</th>
+<th class="num">test RMS ppm</th><th class="num">interval ppm</th><th>interval x</th>
+{spec_head}<th class="l">verdict</th><th class="l">unlike the line</th></tr></thead>
+<tbody>
+{chr(10).join(rows)}
+</tbody></table>
+""", SORT_JS)
 
 
-def _unit_page(u: UnitRecord, result: CheckResult, img: str | None) -> str:
+def _unit_page(u: UnitRecord, result: CheckResult, spec_ppm: float | None) -> str:
     why = {o.unit: o.why for o in result.outliers}
     r, part = residual_x(u)
     logs = "\n".join(
@@ -225,14 +203,17 @@ def _unit_page(u: UnitRecord, result: CheckResult, img: str | None) -> str:
                       f"<td>{_num(zz.get(k), '+.2f')}</td></tr>" for k, v in feats.items())
     figs = {k: v for k, v in u.figures.items() if k not in ("sf_curve", "response_ppm")}
     flagged = u.unit in why
+    spec = ("" if spec_ppm is None else
+            f"<p>spec {spec_ppm:g} ppm test RMS: <b>{_e(spec_verdict(u, spec_ppm))}</b></p>")
     return _page(f"unit {u.unit}", f"""<p><a href="../index.html">&larr; the fleet</a></p>
 <h1>Unit <code>{_e(u.unit)}</code></h1>
 <p>verdict: <b>{_e(verdict(u, flagged))}</b>{'; ' + _e(why[u.unit]) if flagged else ''}</p>
+{spec}
 <p>chamber hours {u.chamber_hours:.2f}; residual {_num(r)} x the floor ({part});
 interval {_e(interval_x(u))} x; model <code>{_e(u.model_id)}</code>
 {'in <code>' + _e(u.model_dir) + '</code>' if u.model_dir else '(folder not kept)'};
 fogsf {_e(u.fogsf_version)}, recorded {_e(u.created_utc)} UTC</p>
-{f'<img src="{img}" alt="SF error against temperature">' if img else ''}
+{unit_svg(u)}
 <h2>Logs</h2><table><tr><th class="l">role</th><th class="l">path</th>
 <th class="l">sha256</th><th>rows</th><th>hours</th><th>Hz</th><th>ramps C/min</th>
 <th>board C</th></tr>
@@ -249,22 +230,23 @@ out)</p>
 """)
 
 
-def write_report(units: list[UnitRecord], result: CheckResult, out: Path, title: str) -> Path:
+def write_report(units: list[UnitRecord], result: CheckResult, out: Path, title: str,
+                 spec_ppm: float | None = None) -> Path:
     """Write the report into `out`, a folder it owns (report_dir: a folder it did not write
     is refused, the previous report replaced whole); returns index.html."""
     out = Path(out)
 
     def write(tmp: Path) -> None:
         (tmp / "units").mkdir()
-        _plots(units, result, tmp)
-        pages = []
+        plots = fleet_plots(units, result, tmp, spec_ppm)
+        pages = {}
         for i, u in enumerate(units):
-            name = f"unit-{i:03d}"
-            img = f"{name}.png" if _unit_plot(u, tmp / "units" / f"{name}.png") else None
-            (tmp / "units" / f"{name}.html").write_text(_unit_page(u, result, img),
-                                                         encoding="utf-8")
-            pages.append(f"units/{name}.html")
-        (tmp / "index.html").write_text(_index(units, result, title, pages), encoding="utf-8")
+            name = f"unit-{i:03d}.html"
+            (tmp / "units" / name).write_text(_unit_page(u, result, spec_ppm),
+                                              encoding="utf-8")
+            pages[u.unit] = f"units/{name}"
+        (tmp / "index.html").write_text(_index(units, result, title, pages, plots, spec_ppm),
+                                        encoding="utf-8")
 
     write_owned(out, write)
     return out / "index.html"

@@ -104,7 +104,7 @@ def sweep(base: Path | None = None) -> list[Path]:
     owner is gone; folders of live processes, of other users and not named by an owner
     are left alone. Returns what was removed."""
     base = base_dir() if base is None else base
-    gone = []
+    gone: list[Path] = []
     try:
         entries = list(os.scandir(base))
     except OSError:

@@ -9,8 +9,10 @@
 Every add and remove is one transaction: a process killed in the middle of one leaves the
 database as it was before it (SQLite: write-ahead log; a second writer waits for the first,
 BEGIN IMMEDIATE and a busy timeout). User strings (serial numbers, paths) reach SQL only as
-parameters. The schema is versioned (table `schema_version`): `MIGRATIONS[i]` takes a
-database from version i to i + 1, run in order, in one transaction, when a store is opened.
+parameters. The schema is versioned (table `schema_version`; `fleet.schema`): `MIGRATIONS[i]`
+takes a database from version i to i + 1, run in order, in one transaction, when a store is
+opened. Every add and remove also bumps the fleet's state (`schema.bump_state`, in its
+transaction): what is cached from the units is keyed by it.
 """
 
 from __future__ import annotations
@@ -26,9 +28,10 @@ from pathlib import Path
 from typing import Any
 
 from fogsf.errors import UserError
-from fogsf.fleet.faults import sqlite_begin_waiting
+from fogsf.fleet.faults import _db_errors, sqlite_begin_waiting
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.records import LogRecord, UnitRecord, structure_of
+from fogsf.fleet.schema import MIGRATIONS, SCHEMA_VERSION, bump_state, keep
 
 # Test hook, used only by tests/test_fleet_store.py: while this variable names a file, `add`
 # creates that file once its INSERTs ran and then sleeps PAUSE_S_HOOK seconds (default 120)
@@ -37,66 +40,15 @@ PAUSE_HOOK = "FOGSF_FLEET_TEST_PAUSE_IN_ADD"
 PAUSE_S_HOOK = "FOGSF_FLEET_TEST_PAUSE_S"
 BUSY_TIMEOUT_S = 60.0
 PG_PREFIXES = ("postgresql://", "postgres://")
+# a cached result is written only if the fleet's lock is had within this (else it is not
+# kept: the next command computes it again; a command never waits on its cache)
+QUIET_WAIT_S = 2.0
 MIGRATION_LOCK = 0x0F05F1EE7  # PostgreSQL advisory lock key of the fleet's migrations
 # How a command opens a fleet: "read" (list, check, report, the prior: read-only, the fleet
 # must exist), "write" (remove, recording a unit trained under the prior: must exist),
 # "create" (add, add-many: a new fleet where nothing is, an existing fleet, nothing else).
 MODES = ("read", "write", "create")
 Guard = Callable[["FleetStore"], None]  # last in an add's transaction; raises to refuse
-
-
-def _v1(db: FleetStore) -> None:
-    """Version 1: units (the record's JSON parts as text) and their training logs."""
-    db.execute("""CREATE TABLE units (
-        sn TEXT PRIMARY KEY,
-        model_id TEXT NOT NULL,
-        model_dir TEXT NOT NULL,
-        fitted_with TEXT NOT NULL,
-        figures TEXT NOT NULL,
-        interval_json TEXT,
-        summary TEXT NOT NULL,
-        fogsf_version TEXT NOT NULL,
-        created_utc TEXT NOT NULL)""")
-    db.execute("""CREATE TABLE logs (
-        sn TEXT NOT NULL REFERENCES units(sn) ON DELETE CASCADE,
-        idx INTEGER NOT NULL,
-        path TEXT NOT NULL,
-        sha256 TEXT NOT NULL,
-        n_rows BIGINT NOT NULL,
-        span_s DOUBLE PRECISION NOT NULL,
-        sample_rate_hz DOUBLE PRECISION NOT NULL,
-        ramp_rates TEXT NOT NULL,
-        temp_min_c DOUBLE PRECISION,
-        temp_max_c DOUBLE PRECISION,
-        PRIMARY KEY (sn, idx))""")
-
-
-def _v2(db: FleetStore) -> None:
-    """Version 2: a log's role (train or test: version 1 kept training logs only), and the
-    unit's structure as a column of its own (for queries by structure), filled from the
-    summary of the units version 1 wrote."""
-    db.execute("ALTER TABLE logs ADD COLUMN role TEXT NOT NULL DEFAULT 'train'")
-    db.execute("ALTER TABLE units ADD COLUMN structure TEXT NOT NULL DEFAULT ''")
-    for sn, summary in db.execute("SELECT sn, summary FROM units").fetchall():
-        db.execute("UPDATE units SET structure = ? WHERE sn = ?",
-                   (_structure_of(json.loads(summary)), sn))
-    db.execute("CREATE INDEX units_structure ON units (structure)")
-
-
-def _v3(db: FleetStore) -> None:
-    """Version 3: the leases of running add-many batches (`fleet.lease`)."""
-    db.execute("CREATE TABLE batches (id TEXT PRIMARY KEY, host TEXT NOT NULL, pid BIGINT "
-               "NOT NULL, started TEXT NOT NULL, heartbeat DOUBLE PRECISION NOT NULL)")
-
-
-MIGRATIONS: list[Callable[[FleetStore], None]] = [_v1, _v2, _v3]
-SCHEMA_VERSION = len(MIGRATIONS)
-
-
-def _structure_of(summary: dict) -> str:
-    """A version-1 unit's structure, from its summary."""
-    s = summary.get("structure") or (summary.get("model") or {}).get("structure") or ""
-    return s if isinstance(s, str) else json.dumps(s, sort_keys=True)
 
 
 def _dumps(x: Any) -> str:
@@ -135,6 +87,22 @@ class FleetStore:
             self.execute("ROLLBACK")
             raise
         self.execute("COMMIT")
+
+    @contextmanager
+    def snapshot(self) -> Iterator[None]:
+        """Reads that see one state of the fleet (its state counter, its units and what is
+        cached for them), whatever commits meanwhile."""
+        self.execute(self.snapshot_sql)
+        try:
+            yield
+        finally:
+            self.execute("COMMIT")
+
+    snapshot_sql = "BEGIN"
+
+    def _begin_quietly(self) -> None:
+        """BEGIN for a write that may be skipped: a lock held 2 s refuses it (raises)."""
+        raise NotImplementedError
 
     # --- schema ----------------------------------------------------------------------------
 
@@ -211,6 +179,7 @@ class FleetStore:
                     (record.unit, i, lg.path, lg.sha256, int(lg.rows), float(lg.span_s),
                      float(lg.sample_rate_hz), _dumps(lg.ramp_rates_c_per_min),
                      _finite_or_none(lg.temp_min_c), _finite_or_none(lg.temp_max_c), lg.role))
+            bump_state(self)
             _pause_hook()
             if guard is not None:  # last, after the hook's pause (a kill there is tested)
                 guard(self)
@@ -226,6 +195,7 @@ class FleetStore:
             if not self.has(sn):
                 raise UserError(f"no unit {shown(sn)} in {self.location}")
             self._delete(sn)
+            bump_state(self)
 
     def unit(self, sn: str) -> UnitRecord:
         found = self._read("WHERE sn = ?", (sn,))
@@ -318,6 +288,10 @@ class SQLiteStore(FleetStore):
     def _begin(self) -> None:  # the write lock now (no upgrade deadlock later), waits said
         sqlite_begin_waiting(self.db, self.location, BUSY_TIMEOUT_S)
 
+    def _begin_quietly(self) -> None:
+        self.db.execute(f"PRAGMA busy_timeout={int(QUIET_WAIT_S * 1000)}")
+        self.db.execute("BEGIN IMMEDIATE")
+
     def close(self) -> None:
         self.db.close()
 
@@ -351,6 +325,12 @@ class PostgresStore(FleetStore):
 
     def _begin(self) -> None:
         self.db.execute("BEGIN")
+
+    snapshot_sql = "BEGIN ISOLATION LEVEL REPEATABLE READ"
+
+    def _begin_quietly(self) -> None:
+        self.db.execute("BEGIN")
+        self.db.execute(f"SET LOCAL lock_timeout = '{int(QUIET_WAIT_S * 1000)}ms'")
 
     def _lock_version(self) -> None:  # one migration at a time, even before the table exists
         self.db.execute("SELECT pg_advisory_xact_lock(%s)", (MIGRATION_LOCK,))
@@ -398,3 +378,22 @@ def open_store(url_or_path: str, mode: str = "create") -> FleetStore:
         store.close()
         raise
     return store
+
+
+def keep_quietly(url_or_path: str, kind: str, key: str, state: int, value: str) -> bool:
+    """Keep a result computed from the fleet at `state` in its cache (`schema.keep`), in one
+    transaction of a connection of its own (the command read the fleet read-only). A fleet
+    that cannot be written now (a read-only file or role, a lock held past QUIET_WAIT_S, a
+    fault) keeps nothing and says nothing: the cache only saves time. True when kept."""
+    try:
+        with open_store(url_or_path, "write") as store:
+            store._begin_quietly()
+            try:
+                keep(store, kind, key, state, value)
+            except BaseException:
+                store.execute("ROLLBACK")
+                raise
+            store.execute("COMMIT")
+        return True
+    except (UserError, *_db_errors()):  # type: ignore[misc]  # a tuple of classes
+        return False

@@ -63,9 +63,14 @@ class FunctionFit:
     s2: float  # the data's noise variance used
     own: StepSeries  # the unit's training runs
     lam: tuple[float, float] = (LAM_UNITS, LAM_PARAMS)
+    # (m, B) on `own`, as the fit computed it: each unit of the fleet is read on a series
+    # for it, so with a fleet of hundreds it is computed once, not again for the misfit
+    own_basis: tuple[np.ndarray, np.ndarray] | None = None
 
     def basis(self, series: StepSeries) -> tuple[np.ndarray, np.ndarray]:
         """(m, B) on `series`' rows (`response_basis` at this fit's weights)."""
+        if series is self.own and self.own_basis is not None:
+            return self.own_basis
         return response_basis(self.prior, series, *self.lam)
 
     def predict(self, series: StepSeries) -> np.ndarray:
@@ -76,7 +81,7 @@ class FunctionFit:
     def variance(self, series: StepSeries) -> np.ndarray:
         """The posterior variance (ppm^2) of the response on `series`' rows."""
         _, b = self.basis(series)
-        return np.einsum("ij,jk,ik->i", b, self.a_cov, b)
+        return np.sum((b @ self.a_cov) * b, axis=1)  # diag(B C B^T), by BLAS
 
     def misfit_ppm2(self) -> float:
         """The slow part of the posterior mean's residual on the unit's own runs (ppm^2): the
@@ -129,4 +134,4 @@ def function_fit(series: StepSeries, prior: DesignPrior, s2: float,
     prec = b.T @ b / s2 + np.eye(b.shape[1])
     cov = np.linalg.inv(prec)
     a = cov @ (b.T @ (series.y - m) / s2)
-    return FunctionFit(prior, a, 0.5 * (cov + cov.T), s2, series, lam)
+    return FunctionFit(prior, a, 0.5 * (cov + cov.T), s2, series, lam, (m, b))
