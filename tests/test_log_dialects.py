@@ -261,8 +261,12 @@ def test_ref_sf_from_a_longer_run_makes_a_cold_log_usable(plain: Path, tmp_path:
                         str(tmp_path / "c.csv"), "--build-dir", str(tmp_path / "kernels")]}
     for cmd in ("inspect", "train", "replay"):  # the SF at the nearest temperature held
         assert main(argvs[cmd]) == 0, cmd
-        err = capsys.readouterr().err
+        got = capsys.readouterr()
+        err = got.err
         assert "nearest temperature" in err and "--ref-sf" in err, (cmd, err)
+        if cmd == "replay":  # "before" names the reference it took: the log's own
+            about = got.out.split("before: about ")[1].split(";")[0]
+            assert about.startswith("the log's SF at -1") and "vs nominal" in about, about
     ref = _inspect_json(capsys, str(plain))[0]["ref_sf_ratio"]
     got = _inspect_json(capsys, str(cold), "--ref-sf", repr(ref))[0]
     assert got["ref_sf_ratio"] == ref and got["metrics"]["rms_ppm"] > 0

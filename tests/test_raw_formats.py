@@ -226,3 +226,20 @@ def test_a_missing_extra_is_named(tmp_path: Path, capsys, monkeypatch) -> None:
     capsys.readouterr()
     assert main(["inspect", str(tmp_path / "x.tdms")]) == 2
     assert "pip install 'fogsf[rigs]'" in capsys.readouterr().err
+
+
+def test_a_map_inside_a_ros2_bag_folder(run, tmp_path: Path, capsys) -> None:
+    """The map kept inside the bag's own folder is found; with none anywhere, the refusal
+    says where it looked."""
+    _need("rosbags")
+    path = tmp_path / "run"
+    _write_ros(path, run, ros1=False)
+    capsys.readouterr()
+    assert main(["inspect", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert f"no fogsf-columns.json or fogsf-columns.toml in {path} or {tmp_path}" in err, err
+    _map(path, ROS_MAP)
+    lg = read_log(path)
+    _check(lg, run, temp_tol=0.2)
+    assert any(str(path / "fogsf-columns.toml") in n for n in lg.read_notes), lg.read_notes

@@ -276,8 +276,11 @@ def test_clocks_that_disagree_are_said_loudly(tmp_path: Path) -> None:
     text = rl.mapping_path.read_text()
     off = text.split("* 1e-6 + ")[1].split('"')[0]
     rl.mapping_path.write_text(text.replace(off, repr(float(off) + 600.0)))  # 10 min off
-    notes = " | ".join(read_log(rl.path).read_notes)
-    assert "CHECK THE CLOCKS" in notes, notes
+    lg = read_log(rl.path)
+    assert "CHECK THE CLOCKS" not in " | ".join(lg.read_notes)
+    warn = " | ".join(lg.read_warnings)  # a short line of its own, naming the likely cause
+    assert "CHECK THE CLOCKS" in warn and "wrong offset in time_s" in warn, warn
+    assert all(len(w) < 200 for w in lg.read_warnings), warn
     wrong = float(off) + 2.0**32 * 1e-6  # the offset of a counter that wrapped once more
     rl.mapping_path.write_text(text.replace(off, repr(wrong)))
     with pytest.raises(UserError, match="covers none of the log's rows.*check the clocks"):

@@ -149,14 +149,34 @@ def test_restart_holds_the_next_segments_temperature(tmp_path: Path) -> None:
 
 def test_a_clock_reset_starts_a_segment(tmp_path: Path) -> None:
     rows = [f"{0.1 * i:.1f},{20 + 0.01 * i:.3f},10,10" for i in range(600)]
-    rows += [f"{0.1 * i:.1f},{26 + 0.01 * i:.3f},10,10" for i in range(600)]  # rebooted
+    # rebooted: the clock restarts at 0 and the temperature moved on 4 C while it was down
+    rows += [f"{0.1 * i:.1f},{30 + 0.01 * i:.3f},10,10" for i in range(600)]
     lg = parse_log("time_s,temp_c,table_rate_dps,gyro_dps\n" + "\n".join(rows) + "\n")
     s = lg.sampling
-    assert s.resets == [600] and len(s.segment_starts) == 2
+    assert s.resets == [600] and s.clock_steps == [] and len(s.segment_starts) == 2
     b = s.segment_starts[1]
     assert lg.time_s[b] == pytest.approx(59.9 + 3600.0)
-    assert np.all(lg.temp_c[600:b] == 26.0)  # states restart at the next segment's start
-    assert any("clock reset" in n and "line 602" in n for n in lg.read_notes)
+    assert np.all(lg.temp_c[600:b] == 30.0)  # states restart at the next segment's start
+    note = next(n for n in lg.read_notes if "line 602" in n)
+    assert "temperature jumps +4.000 C" in note and "a reboot" in note, note
+
+
+@pytest.mark.parametrize("noise_c", [0.0, 0.02])
+def test_a_clock_step_back_is_not_a_reboot(noise_c: float) -> None:
+    """A clock set back 30 s while the logger kept logging (the temperature runs on across
+    the step, a noisy thermometer's too): no segment, the later rows timed on from the row
+    before, said as a clock step."""
+    rng = np.random.default_rng(SEED + 53)
+    n = 1200
+    temp = 20.0 + 0.01 * np.arange(n) + noise_c * rng.standard_normal(n)
+    t = 0.1 * np.arange(n) - np.where(np.arange(n) >= 600, 30.0, 0.0)
+    rows = [f"{t[i]:.1f},{temp[i]:.4f},10,10" for i in range(n)]
+    lg = parse_log("time_s,temp_c,table_rate_dps,gyro_dps\n" + "\n".join(rows) + "\n")
+    s = lg.sampling
+    assert s.clock_steps == [600] and s.resets == [] and len(s.segment_starts) == 1
+    assert len(lg) == n and lg.time_s[600] == pytest.approx(60.0)
+    note = next(n for n in lg.read_notes if "line 602" in n)
+    assert "time steps -29.9 s" in note and "a clock step" in note and "runs on" in note, note
 
 
 def test_a_burst_log_takes_its_windows_from_the_bursts_unless_told(tmp_path: Path,

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
+
+import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs.measure.sf_reference import forget_notes
@@ -175,6 +178,10 @@ def add_log_options(parser: argparse.ArgumentParser) -> None:
                    help="join a stream ([join.NAME]) whose clock lies whole hours off the "
                         "log's as it is (default: refused as a time zone read as UTC; "
                         "tz = \"Europe/Berlin\" in the join puts a local clock on UTC)")
+    g.add_argument("--bad-cells", choices=("refuse", "skip"), default="refuse",
+                   help="a cell that holds no number (ERR, NaN, empty): refuse the log "
+                        "(default), or skip: its row measures nothing (the model runs over "
+                        "it, the cell filled from its neighbours)")
     g.add_argument("--gap-states", choices=("carry", "restart"), default="carry",
                    help="how a model's states cross a gap: carry (default: the gyro stayed "
                         "on, the temperature interpolated over the gap) or restart (it was "
@@ -204,7 +211,8 @@ def dialect_from_args(args: argparse.Namespace):  # noqa: ANN201 - logs.read.dia
                    joins=joins, max_gap_s=getattr(args, "max_gap_s", None),
                    gap_states=getattr(args, "gap_states", None) or "carry", stream=stream,
                    layout=layout,
-                   allow_clock_offset=getattr(args, "allow_clock_offset", False))
+                   allow_clock_offset=getattr(args, "allow_clock_offset", False),
+                   bad_cells=getattr(args, "bad_cells", None) or "refuse")
 
 
 def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - StreamModel
@@ -241,6 +249,8 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
     cosine = cosine_for(given, dialect.axis)
     ref_temp = getattr(args, "ref_temp_c", None)
     _windows_from_bursts(args, logs)
+    # training logs (`--train` of train and fleet): a ramp too short to count is said
+    training = paths == getattr(args, "train", None)
     for lg in logs:
         lg.axis_cosine = cosine
         if ref_temp is not None:
@@ -250,7 +260,69 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
                              "rate (earth_rate_dps)")
         if lg.read_notes:
             print(f"fogsf: read {lg.path}: {'; '.join(lg.read_notes)}", file=sys.stderr)
+        for w in lg.read_warnings:  # a line of its own, so that it is not lost in the notes
+            print(f"fogsf: warning: {lg.path}: {w}", file=sys.stderr)
+        for r in short_ramps(lg) if training else ():
+            print(f"fogsf: note: {lg.path}: {r.text()}", file=sys.stderr)
     return logs
+
+
+SHORT_RAMP_MIN_C = 2.0  # a move of the temperature smaller than this is a bend, not a ramp
+
+
+@dataclass(frozen=True)
+class ShortRamp:
+    """A run of the board temperature in one direction too short to count as a ramp."""
+
+    start_s: float  # from the log's first row
+    minutes: float
+    from_c: float
+    to_c: float
+    rate_c_per_min: float  # its fastest 5-minute window
+    min_minutes: float  # what a ramp needs
+
+    def text(self) -> str:
+        return (f"the board temperature ramps {self.from_c:.1f} -> {self.to_c:.1f} C (up to "
+                f"{self.rate_c_per_min:+.2f} C/min) for {self.minutes:.1f} min of 5-minute "
+                f"windows from t0+{self.start_s:.0f} s: "
+                f"shorter than the {self.min_minutes:g} min a ramp needs, so it does not count "
+                "as a ramp (its ramp rate, a held-out ramp); its samples still train")
+
+
+def short_ramps(log) -> list[ShortRamp]:  # noqa: ANN001 - a ChamberLog
+    """The runs of the board temperature in one direction that move it SHORT_RAMP_MIN_C or
+    more but are shorter than the ramps training counts (training.interval.transfer
+    `ramp_segments`, by its own windows and thresholds)."""
+    from fogsf.logs.read.columns import searchsorted
+    from fogsf.training.interval.transfer import (
+        MIN_RAMP_C_PER_MIN,
+        SEGMENT_MIN_S,
+        SLOPE_WINDOW_S,
+    )
+
+    size = len(log)
+    n = searchsorted(log.time_s, float(log.time_s[0]) + SLOPE_WINDOW_S) if size else 0
+    if n < 1 or n >= size:
+        return []
+    # the windows' ends only (a log on disk stays there)
+    starts = np.arange(0, size - n, max(1, n // 5))
+    ta = np.asarray(log.time_s[starts], dtype=np.float64)
+    tb = np.asarray(log.time_s[starts + n], dtype=np.float64)
+    ca = np.asarray(log.temp_c[starts], dtype=np.float64)
+    cb = np.asarray(log.temp_c[starts + n], dtype=np.float64)
+    slope = (cb - ca) / (tb - ta) * 60.0
+    sign = np.where(np.abs(slope) > MIN_RAMP_C_PER_MIN, np.sign(slope), 0.0)
+    edges = np.flatnonzero(np.diff(sign) != 0) + 1
+    out = []
+    for a, b in zip(np.r_[0, edges], np.r_[edges, sign.size], strict=True):
+        span_s = float(tb[b - 1] - ta[a])
+        if sign[a] == 0 or span_s >= SEGMENT_MIN_S:
+            continue
+        if abs(cb[b - 1] - ca[a]) >= SHORT_RAMP_MIN_C:
+            fastest = slope[a:b][np.argmax(np.abs(slope[a:b]))]
+            out.append(ShortRamp(float(ta[a] - ta[0]), span_s / 60.0, float(ca[a]),
+                                 float(cb[b - 1]), float(fastest), SEGMENT_MIN_S / 60.0))
+    return out
 
 
 def _windows_from_bursts(args: argparse.Namespace, logs: list) -> None:

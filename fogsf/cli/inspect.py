@@ -112,7 +112,8 @@ def sampling_summary(log: ChamberLog) -> dict | None:
     return {"nominal_rate_hz": 1.0 / s.nominal_s, "steps": s.steps, "jittered": s.jittered,
             "dropped": s.dropped, "worst_step_s": s.worst_step_s, "gaps": len(s.gaps),
             "longest_gap_s": max((g for _, g in s.gaps), default=0.0), "resets": len(s.resets),
-            "filled_rows": s.filled_rows, "max_gap_s": s.max_gap_s, "gap_states": s.gap_states}
+            "clock_steps": len(s.clock_steps), "filled_rows": s.filled_rows,
+            "max_gap_s": s.max_gap_s, "gap_states": s.gap_states}
 
 
 def summary(log: ChamberLog, window_s: float, latitude_deg: float | None,

@@ -45,8 +45,14 @@ from fogsf.cli.plateau_commands import any_plateau_table, replay_table
 from fogsf.errors import UserError
 from fogsf.logs.corrected_out import CorrectedWriter
 from fogsf.logs.measure.bias import before_after, bias_windows
-from fogsf.logs.measure.metrics import log_metrics, sf_error_ppm, start_note
-from fogsf.logs.measure.sf_reference import reference_sf
+from fogsf.logs.measure.metrics import (
+    log_metrics,
+    metrics_block,
+    noise_floor_ppm,
+    sf_error_ppm,
+    start_note,
+)
+from fogsf.logs.measure.sf_reference import reference_sf, reference_temp_c
 from fogsf.logs.measure.windows import sf_windows
 from fogsf.logs.read.columns import Column, Spill, is_lazy, stand_in
 from fogsf.models.stream import StreamModel
@@ -186,17 +192,23 @@ def run(args: argparse.Namespace) -> int:
                        else "none"))
     before: dict[str, float] | None
     after: dict[str, float] | None
+    ref_sf, about = args.ref_sf, ""
     try:
         span = {"settle_s": args.settle_s, "skip_s": args.skip_s}
-        before = log_metrics(log, args.window_s, ref=args.ref_sf,
-                             latitude_deg=args.latitude_deg, **span)
+        w = sf_windows(log, args.window_s, args.latitude_deg, **span)
+        if ref_sf is None:  # the log's own SF at --ref-temp-c, or the nearest it holds
+            ref_sf = reference_sf(w, log.ref_temp_c)
+            about = (f"the log's SF at {reference_temp_c(w, log.ref_temp_c):.2f} C, ratio "
+                     f"{ref_sf:.9f} vs nominal")
+        else:
+            about = f"--ref-sf {ref_sf:.9f}"
+        before = metrics_block(sf_error_ppm(w, ref_sf), args.window_s, noise_floor_ppm(w))
         after = log_metrics(log, args.window_s, latitude_deg=args.latitude_deg,
                             correction_ppm=sf, **span)
-    except UserError as e:  # e.g. a log that never passes 20 C has no reference SF
+    except UserError as e:  # e.g. a log whose windows measure nothing
         print(f"no before/after metrics: {e}")
         before = after = None
     if before is not None and after is not None:
-        about = "--ref-sf" if args.ref_sf is not None else "the log's SF at 20 C"
         skipped = f", first {args.skip_s:g} s skipped" if args.skip_s else ""
         print(f"SF error, {args.window_s:g} s windows (settle {args.settle_s:g} s{skipped}; "
               f"before: about {about}; after: measured / predicted - 1):")

@@ -67,6 +67,8 @@ class ChamberLog:
     path: str = "<memory>"
     # how the file was read when not in the plain format (BOM, delimiter, column mapping)
     read_notes: tuple[str, ...] = ()
+    # what the reader found likely wrong (clocks that disagree): each a line of its own
+    read_warnings: tuple[str, ...] = ()
     # the nominal sample period (s): set by the reader and the simulator; None: the median
     # step of time_s (0.1 s for a log of one sample)
     nominal_dt_s: float | None = None
@@ -156,6 +158,7 @@ class ChamberLog:
             extra={k: v[start:stop] for k, v in self.extra.items()},
             path=self.path,
             read_notes=self.read_notes,
+            read_warnings=self.read_warnings,
             nominal_dt_s=self.sample_dt_s,
             axis_cosine=self.axis_cosine,
             ref_temp_c=self.ref_temp_c,

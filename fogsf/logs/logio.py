@@ -29,12 +29,14 @@ from fogsf.logs.chamber_log import ChamberLog, LogError
 from fogsf.logs.mapping.column_map import ColumnPlan, with_kinds
 from fogsf.logs.mapping.layout import SUPPORTED
 from fogsf.logs.read.arrow_csv import NotFast, read_numbers
+from fogsf.logs.read.bad_cells import SKIPPABLE, numbers_skipping_bad, skipped_note
 from fogsf.logs.read.cell_kinds import numeric_cells, row_kinds
 from fogsf.logs.read.dialect import (
     Dialect,
     checked_names,
     find_delimiter,
     log_axes,
+    looked_in,
     map_plan,
     mapping_beside,
     names_plan,
@@ -43,7 +45,7 @@ from fogsf.logs.read.dialect import (
     unquote_lines,
 )
 from fogsf.logs.read.field_formats import as_table, format_of, main_stream
-from fogsf.logs.read.line_scan import bad_cell_in, first_bad_line
+from fogsf.logs.read.line_scan import SKIP_HINT, bad_cell_in, first_bad_line
 from fogsf.logs.read.parquet_log import in_rows, is_parquet, parquet_names, read_parquet_log
 from fogsf.logs.validation import _log_of
 
@@ -73,7 +75,8 @@ def read_field_log(path: str | Path, dialect: Dialect) -> ChamberLog:
     """A field-format file's main stream (logs/read/field_formats.py) read as a log: its columns
     through the column map, as a CSV's."""
     p = str(path)
-    name, stream = main_stream(path, dialect.stream, dialect.columns_from)
+    name, stream = main_stream(path, dialect.stream, dialect.columns_from,
+                               "" if dialect.columns else looked_in(p))
     names, data = as_table(stream)
     notes = [f"{format_of(path)} stream {name}"]
     plan = names_plan(checked_names(names, p), p, dialect, notes)
@@ -166,7 +169,14 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None,
     if plan.kinds:
         kinds = plan.kinds
         lines = [lines[0], *((numeric_cells(line, delim, kinds) or line) for line in lines[1:])]
-    data = _parse_numbers(lines, list(plan.raw), path, delim)
+    try:
+        data = _parse_numbers(lines, list(plan.raw), path, delim)
+    except LogError as e:
+        if dialect.bad_cells != "skip" or e.rule not in SKIPPABLE or build is not _log_of:
+            raise
+        data, skipped = numbers_skipping_bad(lines, list(plan.raw), path, delim)
+        notes.append(skipped_note(skipped))
+        return _log_of(data, plan, path, dialect, notes, skipped)
     return build(data, plan, path, dialect, notes)  # type: ignore[return-value]
 
 
@@ -260,7 +270,7 @@ def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_
     delim, quoted, plan, _ = head
     bad = first_bad_line(path, list(plan.raw), delim, dialect.decimal_comma, rows_ok, quoted,
                          plan.kinds)
-    if bad is not None:
+    if bad is not None and not (dialect.bad_cells == "skip" and bad.rule in SKIPPABLE):
         raise bad from None
 
 
@@ -291,7 +301,8 @@ def _parse_numbers(lines: list[str], header: list[str], path: str, delim: str = 
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise LogError(path, int(r) + 2, "non-finite cell",
-                       f"column {header[c]!r} is {lines[r + 1].split(delim)[c].strip()!r}")
+                       f"column {header[c]!r} is {lines[r + 1].split(delim)[c].strip()!r}"
+                       f"{SKIP_HINT}")
     return data
 
 

@@ -37,15 +37,20 @@ from fogsf.logs.read.columns import (
     stand_in,
 )
 from fogsf.logs.read.dialect import Dialect
-from fogsf.logs.read.sampling import default_max_gap_s, mend_segments, survey
+from fogsf.logs.read.sampling import default_max_gap_s, judge_resets, mend_segments, survey
 from fogsf.logs.read.stamps import rounded_stamps
 
 
 def _log_of(data: np.ndarray, plan: ColumnPlan, path: str, dialect: Dialect,
-            notes: list[str]) -> ChamberLog:
+            notes: list[str], skipped: np.ndarray | None = None) -> ChamberLog:
     """The parsed cells (every column of the log) as a validated ChamberLog: our columns
-    built by the plan, then checked."""
+    built by the plan, then checked; the rows `skipped` (a cell held no number: --bad-cells
+    skip) measure nothing."""
     cols: dict[str, Column] = dict(plan.apply(data, path))
+    if skipped is not None:
+        old = cols.get("valid")
+        keep = ~skipped if old is None else (np.asarray(old[:]) != 0.0) & ~skipped
+        cols["valid"] = keep.astype(np.float64)
     return log_from_columns(cols, path, dialect, notes)
 
 
@@ -58,7 +63,8 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
         check_rate_hz(dialect.sample_rate_hz)
     cols = rounded_stamps(cols, path, dialect.sample_rate_hz, notes)
     cols = without_duplicates(cols, notes)
-    cols, _ = apply_joins(cols, dialect.joins, path, notes, dialect.allow_clock_offset)
+    cols, reports = apply_joins(cols, dialect.joins, path, notes, dialect.allow_clock_offset)
+    warnings = tuple(w for w in (r.warning() for r in reports) if w)
     t = cols["time_s"]
     nominal = (1.0 / dialect.sample_rate_hz if dialect.sample_rate_hz is not None
                else nominal_step_s(t))
@@ -72,6 +78,8 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
         # median of jittered steps
         nominal = 1.0 / float(f"{1.0 / sampling.mean_step_s:.6g}")
         sampling = survey(t, nominal, max_gap)
+    if "temp_c" in cols:
+        judge_resets(sampling, t, cols["temp_c"])
     cols = mend_segments(cols, sampling, dialect.gap_states)
     dt = validate(cols, path, dialect.sample_rate_hz, nominal)
     if abs(dt - NOMINAL_DT_S) > 1e-9 * NOMINAL_DT_S:
@@ -97,6 +105,7 @@ def log_from_columns(cols: dict[str, Column], path: str, dialect: Dialect, notes
         extra={k: stand_in(v) for k, v in extra.items()},
         path=path,
         read_notes=tuple(notes),
+        read_warnings=warnings,
         nominal_dt_s=dt,
         sampling=sampling,
     )

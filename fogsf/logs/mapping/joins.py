@@ -21,11 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.logs.chamber_log import LogError, time_text
+from fogsf.logs.chamber_log import LogError, is_temperature, time_text
 from fogsf.logs.mapping.column_map import plan_map, with_kinds
 from fogsf.logs.mapping.join_spec import Join
 from fogsf.logs.mapping.time_zone import local_to_utc, parse_tz, whole_hours_off
 from fogsf.logs.read.cell_kinds import numeric_cells, row_kinds
+from fogsf.logs.read.clock_steps import judge_step
 from fogsf.logs.read.columns import Column
 from fogsf.logs.read.dialect import Dialect, find_delimiter, raw_header
 from fogsf.logs.read.line_scan import bad_cell_in
@@ -40,13 +41,15 @@ def join_path(j: Join, log_path: str) -> Path:
     return p.parent / j.file.replace("{stem}", p.stem)
 
 
-def read_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
+def read_stream(j: Join, log_path: str, notes: list[str] | None = None
+                ) -> tuple[str, dict[str, np.ndarray]]:
     """(path, {"time_s": ..., our names: ...}) of a joined file, in memory (a stream is
     small: 1 Hz for a day is 86400 rows), sorted rows checked: time increasing, exact
-    duplicates dropped."""
+    duplicates dropped, a clock step back mended (`notes` say so)."""
+    notes = [] if notes is None else notes
 
     if j.stream:
-        return _field_stream(j, log_path)
+        return _field_stream(j, log_path, notes)
     path = join_path(j, log_path)
     p = str(path)
     try:
@@ -61,11 +64,11 @@ def read_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
         lines.pop()
     if len(lines) < 2:
         raise LogError(p, 1 if lines else None, "empty file", "no data rows to join")
-    notes: list[str] = []
-    delim = find_delimiter(lines[0], p, Dialect(), notes)
+    found: list[str] = []  # how the stream's file was read: not said
+    delim = find_delimiter(lines[0], p, Dialect(), found)
     raw = raw_header(lines[0], delim, p)
     plan = plan_map(raw, (("time_s", j.time_s), *j.columns), f"[join.{j.name}]", p)
-    plan = with_kinds(plan, row_kinds(lines[1].split(delim)), p, notes)
+    plan = with_kinds(plan, row_kinds(lines[1].split(delim)), p, found)
     rows = [numeric_cells(ln, delim, plan.parsed_kinds) or ln for ln in lines[1:]]
     try:
         data = np.loadtxt(rows, delimiter=delim, dtype=np.float64, ndmin=2, comments=None)
@@ -73,14 +76,15 @@ def read_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
         data = None
     if data is None or data.shape != (len(rows), len(raw)):
         for i, ln in enumerate(rows, start=2):
-            bad = bad_cell_in(ln, i, raw, p, delim)
+            bad = bad_cell_in(ln, i, raw, p, delim, skip_hint=False)
             if bad is not None:
                 raise bad
         raise LogError(p, None, "unreadable", "numbers could not be parsed")
-    return p, _checked_stream(j, plan.apply(data, p), p)
+    return p, _checked_stream(j, plan.apply(data, p), p, notes)
 
 
-def _field_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
+def _field_stream(j: Join, log_path: str, notes: list[str]
+                  ) -> tuple[str, dict[str, np.ndarray]]:
     """A join's stream of the same field-format file (logs/read/field_formats.py)."""
     from fogsf.logs.read.field_formats import as_table, main_stream
 
@@ -88,12 +92,14 @@ def _field_stream(j: Join, log_path: str) -> tuple[str, dict[str, np.ndarray]]:
     names, data = as_table(stream)
     p = f"{log_path} [{name}]"
     plan = plan_map(names, (("time_s", j.time_s), *j.columns), f"[join.{j.name}]", p)
-    return p, _checked_stream(j, plan.apply(data, p), p)
+    return p, _checked_stream(j, plan.apply(data, p), p, notes)
 
 
-def _checked_stream(j: Join, built: dict[str, np.ndarray], p: str
+def _checked_stream(j: Join, built: dict[str, np.ndarray], p: str, notes: list[str]
                     ) -> dict[str, np.ndarray]:
-    """A stream's time and joined columns; exact duplicates dropped, time increasing."""
+    """A stream's time and joined columns; exact duplicates dropped, time increasing: a
+    step back is a re-synchronised clock when the stream's temperature runs on across it
+    (the rows before it moved onto the clock after it, said in `notes`), else refused."""
     wanted = {"time_s", *(ours for ours, _ in j.columns)}
     cols = {k: np.asarray(v, dtype=np.float64) for k, v in built.items() if k in wanted}
     t = cols["time_s"]
@@ -104,11 +110,31 @@ def _checked_stream(j: Join, built: dict[str, np.ndarray], p: str
         cols = {k: np.delete(v, dup[same]) for k, v in cols.items()}
         t = cols["time_s"]
         dt = np.diff(t)
+    temps = [k for k in cols if is_temperature(k)]
     back = np.flatnonzero(dt <= 0)
-    if back.size:
+    while back.size:
         i = int(back[0])
-        raise LogError(p, i + 3, "time not increasing",
-                       f"time_s {time_text(t, i + 1)} after {time_text(t, i)}")
+        if dt[i] == 0 or not temps:
+            raise LogError(p, i + 3, "time not increasing",
+                           f"time_s {time_text(t, i + 1)} after {time_text(t, i)}"
+                           + ("" if dt[i] == 0 else " (the stream has no temperature to "
+                              "tell a re-synchronised clock from a reboot)"))
+        b = judge_step(cols[temps[0]], i + 1, float(dt[i]))
+        if not b.is_clock_step:
+            raise LogError(p, i + 3, "clock restarts",
+                           f"time_s {time_text(t, i + 1)} after {time_text(t, i)}: "
+                           f"{b.why()}: the logger rebooted and its clock restarted, so "
+                           "its later rows cannot be put on the log's clock: give them "
+                           "wall-clock stamps, or split the file")
+        # a clock set right while logging: the rows before the step were ahead by it
+        step = float(np.median(dt[dt > 0])) if (dt > 0).any() else 0.0
+        moved = float((t[i + 1] - step) - t[i])
+        t[:i + 1] += moved
+        notes.append(f"[join.{j.name}] time steps {dt[i]:+.1f} s at line {i + 3}: "
+                     f"{b.why()}: a re-synchronised clock, no sample missed: the rows "
+                     f"before it moved {moved:+.1f} s onto the clock after it")
+        dt = np.diff(t)
+        back = np.flatnonzero(dt <= 0)
     return cols
 
 
@@ -134,17 +160,29 @@ class JoinReport:
         return (f"join {self.name} ({Path(self.path).name}): {self.covered} of {self.rows} "
                 f"rows covered, {self.rows - self.covered} measure nothing; {limit}; the stream "
                 f"starts {self.start_offset_s:+.3f} s and ends {self.end_offset_s:+.3f} s "
-                "from the log's first and last rows" + self.warning())
+                "from the log's first and last rows")
 
     def warning(self) -> str:
-        """A loud word when the clocks look wrong: a tenth of the rows or more uncovered, or
-        the stream starting or ending a minute or more away from the log."""
-        far = max(abs(self.start_offset_s), abs(self.end_offset_s))
+        """A short line of its own when the clocks look wrong (a tenth of the rows or more
+        uncovered, or an end a minute or more off the log's), naming the likely cause: both
+        ends the same whole hours off is a time zone, the same offset at both ends a wrong
+        offset in time_s."""
+        a, b = self.start_offset_s, self.end_offset_s
+        far = max(abs(a), abs(b))
         if self.covered >= 0.9 * self.rows and far < CLOCK_CHECK_S:
             return ""
-        return (f" -- CHECK THE CLOCKS: {100.0 * (1 - self.covered / self.rows):.0f} % of the "
-                f"rows uncovered, the ends up to {far:.1f} s apart (a wrong offset in "
-                "time_s, or a counter that wrapped before the first row?)")
+        head = (f"join {self.name}: CHECK THE CLOCKS: "
+                f"{100.0 * (1 - self.covered / self.rows):.0f} % of the rows uncovered, "
+                f"the stream's ends {a:+.1f} s and {b:+.1f} s off the log's")
+        h = whole_hours_off(a, b, CLOCK_CHECK_S)
+        if h is not None:
+            return (f"{head}: {h:+d} h at both ends, a time zone: its local time read as UTC? "
+                    f"give tz = \"{'+' if h > 0 else '-'}{abs(h):02d}:00\" (or its zone name) "
+                    f"in [join.{self.name}]")
+        if abs(a - b) < CLOCK_CHECK_S:
+            return (f"{head}: about the same at both ends: a wrong offset in time_s, or a "
+                    "counter that wrapped?")
+        return f"{head}: a wrong offset in time_s, or a counter that wrapped before the first row?"
 
 
 def zone_check(j: Join, path: str, start_off_s: float, end_off_s: float) -> None:
@@ -175,7 +213,7 @@ def apply_joins(cols: dict[str, Column], joins: tuple[Join, ...], path: str,
     out = dict(cols)
     reports = []
     for j in joins:
-        p, s = read_stream(j, path)
+        p, s = read_stream(j, path, notes)
         if j.tz is not None:
             s["time_s"] = local_to_utc(s["time_s"], parse_tz(j.tz, f"[join.{j.name}]"))
         ts = s["time_s"]

@@ -71,6 +71,9 @@ class Dialect:
     # --allow-clock-offset: a join whole hours off the log's clock is joined as it is, not
     # refused as a time zone read as UTC (logs/mapping/time_zone.py)
     allow_clock_offset: bool = False
+    # --bad-cells: "refuse" a cell that holds no number, or "skip": its row measures nothing
+    # (logs/read/bad_cells.py)
+    bad_cells: str = "refuse"
 
     @property
     def gyro_name(self) -> str | None:
@@ -185,13 +188,33 @@ def _plain_name(text: str) -> bool:
         return True
 
 
+def map_folders(log_path: str | Path) -> list[Path]:
+    """Where a log's column map (MAPPING_FILES) is looked for: the log's folder; for a ROS 2
+    bag (a folder with metadata.yaml) the bag's folder first, then the one it lies in."""
+    p = Path(log_path)
+    inside = [p] if p.is_dir() and (p / "metadata.yaml").is_file() else []
+    return [*inside, p.parent]
+
+
 def mapping_beside(log_path: str | Path) -> Path | None:
-    """The column mapping file (MAPPING_FILES) in the log's folder, if any; two are refused."""
-    folder = Path(log_path).parent
-    found = [folder / n for n in MAPPING_FILES if (folder / n).is_file()]
-    if len(found) > 1:
-        raise UserError(f"{folder}: both {found[0].name} and {found[1].name}; keep one")
-    return found[0] if found else None
+    """The column mapping file (MAPPING_FILES) of the first of `map_folders` that holds
+    one, if any; two in one folder are refused."""
+    for folder in map_folders(log_path):
+        found = [folder / n for n in MAPPING_FILES if (folder / n).is_file()]
+        if len(found) > 1:
+            raise UserError(f"{folder}: both {found[0].name} and {found[1].name}; keep one")
+        if found:
+            return found[0]
+    return None
+
+
+def looked_in(log_path: str) -> str:
+    """Where a column map was looked for and not found, for a missing column's message;
+    "" for a log not on disk."""
+    if not Path(log_path).exists():
+        return ""
+    where = " or ".join(str(f) for f in map_folders(log_path))
+    return f" (no {' or '.join(MAPPING_FILES)} in {where})"
 
 
 def _sniff(header_line: str, path: str) -> str:
@@ -343,5 +366,6 @@ def names_plan(raw: list[str], path: str, dialect: Dialect, notes: list[str]) ->
     if missing:
         raise LogError(path, 1, "missing required column",
                        f"{', '.join(missing)} (header has: {', '.join(raw)})"
-                       + _missing_hint(missing, mapped.names))
+                       + _missing_hint(missing, mapped.names)
+                       + ("" if dialect.columns else looked_in(path)))
     return plan

@@ -71,15 +71,17 @@ def streams(path: str | Path) -> dict[str, Stream]:
     return _CACHE[key]
 
 
-def main_stream(path: str | Path, name: str | None, origin: str) -> tuple[str, Stream]:
-    """The stream the map names (`stream = ...`), or the file's only one."""
+def main_stream(path: str | Path, name: str | None, origin: str, looked: str = ""
+                ) -> tuple[str, Stream]:
+    """The stream the map names (`stream = ...`), or the file's only one; `looked`: where
+    a map was looked for and not found, for the refusal."""
     all_ = streams(path)
     if name is None:
         if len(all_) == 1:
             return next(iter(all_.items()))
         raise UserError(f"{path}: the file holds {len(all_)} streams ({', '.join(all_)}): "
                         "name the gyro's with stream = \"...\" in the column map (a file "
-                        "beside it, docs/logs.md)")
+                        f"beside it, or inside a ROS 2 bag's folder, docs/logs.md){looked}")
     if name not in all_:
         raise UserError(f"{path}: no stream {name!r} ({origin}); the file holds "
                         f"{', '.join(all_)}")

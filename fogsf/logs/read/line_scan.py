@@ -18,6 +18,8 @@ from fogsf.logs.chamber_log import LogError
 from fogsf.logs.read.cell_kinds import numeric_cells
 from fogsf.logs.read.dialect import DECIMAL_COMMA, delimiter_in_cell
 
+SKIP_HINT = "; --bad-cells skip makes such a row measure nothing"
+
 
 def _ascii_number(cell: str) -> bool:
     """A cell float() and numpy's parser both read (float() also takes 1_000 and
@@ -126,14 +128,15 @@ def _scan(lines, p: str, header: list[str], delim: str,  # noqa: ANN001 - (numbe
                 return None
             if non_finite is None and not math.isfinite(float(cell)):
                 non_finite = LogError(p, i, "non-finite cell",
-                                      f"column {name!r} is {cell.strip()!r}")
+                                      f"column {name!r} is {cell.strip()!r}{SKIP_HINT}")
     return first_bad or non_finite
 
 
-def bad_cell_in(line: str, i: int, header: list[str], path: str, delim: str = ","
-                ) -> LogError | None:
+def bad_cell_in(line: str, i: int, header: list[str], path: str, delim: str = ",",
+                skip_hint: bool = True) -> LogError | None:
     """The refusal of data line `i` (`line`) when it has another number of cells than the
-    header or a cell that is not a number; None when it parses."""
+    header or a cell that is not a number (naming --bad-cells unless not `skip_hint`: a
+    joined stream); None when it parses."""
     cells = line.split(delim)
     if len(cells) != len(header):
         hint = (" (decimal commas? then separate cells by ';' or tab and give "
@@ -148,5 +151,6 @@ def bad_cell_in(line: str, i: int, header: list[str], path: str, delim: str = ",
             hint = (" (a decimal comma: give --decimal-comma)"
                     if DECIMAL_COMMA.match(cell) and delim != "," else "")
             return LogError(path, i, "non-numeric cell",
-                            f"column {name!r} is {shown!r}{hint}")
+                            f"column {name!r} is {shown!r}{hint}"
+                            f"{SKIP_HINT if skip_hint and not hint else ''}")
     return None

@@ -16,9 +16,11 @@ nominal rate, so that the model's states cross it in time:
 - "restart": the temperature of the next segment's first row held over the gap (the gyro
   was off: its states settle where the power-on rule starts them, fully when the gap is
   several of the model's time constants long).
-A clock that steps back by more than `max_gap_s` is a reset (the logger or the gyro
-rebooted): a new segment, placed `RESET_GAP_S` after the last row and joined by the
-"restart" rule.
+A clock that steps back by more than `max_gap_s` is judged by the temperature across it
+(logs/read/clock_steps.py): a clock step (re-synchronised while logging: the temperature runs
+on) has its later rows timed on from the row before; a reset (the logger rebooted: the
+temperature jumps) starts a new segment, placed `RESET_GAP_S` after the last row and joined
+by the "restart" rule.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import DT_TOLERANCE, GAP_STEPS, ChamberLog, rate_text
+from fogsf.logs.read.clock_steps import StepBack, judge_steps
 from fogsf.logs.read.columns import Column
 
 RESET_GAP_S = 3600.0  # a reset's segment starts this long after the last row (states settle)
@@ -54,7 +57,9 @@ class Sampling:
     dropped: int = 0  # samples missed in steps of GAP_STEPS nominal steps or more
     drop_steps: int = 0
     gaps: list[tuple[int, float]] = field(default_factory=list)  # (row after, length s)
-    resets: list[int] = field(default_factory=list)  # rows where the clock stepped back
+    resets: list[int] = field(default_factory=list)  # rows where the clock restarted
+    clock_steps: list[int] = field(default_factory=list)  # rows where it was set back
+    steps_back: list[StepBack] = field(default_factory=list)  # both, judged (`judge_resets`)
     filled_rows: int = 0
     # the first row of each segment in the log as read (gaps filled): [0] without gaps
     segment_starts: list[int] = field(default_factory=lambda: [0])
@@ -66,7 +71,8 @@ class Sampling:
 
     @property
     def irregular(self) -> bool:
-        return bool(self.jittered or self.dropped or self.gaps or self.resets)
+        return bool(self.jittered or self.dropped or self.gaps or self.resets
+                    or self.clock_steps)
 
     def text(self) -> str:
         parts = [f"nominal {rate_text(self.nominal_s)}"]
@@ -85,10 +91,11 @@ class Sampling:
                          f"{self.max_gap_s:g} s (--max-gap-s; the longest "
                          f"{max(g for _, g in self.gaps):.1f} s): {len(self.gaps) + 1} "
                          f"segments, {rule}")
-        if self.resets:
-            parts.append(f"{len(self.resets)} clock reset{'s' if len(self.resets) > 1 else ''}"
-                         f" (the first at line {self.resets[0] + 2}): a new segment each, "
-                         f"{RESET_GAP_S:g} s after the last row, states restarted")
+        for b in self.steps_back[:3]:
+            parts.append(b.text(b.row + 2, RESET_GAP_S))
+        if len(self.steps_back) > 3:
+            parts.append(f"{len(self.clock_steps)} clock steps and {len(self.resets)} "
+                         "reboots in all")
         if self.filled_rows:
             parts.append(f"{self.filled_rows} rows filled in that measure nothing "
                          "(logged = 0)")
@@ -124,6 +131,17 @@ def survey(t: Column, nominal_s: float, max_gap_s: float, block: int = 1 << 20) 
     return s
 
 
+def judge_resets(s: Sampling, t: Column, temp: Column) -> None:
+    """Split the clock's steps back (`s.resets` as surveyed) into clock steps and reboots
+    by the temperature across each (logs/read/clock_steps.py)."""
+    if not s.resets:
+        return
+    steps = [float(t[r] - t[r - 1]) for r in s.resets]
+    s.steps_back = judge_steps(temp, list(s.resets), steps)
+    s.clock_steps = [b.row for b in s.steps_back if b.is_clock_step]
+    s.resets = [b.row for b in s.steps_back if not b.is_clock_step]
+
+
 def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
                   ) -> dict[str, Column]:
     """`cols` with each reset's segment moved after the last row (RESET_GAP_S on) and each
@@ -131,12 +149,17 @@ def mend_segments(cols: dict[str, Column], s: Sampling, gap_states: str,
     (interpolated) or restarted (the next row's held); the gyro and table rate interpolated
     (never measured); a `logged` column (1: a row of the file)."""
     s.gap_states = gap_states
-    if not s.gaps and not s.resets:
+    if not s.gaps and not s.resets and not s.clock_steps:
         return cols
     c = {k: np.asarray(v[:], dtype=np.float64) for k, v in cols.items()}
     t = c["time_s"]
-    for r in s.resets:  # later rows shifted: the reset's segment starts after the last row
-        t[r:] += (t[r - 1] + RESET_GAP_S) - t[r]
+    stepped = set(s.clock_steps)
+    for r in sorted([*s.resets, *s.clock_steps]):
+        # later rows shifted: a reboot's segment starts RESET_GAP_S after the last row, a
+        # clock step's rows follow the row before by one nominal step (none was missed)
+        t[r:] += (t[r - 1] + (s.nominal_s if r in stepped else RESET_GAP_S)) - t[r]
+    if not s.gaps and not s.resets:
+        return dict(c)
     dt = np.diff(t)
     cuts = np.flatnonzero(dt > s.max_gap_s) + 1
     n_fill = [max(int(np.floor((t[i] - t[i - 1]) / s.nominal_s - 1e-9)), 0) for i in cuts]
