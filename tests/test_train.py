@@ -15,6 +15,7 @@ from fogsf.logs.chamber_log import ChamberLog
 from fogsf.models.reference import replay
 from fogsf.models.stream import StreamModel
 from fogsf.training.fitted_model import per_sample_prediction
+from fogsf.training.metrics_file import read_metrics, to_json
 from fogsf.training.options import TrainOptions
 from fogsf.training.train import run_training
 
@@ -46,6 +47,7 @@ def test_each_model_improves_another_ramp_rate(model: str, logs, tmp_path: Path)
         assert saved["params"] == StreamModel.load(tmp_path / model).params
     assert set(saved["test"]) == {"before", "after"}
     assert saved["noise_floor_ppm"] > 0
+    assert to_json(read_metrics(tmp_path / model)) == saved  # read back, the same content
 
 
 def test_artifact_computes_what_torch_trained(logs, tmp_path: Path) -> None:

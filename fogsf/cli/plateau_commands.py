@@ -22,6 +22,7 @@ from fogsf.logs.read.parquet_log import is_parquet, write_columns
 from fogsf.logs.writer import write_rows
 from fogsf.models.stream import StreamModel
 from fogsf.models.stream_flags import FLAG_NAMES
+from fogsf.training.metrics_file import to_json
 from fogsf.training.rate.plateau_model import PlateauRows, choice_rows
 from fogsf.training.rate.plateau_train import (
     check_static,
@@ -78,7 +79,7 @@ def train_tables(args: argparse.Namespace) -> int:
     fit, metrics = train_plateaus(train, test, args.latitude_deg, _cosine(args))
     save_plateau_model(fit, metrics, out)
     print("\n".join(metrics_lines(metrics)))
-    args.axis_result = metrics.to_json()
+    args.axis_result = to_json(metrics)
     print(f"wrote {out}/metrics.json and the firmware artifact (fogsf export {out} --out "
           "build/...)")
     return 0

@@ -38,7 +38,9 @@ from __future__ import annotations
 import argparse
 import sys
 import textwrap
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from fogsf.cli.arguments import (
     add_log_options,
@@ -54,11 +56,14 @@ from fogsf.fleet.new_unit import train_on_prior
 from fogsf.gsa.executors import add_executor_options
 from fogsf.models.structures.lag_bank import BANK_LSTM_INPUTS, bank_spec
 from fogsf.training.bias.model import bias_lines
-from fogsf.training.interval.transfer import RateTransfer, spans_ramp_rates
+from fogsf.training.interval.transfer import spans_ramp_rates
+from fogsf.training.metrics_file import Metrics, from_json, to_json
 from fogsf.training.options import DEFAULT_MODEL, MODELS, STRUCTURES, TrainOptions
+from fogsf.training.rate.plateau_train import metrics_lines
+from fogsf.training.results import BiasOnlyMetrics, PlateauMetrics
 from fogsf.training.structure.choice import choice_message
 from fogsf.training.structure.hysteresis import choice_line
-from fogsf.training.train import run_training
+from fogsf.training.train import train_model
 from fogsf.training.with_prior import prior_lines
 
 
@@ -169,15 +174,18 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
     if args.prior:
-        m = train_on_prior(args.prior, getattr(args, "unit", None), opts, train_logs, test_log, out)
+        content = train_on_prior(args.prior, getattr(args, "unit", None), opts, train_logs,
+                                 test_log, out)
+        m = from_json(content)
         print(format_metrics(m))
-        print("\n".join(textwrap.fill(x, 96) for x in prior_lines(m["prior"])))
+        print("\n".join(textwrap.fill(x, 96) for x in prior_lines(content["prior"])))
     else:
-        m, _ = run_training(opts, train_logs, test_log, out)
+        m, _ = train_model(opts, train_logs, test_log, out)
+        content = to_json(m)
         print(format_metrics(m))
-    args.axis_result = m
+    args.axis_result = content
     print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
-                                         f"{out} --out build/...)" if m["exportable"] else ""))
+                                         f"{out} --out build/...)" if m.exportable else ""))
     return 0
 
 
@@ -202,41 +210,39 @@ def train_options(args: argparse.Namespace) -> TrainOptions:
     )
 
 
-def format_metrics(m: dict) -> str:
-    if m.get("bias_only"):
-        return "\n".join([f"model {m['model']} (bias only: the logs are stationary, they "
-                          f"measure no SF): {m['params']} parameters, features "
-                          f"{', '.join(m['features'])}, trained in "
-                          f"{m['train_seconds']:.1f} s", *bias_lines(m["bias"])])
-    lines = [f"model {m['model']}: {m['params']} parameters ({m['weights_bytes']} bytes), "
-             f"features {', '.join(m['features'])}, trained in {m['train_seconds']:.1f} s"]
+def format_metrics(metrics: Metrics | Mapping[str, Any]) -> str:
+    """What `fogsf train` prints of a sample-log model's metrics (or metrics.json's content)."""
+    m = from_json(metrics) if isinstance(metrics, Mapping) else metrics
+    if isinstance(m, PlateauMetrics):
+        return "\n".join(metrics_lines(m))
+    if isinstance(m, BiasOnlyMetrics):
+        return "\n".join([f"model {m.model} (bias only: the logs are stationary, they "
+                          f"measure no SF): {m.params} parameters, features "
+                          f"{', '.join(m.features)}, trained in "
+                          f"{m.train_seconds:.1f} s", *bias_lines(m.bias)])
+    lines = [f"model {m.model}: {m.params} parameters ({m.weights_bytes} bytes), "
+             f"features {', '.join(m.features)}, trained in {m.train_seconds:.1f} s"]
     row = "  {:<16} {:>9} {:>9} {:>9} {:>9}"
     lines.append(row.format("SF error, ppm", "max|e|", "p-p", "RMS", "STD"))
-    blocks: list[tuple[str, dict]] = []
-    for part in ("train", "test"):
-        if part not in m:
-            continue
-        if "before" in m[part]:
-            blocks.append((part, m[part]))
-        else:  # several training logs: one block each
-            blocks += [(f"{part} {k[3:]}", v) for k, v in m[part].items()]
+    blocks = [("train" if len(m.train) == 1 else f"train {i}", s)
+              for i, s in enumerate(m.train)]
+    blocks += [("test", m.test)] if m.test is not None else []
     for name, block in blocks:
-        for when in ("before", "after"):
-            b = block[when]
+        for when, b in (("before", block.before), ("after", block.after)):
             lines.append(row.format(f"{name} {when}", f"{b['max_abs_ppm']:.2f}",
                                     f"{b['pp_ppm']:.2f}", f"{b['rms_ppm']:.2f}",
                                     f"{b['std_ppm']:.2f}"))
-    lines.append(f"  noise floor {m['noise_floor_ppm']:.2f} ppm ({m['window_s']:g} s windows)")
-    if "bias" in m:
-        lines += bias_lines(m["bias"])
-    if "structure_choice" in m:
-        lines.append(textwrap.fill(choice_message(m["structure_choice"]), 96))
-    if "hysteresis_choice" in m:
-        lines.append(textwrap.fill(choice_line(m["hysteresis_choice"]), 96))
-    if "rate_transfer" in m:
-        lines.append(textwrap.fill(RateTransfer(**m["rate_transfer"]).message(), 96))
-    elif not spans_ramp_rates(m["train_ramp_rates_c_per_min"]):
-        rates = ", ".join(f"{r:.2g}" for r in m["train_ramp_rates_c_per_min"])
+    lines.append(f"  noise floor {m.noise_floor_ppm:.2f} ppm ({m.window_s:g} s windows)")
+    if m.bias is not None:
+        lines += bias_lines(m.bias)
+    if m.structure_choice is not None:
+        lines.append(textwrap.fill(choice_message(m.structure_choice), 96))
+    if m.hysteresis_choice is not None:
+        lines.append(textwrap.fill(choice_line(m.hysteresis_choice), 96))
+    if m.rate_transfer is not None:
+        lines.append(textwrap.fill(m.rate_transfer.message(), 96))
+    elif not spans_ramp_rates(list(m.train_ramp_rates_c_per_min)):
+        rates = ", ".join(f"{r:.2g}" for r in m.train_ramp_rates_c_per_min)
         lines.append(textwrap.fill(
             f"note: the training logs hold one ramp rate ({rates} C/min): at other rates the "
             "compensation is an extrapolation that the data cannot check (give --test LOG "

@@ -11,6 +11,9 @@ from pathlib import Path
 FORMAT = "fogsf-stream-1"
 CONFIG_FILE = "stream.json"
 WEIGHTS_FILE = "stream_weights.npz"
+# what `fogsf train` records beside the artifact (written and read by
+# `training.metrics_file`; here its "model" only, as this stage may not import training)
+METRICS_FILE = "metrics.json"
 
 _CONFIG_KEYS: dict[str, type | tuple[type, ...]] = {
     "format": str, "model": str, "decimation": int, "sample_dt_s": (int, float),
@@ -44,7 +47,7 @@ FEAT_DIAG_KEY = "feat_diag"
 def _trained_kind(directory: Path) -> str | None:
     """The model kind `fogsf train` recorded in the directory's metrics.json, if any."""
     try:
-        kind = json.loads((directory / "metrics.json").read_text()).get("model")
+        kind = json.loads((directory / METRICS_FILE).read_text()).get("model")
     except (OSError, ValueError, AttributeError):
         return None
     return kind if isinstance(kind, str) else None

@@ -10,15 +10,16 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.training.fitted_model import Fitted
+from fogsf.training.metrics_file import write_metrics
+from fogsf.training.results import TrainMetrics
 
 
-def save(fitted: Fitted, metrics: dict, out_dir: Path) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
+def save(fitted: Fitted, metrics: TrainMetrics, out_dir: Path) -> None:
     info = {k: v for k, v in fitted.info.items() if k != "gsa_result"}
-    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_metrics(out_dir, metrics)
     (out_dir / "train_info.json").write_text(json.dumps(
-        {"model": fitted.kind, "features": metrics["features"],
-         "filter_tau_s": metrics["filter_tau_s"], **info}, indent=2, default=_json) + "\n")
+        {"model": fitted.kind, "features": list(metrics.features),
+         "filter_tau_s": list(metrics.filter_tau_s), **info}, indent=2, default=_json) + "\n")
     if fitted.stream_model is not None:
         fitted.stream_model.save(out_dir)
     if fitted.torch_state is not None:

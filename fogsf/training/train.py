@@ -26,9 +26,11 @@ Models (all causal, all from the board thermometer and time only):
 The LSTM models run at the model rate (one step per D samples, state carried) and are
 written in the firmware artifact format (stream.json + stream_weights.npz) for `fogsf export`.
 
-`run_training` is the recipe: fit the SF part (`training.sf.fit`), the bias part
-(`training.bias.head`), score (`training.score`), save (`training.save`); stationary logs
-alone train a bias-only model (`training.bias.stationary`).
+`train_model` is the recipe: fit the SF part (`training.sf.fit`), the bias part
+(`training.bias.head`), score (`training.score`, typed metrics: `training.results`), save
+(`training.save`, metrics.json by `training.metrics_file`); stationary logs alone train a
+bias-only model (`training.bias.stationary`). `run_training` gives its metrics as
+metrics.json's content.
 """
 
 from __future__ import annotations
@@ -36,15 +38,19 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.logs.read.sampling import common_rate
 from fogsf.models.front_end import decimation_for
 from fogsf.training.bias.head import finish_artifact, fit_bias_part
+from fogsf.training.bias.model import BiasModel
 from fogsf.training.bias.stationary import train_bias_only
 from fogsf.training.bias.targets import check_mixed
 from fogsf.training.fitted_model import Fitted, sf_predictions
+from fogsf.training.metrics_file import to_json
 from fogsf.training.options import TrainOptions
+from fogsf.training.results import BiasOnlyMetrics, TrainMetrics
 from fogsf.training.save import save
 from fogsf.training.score import training_metrics
 from fogsf.training.sf.fit import fit_sf
@@ -53,15 +59,25 @@ from fogsf.training.sf.fit import fit_sf
 def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
                  test_log: ChamberLog | None, out_dir: Path,
                  fit: Callable[[TrainOptions, list[ChamberLog]], Fitted] | None = None
-                 ) -> tuple[dict, Fitted]:
-    """Train, score, and write the model directory; returns metrics.json's content and the
-    fitted model. `fit`: what fits the SF part instead of `fit_sf` (the fleet's prior,
-    `training.with_prior`)."""
+                 ) -> tuple[dict[str, Any], Fitted]:
+    """`train_model`, its metrics as metrics.json holds them (for the callers that read or
+    extend that content: the fleet, `training.with_prior`, the benchmarks)."""
+    metrics, fitted = train_model(opts, train_logs, test_log, out_dir, fit)
+    return to_json(metrics), fitted  # type: ignore[return-value]
+
+
+def train_model(opts: TrainOptions, train_logs: list[ChamberLog],
+                test_log: ChamberLog | None, out_dir: Path,
+                fit: Callable[[TrainOptions, list[ChamberLog]], Fitted] | None = None
+                ) -> tuple[TrainMetrics | BiasOnlyMetrics, Fitted | BiasModel]:
+    """Train, score, and write the model directory; returns the metrics and the fitted
+    model (a `BiasModel` when the logs are stationary). `fit`: what fits the SF part
+    instead of `fit_sf` (the fleet's prior, `training.with_prior`)."""
     train_logs = common_rate(train_logs)  # other rates, jitter, drops: on one grid of time
     for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
         decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
     if check_mixed(train_logs):  # stationary logs alone: a bias-only model
-        return train_bias_only(opts, train_logs, test_log, out_dir)  # type: ignore[return-value]
+        return train_bias_only(opts, train_logs, test_log, out_dir)
     t0 = time.perf_counter()
     fitted = (fit or fit_sf)(opts, train_logs)
     sf_of = sf_predictions(fitted, opts.latitude_deg)  # once a log: the fit and the scores

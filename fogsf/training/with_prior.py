@@ -12,9 +12,7 @@ design's, `map_estimate.map_fit`), the unit is fitted alone, as `fogsf train` wo
 
 from __future__ import annotations
 
-import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +35,7 @@ from fogsf.prior.unit_fit import (
 )
 from fogsf.prior.unit_summary import series_of
 from fogsf.training.fitted_model import Fitted
+from fogsf.training.metrics_file import write_metrics
 from fogsf.training.options import TrainOptions
 from fogsf.training.sf.fit import fit_physics_head
 from fogsf.training.train import run_training
@@ -100,7 +99,7 @@ def train_with_prior(opts: TrainOptions, train_logs: list[ChamberLog],
             rec["interval_ppm"] = prior_interval(ff, test_log, opts,
                                                  metrics["noise_floor_ppm"])
     metrics["prior"] = rec
-    _rewrite(out_dir / "metrics.json", metrics)
+    write_metrics(out_dir, metrics)
     return metrics, fitted
 
 
@@ -169,8 +168,3 @@ def prior_lines(rec: dict) -> list[str]:
         lines.append(f"expected test RMS with the prior's spread: {lo:.2f}-{hi:.2f} ppm")
     return lines + tail
 
-
-def _rewrite(path: Path, obj: dict) -> None:
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(obj, indent=2) + "\n")
-    os.replace(tmp, path)

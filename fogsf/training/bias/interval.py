@@ -38,6 +38,7 @@ from fogsf.logs.read.columns import Column, span_means
 from fogsf.models.reference import expand
 from fogsf.training.bias.structure import CandidateFit, Columns, fit_candidate, lead_set
 from fogsf.training.interval.transfer import INTERVAL_LO, long_run_ratio
+from fogsf.training.results import RampRateCheck
 
 # The multiples of the noise figure and of the model's spread and parameter uncertainty in
 # the interval's top: the pairs' floor from second differences reads low, and the model's
@@ -154,7 +155,8 @@ def _lead_clause(lead: dict | None) -> str:
             f"s) by up to {lead['spread_dph']:.3f}")
 
 
-def interval_message(d: dict) -> str:
+def interval_message(d: dict, rr: RampRateCheck | None = None) -> str:
+    """`fogsf train`'s lines on the interval `d` (`bias_interval`'s) and the ramp check."""
     lo, hi = d["rms_interval_dph"]
     spread = max(d["spread_dph"].values(), default=0.0)
     text = (f"bias rate transfer: {len(d['consistent'])} of {d['candidates']} bias structures "
@@ -164,11 +166,10 @@ def interval_message(d: dict) -> str:
             f"{_lead_clause(d.get('lead_region'))}, the model's "
             f"parameters are uncertain by {d['parameter_dph']:.3f}. Expected RMS bias error "
             f"on the target: {lo:.3f}-{hi:.3f} deg/h (noise floor {d['noise_floor_dph']:.3f})")
-    rr = d.get("ramp_rates") or {}
-    if rr.get("rate_term_extrapolated"):
-        than = (f"faster than any training ramp ({rr['train_fastest_c_per_min']:.2f})"
-                if rr["train_fastest_c_per_min"] > 0 else "and the training logs hold no ramp")
-        text += (f". The test ramps at {rr['test_fastest_c_per_min']:.2f} C/min, {than}: the "
+    if rr is not None and rr.rate_term_extrapolated:
+        than = (f"faster than any training ramp ({rr.train_fastest_c_per_min:.2f})"
+                if rr.train_fastest_c_per_min > 0 else "and the training logs hold no ramp")
+        text += (f". The test ramps at {rr.test_fastest_c_per_min:.2f} C/min, {than}: the "
                  "bias's rate term (a Shupe term) is extrapolated there; a training ramp as "
                  "fast as the fastest the gyro will see pins it (docs/train.md, \"Bias\")")
     return text

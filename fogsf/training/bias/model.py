@@ -31,6 +31,7 @@ from fogsf.training.bias.features import FeatureMap
 from fogsf.training.bias.interval import Family, bias_interval, interval_message
 from fogsf.training.bias.targets import SFOf, _sf_for, measured_windows
 from fogsf.training.interval.transfer import RATE_TOLERANCE, ramp_segments
+from fogsf.training.results import BiasMetrics, BiasScore, BiasTransfer, RampRateCheck
 
 
 @dataclass
@@ -74,26 +75,26 @@ def score_bias(model: BiasModel, log: ChamberLog, window_s: float = 100.0,
 
 def score_logs(model: BiasModel, train_logs: list[ChamberLog], test_log: ChamberLog | None,
                window_s: float, latitude_deg: float | None, settle_s: float,
-               sf_of: SFOf | None = None) -> dict:
+               sf_of: SFOf | None = None) -> BiasMetrics:
     """metrics.json's "bias" block: the fit, then test and train scores (one per log)."""
-    out: dict = {"model": model.as_dict()}
-    if test_log is not None:
-        out["test"] = score_bias(model, test_log, window_s, latitude_deg, settle_s, sf_of)
-        if out["test"] is not None and model.family is not None:
-            out["rate_transfer"] = bias_interval(model.family, test_log,
-                                                 model.predict(test_log), window_s,
-                                                 latitude_deg, settle_s,
-                                                 _sf_for(test_log, sf_of))
-            if out["rate_transfer"] is not None and model.choice is not None:
-                out["rate_transfer"]["ramp_rates"] = ramp_rate_check(
-                    train_logs, test_log, model.choice.name)
-    out["train"] = {f"log{i}": score_bias(model, lg, window_s, latitude_deg, settle_s, sf_of)
-                    for i, lg in enumerate(train_logs)}
-    return out
+    def scored(log: ChamberLog) -> BiasScore | None:
+        s = score_bias(model, log, window_s, latitude_deg, settle_s, sf_of)
+        return None if s is None else BiasScore(**s)
+
+    test = scored(test_log) if test_log is not None else None
+    transfer = None
+    if test_log is not None and test is not None and model.family is not None:
+        interval = bias_interval(model.family, test_log, model.predict(test_log), window_s,
+                                 latitude_deg, settle_s, _sf_for(test_log, sf_of))
+        rr = (ramp_rate_check(train_logs, test_log, model.choice.name)
+              if interval is not None and model.choice is not None else None)
+        transfer = BiasTransfer(interval, rr)
+    return BiasMetrics(model.as_dict(), tuple(scored(lg) for lg in train_logs),
+                       tested=test_log is not None, test=test, transfer=transfer)
 
 
 def ramp_rate_check(train_logs: list[ChamberLog], test_log: ChamberLog, structure: str
-                    ) -> dict:
+                    ) -> RampRateCheck:
     """The fastest ramp (C/min) of the training logs and of the test log, and whether the
     bias's rate term is extrapolated there: a structure with one (every one but the cubic)
     and a test ramp faster than any training ramp by more than the rate tolerance: a slower
@@ -103,33 +104,32 @@ def ramp_rate_check(train_logs: list[ChamberLog], test_log: ChamberLog, structur
                    default=0.0)
 
     fastest, test = fastest_of(train_logs), fastest_of([test_log])
-    return {"train_fastest_c_per_min": fastest, "test_fastest_c_per_min": test,
-            "rate_term_extrapolated": bool(structure != "cubic"
-                                           and test > fastest * (1 + RATE_TOLERANCE))}
+    return RampRateCheck(fastest, test, bool(structure != "cubic"
+                                             and test > fastest * (1 + RATE_TOLERANCE)))
 
 
-def bias_lines(b: dict) -> list[str]:
+def bias_lines(b: BiasMetrics) -> list[str]:
     """`fogsf train`'s bias table (deg/h) from metrics.json's "bias" block."""
     import textwrap
 
     row = "  {:<16} {:>9} {:>9} {:>9} {:>9} {:>9}"
     lines = [row.format("bias, deg/h", "max|e|", "p-p", "RMS", "STD", "floor")]
-    blocks = ([("test", b["test"])] if b.get("test") else []) + [
-        (f"train {k[3:]}" if len(b["train"]) > 1 else "train", v)
-        for k, v in b["train"].items() if v is not None]
+    blocks = ([("test", b.test)] if b.test is not None else []) + [
+        (f"train {i}" if len(b.train) > 1 else "train", s)
+        for i, s in enumerate(b.train) if s is not None]
     for name, block in blocks:
-        for when in ("before", "after"):
-            m = block[when]
+        for when, m in (("before", block.before), ("after", block.after)):
             lines.append(row.format(f"{name} {when}", f"{m['max_abs_dph']:.4f}",
                                     f"{m['pp_dph']:.4f}", f"{m['rms_dph']:.4f}",
                                     f"{m['std_dph']:.4f}", f"{m['noise_floor_dph']:.4f}"))
-    if b.get("rate_transfer"):
-        lines += ["  " + ln for ln in textwrap.wrap(interval_message(b["rate_transfer"]), 94)]
-    if b["model"].get("structure"):
-        lines += ["  " + ln for ln in textwrap.wrap(bc.choice_message(b["model"]["structure"]),
+    if b.transfer is not None and b.transfer.interval is not None:
+        lines += ["  " + ln for ln in textwrap.wrap(interval_message(b.transfer.interval,
+                                                                   b.transfer.ramp_rates), 94)]
+    if b.model.get("structure"):
+        lines += ["  " + ln for ln in textwrap.wrap(bc.choice_message(b.model["structure"]),
                                                      94)]
-    src = ", ".join(sorted(set(b["model"]["sources"])))
-    lines.append(f"  bias model: {b['model']['targets']} targets ({src}) on the features z; "
+    src = ", ".join(sorted(set(b.model["sources"])))
+    lines.append(f"  bias model: {b.model['targets']} targets ({src}) on the features z; "
                  "before = the measured bias, after = measured - predicted (floor: 1 sigma "
                  "of one window)")
     return lines

@@ -14,13 +14,16 @@ from fogsf.logs.chamber_log import ChamberLog
 from fogsf.training.bias.artifact import bias_only_stream_model
 from fogsf.training.bias.fit import fit_bias
 from fogsf.training.bias.model import BiasModel, score_logs
+from fogsf.training.metrics_file import write_metrics
 from fogsf.training.options import TrainOptions
+from fogsf.training.results import BiasOnlyMetrics
 
 KIND = "bias"  # metrics.json's "model" of a bias-only model
 
 
 def train_bias_only(opts: TrainOptions, train_logs: list[ChamberLog],
-                    test_log: ChamberLog | None, out_dir: Path) -> tuple[dict, BiasModel]:
+                    test_log: ChamberLog | None, out_dir: Path
+                    ) -> tuple[BiasOnlyMetrics, BiasModel]:
     """Fit, score and write metrics.json and train_info.json; returns (metrics, model)."""
     t0 = time.perf_counter()
     model = fit_bias(None, train_logs, opts.window_s, opts.latitude_deg, opts.settle_s,
@@ -31,22 +34,18 @@ def train_bias_only(opts: TrainOptions, train_logs: list[ChamberLog],
     train_s = time.perf_counter() - t0
     sm = bias_only_stream_model(model)
     n_params = sm.params
-    metrics: dict = {
-        "model": KIND, "bias_only": True, "window_s": opts.window_s,
-        "settle_s": opts.settle_s,
-        "bias": score_logs(model, train_logs, test_log, opts.window_s, opts.latitude_deg,
-                           opts.settle_s),
-        "params": n_params, "weights_bytes": 4 * n_params,
-        "features": list(fm.names) or ["T"] + [f"lag(T,{t:.0f}s)" for t in fm.fe.filter_tau_s],
-        "filter_tau_s": list(fm.fe.filter_tau_s), "decimation": fm.fe.decimation,
-        "model_step_s": fm.fe.step_s, "sample_rate_hz": 1.0 / fm.fe.sample_dt_s,
-        "exportable": True, "train_seconds": train_s, "seed": opts.seed,
-        "model_id": sm.model_id,
-    }
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    metrics = BiasOnlyMetrics(
+        model=KIND, window_s=opts.window_s, settle_s=opts.settle_s,
+        bias=score_logs(model, train_logs, test_log, opts.window_s, opts.latitude_deg,
+                        opts.settle_s),
+        params=n_params, weights_bytes=4 * n_params,
+        features=tuple(fm.names) or ("T", *(f"lag(T,{t:.0f}s)" for t in fm.fe.filter_tau_s)),
+        filter_tau_s=tuple(fm.fe.filter_tau_s), decimation=fm.fe.decimation,
+        model_step_s=fm.fe.step_s, sample_rate_hz=1.0 / fm.fe.sample_dt_s,
+        train_seconds=train_s, seed=opts.seed, model_id=sm.model_id)
+    write_metrics(out_dir, metrics)
     (out_dir / "train_info.json").write_text(json.dumps(
-        {"model": KIND, "features": metrics["features"],
-         "filter_tau_s": metrics["filter_tau_s"], "bias": model.as_dict()}, indent=2) + "\n")
+        {"model": KIND, "features": list(metrics.features),
+         "filter_tau_s": list(metrics.filter_tau_s), "bias": model.as_dict()}, indent=2) + "\n")
     sm.save(out_dir)
     return metrics, model

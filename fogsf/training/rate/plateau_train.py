@@ -4,8 +4,6 @@ sample (`correct_rows`), and the figures of the run as `PlateauMetrics`."""
 
 from __future__ import annotations
 
-import json
-from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +12,9 @@ from fogsf.errors import UserError
 from fogsf.logs.plateau_table import PlateauTable
 from fogsf.models import reference
 from fogsf.models.stream import StreamModel
+from fogsf.training.metrics_file import write_metrics
 from fogsf.training.rate.plateau_model import PlateauFit, PlateauRows, fit_plateau_model
+from fogsf.training.results import PlateauMetrics, TableScore
 
 DPS_TO_DPH = 3600.0
 
@@ -57,45 +57,12 @@ def rms_dph(err_dps: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(err_dps))) * DPS_TO_DPH)
 
 
-@dataclass(frozen=True)
-class TableScore:
-    """One table's plateaus before (the raw output) and after correction, RMS deg/h against
-    the rate each sensed."""
-
-    path: str
-    plateaus: int
-    before_dph: float
-    after_dph: float
-
-
 def score_table(model: StreamModel, table: PlateauTable, latitude_deg: float | None,
                 axis_cosine: float) -> TableScore:
     rows = rows_of([table], latitude_deg, axis_cosine)
     corrected, _ = correct_rows(model, rows.temp_c, rows.gyro_dps)
     return TableScore(table.path, len(rows), rms_dph(rows.gyro_dps - rows.rate_dps),
                       rms_dph(corrected - rows.rate_dps))
-
-
-@dataclass(frozen=True)
-class PlateauMetrics:
-    """What `fogsf train` on plateau tables writes to metrics.json and prints."""
-
-    model: str
-    model_id: str
-    rate_form: str
-    rate_part: bool
-    rate_part_measured: bool  # the tables hold two |rates| or more
-    full_scale_dps: float
-    temp_range_c: tuple[float, float]
-    heldout_dph: float  # the chosen form on held-out plateaus (the choice's folds)
-    linear_heldout_dph: float  # the best linear SF on the same folds
-    folds: int
-    train: list[TableScore]
-    test: TableScore | None
-    exportable: bool = True
-
-    def to_json(self) -> dict:
-        return asdict(self)
 
 
 def train_plateaus(train: list[PlateauTable], test: PlateauTable | None,
@@ -116,8 +83,7 @@ def train_plateaus(train: list[PlateauTable], test: PlateauTable | None,
 
 
 def save_plateau_model(fit: PlateauFit, metrics: PlateauMetrics, out: Path) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "metrics.json").write_text(json.dumps(metrics.to_json(), indent=2) + "\n")
+    write_metrics(out, metrics)
     fit.model.save(out)
 
 
