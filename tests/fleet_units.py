@@ -50,6 +50,34 @@ def fake_record(sn: str, seed: int = 0, structure: str = "physics2") -> UnitReco
         fogsf_version="0.1.0", created_utc="2026-11-27T10:00:00Z")
 
 
+# A child process's start-up code (sitecustomize.py on its PYTHONPATH) that pauses inside
+# every store add's transaction, after its INSERTs and before COMMIT, once it has said so in
+# a file: a kill lands there deterministically, with nothing in fogsf for the tests.
+PAUSE_SITE = """
+import os, time
+from pathlib import Path
+import fogsf.fleet.store as store
+_bump = store.bump_state
+def _bump_then_pause(db):
+    _bump(db)
+    Path({marker!r}).write_text(str(os.getpid()))
+    time.sleep({pause_s!r})
+store.bump_state = _bump_then_pause
+"""
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def pause_in_add(folder: Path, marker: Path, pause_s: float = 120.0) -> dict[str, str]:
+    """The environment of a child process whose store adds pause `pause_s` inside their
+    transaction, `marker` written when one is there (PAUSE_SITE, written into `folder`)."""
+    site = folder / "pause-in-add"
+    site.mkdir(parents=True, exist_ok=True)
+    (site / "sitecustomize.py").write_text(PAUSE_SITE.format(marker=str(marker),
+                                                             pause_s=float(pause_s)))
+    path = [str(site), str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(path)}
+
+
 def wait_for(cond: Callable[[], bool], timeout_s: float, what: str) -> None:
     t_end = time.monotonic() + timeout_s
     while not cond():
@@ -132,9 +160,13 @@ def _postgres(tmp_path: Path) -> str:
     return _fresh_pg_database(server)
 
 
+# backend -> a function of tmp_path giving a fresh fleet on it
+FLEETS: dict[str, Callable[[Path], str]] = {"sqlite": _sqlite, "postgresql": _postgres}
+
+
 def fleet_urls() -> list:
     """pytest params: a function of tmp_path giving a fresh fleet, on each backend."""
-    return [pytest.param(_sqlite, id="sqlite"), pytest.param(_postgres, id="postgresql")]
+    return [pytest.param(make, id=name) for name, make in FLEETS.items()]
 
 
 def raw_execute(fleet: str, statements: list[str]) -> None:

@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pytest
 
+from fogsf import scratch
 from fogsf.errors import UserError
-from fogsf.fleet import scratch
 from fogsf.fleet.lease import BatchLease, check_batch, host_key
-from fogsf.fleet.store import PAUSE_HOOK, PAUSE_S_HOOK, open_store
+from fogsf.fleet.store import open_store
 from tests.fleet_kill import count_units, kill_trial, make_logs
-from tests.fleet_units import fake_record, fleet_urls, wait_for
+from tests.fleet_units import FLEETS, fake_record, fleet_urls, pause_in_add, wait_for
 
 FAST = ["--structure", "physics", "--iters", "2", "--hysteresis", "off", "--no-progress"]
 
@@ -29,11 +29,17 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     return make_logs(tmp_path_factory.mktemp("logs"))
 
 
+# Each backend once and each kill once: a kill by pid and by process group reach the same
+# code on either backend. `python -m benchmarks.probes.fleet_batch_kill --trials 10` runs
+# every backend killed each way, repeatedly.
+KILLS = [("sqlite", "pid"), ("postgresql", "group")]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("how", ["pid", "group"])
-@pytest.mark.parametrize("make_fleet", fleet_urls())
-def test_a_killed_batch_stops(make_fleet, how: str, logs: list[Path], tmp_path: Path) -> None:
-    fleet = make_fleet(tmp_path)
+@pytest.mark.parametrize("backend, how", KILLS, ids=[f"{b}-{h}" for b, h in KILLS])
+def test_a_killed_batch_stops(backend: str, how: str, logs: list[Path], tmp_path: Path
+                              ) -> None:
+    fleet = FLEETS[backend](tmp_path)
     t = kill_trial(tmp_path, fleet, logs, how)
     assert t.at_kill >= 1, f"killed before any unit landed, or never killed: {t}"
     assert not t.alive_soon and not t.alive, f"processes of the batch alive after the kill: {t}"
@@ -43,12 +49,12 @@ def test_a_killed_batch_stops(make_fleet, how: str, logs: list[Path], tmp_path: 
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("make_fleet", fleet_urls())
-def test_a_worker_outliving_its_batch_records_nothing(make_fleet, logs: list[Path],
-                                                      tmp_path: Path) -> None:
+def test_a_worker_outliving_its_batch_records_nothing(logs: list[Path], tmp_path: Path
+                                                      ) -> None:
     """A worker inside its unit's transaction when its batch is killed, and left running
-    (no pipe, no parent-death signal): its unit is refused, nothing recorded."""
-    fleet = make_fleet(tmp_path)
+    (no pipe, no parent-death signal): its unit is refused, nothing recorded. On SQLite:
+    the lease's check is the same SQL on both backends, tested on both below."""
+    fleet = FLEETS["sqlite"](tmp_path)
     ready = tmp_path / "lease-id"
     holder = subprocess.Popen(  # the batch: holds the lease until killed
         [sys.executable, "-c", "import sys, time, pathlib\n"
@@ -60,7 +66,7 @@ def test_a_worker_outliving_its_batch_records_nothing(make_fleet, logs: list[Pat
     worker = None
     try:
         wait_for(ready.exists, 60, "the lease was never taken")
-        env = dict(os.environ, **{PAUSE_HOOK: str(marker), PAUSE_S_HOOK: "2"})
+        env = pause_in_add(tmp_path, marker, 2)
         worker = subprocess.Popen(
             [sys.executable, "-m", "fogsf", "fleet", "add", fleet, "--unit", "W1",
              "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", ready.read_text()],
@@ -158,7 +164,7 @@ def test_a_killed_command_leaves_no_folder_after_the_next(command: str, logs: li
 
 
 def test_a_process_folder_goes_at_exit(tmp_path: Path) -> None:
-    code = ("import sys; from fogsf.fleet import scratch; p = scratch.process_dir(); "
+    code = ("import sys; from fogsf import scratch; p = scratch.process_dir(); "
             "(p / 'x').write_text('1'); print(p)")
     out = subprocess.run([sys.executable, "-c", code], env=dict(os.environ, TMPDIR=str(tmp_path)),
                          capture_output=True, text=True, check=True).stdout.strip()

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 from fogsf.errors import UserError
-from fogsf.fleet.store import PAUSE_HOOK, PAUSE_S_HOOK, SCHEMA_VERSION, open_store
-from tests.fleet_units import fake_record, fleet_urls, wait_for
+from fogsf.fleet.store import SCHEMA_VERSION, open_store
+from tests.fleet_units import ROOT, fake_record, fleet_urls, pause_in_add, wait_for
 
 ADD_SCRIPT = """
 import sys
@@ -27,9 +27,6 @@ store.add(fake_record(sys.argv[2], seed=int(sys.argv[3])), replace=sys.argv[4] =
 store.close()
 """
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
 @pytest.fixture(params=fleet_urls())
 def fleet(request: pytest.FixtureRequest, tmp_path: Path) -> str:
     return request.param(tmp_path)
@@ -37,9 +34,10 @@ def fleet(request: pytest.FixtureRequest, tmp_path: Path) -> str:
 
 def _add_process(fleet: str, sn: str, seed: int, replace: bool = False,
                  env: dict | None = None, **kw: object) -> subprocess.Popen:
+    """A process adding a made-up unit; `env` (`pause_in_add`'s): paused in its transaction."""
     return subprocess.Popen([sys.executable, "-c", ADD_SCRIPT, fleet, sn, str(seed),
                              "1" if replace else "0"], cwd=ROOT,
-                            env={**os.environ, "PYTHONPATH": str(ROOT), **(env or {})}, **kw)
+                            env=env or {**os.environ, "PYTHONPATH": str(ROOT)}, **kw)
 
 
 def _snapshot(fleet: str) -> list[dict]:
@@ -78,7 +76,7 @@ def test_kill_inside_an_add_leaves_the_database_as_before(fleet: str, tmp_path: 
     before = _snapshot(fleet)
     marker = tmp_path / "inside-transaction"
     proc = _add_process(fleet, "SN001" if replace else "SN009", seed=9, replace=replace,
-                        env={PAUSE_HOOK: str(marker)})
+                        env=pause_in_add(tmp_path, marker))
     try:
         wait_for(marker.exists, 60.0, "the add never reached its transaction")
         os.kill(proc.pid, signal.SIGKILL)  # after the INSERTs, before COMMIT
@@ -102,8 +100,7 @@ def test_kill_inside_an_add_leaves_the_database_as_before(fleet: str, tmp_path: 
 def test_two_adds_at_once_both_land(fleet: str, tmp_path: Path) -> None:
     open_store(fleet).close()  # created: both processes find the schema
     marker = tmp_path / "first-inside"
-    first = _add_process(fleet, "SN-A", seed=1, env={PAUSE_HOOK: str(marker),
-                                                     PAUSE_S_HOOK: "2"})
+    first = _add_process(fleet, "SN-A", seed=1, env=pause_in_add(tmp_path, marker, 2))
     try:
         wait_for(marker.exists, 60.0, "the first add never reached its transaction")
         second = _add_process(fleet, "SN-B", seed=2)  # waits for the first's lock
@@ -118,8 +115,7 @@ def test_two_adds_at_once_both_land(fleet: str, tmp_path: Path) -> None:
         assert store.unit("SN-B").summary == fake_record("SN-B", seed=2).summary
     # the same unit from two processes at once: the second is refused, the first stays
     marker.unlink()
-    first = _add_process(fleet, "SN-C", seed=5, env={PAUSE_HOOK: str(marker),
-                                                     PAUSE_S_HOOK: "2"})
+    first = _add_process(fleet, "SN-C", seed=5, env=pause_in_add(tmp_path, marker, 2))
     wait_for(marker.exists, 60.0, "the first add never reached its transaction")
     second = _add_process(fleet, "SN-C", seed=6, stderr=subprocess.PIPE, text=True)
     _, err = second.communicate(timeout=120)

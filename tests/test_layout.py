@@ -18,6 +18,7 @@ MAX_INNER_IMPORTS = 15  # imports of fogsf's own modules inside functions, packa
 # stage -> the stages it imports from directly (docs/decisions.md); below them, what those do
 DIRECT: dict[str, set[str]] = {
     "errors": set(),
+    "scratch": set(),
     "logs": {"errors"},
     "gsa": {"errors"},
     "sim": {"logs"},
@@ -27,7 +28,7 @@ DIRECT: dict[str, set[str]] = {
     "diagnose": {"logs", "sim", "models"},
     "export": {"models"},
     "plan": {"training", "sim", "gsa", "prior"},
-    "fleet": {"training", "plan", "prior"},
+    "fleet": {"training", "plan", "prior", "scratch"},
     "bindings": {"models", "export"},
     "cli": {"logs", "gsa", "sim", "models", "prior", "training", "diagnose", "export", "fleet",
             "plan", "bindings"},

@@ -2,7 +2,8 @@
 
 FLEET is an SQLite file (`add` and `add-many` create it; the other actions need it) or a
 postgresql:// URL that several chambers share (the password in PGPASSWORD or ~/.pgpass).
-`add` trains a unit exactly as `fogsf train` does (the same options) and records it: its
+`add` trains a unit exactly as `fogsf train` does (the same options; on a rate table's
+plateau tables, the plateau model: `fleet.plateau_unit`) and records it: its
 logs (path, sha256, rows, span, ramp rates), its model (id, what it was fitted with, the
 parameters the design's prior needs), its figures and interval, the fogsf version and the
 time, in one transaction (a killed add leaves the database as it was). `add-many` adds the
@@ -31,9 +32,10 @@ from pathlib import Path
 
 from fogsf.cli import fleet_export
 from fogsf.cli import train as train_cli
-from fogsf.cli.arguments import read_logs
+from fogsf.cli.arguments import cosine_for, dialect_from_args, read_logs
 from fogsf.cli.fleet_views import run_check, run_list, run_report
 from fogsf.cli.main import main
+from fogsf.cli.plateau_commands import TRAIN_ONLY_SAMPLES, any_plateau_table
 from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
 from fogsf.fleet.batch import run_local
@@ -42,10 +44,13 @@ from fogsf.fleet.faults import db_faults
 from fogsf.fleet.lease import BatchLease, check_batch
 from fogsf.fleet.manifest import ManifestRow, read_manifest
 from fogsf.fleet.names import check_unit_name, masked, shown
-from fogsf.fleet.records import structure_of, unit_record
-from fogsf.fleet.scratch import temp_dir
-from fogsf.fleet.store import open_store
+from fogsf.fleet.plateau_unit import plateau_record
+from fogsf.fleet.records import UnitRecord, structure_of, unit_record
+from fogsf.fleet.store import fleet_exists, open_store
 from fogsf.gsa.executors import default_workers, open_executor
+from fogsf.logs.plateau_table import read_plateau_table
+from fogsf.scratch import temp_dir
+from fogsf.training.rate.plateau_train import metrics_lines, save_plateau_model, train_plateaus
 from fogsf.training.train import run_training
 
 FLEET_HELP = ("the fleet: an SQLite file or a postgresql:// URL (its password from "
@@ -167,23 +172,19 @@ def run_add(args: argparse.Namespace) -> int:
         raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
                         "under the design's prior and record it: fogsf train --prior FLEET "
                         "--unit SN ...")
-    with open_store(args.fleet, "create") as store:  # refuse a unit there before training
-        if store.has(args.unit) and not args.replace:
-            raise UserError(f"unit {shown(args.unit)} is already in {store.location} (--replace "
-                            "to record it again, or `fogsf fleet remove`)")
-    train_logs = read_logs(args, args.train, on_disk=True)
-    test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
-    opts = train_options(args)
+    # A unit already there is refused before training; the fleet is created only to record
+    # the unit, so that a refused add leaves no empty fleet behind.
+    if fleet_exists(args.fleet):
+        with open_store(args.fleet, "create") as store:
+            if store.has(args.unit) and not args.replace:
+                raise UserError(f"unit {shown(args.unit)} is already in {store.location} "
+                                "(--replace to record it again, or `fogsf fleet remove`)")
+    tables = any_plateau_table(args, args.train + ([args.test] if args.test else []))
     with temp_dir("fleet-") as tmp:
         out = Path(args.out) if args.out else tmp
         if out.exists() and not out.is_dir():
             raise UserError(f"--out {out} exists and is not a directory")
-        metrics, fitted = run_training(opts, train_logs, test_log, out)
-        print(format_metrics(metrics))
-        options = {k: v for k, v in vars(opts).items()
-                   if k not in ("progress", "workers", "dask", "extra")}
-        record = unit_record(args.unit, train_logs, test_log, metrics, fitted, out,
-                             options, keep_dir=bool(args.out))
+        record = _fit_tables(args, out) if tables else _fit_logs(args, out)
     try:
         with db_faults(masked(args.fleet)), open_store(args.fleet, "create") as store:
             store.add(record, replace=args.replace, guard=None if not args.batch else
@@ -196,6 +197,42 @@ def run_add(args: argparse.Namespace) -> int:
           f"structure {structure_of(record)}"
           + (f", model in {args.out}" if args.out else ""))
     return 0
+
+
+def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:
+    """The unit trained on sample logs as `fogsf train` trains it, into `out`; its record."""
+    train_logs = read_logs(args, args.train, on_disk=True)
+    test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
+    opts = train_options(args)
+    metrics, fitted = run_training(opts, train_logs, test_log, out)
+    print(format_metrics(metrics))
+    options = {k: v for k, v in vars(opts).items()
+               if k not in ("progress", "workers", "dask", "extra")}
+    return unit_record(args.unit, train_logs, test_log, metrics, fitted, out, options,
+                       keep_dir=bool(args.out))
+
+
+def _fit_tables(args: argparse.Namespace, out: Path) -> UnitRecord:
+    """The unit's plateau model fitted on its plateau tables as `fogsf train` fits it, into
+    `out`; its record (`fleet.plateau_unit`)."""
+    given = [o for o in TRAIN_ONLY_SAMPLES if o != "unit" and getattr(args, o, None)]
+    given += ["hysteresis"] if getattr(args, "hysteresis", "auto") != "auto" else []
+    if given:
+        raise UserError(f"--{given[0].replace('_', '-')} is for sample logs: a plateau table "
+                        "trains the plateau model (docs/train.md, \"Plateau tables\")")
+    dialect = dialect_from_args(args)
+    train = [read_plateau_table(p, dialect) for p in args.train]
+    test = read_plateau_table(args.test, dialect) if args.test else None
+    for t in [*train, *([test] if test else [])]:
+        if t.read_notes:
+            print(f"fogsf: read {t.path}: {'; '.join(t.read_notes)}", file=sys.stderr)
+    cosine = cosine_for(getattr(args, "axis_cosine", None), getattr(args, "axis", None))
+    fit, metrics = train_plateaus(train, test, args.latitude_deg, cosine)
+    save_plateau_model(fit, metrics, out)
+    print("\n".join(metrics_lines(metrics)))
+    return plateau_record(args.unit, train, test, fit, metrics, out,
+                          {"latitude_deg": args.latitude_deg, "axis_cosine": cosine},
+                          keep_dir=bool(args.out))
 
 
 def add_one(argv: list[str]) -> tuple[int, str]:
@@ -221,9 +258,14 @@ def run_add_many(args: argparse.Namespace) -> int:
     for bad in ("--unit", "--train", "--test", "--out"):
         if bad in extra:
             raise UserError(f"--train-options: {bad} comes from the manifest's columns")
-    with open_store(args.fleet, "create") as store:  # created, migrated, before the workers
-        have = {r.unit for r in store.units()}
-        where = store.location  # password masked: the URL itself is never printed
+    workers = default_workers() if args.workers is None else args.workers
+    if workers < 1:
+        raise UserError(f"--workers must be at least 1, got {workers}")
+    have: set[str] = set()
+    where = masked(args.fleet)  # the password masked: the URL itself is never printed
+    if fleet_exists(args.fleet):  # else the batch's lease creates it, after every refusal
+        with open_store(args.fleet, "create") as store:  # migrated before the workers
+            have = {r.unit for r in store.units()}
     clash = [r.unit for r in rows if r.unit in have]
     if clash and not args.replace:
         raise UserError(f"{args.manifest}: {len(clash)} unit(s) already in {where}: "
@@ -241,9 +283,6 @@ def run_add_many(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    workers = default_workers() if args.workers is None else args.workers
-    if workers < 1:
-        raise UserError(f"--workers must be at least 1, got {workers}")
     # The batch's lease: a unit whose batch is gone (this process killed) is not recorded.
     with BatchLease(args.fleet) as lease, \
             tqdm(total=len(rows), desc="units", unit="unit",

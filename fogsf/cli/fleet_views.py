@@ -13,11 +13,13 @@ import math
 import os
 import tempfile
 from collections import Counter
+from dataclasses import replace
 from pathlib import Path
 
 from fogsf.errors import UserError
-from fogsf.fleet.check import checked
+from fogsf.fleet.check import CheckResult, check_fleet, checked
 from fogsf.fleet.names import shown
+from fogsf.fleet.plateau_unit import PLATEAU, is_plateau_unit
 from fogsf.fleet.records import UnitRecord, spec_verdict, structure_of
 from fogsf.fleet.report import write_report
 from fogsf.fleet.report_dir import check_out_dir
@@ -71,8 +73,17 @@ def run_list(args: argparse.Namespace) -> int:
         print(json.dumps(json_safe(rows), indent=2))
         return 0
     print(f"{where}: {len(units)} unit(s)")
-    if not units:
-        return 0
+    plateau = [u for u in units if is_plateau_unit(u)]
+    units = [u for u in units if not is_plateau_unit(u)]
+    if units:
+        _list_units(units, spec)
+    if plateau:
+        _list_plateau_units(plateau, spec)
+    return 0
+
+
+def _list_units(units: list[UnitRecord], spec: float | None) -> None:
+    """The units trained on sample logs: their residual over the noise floor, interval."""
     row = "{:<16} {:>8} {:>5} {:<24} {:>10} {:>10} {:>13}  {}"
     print(row.format("unit", "chamber", "logs", "structure", "train x", "test x",
                      "interval x", "recorded (UTC)")
@@ -90,12 +101,33 @@ def run_list(args: argparse.Namespace) -> int:
               + ("" if spec is None else f"  {spec_verdict(u, spec)}"))
     print("x: RMS SF error left / the noise floor"
           + ("" if spec is None else f"; {spec_counts(units, spec)}"))
-    return 0
+
+
+def _list_plateau_units(units: list[UnitRecord], spec: float | None) -> None:
+    """The units calibrated on plateau tables: their tables' static figures (the largest
+    temperature group's nonlinearity and asymmetry) and the RMS left on their plateaus."""
+    row = "{:<16} {:>8} {:>11} {:>9} {:>10} {:>8} {:>8} {:>8} {:>8}  {}"
+    print("plateau units (rate table):")
+    print(row.format("unit", "plateaus", "T, C", "SF ppm/C", "nonlin ppm", "asym ppm",
+                     "bias", "train", "test", "recorded (UTC)"))
+    for u in units:
+        f, m = u.figures, u.summary
+        lo, hi = (m.get("temp_range_c") or [math.nan, math.nan])[:2]
+        print(row.format(_cell(u.unit, 16), f.get("plateaus", "-"), f"{lo:.1f}-{hi:.1f}",
+                         _fmt(m.get("sf_drift_ppm_per_c")),
+                         _fmt(m.get("sf_nonlinearity_ppm_fs"), ".1f"),
+                         _fmt(m.get("sf_asymmetry_ppm")), _fmt(m.get("bias_dph")),
+                         _fmt(f.get("train_after_rms_dph")), _fmt(f.get("test_after_rms_dph")),
+                         u.created_utc))
+    print("SF ppm/C: the SF's drift with temperature; nonlin: ppm of full scale; bias, train, "
+          "test: deg/h (train, test: RMS left on the plateaus against the rate each sensed)"
+          + ("" if spec is None else "; --spec-ppm reads a test RMS in ppm: plateau units "
+                                     "are unsure"))
 
 
 def run_check(args: argparse.Namespace) -> int:
 
-    result, _, _ = checked(args.fleet, args.false_alarm)
+    result, _, _ = _checked(args.fleet, args.false_alarm)
     print(result.message())
     if args.json:
         _write_atomic(Path(args.json), json.dumps(json_safe(result.as_dict()), indent=2) + "\n")
@@ -107,7 +139,7 @@ def run_report(args: argparse.Namespace) -> int:
 
     check_spec(args.spec_ppm)
     check_out_dir(Path(args.out))  # refused before the check's minutes, not after
-    result, units, where = checked(args.fleet, args.false_alarm, with_units=True)
+    result, units, where = _checked(args.fleet, args.false_alarm, with_units=True)
     if not units:
         raise UserError(f"{where} has no units (fogsf fleet add first)")
     index = write_report(units, result, Path(args.out), title=where, spec_ppm=args.spec_ppm)
@@ -115,6 +147,28 @@ def run_report(args: argparse.Namespace) -> int:
           + ("" if args.spec_ppm is None else f"; {spec_counts(units, args.spec_ppm)}")
           + ")")
     return 0
+
+
+def _checked(fleet: str, false_alarm: float, with_units: bool = False
+             ) -> tuple[CheckResult, list[UnitRecord] | None, str]:
+    """`fleet.check.checked`, the plateau units left out and named in its note: the check
+    compares units by their SF response over time, which a plateau table does not give.
+    A fleet with plateau units is checked afresh each time (its cache holds no such check)."""
+    with open_store(fleet, "read") as store:
+        plateau = [r[0] for r in store.execute("SELECT sn FROM units WHERE structure = ?",
+                                               (PLATEAU,)).fetchall()]
+    if not plateau:
+        return checked(fleet, false_alarm, with_units)
+    with open_store(fleet, "read") as store:
+        units, where = store.units(), store.location
+    result = check_fleet([u for u in units if not is_plateau_unit(u)], false_alarm)
+    names = ", ".join(shown(sn) for sn in sorted(plateau)[:5]) + (
+        " ..." if len(plateau) > 5 else "")
+    left = (f"{len(plateau)} plateau unit(s) left out ({names}): the check compares units by "
+            "their SF response over time, which plateau tables do not give")
+    result = replace(result, units=len(units), note="; ".join(x for x in (left, result.note)
+                                                              if x))
+    return result, units if with_units else None, where
 
 
 def _write_atomic(path: Path, text: str) -> None:

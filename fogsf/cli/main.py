@@ -12,9 +12,9 @@ import sys
 from collections.abc import Collection
 from typing import NoReturn
 
-from fogsf import __version__
+from fogsf import __version__, scratch
 from fogsf.errors import UserError
-from fogsf.fleet import batch, scratch
+from fogsf.fleet import batch
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {

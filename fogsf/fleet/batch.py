@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import cast
 
-from fogsf.fleet.scratch import remove_process_dir
+from fogsf.scratch import remove_process_dir
 
 PARENT_ENV = "FOGSF_BATCH_PARENT"  # set for a child: the batch's pid
 STOP_WAIT_S = 5.0  # children told to stop get this long, then SIGKILL

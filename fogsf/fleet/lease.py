@@ -21,8 +21,8 @@ import uuid
 from pathlib import Path
 
 from fogsf.errors import UserError
-from fogsf.fleet.scratch import alive, start_time
 from fogsf.fleet.store import FleetStore, open_store
+from fogsf.scratch import alive, start_time
 
 HEARTBEAT_S = 2.0
 STALE_S = 10.0  # a heartbeat older than this: the batch is gone (5 beats missed)

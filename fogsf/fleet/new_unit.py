@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from fogsf import __version__
 from fogsf.errors import UserError
 from fogsf.fleet.faults import db_faults
 from fogsf.fleet.names import check_unit_name, masked, shown
+from fogsf.fleet.plateau_unit import PLATEAU
 from fogsf.fleet.records import unit_record
 from fogsf.fleet.schema import cached, state_of
 from fogsf.fleet.store import keep_quietly, open_store
@@ -39,12 +41,20 @@ def design_prior(fleet: str, unit: str | None = None) -> DesignPrior:
         state = state_of(store)
         hit = cached(store, "prior", key, state)
         units = store.units() if hit is None else []
+        plateau = int(store.execute("SELECT count(*) FROM units WHERE structure = ?",
+                                    (PLATEAU,)).fetchall()[0][0])
+    # the prior is built on the units' SF responses over time: a plateau table has none
+    left = (f"{plateau} plateau unit(s) left out (the design's prior is built on SF "
+            "responses over time, which plateau tables do not give)" if plateau else "")
+    summaries = {u.unit: u.summary for u in units if u.summary.get("series")}
+    if hit is None and len(summaries) < 2:
+        raise UserError(f"the design's prior needs at least two units in {where} "
+                        f"with their logs' summary, it has {len(summaries)} (fogsf fleet add)"
+                        + (f"; {left}" if left else ""))
+    if left:
+        print(f"fogsf: {where}: {left}", file=sys.stderr)
     if hit is not None:
         return DesignPrior.from_cache(json.loads(hit))
-    summaries = {u.unit: u.summary for u in units if u.summary.get("series")}
-    if len(summaries) < 2:
-        raise UserError(f"the design's prior needs at least two units in {where} "
-                        f"with their logs' summary, it has {len(summaries)} (fogsf fleet add)")
     prior = prior_from_summaries(summaries)
     keep_quietly(fleet, "prior", key, state, json.dumps(prior.to_cache()))
     return prior

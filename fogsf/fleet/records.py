@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import math
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
@@ -31,6 +32,9 @@ if TYPE_CHECKING:
 
 # SF error against temperature (the report's curves) in bins of this width, C
 SF_CURVE_BIN_C = 2.0
+# a log's columns in the store's table `logs`, in `LogRecord.row`'s order
+LOG_COLUMNS = ("path, sha256, n_rows, span_s, sample_rate_hz, ramp_rates, temp_min_c, "
+               "temp_max_c, role")
 
 
 @dataclass
@@ -46,6 +50,21 @@ class LogRecord:
     temp_min_c: float = math.nan
     temp_max_c: float = math.nan
     role: str = "train"
+
+    def row(self) -> tuple:
+        """The log as the store's `logs` table holds it (LOG_COLUMNS; a temperature not
+        measured as NULL)."""
+        return (self.path, self.sha256, int(self.rows), float(self.span_s),
+                float(self.sample_rate_hz), json.dumps(self.ramp_rates_c_per_min),
+                *(float(x) if x is not None and math.isfinite(x) else None
+                  for x in (self.temp_min_c, self.temp_max_c)), self.role)
+
+    @classmethod
+    def from_row(cls, r: tuple) -> LogRecord:
+        return cls(path=r[0], sha256=r[1], rows=int(r[2]), span_s=float(r[3]),
+                   sample_rate_hz=float(r[4]), ramp_rates_c_per_min=json.loads(r[5]),
+                   temp_min_c=math.nan if r[6] is None else float(r[6]),
+                   temp_max_c=math.nan if r[7] is None else float(r[7]), role=r[8])
 
 
 @dataclass

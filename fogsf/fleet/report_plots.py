@@ -197,7 +197,7 @@ def _trend(ax: Axes, xs_units: list[tuple[float, UnitRecord]], kinds: dict[str, 
     if spec_ppm is not None:
         ax.axhline(spec_ppm, color="k", ls="--", lw=1.0,
                    label=f"spec {spec_ppm:g} ppm")
-    if not xs_units:
+    if not ax.get_legend_handles_labels()[0]:  # no unit with a test RMS in ppm
         ax.plot([], [], " ", label="no unit with this")
     ax.autoscale()
     ax.grid(alpha=0.3)

@@ -18,10 +18,7 @@ transaction): what is cached from the units is keyed by it.
 from __future__ import annotations
 
 import json
-import math
-import os
 import sqlite3
-import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -30,14 +27,9 @@ from typing import Any
 from fogsf.errors import UserError
 from fogsf.fleet.faults import _db_errors, sqlite_begin_waiting
 from fogsf.fleet.names import check_unit_name, masked, shown
-from fogsf.fleet.records import LogRecord, UnitRecord, structure_of
+from fogsf.fleet.records import LOG_COLUMNS, LogRecord, UnitRecord, structure_of
 from fogsf.fleet.schema import MIGRATIONS, SCHEMA_VERSION, bump_state, keep
 
-# Test hook, used only by tests/test_fleet_store.py: while this variable names a file, `add`
-# creates that file once its INSERTs ran and then sleeps PAUSE_S_HOOK seconds (default 120)
-# before COMMIT (so a kill lands inside the transaction, deterministically).
-PAUSE_HOOK = "FOGSF_FLEET_TEST_PAUSE_IN_ADD"
-PAUSE_S_HOOK = "FOGSF_FLEET_TEST_PAUSE_S"
 BUSY_TIMEOUT_S = 60.0
 PG_PREFIXES = ("postgresql://", "postgres://")
 # a cached result is written only if the fleet's lock is had within this (else it is not
@@ -173,15 +165,10 @@ class FleetStore:
                  structure_of(record)))
             for i, lg in enumerate(record.logs):
                 self.execute(
-                    "INSERT INTO logs (sn, idx, path, sha256, n_rows, span_s, sample_rate_hz, "
-                    "ramp_rates, temp_min_c, temp_max_c, role) "
-                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                    (record.unit, i, lg.path, lg.sha256, int(lg.rows), float(lg.span_s),
-                     float(lg.sample_rate_hz), _dumps(lg.ramp_rates_c_per_min),
-                     _finite_or_none(lg.temp_min_c), _finite_or_none(lg.temp_max_c), lg.role))
+                    f"INSERT INTO logs (sn, idx, {LOG_COLUMNS}) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", (record.unit, i, *lg.row()))
             bump_state(self)
-            _pause_hook()
-            if guard is not None:  # last, after the hook's pause (a kill there is tested)
+            if guard is not None:  # last: a batch killed while the unit was written refuses it
                 guard(self)
 
     def _delete(self, sn: str) -> None:
@@ -213,15 +200,9 @@ class FleetStore:
             f"fogsf_version, created_utc FROM units {where}", params).fetchall()
         rows = sorted(rows, key=lambda r: r[0])  # by code point, whatever the collation
         logs: dict[str, list[LogRecord]] = {r[0]: [] for r in rows}
-        for lg in self.execute(
-                "SELECT sn, path, sha256, n_rows, span_s, sample_rate_hz, ramp_rates, "
-                "temp_min_c, temp_max_c, role FROM logs ORDER BY idx").fetchall():
+        for lg in self.execute(f"SELECT sn, {LOG_COLUMNS} FROM logs ORDER BY idx").fetchall():
             if lg[0] in logs:
-                logs[lg[0]].append(LogRecord(
-                    path=lg[1], sha256=lg[2], rows=int(lg[3]), span_s=float(lg[4]),
-                    sample_rate_hz=float(lg[5]), ramp_rates_c_per_min=json.loads(lg[6]),
-                    temp_min_c=_nan_if_none(lg[7]), temp_max_c=_nan_if_none(lg[8]),
-                    role=lg[9]))
+                logs[lg[0]].append(LogRecord.from_row(lg[1:]))
         return [UnitRecord(unit=r[0], logs=logs[r[0]], model_id=r[1], model_dir=r[2],
                            fitted_with=json.loads(r[3]), figures=json.loads(r[4]),
                            interval=None if r[5] is None else json.loads(r[5]),
@@ -229,19 +210,16 @@ class FleetStore:
                 for r in rows]
 
 
-def _finite_or_none(x: float) -> float | None:
-    return float(x) if x is not None and math.isfinite(x) else None
-
-
-def _nan_if_none(x: float | None) -> float:
-    return math.nan if x is None else float(x)
-
-
-def _pause_hook() -> None:
-    marker = os.environ.get(PAUSE_HOOK)
-    if marker:
-        Path(marker).write_text(str(os.getpid()))
-        time.sleep(float(os.environ.get(PAUSE_S_HOOK, "120")))
+def _check_file(p: Path, mode: str) -> None:
+    """Refuse what is no fleet file before anything opens it: a folder, a missing file for
+    a read or write (a typo says so), a missing folder."""
+    if p.exists() and not p.is_file():
+        raise UserError(f"fleet {p} is not a file (give an SQLite file or a "
+                        "postgresql:// URL)")
+    if mode != "create" and not p.exists():  # a read never creates
+        raise UserError(f"{p}: no such fleet database (`fogsf fleet add` creates one)")
+    if not p.parent.is_dir():
+        raise UserError(f"fleet {p}: folder {p.parent} does not exist")
 
 
 class SQLiteStore(FleetStore):
@@ -251,13 +229,7 @@ class SQLiteStore(FleetStore):
     def __init__(self, path: str | Path, mode: str = "create") -> None:
         p = Path(path)
         self.location = str(p)
-        if p.exists() and not p.is_file():
-            raise UserError(f"fleet {p} is not a file (give an SQLite file or a "
-                            "postgresql:// URL)")
-        if mode != "create" and not p.exists():  # a read never creates: a typo says so
-            raise UserError(f"{p}: no such fleet database (`fogsf fleet add` creates one)")
-        if not p.parent.is_dir():
-            raise UserError(f"fleet {p}: folder {p.parent} does not exist")
+        _check_file(p, mode)
         # SQLite's own open modes: ro cannot write, rw cannot create, rwc may create.
         uri = f"{p.resolve().as_uri()}?mode={dict(read='ro', write='rw').get(mode, 'rwc')}"
         try:
@@ -378,6 +350,32 @@ def open_store(url_or_path: str, mode: str = "create") -> FleetStore:
         store.close()
         raise
     return store
+
+
+def fleet_exists(url_or_path: str) -> bool:
+    """Whether a fleet (or another program's database) is at `url_or_path`, nothing created:
+    `add` checks its unit against an existing fleet before training and creates a fleet only
+    to record a unit, so a refused add leaves no empty fleet. A missing folder or a folder
+    given for the file is refused here, before any training."""
+    text = str(url_or_path)
+    if text.startswith(PG_PREFIXES):
+        store = PostgresStore(text, "create")  # connects only: creation is migrate's
+        try:
+            return store._current_version() is not None
+        finally:
+            store.close()
+    p = Path(text)
+    _check_file(p, "create")
+    if not p.exists() or p.stat().st_size == 0:
+        return False
+    try:  # an SQLite file without tables is as empty as an empty file
+        db = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            return bool(db.execute("SELECT 1 FROM sqlite_master").fetchall())
+        finally:
+            db.close()
+    except sqlite3.DatabaseError:  # not SQLite: open_store refuses it in its words
+        return True
 
 
 def keep_quietly(url_or_path: str, kind: str, key: str, state: int, value: str) -> bool:
