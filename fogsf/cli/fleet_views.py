@@ -13,13 +13,12 @@ import math
 import os
 import tempfile
 from collections import Counter
-from dataclasses import replace
 from pathlib import Path
 
 from fogsf.errors import UserError
-from fogsf.fleet.check import CheckResult, check_fleet, checked
+from fogsf.fleet.check import checked
 from fogsf.fleet.names import shown
-from fogsf.fleet.plateau_unit import PLATEAU, is_plateau_unit
+from fogsf.fleet.plateau_unit import is_plateau_unit
 from fogsf.fleet.records import UnitRecord, spec_verdict, structure_of
 from fogsf.fleet.report import write_report
 from fogsf.fleet.report_dir import check_out_dir
@@ -127,7 +126,7 @@ def _list_plateau_units(units: list[UnitRecord], spec: float | None) -> None:
 
 def run_check(args: argparse.Namespace) -> int:
 
-    result, _, _ = _checked(args.fleet, args.false_alarm)
+    result, _, _ = checked(args.fleet, args.false_alarm)
     print(result.message())
     if args.json:
         _write_atomic(Path(args.json), json.dumps(json_safe(result.as_dict()), indent=2) + "\n")
@@ -139,7 +138,7 @@ def run_report(args: argparse.Namespace) -> int:
 
     check_spec(args.spec_ppm)
     check_out_dir(Path(args.out))  # refused before the check's minutes, not after
-    result, units, where = _checked(args.fleet, args.false_alarm, with_units=True)
+    result, units, where = checked(args.fleet, args.false_alarm, with_units=True)
     if not units:
         raise UserError(f"{where} has no units (fogsf fleet add first)")
     index = write_report(units, result, Path(args.out), title=where, spec_ppm=args.spec_ppm)
@@ -147,28 +146,6 @@ def run_report(args: argparse.Namespace) -> int:
           + ("" if args.spec_ppm is None else f"; {spec_counts(units, args.spec_ppm)}")
           + ")")
     return 0
-
-
-def _checked(fleet: str, false_alarm: float, with_units: bool = False
-             ) -> tuple[CheckResult, list[UnitRecord] | None, str]:
-    """`fleet.check.checked`, the plateau units left out and named in its note: the check
-    compares units by their SF response over time, which a plateau table does not give.
-    A fleet with plateau units is checked afresh each time (its cache holds no such check)."""
-    with open_store(fleet, "read") as store:
-        plateau = [r[0] for r in store.execute("SELECT sn FROM units WHERE structure = ?",
-                                               (PLATEAU,)).fetchall()]
-    if not plateau:
-        return checked(fleet, false_alarm, with_units)
-    with open_store(fleet, "read") as store:
-        units, where = store.units(), store.location
-    result = check_fleet([u for u in units if not is_plateau_unit(u)], false_alarm)
-    names = ", ".join(shown(sn) for sn in sorted(plateau)[:5]) + (
-        " ..." if len(plateau) > 5 else "")
-    left = (f"{len(plateau)} plateau unit(s) left out ({names}): the check compares units by "
-            "their SF response over time, which plateau tables do not give")
-    result = replace(result, units=len(units), note="; ".join(x for x in (left, result.note)
-                                                              if x))
-    return result, units if with_units else None, where
 
 
 def _write_atomic(path: Path, text: str) -> None:

@@ -31,13 +31,15 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
 
 from fogsf import __version__
 from fogsf.errors import UserError
+from fogsf.fleet.names import shown
+from fogsf.fleet.plateau_unit import is_plateau_unit
 from fogsf.fleet.records import UnitRecord, structure_of
 from fogsf.fleet.schema import cached, state_of
 from fogsf.fleet.store import keep_quietly, open_store
@@ -234,10 +236,24 @@ def thresholds(n_units: int, names: list[str], alpha: float) -> np.ndarray:
 
 def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALARM
                 ) -> CheckResult:
-    """The units unlike the line (see the module's docstring)."""
+    """The units unlike the line (see the module's docstring); plateau units left out and
+    named in the note: the check compares SF responses over time, which a table does not
+    give."""
 
     if not 0.0 < false_alarm < 1.0:
         raise UserError(f"--false-alarm must lie in (0, 1), got {false_alarm:g}")
+    plateau = sorted(u.unit for u in units if is_plateau_unit(u))
+    if not plateau:
+        return _check_line(units, false_alarm)
+    result = _check_line([u for u in units if not is_plateau_unit(u)], false_alarm)
+    names = ", ".join(shown(sn) for sn in plateau[:5]) + (" ..." if len(plateau) > 5 else "")
+    left = (f"{len(plateau)} plateau unit(s) left out ({names}): the check compares units by "
+            "their SF response over time, which plateau tables do not give")
+    return replace(result, units=len(units),
+                   note="; ".join(x for x in (left, result.note) if x))
+
+
+def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
     n = len(units)
     counts = Counter(structure_label(u) for u in units)
     if n < MIN_UNITS:
@@ -298,7 +314,7 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
 
 # what a cached check was computed by: a result another fogsf, or another method, computed
 # is not read (bump it when the check's method changes)
-CHECK_METHOD = 2
+CHECK_METHOD = 3
 
 
 def checked(fleet: str, false_alarm: float = DEFAULT_FALSE_ALARM, with_units: bool = False
