@@ -1,0 +1,220 @@
+"""Probe (an oracle): can a line's data show a unit whose slowest SF part is slower?
+
+`fogsf fleet check` compares units by what their models predict; a unit whose slowest
+internal part an SF factor reads has a time constant DEFECT_TAU_FACTOR (2.5) x the design's
+(`fogsf.sim.fleet_units.defective_unit(..., "tau")`) is rarely flagged. Two questions:
+
+- oracle: with the truth's structure known (the simulator's nodes and SF terms), how far
+  is the defective unit's exact SF response on its training program from the closest
+  NORMAL unit of the design: the slow part's time constant within the units' +/-15 %
+  (a grid), every term's coefficient within the units' +/-25 % (box-bounded least
+  squares), any SF offset. Its squared distance per 5 s step over the unit's noise
+  variance (`unit_fit.fit_unit(..., 2).sigma2`) is the chi-square a perfect detector
+  would see; a normal unit's own distance (other parts at the design's) is the yardstick.
+- practical (`--practical N`, lines of N normal units and the defective one): the slowest
+  time constant of each unit's 1- and 2-node fit against the line's, leave one out.
+- check (`--check N`): `fogsf fleet check` itself on such a line, units trained as its
+  tests train them.
+
+Programs: `loop2h` (2 C/min up and down, -20..40 C, 20 min soaks: the check's tests) and
+`soak1h` (1 C/min, 60 min soaks). It tunes nothing: run it on evaluation designs.
+
+    python -m benchmarks.probes.fleet_slow_part --designs 20000:20010 --programs loop2h,soak1h
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+
+import numpy as np
+
+from fogsf.sim.config import ProfileConfig, SimConfig
+from fogsf.sim.fleet_units import SF_SPREAD, TAU_SPREAD, defective_unit, design_for_seed, unit_for
+
+FIRST_UNIT = 1000  # unit indices no bench or test uses
+STEP = 5  # samples a model step at 1 Hz
+PROGRAMS = {"loop2h": (2.0, 1200.0), "soak1h": (1.0, 3600.0)}  # C/min, soak s
+TAU_GRID = 7
+
+
+def program(name: str) -> ProfileConfig:
+    rate, soak = PROGRAMS[name]
+    lo, hi = -20.0, 40.0
+    ramp = (hi - lo) / rate * 60.0
+    pts = [[0.0, lo], [soak, lo], [soak + ramp, hi], [2 * soak + ramp, hi],
+           [2 * soak + 2 * ramp, lo], [3 * soak + 2 * ramp, lo]]
+    return ProfileConfig(kind="program", points=pts)
+
+
+def run(cfg: SimConfig, name: str, seed: int, quiet: bool = False):  # noqa: ANN201
+    from fogsf.sim.gyro import simulate
+    from fogsf.sim.population import run_on_gyro
+
+    cfg = copy.deepcopy(cfg)
+    if quiet:
+        cfg.noise.arw_deg_per_sqrt_h = cfg.noise.pulse_arcsec = cfg.noise.temp_noise_c = 0.0
+    r = run_on_gyro(cfg, program(name), seed, "fleet-unit")
+    r.dt_s = 1.0
+    return simulate(r)
+
+
+def steps(x: np.ndarray) -> np.ndarray:
+    return x[: x.size // STEP * STEP].reshape(-1, STEP).mean(axis=1)
+
+
+def slow_part(cfg: SimConfig) -> str:
+    read = {n for t in cfg.sf.terms for n in t.nodes}
+    return max((n for n in cfg.thermal.nodes[2:] if n.name in read), key=lambda n: n.tau_s).name
+
+
+def box_lsq(x: np.ndarray, y: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """min |y - x v|^2 with lo <= v <= hi, by coordinate descent (convex: it converges)."""
+    g, b = x.T @ x, x.T @ y
+    v = np.clip(np.linalg.lstsq(x, y, rcond=None)[0], lo, hi)
+    for _ in range(400):
+        for j in range(v.size):
+            v[j] = np.clip(v[j] + (b[j] - g[j] @ v) / g[j, j], lo[j], hi[j])
+    return v
+
+
+def oracle_distance(y: np.ndarray, design: SimConfig, part: str, name: str) -> float:
+    """Squared distance per step (ppm^2) from response `y` to the closest normal unit."""
+    best = np.inf
+    for f in np.linspace(1 - TAU_SPREAD, 1 + TAU_SPREAD, TAU_GRID):
+        c = copy.deepcopy(design)
+        for n in c.thermal.nodes:
+            if n.name == part:
+                n.tau_s *= f
+        res = run(c, name, 0, quiet=True)
+        cols, total = [], np.zeros_like(res.sf_ppm)
+        for t in c.sf.terms:
+            dt = sum(w * res.nodes[nm] for nm, w in t.nodes.items()) - t.ref_c
+            for term in (t.lin_ppm_per_c * dt, t.quad_ppm_per_c2 * dt**2,
+                         t.cube_ppm_per_c3 * dt**3):
+                if np.any(term):
+                    cols.append(steps(term))
+                    total = total + term
+        rest = steps(res.sf_ppm - total)  # what the terms' coefficients do not scale
+        x = np.stack([*cols, np.ones_like(rest)], axis=1)
+        lo = np.r_[np.full(len(cols), 1 - SF_SPREAD), -1e9]
+        hi = np.r_[np.full(len(cols), 1 + SF_SPREAD), 1e9]
+        r = y - rest - x @ box_lsq(x, y - rest, lo, hi)
+        best = min(best, float(r @ r))
+    return best
+
+
+def noise_s2(log) -> float:  # noqa: ANN001
+    from fogsf.prior.unit_fit import fit_unit, step_series
+
+    return fit_unit(step_series([log]), 2).sigma2
+
+
+def oracle(design_seed: int, name: str) -> dict:
+    design = design_for_seed(design_seed)
+    bad = defective_unit(design_seed, FIRST_UNIT, "tau")
+    good = unit_for(design_seed, FIRST_UNIT + 1)
+    part = slow_part(design)
+    out = {}
+    for label, cfg in (("defective", bad), ("normal", good)):
+        y = steps(run(cfg, name, 0, quiet=True).sf_ppm)
+        s2 = noise_s2(run(cfg, name, 7).log)
+        out[label] = oracle_distance(y, design, part, name) / s2
+    return out
+
+
+def practical(design_seed: int, name: str, n_normal: int) -> dict:
+    """The slowest time constant of each unit's k-node fit (`unit_fit.fit_unit`, k = 1, 2),
+    each unit against the others: z = (x - mean) / sqrt(s^2 - mean se^2 + se^2 + s^2 / m)
+    on log tau, se from the fit's covariance (`fleet check`'s statistic)."""
+    from fogsf.prior.unit_fit import fit_unit, step_series
+
+    cfgs = [unit_for(design_seed, FIRST_UNIT + 1 + i) for i in range(n_normal)]
+    cfgs.append(defective_unit(design_seed, FIRST_UNIT, "tau"))
+    series = [step_series([run(c, name, 200 + i).log]) for i, c in enumerate(cfgs)]
+    out = {}
+    for k in (1, 2):
+        fits = [fit_unit(s, k) for s in series]
+        x = np.array([f.theta[k - 1] for f in fits])
+        se = np.array([np.sqrt(max(f.cov[k - 1, k - 1], 0.0)) for f in fits])
+        z = []
+        for i in range(x.size):
+            o = np.arange(x.size) != i
+            s2 = x[o].var(ddof=1)
+            z.append((x[i] - x[o].mean())
+                     / np.sqrt(max(s2 - np.mean(se[o] ** 2), 0.0) + se[i] ** 2 + s2 / o.sum()))
+        out[f"k{k}"] = {"defective_z": round(float(z[-1]), 2),
+                        "normal_max_abs_z": round(float(np.max(np.abs(z[:-1]))), 2)}
+    return out
+
+
+CHECK_TRAIN = {"model": "lag-lstm", "structure": "physics", "nodes": 1, "iters": 2,
+               "hysteresis": "off", "transfer_check": False, "progress": False}
+
+
+def check_line(design_seed: int, name: str, n_normal: int) -> dict:
+    """`fleet check` on the line (units trained as tests/test_fleet_check.py trains them):
+    is the defective unit flagged, and is any unit of the normal units' line."""
+    import tempfile
+    from pathlib import Path
+
+    from fogsf.fleet.check import check_fleet
+    from fogsf.fleet.records import unit_record
+    from fogsf.training.options import TrainOptions
+    from fogsf.training.train import run_training
+
+    cfgs = [unit_for(design_seed, FIRST_UNIT + 1 + i) for i in range(n_normal)]
+    cfgs.append(defective_unit(design_seed, FIRST_UNIT, "tau"))
+    units = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, c in enumerate(cfgs):
+            log = run(c, name, 200 + i).log
+            out = Path(tmp) / f"u{i}"
+            metrics, fitted = run_training(TrainOptions(**CHECK_TRAIN),  # type: ignore[arg-type]
+                                           [log], None, out)
+            units.append(unit_record(f"SN{i:03d}", [log], None, metrics, fitted, out,
+                                     dict(CHECK_TRAIN), keep_dir=False))
+    bad = units[-1].unit
+    return {"found": bad in check_fleet(units).flagged,
+            "normal_flagged": len(check_fleet(units[:-1]).flagged)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--designs", default="20000:20010", help="design seeds FIRST:END")
+    ap.add_argument("--programs", default="loop2h,soak1h")
+    ap.add_argument("--practical", type=int, default=0,
+                    help="also the leave-one-out statistic on lines of this many normal units")
+    ap.add_argument("--check", type=int, default=0,
+                    help="also `fleet check` on lines of this many normal units")
+    ap.add_argument("--out", default=None)
+    a = ap.parse_args(argv)
+    lo, hi = (int(v) for v in a.designs.split(":"))
+    rows = []
+    for name in a.programs.split(","):
+        for d in range(lo, hi):
+            row = {"design": d, "program": name, "oracle": oracle(d, name)}
+            if a.practical:
+                row["practical"] = practical(d, name, a.practical)
+            if a.check:
+                row["check"] = check_line(d, name, a.check)
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    for name in a.programs.split(","):
+        got = [r for r in rows if r["program"] == name]
+        yard = max(r["oracle"]["normal"] for r in got)
+        seen = sum(r["oracle"]["defective"] > max(yard, 1.0) * 2 for r in got)
+        bad = sorted(round(r["oracle"]["defective"], 1) for r in got)
+        good = sorted(round(r["oracle"]["normal"], 1) for r in got)
+        print(f"{name}: oracle distance of the slower part {bad}; normal units {good}; "
+              f"over twice the largest normal: {seen} of {len(got)}", file=sys.stderr)
+    if a.out:
+        with open(a.out, "w") as f:
+            json.dump(rows, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
