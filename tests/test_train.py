@@ -167,3 +167,12 @@ def test_bad_options_refused(logs) -> None:
         fit_sf(TrainOptions(model="svm"), [train])
     with pytest.raises(UserError, match="val-chunk"):
         fit_sf(TrainOptions(model="poly", val_chunk=(0.6, 0.4)), [train])
+
+
+@pytest.mark.parametrize("rows", [4, 60, 590])
+def test_a_log_too_short_to_train_on_is_refused(logs, tmp_path: Path, rows: int) -> None:
+    """Under MIN_TRAIN_STEPS model steps (a minute at 5 s) the structure's folds hold
+    nothing: one line naming the span and the minimum, not a traceback."""
+    short = logs[0].slice(0, rows)
+    with pytest.raises(UserError, match=r"too short to train on \(at least 12 model steps"):
+        run_training(TrainOptions(model="lag-lstm", progress=False), [short], None, tmp_path / "m")

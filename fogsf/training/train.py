@@ -40,6 +40,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.logs.read.sampling import common_rate
 from fogsf.models.front_end import decimation_for
@@ -54,6 +55,8 @@ from fogsf.training.results import BiasOnlyMetrics, TrainMetrics
 from fogsf.training.save import save
 from fogsf.training.score import training_metrics
 from fogsf.training.sf.fit import fit_sf
+
+MIN_TRAIN_STEPS = 12  # model steps the training logs must span: a minute at 5 s
 
 
 def run_training(opts: TrainOptions, train_logs: list[ChamberLog],
@@ -76,6 +79,11 @@ def train_model(opts: TrainOptions, train_logs: list[ChamberLog],
     train_logs = common_rate(train_logs)  # other rates, jitter, drops: on one grid of time
     for lg in [*train_logs, *([test_log] if test_log is not None else [])]:
         decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
+    steps = sum(len(lg.time_s) * lg.sample_dt_s for lg in train_logs) / opts.model_step_s
+    if steps < MIN_TRAIN_STEPS:  # fewer: the folds that choose the structure hold nothing
+        raise UserError(f"the training logs span {steps * opts.model_step_s:.0f} s: too short "
+                        f"to train on (at least {MIN_TRAIN_STEPS} model steps of "
+                        f"{opts.model_step_s:g} s)")
     if check_mixed(train_logs):  # stationary logs alone: a bias-only model
         return train_bias_only(opts, train_logs, test_log, out_dir)
     t0 = time.perf_counter()
