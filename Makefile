@@ -87,10 +87,10 @@ fuzz: $(STAMP)
 
 # the calibration block (docs/firmware.md, "Calibration block")
 block-cores: $(STAMP)
-	$(PY) -m fogsf.bindings.block_cores $${FIRMWARE_MODEL:-tests/fixtures/small_model} --out build/block-cores
+	$(PY) -m fogsf.bindings.cores $${FIRMWARE_MODEL:-tests/fixtures/small_model} --target block --out build/block-cores
 
 fuzz-block: $(STAMP)
-	$(PY) -m fogsf.bindings.fuzz_block --out build/fuzz-block --inputs $${FUZZ_INPUTS:-10000000}
+	$(PY) -m fogsf.bindings.fuzz --target block --out build/fuzz-block --inputs $${FUZZ_INPUTS:-10000000}
 
 # --- the paper's protocol, Table 2 side by side (default gyro), ~4 min ---
 paper: $(STAMP)

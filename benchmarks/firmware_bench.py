@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from dataclasses import replace
@@ -41,9 +40,9 @@ from fogsf.bindings.firmware import (
     arm_size,
     arm_tools_missing,
     build_arm,
-    qemu_cmd,
     section_sizes,
 )
+from fogsf.bindings.icount import sample_counts
 from fogsf.bindings.kernel import EVEN_TIME, Kernel, build_kernel, state_sizes
 from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, stack_bound
 from fogsf.errors import UserError
@@ -156,11 +155,8 @@ def bench_core(core: Core, models: list[st.StreamModel], root: Path, label: str,
     text, data, bss = section_sizes(arm.size_elf)
     step = stack_bound(arm.size_elf, STEP_ROOTS)
     init = stack_bound(arm.size_elf, INIT_ROOTS)
-    d = models[0].decimation
-    counts = counts_of(arm.bench_elf, d, core)
-    worst, mean = max(counts), float(np.mean(counts[d + 1:2 * d + 1]))
-    # the samples that start no model step: every front-end path is planted among them
-    plain = max(c for i, c in enumerate(counts) if i % d != 0)
+    c = sample_counts(arm.bench_elf, models[0].decimation, core)
+    worst, mean, plain = c.worst, c.mean, c.non_step_worst
     return {"core": core.name, "image": f"{len(models)}x {label}", "models": len(models),
             "flash_bytes": text + data, "ram_bytes": data + bss + max(step.bytes, init.bytes),
             "stack_step_bytes": step.bytes, "stack_step_path": step.path,
@@ -237,37 +233,8 @@ def ort_ns_per_step(model: st.StreamModel, steps: int) -> float:
 def instructions(bench_elf: Path, decimation: int, core: Core = M4F) -> tuple[int, float]:
     """(instructions of the worst sample, mean per sample over one decimation period) of
     fogsf_step on the core, counted between the bench image's marker calls."""
-    counts = counts_of(bench_elf, decimation, core)
-    # calls 0, D, 2D run a model step; samples D+1 .. 2D are one steady period; the worst
-    # is over every sample counted (with FOGSF_EVEN_TIME any sample may be the worst)
-    period = counts[decimation + 1:2 * decimation + 1]
-    return max(counts), float(np.mean(period))
-
-
-def counts_of(bench_elf: Path, decimation: int, core: Core = M4F) -> list[int]:
-    """The instructions of each of the 2D + 1 samples of the bench image, in order."""
-    cmd = qemu_cmd(bench_elf, "-singlestep", "-d", "exec,nochain", machine=core.machine)
-    counts: list[int] = []
-    inside, n = False, 0
-    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                          bufsize=1 << 20) as proc:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            if not line.startswith("Trace"):
-                continue
-            sym = line.rsplit(" ", 1)[-1].strip()
-            if sym == "fogsf_bench_begin":
-                inside, n = True, 0
-            elif sym == "fogsf_bench_end":
-                if inside:
-                    counts.append(n)
-                inside = False
-            elif inside:
-                n += 1
-    if proc.returncode != 0 or len(counts) != 2 * decimation + 1:
-        raise UserError(f"instruction count: QEMU exited {proc.returncode} with "
-                        f"{len(counts)} marked calls (expected {2 * decimation + 1})")
-    return counts
+    c = sample_counts(bench_elf, decimation, core)
+    return c.worst, c.mean
 
 
 def bench_model(name: str, model: st.StreamModel, note: str, root: Path, steps: int

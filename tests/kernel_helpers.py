@@ -1,4 +1,5 @@
-"""Shared set-up of the kernel tests: compiled kernels cached per session in a temp folder."""
+"""Shared set-up of the kernel tests: compiled kernels cached per session in a temp folder,
+the C model's table layout and a writable copy of its tables."""
 
 from __future__ import annotations
 
@@ -46,3 +47,57 @@ def init(kernel, m, st) -> int:  # noqa: ANN001 - cffi objects
 
 # the power-on rule of the kernel (fogsf.h): a first temperature primes the filters only when
 # within [-55, 125] C (float32) and not a DS18B20's power-on 85 C
+
+
+def table_floats(model) -> list[tuple[str, int]]:  # noqa: ANN001
+    """(C field path, floats) of every table of the C model, in the CRC's order: what the
+    integrity and guard tests flip, copy and count."""
+    k, f, h, p = model.n_filters, model.n_features, model.hidden, model.n_plays
+    out = [("filter_alpha", k), ("feat_w", f if model.feat_diag else f * (1 + k + p)),
+           ("feat_b", f)]
+    for layer in range(model.layers):
+        n_in = model.n_lstm_inputs if layer == 0 else h
+        out += [(f"lstm_w.{layer}", 4 * h * n_in), (f"lstm_r.{layer}", 4 * h * h),
+                (f"lstm_b.{layer}", 8 * h)]
+    out += [("head_w", h), ("skip_w", f)]
+    if model.poly_head:
+        out += [("quad_w", f if model.quad_diag else f * f), ("cube_w", f)]
+    if model.bias_head:
+        out += [("bias.w", f), ("bias.quad_w", f), ("bias.cube_w", f)]
+    if p:
+        out += [("plays.half_c", p), ("plays.source_w", p * (1 + k))]
+    return [(name, n) for name, n in out if n > 0]
+
+
+def writable_copy(kernel, keep: list):  # noqa: ANN001, ANN202
+    """The bound model with every table (and the bias head, the plays) copied into writable
+    memory: (model, {field path: float array})."""
+    ffi, model = kernel.ffi, kernel.model
+    m = ffi.new("fogsf_model *", kernel.m[0])
+    keep.append(m)
+    for part, ctype in (("bias", "fogsf_bias_head *"), ("plays", "fogsf_plays *")):
+        if getattr(kernel.m, part) != ffi.NULL:
+            owned = ffi.new(ctype, getattr(kernel.m, part)[0])
+            keep.append(owned)
+            setattr(m, part, owned)
+    for name in ("lstm_w", "lstm_r", "lstm_b"):
+        arr = ffi.new("float *[]", [getattr(kernel.m, name)[i] for i in range(model.layers)])
+        keep.append(arr)
+        setattr(m, name, arr)
+    fields = {}
+    for path, n in table_floats(model):
+        head, _, tail = path.partition(".")
+        arr = ffi.new("float[]", n)
+        if head in ("bias", "plays"):
+            owner = getattr(m, head)
+            ffi.memmove(arr, getattr(owner, tail), 4 * n)
+            setattr(owner, tail, arr)
+        elif tail:
+            ffi.memmove(arr, getattr(m, head)[int(tail)], 4 * n)
+            getattr(m, head)[int(tail)] = arr
+        else:
+            ffi.memmove(arr, getattr(m, head), 4 * n)
+            setattr(m, head, arr)
+        keep.append(arr)
+        fields[path] = arr
+    return m, fields

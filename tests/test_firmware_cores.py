@@ -3,7 +3,9 @@ call-graph stack walk of a linked image."""
 
 from __future__ import annotations
 
+import re
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -54,23 +56,48 @@ def test_the_walk_sums_frames_along_the_deepest_path() -> None:
 @pytest.mark.slow
 @pytest.mark.skipif(arm_tools_missing() is not None, reason=f"{arm_tools_missing()}")
 def test_make_firmware_cores_passes_on_every_core(tmp_path, capsys) -> None:
-    """Every core, both builds, and each toolchain of the default set: arm-none-eabi-gcc
-    with the strict flags and in its GNU default (-ffp-contract=fast), clang with its
-    defaults and with -ffp-contract=fast: the golden vectors bit for bit and the self-test 0
-    (the kernel's pragmas hold the bits whatever those flags say)."""
-    assert main(["tests/fixtures/small_model", "--out", str(tmp_path)]) == 0
+    """Every core and each toolchain of the default set: arm-none-eabi-gcc with the strict
+    flags and in its GNU default (-ffp-contract=fast), clang with its defaults and with
+    -ffp-contract=fast: the golden vectors bit for bit and the self-test 0 (the kernel's
+    pragmas hold the bits whatever those flags say). The even-time build on the M4F and the
+    M0 with the strict flags and the two contracting ones (`make firmware-cores` runs it on
+    every core and toolchain)."""
+    clang = shutil.which("clang") is not None
+    assert main(["tests/fixtures/small_model", "--out", str(tmp_path), "--builds",
+                 "default"]) == 0
+    even = ["gcc-c99", "gcc-gnu", *(["clang-contract-fast"] if clang else [])]
+    assert main(["tests/fixtures/small_model", "--out", str(tmp_path), "--builds",
+                 "even-time", "--cores", "cortex-m4f,cortex-m0", "--toolchains",
+                 ",".join(even)]) == 0
     out = capsys.readouterr().out
     for label in ("Cortex-M4F (FPv4-SP hard float) under qemu-system-arm -M mps2-an386: PASS",
                   "Cortex-M3 (soft float) under qemu-system-arm -M mps2-an385: PASS",
                   "Cortex-M0 (soft float) under qemu-system-arm -M microbit: PASS"):
         assert label in out, out
-    toolchains = 4 if shutil.which("clang") else 2
-    runs = 2 * toolchains * 3  # builds x toolchains x cores
+    runs = (4 if clang else 2) * 3 + len(even) * 2  # toolchains x cores, for each build
     assert out.count("PASS: 12000 outputs bit-exact") == runs, out
     assert out.count("selftest 0 (the reference's bits)") == runs, out
     assert "toolchain gcc-gnu: arm-none-eabi-gcc's GNU default" in out, out
     assert "build: even-time (-DFOGSF_EVEN_TIME=1)" in out, out
     assert "__aeabi_" in out  # the M0's deepest chain runs into libgcc's soft float
+    # the strict build's instructions per sample, a line a core and build
+    counts = re.findall(r"instructions per sample: worst (\d+), mean (\d+) .*: worst (\d+)\)",
+                        out)
+    assert len(counts) == 3 + 2, out
+    assert all(int(w) > int(m) > 0 and int(w) >= int(p) > 0 for w, m, p in counts), counts
+
+
+def test_sample_counts_take_the_worst_the_steady_mean_and_the_plain_worst(monkeypatch) -> None:
+    """Samples 0, D and 2D start a model step: the worst is over all, the mean over samples
+    D+1 .. 2D, the plain worst over those that start no step."""
+    import fogsf.bindings.icount as icount
+    d = 4
+    counts = [900, 50, 60, 70, 1000, 10, 20, 30, 800]  # 2D + 1 samples
+    monkeypatch.setattr(icount, "counts_of", lambda elf, dec, core: counts)
+    c = icount.sample_counts(Path("bench.elf"), d)
+    assert (c.worst, c.non_step_worst) == (1000, 70)
+    assert c.mean == (10 + 20 + 30 + 800) / 4
+    assert c.worst_over_mean == 1000 / c.mean
 
 
 @pytest.mark.skipif(arm_tools_missing() is not None, reason=f"{arm_tools_missing()}")

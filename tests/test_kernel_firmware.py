@@ -135,11 +135,11 @@ def test_cortex_m4f_under_qemu_gives_the_host_bits(golden) -> None:
                 if re.match(r"__aeabi_(d[a-z]|f2d|i2d|ui2d|l2d|ul2d)", u)], undefined
     size = arm_size(arm, model)
     assert 0 < size.kernel_flash_bytes <= size.flash_bytes
-    # the model pointer, then h, c, z, y, p (one play's slot), 17 scalars (the held outputs
-    # and the step's next ones, the correction's k and b, counters), 13 of the run-time
-    # check (the model's crc32 and sizes, the pass, the fault, the verified outputs), all 4
-    # bytes (h_prev only in the even-time build): what the kernel's own sizeof says on the core
-    words = 1 + 2 * 16 + 4 + 3 + 1 + 17 + 13
+    # the model pointer, then h, c, y, p (one play's slot), 12 scalars (the held outputs,
+    # the correction's k and b, counters), 13 of the run-time check (the model's crc32 and
+    # sizes, the pass, the fault, the verified outputs), all 4 bytes (z, h_prev and the
+    # step's next outputs only in the even-time build): the kernel's own sizeof on the core
+    words = 1 + 2 * 16 + 3 + 1 + 12 + 13
     assert size.ram_bytes >= size.state_bytes == 4 * words
     assert f"state {4 * words} bytes" in golden_text, golden_text
 

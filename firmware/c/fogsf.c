@@ -546,10 +546,10 @@ static uint32_t start(const fogsf_model *m, fogsf_state *st)
     for (j = 0u; j < (uint32_t)FOGSF_MAX_HIDDEN; ++j) {
         st->h_prev[j] = 0.0f;
     }
-#endif
     for (j = 0u; j < (uint32_t)FOGSF_MAX_FEATURES; ++j) {
         st->z[j] = 0.0f;
     }
+#endif
     for (j = 0u; j < (uint32_t)FOGSF_MAX_FILTERS; ++j) {
         st->y[j] = 0.0f;
     }
@@ -559,7 +559,9 @@ static uint32_t start(const fogsf_model *m, fogsf_state *st)
 #if FOGSF_MAX_RATE_ROWS > 0
     for (j = 0u; j < (uint32_t)FOGSF_MAX_RATE_ROWS; ++j) { /* +0 from R on: rate_corrected */
         st->rate_a[j] = 0.0f;
+#if FOGSF_EVEN_TIME
         st->rate_next[j] = 0.0f;
+#endif
         st->good_rate[j] = 0.0f;
         st->cand_rate[j] = 0.0f;
     }
@@ -574,11 +576,13 @@ static uint32_t start(const fogsf_model *m, fogsf_state *st)
     st->bias_dps = 0.0f;
     st->sf_k = 0.0f;
     st->sf_flags = 0u;
+#if FOGSF_EVEN_TIME
     st->sf_next = 0.0f;
     st->k_next = 0.0f;
     st->bias_next = 0.0f;
     st->bias_dps_next = 0.0f;
     st->flags_next = 0u;
+#endif
     st->part = 0u;
     st->raw_prev_bits = 0u;
     st->stuck_run = 0u;
@@ -643,9 +647,9 @@ uint32_t fogsf_init(const fogsf_model *m, fogsf_state *st, size_t state_size)
 /* A model step (contract step 4) runs as parts, in this order: 0 the front (lag filters,
  * plays, features z), 1 .. L*H one LSTM unit each (layer by layer, unit by unit), then the
  * head (sf_ppm and k), then the bias head (bias_dph and b). Each part writes what the next
- * ones read, and the head and bias parts write the *_next fields, which publish() makes the
- * held outputs: so running the parts one after another at one sample, or one a sample, gives
- * the same bits. */
+ * ones read. The even-time build's head and bias parts write the *_next fields, which
+ * publish() makes the held outputs, so running the parts one a sample gives the bits of
+ * running them at one sample, where the default build's write the held outputs at once. */
 static uint32_t n_parts(const fogsf_model *m)
 {
     return (m->layers * m->hidden) + 3u;
@@ -658,6 +662,11 @@ static uint32_t n_parts(const fogsf_model *m)
 static void rate_coefficients(const fogsf_model *m, fogsf_state *st, float s0)
 {
     const uint32_t nr = m->rate_rows, nq = m->rate_coefs;
+#if FOGSF_EVEN_TIME
+    float *out = st->rate_next;
+#else
+    float *out = st->rate_a; /* the whole step runs on this sample: held from it on */
+#endif
     uint32_t r, q;
     if (m->rate_w != NULL) {
         for (r = 0u; r < nr; ++r) {
@@ -666,14 +675,14 @@ static void rate_coefficients(const fogsf_model *m, fogsf_state *st, float s0)
             for (q = nq - 1u; q > 0u; --q) {
                 a = (a * s0) + w[q - 1u];
             }
-            st->rate_next[r] = a;
+            out[r] = a;
         }
     }
 }
 #endif
 
 /* part 0 on the block-mean temperature tm */
-static void part_front(const fogsf_model *m, fogsf_state *st, float tm)
+static void part_front(const fogsf_model *m, fogsf_state *st, float tm, float *z)
 {
     float s[1 + FOGSF_MAX_FILTERS + FOGSF_MAX_PLAYS];
     const fogsf_plays *pm = m->plays;
@@ -704,7 +713,7 @@ static void part_front(const fogsf_model *m, fogsf_state *st, float tm)
     }
     if (m->feat_diag != 0u) { /* the diagonal only: feat_w [F], F == 1+K+P */
         for (f = 0; f < nf; ++f) {
-            st->z[f] = m->feat_b[f] + m->feat_w[f] * s[f];
+            z[f] = m->feat_b[f] + m->feat_w[f] * s[f];
         }
     } else {
         for (f = 0; f < nf; ++f) {
@@ -712,18 +721,19 @@ static void part_front(const fogsf_model *m, fogsf_state *st, float tm)
             for (j = 0; j < ni; ++j) {
                 acc = acc + m->feat_w[f * ni + j] * s[j];
             }
-            st->z[f] = acc;
+            z[f] = acc;
         }
     }
 }
 
 /* LSTM unit u = l * H + j: unit j of layer l (its h_prev taken at the layer's first unit) */
-static void part_unit(const fogsf_model *m, fogsf_state *st, uint32_t u, float *h_prev)
+static void part_unit(const fogsf_model *m, fogsf_state *st, uint32_t u, float *h_prev,
+                      const float *z)
 {
     const uint32_t nh = m->hidden;
     const uint32_t l = u / nh;
     const uint32_t j = u - (l * nh);
-    const float *x = st->z;
+    const float *x = z;
     size_t n_in = (m->lstm_inputs != 0u) ? m->lstm_inputs : m->n_features;
     if (l > 0u) {
         x = st->h[l - 1u];
@@ -734,51 +744,58 @@ static void part_unit(const fogsf_model *m, fogsf_state *st, uint32_t u, float *
 }
 
 /* the head: sf_ppm (NaN or beyond +-FOGSF_SF_LIMIT_PPM clamped and flagged) and k */
-static void part_head(const fogsf_model *m, fogsf_state *st)
+static void part_head(const fogsf_model *m, fogsf_state *st, const float *z)
 {
     const uint32_t nf = m->n_features, nh = m->hidden;
     float y, sf, mag;
-    uint32_t i, j;
+    uint32_t i, j, flags;
 
     y = m->head_b;
     for (j = 0; j < nh; ++j) {
         y = y + m->head_w[j] * st->h[m->layers - 1u][j];
     }
     for (j = 0; j < nf; ++j) {
-        y = y + m->skip_w[j] * st->z[j];
+        y = y + m->skip_w[j] * z[j];
     }
     if (m->quad_w != NULL) { /* polynomial head: the quadratic, then the cubic terms in z */
         if (m->quad_diag != 0u) { /* the diagonal only: quad_w [F] */
             for (i = 0; i < nf; ++i) {
-                y = y + m->quad_w[i] * (st->z[i] * st->z[i]);
+                y = y + m->quad_w[i] * (z[i] * z[i]);
             }
         } else {
             for (i = 0; i < nf; ++i) {
                 for (j = 0; j < nf; ++j) {
-                    y = y + m->quad_w[i * nf + j] * (st->z[i] * st->z[j]);
+                    y = y + m->quad_w[i * nf + j] * (z[i] * z[j]);
                 }
             }
         }
         for (i = 0; i < nf; ++i) {
-            y = y + m->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]);
+            y = y + m->cube_w[i] * ((z[i] * z[i]) * z[i]);
         }
     }
     sf = y * m->out_scale + m->out_offset;
     mag = sf < 0.0f ? -sf : sf;
-    st->flags_next = 0u;
+    flags = 0u;
     if (!(mag <= FOGSF_SF_LIMIT_PPM)) { /* a broken model, or NaN: never pass it on */
         sf = sf > 0.0f ? FOGSF_SF_LIMIT_PPM : (sf < 0.0f ? -FOGSF_SF_LIMIT_PPM : 0.0f);
-        st->flags_next = FOGSF_FLAG_SF_CLAMPED;
+        flags = FOGSF_FLAG_SF_CLAMPED;
     }
-    st->sf_next = sf;
     /* the correction's factor, once per model step: k = s / (1 + s), s = sf * 1e-6, so that a
      * sample is corrected by d - d * k = d / (1 + s) with one rounding that matters */
+#if FOGSF_EVEN_TIME
+    st->flags_next = flags;
+    st->sf_next = sf;
     st->k_next = k_of(sf);
+#else
+    st->sf_flags = flags; /* the whole step runs on this sample: held from it on */
+    st->sf_ppm = sf;
+    st->sf_k = k_of(sf);
+#endif
 }
 
 /* The bias head on the features z of this step (deg/h): the bias, then the squares, then
  * the cubes, index order; NaN or beyond +-FOGSF_BIAS_LIMIT_DPH is clamped and flagged. */
-static void part_bias(const fogsf_model *m, fogsf_state *st)
+static void part_bias(const fogsf_model *m, fogsf_state *st, const float *z)
 {
     const fogsf_bias_head *b = m->bias;
     const uint32_t nf = m->n_features;
@@ -788,40 +805,50 @@ static void part_bias(const fogsf_model *m, fogsf_state *st)
     if (b != NULL) { /* without a bias head bias_dph stays 0 */
         y = b->b;
         for (i = 0; i < nf; ++i) {
-            y = y + (b->w[i] * st->z[i]);
+            y = y + (b->w[i] * z[i]);
         }
         for (i = 0; i < nf; ++i) {
-            y = y + (b->quad_w[i] * (st->z[i] * st->z[i]));
+            y = y + (b->quad_w[i] * (z[i] * z[i]));
         }
         for (i = 0; i < nf; ++i) {
-            y = y + (b->cube_w[i] * ((st->z[i] * st->z[i]) * st->z[i]));
+            y = y + (b->cube_w[i] * ((z[i] * z[i]) * z[i]));
         }
         mag = (y < 0.0f) ? -y : y;
         if (!(mag <= FOGSF_BIAS_LIMIT_DPH)) {
             y = (y > 0.0f) ? FOGSF_BIAS_LIMIT_DPH : ((y < 0.0f) ? -FOGSF_BIAS_LIMIT_DPH : 0.0f);
+#if FOGSF_EVEN_TIME
             st->flags_next |= FOGSF_FLAG_BIAS_CLAMPED;
+#else
+            st->sf_flags |= FOGSF_FLAG_BIAS_CLAMPED;
+#endif
         }
+#if FOGSF_EVEN_TIME
         st->bias_next = y;
         st->bias_dps_next = dps_of(y); /* once per model step, not per sample */
+#else
+        st->bias_dph = y;
+        st->bias_dps = dps_of(y);
+#endif
     }
 }
 
 /* part p of the model step (tm is read by part 0 only) */
 static void run_part(const fogsf_model *m, fogsf_state *st, uint32_t p, float tm,
-                     float *h_prev)
+                     float *h_prev, float *z)
 {
     const uint32_t units = m->layers * m->hidden;
     if (p == 0u) {
-        part_front(m, st, tm);
+        part_front(m, st, tm, z);
     } else if (p <= units) {
-        part_unit(m, st, p - 1u, h_prev);
+        part_unit(m, st, p - 1u, h_prev, z);
     } else if (p == (units + 1u)) {
-        part_head(m, st);
+        part_head(m, st, z);
     } else {
-        part_bias(m, st);
+        part_bias(m, st, z);
     }
 }
 
+#if FOGSF_EVEN_TIME
 /* the step's outputs become the held ones */
 static void publish(fogsf_state *st)
 {
@@ -837,6 +864,7 @@ static void publish(fogsf_state *st)
     st->bias_dps = st->bias_dps_next;
     st->sf_flags = st->flags_next;
 }
+#endif
 
 /* A model step on the block mean tm at this sample. Default: all parts now, the outputs held
  * from this sample on (contract step 5). FOGSF_EVEN_TIME: the parts still pending from the
@@ -847,19 +875,20 @@ static void model_step(const fogsf_model *m, fogsf_state *st, float tm)
 {
 #if FOGSF_EVEN_TIME
     while (st->part != 0u) {
-        run_part(m, st, st->part, 0.0f, st->h_prev);
+        run_part(m, st, st->part, 0.0f, st->h_prev, st->z);
         st->part = ((st->part + 1u) < n_parts(m)) ? (st->part + 1u) : 0u;
     }
     publish(st);
-    run_part(m, st, 0u, tm, st->h_prev);
+    run_part(m, st, 0u, tm, st->h_prev, st->z);
     st->part = 1u;
 #else
-    float h_prev[FOGSF_MAX_HIDDEN]; /* one layer's scratch: on the stack, not in each state */
+    /* the step's scratch on the stack, not in each state; its parts write the held outputs */
+    float h_prev[FOGSF_MAX_HIDDEN];
+    float z[FOGSF_MAX_FEATURES];
     uint32_t p;
     for (p = 0u; p < n_parts(m); ++p) {
-        run_part(m, st, p, tm, h_prev);
+        run_part(m, st, p, tm, h_prev, z);
     }
-    publish(st);
 #endif
 }
 
@@ -884,7 +913,7 @@ static bool spread_part(const fogsf_model *m, fogsf_state *st)
     if (st->part != 0u) {
         ok = arrays_usable(m, st);
         if (ok) {
-            run_part(m, st, st->part, 0.0f, st->h_prev);
+            run_part(m, st, st->part, 0.0f, st->h_prev, st->z);
             st->part = ((st->part + 1u) < n_parts(m)) ? (st->part + 1u) : 0u;
         }
     }

@@ -206,11 +206,11 @@ typedef struct fogsf_state {
     float h[FOGSF_MAX_LAYERS][FOGSF_MAX_HIDDEN]; /* LSTM hidden state per layer */
     float c[FOGSF_MAX_LAYERS][FOGSF_MAX_HIDDEN]; /* LSTM cell state per layer */
 #if FOGSF_EVEN_TIME
-    float h_prev[FOGSF_MAX_HIDDEN];              /* one LSTM layer's previous h, kept from
-                                                    sample to sample (the default build
-                                                    keeps it on the stack of a step) */
+    /* what a step's parts pass on from sample to sample; the default build runs a step whole
+     * on one sample and keeps them on its stack (one copy, not one a state) */
+    float h_prev[FOGSF_MAX_HIDDEN];              /* one LSTM layer's previous h */
+    float z[FOGSF_MAX_FEATURES];                 /* features of the step under way */
 #endif
-    float z[FOGSF_MAX_FEATURES];                 /* features of the latest model step */
     float y[FOGSF_MAX_FILTERS];                  /* first-order lag filters of the temperature */
     float p[FOGSF_MAX_PLAYS];                    /* play operators' outputs */
     float acc;                                   /* sum of Tc since the last model step */
@@ -220,8 +220,11 @@ typedef struct fogsf_state {
     float bias_dps;                              /* bias_dph / 3600 (float32), held */
     float sf_k;                                  /* s / (1 + s), s = sf_ppm * 1e-6, held */
     uint32_t sf_flags;                           /* FOGSF_FLAG_SF/BIAS_CLAMPED of that step */
+#if FOGSF_EVEN_TIME
     float sf_next, k_next, bias_next, bias_dps_next; /* the step being computed: held */
-    uint32_t flags_next;                         /* from its publication on */
+    uint32_t flags_next;                         /* from its publication on (the default
+                                                    build writes the held ones at once) */
+#endif
     uint32_t part;                               /* FOGSF_EVEN_TIME: its next part, 0 none */
     uint32_t raw_prev_bits;                      /* previous raw temperature, bitwise */
     uint32_t stuck_run;                          /* repeats of it (saturates at the threshold) */
@@ -243,12 +246,14 @@ typedef struct fogsf_state {
     float cand_sf, cand_bias;                    /* held at this pass's start */
     uint32_t snap_flags;                         /* their sf_flags: good | cand << 16 */
 #if FOGSF_MAX_RATE_ROWS > 0
-    /* the rate part: the held a_r (+0 from R on), the step's, the verified and candidate
-     * ones; R | Q << 8 and 1/FS as init recorded them (0 without the part); rate_on nonzero
-     * once primed with a rate part */
+    /* the rate part: the held a_r (+0 from R on), the step's (even-time build), the
+     * verified and candidate ones; R | Q << 8 and 1/FS as init recorded them (0 without the
+     * part); rate_on nonzero once primed with a rate part */
     uint32_t sizes_c;
     float rate_a[FOGSF_MAX_RATE_ROWS];
+#if FOGSF_EVEN_TIME
     float rate_next[FOGSF_MAX_RATE_ROWS];
+#endif
     float good_rate[FOGSF_MAX_RATE_ROWS];
     float cand_rate[FOGSF_MAX_RATE_ROWS];
     float rate_inv_fs;

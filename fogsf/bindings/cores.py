@@ -11,6 +11,14 @@ toolchain of `TOOLCHAINS` the kernel's sources are compiled with (the strict fla
 default; clang): PASS (every output bit for bit, self-test 0), REFUSED (the kernel stops the
 build: fogsf_fp.h's #error), CAUGHT (it compiles, the self-test fails: FOGSF_SELFTEST_AT_INIT
 refuses the model at init) or FAIL (other bits with a passing self-test, or another error).
+With the strict flags it also counts each core's instructions per sample (fogsf.bindings.icount:
+worst, mean over a decimation period, and the worst of a sample without a model step).
+
+`--target block` (`make block-cores`) checks the calibration block instead: it writes the
+model's block (`fogsf export --blob`), links it into an image for each core at BLOCK_ADDRESS
+(section .fogsf_block, `--section-start`), the kernel and the loader compiled with the strict
+flags; the image calls fogsf_model_from_block on it and runs the golden check
+(firmware/c/test/golden_check.c) on that model: one PASS or FAIL line a core.
 """
 
 from __future__ import annotations
@@ -22,19 +30,32 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from fogsf.bindings.block import BLOCK_SOURCES
 from fogsf.bindings.firmware import (
     ARM_CC,
     CORES,
+    TEST_FLAGS,
     Core,
     arm_tools_missing,
     build_arm,
+    run_cmd,
     run_qemu,
     section_sizes,
     write_golden,
 )
-from fogsf.bindings.kernel import EVEN_TIME, STRICT, Kernel, build_kernel
+from fogsf.bindings.icount import SampleCounts, sample_counts
+from fogsf.bindings.kernel import (
+    BOUND_NAME,
+    C_DIR,
+    EVEN_TIME,
+    SOURCES,
+    STRICT,
+    Kernel,
+    build_kernel,
+)
 from fogsf.bindings.stack import INIT_ROOTS, STEP_ROOTS, StackBound, stack_bound
 from fogsf.errors import UserError
+from fogsf.export.block import write_block
 from fogsf.models.stream import StreamModel
 
 
@@ -95,10 +116,13 @@ class CoreResult:
     ram_bytes: int = 0  # data + bss + the deeper of the step's and the init's stack bound
     step_stack: StackBound | None = None
     init_stack: StackBound | None = None
+    counts: SampleCounts | None = None  # instructions per sample of the bench image (PASS)
 
 
 def run_core(core: Core, build_dir: Path, golden_dir: Path, out: Path, defines: tuple[str, ...],
-             toolchain: Toolchain = TOOLCHAINS["gcc-c99"]) -> CoreResult:
+             toolchain: Toolchain = TOOLCHAINS["gcc-c99"], decimation: int = 0) -> CoreResult:
+    """The golden image's verdict, sizes and stack bound on `core`; with a decimation D,
+    also the bench image's instructions per sample over 2D + 1 samples (a PASS only)."""
     try:
         arm = build_arm(build_dir, golden_dir, out / core.name, defines=defines, core=core,
                         kernel_cc=toolchain.cc, kernel_flags=toolchain.flags)
@@ -118,22 +142,18 @@ def run_core(core: Core, build_dir: Path, golden_dir: Path, out: Path, defines: 
         verdict = "CAUGHT"
     else:
         verdict = "FAIL"
+    counts = (sample_counts(arm.bench_elf, decimation, core)
+              if verdict == "PASS" and decimation > 0 else None)
     return CoreResult(core.name, verdict, text, text_b + data,
-                      data + bss + max(step.bytes, init.bytes), step, init)
+                      data + bss + max(step.bytes, init.bytes), step, init, counts)
 
 
 BUILDS = {"default": False, "even-time": True}  # the kernel's builds: FOGSF_EVEN_TIME
 
 
-def firmware_cores(model_dir: Path, out: Path, cores: list[str],
+def firmware_cores(model: StreamModel, out: Path, cores: list[str],
                    builds: tuple[str, ...] = tuple(BUILDS),
                    toolchains: tuple[str, ...] = DEFAULT_TOOLCHAINS) -> int:
-    missing = arm_tools_missing()
-    if missing:
-        print(f"firmware-cores: {missing}", file=sys.stderr)
-        return 2
-    model = StreamModel.load(model_dir)
-    print(f"model {model_dir}: id {model.model_id}, {model.summary}")
     failed = False
     verdicts: set[str] = set()
     for kind in builds:
@@ -165,22 +185,28 @@ def cores_of(model: StreamModel, out: Path, cores: list[str], even_time: bool,
             continue
         for name in cores:
             core = CORES[name]
-            r = run_core(core, build.directory, golden_dir, out / tc.name, build.defines, tc)
+            # instructions counted for the strict build only: the one the bound is stated for
+            r = run_core(core, build.directory, golden_dir, out / tc.name, build.defines, tc,
+                         model.decimation if tc.name == "gcc-c99" else 0)
             seen.add(r.verdict)
             failed |= r.verdict == "FAIL"
             if r.verdict == "REFUSED":
                 print(f"  {core.label}: REFUSED to compile: {r.output}")
                 continue
             lines = r.output.strip().splitlines()
-            last = [ln for ln in lines if ln.startswith(("PASS", "FAIL"))]
             selftest = [ln for ln in lines if ln.startswith("selftest")]
-            detail = re.sub(r"^(PASS|FAIL): ", "", last[-1]) if last else "no result"
+            detail = result_detail(r.output)
             print(f"  {core.label} under qemu-system-arm -M {core.machine}: {r.verdict}: "
                   f"{detail}" + (f"; {selftest[0]}" if selftest else ""))
             if r.step_stack is not None and r.init_stack is not None:
                 print(f"    flash {r.flash_bytes} B, RAM {r.ram_bytes} B (stack bound: "
                       f"fogsf_step {r.step_stack.bytes} B via {' > '.join(r.step_stack.path)}; "
                       f"init {r.init_stack.bytes} B)")
+                if r.counts is not None:
+                    c = r.counts
+                    print(f"    instructions per sample: worst {c.worst}, mean {c.mean:.0f} "
+                          f"(worst / mean {c.worst_over_mean:.1f}; a sample without a model "
+                          f"step: worst {c.non_step_worst})")
                 if r.step_stack.unbounded:
                     print(f"    no static stack bound through: "
                           f"{', '.join(r.step_stack.unbounded)}")
@@ -189,10 +215,97 @@ def cores_of(model: StreamModel, out: Path, cores: list[str], even_time: bool,
     return not failed, seen
 
 
+def result_detail(text: str) -> str:
+    """The image's last PASS or FAIL line, without the verdict."""
+    last = [ln for ln in text.strip().splitlines() if ln.startswith(("PASS", "FAIL"))]
+    return re.sub(r"^(PASS|FAIL): ", "", last[-1]) if last else "no result"
+
+
+# where the line writes a unit's block: a flash sector the image's code never reaches
+BLOCK_ADDRESS = {"cortex-m4f": 0x00300000, "cortex-m3": 0x00300000, "cortex-m0": 0x00030000}
+BLOCK_DATA = """/* the unit's calibration block, as the line writes it into its flash sector */
+    .section .fogsf_block, "a"
+    .balign 4
+    .global fogsf_unit_block
+fogsf_unit_block:
+    .incbin "{path}"
+    .global fogsf_unit_block_end
+fogsf_unit_block_end:
+"""
+
+
+def block_golden(golden_dir: Path) -> None:
+    """golden_vectors.h pointed at the model the image reads from its block."""
+    path = golden_dir / "golden_vectors.h"
+    text = path.read_text()
+    old = f'#include "{BOUND_NAME}.h"\n#define FOGSF_GOLDEN_MODEL (&{BOUND_NAME})\n'
+    if old not in text:
+        raise UserError(f"{path}: no model line to point at the block")
+    path.write_text(text.replace(old, '#include "fogsf_block.h"\nextern fogsf_block_model '
+                                      'golden_block;\n#define FOGSF_GOLDEN_MODEL '
+                                      '(&golden_block.model)\n'))
+
+
+def build_block_image(core: Core, block: Path, golden_dir: Path, defines: tuple[str, ...],
+                      out: Path) -> Path:
+    """block.elf for one core: start-up, the golden check, block_main, the kernel and the
+    loader (strict flags), the block at BLOCK_ADDRESS[core]."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "block_data.S").write_text(BLOCK_DATA.format(path=block.resolve()))
+    inc = ["-I", str(golden_dir), "-I", str(C_DIR), "-I", str(C_DIR / "test"),
+           "-I", str(C_DIR / "arm")]
+    common = [*core.flags, "-O2", "-ffunction-sections", "-fdata-sections", *defines]
+    objs = []
+    srcs: list[tuple[Path, tuple[str, ...]]] = [(C_DIR / n, STRICT)
+                                                for n in (*SOURCES, *BLOCK_SOURCES)]
+    srcs += [(C_DIR / "test" / "golden_check.c", STRICT),
+             (C_DIR / "arm" / "startup.c", TEST_FLAGS),
+             (C_DIR / "arm" / "block_main.c", TEST_FLAGS), (out / "block_data.S", ())]
+    for src, flags in srcs:
+        obj = out / (src.stem + ".o")
+        run_cmd([ARM_CC, *flags, *common, *inc, "-c", str(src), "-o", str(obj)],
+                f"compiling {src.name} for {core.name}")
+        objs.append(obj)
+    elf = out / "block.elf"
+    run_cmd([ARM_CC, *core.flags, "-nostdlib", "-nostartfiles", "-Wl,--gc-sections",
+             f"-Wl,--section-start=.fogsf_block=0x{BLOCK_ADDRESS[core.name]:08x}",
+             "-T", str(C_DIR / "arm" / core.linker_script), *map(str, objs), "-lgcc",
+             "-o", str(elf)], f"linking {elf.name}")
+    return elf
+
+
+def block_cores(model: StreamModel, out: Path, cores: list[str]) -> int:
+    block = write_block(model, out / "unit.bin")
+    print(f"block {block} ({block.stat().st_size} bytes)")
+    build = build_kernel(model, root=out / "host")
+    golden_dir = out / "golden"
+    write_golden(model, Kernel(model, build), golden_dir)
+    block_golden(golden_dir)
+    failed = False
+    for name in cores:
+        core = CORES[name]
+        elf = build_block_image(core, block, golden_dir, build.defines, out / name)
+        ok, text = run_qemu(elf, timeout=600.0, machine=core.machine)
+        where = re.search(r"^block at (0x[0-9a-f]+)", text, flags=re.M)
+        print(f"  {core.label} under qemu-system-arm -M {core.machine}, block at "
+              f"{where[1] if where else '?'}: {'PASS' if ok else 'FAIL'}: "
+              f"{result_detail(text)}")
+        if not ok:
+            print("\n".join(f"    {ln}" for ln in text.strip().splitlines()[-12:]))
+        failed |= not ok
+    print("FAIL" if failed else f"PASS on {', '.join(cores)}: the block's model gives the "
+          "generated C's golden vectors bit for bit")
+    return 1 if failed else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m fogsf.bindings.cores", description=__doc__)
     p.add_argument("model", type=Path, help="model directory (stream.json + weights)")
-    p.add_argument("--out", type=Path, default=Path("build/cores"))
+    p.add_argument("--target", choices=("kernel", "block"), default="kernel",
+                   help="the generated C model (default) or the model read from its "
+                        "calibration block")
+    p.add_argument("--out", type=Path, default=None,
+                   help="build folder (default build/cores, build/block-cores)")
     p.add_argument("--cores", default=",".join(CORES),
                    help=f"comma-separated, of {', '.join(CORES)}")
     p.add_argument("--builds", default=",".join(BUILDS),
@@ -210,10 +323,20 @@ def main(argv: list[str] | None = None) -> int:
     toolchains = tuple(t for t in args.toolchains.split(",") if t)
     if not toolchains or set(toolchains) - set(TOOLCHAINS):
         p.error(f"--toolchains {args.toolchains!r}: choose from {', '.join(TOOLCHAINS)}")
+    what = "block-cores" if args.target == "block" else "firmware-cores"
+    missing = arm_tools_missing()
+    if missing:
+        print(f"{what}: {missing}", file=sys.stderr)
+        return 2
     try:
-        return firmware_cores(args.model, args.out, cores, builds, toolchains)
+        model = StreamModel.load(args.model)
+        print(f"model {args.model}: id {model.model_id}, {model.summary}")
+        if args.target == "block":
+            return block_cores(model, args.out or Path("build/block-cores"), cores)
+        return firmware_cores(model, args.out or Path("build/cores"), cores, builds,
+                              toolchains)
     except UserError as e:
-        print(f"firmware-cores: error: {e}", file=sys.stderr)
+        print(f"{what}: error: {e}", file=sys.stderr)
         return 2
 
 

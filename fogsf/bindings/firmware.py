@@ -283,8 +283,9 @@ def arm_size(arm: ArmBuild, models: StreamModel | list[StreamModel]) -> ArmSize:
 
 def state_bytes(models: StreamModel | list[StreamModel], even_time: bool = False) -> int:
     """sizeof(fogsf_state) on a 32-bit core for the largest of the models (FOGSF_MAX_* =
-    their maxima): the model pointer, then 4-byte floats/uint32 (h_prev [H] only in the
-    even-time build: the default build keeps it on the stack of a model step)."""
+    their maxima): the model pointer, then 4-byte floats/uint32 (h_prev [H], z [F], the
+    step's next outputs and a_r only in the even-time build: the default build runs a step
+    whole on one sample, its scratch on the stack)."""
     models = models if isinstance(models, list) else [models]
     lay = max(m.layers for m in models)
     h = max(m.hidden for m in models)
@@ -292,13 +293,14 @@ def state_bytes(models: StreamModel | list[StreamModel], even_time: bool = False
     k = max(max(m.n_filters, 1) for m in models)
     p = max(max(m.n_plays, 1) for m in models)
     r = max(rate_rows(m) for m in models)
-    # 17 scalars: acc .. started, the held outputs, k and b, the next step's outputs, part;
-    # 13 of the run-time check: the model's crc32 and sizes (3), the pass (crc_at, crc_end,
-    # crc_seg, crc_reg), the fault, the verified and candidate outputs (4) and their flags;
-    # with a rate part its held, next, verified and candidate a_r (4 R), its sizes, 1/FS and
-    # whether it is on
-    rate = 4 * r + 3 if r else 0
-    return 4 * (1 + 2 * lay * h + (h if even_time else 0) + f + k + p + 17 + 13 + rate)
+    # 12 scalars: acc .. started, the held outputs, k and b, part (the even-time build: 5 more,
+    # the next step's outputs); 13 of the run-time check: the model's crc32 and sizes (3),
+    # the pass (crc_at, crc_end, crc_seg, crc_reg), the fault, the verified and candidate
+    # outputs (4) and their flags; with a rate part its held, verified and candidate a_r
+    # (3 R; the even-time build's next ones R more), its sizes, 1/FS and whether it is on
+    rate = (4 if even_time else 3) * r + 3 if r else 0
+    step = h + f + 5 if even_time else 0
+    return 4 * (1 + 2 * lay * h + step + k + p + 12 + 13 + rate)
 
 
 # --- make firmware -------------------------------------------------------------------------

@@ -307,20 +307,26 @@ class Kernel:
 def trace_steps(kernel: Kernel, temp_c: np.ndarray, gyro_dps: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Step the kernel sample by sample and read its state after every model step (samples
-    0, D, 2D, ...): (z [n_steps, F], last layer's h [n_steps, H], sf_ppm [n_steps])."""
+    0, D, 2D, ...): (z [n_steps, F], last layer's h [n_steps, H], sf_ppm [n_steps]). The
+    default build keeps z on the stack of a step, so z is read from the even-time build of
+    the same model (gcc), whose front runs on the step's sample with the same code."""
     t, g = kernel._inputs(temp_c, gyro_dps)
     model, ffi, lib = kernel.model, kernel.ffi, kernel.lib
-    st = kernel.new_state()
-    out = ffi.new("fogsf_output *")
+    even = kernel if EVEN_TIME in kernel.build.defines else Kernel(model, build_kernel(
+        model, root=kernel.build.directory.parent, even_time=True))
+    st, st_even = kernel.new_state(), even.new_state()
+    out, out_even = ffi.new("fogsf_output *"), even.ffi.new("fogsf_output *")
     steps = range(0, t.shape[0], model.decimation)
     z = np.empty((len(steps), model.n_features), np.float32)
     h = np.empty((len(steps), model.hidden), np.float32)
     sf = np.empty(len(steps), np.float32)
-    zbuf = np.frombuffer(ffi.buffer(st.z), np.float32)
+    zbuf = np.frombuffer(even.ffi.buffer(st_even.z), np.float32)
     hbuf = np.frombuffer(ffi.buffer(st.h[model.layers - 1]), np.float32)
     m = 0
     for i, (ti, gi) in enumerate(zip(t.tolist(), g.tolist(), strict=True)):
         lib.fogsf_step(kernel.m, st, ti, gi, out)
+        if even is not kernel:
+            even.lib.fogsf_step(even.m, st_even, ti, gi, out_even)
         if i % model.decimation == 0:
             z[m], h[m], sf[m] = zbuf, hbuf, out.sf_ppm
             m += 1

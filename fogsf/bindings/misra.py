@@ -75,8 +75,8 @@ def category(rule: str) -> str:
 # the largest LSTM the GSA search can give (fogsf/training/net/gsa_search.py, gsa_space: layers
 # 1..3, hidden 4..256; tests/test_misra.py checks these against it). Its NAME.c (21 MB, 1.3 M
 # floats) is checked on request only (--gsa, `make misra MISRA_GSA=1`), in a cppcheck run of
-# its own with its own time limit: cppcheck 2.10 takes more than 15 minutes over it alone,
-# which the routine run cannot afford.
+# its own with its own time limit: cppcheck 2.10's time grows with the square of an
+# initializer's length, and its five 262 144-float tables take hours (firmware/c/MISRA.md).
 GSA_LAYERS = 3
 GSA_HIDDEN = 256
 GSA_TIMEOUT_S = 4 * 3600.0

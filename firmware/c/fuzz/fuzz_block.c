@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "fogsf_block.h"
+#include "fuzz_common.h"
 
 static unsigned long long inputs;
 static unsigned long long accepted;
@@ -26,17 +27,6 @@ static fogsf_state st;
 static void report(void)
 {
     fprintf(stderr, "fuzz blocks: %llu (accepted %llu)\n", inputs, accepted);
-}
-
-int LLVMFuzzerInitialize(int *argc, char ***argv);
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-
-int LLVMFuzzerInitialize(int *argc, char ***argv)
-{
-    (void)argc;
-    (void)argv;
-    atexit(report);
-    return 0;
 }
 
 static uint32_t rd32(const uint8_t *p)

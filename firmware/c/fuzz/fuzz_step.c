@@ -24,23 +24,13 @@
 
 #include "fogsf.h"
 #include "fuzz_model.h"
+#include "fuzz_common.h"
 
 static unsigned long long steps;
 
 static void report(void)
 {
     fprintf(stderr, "fuzz steps: %llu\n", steps);
-}
-
-int LLVMFuzzerInitialize(int *argc, char ***argv);
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-
-int LLVMFuzzerInitialize(int *argc, char ***argv)
-{
-    (void)argc;
-    (void)argv;
-    atexit(report);
-    return 0;
 }
 
 static int finite_f(float v)
