@@ -26,6 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from fogsf.logs.measure.table_figures import temperature_groups
+from fogsf.models.rate_part import apply_rate, rate_coefficients
+from fogsf.models.stream import StreamModel
+from fogsf.models.stream_format import RATE_ARRAY
 from fogsf.models.structures.rate_forms import TEMP_SCALE_C, RateForm, design, forms, solve
 from fogsf.sim.population import gyro_for_seed
 from fogsf.sim.rigs.plateau_tables import PlateauPlan, plateau_table, run_plateaus
@@ -48,20 +51,25 @@ class SplitScore:
     linear_dph: float
     form: str
     oracle_form: str
+    f32_ppm_fs: float  # the float32 rate part against float64 arithmetic, max over x and T
 
     @property
     def ratio(self) -> float:
         return self.fogsf_dph / self.oracle_dph
 
 
-def table_rows(gyro: int, kind: str, seed: int) -> tuple[PlateauRows, np.ndarray]:
-    """(rows, each row's table rate) of one simulated run of the gyro."""
+def table_rows(gyro: int, kind: str, seed: int, noise_dph: float = 0.0
+               ) -> tuple[PlateauRows, np.ndarray]:
+    """(rows, each row's table rate) of one simulated run of the gyro; `noise_dph`: white
+    noise of that RMS added to each plateau's mean output (a rig noisier than the sim's)."""
     cfg = gyro_for_seed(gyro, open_loop=kind == "open-loop",
                         rate_response=kind == "closed-loop")
     cfg.seed = seed
     t = plateau_table(run_plateaus(cfg, PlateauPlan()))
     c = t.columns
-    return (PlateauRows(c["gyro_dps"], c["table_rate_dps"] + t.earth_rate_dps, c["temp_c"]),
+    gyro_dps = c["gyro_dps"] + np.random.default_rng([seed, 77]).normal(
+        0.0, noise_dph / 3600.0, c["gyro_dps"].size) if noise_dph > 0 else c["gyro_dps"]
+    return (PlateauRows(gyro_dps, c["table_rate_dps"] + t.earth_rate_dps, c["temp_c"]),
             c["table_rate_dps"])
 
 
@@ -85,6 +93,27 @@ def oracle(train: PlateauRows, test: PlateauRows, linear: bool) -> tuple[float, 
     return best
 
 
+def float32_error_ppm(model: StreamModel) -> float:
+    """Max |out32 - (c - e64)| / FS in ppm over 2001 rates across +-FS and 21 temperatures
+    across the model's range: the kernel's float32 evaluation of the rate part (its output's
+    rounding included) against the same coefficients in float64 (0 without a part)."""
+    if not model.has_rate_part:
+        return 0.0
+    fs = model.rate_fs_dps
+    c = (np.linspace(-1.0, 1.0, 2001) * fs).astype(np.float32)
+    w = np.asarray(model.weights[RATE_ARRAY], np.float64)
+    worst = 0.0
+    for s0 in np.linspace(model.t_min_c, model.t_max_c, 21) - model.t_ref_c:
+        a32 = rate_coefficients(model, np.array([s0]))
+        out, _ = apply_rate(model, c, np.repeat(a32, c.size, axis=0),
+                            np.zeros(c.size, np.uint32))
+        a = a32[0].astype(np.float64)  # the held coefficients as the kernel holds them
+        x = c.astype(np.float64) / fs
+        e64 = a[0] * np.abs(x) + sum(a[r] * x ** (r + 1) for r in range(1, w.shape[0]))
+        worst = max(worst, float(np.max(np.abs(out - (c - e64)))) / fs * 1e6)
+    return worst
+
+
 def splits(run: PlateauRows, other: PlateauRows
            ) -> dict[str, tuple[PlateauRows, PlateauRows]]:
     n = len(run)
@@ -97,9 +126,9 @@ def splits(run: PlateauRows, other: PlateauRows
             "every5th": (run, _take(other, np.arange(0, len(other), 5)))}
 
 
-def score_gyro(gyro: int, kind: str) -> list[SplitScore]:
-    run, _ = table_rows(gyro, kind, gyro)
-    other, _ = table_rows(gyro, kind, gyro + OTHER_RUN)
+def score_gyro(gyro: int, kind: str, noise_dph: float = 0.0) -> list[SplitScore]:
+    run, _ = table_rows(gyro, kind, gyro, noise_dph)
+    other, _ = table_rows(gyro, kind, gyro + OTHER_RUN, noise_dph)
     out = []
     for name, (train, test) in splits(run, other).items():
         fit = fit_plateau_model(train)
@@ -107,7 +136,8 @@ def score_gyro(gyro: int, kind: str) -> list[SplitScore]:
         best, best_form = oracle(train, test, linear=False)
         lin, _ = oracle(train, test, linear=True)
         out.append(SplitScore(gyro, kind, name, rms_dph(corrected - test.rate_dps), best, lin,
-                              fit.form.describe(), best_form.describe()))
+                              fit.form.describe(), best_form.describe(),
+                              float32_error_ppm(fit.model)))
     return out
 
 
@@ -134,12 +164,14 @@ def main(argv: list[str] | None = None) -> int:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--gyros", default="20000:20010", help="population seeds LO:HI")
     p.add_argument("--out", type=Path, default=Path("out/bench-plateaus.json"))
+    p.add_argument("--noise-dph", type=float, default=0.0,
+                   help="white noise (deg/h RMS) added to each plateau's mean output")
     args = p.parse_args(argv)
     lo, hi = (int(x) for x in args.gyros.split(":"))
     scores: list[SplitScore] = []
     for gyro in range(lo, hi):
         for kind in KINDS:
-            for s in score_gyro(gyro, kind):
+            for s in score_gyro(gyro, kind, args.noise_dph):
                 scores.append(s)
                 print(f"gyro {gyro} {kind:11s} {s.split:8s} fogsf {s.fogsf_dph:8.2f}  oracle "
                       f"{s.oracle_dph:8.2f}  ratio {s.ratio:5.2f}  linear {s.linear_dph:9.1f} "
@@ -155,8 +187,12 @@ def main(argv: list[str] | None = None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"gyros": [lo, hi], "target_ratio": TARGET_RATIO,
                                     "summary": summ,
+                                    "f32_ppm_fs_max": max(s.f32_ppm_fs for s in scores),
                                     "scores": [{**asdict(s), "ratio": s.ratio}
                                                for s in scores]}, indent=2) + "\n")
+    f32 = max(s.f32_ppm_fs for s in scores)
+    print(f"  the float32 rate part against float64 arithmetic: at most {f32:.3f} ppm of full "
+          "scale (its output's rounding included)")
     print(f"wrote {args.out}")
     return 0
 
