@@ -210,6 +210,17 @@ def main(argv: list[str] | None = None) -> int:
         good = sorted(round(r["oracle"]["normal"], 1) for r in got)
         print(f"{name}: oracle distance of the slower part {bad}; normal units {good}; "
               f"over twice the largest normal: {seen} of {len(got)}", file=sys.stderr)
+        for k in ("k1", "k2"):
+            sep = [r["practical"][k] for r in got if "practical" in r]
+            if sep:
+                n = sum(abs(p["defective_z"]) > max(3.0, 2 * p["normal_max_abs_z"]) for p in sep)
+                print(f"  time constant z ({k}): separated (|z| > 3 and > 2 x the normals') "
+                      f"{n} of {len(sep)}", file=sys.stderr)
+        checks = [r["check"] for r in got if "check" in r]
+        if checks:
+            print(f"  fleet check: found {sum(c['found'] for c in checks)} of {len(checks)}; "
+                  f"normal lines with a flag {sum(c['normal_flagged'] > 0 for c in checks)}",
+                  file=sys.stderr)
     if a.out:
         with open(a.out, "w") as f:
             json.dump(rows, f, indent=1)
