@@ -228,15 +228,14 @@ def test_time_s_without_time_is_is_refused(tmp_path: Path, capsys) -> None:
 
 
 @pytest.mark.parametrize("argv", [
-    ["fleet", "add", "{d}/line.fleet", "--unit", "SN1", "--train", "{t}"],
     ["plan", "--from-logs", "{t}", "--hours", "4", "--out", "{d}/plan"],
 ])
 def test_other_commands_refuse_a_plateau_table_naming_inspect(argv: list[str], tmp_path: Path,
                                                               capsys) -> None:
     path = write_table(tmp_path / "rig", rig_rows())
     err = _refused(capsys, *(a.format(t=path, d=tmp_path) for a in argv))
-    assert "a plateau table" in err and "`fogsf inspect`, `train`, `replay` and `diagnose`" in err
-    with pytest.raises(LogError, match="`fogsf inspect`, `train`, `replay` and `diagnose`"):
+    assert "a plateau table" in err and "`train`, `replay`, `diagnose` and `fleet add`" in err
+    with pytest.raises(LogError, match="`train`, `replay`, `diagnose` and `fleet add`"):
         read_log(path)
 
 

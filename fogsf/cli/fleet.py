@@ -32,10 +32,10 @@ from pathlib import Path
 
 from fogsf.cli import fleet_export
 from fogsf.cli import train as train_cli
-from fogsf.cli.arguments import cosine_for, dialect_from_args, read_logs
+from fogsf.cli.arguments import cosine_for, read_logs
 from fogsf.cli.fleet_views import run_check, run_list, run_report
 from fogsf.cli.main import main
-from fogsf.cli.plateau_commands import TRAIN_ONLY_SAMPLES, any_plateau_table
+from fogsf.cli.plateau_commands import any_plateau_table, fit_tables
 from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
 from fogsf.fleet.batch import run_local
@@ -48,9 +48,7 @@ from fogsf.fleet.plateau_unit import plateau_record
 from fogsf.fleet.records import UnitRecord, structure_of, unit_record
 from fogsf.fleet.store import fleet_exists, open_store
 from fogsf.gsa.executors import default_workers, open_executor
-from fogsf.logs.plateau_table import read_plateau_table
 from fogsf.scratch import temp_dir
-from fogsf.training.rate.plateau_train import metrics_lines, save_plateau_model, train_plateaus
 from fogsf.training.train import run_training
 
 FLEET_HELP = ("the fleet: an SQLite file or a postgresql:// URL (its password from "
@@ -215,23 +213,11 @@ def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:
 def _fit_tables(args: argparse.Namespace, out: Path) -> UnitRecord:
     """The unit's plateau model fitted on its plateau tables as `fogsf train` fits it, into
     `out`; its record (`fleet.plateau_unit`)."""
-    given = [o for o in TRAIN_ONLY_SAMPLES if o != "unit" and getattr(args, o, None)]
-    given += ["hysteresis"] if getattr(args, "hysteresis", "auto") != "auto" else []
-    if given:
-        raise UserError(f"--{given[0].replace('_', '-')} is for sample logs: a plateau table "
-                        "trains the plateau model (docs/train.md, \"Plateau tables\")")
-    dialect = dialect_from_args(args)
-    train = [read_plateau_table(p, dialect) for p in args.train]
-    test = read_plateau_table(args.test, dialect) if args.test else None
-    for t in [*train, *([test] if test else [])]:
-        if t.read_notes:
-            print(f"fogsf: read {t.path}: {'; '.join(t.read_notes)}", file=sys.stderr)
-    cosine = cosine_for(getattr(args, "axis_cosine", None), getattr(args, "axis", None))
-    fit, metrics = train_plateaus(train, test, args.latitude_deg, cosine)
-    save_plateau_model(fit, metrics, out)
-    print("\n".join(metrics_lines(metrics)))
+    train, test, fit, metrics = fit_tables(args, out, allowed=("unit",))
     return plateau_record(args.unit, train, test, fit, metrics, out,
-                          {"latitude_deg": args.latitude_deg, "axis_cosine": cosine},
+                          {"latitude_deg": args.latitude_deg,
+                           "axis_cosine": cosine_for(getattr(args, "axis_cosine", None),
+                                                     getattr(args, "axis", None))},
                           keep_dir=bool(args.out))
 
 

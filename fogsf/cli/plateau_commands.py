@@ -23,7 +23,7 @@ from fogsf.logs.writer import write_rows
 from fogsf.models.stream import StreamModel
 from fogsf.models.stream_flags import FLAG_NAMES
 from fogsf.training.metrics_file import to_json
-from fogsf.training.rate.plateau_model import PlateauRows, choice_rows
+from fogsf.training.rate.plateau_model import PlateauFit, PlateauRows, choice_rows
 from fogsf.training.rate.plateau_train import (
     check_static,
     metrics_lines,
@@ -32,6 +32,7 @@ from fogsf.training.rate.plateau_train import (
     save_plateau_model,
     train_plateaus,
 )
+from fogsf.training.results import PlateauMetrics
 
 # the options of a sample log's training that a plateau model has no use for
 TRAIN_ONLY_SAMPLES = ("prior", "unit", "structure", "nodes", "node", "ref_sf")
@@ -64,21 +65,30 @@ def _cosine(args: argparse.Namespace) -> float:
     return cosine_for(getattr(args, "axis_cosine", None), getattr(args, "axis", None))
 
 
-def train_tables(args: argparse.Namespace) -> int:
-    """`fogsf train --train TABLE ... [--test TABLE] --out DIR` on plateau tables."""
-    given = [o for o in TRAIN_ONLY_SAMPLES if getattr(args, o, None)]
+def fit_tables(args: argparse.Namespace, out: Path, allowed: tuple[str, ...] = ()
+               ) -> tuple[list[PlateauTable], PlateauTable | None, PlateauFit, PlateauMetrics]:
+    """The plateau model of `args.train`'s tables (scored on `args.test`'s), saved into `out`
+    and its figures printed, as `fogsf train` fits it; `allowed`: sample-log options the
+    caller takes for itself (fleet add's --unit)."""
+    given = [o for o in TRAIN_ONLY_SAMPLES if o not in allowed and getattr(args, o, None)]
     given += ["hysteresis"] if getattr(args, "hysteresis", "auto") != "auto" else []
     if given:
         raise UserError(f"--{given[0].replace('_', '-')} is for sample logs: a plateau table "
                         "trains the plateau model (docs/train.md, \"Plateau tables\")")
     train = _tables(args, args.train)
     test = _tables(args, [args.test])[0] if args.test else None
-    out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
     fit, metrics = train_plateaus(train, test, args.latitude_deg, _cosine(args))
     save_plateau_model(fit, metrics, out)
     print("\n".join(metrics_lines(metrics)))
+    return train, test, fit, metrics
+
+
+def train_tables(args: argparse.Namespace) -> int:
+    """`fogsf train --train TABLE ... [--test TABLE] --out DIR` on plateau tables."""
+    out = Path(args.out)
+    _, _, _, metrics = fit_tables(args, out)
     args.axis_result = to_json(metrics)
     print(f"wrote {out}/metrics.json and the firmware artifact (fogsf export {out} --out "
           "build/...)")

@@ -17,8 +17,8 @@ TIME_IS = ("start", "middle")
 PLATEAU_NAMES = ("duration_s",)
 # a plateau table needs no time column (duration_s or plateau_s may stand for it)
 PLATEAU_REQUIRED = ("temp_c", "table_rate_dps", "gyro_dps")
-SUPPORTED = ("`fogsf inspect`, `train`, `replay` and `diagnose` read plateau tables; plan and "
-             "fleet take sample logs (docs/logs.md, \"Plateau tables\")")
+SUPPORTED = ("`fogsf inspect`, `train`, `replay`, `diagnose` and `fleet add` read plateau "
+             "tables; plan takes sample logs (docs/logs.md, \"Plateau tables\")")
 
 
 @dataclass(frozen=True)
