@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fogsf.cli.arguments import read_logs, short_ramps
+from fogsf.cli.arguments import read_logs
 from fogsf.logs.chamber_log import ChamberLog
-from fogsf.training.interval.transfer import ramp_segments
+from fogsf.training.interval.transfer import ramp_segments, short_ramps
 
 
 def _log(ramp_min: float) -> ChamberLog:
@@ -43,7 +43,7 @@ def test_train_says_it_once_on_stderr(tmp_path: Path, capsys) -> None:
     rows = [f"{lg.time_s[i]:.1f},{lg.temp_c[i]:.4f},10,10.001,0.00234" for i in range(len(lg))]
     p.write_text("time_s,temp_c,table_rate_dps,gyro_dps,earth_rate_dps\n"
                  + "\n".join(rows) + "\n")
-    read_logs(argparse.Namespace(train=[str(p)]), [str(p)])
+    read_logs(argparse.Namespace(train=[str(p)]), [str(p)], training=True)
     err = [ln for ln in capsys.readouterr().err.splitlines() if "a ramp needs" in ln]
     assert len(err) == 1 and err[0].startswith(f"fogsf: note: {p}: "), err
     read_logs(argparse.Namespace(log=str(p)), [str(p)])  # not training: not said

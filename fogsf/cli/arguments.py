@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
-
-import numpy as np
 
 from fogsf.errors import UserError
 from fogsf.logs.measure.sf_reference import forget_notes
@@ -13,6 +10,7 @@ from fogsf.logs.read import stream_read
 from fogsf.logs.read.columns import Spill
 from fogsf.logs.read.dialect import DELIMITERS, Dialect
 from fogsf.logs.read.sampling import burst_window_s
+from fogsf.training.interval.transfer import short_ramps
 
 
 def _number(text: str) -> float:
@@ -225,13 +223,15 @@ def rated(model, sample_dt_s: float, what: str):  # noqa: ANN001, ANN201 - Strea
     return out
 
 
-def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False) -> list:
+def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False,
+              training: bool = False) -> list:
     """Read logs with the options of `add_log_options`; how a log was read when it is not
     in the plain format (BOM, sniffed delimiter, column mapping) is said on stderr. Each log
     is read a block at a time with a progress bar on a terminal (logs/read/stream_read.py); with
     `on_disk` its columns stay in a spill on disk (replay, inspect, train, diagnose, plan
     --from-logs; what the command itself makes may still grow with the log), else they are
-    then held in memory."""
+    then held in memory. `training`: logs to train on, whose ramps too short to count as
+    ramps are said."""
     import sys
 
     forget_notes()
@@ -249,8 +249,6 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
     cosine = cosine_for(given, dialect.axis)
     ref_temp = getattr(args, "ref_temp_c", None)
     _windows_from_bursts(args, logs)
-    # training logs (`--train` of train and fleet): a ramp too short to count is said
-    training = paths == getattr(args, "train", None)
     for lg in logs:
         lg.axis_cosine = cosine
         if ref_temp is not None:
@@ -265,64 +263,6 @@ def read_logs(args: argparse.Namespace, paths: list[str], on_disk: bool = False)
         for r in short_ramps(lg) if training else ():
             print(f"fogsf: note: {lg.path}: {r.text()}", file=sys.stderr)
     return logs
-
-
-SHORT_RAMP_MIN_C = 2.0  # a move of the temperature smaller than this is a bend, not a ramp
-
-
-@dataclass(frozen=True)
-class ShortRamp:
-    """A run of the board temperature in one direction too short to count as a ramp."""
-
-    start_s: float  # from the log's first row
-    minutes: float
-    from_c: float
-    to_c: float
-    rate_c_per_min: float  # its fastest 5-minute window
-    min_minutes: float  # what a ramp needs
-
-    def text(self) -> str:
-        return (f"the board temperature ramps {self.from_c:.1f} -> {self.to_c:.1f} C (up to "
-                f"{self.rate_c_per_min:+.2f} C/min) for {self.minutes:.1f} min of 5-minute "
-                f"windows from t0+{self.start_s:.0f} s: "
-                f"shorter than the {self.min_minutes:g} min a ramp needs, so it does not count "
-                "as a ramp (its ramp rate, a held-out ramp); its samples still train")
-
-
-def short_ramps(log) -> list[ShortRamp]:  # noqa: ANN001 - a ChamberLog
-    """The runs of the board temperature in one direction that move it SHORT_RAMP_MIN_C or
-    more but are shorter than the ramps training counts (training.interval.transfer
-    `ramp_segments`, by its own windows and thresholds)."""
-    from fogsf.logs.read.columns import searchsorted
-    from fogsf.training.interval.transfer import (
-        MIN_RAMP_C_PER_MIN,
-        SEGMENT_MIN_S,
-        SLOPE_WINDOW_S,
-    )
-
-    size = len(log)
-    n = searchsorted(log.time_s, float(log.time_s[0]) + SLOPE_WINDOW_S) if size else 0
-    if n < 1 or n >= size:
-        return []
-    # the windows' ends only (a log on disk stays there)
-    starts = np.arange(0, size - n, max(1, n // 5))
-    ta = np.asarray(log.time_s[starts], dtype=np.float64)
-    tb = np.asarray(log.time_s[starts + n], dtype=np.float64)
-    ca = np.asarray(log.temp_c[starts], dtype=np.float64)
-    cb = np.asarray(log.temp_c[starts + n], dtype=np.float64)
-    slope = (cb - ca) / (tb - ta) * 60.0
-    sign = np.where(np.abs(slope) > MIN_RAMP_C_PER_MIN, np.sign(slope), 0.0)
-    edges = np.flatnonzero(np.diff(sign) != 0) + 1
-    out = []
-    for a, b in zip(np.r_[0, edges], np.r_[edges, sign.size], strict=True):
-        span_s = float(tb[b - 1] - ta[a])
-        if sign[a] == 0 or span_s >= SEGMENT_MIN_S:
-            continue
-        if abs(cb[b - 1] - ca[a]) >= SHORT_RAMP_MIN_C:
-            fastest = slope[a:b][np.argmax(np.abs(slope[a:b]))]
-            out.append(ShortRamp(float(ta[a] - ta[0]), span_s / 60.0, float(ca[a]),
-                                 float(cb[b - 1]), float(fastest), SEGMENT_MIN_S / 60.0))
-    return out
 
 
 def _windows_from_bursts(args: argparse.Namespace, logs: list) -> None:

@@ -199,7 +199,7 @@ def run_add(args: argparse.Namespace) -> int:
 
 def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:
     """The unit trained on sample logs as `fogsf train` trains it, into `out`; its record."""
-    train_logs = read_logs(args, args.train, on_disk=True)
+    train_logs = read_logs(args, args.train, on_disk=True, training=True)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
     opts = train_options(args)
     metrics, fitted = run_training(opts, train_logs, test_log, out)

@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
                         "nodes: drop --model, --structure, --nodes and --node")
     if any_plateau_table(args, args.train + ([args.test] if args.test else [])):
         return train_tables(args)
-    train_logs = read_logs(args, args.train, on_disk=True)
+    train_logs = read_logs(args, args.train, on_disk=True, training=True)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
     opts = train_options(args)
     out = Path(args.out)

@@ -89,31 +89,91 @@ class RampSegment:
 SEGMENT_MIN_S = 900.0  # a ramp shorter than 15 min is a bend, not a ramp
 
 
+@dataclass(frozen=True)
+class WindowRuns:
+    """The log's SLOPE_WINDOW_S windows (a hop of a fifth of one): their ends' times and
+    board temperatures, slopes (C/min), and the runs [a, b) of windows moving faster than
+    MIN_RAMP_C_PER_MIN in one direction."""
+
+    ta: np.ndarray
+    tb: np.ndarray
+    ca: np.ndarray
+    cb: np.ndarray
+    slope: np.ndarray
+    runs: list[tuple[int, int]]
+
+
+def window_runs(log: ChamberLog) -> WindowRuns | None:
+    """The windows of `log` (None when it is shorter than one); the windows' ends only are
+    read, so a log on disk stays there."""
+    t = log.time_s
+    size = len(t)
+    n = searchsorted(t, float(t[0]) + SLOPE_WINDOW_S) if size else 0
+    if n < 1 or n >= size:
+        return None
+    starts = np.arange(0, size - n, max(1, n // 5))
+    ta = np.asarray(t[starts], dtype=np.float64)
+    tb = np.asarray(t[starts + n], dtype=np.float64)
+    ca = np.asarray(log.temp_c[starts], dtype=np.float64)
+    cb = np.asarray(log.temp_c[starts + n], dtype=np.float64)
+    slope = (cb - ca) / (tb - ta) * 60.0
+    sign = np.where(np.abs(slope) > MIN_RAMP_C_PER_MIN, np.sign(slope), 0.0)
+    edges = np.flatnonzero(np.diff(sign) != 0) + 1
+    runs = [(int(a), int(b)) for a, b in zip(np.r_[0, edges], np.r_[edges, sign.size],
+                                              strict=True) if sign[a] != 0]
+    return WindowRuns(ta, tb, ca, cb, slope, runs)
+
+
 def ramp_segments(log: ChamberLog) -> list[RampSegment]:
     """The log's ramps, each with its own rate: runs of 5-minute windows whose board
     temperature moves faster than 0.05 C/min in one direction, at least 15 min long; a
     segment's rate is the median of its faster half of windows (the board lags the chamber
     at a ramp's start, so its slope rises towards the chamber's).
     Up- and down-ramps, and ramps at different rates in one log, come out separately."""
-    t, temp = log.time_s, log.temp_c
-    n = searchsorted(t, float(t[0]) + SLOPE_WINDOW_S)
-    if n < 1 or n >= t.size:
+    w = window_runs(log)
+    if w is None:
         return []
-    hop = max(1, n // 5)
-    starts = np.arange(0, t.size - n, hop)
-    slope = (temp[starts + n] - temp[starts]) / (t[starts + n] - t[starts]) * 60.0
-    sign = np.where(np.abs(slope) > MIN_RAMP_C_PER_MIN, np.sign(slope), 0.0)
-    out: list[RampSegment] = []
-    edges = np.flatnonzero(np.diff(sign) != 0) + 1
-    for a, b in zip(np.r_[0, edges], np.r_[edges, sign.size], strict=True):
-        if sign[a] == 0:
-            continue
-        t0, t1 = float(t[starts[a]]), float(t[starts[b - 1] + n])
-        if t1 - t0 < SEGMENT_MIN_S:
-            continue
-        out.append(RampSegment(t0, t1, _steady_rate(slope[a:b])))
+    out = [RampSegment(float(w.ta[a]), float(w.tb[b - 1]), _steady_rate(w.slope[a:b]))
+           for a, b in w.runs if float(w.tb[b - 1] - w.ta[a]) >= SEGMENT_MIN_S]
     # one ramp at a rate that changes (e.g. 1 then 2 C/min) splits where the rate jumps
-    return _split_rate_changes(out, t, temp)
+    return _split_rate_changes(out, log.time_s, log.temp_c)
+
+
+SHORT_RAMP_MIN_C = 2.0  # a move of the temperature smaller than this is a bend, not a ramp
+
+
+@dataclass(frozen=True)
+class ShortRamp:
+    """A run of the board temperature in one direction too short to count as a ramp."""
+
+    start_s: float  # from the log's first row
+    minutes: float
+    from_c: float
+    to_c: float
+    rate_c_per_min: float  # its fastest 5-minute window
+    min_minutes: float  # what a ramp needs
+
+    def text(self) -> str:
+        return (f"the board temperature ramps {self.from_c:.1f} -> {self.to_c:.1f} C (up to "
+                f"{self.rate_c_per_min:+.2f} C/min) for {self.minutes:.1f} min of 5-minute "
+                f"windows from t0+{self.start_s:.0f} s: "
+                f"shorter than the {self.min_minutes:g} min a ramp needs, so it does not count "
+                "as a ramp (its ramp rate, a held-out ramp); its samples still train")
+
+
+def short_ramps(log: ChamberLog) -> list[ShortRamp]:
+    """The runs of `ramp_segments`' windows that move the board temperature SHORT_RAMP_MIN_C
+    or more but are shorter than the SEGMENT_MIN_S a ramp needs."""
+    w = window_runs(log)
+    out: list[ShortRamp] = []
+    for a, b in w.runs if w is not None else []:
+        span_s = float(w.tb[b - 1] - w.ta[a]) if w is not None else 0.0
+        if w is None or span_s >= SEGMENT_MIN_S or abs(w.cb[b - 1] - w.ca[a]) < SHORT_RAMP_MIN_C:
+            continue
+        fastest = w.slope[a:b][np.argmax(np.abs(w.slope[a:b]))]
+        out.append(ShortRamp(float(w.ta[a] - w.ta[0]), span_s / 60.0, float(w.ca[a]),
+                             float(w.cb[b - 1]), float(fastest), SEGMENT_MIN_S / 60.0))
+    return out
 
 
 def _steady_rate(slopes: np.ndarray) -> float:
