@@ -71,3 +71,30 @@ def test_skip_on_the_command_line(tmp_path: Path, capsys) -> None:
     log.write_text("\n".join(text) + "\n")
     assert main(["inspect", str(log), "--bad-cells", "skip"]) == 2
     assert "wrong number of cells" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("reader", [read_log, read_log_on_disk])
+def test_a_bad_cell_in_the_first_row_is_a_bad_cell(tmp_path: Path, capsys,
+                                                   reader) -> None:  # noqa: ANN001
+    """`ERR` in the first row of a numeric column is a bad cell, not a text column: refused
+    naming the option, skipped with it."""
+    log = _log(tmp_path / "a.csv", {(0, 3): "ERR", (0, 1): "ERR", (5, 1): "ERR"})
+    capsys.readouterr()
+    assert main(["inspect", str(log)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "line 2" in err and "text column" not in err, err
+    assert "--bad-cells skip" in err, err
+    lg = reader(str(log), Dialect(bad_cells="skip"))
+    assert len(lg) == N and list(np.flatnonzero(~np.asarray(lg.valid[:]))) == [0, 5]
+    assert lg.gyro_dps[0] == pytest.approx(10.001)
+    assert lg.temp_c[0] == pytest.approx(20.0, abs=1e-4)
+
+
+@pytest.mark.parametrize("row", [0, N - 1])
+def test_a_bad_time_at_an_edge_goes_on_at_the_nominal_step(tmp_path: Path, row: int) -> None:
+    """A bad time stamp in the first or last row is filled on from its neighbour by the
+    clock's step, not held at it (which would read as time not increasing)."""
+    log = _log(tmp_path / "a.csv", {(row, 0): "ERR"})
+    lg = read_log(str(log), Dialect(bad_cells="skip"))
+    assert len(lg) == N and not lg.valid[row] and lg.valid.sum() == N - 1
+    assert lg.time_s[row] == pytest.approx(row / 10.0)

@@ -8,8 +8,10 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from fogsf.cli.main import main
+from fogsf.logs.chamber_log import LogError
 from fogsf.logs.logio import read_log
 from fogsf.logs.mapping.joins import JoinReport
 from fogsf.logs.read.dialect import Dialect
@@ -107,3 +109,19 @@ def test_a_warning_whole_hours_off_names_the_time_zone() -> None:
     w = r.warning()
     assert "+1 h at both ends, a time zone" in w and 'tz = "+01:00"' in w, w
     assert JoinReport("t", "x", 100, 100, [], 0.5, -0.2, 5.0).warning() == ""
+
+
+def test_a_reboot_before_another_step_is_judged_on_its_own_rows(tmp_path: Path) -> None:
+    """A chamber logger down 15 s (the temperature jumps 0.5 C) whose clock steps back, and
+    down 60 s again 50 rows later: the first step is judged on the rows up to the second,
+    so it is refused as a reboot at its own line."""
+    log = _gyro(tmp_path)
+    true = ([float(k) for k in range(-5, 150)] + [float(k) for k in range(165, 215)]
+            + [float(k) for k in range(275, 400)])
+    stamp = [k if k < 150 else k - 60.0 if k < 215 else k - 130.0 for k in true]
+    _thermo(tmp_path, stamp, true)
+    with pytest.raises(LogError) as e:
+        read_log(str(log), _map(tmp_path))
+    text = str(e.value)
+    assert "line 157" in text and "clock restarts" in text, text
+    assert "temperature jumps +0.500 C" in text, text

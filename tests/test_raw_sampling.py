@@ -161,6 +161,37 @@ def test_a_clock_reset_starts_a_segment(tmp_path: Path) -> None:
     assert "temperature jumps +4.000 C" in note and "a reboot" in note, note
 
 
+def test_a_clock_back_to_zero_is_a_reboot_whatever_the_temperature() -> None:
+    """The clock restarts at 0 while the temperature runs on along its trend (a short
+    reboot): a restart at 0 is a reboot, said so."""
+    rows = [f"{0.1 * i:.1f},{20 + 0.01 * i:.3f},10,10" for i in range(600)]
+    rows += [f"{0.1 * i:.1f},{26 + 0.01 * i:.3f},10,10" for i in range(600)]  # rebooted
+    lg = parse_log("time_s,temp_c,table_rate_dps,gyro_dps\n" + "\n".join(rows) + "\n")
+    s = lg.sampling
+    assert s.resets == [600] and s.clock_steps == [] and len(s.segment_starts) == 2
+    b = s.segment_starts[1]
+    assert lg.time_s[b] == pytest.approx(59.9 + 3600.0)
+    assert np.all(lg.temp_c[600:b] == 26.0)  # states restart at the next segment's start
+    note = next(n for n in lg.read_notes if "line 602" in n)
+    assert "the clock restarts" in note and "runs on" in note and "a reboot" in note, note
+
+
+def test_a_step_back_in_a_soak_is_a_reboot_said_so() -> None:
+    """A clock set back 30 s while the temperature is flat on both sides (a soak, a noisy
+    thermometer): the temperature cannot tell, so it is read as a reboot, said so."""
+    rng = np.random.default_rng(SEED + 54)
+    n = 1200
+    temp = 25.0 + 0.02 * rng.standard_normal(n)
+    t = 100.0 + 0.1 * np.arange(n) - np.where(np.arange(n) >= 600, 30.0, 0.0)
+    rows = [f"{t[i]:.1f},{temp[i]:.4f},10,10" for i in range(n)]
+    lg = parse_log("time_s,temp_c,table_rate_dps,gyro_dps\n" + "\n".join(rows) + "\n")
+    s = lg.sampling
+    assert s.resets == [600] and s.clock_steps == [] and len(s.segment_starts) == 2
+    note = next(n for n in lg.read_notes if "line 602" in n)
+    assert "flat on both sides" in note and "cannot tell" in note, note
+    assert "a reboot" in note, note
+
+
 @pytest.mark.parametrize("noise_c", [0.0, 0.02])
 def test_a_clock_step_back_is_not_a_reboot(noise_c: float) -> None:
     """A clock set back 30 s while the logger kept logging (the temperature runs on across

@@ -105,7 +105,7 @@ def stationary_summary(log: ChamberLog, window_s: float, latitude_deg: float | N
 
 def sampling_summary(log: ChamberLog) -> dict | None:
     """How the rows lie in time (logs/read/sampling.py): the nominal rate, steps off it, dropped
-    samples, gaps and resets; None for a log made in memory."""
+    samples, gaps, resets and clock steps; None for a log made in memory."""
     s = log.sampling
     if s is None:
         return None

@@ -30,7 +30,7 @@ from fogsf.logs.mapping.column_map import ColumnPlan, with_kinds
 from fogsf.logs.mapping.layout import SUPPORTED
 from fogsf.logs.read.arrow_csv import NotFast, read_numbers
 from fogsf.logs.read.bad_cells import SKIPPABLE, numbers_skipping_bad, skipped_note
-from fogsf.logs.read.cell_kinds import numeric_cells, row_kinds
+from fogsf.logs.read.cell_kinds import NUMBER, TEXT, numeric_cells, row_kinds
 from fogsf.logs.read.dialect import (
     Dialect,
     checked_names,
@@ -48,6 +48,9 @@ from fogsf.logs.read.field_formats import as_table, format_of, main_stream
 from fogsf.logs.read.line_scan import SKIP_HINT, bad_cell_in, first_bad_line
 from fogsf.logs.read.parquet_log import in_rows, is_parquet, parquet_names, read_parquet_log
 from fogsf.logs.validation import _log_of
+
+# the data rows a column's kind is told from (logs/read/cell_kinds.py)
+SNIFF_ROWS = 100
 
 
 def read_log(path: str | Path, dialect: Dialect | None = None) -> ChamberLog:
@@ -165,7 +168,8 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None,
         raise LogError(path, 1, "empty file", "a header but no data rows")
     if dialect.decimal_comma:
         lines = [lines[0], *(line.replace(",", ".") for line in lines[1:])]
-    plan = with_kinds(plan, row_kinds(lines[1].split(delim)), path, notes)
+    first = [ln.split(delim) for ln in lines[1:1 + SNIFF_ROWS]]
+    plan = with_kinds(plan, sniffed_kinds(first), path, notes)
     if plan.kinds:
         kinds = plan.kinds
         lines = [lines[0], *((numeric_cells(line, delim, kinds) or line) for line in lines[1:])]
@@ -243,24 +247,38 @@ def plain_header(path: str | Path, dialect: Dialect) -> PlainHeader | None:
 
 def first_row_kinds(path: str | Path, delim: str, quoted: bool, decimal_comma: bool
                     ) -> tuple[str, ...] | None:
-    """What each column of the first data row holds (logs/read/cell_kinds.py); None when there
-    is no such row or it cannot be read."""
+    """What each column of the first data rows holds (`sniffed_kinds`); None when there is
+    no such row or the first cannot be read."""
+    rows: list[list[str]] = []
     try:
         with open(path, encoding="utf-8-sig") as f:
             f.readline()
-            line = f.readline().rstrip("\r\n")
-    except (OSError, UnicodeDecodeError):
-        return None
-    if not line.strip():
-        return None
-    if quoted:
-        try:
-            line = unquote_lines([line], delim, str(path))[0]
-        except LogError:
-            return None
-    if decimal_comma:
-        line = line.replace(",", ".")
-    return row_kinds(line.split(delim))
+            for _ in range(SNIFF_ROWS):
+                line = f.readline().rstrip("\r\n")
+                if not line.strip():
+                    break
+                if quoted:
+                    line = unquote_lines([line], delim, str(path))[0]
+                if decimal_comma:
+                    line = line.replace(",", ".")
+                rows.append(line.split(delim))
+    except (OSError, UnicodeDecodeError, LogError):
+        pass  # the rows read so far tell
+    return sniffed_kinds(rows) if rows else None
+
+
+def sniffed_kinds(rows: list[list[str]]) -> tuple[str, ...]:
+    """What each column holds, from the first data rows `rows`: the kind of its first cell
+    that holds a number or a time stamp, so that a bad cell (`ERR`) in the first row is a bad
+    cell; TEXT when no cell does; rows of another length than the first are not read."""
+    kinds = list(row_kinds(rows[0]))
+    for c, k in enumerate(kinds):
+        if k != TEXT and rows[0][c].strip():
+            continue
+        told = [row_kinds([r[c]])[0] for r in rows[1:]
+                if len(r) == len(rows[0]) and r[c].strip()]
+        kinds[c] = next((x for x in told if x != TEXT), TEXT if k == TEXT or told else NUMBER)
+    return tuple(kinds)
 
 
 def refuse_bad_line(path: str | Path, head: PlainHeader, dialect: Dialect, rows_ok: int

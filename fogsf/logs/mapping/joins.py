@@ -26,7 +26,7 @@ from fogsf.logs.mapping.column_map import plan_map, with_kinds
 from fogsf.logs.mapping.join_spec import Join
 from fogsf.logs.mapping.time_zone import local_to_utc, parse_tz, whole_hours_off
 from fogsf.logs.read.cell_kinds import numeric_cells, row_kinds
-from fogsf.logs.read.clock_steps import judge_step
+from fogsf.logs.read.clock_steps import judge_steps
 from fogsf.logs.read.columns import Column
 from fogsf.logs.read.dialect import Dialect, find_delimiter, raw_header
 from fogsf.logs.read.line_scan import bad_cell_in
@@ -111,15 +111,18 @@ def _checked_stream(j: Join, built: dict[str, np.ndarray], p: str, notes: list[s
         t = cols["time_s"]
         dt = np.diff(t)
     temps = [k for k in cols if is_temperature(k)]
-    back = np.flatnonzero(dt <= 0)
-    while back.size:
-        i = int(back[0])
+    back = [int(i) + 1 for i in np.flatnonzero(dt <= 0)]
+    # each step judged on the stream as read, within the rows between its neighbours
+    judged = judge_steps(t, cols[temps[0]], back) if temps and back else []
+    step = float(np.median(dt[dt > 0])) if (dt > 0).any() else 0.0
+    for k, r in enumerate(back):
+        i = r - 1
         if dt[i] == 0 or not temps:
             raise LogError(p, i + 3, "time not increasing",
                            f"time_s {time_text(t, i + 1)} after {time_text(t, i)}"
                            + ("" if dt[i] == 0 else " (the stream has no temperature to "
                               "tell a re-synchronised clock from a reboot)"))
-        b = judge_step(cols[temps[0]], i + 1, float(dt[i]))
+        b = judged[k]
         if not b.is_clock_step:
             raise LogError(p, i + 3, "clock restarts",
                            f"time_s {time_text(t, i + 1)} after {time_text(t, i)}: "
@@ -127,14 +130,11 @@ def _checked_stream(j: Join, built: dict[str, np.ndarray], p: str, notes: list[s
                            "its later rows cannot be put on the log's clock: give them "
                            "wall-clock stamps, or split the file")
         # a clock set right while logging: the rows before the step were ahead by it
-        step = float(np.median(dt[dt > 0])) if (dt > 0).any() else 0.0
         moved = float((t[i + 1] - step) - t[i])
         t[:i + 1] += moved
         notes.append(f"[join.{j.name}] time steps {dt[i]:+.1f} s at line {i + 3}: "
                      f"{b.why()}: a re-synchronised clock, no sample missed: the rows "
                      f"before it moved {moved:+.1f} s onto the clock after it")
-        dt = np.diff(t)
-        back = np.flatnonzero(dt <= 0)
     return cols
 
 

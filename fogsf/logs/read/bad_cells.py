@@ -1,9 +1,11 @@
 """`--bad-cells skip` (docs/logs.md, "What the reader refuses"): a cell that holds no number
 (`ERR`, `NaN`, `inf`, an empty cell) makes its row measure nothing instead of refusing the
-file. The cell is filled with the line between its column's good cells around it, so that
-the model runs over the row as firmware would over a sample it could not use; the row gives
-no SF, no training target and no metric (`valid` 0). A row of another length is still
-refused: its cells cannot be told apart.
+file. The cell is filled with the line between its column's good cells around it (before the
+first or after the last: on from it by the column's median step per row, so that a time
+stamp at the file's edge goes on increasing), so that the model runs over the row as
+firmware would over a sample it could not use; the row gives no SF, no training target and
+no metric (`valid` 0). A row of another length is still refused: its cells cannot be told
+apart.
 """
 
 from __future__ import annotations
@@ -49,8 +51,20 @@ def numbers_skipping_bad(lines: list[str], header: list[str], path: str, delim: 
         if not good.any():
             raise LogError(path, None, "non-numeric cell",
                            f"column {header[c]!r} holds no number on any row")
-        data[~good, c] = np.interp(at[~good], at[good], data[good, c])
+        data[~good, c] = _filled(at, good, data[:, c])[~good]
     return data, np.asarray(bad_cell.any(axis=1), dtype=bool)
+
+
+def _filled(at: np.ndarray, good: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """`v` at rows `at` from its `good` cells: the line between them inside, the median step
+    per row on from the first or last beyond them."""
+    x, y = at[good], v[good]
+    out = np.interp(at, x, y)
+    slope = float(np.median(np.diff(y) / np.diff(x))) if x.size > 1 else 0.0
+    ends = (at < x[0]) | (at > x[-1])
+    edge = np.where(at < x[0], x[0], x[-1])
+    out[ends] = np.where(at < x[0], y[0], y[-1])[ends] + slope * (at - edge)[ends]
+    return out
 
 
 def skipped_note(skipped: np.ndarray) -> str:

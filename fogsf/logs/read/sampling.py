@@ -19,8 +19,8 @@ nominal rate, so that the model's states cross it in time:
 A clock that steps back by more than `max_gap_s` is judged by the temperature across it
 (logs/read/clock_steps.py): a clock step (re-synchronised while logging: the temperature runs
 on) has its later rows timed on from the row before; a reset (the logger rebooted: the
-temperature jumps) starts a new segment, placed `RESET_GAP_S` after the last row and joined
-by the "restart" rule.
+temperature jumps, the clock lands near 0, or a soak cannot tell) starts a new segment,
+placed `RESET_GAP_S` after the last row and joined by the "restart" rule.
 """
 
 from __future__ import annotations
@@ -136,8 +136,7 @@ def judge_resets(s: Sampling, t: Column, temp: Column) -> None:
     by the temperature across each (logs/read/clock_steps.py)."""
     if not s.resets:
         return
-    steps = [float(t[r] - t[r - 1]) for r in s.resets]
-    s.steps_back = judge_steps(temp, list(s.resets), steps)
+    s.steps_back = judge_steps(t, temp, list(s.resets))
     s.clock_steps = [b.row for b in s.steps_back if b.is_clock_step]
     s.resets = [b.row for b in s.steps_back if not b.is_clock_step]
 
