@@ -51,8 +51,9 @@ def fake_record(sn: str, seed: int = 0, structure: str = "physics2") -> UnitReco
 
 
 # A child process's start-up code (sitecustomize.py on its PYTHONPATH) that pauses inside
-# every store add's transaction, after its INSERTs and before COMMIT, once it has said so in
-# a file: a kill lands there deterministically, with nothing in fogsf for the tests.
+# every store write that bumps the fleet's state (add and remove), after its statements and
+# before COMMIT, once it has said so in a file: a kill lands there deterministically, with
+# nothing in fogsf for the tests.
 PAUSE_SITE = """
 import os, time
 from pathlib import Path
@@ -68,7 +69,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def pause_in_add(folder: Path, marker: Path, pause_s: float = 120.0) -> dict[str, str]:
-    """The environment of a child process whose store adds pause `pause_s` inside their
+    """The environment of a child process whose store writes pause `pause_s` inside their
     transaction, `marker` written when one is there (PAUSE_SITE, written into `folder`)."""
     site = folder / "pause-in-add"
     site.mkdir(parents=True, exist_ok=True)
