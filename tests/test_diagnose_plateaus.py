@@ -38,6 +38,20 @@ def test_the_hidden_rate_response_is_named_with_its_form(i: int) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("i", range(DRAWS))
+def test_two_runs_of_a_gyro_name_the_form_one_names(i: int) -> None:
+    """Two runs of one gyro stacked: the form named is still the gyro's (the bias and SF's
+    degree in T, chosen with the rate terms, does not answer the nonlinearity's residual)."""
+    h = draw(i)
+    a, b = rows_of_run(h, h.run_seed), rows_of_run(h, h.run_seed + 1)
+    both = PlateauRows(*(np.concatenate([getattr(a, f), getattr(b, f)])
+                         for f in ("gyro_dps", "rate_dps", "temp_c")))
+    d = _diagnose(both)
+    want = "sine" if h.kind == "open-loop" else "polynomial"
+    assert d.nonlinearity_form == want, f"{h}: named {[t.term for t in d.named]}, {d.steps}"
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("i", range(2))
 def test_an_asymmetry_alone_is_named_alone_and_no_term_is_named_without_one(i: int) -> None:
     h = draw(10 + i)

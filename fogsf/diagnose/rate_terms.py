@@ -148,8 +148,10 @@ def diagnose_rate(rows: RateRows, full_scale_dps: float, allow: bool = True
     """Name the rate terms `rows` (a table's plateaus, y = (rate - output) / FS) measure."""
     to_dph = full_scale_dps * 3600.0
     target = rows.y + rows.x  # the rate over FS: the sine form has no x column to absorb it
-    base_choice = choose_form(rows, allow_rate_part=False)
-    q = base_choice.form.temp_degree
+    # the bias and SF's degree in T as the full model chooses it: chosen without the rate
+    # terms it would answer the nonlinearity's residual, and confound the terms' comparison
+    model = choose_form(rows, allow_rate_part=allow)
+    q = model.form.temp_degree
     linear = _poly_columns(RateForm(1, False, q, 0))
     out = RateDiagnosis(base_dph=_cv(rows, linear, target, q) * to_dph,
                        rate_part_measured=allow)
@@ -197,7 +199,6 @@ def diagnose_rate(rows: RateRows, full_scale_dps: float, allow: bool = True
         uses_sine = uses_sine or term.term == "sine"
         current.append(cols)
         current_score = s
-    model = choose_form(rows)
     out.model_form, out.model_dph = model.form.describe(), model.score * to_dph
     return out
 
