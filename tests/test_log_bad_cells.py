@@ -98,3 +98,23 @@ def test_a_bad_time_at_an_edge_goes_on_at_the_nominal_step(tmp_path: Path, row: 
     lg = read_log(str(log), Dialect(bad_cells="skip"))
     assert len(lg) == N and not lg.valid[row] and lg.valid.sum() == N - 1
     assert lg.time_s[row] == pytest.approx(row / 10.0)
+
+
+@pytest.mark.parametrize("skip", [[], ["--bad-cells", "skip"]])
+def test_a_bad_cell_in_a_plateau_table_names_its_row_not_the_option(tmp_path: Path, capsys,
+                                                                      skip: list[str]) -> None:
+    """A plateau table's row is one plateau's measurement, with nothing to fill it from: its
+    bad cell is refused with or without --bad-cells skip, and the refusal asks for the row
+    to be fixed or deleted rather than suggesting the option."""
+    from test_plateau_tables import rig_rows, write_table
+
+    path = write_table(tmp_path / "rig", rig_rows())
+    lines = path.read_text().splitlines()
+    cells = lines[5].split(",")
+    cells[-1] = "ERR"
+    lines[5] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["inspect", str(path), *skip]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "error" in ln]
+    assert len(err) == 1 and "line 6" in err[0] and "fix or delete that row" in err[0], err
+    assert "makes such a row measure nothing" not in err[0]

@@ -191,7 +191,7 @@ def run_add(args: argparse.Namespace) -> int:
     except UserError as e:  # the hour of training is not lost with the record
         raise UserError(f"{e}; the trained model is kept in {args.out}" if args.out else
                         f"{e}; not recorded (--out DIR keeps the trained model)") from None
-    print(f"recorded unit {record.unit} in {store.location} ({n} units); "
+    print(f"recorded unit {record.unit} in {store.location} ({n} unit{'s' if n != 1 else ''}); "
           f"structure {structure_of(record)}"
           + (f", model in {args.out}" if args.out else ""))
     return 0

@@ -98,15 +98,18 @@ class CheckResult:
         return cls(**d)
 
     def message(self) -> str:
-        lines = [f"{self.units} units; the line's structure {self.structure or '-'}; "
-                 f"{len(self.parameters)} features compared; false-alarm rate "
-                 f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f}"
-                 + (f", the residual's z > {self.threshold_residual_z:.2f}"
-                    if math.isfinite(self.threshold_residual_z) else "") + ")"]
+        compared = math.isfinite(self.threshold_z)
+        lines = [f"{self.units} unit{'s' if self.units != 1 else ''}; the line's structure "
+                 f"{self.structure or '-'}; " + (
+                     f"{len(self.parameters)} features compared; false-alarm rate "
+                     f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f}"
+                     + (f", the residual's z > {self.threshold_residual_z:.2f}"
+                        if math.isfinite(self.threshold_residual_z) else "") + ")"
+                     if compared else "no features compared")]
         if self.note:
             lines.append(self.note)
-        if not self.outliers:
-            lines.append("no unit unlike the line")
+        if not self.outliers:  # a line too small to compare is not said to pass
+            lines.append("no unit unlike the line" if compared else "no unit checked")
         lines += [f"  {o.unit}: {o.why}" for o in self.outliers]
         return "\n".join(lines)
 

@@ -49,6 +49,10 @@ from fogsf.logs.read.line_scan import SKIP_HINT, bad_cell_in, first_bad_line
 from fogsf.logs.read.parquet_log import in_rows, is_parquet, parquet_names, read_parquet_log
 from fogsf.logs.validation import _log_of
 
+# a plateau table's row is a measurement of its own: nothing to fill it from
+TABLE_HINT = ("; a plateau table's row is one plateau's measurement: fix or delete "
+              "that row (--bad-cells skip is for sample logs)")
+
 # the data rows a column's kind is told from (logs/read/cell_kinds.py)
 SNIFF_ROWS = 100
 
@@ -176,7 +180,10 @@ def parse_log(text: str, path: str = "<memory>", dialect: Dialect | None = None,
     try:
         data = _parse_numbers(lines, list(plan.raw), path, delim)
     except LogError as e:
-        if dialect.bad_cells != "skip" or e.rule not in SKIPPABLE or build is not _log_of:
+        if e.rule in SKIPPABLE and build is not _log_of:  # a table's row is one measurement
+            raise LogError(e.path, e.line, e.rule, e.detail.replace(SKIP_HINT, TABLE_HINT)
+                           ) from None
+        if dialect.bad_cells != "skip" or e.rule not in SKIPPABLE:
             raise
         data, skipped = numbers_skipping_bad(lines, list(plan.raw), path, delim)
         notes.append(skipped_note(skipped))

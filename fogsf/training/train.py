@@ -81,9 +81,10 @@ def train_model(opts: TrainOptions, train_logs: list[ChamberLog],
         decimation_for(opts.model_step_s, lg.sample_dt_s, lg.path)  # before the fit, not after
     steps = sum(len(lg.time_s) * lg.sample_dt_s for lg in train_logs) / opts.model_step_s
     if steps < MIN_TRAIN_STEPS:  # fewer: the folds that choose the structure hold nothing
-        raise UserError(f"the training logs span {steps * opts.model_step_s:.0f} s: too short "
-                        f"to train on (at least {MIN_TRAIN_STEPS} model steps of "
-                        f"{opts.model_step_s:g} s)")
+        names = ", ".join(str(lg.path) for lg in train_logs)
+        raise UserError(f"{names}: the training logs span {steps * opts.model_step_s:.0f} s: "
+                        f"too short to train on (at least {MIN_TRAIN_STEPS} model steps of "
+                        f"{opts.model_step_s:g} s, --model-step-s)")
     if check_mixed(train_logs):  # stationary logs alone: a bias-only model
         return train_bias_only(opts, train_logs, test_log, out_dir)
     t0 = time.perf_counter()

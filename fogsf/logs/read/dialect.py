@@ -39,7 +39,7 @@ DELIMITER_NAMES = {",": "','", ";": "';'", "\t": "tab"}
 # A column mapping in one of these files beside a log applies to it when --columns is not given
 MAPPING_FILES = ("fogsf-columns.json", "fogsf-columns.toml")
 COLUMNS_HINT = ("map the log's names with --columns time_s=NAME,temp_c=NAME,... or a "
-                "fogsf-columns.json beside the log (docs/logs.md)")
+                "fogsf-columns.toml beside the log (docs/logs.md)")
 DECIMAL_COMMA = re.compile(r"^\s*[-+]?\d*,\d+([eE][-+]?\d+)?\s*$")
 
 
