@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_logs_time_zones import gyro_log
 
 from fogsf.cli.main import main
 from fogsf.logs.chamber_log import LogError
@@ -18,19 +19,6 @@ from fogsf.logs.read.dialect import Dialect
 
 T0 = datetime(2026, 1, 15, 8, 0, 0, tzinfo=UTC)
 SLOPE_C_PER_S = 10.0 / 300.0  # the chamber's board temperature: 15 C + 2 C/min
-
-
-def _gyro(folder: Path) -> Path:
-    """The gyro's log on UTC epoch seconds, 10 Hz, 300 s, +/-10 deg/s."""
-    folder.mkdir(parents=True, exist_ok=True)
-    n = 3000
-    t = T0.timestamp() + np.arange(n) / 10.0
-    table = np.where((np.arange(n) // 300) % 2 == 0, 10.0, -10.0)
-    rows = ["time_s,table_rate_dps,gyro,earth_rate_dps"]
-    rows += [f"{t[i]:.1f},{table[i]:g},{table[i] * 1.0001 + 0.00234:.8f},0.00234"
-             for i in range(n)]
-    (folder / "gyro.csv").write_text("\n".join(rows) + "\n")
-    return folder / "gyro.csv"
 
 
 def _thermo(folder: Path, stamp_s: list[float], true_s: list[float]) -> None:
@@ -54,7 +42,7 @@ def test_a_resynchronised_stream_clock_is_joined(tmp_path: Path) -> None:
     """The logger's clock ran 30 s ahead and was set right at 150 s: the temperature runs on
     across the step, so the rows before it are moved onto the clock after it and the joined
     temperature is the true one."""
-    log = _gyro(tmp_path)
+    log = gyro_log(tmp_path)
     true = [float(k) for k in range(-5, 306)]
     _thermo(tmp_path, [k + (30.0 if k < 150 else 0.0) for k in true], true)
     lg = read_log(str(log), _map(tmp_path))
@@ -68,7 +56,7 @@ def test_a_resynchronised_stream_clock_is_joined(tmp_path: Path) -> None:
 def test_a_rebooted_stream_clock_is_refused_saying_so(tmp_path: Path, capsys) -> None:
     """A logger counting seconds since boot, down 40 s at 150 s: its clock restarts and the
     temperature jumps: refused in one line naming the reboot."""
-    log = _gyro(tmp_path)
+    log = gyro_log(tmp_path)
     true = [float(k) for k in range(-5, 150)] + [float(k) for k in range(190, 306)]
     boot = [k + 5.0 if k < 150 else k - 190.0 for k in true]
     (tmp_path / "gyro.thermo.csv").write_text(
@@ -88,7 +76,7 @@ def test_a_rebooted_stream_clock_is_refused_saying_so(tmp_path: Path, capsys) ->
 def test_the_clock_warning_is_a_short_line_of_its_own(tmp_path: Path, capsys) -> None:
     """A chamber logger 90 s off the gyro's clock at both ends: the notes say what the join
     did, and a line of its own says the clocks disagree and the likely cause."""
-    log = _gyro(tmp_path)
+    log = gyro_log(tmp_path)
     true = [float(k) for k in range(-5, 306)]
     _thermo(tmp_path, [k + 90.0 for k in true], true)
     m = tmp_path / "map.toml"
@@ -115,7 +103,7 @@ def test_a_reboot_before_another_step_is_judged_on_its_own_rows(tmp_path: Path) 
     """A chamber logger down 15 s (the temperature jumps 0.5 C) whose clock steps back, and
     down 60 s again 50 rows later: the first step is judged on the rows up to the second,
     so it is refused as a reboot at its own line."""
-    log = _gyro(tmp_path)
+    log = gyro_log(tmp_path)
     true = ([float(k) for k in range(-5, 150)] + [float(k) for k in range(165, 215)]
             + [float(k) for k in range(275, 400)])
     stamp = [k if k < 150 else k - 60.0 if k < 215 else k - 130.0 for k in true]

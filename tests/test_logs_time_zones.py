@@ -18,9 +18,8 @@ from fogsf.logs.mapping.time_zone import local_to_utc, parse_tz, whole_hours_off
 T0 = datetime(2026, 1, 15, 8, 0, 0, tzinfo=UTC)  # winter: Berlin is UTC+1
 
 
-def _rig(folder: Path, zone: str = "Europe/Berlin", t0: datetime = T0) -> Path:
-    """The gyro's log on UTC epoch seconds (10 Hz, 300 s, +/-10 deg/s) and a chamber logger's
-    board thermometer at 1 Hz on local wall time (naive ISO text)."""
+def gyro_log(folder: Path, t0: datetime = T0) -> Path:
+    """The gyro's log on UTC epoch seconds from `t0`, 10 Hz, 300 s, +/-10 deg/s."""
     folder.mkdir(parents=True, exist_ok=True)
     n = 3000
     t = t0.timestamp() + np.arange(n) / 10.0
@@ -29,6 +28,13 @@ def _rig(folder: Path, zone: str = "Europe/Berlin", t0: datetime = T0) -> Path:
     rows += [f"{t[i]:.1f},{table[i]:g},{table[i] * 1.0001 + 0.00234:.8f},0.00234"
              for i in range(n)]
     (folder / "gyro.csv").write_text("\n".join(rows) + "\n")
+    return folder / "gyro.csv"
+
+
+def _rig(folder: Path, zone: str = "Europe/Berlin", t0: datetime = T0) -> Path:
+    """`gyro_log` and a chamber logger's board thermometer at 1 Hz on local wall time (naive
+    ISO text)."""
+    gyro_log(folder, t0)
     tz = ZoneInfo(zone)
     lines = ["wall,board_T"]
     for k in range(-5, 306):

@@ -147,33 +147,25 @@ def test_restart_holds_the_next_segments_temperature(tmp_path: Path) -> None:
     assert filled.size and np.all(lg.temp_c[filled] == lg.temp_c[b])
 
 
-def test_a_clock_reset_starts_a_segment(tmp_path: Path) -> None:
-    rows = [f"{0.1 * i:.1f},{20 + 0.01 * i:.3f},10,10" for i in range(600)]
+@pytest.mark.parametrize(("after_c", "said"), [
     # rebooted: the clock restarts at 0 and the temperature moved on 4 C while it was down
-    rows += [f"{0.1 * i:.1f},{30 + 0.01 * i:.3f},10,10" for i in range(600)]
-    lg = parse_log("time_s,temp_c,table_rate_dps,gyro_dps\n" + "\n".join(rows) + "\n")
-    s = lg.sampling
-    assert s.resets == [600] and s.clock_steps == [] and len(s.segment_starts) == 2
-    b = s.segment_starts[1]
-    assert lg.time_s[b] == pytest.approx(59.9 + 3600.0)
-    assert np.all(lg.temp_c[600:b] == 30.0)  # states restart at the next segment's start
-    note = next(n for n in lg.read_notes if "line 602" in n)
-    assert "temperature jumps +4.000 C" in note and "a reboot" in note, note
-
-
-def test_a_clock_back_to_zero_is_a_reboot_whatever_the_temperature() -> None:
-    """The clock restarts at 0 while the temperature runs on along its trend (a short
-    reboot): a restart at 0 is a reboot, said so."""
+    (30.0, ("temperature jumps +4.000 C",)),
+    # a short reboot: the temperature runs on along its trend, the restart at 0 tells
+    (26.0, ("the clock restarts", "runs on")),
+])
+def test_a_clock_back_to_zero_is_a_reboot(after_c: float, said: tuple[str, ...]) -> None:
+    """A clock that restarts at 0 starts a new segment (states restarted), whatever the
+    temperature does across the step, and says why."""
     rows = [f"{0.1 * i:.1f},{20 + 0.01 * i:.3f},10,10" for i in range(600)]
-    rows += [f"{0.1 * i:.1f},{26 + 0.01 * i:.3f},10,10" for i in range(600)]  # rebooted
+    rows += [f"{0.1 * i:.1f},{after_c + 0.01 * i:.3f},10,10" for i in range(600)]
     lg = parse_log("time_s,temp_c,table_rate_dps,gyro_dps\n" + "\n".join(rows) + "\n")
     s = lg.sampling
     assert s.resets == [600] and s.clock_steps == [] and len(s.segment_starts) == 2
     b = s.segment_starts[1]
     assert lg.time_s[b] == pytest.approx(59.9 + 3600.0)
-    assert np.all(lg.temp_c[600:b] == 26.0)  # states restart at the next segment's start
+    assert np.all(lg.temp_c[600:b] == after_c)  # states restart at the next segment's start
     note = next(n for n in lg.read_notes if "line 602" in n)
-    assert "the clock restarts" in note and "runs on" in note and "a reboot" in note, note
+    assert all(w in note for w in said) and "a reboot" in note, note
 
 
 def test_a_step_back_in_a_soak_is_a_reboot_said_so() -> None:
