@@ -79,6 +79,29 @@ def pause_in_add(folder: Path, marker: Path, pause_s: float = 120.0) -> dict[str
     return {**os.environ, "PYTHONPATH": os.pathsep.join(path)}
 
 
+# A child process's start-up code whose training entries raise: a command that would train
+# fails loudly, so one that succeeds did not train (`fleet add --model-dir`).
+NO_TRAINING_SITE = """
+import fogsf.training.rate.plateau_train as plateau_train
+import fogsf.training.sf.fit as sf_fit
+import fogsf.training.train as train
+def _no_training(*args, **kwargs):
+    raise RuntimeError("training entered")
+train.run_training = train.train_model = sf_fit.fit_sf = _no_training
+plateau_train.train_plateaus = _no_training
+"""
+
+
+def no_training(folder: Path) -> dict[str, str]:
+    """The environment of a child process in which any training raises (NO_TRAINING_SITE,
+    written into `folder`)."""
+    site = folder / "no-training"
+    site.mkdir(parents=True, exist_ok=True)
+    (site / "sitecustomize.py").write_text(NO_TRAINING_SITE)
+    path = [str(site), str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(path)}
+
+
 def wait_for(cond: Callable[[], bool], timeout_s: float, what: str) -> None:
     t_end = time.monotonic() + timeout_s
     while not cond():

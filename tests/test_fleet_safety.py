@@ -12,7 +12,7 @@ import pytest
 from fogsf.cli.main import main
 from fogsf.errors import UserError
 from fogsf.fleet.names import check_unit_name, masked
-from fogsf.fleet.report_dir import MARKER
+from fogsf.fleet.report import MARKER
 from fogsf.fleet.store import open_store
 from tests.fleet_units import fake_record
 

@@ -10,10 +10,13 @@ time, in one transaction (a killed add leaves the database as it was). `add-many
 units of a manifest in parallel; `list` and `remove` what the title says; `check` names the
 units unlike the line; `report` writes a static HTML report (docs/fleet.md); `--spec-ppm X`
 (list, report) says of each unit within spec, out of spec or unsure. list, check and report
-live in `cli.fleet_views`.
+live in `cli.fleet_views`. `add --model-dir DIR` records the model a training kept in DIR
+(the unit's logs given as for add) without training again (`fleet.kept_model`): the
+retry a failed add names.
 
 Examples:
   fogsf fleet add line.fleet --unit SN001 --train SN001_loop.csv --test SN001_test.csv
+  fogsf fleet add line.fleet --unit SN001 --train SN001_loop.csv --model-dir models/SN001
   fogsf fleet add-many line.fleet units.csv --workers 4
   fogsf fleet list line.fleet
   fogsf fleet check line.fleet --json outliers.json
@@ -27,17 +30,19 @@ import argparse
 import os
 import shlex
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from fogsf.cli import fleet_export
 from fogsf.cli import train as train_cli
 from fogsf.cli.arguments import cosine_for, read_logs
 from fogsf.cli.fleet_views import run_check, run_list, run_report
-from fogsf.cli.main import main
-from fogsf.cli.plateau_commands import any_plateau_table, fit_tables
+from fogsf.cli.main import OneLineParser, main
+from fogsf.cli.plateau_commands import any_plateau_table, fit_tables, read_tables
 from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
+from fogsf.fleet import kept_model
 from fogsf.fleet.batch import run_local
 from fogsf.fleet.check import DEFAULT_FALSE_ALARM
 from fogsf.fleet.faults import db_faults
@@ -45,7 +50,7 @@ from fogsf.fleet.lease import BatchLease, check_batch
 from fogsf.fleet.manifest import ManifestRow, read_manifest
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.plateau_unit import plateau_record
-from fogsf.fleet.records import UnitRecord, structure_of, unit_record
+from fogsf.fleet.records import UnitRecord, recorded_options, structure_of, unit_record
 from fogsf.fleet.store import fleet_exists, open_store
 from fogsf.gsa.executors import default_workers, open_executor
 from fogsf.scratch import temp_dir
@@ -55,9 +60,22 @@ FLEET_HELP = ("the fleet: an SQLite file or a postgresql:// URL (its password fr
               "PGPASSWORD or ~/.pgpass, not the URL)")
 
 
+class ArgvParser(OneLineParser):
+    """A fleet action's parser that keeps the arguments it read (`_fleet_argv`): a failed
+    add names its retry as that same command with --model-dir."""
+
+    def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                         namespace: argparse.Namespace | None = None
+                         ) -> tuple[argparse.Namespace, list[str]]:
+        ns, rest = super().parse_known_args(args, namespace)
+        ns._fleet_argv = list(sys.argv[1:] if args is None else args)
+        return ns, rest
+
+
 def configure(parser: argparse.ArgumentParser) -> None:
 
-    sub = parser.add_subparsers(dest="fleet_command", metavar="ACTION", required=True)
+    sub = parser.add_subparsers(dest="fleet_command", metavar="ACTION", required=True,
+                                parser_class=ArgvParser)
 
     p = _action(sub, "add", "train a unit as `fogsf train` does and record it",
                 "fogsf fleet add line.fleet --unit SN001 --train SN001_loop.csv "
@@ -75,6 +93,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
         p.add_argument("--unit", required=True, metavar="SN", help="the unit's serial number")
     p.add_argument("--replace", action="store_true",
                    help="record the unit again if FLEET already has it")
+    p.add_argument("--model-dir", default=None, metavar="DIR",
+                   help="record the model a training kept in DIR (fleet add --out, fogsf "
+                        "train --out) without training again: the same logs and options as "
+                        "it was trained with, checked (the retry a failed add prints)")
     p.add_argument("--batch", default=None, help=argparse.SUPPRESS)  # add-many's lease id
     p.set_defaults(_fleet_run=run_add)
 
@@ -170,6 +192,10 @@ def run_add(args: argparse.Namespace) -> int:
         raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
                         "under the design's prior and record it: fogsf train --prior FLEET "
                         "--unit SN ...")
+    kept = args.model_dir
+    if kept and args.out and Path(args.out).resolve() != Path(kept).resolve():
+        raise UserError(f"--out {args.out} is a folder to train into and --model-dir {kept} "
+                        "the model a training kept: give one of them")
     # A unit already there is refused before training; the fleet is created only to record
     # the unit, so that a refused add leaves no empty fleet behind.
     if fleet_exists(args.fleet):
@@ -178,23 +204,43 @@ def run_add(args: argparse.Namespace) -> int:
                 raise UserError(f"unit {shown(args.unit)} is already in {store.location} "
                                 "(--replace to record it again, or `fogsf fleet remove`)")
     tables = any_plateau_table(args, args.train + ([args.test] if args.test else []))
-    with temp_dir("fleet-") as tmp:
-        out = Path(args.out) if args.out else tmp
-        if out.exists() and not out.is_dir():
-            raise UserError(f"--out {out} exists and is not a directory")
-        record = _fit_tables(args, out) if tables else _fit_logs(args, out)
+    if kept:  # the folder checked before the logs are read
+        model = kept_model.read_kept(kept, plateau_logs=tables)
+        record = _kept_tables(args, model) if tables else _kept_logs(args, model)
+    else:
+        with temp_dir("fleet-") as tmp:
+            out = Path(args.out) if args.out else tmp
+            if out.exists() and not out.is_dir():
+                raise UserError(f"--out {out} exists and is not a directory")
+            record = _fit_tables(args, out) if tables else _fit_logs(args, out)
+            if args.out:  # what a retry with --model-dir checks its logs and options against
+                kept_model.write_kept(out, record)
     try:
         with db_faults(masked(args.fleet)), open_store(args.fleet, "create") as store:
             store.add(record, replace=args.replace, guard=None if not args.batch else
                       lambda s: check_batch(s, args.batch))
             n = len(store.units())
     except UserError as e:  # the hour of training is not lost with the record
-        raise UserError(f"{e}; the trained model is kept in {args.out}" if args.out else
+        if kept:
+            raise UserError(f"{e}; not recorded (the model stays in {kept})") from None
+        raise UserError(f"{e}; the trained model is kept in {args.out}; record it without "
+                        f"training again: {_retry(args)}" if args.out else
                         f"{e}; not recorded (--out DIR keeps the trained model)") from None
     print(f"recorded unit {record.unit} in {store.location} ({n} unit{'s' if n != 1 else ''}); "
           f"structure {structure_of(record)}"
-          + (f", model in {args.out}" if args.out else ""))
+          + (f", model in {args.out}" if args.out and not kept else "")
+          + (f", model in {kept} (recorded from it, not trained)" if kept else ""))
     return 0
+
+
+def _retry(args: argparse.Namespace) -> str:
+    """The command that records the model this add kept: the same add with --model-dir
+    for --out (add-many's lease left out: that batch is over)."""
+    argv = list(getattr(args, "_fleet_argv", None) or [args.fleet, "--unit", args.unit])
+    for opt, value in (("--batch", args.batch), ("--out", args.out)):
+        at = [i for i in range(len(argv) - 1) if argv[i:i + 2] == [opt, value]]
+        argv = argv[:at[-1]] + argv[at[-1] + 2:] if at else argv
+    return shlex.join(["fogsf", "fleet", "add", *argv, "--model-dir", args.out])
 
 
 def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:
@@ -204,21 +250,41 @@ def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:
     opts = train_options(args)
     metrics, fitted = run_training(opts, train_logs, test_log, out)
     print(format_metrics(metrics))
-    options = {k: v for k, v in vars(opts).items()
-               if k not in ("progress", "workers", "dask", "extra")}
-    return unit_record(args.unit, train_logs, test_log, metrics, fitted, out, options,
-                       keep_dir=bool(args.out))
+    return unit_record(args.unit, train_logs, test_log, metrics, fitted, out,
+                       recorded_options(opts), keep_dir=bool(args.out))
 
 
 def _fit_tables(args: argparse.Namespace, out: Path) -> UnitRecord:
     """The unit's plateau model fitted on its plateau tables as `fogsf train` fits it, into
     `out`; its record (`fleet.plateau_unit`)."""
     train, test, fit, metrics = fit_tables(args, out, allowed=("unit",))
-    return plateau_record(args.unit, train, test, fit, metrics, out,
-                          {"latitude_deg": args.latitude_deg,
-                           "axis_cosine": cosine_for(getattr(args, "axis_cosine", None),
-                                                     getattr(args, "axis", None))},
-                          keep_dir=bool(args.out))
+    return plateau_record(args.unit, train, test, fit.model, metrics, out,
+                          _plateau_options(args), keep_dir=bool(args.out))
+
+
+def _plateau_options(args: argparse.Namespace) -> dict[str, Any]:
+    return {"latitude_deg": args.latitude_deg,
+            "axis_cosine": cosine_for(getattr(args, "axis_cosine", None),
+                                      getattr(args, "axis", None))}
+
+
+def _kept_logs(args: argparse.Namespace, model: kept_model.KeptModel) -> UnitRecord:
+    """The unit's record from the model in --model-dir and its sample logs, not trained."""
+    train_logs = read_logs(args, args.train, on_disk=True, training=True)
+    test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
+    record = kept_model.kept_record(args.unit, train_logs, test_log, model,
+                                    recorded_options(train_options(args)))
+    print(format_metrics(model.metrics))
+    return record
+
+
+def _kept_tables(args: argparse.Namespace, model: kept_model.KeptModel) -> UnitRecord:
+    """The unit's record from the plateau model in --model-dir and its tables."""
+    train = read_tables(args, args.train)
+    test = read_tables(args, [args.test])[0] if args.test else None
+    record = kept_model.kept_plateau_record(args.unit, train, test, model, _plateau_options(args))
+    print(format_metrics(model.metrics))
+    return record
 
 
 def add_one(argv: list[str]) -> tuple[int, str]:

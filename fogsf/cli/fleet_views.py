@@ -20,8 +20,7 @@ from fogsf.fleet.check import checked
 from fogsf.fleet.names import shown
 from fogsf.fleet.plateau_unit import is_plateau_unit
 from fogsf.fleet.records import UnitRecord, spec_verdict, structure_of
-from fogsf.fleet.report import write_report
-from fogsf.fleet.report_dir import check_out_dir
+from fogsf.fleet.report import check_out_dir, write_report
 from fogsf.fleet.store import open_store
 
 

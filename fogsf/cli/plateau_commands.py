@@ -51,7 +51,7 @@ def any_plateau_table(args: argparse.Namespace, paths: list[str]) -> bool:
     return any(kinds.values())
 
 
-def _tables(args: argparse.Namespace, paths: list[str]) -> list[PlateauTable]:
+def read_tables(args: argparse.Namespace, paths: list[str]) -> list[PlateauTable]:
     out = []
     for p in paths:
         t = read_plateau_table(p, dialect_from_args(args))
@@ -75,8 +75,8 @@ def fit_tables(args: argparse.Namespace, out: Path, allowed: tuple[str, ...] = (
     if given:
         raise UserError(f"--{given[0].replace('_', '-')} is for sample logs: a plateau table "
                         "trains the plateau model (docs/train.md, \"Plateau tables\")")
-    train = _tables(args, args.train)
-    test = _tables(args, [args.test])[0] if args.test else None
+    train = read_tables(args, args.train)
+    test = read_tables(args, [args.test])[0] if args.test else None
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")
     fit, metrics = train_plateaus(train, test, args.latitude_deg, _cosine(args))
@@ -112,7 +112,7 @@ def replay_table(args: argparse.Namespace) -> int:
     gyro_corrected_dps and flags; before and after against the rate each plateau sensed."""
     model = StreamModel.load(args.model)
     check_static(model, args.model)
-    table = _tables(args, [args.log])[0]
+    table = read_tables(args, [args.log])[0]
     build = build_kernel(model, root=args.build_dir, cc=args.cc)
     corrected, flags = kernel_rows(Kernel(model, build), table.temp_c, table.gyro_dps)
     cols = {"time_s": table.time_s, "duration_s": table.duration_s,
@@ -151,7 +151,7 @@ def _write(path: Path, cols: dict[str, np.ndarray]) -> None:
 def diagnose_tables(args: argparse.Namespace) -> int:
     """`fogsf diagnose TABLE ...`: the rate terms the tables show beyond the simulator's
     linear SF, named, and the plateau model's gain (docs/diagnose.md, "Plateau tables")."""
-    tables = _tables(args, args.logs)
+    tables = read_tables(args, args.logs)
     unused = [o for o, v in (("--report", args.report), ("--config-out", args.config_out),
                              ("--effects", args.effects), ("--cv", args.cv != "blocks"),
                              ("--start", args.start != "auto")) if v]

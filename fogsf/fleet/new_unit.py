@@ -12,7 +12,7 @@ from fogsf.errors import UserError
 from fogsf.fleet.faults import db_faults
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.plateau_unit import PLATEAU
-from fogsf.fleet.records import unit_record
+from fogsf.fleet.records import recorded_options, unit_record
 from fogsf.fleet.schema import cached, state_of
 from fogsf.fleet.store import keep_quietly, open_store
 from fogsf.logs.chamber_log import ChamberLog
@@ -75,8 +75,7 @@ def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
     prior = design_prior(fleet, unit)
     metrics, fitted = train_with_prior(opts, train_logs, test_log, out, prior)
     if unit is not None:
-        options = {k: v for k, v in vars(opts).items()
-                   if k not in ("progress", "workers", "dask", "extra")}
+        options = recorded_options(opts)
         options["prior"] = {"fleet_units": prior.units, "used": metrics["prior"]["used"]}
         record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
         try:

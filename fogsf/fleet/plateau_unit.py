@@ -18,7 +18,7 @@ import numpy as np
 from fogsf.fleet.records import LogRecord, UnitRecord, file_sha256, utc_now
 from fogsf.logs.measure.table_figures import TableFigures, table_figures
 from fogsf.logs.plateau_table import PlateauTable
-from fogsf.training.rate.plateau_model import PlateauFit
+from fogsf.models.stream import StreamModel
 from fogsf.training.rate.plateau_train import correct_rows
 from fogsf.training.results import PlateauMetrics, TableScore
 
@@ -41,7 +41,7 @@ def table_log(table: PlateauTable, role: str) -> LogRecord:
                      temp_max_c=float(np.max(table.temp_c)), role=role)
 
 
-def _figures(tables: list[PlateauTable], fit: PlateauFit, latitude_deg: float | None,
+def _figures(tables: list[PlateauTable], model: StreamModel, latitude_deg: float | None,
              axis_cosine: float) -> tuple[TableFigures, TableFigures]:
     """The tables' static figures (their measuring rows) before and after the model."""
     keep = [t.measures for t in tables]
@@ -50,7 +50,7 @@ def _figures(tables: list[PlateauTable], fit: PlateauFit, latitude_deg: float | 
                             for t, k in zip(tables, keep, strict=True)])
     g = np.concatenate([t.gyro_dps[k] for t, k in zip(tables, keep, strict=True)])
     temp = np.concatenate([t.temp_c[k] for t, k in zip(tables, keep, strict=True)])
-    corrected, _ = correct_rows(fit.model, temp, g)
+    corrected, _ = correct_rows(model, temp, g)
     return table_figures(r, g - earth, temp), table_figures(r, corrected - earth, temp)
 
 
@@ -85,11 +85,12 @@ def _scores(scores: list[TableScore]) -> tuple[float, float]:
 
 
 def plateau_record(unit: str, train: list[PlateauTable], test: PlateauTable | None,
-                   fit: PlateauFit, metrics: PlateauMetrics, model_dir: str | Path,
+                   model: StreamModel, metrics: PlateauMetrics, model_dir: str | Path,
                    options: dict[str, Any], keep_dir: bool = True) -> UnitRecord:
-    """The record of a unit whose plateau model `fogsf train` has just fitted and written to
-    `model_dir` (`keep_dir` False: the folder is temporary, the record names none)."""
-    before, after = _figures(train, fit, options.get("latitude_deg"),
+    """The record of a unit whose plateau model (`model`, its artifact) `fogsf train` has
+    fitted and written to `model_dir` (`keep_dir` False: the folder is temporary, the record
+    names none)."""
+    before, after = _figures(train, model, options.get("latitude_deg"),
                              float(options.get("axis_cosine", 1.0)))
     figures: dict[str, Any] = {"model": PLATEAU, "heldout_dph": metrics.heldout_dph,
                                "linear_heldout_dph": metrics.linear_heldout_dph,

@@ -25,6 +25,7 @@ from fogsf.logs.measure.windows import sf_windows
 from fogsf.prior.unit_summary import summarize_unit
 from fogsf.training.fitted_model import per_sample_prediction
 from fogsf.training.interval.transfer import ramp_segments
+from fogsf.training.options import TrainOptions
 
 if TYPE_CHECKING:
     from fogsf.logs.chamber_log import ChamberLog
@@ -131,7 +132,7 @@ def log_record(log: ChamberLog, role: str = "train") -> LogRecord:
                      role=role)
 
 
-def _after_block(part: dict) -> list[dict]:
+def after_blocks(part: dict) -> list[dict]:
     """The before/after blocks of metrics.json's "train" or "test" (one log or several)."""
     if "after" in part:
         return [part]
@@ -146,7 +147,7 @@ def figures_of(metrics: dict) -> dict[str, Any]:
     for part in ("train", "test"):
         if part not in metrics:
             continue
-        blocks = _after_block(metrics[part])
+        blocks = after_blocks(metrics[part])
         for when in ("before", "after"):
             rms = [b[when]["rms_ppm"] for b in blocks]
             out[f"{part}_{when}_rms_ppm"] = float(math.sqrt(np.mean(np.square(rms))))
@@ -289,6 +290,13 @@ def structure_of(rec: UnitRecord) -> str:
     """A recorded unit's structure: its summary's, else what it was fitted with."""
     s = rec.summary.get("structure") or rec.fitted_with.get("structure") or "?"
     return s if isinstance(s, str) else str(s)
+
+
+def recorded_options(opts: TrainOptions) -> dict[str, Any]:
+    """The training options as a record holds them: how a run was computed (workers, a
+    cluster, progress bars) is not what it trained."""
+    return {k: v for k, v in vars(opts).items()
+            if k not in ("progress", "workers", "dask", "extra")}
 
 
 def fitted_with(metrics: dict, info: dict, options: dict[str, Any]) -> dict[str, Any]:
