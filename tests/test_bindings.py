@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from fogsf.bindings.kernel import Kernel, build_kernel
+from fogsf.bindings.kernel import ROOT, Kernel, build_kernel, default_build_root
 from fogsf.cli.main import main
 from fogsf.errors import UserError
 from fogsf.logs.chamber_log import ChamberLog
@@ -35,6 +35,16 @@ def test_build_is_cached_by_model_id(tmp_path) -> None:
     assert model.model_id in a.directory.name
     other = build_kernel(samples.random_model(seed=5), root=tmp_path)
     assert other.directory != a.directory
+
+
+def test_a_checkout_builds_in_its_tree_only_when_run_from_inside(tmp_path, monkeypatch
+                                                                   ) -> None:
+    monkeypatch.delenv("FOGSF_BUILD_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.chdir(ROOT / "docs")
+    assert default_build_root() == ROOT / "build" / "kernels"
+    monkeypatch.chdir(tmp_path)  # a user's lab folder: the user's cache, not the checkout
+    assert default_build_root() == tmp_path / "cache" / "fogsf" / "kernels"
 
 
 def test_kernel_refuses_a_library_of_another_model(tmp_path) -> None:

@@ -53,12 +53,13 @@ def user_cache_dir() -> Path:
 
 
 def default_build_root() -> Path:
-    """$FOGSF_BUILD_DIR, else build/kernels in a checkout, else the user's cache directory
-    (`user_cache_dir()`/kernels): never inside an installed package."""
+    """$FOGSF_BUILD_DIR, else build/kernels of a checkout run from inside it, else the
+    user's cache directory (`user_cache_dir()`/kernels): never inside an installed package,
+    nor in a source tree the user is not working in."""
     env = os.environ.get("FOGSF_BUILD_DIR")
     if env:
         return Path(env)
-    if fogsf.in_checkout:
+    if fogsf.in_checkout and Path.cwd().resolve().is_relative_to(ROOT.resolve()):
         return ROOT / "build" / "kernels"
     return user_cache_dir() / "kernels"
 
