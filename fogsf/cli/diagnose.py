@@ -36,6 +36,7 @@ On plateau tables (docs/diagnose.md, "Plateau tables"): the rate terms beyond th
 simulator's linear SF (an open-loop FOG's sine, a polynomial, the asymmetry), named.
 
 examples:
+  fogsf simulate --scenario paper --ramp-rate 1.0 --out run.csv
   fogsf diagnose run.csv --json diag.json --report diag.md
   fogsf diagnose rig/table.csv --json diag.json
   fogsf diagnose up.csv down.csv --json diag.json --cv runs

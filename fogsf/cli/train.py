@@ -28,6 +28,7 @@ On plateau tables (a rig's means per rate plateau) it fits the plateau model: th
 function of rate and temperature (docs/train.md, "Plateau tables").
 
 Examples:
+  fogsf simulate --scenario paper --ramp-rate 0.5 --out run05.csv  # 2.0, 1.0: run20, run10
   fogsf train --train run05.csv --train run20.csv --test run10.csv --out models/m
   fogsf train --prior line.fleet --unit SN0042 --train short.csv --test test.csv --out m42
   fogsf train --train rig/run1.csv --test rig/run2.csv --out models/plat
