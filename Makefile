@@ -5,6 +5,9 @@ PY     := $(VENV)/bin/python
 FOGSF  := $(VENV)/bin/fogsf
 STAMP  := $(VENV)/.installed
 OUT    ?= out
+# pytest workers, one a core (pytest-xdist); a test file stays on one worker (its fixtures
+# are built once); PYTEST_WORKERS= runs the suite in one process
+PYTEST_WORKERS ?= -n auto --dist loadfile
 
 .PHONY: help venv test test-fast lint demo firmware firmware-cores misra export toolchain bench fuzz block-cores fuzz-block bench-diagnose bench-transfer bench-population bench-outside bench-hysteresis bench-plan bench-rate bench-scale bench-gsa bench-sim bench-rigs bench-bias bench-plateaus bench-fleet paper clean
 
@@ -52,13 +55,13 @@ lint: $(STAMP)
 test: $(STAMP)
 	$(VENV)/bin/ruff check fogsf tests benchmarks
 	$(VENV)/bin/mypy
-	$(PY) -m pytest -q -rs tests benchmarks/tests
+	$(PY) -m pytest -q -rs $(PYTEST_WORKERS) tests benchmarks/tests
 
 # the tests a change can afford on every edit (under 3 min on 2 cores): the slow-marked ones left out
 test-fast: $(STAMP)
 	$(VENV)/bin/ruff check fogsf tests benchmarks
 	$(VENV)/bin/mypy
-	$(PY) -m pytest -q -rs -m "not slow" tests benchmarks/tests
+	$(PY) -m pytest -q -rs $(PYTEST_WORKERS) -m "not slow" tests benchmarks/tests
 
 demo: $(STAMP)
 	bash scripts/demo.sh $(OUT)/demo
