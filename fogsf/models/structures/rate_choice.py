@@ -4,7 +4,13 @@ for the ways a model is used beyond its data (docs/train.md, "Plateau tables"): 
 temperature group left out in turn, the run cut into TIME_FOLDS blocks in time order, and
 every INTERLEAVE-th plateau. A form's score is the geometric mean over the kinds of its
 held-out RMS within each kind, so that no kind (the extrapolating ones err most) decides
-alone; the lowest score wins, the simpler form on a tie."""
+alone; the lowest score wins, the simpler form on a tie.
+
+The choice prices each term at (log(n) - 1) / n times the noise variance the rows show (the
+residual of the richest form, `noise_var`), added to each kind's held-out mean square: a
+held-out score already pays ~1 such unit a term, so the sum is BIC's price; the lowest of
+~150 noisy scores otherwise favours terms the noise does not repay (docs/decisions.md,
+"The plateau model's form")."""
 
 from __future__ import annotations
 
@@ -35,13 +41,14 @@ class RateRows:
 
 @dataclass(frozen=True)
 class FormChoice:
-    """The chosen form, its score (a held-out RMS in units of full scale), every
-    candidate's, and how many folds scored them."""
+    """The chosen form, its score (a held-out RMS in units of full scale, unpriced), every
+    candidate's, how many folds scored them, and the noise that priced the terms."""
 
     form: RateForm
     score: float
     scores: dict[RateForm, float]
     folds: int
+    noise: float = 0.0  # the per-plateau noise RMS the rows show (units of full scale)
 
     def score_of(self, form: RateForm) -> float:
         return self.scores[form]
@@ -80,9 +87,22 @@ def heldout_rms(rows: RateRows, form: RateForm, masks: list[np.ndarray]) -> floa
     return float(np.sqrt(sq / count)) if count else float("nan")
 
 
-def _score(per_kind: list[float]) -> float:
-    """The geometric mean over the kinds that could score the form (inf when none)."""
-    ok = [max(v, 1e-30) for v in per_kind if np.isfinite(v)]
+def noise_var(rows: RateRows, cands: list[RateForm]) -> float:
+    """The per-plateau noise variance: the residual mean square of the candidate with the
+    most terms that leaves at least half the rows free (0 when none does)."""
+    free = [f for f in cands if 2 * f.n_terms <= len(rows)]
+    if not free:
+        return 0.0
+    rich = max(free, key=lambda f: f.n_terms)
+    a = design(rows.x, rows.tau, rich)
+    err = a @ solve(a, rows.y) - rows.y
+    return float(err @ err) / (len(rows) - rich.n_terms)
+
+
+def _score(per_kind: list[float], price_sq: float = 0.0) -> float:
+    """The geometric mean over the kinds that could score the form (inf when none) of each
+    kind's held-out RMS, `price_sq` added to its mean square."""
+    ok = [max(float(np.sqrt(v * v + price_sq)), 1e-30) for v in per_kind if np.isfinite(v)]
     return float(np.exp(np.mean(np.log(ok)))) if ok else float("inf")
 
 
@@ -101,6 +121,12 @@ def choose_form(rows: RateRows, candidates: list[RateForm] | None = None,
     kinds = fold_kinds(rows)
     if not kinds:
         raise ValueError("too few plateaus to hold any out")
-    scores = {f: _score([heldout_rms(rows, f, ms) for ms in kinds]) for f in cands}
-    pick = min(cands, key=lambda f: scores[f])  # the first of equals: the simpler
-    return FormChoice(pick, scores[pick], scores, sum(len(ms) for ms in kinds))
+    per_kind = {f: [heldout_rms(rows, f, ms) for ms in kinds] for f in cands}
+    scores = {f: _score(v) for f, v in per_kind.items()}
+    noise = noise_var(rows, cands)
+    n = len(rows)
+    price = max(np.log(n) - 1.0, 0.0) * noise / n
+    priced = {f: _score(v, price * f.n_terms) for f, v in per_kind.items()}
+    pick = min(cands, key=lambda f: priced[f])  # the first of equals: the simpler
+    return FormChoice(pick, scores[pick], scores, sum(len(ms) for ms in kinds),
+                      float(np.sqrt(noise)))
