@@ -10,7 +10,15 @@ exactly): no structure, no fit of the fleet, no misfit. It does not use the unit
 board temperature (a nonlinear estimator could do better), so it is a reference, not a
 bound. It tunes nothing: it runs on evaluation designs too.
 
+`--interval`: how tight an interval on the test RMS can be when the posterior is exactly
+right. The unit's test error is then a draw e ~ N(0, P) (P the posterior covariance of its
+test response); its test RMS over the floor A = sqrt(A0^2 + mean(e^2) / floor^2), A0 the
+ratio with the exact truth removed. The tightest top that holds with 90 % is A's 90 %
+quantile q; the chance that it is within 2 x the actual is P(A >= q / 2), averaged over
+the units: the share of units any interval holding 90 % can bring within 2 x.
+
     python -m benchmarks.probes.fleet_bayes_oracle --designs 20000,20001 --units 60
+    python -m benchmarks.probes.fleet_bayes_oracle --designs 20000,20001 --interval
 """
 
 from __future__ import annotations
@@ -21,12 +29,14 @@ import numpy as np
 
 from benchmarks.fleet import NEW_FIRST, RUN_OFFSET, profile, simulate_run
 from benchmarks.probes import ratio
+from fogsf.logs.measure.metrics import log_metrics
 from fogsf.models.reference import expand
 from fogsf.prior.unit_fit import step_series
 from fogsf.training.with_prior import test_series
 
 ORACLE_FIRST = 1000
 RUNS = ("loop2h", "up05")
+DRAWS = 4000  # posterior draws of a unit's test error (--interval)
 
 
 def clean_steps(design: int, unit: int, name: str) -> np.ndarray:
@@ -49,7 +59,22 @@ def _fit(n: int, series: np.ndarray) -> np.ndarray:
     return out
 
 
-def probe_design(design: int, n_units: int, n_new: int) -> dict[str, list[float]]:
+def interval_limit(test, clean: np.ndarray, pred: np.ndarray, cov: np.ndarray,  # noqa: ANN001
+                   dec: int, seed: int) -> tuple[float, float]:
+    """(the 90 % quantile of the unit's test ratio over the actual ratio, the chance that
+    quantile is within 2 x the ratio) under the exact posterior: see the module's text."""
+    floor = log_metrics(test)["noise_floor_ppm"]
+    a0 = ratio(test, expand(clean, len(test), dec))
+    ev, vec = np.linalg.eigh(0.5 * (cov + cov.T))
+    root = vec * np.sqrt(np.maximum(ev, 0.0))
+    e = np.random.default_rng(seed).standard_normal((DRAWS, root.shape[1])) @ root.T
+    a = np.sqrt(a0**2 + np.mean(e**2, axis=1) / floor**2)
+    q = float(np.quantile(a, 0.9))
+    return q / ratio(test, expand(pred, len(test), dec)), float(np.mean(a >= q / 2))
+
+
+def probe_design(design: int, n_units: int, n_new: int, interval: bool = False
+                 ) -> dict[str, list[float]]:
     units = range(ORACLE_FIRST, ORACLE_FIRST + n_units)
     test_y = np.stack([clean_steps(design, u, "loop_test") for u in units])
     mt = test_y.mean(axis=0)
@@ -67,6 +92,15 @@ def probe_design(design: int, n_units: int, n_new: int) -> dict[str, list[float]
             a = np.linalg.solve(ds @ ds.T / s2 + np.eye(n_units), ds @ (y - ms) / s2)
             pred = _fit(ts.rows.size, mt + dt.T @ a)
             out.setdefault(run, []).append(ratio(test, expand(pred, len(test), dec)))
+            if interval:
+                pa = np.linalg.inv(ds @ ds.T / s2 + np.eye(n_units))
+                n = min(ts.rows.size, mt.size)
+                cov = np.zeros((ts.rows.size, ts.rows.size))
+                cov[:n, :n] = (dt.T @ pa @ dt)[:n, :n]
+                clean = _fit(ts.rows.size, clean_steps(design, u, "loop_test"))
+                top, tight = interval_limit(test, clean, pred, cov, dec, u)
+                out.setdefault(f"{run} top/actual", []).append(top)
+                out.setdefault(f"{run} P(top<=2x)", []).append(tight)
     print(f"design {design}: " + ", ".join(f"{r} " + " ".join(f"{v:.2f}" for v in out[r])
                                            for r in RUNS), flush=True)
     return out
@@ -78,15 +112,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--designs", default="20000,20001")
     ap.add_argument("--units", type=int, default=60, help="noise-free units of the design")
     ap.add_argument("--new", type=int, default=3, help="new units per design")
+    ap.add_argument("--interval", action="store_true",
+                    help="also the tightest interval holding 90 %% under the exact posterior")
     args = ap.parse_args(argv)
     rows: dict[str, list[float]] = {}
     for d in (int(x) for x in args.designs.split(",")):
-        for key, v in probe_design(d, args.units, args.new).items():
+        for key, v in probe_design(d, args.units, args.new, args.interval).items():
             rows.setdefault(key, []).extend(v)
     print(f"designs {args.designs}, the linear Bayes estimate under {args.units} noise-free "
           "units: test RMS / floor, median / worst")
     for key, v in rows.items():
-        print(f"  {key:8s} {np.median(v):5.2f} / {max(v):5.2f}")
+        if key.endswith("x)"):  # a chance per unit: its mean is the share of units
+            print(f"  {key:20s} mean {np.mean(v):5.2f} (min {min(v):.2f})")
+        else:
+            print(f"  {key:20s} {np.median(v):5.2f} / {max(v):5.2f}")
     return 0
 
 
