@@ -131,7 +131,7 @@ def build(lo: int, hi: int, noise: float) -> list[Case]:
 
 
 def load(lo: int, hi: int, noise: float, cache: Path) -> list[Case]:
-    path = cache / f"plateau_cases2_{lo}_{hi}_{noise:g}.pkl"
+    path = cache / f"plateau_cases3_{lo}_{hi}_{noise:g}.pkl"
     if path.exists():
         return pickle.loads(path.read_bytes())
     cases = build(lo, hi, noise)
@@ -198,13 +198,58 @@ def rule_1se(k: float, how: str = "rich") -> Callable[[Case], int]:
     return pick
 
 
-def rule_bic(sub: float) -> Callable[[Case], int]:
+def _bic_price(c: Case, sub: float = 1.0) -> np.ndarray:
+    return (np.log(c.train_n) - sub) * noise_var(c, "rich") * c.n_terms / c.train_n
+
+
+def _odd(c: Case) -> np.ndarray:
+    return np.array([f.odd for f in c.forms])
+
+
+def rule_bic(sub: float, odd: bool = True) -> Callable[[Case], int]:
     """Each term priced at (log(n) - sub) sigma^2 / n; sub = 1 (the held-out score already
-    pays one unit a term: BIC's price in all) is the default since this probe."""
+    pays one unit a term: BIC's price in all) is the default since this probe. `odd`: the
+    odd-power forms among the candidates (without: the candidates before them)."""
     def pick(c: Case) -> int:
-        return int(np.argmin(geo(c, (np.log(c.train_n) - sub) * noise_var(c, "rich")
-                                 * c.n_terms / c.train_n)))
+        s = geo(c, _bic_price(c, sub))
+        return int(np.argmin(s if odd else np.where(_odd(c), np.inf, s)))
     return pick
+
+
+def _t_terms(c: Case) -> np.ndarray:
+    """[F] the terms a form holds beyond its degree 0 in T."""
+    return np.array([2 * f.temp_degree + (f.n_terms - 2 * (f.temp_degree + 1))
+                     * f.rate_temp_degree // (f.rate_temp_degree + 1) for f in c.forms])
+
+
+def rule_kind_price(k: float) -> Callable[[Case], int]:
+    """bic-1, the T terms priced k times over in the extrapolating kinds (temperature
+    groups, time blocks: every kind but the last)."""
+    def pick(c: Case) -> int:
+        base = _bic_price(c)
+        extra = (k - 1.0) * (np.log(c.train_n) - 1) * noise_var(c, "rich") * _t_terms(c) \
+            / c.train_n
+        ms = _mean_sq(c) + base
+        ms[:-1] += extra
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lg = np.log(np.sqrt(np.maximum(ms, 1e-60)))
+        ok = np.isfinite(lg)
+        s = np.where(ok.any(0), np.exp(np.nansum(np.where(ok, lg, 0), 0)
+                                       / np.maximum(ok.sum(0), 1)), np.inf)
+        return int(np.argmin(s))
+    return pick
+
+
+def rule_t_by_extrap(c: Case) -> int:
+    """bic-1's rate powers; their degrees in T chosen by the extrapolating kinds alone."""
+    first = c.forms[rule_bic(1.0)(c)]
+    same = [i for i, f in enumerate(c.forms) if (f.powers, f.abs_term, f.odd)
+            == (first.powers, first.abs_term, first.odd)]
+    ms = _mean_sq(c)[:-1][:, same] + _bic_price(c)[same]
+    with np.errstate(invalid="ignore"):
+        s = np.exp(np.nanmean(np.log(np.sqrt(np.maximum(ms, 1e-60))), axis=0))
+    s = np.where(np.isfinite(s), s, np.inf)
+    return same[int(np.argmin(s))]
 
 
 def rule_leverage(k: float) -> Callable[[Case], int]:
@@ -215,7 +260,22 @@ def rule_leverage(k: float) -> Callable[[Case], int]:
     return pick
 
 
-RULES: dict[str, Callable[[Case], int]] = {"default": rule_default, "bic-1": rule_bic(1.0),
+def rule_masked(keep: Callable[[RateForm], bool], times: float = 1.0,
+                every_kind: bool = False) -> Callable[[Case], int]:
+    """bic-1 (its price `times` over) among the forms `keep` holds; `every_kind`: among
+    those every kind of fold scores."""
+    def pick(c: Case) -> int:
+        s = geo(c, times * _bic_price(c))
+        ok = np.array([keep(f) for f in c.forms])
+        if every_kind:
+            ok &= np.isfinite(_mean_sq(c)).all(axis=0)
+        return int(np.argmin(np.where(ok, s, np.inf))) if ok.any() else int(np.argmin(s))
+    return pick
+
+
+RULES: dict[str, Callable[[Case], int]] = {"default": rule_default,
+                                           "bic-1-even": rule_bic(1.0, odd=False),
+                                           "bic-1": rule_bic(1.0),
                                            "bic": rule_bic(0.0), "bic-2": rule_bic(2.0)}
 for _k in (2.0, 4.0, 8.0):
     RULES[f"pen{_k:g}"] = rule_penalty(_k)
@@ -224,6 +284,23 @@ for _k in (1.0, 2.0, 4.0):
     RULES[f"se{_k:g}"] = rule_1se(_k)
 for _k in (0.5, 1.0, 2.0):
     RULES[f"lev{_k:g}"] = rule_leverage(_k)
+for _k in (2.0, 3.0):
+    RULES[f"kind{_k:g}"] = rule_kind_price(_k)
+RULES["t-extrap"] = rule_t_by_extrap
+RULES["cap-r"] = rule_masked(lambda f: f.rate_temp_degree <= f.temp_degree)
+RULES["min-q1"] = rule_masked(lambda f: f.temp_degree >= 1)
+RULES["odd-only"] = rule_masked(lambda f: f.odd or f.powers == 1)
+RULES["all-kinds"] = rule_masked(lambda f: True, every_kind=True)
+for _k in (1.5, 2.0, 3.0):
+    RULES[f"bic-1x{_k:g}"] = rule_masked(lambda f: True, times=_k)
+
+
+def odd_oracle(cases: list[Case]) -> None:
+    """The oracle's family widened by the odd-power forms (each case's oracle lowered in
+    place to the best of them on its test plateaus, where that is lower)."""
+    for c in cases:
+        ok = [i for i, f in enumerate(c.forms) if not f.abs_term]
+        c.oracle = min(c.oracle, float(np.min(c.test[ok])))
 
 
 def table(cases: list[Case], pick: Callable[[Case], int] | None, what: str = "rule") -> str:
@@ -250,9 +327,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--noise-dph", type=float, default=100.0)
     p.add_argument("--cache", type=Path, default=Path("out/probe-cache"))
     p.add_argument("--rules", default="", help="comma-separated; all when empty")
+    p.add_argument("--odd-oracle", action="store_true",
+                   help="the oracle's family with the odd-power forms too")
     args = p.parse_args(argv)
     ranges = [tuple(int(x) for x in r.split(":")) for r in args.gyros.split(",")]
     cases = [c for lo, hi in ranges for c in load(lo, hi, args.noise_dph, args.cache)]
+    if args.odd_oracle:
+        odd_oracle(cases)
     names = [r for r in args.rules.split(",") if r] or list(RULES)
     head = "  ".join(f"{k[:4]}/{s[:5]:5s}" for k in KINDS for s in SPLITS)
     print(f"gyros {args.gyros}, noise {args.noise_dph:g} deg/h: median/worst of "

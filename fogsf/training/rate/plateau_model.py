@@ -80,13 +80,12 @@ def choice_rows(rows: PlateauRows, fs: float, t_ref: float) -> RateRows:
 
 def _split(coef: np.ndarray, form: RateForm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(beta0 [Q+1], beta1 [Q+1], rate [R, R_T+1]) of a form's coefficients (`design`'s
-    column order); the rate rows as `rate_terms` orders them, row 0 zero without |x|."""
+    column order); the rate rows as `rate_terms` orders them, zero where the form has no term."""
     q = form.temp_degree + 1
     b0, b1, rest = coef[:q], coef[q:2 * q], coef[2 * q:]
-    n_rate = max(form.powers - 1, 0) + 1
-    rate = np.zeros((n_rate, form.rate_temp_degree + 1))
-    first = 0 if form.abs_term else 1
-    rate[first:] = rest.reshape(n_rate - first, form.rate_temp_degree + 1)
+    rate = np.zeros((max(form.powers - 1, 0) + 1, form.rate_temp_degree + 1))
+    held = ([0] if form.abs_term else []) + [p - 1 for p in form.power_list]
+    rate[held] = rest.reshape(len(held), form.rate_temp_degree + 1)
     return b0, b1, rate
 
 
