@@ -13,8 +13,8 @@ is kept, so D = step * rate (docs/stream-contract.md, "Sample rate"). `--even-ti
 for the kernel built with FOGSF_EVEN_TIME and refuses a model whose step D is below that
 build's bound, L*H + 3 samples (docs/firmware.md, "Bounded, even time").
 
-Examples (models/m: `fogsf train --help`'s first example):
-  fogsf export models/m --out build/m --name imu_x
+Examples:
+  fogsf export models/m --out build/m --name imu_x  # models/m: train --help's first example
   fogsf export models/m --out build/m1k --name imu_x --sample-rate-hz 1000
   fogsf export models/m --blob build/unit.bin
   fogsf export models/m --out build/m --name imu_x --even-time

@@ -57,7 +57,7 @@ def join_negative_ranges(argv: list[str]) -> list[str]:
     return out
 
 
-EXAMPLE_HEAD = re.compile(r"^(examples?)\b[^\n]*:$", re.IGNORECASE | re.MULTILINE)
+EXAMPLE_HEAD = re.compile(r"^(examples?):", re.IGNORECASE | re.MULTILINE)
 
 
 def split_doc(doc: str) -> tuple[str, str | None]:

@@ -17,8 +17,8 @@ The kernel starts from reset at the log's first sample, its lag states at that s
 temperature: a log that starts while the temperature moves is said so, and --skip-s S
 leaves its first S seconds out of the metrics (the kernel still runs over them).
 A plateau table (docs/train.md, "Plateau tables") is corrected one row a plateau.
-Examples (models/m and run10.csv: `fogsf train --help`'s first example):
-  fogsf replay models/m run10.csv --out corrected.csv --plot replay.png
+Examples:
+  fogsf replay models/m run10.csv --out corrected.csv --plot replay.png  # train --help's files
   fogsf replay models/plat rig/table.csv --out corrected.csv
 """
 
