@@ -14,10 +14,16 @@ internal part an SF factor reads has a time constant DEFECT_TAU_FACTOR (2.5) x t
 - practical (`--practical N`, lines of N normal units and the defective one): the slowest
   time constant of each unit's 1- and 2-node fit against the line's, leave one out.
 - check (`--check N`): `fogsf fleet check` itself on such a line, units trained as its
-  tests train them.
+  tests train them; with `--normal-lines M` also M lines of N + 1 normal units (other unit
+  indices) a design, none defective: the false flags.
+- feature (`--feature N`): the slow-part features alone (`fogsf.prior.slow_part`, the
+  check's machinery on them and nothing else; records hold the units' summaries, no
+  training): on the line with the defective unit and on `--normal-lines M` normal lines a
+  design (cheap: many lines for their false-flag rate).
 
 Programs: `loop2h` (2 C/min up and down, -20..40 C, 20 min soaks: the check's tests) and
-`soak1h` (1 C/min, 60 min soaks). It tunes nothing: run it on evaluation designs.
+`soak1h` (1 C/min, 60 min soaks). Tune on development designs (`--designs 1:61`), report
+on evaluation designs.
 
     python -m benchmarks.probes.fleet_slow_part --designs 20000:20010 --programs loop2h,soak1h
 """
@@ -157,16 +163,31 @@ CHECK_TRAIN = {"model": "lag-lstm", "structure": "physics", "nodes": 1, "iters":
 def check_line(design_seed: int, name: str, n_normal: int) -> dict:
     """`fleet check` on the line (units trained as tests/test_fleet_check.py trains them):
     is the defective unit flagged, and is any unit of the normal units' line."""
+    from fogsf.fleet.check import check_fleet
+
+    units = trained_line(line_configs(design_seed, n_normal, 0), name)
+    bad = units[-1].unit
+    return {"found": bad in check_fleet(units).flagged,
+            "normal_flagged": len(check_fleet(units[:-1]).flagged)}
+
+
+def normal_line(design_seed: int, name: str, n_normal: int, line: int) -> bool:
+    """Is a line of n_normal + 1 normal units (line `line` >= 1) flagged anywhere?"""
+    from fogsf.fleet.check import check_fleet
+
+    return bool(check_fleet(trained_line(line_configs(design_seed, n_normal, line),
+                                         name)).flagged)
+
+
+def trained_line(cfgs: list, name: str) -> list:
+    """The units `cfgs` on program `name`, trained as the check's tests train them."""
     import tempfile
     from pathlib import Path
 
-    from fogsf.fleet.check import check_fleet
     from fogsf.fleet.records import unit_record
     from fogsf.training.options import TrainOptions
     from fogsf.training.train import run_training
 
-    cfgs = [unit_for(design_seed, FIRST_UNIT + 1 + i) for i in range(n_normal)]
-    cfgs.append(defective_unit(design_seed, FIRST_UNIT, "tau"))
     units = []
     with tempfile.TemporaryDirectory() as tmp:
         for i, c in enumerate(cfgs):
@@ -176,9 +197,36 @@ def check_line(design_seed: int, name: str, n_normal: int) -> dict:
                                            [log], None, out)
             units.append(unit_record(f"SN{i:03d}", [log], None, metrics, fitted, out,
                                      dict(CHECK_TRAIN), keep_dir=False))
-    bad = units[-1].unit
-    return {"found": bad in check_fleet(units).flagged,
-            "normal_flagged": len(check_fleet(units[:-1]).flagged)}
+    return units
+
+
+def line_configs(design_seed: int, n_normal: int, line: int) -> list:
+    """Line `line` of a design: 0, n_normal normal units and the defective one last; 1..,
+    n_normal + 1 normal units of other indices."""
+    if line == 0:
+        return [*(unit_for(design_seed, FIRST_UNIT + 1 + i) for i in range(n_normal)),
+                defective_unit(design_seed, FIRST_UNIT, "tau")]
+    return [unit_for(design_seed, FIRST_UNIT + 100 * line + i) for i in range(n_normal + 1)]
+
+
+def feature_lines(design_seed: int, name: str, n_normal: int, lines: int) -> dict:
+    """The slow-part feature alone through `check_fleet` (made-up figures, real summaries)."""
+    from fogsf.fleet.check import check_fleet
+    from fogsf.fleet.records import UnitRecord
+    from fogsf.prior.unit_fit import step_series
+
+    flagged, found = 0, False
+    for line in range(lines + 1):
+        recs = [UnitRecord(f"SN{i:03d}", [], "", summary={
+            "structure": "physics1",
+            "series": step_series([run(c, name, 200 + i).log]).as_dict()})
+                for i, c in enumerate(line_configs(design_seed, n_normal, line))]
+        got = check_fleet(recs).flagged
+        if line == 0:
+            found = recs[-1].unit in got
+            got = check_fleet(recs[:-1]).flagged
+        flagged += bool(got)
+    return {"found": found, "normal_lines": lines + 1, "normal_lines_flagged": flagged}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -189,27 +237,45 @@ def main(argv: list[str] | None = None) -> int:
                     help="also the leave-one-out statistic on lines of this many normal units")
     ap.add_argument("--check", type=int, default=0,
                     help="also `fleet check` on lines of this many normal units")
+    ap.add_argument("--normal-lines", type=int, default=0,
+                    help="with --check or --feature: this many lines of normal units a design")
+    ap.add_argument("--feature", type=int, default=0,
+                    help="the slow-part feature alone on lines of this many normal units")
+    ap.add_argument("--no-oracle", action="store_true")
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
     lo, hi = (int(v) for v in a.designs.split(":"))
     rows = []
     for name in a.programs.split(","):
         for d in range(lo, hi):
-            row = {"design": d, "program": name, "oracle": oracle(d, name)}
+            row: dict = {"design": d, "program": name}
+            if not a.no_oracle:
+                row["oracle"] = oracle(d, name)
             if a.practical:
                 row["practical"] = practical(d, name, a.practical)
             if a.check:
                 row["check"] = check_line(d, name, a.check)
+                row["check"]["more_normal_lines_flagged"] = [
+                    normal_line(d, name, a.check, j) for j in range(1, a.normal_lines + 1)]
+            if a.feature:
+                row["feature"] = feature_lines(d, name, a.feature, a.normal_lines)
             rows.append(row)
             print(json.dumps(row), flush=True)
     for name in a.programs.split(","):
         got = [r for r in rows if r["program"] == name]
-        yard = max(r["oracle"]["normal"] for r in got)
-        seen = sum(r["oracle"]["defective"] > max(yard, 1.0) * 2 for r in got)
-        bad = sorted(round(r["oracle"]["defective"], 1) for r in got)
-        good = sorted(round(r["oracle"]["normal"], 1) for r in got)
-        print(f"{name}: oracle distance of the slower part {bad}; normal units {good}; "
-              f"over twice the largest normal: {seen} of {len(got)}", file=sys.stderr)
+        feats = [r["feature"] for r in got if "feature" in r]
+        if feats:
+            print(f"{name}: slow-part feature alone: found {sum(f['found'] for f in feats)} "
+                  f"of {len(feats)}; normal lines flagged "
+                  f"{sum(f['normal_lines_flagged'] for f in feats)} of "
+                  f"{sum(f['normal_lines'] for f in feats)}", file=sys.stderr)
+        if "oracle" in got[0]:
+            yard = max(r["oracle"]["normal"] for r in got)
+            seen = sum(r["oracle"]["defective"] > max(yard, 1.0) * 2 for r in got)
+            bad = sorted(round(r["oracle"]["defective"], 1) for r in got)
+            good = sorted(round(r["oracle"]["normal"], 1) for r in got)
+            print(f"{name}: oracle distance of the slower part {bad}; normal units {good}; "
+                  f"over twice the largest normal: {seen} of {len(got)}", file=sys.stderr)
         for k in ("k1", "k2"):
             sep = [r["practical"][k] for r in got if "practical" in r]
             if sep:
@@ -218,9 +284,12 @@ def main(argv: list[str] | None = None) -> int:
                       f"{n} of {len(sep)}", file=sys.stderr)
         checks = [r["check"] for r in got if "check" in r]
         if checks:
-            print(f"  fleet check: found {sum(c['found'] for c in checks)} of {len(checks)}; "
-                  f"normal lines with a flag {sum(c['normal_flagged'] > 0 for c in checks)}",
-                  file=sys.stderr)
+            more = [f for c in checks for f in c["more_normal_lines_flagged"]]
+            print(f"{name}: fleet check: found {sum(c['found'] for c in checks)} of "
+                  f"{len(checks)}; "
+                  f"normal lines with a flag "
+                  f"{sum(c['normal_flagged'] > 0 for c in checks) + sum(more)} of "
+                  f"{len(checks) + len(more)}", file=sys.stderr)
     if a.out:
         with open(a.out, "w") as f:
             json.dump(rows, f, indent=1)

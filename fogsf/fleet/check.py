@@ -12,13 +12,17 @@ outside the design's spread, and why, at a stated false-alarm rate. Reads only t
   mode hop, a step of SF) is left in the residual.
   Raw parameters of the summary enter too when the summary gives their standard errors
   ("params_se"): then a unit's own estimation noise is known.
+- A slower thermal part, from the recorded step series (`prior.slow_part`): each unit's
+  effective one-node time constant and its SF curve's misfit to the others' (one-sided);
+  only when every unit's logs hold a soak of 45 min or more after a ramp (a 2 h loop's
+  20 min soaks cannot show it: the note says so).
 - Each unit against the others of the line (leave one out): z = (x - mean) / sqrt(s^2 -
   the others' mean se^2 + se^2 + s^2 / k) (k others, s their standard deviation, se the
   standard errors, 0 where not given): a t statistic for a line of normal units. The
   threshold on |z| is the (1 - alpha' / P) quantile of the largest |z| of N normal units
   (Monte Carlo of Gaussian lines, a fixed seed, the quantile taken 10 % further out for
-  its error), alpha' = alpha / 2 for the residual and
-  for the other P features each (alpha when only one kind is there): a line of normal units
+  its error), alpha' = alpha / 2 for the one-sided features (the residual, the slow part's)
+  and for the other P features (alpha when only one kind is there): a line of normal units
   gives any flag with chance at most alpha (exact over the units, Bonferroni over the
   features; correlated features make it conservative).
 - The farthest unit beyond the threshold is flagged and leaves the reference; the others
@@ -43,6 +47,7 @@ from fogsf.fleet.plateau_unit import is_plateau_unit
 from fogsf.fleet.records import UnitRecord, structure_of
 from fogsf.fleet.schema import cached, state_of
 from fogsf.fleet.store import keep_quietly, open_store
+from fogsf.prior.slow_part import SLOW, line_features
 
 DEFAULT_FALSE_ALARM = 0.01
 MIN_UNITS = 5  # fewer: the spread cannot be told from the units, nothing is checked
@@ -226,15 +231,22 @@ def null_threshold(n_units: int, n_features: int, alpha: float, one_sided: bool 
     return NULL_KNOWN[key]
 
 
+def one_sided(name: str) -> bool:
+    """Only a larger value flags: the residual, and the slow-part features (a slower
+    response, a curve farther from the line's: what a slower part does)."""
+    return name == RESIDUAL or name.startswith(SLOW)
+
+
 def thresholds(n_units: int, names: list[str], alpha: float) -> np.ndarray:
     """Each feature's threshold for a line of `n_units`: alpha shared by Bonferroni, half of
-    it to the residual (one-sided) when it is there beside others, half to the rest."""
-    if RESIDUAL not in names or len(names) == 1:
-        return np.full(len(names), null_threshold(n_units, len(names), alpha,
-                                                  names == [RESIDUAL]))
-    rest = null_threshold(n_units, len(names) - 1, alpha / 2)
-    res = null_threshold(n_units, 1, alpha / 2, True)
-    return np.array([res if k == RESIDUAL else rest for k in names])
+    it to the one-sided features (the residual, the slow part's) when they are there
+    beside others, half to the rest."""
+    ones = [k for k in names if one_sided(k)]
+    if not ones or len(ones) == len(names):
+        return np.full(len(names), null_threshold(n_units, len(names), alpha, bool(ones)))
+    rest = null_threshold(n_units, len(names) - len(ones), alpha / 2)
+    res = null_threshold(n_units, len(ones), alpha / 2, True)
+    return np.array([res if one_sided(k) else rest for k in names])
 
 
 def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALARM
@@ -274,20 +286,23 @@ def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
                 for u in units if structure_label(u) != line]
     same = [u for u in units if structure_label(u) == line]
     feats = [unit_features(u) for u in same]
+    slow, slow_se, slow_note = line_features([u.summary for u in same])
+    feats = [({**f, **g}, {**e, **h}) for (f, e), g, h in zip(feats, slow, slow_se, strict=True)]
     names = sorted(set.intersection(*(set(f) for f, _ in feats)))
     if len(same) < MIN_UNITS or not names:
         return CheckResult(n, line, names, false_alarm, math.inf, outliers,
-                           note=f"features not checked: {len(same)} unit(s) of the line's "
-                                f"structure with {len(names)} common feature(s)")
+                           note="; ".join(x for x in (
+                               f"features not checked: {len(same)} unit(s) of the line's "
+                               f"structure with {len(names)} common feature(s)", slow_note) if x))
     x = np.array([[f[k] for k in names] for f, _ in feats]).T  # [P, N]
     se = np.array([[s[k] for k in names] for _, s in feats]).T
     thr = thresholds(len(same), names, false_alarm)
     ref = np.ones(len(same), dtype=bool)
-    one_sided = np.array([k == RESIDUAL for k in names])
+    side = np.array([one_sided(k) for k in names])
     limit = np.tile(thr[:, None], (1, len(same)))  # the thresholds each unit was flagged at
     while ref.sum() > MIN_UNITS:  # flag the farthest unit, then compare the rest again
         z = _loo_z(x, se, ref)
-        z[one_sided] = np.maximum(z[one_sided], 0.0)
+        z[side] = np.maximum(z[side], 0.0)
         t = thresholds(int(ref.sum()), names, false_alarm)  # for a line of that many
         worst = np.where(ref, np.max(np.abs(z) / t[:, None], axis=0), 0.0)
         if worst.max() <= 1.0:
@@ -295,7 +310,7 @@ def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
         j = int(np.argmax(worst))
         ref[j], limit[:, j] = False, t
     z = _loo_z(x, se, ref)
-    z[one_sided] = np.maximum(z[one_sided], 0.0)
+    z[side] = np.maximum(z[side], 0.0)
     for j in np.flatnonzero(~ref).tolist():
         ratio = np.abs(z[:, j]) / limit[:, j]
         far = [i for i in np.argsort(-ratio) if ratio[i] > 1.0]
@@ -310,14 +325,18 @@ def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
                                 float(np.max(np.abs(z[:, j])))))
     zmap = {u.unit: {k: round(float(z[i, j]), 3) for i, k in enumerate(names)}
             for j, u in enumerate(same)}
+    if slow_note == "" and not any(k.startswith(SLOW) for k in names):
+        slow_note = "slower thermal part not checked: the units' programs differ"
     return CheckResult(n, line, names, false_alarm, float(np.max(thr)), outliers, zmap,
-                       threshold_residual_z=float(thr[one_sided][0]) if one_sided.any()
+                       note=slow_note,
+                       threshold_residual_z=float(thr[names.index(RESIDUAL)])
+                       if RESIDUAL in names
                        else math.nan)
 
 
 # what a cached check was computed by: a result another fogsf, or another method, computed
 # is not read (bump it when the check's method changes)
-CHECK_METHOD = 3
+CHECK_METHOD = 4
 
 
 def checked(fleet: str, false_alarm: float = DEFAULT_FALSE_ALARM, with_units: bool = False

@@ -8,6 +8,9 @@ keeps it, so the database alone is enough for the prior).
   (node count, time constants started from the fleet's);
 - `fits`: its physics-node fits at 1, 2 and 3 nodes (`unit_fit.UnitFit.as_dict`: log time
   constants and law coefficients, their estimation covariance, the residual variance);
+- `slow`: what `fleet check`'s slow-part features read (`slow_part.unit_slow`: the program,
+  the effective time constant, the SF curve in 5 min means; older records lack it and the
+  check computes it from `series`);
 - `hours`, `steps`, `model_step_s`; from MODEL_DIR/metrics.json (when there) the structure
   the default chose, the model id and the test's figures.
 """
@@ -21,6 +24,7 @@ from fogsf.logs.chamber_log import ChamberLog
 from fogsf.logs.logio import read_log
 from fogsf.models.features import MODEL_STEP_S
 from fogsf.prior.design_prior import K_CHOICES
+from fogsf.prior.slow_part import unit_slow
 from fogsf.prior.unit_fit import StepSeries, fit_unit, step_series
 
 SUMMARY_VERSION = 1
@@ -35,7 +39,8 @@ def summarize_unit(train_logs: list[ChamberLog] | list[str] | list[Path],
     out: dict = {"summary_version": SUMMARY_VERSION, "model_step_s": series.step_s,
                  "hours": series.hours, "steps": int(series.y.size),
                  "series": series.as_dict(),
-                 "fits": {str(k): fit_unit(series, k).as_dict() for k in K_CHOICES}}
+                 "fits": {str(k): fit_unit(series, k).as_dict() for k in K_CHOICES},
+                 "slow": unit_slow(series)}
     metrics = Path(model_dir) / "metrics.json" if model_dir is not None else None
     if metrics is not None and metrics.is_file():
         m = json.loads(metrics.read_text())

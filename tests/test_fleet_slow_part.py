@@ -1,0 +1,92 @@
+"""fogsf fleet check's slow-part feature (`fogsf.prior.slow_part`): a unit whose slowest SF
+part is slower is flagged on a program with hour-long soaks, a line of normal units is not,
+and a 2 h loop (20 min soaks) or a record without a step series is said not checked.
+
+The units are simulated (`fogsf.sim.fleet_units`) and recorded with their summaries only (no
+training: the features read the step series; half the records keep the slow-part summary,
+half are as an older fogsf wrote them). The feature finds about a quarter of designs at
+2.5 x (docs/fleet.md), so the design is drawn from development designs where it found the
+defect in tuning; unit indices, noise seeds and the factor (3-4 x) from a seeded generator,
+printed on failure."""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+
+import numpy as np
+
+from fogsf.fleet.check import check_fleet
+from fogsf.fleet.records import UnitRecord
+from fogsf.prior.slow_part import unit_slow
+from fogsf.prior.unit_fit import step_series
+
+SEED = int(os.environ.get("FOGSF_TEST_SEED", "20261129"))
+FOUND_IN_TUNING = (1, 14, 19, 22, 24, 32)  # development designs (benchmarks/probes/README.md)
+N_NORMAL = 8
+
+
+def _program(soak_s: float, rate: float) -> list[list[float]]:
+    lo, hi = -20.0, 40.0
+    ramp = (hi - lo) / rate * 60.0
+    return [[0.0, lo], [soak_s, lo], [soak_s + ramp, hi], [2 * soak_s + ramp, hi],
+            [2 * soak_s + 2 * ramp, lo], [3 * soak_s + 2 * ramp, lo]]
+
+
+def _record(sn: str, cfg, seed: int, soak_s: float, rate: float, kept: bool  # noqa: ANN001
+            ) -> UnitRecord:
+    """A unit's record holding its step series; `kept`: its slow-part summary too (a record
+    fogsf writes now; without it, one written before: the check computes it)."""
+    from fogsf.sim.config import ProfileConfig
+    from fogsf.sim.gyro import simulate
+    from fogsf.sim.population import run_on_gyro
+
+    run = run_on_gyro(cfg, ProfileConfig(kind="program", points=_program(soak_s, rate)), seed,
+                      "fleet-unit")
+    run.dt_s = 1.0
+    series = step_series([simulate(run).log])
+    summary = {"structure": "physics1", "series": series.as_dict()}
+    if kept:
+        summary["slow"] = json.loads(json.dumps(unit_slow(series)))  # as the store keeps it
+    return UnitRecord(sn, [], "", summary=summary)
+
+
+def _line(rng: np.random.Generator, soak_s: float = 3600.0, rate: float = 1.0
+          ) -> tuple[list[UnitRecord], str]:
+    from fogsf.sim.fleet_units import unit_for
+
+    design = int(rng.choice(FOUND_IN_TUNING))
+    first = int(rng.integers(1000, 5000))
+    cfgs = [unit_for(design, first + i) for i in range(N_NORMAL + 1)]
+    bad = copy.deepcopy(cfgs[-1])
+    read = {n for t in bad.sf.terms for n in t.nodes}
+    part = max((n for n in bad.thermal.nodes[2:] if n.name in read), key=lambda n: n.tau_s)
+    factor = float(rng.uniform(3.0, 4.0))
+    part.tau_s *= factor
+    seeds = rng.integers(0, 2**31, N_NORMAL + 1)
+    units = [_record(f"SN{i:03d}", c, int(s), soak_s, rate, i % 2 == 0)
+             for i, (c, s) in enumerate(zip([*cfgs[:-1], bad], seeds, strict=True))]
+    return units, f"seed {SEED}, design {design}, units from {first}, x{factor:.2f}"
+
+
+def test_a_slower_part_is_flagged_on_hour_long_soaks_and_normal_units_are_not() -> None:
+    units, say = _line(np.random.default_rng(SEED))
+    normal = check_fleet(units[:N_NORMAL])
+    assert not normal.outliers, f"{say}: a line of normal units flagged: {normal.message()}"
+    assert any(k.startswith("slow.") for k in normal.parameters), f"{say}: {normal.message()}"
+    result = check_fleet(units)
+    assert result.flagged == {f"SN{N_NORMAL:03d}"}, f"{say}: {result.message()}"
+    assert "slow." in result.outliers[0].why, f"{say}: {result.message()}"
+
+
+def test_a_2h_loop_and_old_records_are_said_not_checked() -> None:
+    rng = np.random.default_rng(SEED + 1)
+    units, say = _line(rng, soak_s=1200.0, rate=2.0)
+    result = check_fleet(units)
+    assert not any(k.startswith("slow.") for k in result.parameters), say
+    assert "cannot show" in result.note and "2 h loop" in result.note, f"{say}: {result.note}"
+    for u in units[:2]:
+        u.summary.pop("series")
+        u.summary.pop("slow", None)
+    assert "without a step series" in check_fleet(units).note
