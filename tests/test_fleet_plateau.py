@@ -116,10 +116,11 @@ def test_check_and_the_prior_leave_plateau_units_out(logs: dict[str, Path], tmp_
     out_json = tmp_path / "check.json"
     assert main(["fleet", "check", fleet, "--json", str(out_json)]) == 0
     said = capsys.readouterr().out
-    assert "1 plateau unit(s) left out ('P1')" in said, said
+    assert "1 plateau unit(s) left out ('P1')" in said and "6 units, 5 compared;" in said, said
     result = json.loads(out_json.read_text())
     assert "P1" not in {o["unit"] for o in result["outliers"]}, result  # not "unlike the line"
-    assert result["units"] == 6 and result["structure"] == "physics2"
+    assert result["units"] == 6 and result["compared"] == 5
+    assert result["structure"] == "physics2"
     assert main(["train", "--prior", fleet, "--train", str(logs["sample"]), "--out",
                  str(tmp_path / "m"), "--iters", "2", "--no-progress"]) == 2
     err = capsys.readouterr().err

@@ -77,6 +77,7 @@ class CheckResult:
     z: dict[str, dict[str, float]] = field(default_factory=dict)  # unit -> feature -> z
     note: str = ""
     threshold_residual_z: float = math.nan  # the residual's (one-sided), when compared
+    compared: int | None = None  # the units compared, when some are left out (plateau units)
 
     @property
     def flagged(self) -> set[str]:
@@ -88,7 +89,8 @@ class CheckResult:
                 "parameters": self.parameters, "false_alarm": self.false_alarm,
                 "threshold_z": self.threshold_z,
                 "threshold_residual_z": self.threshold_residual_z, "z": self.z,
-                "note": self.note}
+                "note": self.note, "compared": self.units if self.compared is None
+                else self.compared}
 
     def to_cache(self) -> dict:
         """Everything, for the fleet's cache (`checked`); `from_cache` reads it back."""
@@ -104,7 +106,9 @@ class CheckResult:
 
     def message(self) -> str:
         compared = math.isfinite(self.threshold_z)
-        lines = [f"{self.units} unit{'s' if self.units != 1 else ''}; the line's structure "
+        head = f"{self.units} unit{'s' if self.units != 1 else ''}" + (
+            f", {self.compared} compared" if self.compared not in (None, self.units) else "")
+        lines = [f"{head}; the line's structure "
                  f"{self.structure or '-'}; " + (
                      f"{len(self.parameters)} features compared; false-alarm rate "
                      f"{self.false_alarm:g} for the whole line (|z| > {self.threshold_z:.2f}"
@@ -264,7 +268,7 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
     names = ", ".join(shown(sn) for sn in plateau[:5]) + (" ..." if len(plateau) > 5 else "")
     left = (f"{len(plateau)} plateau unit(s) left out ({names}): the check compares units by "
             "their SF response over time, which plateau tables do not give")
-    return replace(result, units=len(units),
+    return replace(result, units=len(units), compared=result.units,
                    note="; ".join(x for x in (left, result.note) if x))
 
 
