@@ -191,3 +191,27 @@ def test_masked_urls() -> None:
         "postgresql://ann:***@db.lab:5433/line"
     assert "s3cret" not in masked("postgresql://ann@/line?host=/run/pg&password=s3cret")
     assert masked("postgresql://ann@db/line") == "postgresql://ann@db/line"
+
+
+def test_stationary_logs_are_refused_before_training(tmp_path: Path, capsys) -> None:
+    """A unit's record is its SF response: a stationary log (a bias-only model) is refused
+    in one line before any training, no fleet created, for add and train --prior --unit."""
+    log = tmp_path / "st" / "log.csv"
+    assert main(["simulate", "--rig", "plain", "--protocol", "stationary", "--random-gyro",
+                 "20001", "--out", str(log)]) == 0
+    capsys.readouterr()
+    fleet = tmp_path / "new.fleet"
+    assert main(["fleet", "add", str(fleet), "--unit", "S1", "--train", str(log)]) == 2
+    _refused(capsys)
+    assert not fleet.exists()
+    line = _fleet(tmp_path / "line")
+    assert main(["train", "--prior", line, "--unit", "S2", "--train", str(log), "--out",
+                 str(tmp_path / "m")]) == 2
+    _refused(capsys)
+
+
+def _refused(capsys: pytest.CaptureFixture) -> None:
+    """The last line on stderr is the refusal (the column map's note may precede it)."""
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "stationary" in err.splitlines()[-1], err
+    assert "bias-only" in err.splitlines()[-1], err

@@ -49,6 +49,7 @@ from fogsf.fleet.faults import db_faults
 from fogsf.fleet.lease import BatchLease, check_batch
 from fogsf.fleet.manifest import ManifestRow, read_manifest
 from fogsf.fleet.names import check_unit_name, masked, shown
+from fogsf.fleet.new_unit import refuse_stationary
 from fogsf.fleet.plateau_unit import plateau_record
 from fogsf.fleet.records import UnitRecord, recorded_options, structure_of, unit_record
 from fogsf.fleet.store import fleet_exists, open_store
@@ -246,6 +247,7 @@ def _retry(args: argparse.Namespace) -> str:
 def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:
     """The unit trained on sample logs as `fogsf train` trains it, into `out`; its record."""
     train_logs = read_logs(args, args.train, on_disk=True, training=True)
+    refuse_stationary(train_logs)
     test_log = read_logs(args, [args.test], on_disk=True)[0] if args.test else None
     opts = train_options(args)
     metrics, fitted = run_training(opts, train_logs, test_log, out)

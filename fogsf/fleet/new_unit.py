@@ -17,6 +17,7 @@ from fogsf.fleet.schema import cached, state_of
 from fogsf.fleet.store import keep_quietly, open_store
 from fogsf.logs.chamber_log import ChamberLog
 from fogsf.prior.design_prior import DesignPrior
+from fogsf.training.bias.targets import check_mixed
 from fogsf.training.options import TrainOptions
 from fogsf.training.with_prior import prior_from_summaries, train_with_prior
 
@@ -65,6 +66,16 @@ def prior_from_store(path: str) -> DesignPrior:
     return design_prior(path)
 
 
+def refuse_stationary(train_logs: list[ChamberLog]) -> None:
+    """A unit's record is its SF response: stationary logs alone (a bias-only model) are
+    refused before any training."""
+    if check_mixed(train_logs):
+        raise UserError(", ".join(lg.path for lg in train_logs) + ": stationary (the table "
+                        "stopped throughout): such logs train a bias-only model, which a "
+                        "fleet cannot record (a unit is its SF response); give logs with "
+                        "the table turning, or train it alone with fogsf train")
+
+
 def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
                    train_logs: list[ChamberLog], test_log: ChamberLog | None, out: Path) -> dict:
     """`fogsf train --prior FLEET [--unit SN]`: the prior from FLEET, the unit trained under
@@ -72,6 +83,7 @@ def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
 
     if unit is not None:
         check_unit_name(unit)  # before the fleet is read or the unit trained
+        refuse_stationary(train_logs)
     prior = design_prior(fleet, unit)
     metrics, fitted = train_with_prior(opts, train_logs, test_log, out, prior)
     if unit is not None:
