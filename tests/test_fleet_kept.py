@@ -1,5 +1,5 @@
 """`fogsf fleet add --model-dir DIR`: the model a training kept recorded without training
-again (issue 54): the record equals the one the add that trained it wrote (its response and
+again: the record equals the one the add that trained it wrote (its response and
 SF curve within the kernel's 0.01 ppm of torch's, `fleet.kept_model`), nothing is trained,
 a database fault after training names the retry and the retry records the unit, and a
 folder that is not the unit's model is refused in one line."""
@@ -176,6 +176,10 @@ def test_folders_not_the_units_model_are_refused(logs: dict[str, Path], tmp_path
     shutil.copytree(model, other)
     (other / "metrics.json").write_text((other / "metrics.json").read_text().replace(
         json.loads((other / "metrics.json").read_text())["model_id"], "0" * 16))
+    retrained = tmp_path / "retrained"  # KEPT_FILE left by an add, another training over it
+    shutil.copytree(model, retrained)
+    assert main(["train", "--train", str(logs["r1"]), *FAST, "--seed", "5", "--out",
+                 str(retrained)]) == 0
     capsys.readouterr()
     r2, r1 = ["--train", str(logs["r2"])], ["--train", str(logs["r1"])]
     refusals = [
@@ -189,6 +193,7 @@ def test_folders_not_the_units_model_are_refused(logs: dict[str, Path], tmp_path
         (model, [*r2, "--test", str(logs["r1"])], "1 training log(s) without a test log"),
         (model, [*r2, "--seed", "4"], "was trained with seed = 0, the options given say 4"),
         (trained, r1, "other ramps than those given"),
+        (retrained, r2, "other ramps than those given"),
         (trained, [*r2, "--model", "lstm"], "trained with model = 'lag-lstm'"),
         (model, [*r2, "--out", str(tmp_path / "x")], "give one of them"),
         (model, ["--train", str(logs["table"])], "holds a lag-lstm model and the logs given "

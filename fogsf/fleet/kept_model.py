@@ -54,7 +54,7 @@ def write_kept(out: Path, record: UnitRecord) -> None:
     """KEPT_FILE in `out`: the logs and options `record`'s model was trained with. A file
     that cannot be written (the disk full) is left out: the retry then checks what
     metrics.json holds, and the record is not held up by it."""
-    content = {"format": KEPT_FORMAT, "unit": record.unit,
+    content = {"format": KEPT_FORMAT, "unit": record.unit, "model_id": record.model_id,
                "logs": [asdict(lg) for lg in record.logs],
                "options": record.fitted_with.get("options", {})}
     tmp = out / f".{KEPT_FILE}.tmp"
@@ -136,6 +136,8 @@ def read_kept(folder: str | Path, plateau_logs: bool) -> KeptModel:
     kept = _json(d / KEPT_FILE, where) if (d / KEPT_FILE).is_file() else None
     if kept is not None and kept.get("format") != KEPT_FORMAT:
         raise UserError(f"{where}: {KEPT_FILE} is not one fogsf fleet add writes")
+    if kept is not None and kept.get("model_id") != metrics["model_id"]:
+        kept = None  # it names another training's logs (a later one wrote the folder)
     return KeptModel(d, metrics, info, stream, kept)
 
 
@@ -150,8 +152,8 @@ def _check_logs(m: KeptModel, given: list[tuple[str, str]], counts: tuple[int, b
             if role != r or mine != sha:
                 raise UserError(f"{m.where} was trained on {was} ({r}), not on {path}: give "
                                 "the logs it was trained on")
-        if len(given) == len(had):
-            return True
+        if len(given) == len(had) and all(sha for _, sha, _ in had):
+            return True  # a folder log (a bag) has no hash: its ramps are checked below
         counts = (sum(r == "train" for r, _, _ in had), any(r == "test" for r, _, _ in had))
     n_train = sum(role == "train" for role, _ in given)
     test = any(role == "test" for role, _ in given)
