@@ -90,3 +90,22 @@ def test_a_2h_loop_and_old_records_are_said_not_checked() -> None:
         u.summary.pop("series")
         u.summary.pop("slow", None)
     assert "without a step series" in check_fleet(units).note
+
+
+def test_the_program_is_read_from_the_board_temperature_whatever_its_start() -> None:
+    """A dwell before the first ramp is no soak after a ramp; a soak reads its length within
+    a minute, from any start temperature (the smoothing's ends padded with the log's)."""
+    from fogsf.prior.slow_part import SOAK_MIN_S, program_of
+    from fogsf.prior.unit_fit import StepSeries
+
+    def series(points: list[list[float]], offset_c: float) -> StepSeries:
+        t = np.arange(0.0, points[-1][0], 5.0)
+        temp = np.interp(t, [p[0] for p in points], [p[1] for p in points]) - 20.0
+        return StepSeries([temp + offset_c], np.zeros(0), np.zeros(0, dtype=np.int64), 5.0)
+
+    dwell = [[0.0, -20.0], [4200.0, -20.0], *[[4200.0 + t, c] for t, c in _program(1200.0, 1.0)]]
+    for offset in (0.0, 15.0, 35.0):
+        assert program_of(series(dwell, offset))[1] < SOAK_MIN_S, offset
+        for soak in (2700.0, 3600.0):
+            rate, read = program_of(series(_program(soak, 1.0), offset))
+            assert abs(read - soak) < 60.0 and abs(rate - 1.0) < 0.05, (offset, soak, read)

@@ -59,7 +59,11 @@ def default_build_root() -> Path:
     env = os.environ.get("FOGSF_BUILD_DIR")
     if env:
         return Path(env)
-    if fogsf.in_checkout and Path.cwd().resolve().is_relative_to(ROOT.resolve()):
+    try:
+        inside = Path.cwd().resolve().is_relative_to(ROOT.resolve())
+    except OSError:  # the working folder was deleted: not inside the checkout
+        inside = False
+    if fogsf.in_checkout and inside:
         return ROOT / "build" / "kernels"
     return user_cache_dir() / "kernels"
 

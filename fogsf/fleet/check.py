@@ -35,7 +35,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import lru_cache
 
 import numpy as np
@@ -100,7 +100,8 @@ class CheckResult:
 
     @classmethod
     def from_cache(cls, d: dict) -> CheckResult:
-        d = dict(d)
+        known = {f.name for f in fields(cls)}  # a later fogsf's keys are not this one's
+        d = {k: v for k, v in d.items() if k in known}
         d["outliers"] = [Outlier(**o) for o in d["outliers"]]
         return cls(**d)
 
@@ -340,7 +341,7 @@ def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
 
 # what a cached check was computed by: a result another fogsf, or another method, computed
 # is not read (bump it when the check's method changes)
-CHECK_METHOD = 4
+CHECK_METHOD = 5
 
 
 def checked(fleet: str, false_alarm: float = DEFAULT_FALSE_ALARM, with_units: bool = False

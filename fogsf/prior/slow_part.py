@@ -45,18 +45,21 @@ ALIGN_C = 1.0  # board temperatures (less their mean) further apart (median, C):
 # each feature's standard error, the least difference that is a defect (5 % in the time
 # constant, x1.35 in the misfit): else a line whose others agree closely flags a normal unit
 SE_FLOOR = {PREFIX: 0.05, SHAPE: 0.3}
-SLOW_VERSION = 1  # a summary's "slow" of another version is computed again from its series
+SLOW_VERSION = 2  # a summary's "slow" of another version is computed again from its series
 
 
 def _rate_c_per_min(t: np.ndarray, step_s: float) -> np.ndarray:
     k = max(1, int(round(SMOOTH_S / step_s)))
-    smooth = np.convolve(t, np.ones(k) / k, mode="same")
+    # padded with the end values: zeros would make a log's start a ramp from 20 C
+    padded = np.pad(t, (k // 2, k - 1 - k // 2), mode="edge")
+    smooth = np.convolve(padded, np.ones(k) / k, mode="valid")
     return np.asarray(np.gradient(smooth) * 60.0 / step_s, dtype=np.float64)
 
 
 def program_of(series: StepSeries) -> tuple[float, float]:
     """(ramp rate C/min, longest soak after a ramp s) of the unit's logs: the median rate of
-    the ramps' steps and the longest stretch of flat board temperature that follows one."""
+    the ramps' steps and the longest stretch of flat board temperature that follows one
+    (SMOOTH_S / 2 added back: what the smoothing takes off a soak's two ends)."""
     rates: list[np.ndarray] = []
     longest = 0
     for t in series.t_rel:
@@ -72,7 +75,8 @@ def program_of(series: StepSeries) -> tuple[float, float]:
         if edges.size:
             longest = max(longest, int(np.max(edges[1::2] - edges[::2])))
     both = np.concatenate(rates) if rates else np.zeros(0)
-    return (float(np.median(both)) if both.size else 0.0), longest * series.step_s
+    soak = longest * series.step_s + SMOOTH_S / 2 if longest else 0.0
+    return (float(np.median(both)) if both.size else 0.0), soak
 
 
 def feature_name(rate: float, soak_s: float) -> str:
