@@ -79,13 +79,12 @@ def _take(rows: PlateauRows, idx: np.ndarray) -> PlateauRows:
 
 def oracle(train: PlateauRows, test: PlateauRows, linear: bool) -> tuple[float, RateForm]:
     """The best polynomial (or linear SF) fitted on `train`, chosen by its error on `test`:
-    every power from x^2 up to its degree, as the bench has always had it (the odd-only forms
-    fogsf also weighs are left out; `plateau_noise_choice --odd-oracle` adds them)."""
+    every candidate fogsf weighs but the |x| term (every power from x^2, or the odd ones)."""
     fs = float(np.max(np.abs(train.rate_dps)))
     t_ref = float(np.mean(train.temp_c))
     best = (np.inf, RateForm(1, False, 0, 0))
     for f in forms():
-        if f.abs_term or f.odd or (linear and f.has_rate_part):
+        if f.abs_term or (linear and f.has_rate_part):
             continue
         coef = solve(design(train.gyro_dps / fs, (train.temp_c - t_ref) / TEMP_SCALE_C, f),
                      (train.rate_dps - train.gyro_dps) / fs)

@@ -9,7 +9,7 @@ alone; the lowest score wins, the simpler form on a tie.
 The choice prices each term at (log(n) - 1) / n times the noise variance the rows show (the
 residual of the richest form, `noise_var`), added to each kind's held-out mean square: a
 held-out score already pays ~1 such unit a term, so the sum is BIC's price; the lowest of
-~150 noisy scores otherwise favours terms the noise does not repay (docs/decisions.md,
+hundreds of noisy scores otherwise favours terms the noise does not repay (docs/decisions.md,
 "The plateau model's form")."""
 
 from __future__ import annotations
