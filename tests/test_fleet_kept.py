@@ -209,3 +209,15 @@ def test_folders_not_the_units_model_are_refused(logs: dict[str, Path], tmp_path
     # `fogsf train`'s folder with its logs and options: recorded, checked by its ramps
     assert main(["fleet", "add", fleet, "--unit", "SN3", *r2, *FAST, "--model-dir",
                  str(trained)]) == 0
+
+
+@pytest.mark.parametrize("out", [["--out", "m d"], ["--out=m d"]])
+def test_the_retry_replaces_out_in_either_form(out: list[str]) -> None:
+    import argparse
+
+    from fogsf.cli.fleet import _retry
+
+    argv = ["f.fleet", "--unit", "S1", *out, "--train", "a.csv", "--batch", "b1"]
+    ns = argparse.Namespace(fleet="f.fleet", unit="S1", batch="b1", out="m d",
+                            _fleet_argv=argv)
+    assert _retry(ns) == "fogsf fleet add f.fleet --unit S1 --train a.csv --model-dir 'm d'"

@@ -235,12 +235,12 @@ def run_add(args: argparse.Namespace) -> int:
 
 
 def _retry(args: argparse.Namespace) -> str:
-    """The command that records the model this add kept: the same add with --model-dir
-    for --out (add-many's lease left out: that batch is over)."""
+    """The add that records the model kept: --model-dir for --out, add-many's lease left out."""
     argv = list(getattr(args, "_fleet_argv", None) or [args.fleet, "--unit", args.unit])
     for opt, value in (("--batch", args.batch), ("--out", args.out)):
-        at = [i for i in range(len(argv) - 1) if argv[i:i + 2] == [opt, value]]
-        argv = argv[:at[-1]] + argv[at[-1] + 2:] if at else argv
+        at = [(i, 1 if argv[i] == f"{opt}={value}" else 2) for i in range(len(argv))
+              if argv[i] == f"{opt}={value}" or argv[i:i + 2] == [opt, value]]  # both forms
+        argv = argv[:at[-1][0]] + argv[sum(at[-1]):] if at else argv
     return shlex.join(["fogsf", "fleet", "add", *argv, "--model-dir", args.out])
 
 
