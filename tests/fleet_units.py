@@ -62,19 +62,23 @@ _bump = store.bump_state
 def _bump_then_pause(db):
     _bump(db)
     Path({marker!r}).write_text(str(os.getpid()))
-    time.sleep({pause_s!r})
+    end = time.monotonic() + {pause_s!r}
+    while time.monotonic() < end and not ({go!r} and Path({go!r}).exists()):
+        time.sleep(0.05)
 store.bump_state = _bump_then_pause
 """
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def pause_in_add(folder: Path, marker: Path, pause_s: float = 120.0) -> dict[str, str]:
+def pause_in_add(folder: Path, marker: Path, pause_s: float = 120.0,
+                 go: Path | None = None) -> dict[str, str]:
     """The environment of a child process whose store writes pause `pause_s` inside their
-    transaction, `marker` written when one is there (PAUSE_SITE, written into `folder`)."""
+    transaction (or until the file `go` exists), `marker` written when one is there
+    (PAUSE_SITE, written into `folder`)."""
     site = folder / "pause-in-add"
     site.mkdir(parents=True, exist_ok=True)
-    (site / "sitecustomize.py").write_text(PAUSE_SITE.format(marker=str(marker),
-                                                             pause_s=float(pause_s)))
+    (site / "sitecustomize.py").write_text(PAUSE_SITE.format(
+        marker=str(marker), pause_s=float(pause_s), go=str(go) if go else None))
     path = [str(site), str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]
     return {**os.environ, "PYTHONPATH": os.pathsep.join(path)}
 

@@ -66,7 +66,8 @@ def test_a_worker_outliving_its_batch_records_nothing(logs: list[Path], tmp_path
     worker = None
     try:
         wait_for(ready.exists, 60, "the lease was never taken")
-        env = pause_in_add(tmp_path, marker, 2)
+        go = tmp_path / "go"  # the worker's transaction waits for the batch's death
+        env = pause_in_add(tmp_path, marker, 120, go)
         worker = subprocess.Popen(
             [sys.executable, "-m", "fogsf", "fleet", "add", fleet, "--unit", "W1",
              "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", ready.read_text()],
@@ -75,6 +76,7 @@ def test_a_worker_outliving_its_batch_records_nothing(logs: list[Path], tmp_path
                  "the worker never reached its transaction")
         holder.kill()  # the batch dies while the worker's unit is written, not committed
         holder.wait()
+        go.write_text("")
         said = worker.communicate(timeout=60)[0]
     finally:
         for p in (holder, worker):
