@@ -77,6 +77,15 @@ def simulate_run(design: int, unit: int, name: str):  # noqa: ANN201 - ChamberLo
     return simulate(run_on_gyro(unit_for(design, unit), profile(name), seed, name)).log
 
 
+def fleet_series(design: int, n: int) -> dict:
+    """The step series of the design's units 0..n-1 on the full program, by unit name: what
+    the design's prior is learned from (`design_prior.learn`)."""
+    from fogsf.prior.unit_fit import step_series
+
+    return {f"unit{u:03d}": step_series([simulate_run(design, u, r) for r in FULL])
+            for u in range(n)}
+
+
 def _score(log, theta: np.ndarray, k: int, play=None) -> float:  # noqa: ANN001
     from benchmarks.probes import ratio
     from fogsf.training.with_prior import law_prediction
@@ -116,8 +125,7 @@ def bench_design(design: int, fleets: tuple[int, ...], n_new: int, runs: tuple[s
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()
-    series = {f"unit{u:03d}": step_series([simulate_run(design, u, r) for r in FULL])
-              for u in range(max(fleets))}
+    series = fleet_series(design, max(fleets))
     first = {k: {sn: fit_unit(s, k) for sn, s in series.items()} for k in fp.K_CHOICES}
     priors = {}
     for n in fleets:

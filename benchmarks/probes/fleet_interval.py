@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 
-from benchmarks.fleet import FULL, NEW_FIRST, _score, simulate_run
+from benchmarks.fleet import NEW_FIRST, _score, fleet_series, simulate_run
 from fogsf.logs.measure.metrics import log_metrics
 
 RUNS = ("up20", "loop2h", "up05", "loop4h")
@@ -40,9 +40,7 @@ def probe_design(design: int, n_fleet: int, n_new: int, runs: tuple[str, ...]) -
     from fogsf.training.with_prior import INTERVAL_Z, test_series
 
     torch.set_num_threads(1)
-    series = {f"unit{u:03d}": step_series([simulate_run(design, u, r) for r in FULL])
-              for u in range(n_fleet)}
-    prior = fp.learn(series)
+    prior = fp.learn(fleet_series(design, n_fleet))
     rows = []
     for u in range(NEW_FIRST, NEW_FIRST + n_new):
         test = simulate_run(design, u, "loop_test")

@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-from benchmarks.fleet import FULL, NEW_FIRST, _score, simulate_run
+from benchmarks.fleet import NEW_FIRST, _score, fleet_series, simulate_run
 from fogsf.plan.programs import Program
 
 
@@ -48,8 +48,7 @@ def probe_design(design: int, target: float, n_fleet: int, n_new: int, hours: fl
     from fogsf.prior.unit_fit import step_series
 
     torch.set_num_threads(1)
-    prior = fp.learn({f"unit{u:03d}": step_series([simulate_run(design, u, r) for r in FULL])
-                      for u in range(n_fleet)})
+    prior = fp.learn(fleet_series(design, n_fleet))
     limits = Limits(-40.0, 50.0, 3.0, hours)
     rates = test_rates(0.2, 2.0, 4)
     best, tried = shortest(prior, limits, rates, target)
