@@ -219,5 +219,5 @@ def test_the_retry_replaces_out_in_either_form(out: list[str]) -> None:
 
     argv = ["f.fleet", "--unit", "S1", *out, "--train", "a.csv", "--batch", "b1"]
     ns = argparse.Namespace(fleet="f.fleet", unit="S1", batch="b1", out="m d",
-                            _fleet_argv=argv)
+                            _argv=["fleet", "add", *argv])
     assert _retry(ns) == "fogsf fleet add f.fleet --unit S1 --train a.csv --model-dir 'm d'"

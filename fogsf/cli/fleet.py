@@ -30,7 +30,7 @@ import argparse
 import os
 import shlex
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -61,22 +61,10 @@ FLEET_HELP = ("the fleet: an SQLite file or a postgresql:// URL (its password fr
               "PGPASSWORD or ~/.pgpass, not the URL)")
 
 
-class ArgvParser(OneLineParser):
-    """A fleet action's parser that keeps the arguments it read (`_fleet_argv`): a failed
-    add names its retry as that same command with --model-dir."""
-
-    def parse_known_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
-                         namespace: argparse.Namespace | None = None
-                         ) -> tuple[argparse.Namespace, list[str]]:
-        ns, rest = super().parse_known_args(args, namespace)
-        ns._fleet_argv = list(sys.argv[1:] if args is None else args)
-        return ns, rest
-
-
 def configure(parser: argparse.ArgumentParser) -> None:
 
     sub = parser.add_subparsers(dest="fleet_command", metavar="ACTION", required=True,
-                                parser_class=ArgvParser)
+                                parser_class=OneLineParser)
 
     p = _action(sub, "add", "train a unit as `fogsf train` does and record it",
                 "fogsf fleet add line.fleet --unit SN001 --train SN001_loop.csv "
@@ -236,12 +224,9 @@ def run_add(args: argparse.Namespace) -> int:
 
 def _retry(args: argparse.Namespace) -> str:
     """The add that records the model kept: --model-dir for --out, add-many's lease left out."""
-    argv = list(getattr(args, "_fleet_argv", None) or [args.fleet, "--unit", args.unit])
-    for opt, value in (("--batch", args.batch), ("--out", args.out)):
-        at = [(i, 1 if argv[i] == f"{opt}={value}" else 2) for i in range(len(argv))
-              if argv[i] == f"{opt}={value}" or argv[i:i + 2] == [opt, value]]  # both forms
-        argv = argv[:at[-1][0]] + argv[sum(at[-1]):] if at else argv
-    return shlex.join(["fogsf", "fleet", "add", *argv, "--model-dir", args.out])
+    argv = list(getattr(args, "_argv", None) or ["fleet", "add", args.fleet, "--unit", args.unit])
+    return kept_model.retry_command(argv[argv.index("add") + 1:],
+                                    {"--batch": args.batch, "--out": args.out}, args.out)
 
 
 def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:

@@ -122,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = join_negative_ranges(sys.argv[1:] if argv is None else list(argv))
     command = chosen_command(argv)
     args = build_parser(() if command is None else (command,)).parse_args(argv)
+    args._argv = argv  # as given: a failed record names its retry from it
     try:
         return int(args._run(args) or 0)
     except UserError as e:

@@ -53,6 +53,7 @@ from fogsf.cli.arguments import (
 from fogsf.cli.axes import run_all, wants_all
 from fogsf.cli.plateau_commands import any_plateau_table, train_tables
 from fogsf.errors import UserError
+from fogsf.fleet.kept_model import retry_command
 from fogsf.fleet.new_unit import train_on_prior
 from fogsf.gsa.executors import add_executor_options
 from fogsf.models.structures.lag_bank import BANK_LSTM_INPUTS, bank_spec
@@ -176,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--out {out} exists and is not a directory")
     if args.prior:
         content = train_on_prior(args.prior, getattr(args, "unit", None), opts, train_logs,
-                                 test_log, out)
+                                 test_log, out, _retry(args))
         m = from_json(content)
         print(format_metrics(m))
         print("\n".join(textwrap.fill(x, 96) for x in prior_lines(content["prior"])))
@@ -188,6 +189,16 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out}/metrics.json" + (" and the firmware artifact (fogsf export "
                                          f"{out} --out build/...)" if m.exportable else ""))
     return 0
+
+
+def _retry(args: argparse.Namespace) -> str | None:
+    """`fleet add` with this command's unit, logs and options, recording the model kept in
+    --out (`kept_model.retry_command`); None without the arguments as given."""
+    argv = list(getattr(args, "_argv", None) or [])
+    if "train" not in argv:
+        return None
+    return retry_command([args.prior, *argv[argv.index("train") + 1:]],
+                         {"--prior": args.prior, "--out": args.out}, args.out)
 
 
 def train_options(args: argparse.Namespace) -> TrainOptions:

@@ -1,6 +1,6 @@
 """A unit recorded from the model folder its training kept (`fogsf fleet add --model-dir
-DIR`), without training again: the folder `fleet add --out` keeps when the database write
-fails, or one `fogsf train --out` wrote.
+DIR`), without training again: the folder `fleet add --out` or `fogsf train --prior --unit` keeps
+when the database write fails, or one `fogsf train --out` wrote.
 
 The record is built as `fleet add` builds it from a fitted model (`records.unit_record`,
 `plateau_unit.plateau_record`), from the folder's files instead: metrics.json (figures,
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,20 @@ def write_kept(out: Path, record: UnitRecord) -> None:
         os.replace(tmp, out / KEPT_FILE)
     except OSError:
         tmp.unlink(missing_ok=True)
+
+
+def retry_command(argv: list[str], drop: dict[str, str | None], out: str) -> str:
+    """`fogsf fleet add ARGV --model-dir OUT`: the add that records the model a training
+    kept in OUT; ARGV the fleet, the unit, the logs and options as given, less each option
+    of `drop` given with its value (`--opt value` or `--opt=value`: a prior, a lease, the
+    folder trained into)."""
+    for opt, value in drop.items():
+        if value is None:
+            continue
+        at = [(i, 1 if argv[i] == f"{opt}={value}" else 2) for i in range(len(argv))
+              if argv[i] == f"{opt}={value}" or argv[i:i + 2] == [opt, value]]
+        argv = argv[:at[-1][0]] + argv[sum(at[-1]):] if at else argv
+    return shlex.join(["fogsf", "fleet", "add", *argv, "--model-dir", out])
 
 
 @dataclass
@@ -111,9 +126,6 @@ def read_kept(folder: str | Path, plateau_logs: bool) -> KeptModel:
     if metrics.get("bias_only"):
         raise UserError(f"{where}: a bias-only model (stationary logs) has no SF response "
                         "to record")
-    if metrics.get("prior"):
-        raise UserError(f"{where}: trained under the design's prior (fogsf train --prior); "
-                        "fleet add records a unit trained alone")
     if kind in NO_ARTIFACT:
         raise UserError(f"{where}: a '{kind}' model keeps no firmware artifact to predict "
                         "from; record it by training again (fleet add without --model-dir)")
@@ -138,6 +150,10 @@ def read_kept(folder: str | Path, plateau_logs: bool) -> KeptModel:
         raise UserError(f"{where}: {KEPT_FILE} is not one fogsf fleet add writes")
     if kept is not None and kept.get("model_id") != metrics["model_id"]:
         kept = None  # it names another training's logs (a later one wrote the folder)
+    if metrics.get("prior") and "prior" not in ((kept or {}).get("options") or {}):
+        raise UserError(f"{where}: trained under the design's prior without --unit (fogsf "
+                        "train --prior); fleet add records a unit trained alone, or one "
+                        "`train --prior --unit` kept")
     return KeptModel(d, metrics, info, stream, kept)
 
 
@@ -168,8 +184,8 @@ def _check_options(m: KeptModel, options: dict[str, Any]) -> None:
     """Refuse training options given other than those the model was trained with (all of
     them from KEPT_FILE; without it, the model kind and seed metrics.json records)."""
     ours = json.loads(json.dumps(options, default=str))
-    if m.kept is not None:
-        theirs = m.kept.get("options") or {}
+    if m.kept is not None:  # the prior a unit was fitted under is not an option of add's
+        theirs = {k: v for k, v in (m.kept.get("options") or {}).items() if k != "prior"}
     else:
         theirs = {k: m.metrics[k] for k in ("model", "seed") if k in m.metrics and k in ours}
         ours = {k: v for k, v in ours.items() if k in theirs}
@@ -211,6 +227,8 @@ def kept_record(unit: str, train_logs: list[ChamberLog], test_log: ChamberLog | 
             raise UserError(f"{m.where} was trained on logs with other ramps than those "
                             "given: give the logs it was trained on")
     _check_options(m, options)
+    if m.kept is not None and "prior" in (m.kept.get("options") or {}):
+        options = {**options, "prior": m.kept["options"]["prior"]}  # as train --prior --unit
     return unit_record(unit, train_logs, test_log, m.metrics, _fitted(m), m.folder, options)
 
 

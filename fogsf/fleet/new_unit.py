@@ -10,6 +10,7 @@ from pathlib import Path
 from fogsf import __version__
 from fogsf.errors import UserError
 from fogsf.fleet.faults import db_faults
+from fogsf.fleet.kept_model import write_kept
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.plateau_unit import PLATEAU
 from fogsf.fleet.records import recorded_options, unit_record
@@ -77,9 +78,11 @@ def refuse_stationary(train_logs: list[ChamberLog]) -> None:
 
 
 def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
-                   train_logs: list[ChamberLog], test_log: ChamberLog | None, out: Path) -> dict:
+                   train_logs: list[ChamberLog], test_log: ChamberLog | None, out: Path,
+                   retry: str | None = None) -> dict:
     """`fogsf train --prior FLEET [--unit SN]`: the prior from FLEET, the unit trained under
-    it into `out`, recorded in FLEET with --unit; metrics.json's content."""
+    it into `out`, recorded in FLEET with --unit; metrics.json's content. `retry`: the add
+    that records the kept model when the database write fails (`kept_model.retry_command`)."""
 
     if unit is not None:
         check_unit_name(unit)  # before the fleet is read or the unit trained
@@ -90,11 +93,14 @@ def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
         options = recorded_options(opts)
         options["prior"] = {"fleet_units": prior.units, "used": metrics["prior"]["used"]}
         record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
+        write_kept(out, record)  # what the retry checks its logs and options against
         try:
             with db_faults(masked(fleet)), open_store(fleet, "write") as store:
                 store.add(record)
         except UserError as e:  # the model is written: say where, the training not lost
-            raise UserError(f"{e}; the trained model is kept in {out}") from None
+            raise UserError(f"{e}; the trained model is kept in {out}"
+                            + (f"; record it without training again: {retry}" if retry
+                               else "")) from None
         metrics["prior"]["recorded"] = f"recorded unit {unit} in {store.location}"
     return metrics
 

@@ -1,0 +1,95 @@
+"""`fogsf train --prior FLEET --unit SN` when the database write fails: the model is kept,
+the error names the `fleet add --model-dir` that records it, and that add records the unit
+as the training would have (the prior it was fitted under included) without training."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sqlite3
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from fogsf.cli.main import main
+from fogsf.fleet import store
+from fogsf.fleet.kept_model import KEPT_FILE, retry_command
+from fogsf.fleet.store import open_store
+from fogsf.logs.writer import write_log
+from fogsf.sim.fleet_units import unit_for
+from tests.fleet_units import ROOT, fit_unit, no_training, unit_log
+
+SEED = 4411
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    rng = np.random.default_rng(SEED)
+    design = int(rng.integers(1, 10_000))  # a development design
+    tmp = tmp_path_factory.mktemp("fleet")
+    db = str(tmp / "line.fleet")
+    with open_store(db) as s:
+        for i in range(3):
+            s.add(fit_unit(f"SN{i}", [unit_log(unit_for(design, i), 10 * i, rate=2.0)],
+                           tmp / f"m{i}"))
+    new = tmp / "new.csv"
+    write_log(new, unit_log(unit_for(design, 50), 999, rate=2.0))
+    return {"db": db, "new": new, "tmp": tmp, "design": design}
+
+
+@pytest.mark.slow
+def test_a_fault_after_training_under_the_prior_names_the_add_that_records(
+        fleet: dict, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    def disk_full(*args: object, **kwargs: object) -> None:
+        raise sqlite3.OperationalError("database or disk is full")
+
+    monkeypatch.setattr(store.FleetStore, "add", disk_full)
+    out = fleet["tmp"] / "kept m"  # a space: the retry is quoted for the shell
+    msg = f"design {fleet['design']} (seed {SEED})"
+    assert main(["train", "--prior", fleet["db"], "--unit", "SN-new", "--train",
+                 str(fleet["new"]), "--out", str(out), "--iters", "2", "--seed", "4",
+                 "--no-progress"]) == 2, msg
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.count("error:") == 1, err
+    assert "database or disk is full" in err and f"kept in {out}" in err, err
+    assert (out / KEPT_FILE).is_file()
+    retry = shlex.split(err.split("record it without training again: ", 1)[1])
+    assert retry[:4] == ["fogsf", "fleet", "add", fleet["db"]], retry
+    assert retry[-2:] == ["--model-dir", str(out)] and "--prior" not in retry
+    assert "--out" not in retry and retry.count(str(out)) == 1
+    monkeypatch.undo()
+    with open_store(fleet["db"]) as s:
+        assert not s.has("SN-new")
+    run = subprocess.run([sys.executable, "-m", "fogsf.cli.main", *retry[1:]], cwd=ROOT,
+                         env=no_training(fleet["tmp"]), capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "recorded from it, not trained" in run.stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    with open_store(fleet["db"]) as s:
+        rec = s.unit("SN-new")
+    options = rec.fitted_with["options"]
+    assert rec.model_id == metrics["model_id"] and options["seed"] == 4, msg
+    assert options["prior"] == {"fleet_units": ["SN0", "SN1", "SN2"],
+                                "used": metrics["prior"]["used"]}, msg
+
+
+def test_a_prior_model_without_its_unit_file_is_refused(fleet: dict,
+                                                        capsys: pytest.CaptureFixture) -> None:
+    out = fleet["tmp"] / "no-unit"
+    assert main(["train", "--prior", fleet["db"], "--train", str(fleet["new"]), "--out",
+                 str(out), "--iters", "1", "--no-progress"]) == 0
+    capsys.readouterr()
+    assert main(["fleet", "add", str(fleet["tmp"] / "other.fleet"), "--unit", "SN9",
+                 "--train", str(fleet["new"]), "--model-dir", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "trained under the design's prior without --unit" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("given", [["--out", "m d"], ["--out=m d"]])
+def test_the_retry_drops_the_prior_and_the_folder(given: list[str]) -> None:
+    argv = ["f.fleet", "--prior", "f.fleet", "--unit", "S1", *given, "--train", "a.csv"]
+    assert retry_command(argv, {"--prior": "f.fleet", "--out": "m d"}, "m d") == (
+        "fogsf fleet add f.fleet --unit S1 --train a.csv --model-dir 'm d'")
