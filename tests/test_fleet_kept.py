@@ -151,6 +151,10 @@ def test_plateau_units_from_their_kept_model(logs: dict[str, Path], tmp_path: Pa
     assert main(["fleet", "add", again, "--unit", "SN-Q", "--train", str(logs["r2"]),
                  "--model-dir", str(model)]) == 2
     assert "holds a plateau model and the logs given are sample logs" in capsys.readouterr().err
+    # a sample log's option, refused as the add that trains refuses it
+    assert main(["fleet", "add", again, *unit, "--unit", "SN-R", "--structure", "bank",
+                 "--model-dir", str(model)]) == 2
+    assert "--structure is for sample logs" in capsys.readouterr().err
 
 
 @pytest.mark.slow

@@ -39,7 +39,12 @@ from fogsf.cli import train as train_cli
 from fogsf.cli.arguments import cosine_for, read_logs
 from fogsf.cli.fleet_views import run_check, run_list, run_report
 from fogsf.cli.main import OneLineParser, main
-from fogsf.cli.plateau_commands import any_plateau_table, fit_tables, read_tables
+from fogsf.cli.plateau_commands import (
+    any_plateau_table,
+    fit_tables,
+    read_tables,
+    refuse_sample_options,
+)
 from fogsf.cli.train import format_metrics, train_options
 from fogsf.errors import UserError
 from fogsf.fleet import kept_model
@@ -267,6 +272,7 @@ def _kept_logs(args: argparse.Namespace, model: kept_model.KeptModel) -> UnitRec
 
 def _kept_tables(args: argparse.Namespace, model: kept_model.KeptModel) -> UnitRecord:
     """The unit's record from the plateau model in --model-dir and its tables."""
+    refuse_sample_options(args, allowed=("unit",))  # as the add that trains refuses them
     train = read_tables(args, args.train)
     test = read_tables(args, [args.test])[0] if args.test else None
     record = kept_model.kept_plateau_record(args.unit, train, test, model, _plateau_options(args))

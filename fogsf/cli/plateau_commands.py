@@ -65,16 +65,22 @@ def _cosine(args: argparse.Namespace) -> float:
     return cosine_for(getattr(args, "axis_cosine", None), getattr(args, "axis", None))
 
 
-def fit_tables(args: argparse.Namespace, out: Path, allowed: tuple[str, ...] = ()
-               ) -> tuple[list[PlateauTable], PlateauTable | None, PlateauFit, PlateauMetrics]:
-    """The plateau model of `args.train`'s tables (scored on `args.test`'s), saved into `out`
-    and its figures printed, as `fogsf train` fits it; `allowed`: sample-log options the
-    caller takes for itself (fleet add's --unit)."""
+def refuse_sample_options(args: argparse.Namespace, allowed: tuple[str, ...] = ()) -> None:
+    """One line, exit 2, for a sample log's training option given with plateau tables
+    (`allowed`: those the caller takes for itself)."""
     given = [o for o in TRAIN_ONLY_SAMPLES if o not in allowed and getattr(args, o, None)]
     given += ["hysteresis"] if getattr(args, "hysteresis", "auto") != "auto" else []
     if given:
         raise UserError(f"--{given[0].replace('_', '-')} is for sample logs: a plateau table "
                         "trains the plateau model (docs/train.md, \"Plateau tables\")")
+
+
+def fit_tables(args: argparse.Namespace, out: Path, allowed: tuple[str, ...] = ()
+               ) -> tuple[list[PlateauTable], PlateauTable | None, PlateauFit, PlateauMetrics]:
+    """The plateau model of `args.train`'s tables (scored on `args.test`'s), saved into `out`
+    and its figures printed, as `fogsf train` fits it; `allowed`: sample-log options the
+    caller takes for itself (fleet add's --unit)."""
+    refuse_sample_options(args, allowed)
     train = read_tables(args, args.train)
     test = read_tables(args, [args.test])[0] if args.test else None
     if out.exists() and not out.is_dir():
