@@ -9,8 +9,11 @@ last 30 % of a run, and every 5th plateau of another run of the same gyro (anoth
 seed). Each is scored as RMS(corrected - rate sensed) on the held-out plateaus for fogsf
 (`fit_plateau_model`, corrected by the float32 reference the kernel matches bit for bit),
 for the best polynomial in rate (powers to the 9th) and temperature fitted to the same
-training plateaus (the family's oracle: its form chosen by the held-out error itself), and
-for the best linear SF (its temperature degree chosen the same way).
+training plateaus (the family's oracle: its form chosen by the held-out error itself; every
+form fogsf weighs but the |x| term), for the plain polynomial family's oracle (every power
+of rate from x^2 to x^P, each coefficient of one degree Q in T, the rate terms' capped at
+2: the polynomial a person would fit, a weaker yardstick), and for the best linear SF (its
+temperature degree chosen the same way).
 
   python -m benchmarks.plateaus --gyros 20000:20010 --out out/bench-plateaus.json
 """
@@ -49,6 +52,7 @@ class SplitScore:
     fogsf_dph: float
     oracle_dph: float
     linear_dph: float
+    plain_dph: float  # the plain polynomial family's oracle
     form: str
     oracle_form: str
     f32_ppm_fs: float  # the float32 rate part against float64 arithmetic, max over x and T
@@ -56,6 +60,10 @@ class SplitScore:
     @property
     def ratio(self) -> float:
         return self.fogsf_dph / self.oracle_dph
+
+    @property
+    def ratio_plain(self) -> float:
+        return self.fogsf_dph / self.plain_dph
 
 
 def table_rows(gyro: int, kind: str, seed: int, noise_dph: float = 0.0
@@ -77,14 +85,22 @@ def _take(rows: PlateauRows, idx: np.ndarray) -> PlateauRows:
     return PlateauRows(rows.gyro_dps[idx], rows.rate_dps[idx], rows.temp_c[idx])
 
 
-def oracle(train: PlateauRows, test: PlateauRows, linear: bool) -> tuple[float, RateForm]:
+def plain_form(f: RateForm) -> bool:
+    """A plain polynomial: every power from x^2, each coefficient of one degree in T (the
+    rate terms' capped at the family's MAX_RATE_TEMP_DEGREE), no |x| term."""
+    return not (f.odd or f.abs_term) and f.rate_temp_degree == min(f.temp_degree, 2)
+
+
+def oracle(train: PlateauRows, test: PlateauRows, linear: bool, plain: bool = False
+           ) -> tuple[float, RateForm]:
     """The best polynomial (or linear SF) fitted on `train`, chosen by its error on `test`:
-    every candidate fogsf weighs but the |x| term (every power from x^2, or the odd ones)."""
+    every candidate fogsf weighs but the |x| term (every power from x^2, or the odd ones);
+    `plain`: the plain polynomials only (`plain_form`)."""
     fs = float(np.max(np.abs(train.rate_dps)))
     t_ref = float(np.mean(train.temp_c))
     best = (np.inf, RateForm(1, False, 0, 0))
     for f in forms():
-        if f.abs_term or (linear and f.has_rate_part):
+        if f.abs_term or (linear and f.has_rate_part) or (plain and not plain_form(f)):
             continue
         coef = solve(design(train.gyro_dps / fs, (train.temp_c - t_ref) / TEMP_SCALE_C, f),
                      (train.rate_dps - train.gyro_dps) / fs)
@@ -136,7 +152,9 @@ def score_gyro(gyro: int, kind: str, noise_dph: float = 0.0) -> list[SplitScore]
         corrected, _ = correct_rows(fit.model, test.temp_c, test.gyro_dps)
         best, best_form = oracle(train, test, linear=False)
         lin, _ = oracle(train, test, linear=True)
+        plain, _ = oracle(train, test, linear=False, plain=True)
         out.append(SplitScore(gyro, kind, name, rms_dph(corrected - test.rate_dps), best, lin,
+                              plain,
                               fit.form.describe(), best_form.describe(),
                               float32_error_ppm(fit.model)))
     return out
@@ -153,6 +171,8 @@ def summary(scores: list[SplitScore]) -> dict:
             out[f"{kind}/{split}"] = {
                 "gyros": len(sel), "ratio_median": float(np.median(r)),
                 "ratio_worst": float(r.max()),
+                "ratio_plain_median": float(np.median([s.ratio_plain for s in sel])),
+                "ratio_plain_worst": float(max(s.ratio_plain for s in sel)),
                 "fogsf_median_dph": float(np.median([s.fogsf_dph for s in sel])),
                 "oracle_median_dph": float(np.median([s.oracle_dph for s in sel])),
                 "linear_median_dph": float(np.median([s.linear_dph for s in sel])),
@@ -184,12 +204,14 @@ def main(argv: list[str] | None = None) -> int:
     for key, v in summ.items():
         print(f"  {key:22s} median {v['ratio_median']:.2f}  worst {v['ratio_worst']:.2f}   "
               f"fogsf {v['fogsf_median_dph']:.2f}  oracle {v['oracle_median_dph']:.2f}  "
-              f"linear SF {v['linear_median_dph']:.1f} deg/h")
+              f"linear SF {v['linear_median_dph']:.1f} deg/h; against the plain family "
+              f"{v['ratio_plain_median']:.2f} / {v['ratio_plain_worst']:.2f}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"gyros": [lo, hi], "target_ratio": TARGET_RATIO,
                                     "summary": summ,
                                     "f32_ppm_fs_max": max(s.f32_ppm_fs for s in scores),
-                                    "scores": [{**asdict(s), "ratio": s.ratio}
+                                    "scores": [{**asdict(s), "ratio": s.ratio,
+                                                "ratio_plain": s.ratio_plain}
                                                for s in scores]}, indent=2) + "\n")
     f32 = max(s.f32_ppm_fs for s in scores)
     print(f"  the float32 rate part against float64 arithmetic: at most {f32:.3f} ppm of full "

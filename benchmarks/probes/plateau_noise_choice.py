@@ -273,6 +273,23 @@ def rule_masked(keep: Callable[[RateForm], bool], times: float = 1.0,
     return pick
 
 
+def rule_t_price(k: float) -> Callable[[Case], int]:
+    """bic-1 with the T terms priced k times a rate term's (k < 1: the drift a physical FOG
+    always has is cheaper to keep than a rate term)."""
+    def pick(c: Case) -> int:
+        unit = (np.log(c.train_n) - 1) * noise_var(c, "rich") / c.train_n
+        return int(np.argmin(geo(c, unit * (c.n_terms - (1.0 - k) * _t_terms(c)))))
+    return pick
+
+
+def rule_worst_kind(c: Case) -> int:
+    """bic-1's priced mean squares, the worst kind's instead of the kinds' mean."""
+    ms = _mean_sq(c) + _bic_price(c)
+    with np.errstate(invalid="ignore"):
+        s = np.nanmax(ms, axis=0)
+    return int(np.argmin(np.where(np.isfinite(s), s, np.inf)))
+
+
 RULES: dict[str, Callable[[Case], int]] = {"default": rule_default,
                                            "bic-1-even": rule_bic(1.0, odd=False),
                                            "bic-1": rule_bic(1.0),
@@ -287,6 +304,9 @@ for _k in (0.5, 1.0, 2.0):
 for _k in (2.0, 3.0):
     RULES[f"kind{_k:g}"] = rule_kind_price(_k)
 RULES["t-extrap"] = rule_t_by_extrap
+for _k in (0.0, 0.5):
+    RULES[f"tprice{_k:g}"] = rule_t_price(_k)
+RULES["worst-kind"] = rule_worst_kind
 RULES["cap-r"] = rule_masked(lambda f: f.rate_temp_degree <= f.temp_degree)
 RULES["min-q1"] = rule_masked(lambda f: f.temp_degree >= 1)
 RULES["odd-only"] = rule_masked(lambda f: f.odd or f.powers == 1)
