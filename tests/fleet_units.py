@@ -304,3 +304,24 @@ def fit_unit(sn: str, train_logs: list, out_dir: Path, test_log=None,  # noqa: A
         metrics, fitted = run_training(opts, train_logs, test_log, out_dir)
         return unit_record(sn, train_logs, test_log, metrics, fitted, out_dir, dict(options),
                            keep_dir=False)
+
+
+def small_line(folder: Path, seed: int, units: int, rates: tuple[float, ...]) -> dict:
+    """A fleet of `units` units of a development design the seed draws, each trained on a
+    loop at every one of `rates` (C/min), and a new unit's 2 C/min loop and 1 C/min test
+    loop: {"db", "new", "test", "tmp", "design"}."""
+    from fogsf.fleet.store import open_store
+    from fogsf.logs.writer import write_log
+    from fogsf.sim.fleet_units import unit_for
+
+    design = int(np.random.default_rng(seed).integers(1, 10_000))
+    db = str(folder / "line.fleet")
+    with open_store(db) as store:
+        for i in range(units):
+            cfg = unit_for(design, i)
+            logs = [unit_log(cfg, 10 * i + j, rate=r) for j, r in enumerate(rates)]
+            store.add(fit_unit(f"SN{i}", logs, folder / f"m{i}"))
+    new, test = folder / "new.csv", folder / "test.csv"
+    write_log(new, unit_log(unit_for(design, 50), 999, rate=2.0))
+    write_log(test, unit_log(unit_for(design, 50), 998, rate=1.0))
+    return {"db": db, "new": new, "test": test, "tmp": folder, "design": design}

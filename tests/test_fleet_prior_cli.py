@@ -6,33 +6,18 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from fogsf.cli.main import main
 from fogsf.fleet.store import open_store
-from fogsf.logs.writer import write_log
-from fogsf.sim.fleet_units import unit_for
-from tests.fleet_units import fit_unit, unit_log
+from tests.fleet_units import small_line
 
 SEED = 3803
 
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    rng = np.random.default_rng(SEED)
-    design = int(rng.integers(1, 10_000))  # a development design
-    tmp = tmp_path_factory.mktemp("fleet")
-    db = str(tmp / "line.fleet")
-    with open_store(db) as store:
-        for i in range(4):
-            cfg = unit_for(design, i)
-            logs = [unit_log(cfg, 10 * i + j, rate=r) for j, r in enumerate((2.0, 1.0))]
-            store.add(fit_unit(f"SN{i}", logs, tmp / f"m{i}"))
-    new, test = tmp / "new.csv", tmp / "test.csv"
-    write_log(new, unit_log(unit_for(design, 50), 999, rate=2.0))
-    write_log(test, unit_log(unit_for(design, 50), 998, rate=1.0))
-    return {"db": db, "new": new, "test": test, "tmp": tmp, "design": design}
+    return small_line(tmp_path_factory.mktemp("fleet"), SEED, 4, (2.0, 1.0))
 
 
 @pytest.mark.slow

@@ -10,33 +10,20 @@ import sqlite3
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 from fogsf.cli.main import main
 from fogsf.fleet import store
 from fogsf.fleet.kept_model import KEPT_FILE, retry_command
 from fogsf.fleet.store import open_store
-from fogsf.logs.writer import write_log
-from fogsf.sim.fleet_units import unit_for
-from tests.fleet_units import ROOT, fit_unit, no_training, unit_log
+from tests.fleet_units import ROOT, no_training, small_line
 
 SEED = 4411
 
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    rng = np.random.default_rng(SEED)
-    design = int(rng.integers(1, 10_000))  # a development design
-    tmp = tmp_path_factory.mktemp("fleet")
-    db = str(tmp / "line.fleet")
-    with open_store(db) as s:
-        for i in range(3):
-            s.add(fit_unit(f"SN{i}", [unit_log(unit_for(design, i), 10 * i, rate=2.0)],
-                           tmp / f"m{i}"))
-    new = tmp / "new.csv"
-    write_log(new, unit_log(unit_for(design, 50), 999, rate=2.0))
-    return {"db": db, "new": new, "tmp": tmp, "design": design}
+    return small_line(tmp_path_factory.mktemp("fleet"), SEED, 3, (2.0,))
 
 
 @pytest.mark.slow
