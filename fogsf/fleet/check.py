@@ -13,9 +13,10 @@ outside the design's spread, and why, at a stated false-alarm rate. Reads only t
   Raw parameters of the summary enter too when the summary gives their standard errors
   ("params_se"): then a unit's own estimation noise is known.
 - A slower thermal part, from the recorded step series (`prior.slow_part`): each unit's
-  effective one-node time constant and its SF curve's misfit to the others' (one-sided);
-  only when every unit's logs hold a soak of 45 min or more after a ramp (a 2 h loop's
-  20 min soaks cannot show it: the note says so).
+  effective one-node time constant, its SF curve's misfit to the others' and its
+  chi-square against the design's prior learned from the others (one-sided); only when
+  every unit's logs hold a soak of 30 min or more after a ramp (a 2 h loop's 20 min soaks
+  cannot show it: the note says so).
 - Each unit against the others of the line (leave one out): z = (x - mean) / sqrt(s^2 -
   the others' mean se^2 + se^2 + s^2 / k) (k others, s their standard deviation, se the
   standard errors, 0 where not given): a t statistic for a line of normal units. The
@@ -341,7 +342,7 @@ def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
 
 # what a cached check was computed by: a result another fogsf, or another method, computed
 # is not read (bump it when the check's method changes)
-CHECK_METHOD = 5
+CHECK_METHOD = 6
 
 
 def checked(fleet: str, false_alarm: float = DEFAULT_FALSE_ALARM, with_units: bool = False

@@ -9,6 +9,9 @@ show it. Both one-sided (`fleet.check`): only a slower response, a larger misfit
 - `slow.shape_log_misfit`: the log of the unit's SF curve's squared misfit to the line's
   other units (`shape_misfit`), when all ran the same program: a slower part bends the curve
   in a way the others' leading directions of variation do not take.
+- `slow.prior_log_chi2`: log(10 + the check chi-square) of the unit's step series against the
+  design's prior learned from the line's other units (`prior_chi2`): a slower part is a
+  response the others' spread of parameters does not give, whatever parameter moves.
 - Only when every unit's training logs hold a soak of SOAK_MIN_S or more after a ramp: a 2 h
   loop's 20 min soaks cannot show a part 2.5 x slower (the probe `fleet_slow_part`), and
   only when the units ran one program (ramp rate and soak within SAME_PROGRAM).
@@ -18,14 +21,20 @@ Figures: docs/fleet.md (check), benchmarks/probes/README.md (`fleet_slow_part`).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
+from fogsf.errors import UserError
 from fogsf.models.structures.node_fit import ridge_fit
 from fogsf.models.structures.physics_nodes import NODE_LAMBDA, TAU_MAX_S
-from fogsf.prior.unit_fit import StepSeries, correlation_factor, design_matrix
+from fogsf.prior.design_prior import SHRINK, _spread, learn
+from fogsf.prior.map_estimate import NOISE_SCALE, check_chi2
+from fogsf.prior.unit_fit import StepSeries, UnitFit, correlation_factor, design_matrix, fit_unit
 
-SOAK_MIN_S = 45 * 60.0  # a soak shorter than this after a ramp cannot show a slower part
+# a soak shorter than this after a ramp cannot show a slower part: a 2 h loop's 20 min soaks
+# read 4-15 min, a 1 h chamber soak 37-57 min (the board lags the chamber by design)
+SOAK_MIN_S = 30 * 60.0
 FLAT_C_PER_MIN = 0.1  # board temperature moving slower than this (5 min mean): a soak
 RAMP_C_PER_MIN = 0.3  # and faster than this: a ramp
 SMOOTH_S = 300.0  # the board temperature's rate is read on means this long
@@ -43,8 +52,13 @@ SHAPE_RANK = 6  # the others' leading directions a normal unit's curve may take 
 ALIGN_C = 1.0  # board temperatures (less their mean) further apart (median, C): other
 # programs
 # each feature's standard error, the least difference that is a defect (5 % in the time
-# constant, x1.35 in the misfit): else a line whose others agree closely flags a normal unit
-SE_FLOOR = {PREFIX: 0.05, SHAPE: 0.3}
+# constant, x1.35 in the misfit, x1.1 in 10 + the chi-square): else a line whose others
+# agree closely flags a normal unit
+PRIOR = SLOW + "prior_log_chi2"
+# the chi-square's offset in the log: below about 10 (the parameters' count) a chi-square's
+# differences are noise, not a defect (tuned on development designs, the probe's README)
+PRIOR_OFFSET = 10.0
+SE_FLOOR = {PREFIX: 0.05, SHAPE: 0.3, PRIOR: 0.1}
 SLOW_VERSION = 2  # a summary's "slow" of another version is computed again from its series
 
 
@@ -125,7 +139,9 @@ def _unit_slow(summary: dict) -> dict | None:
     """The summary's "slow", else computed from its step series (a unit recorded before
     fogsf kept it); None when it has neither (or a series that does not read)."""
     got = summary.get("slow")
-    if isinstance(got, dict) and got.get("version") == SLOW_VERSION:
+    # one kept under a longer soak gate lacks the time constant its soak gives now: computed
+    if isinstance(got, dict) and got.get("version") == SLOW_VERSION and (
+            got.get("log_tau_s") is not None or got.get("soak_s", 0.0) < SOAK_MIN_S):
         return got
     try:
         return unit_slow(StepSeries.from_dict(summary["series"]))
@@ -159,6 +175,10 @@ def line_features(summaries: list[dict]) -> tuple[list[dict[str, float]], list[d
                                     "compare)")
     name = feature_name(rate, soak)
     feats = [{name: float(u["log_tau_s"])} for u in slow]
+    chi2 = prior_chi2(summaries)
+    if chi2 is not None:
+        for f, v in zip(feats, chi2.tolist(), strict=True):
+            f[name.replace(PREFIX, PRIOR)] = math.log(PRIOR_OFFSET + max(v, 0.0))
     shape = shape_misfit(slow)
     if shape is not None:
         name = name.replace(PREFIX, SHAPE)
@@ -200,4 +220,47 @@ def shape_misfit(units: list[dict]) -> np.ndarray | None:
         e = curves[i] - mean
         e = e - vt.T @ (vt @ e)
         out[i] = math.log(max(float(e @ e), 1e-12))
+    return out
+
+
+def prior_chi2(summaries: list[dict]) -> np.ndarray | None:
+    """Each unit's check chi-square (`map_estimate.check_chi2`) against the design's prior
+    learned from the line's other units. The structure (node count, play, the units left
+    out) is learned once from the whole line (`design_prior.learn`); the spread without the
+    unit from the kept units' sums less its own: linear in the line, one fit a unit. None
+    when the prior cannot be learned (too few units, a series that does not read)."""
+    try:
+        series = [StepSeries.from_dict(s["series"]) for s in summaries]
+        first: dict[int, dict[str, UnitFit]] = {}
+        for i, summary in enumerate(summaries):
+            for k, f in summary.get("fits", {}).items():
+                first.setdefault(int(k), {})[str(i)] = UnitFit.from_dict(f)
+        prior = learn({str(i): x for i, x in enumerate(series)}, first=first)
+    except (KeyError, TypeError, ValueError, UserError, np.linalg.LinAlgError):
+        return None
+    k, play = prior.k, prior.play
+    kept = [int(u) for u in prior.units]
+    if prior.unit_thetas is None or len(kept) < 4:
+        return None
+    # the kept units' fits at the prior's time constants (what `learn` averaged)
+    fits = {i: fit_unit(series[i], k, np.exp(t[:k]), play)
+            for i, t in zip(kept, prior.unit_thetas, strict=True)}
+    thetas = np.stack([f.theta for f in fits.values()])
+    s1, s2 = thetas.sum(axis=0), thetas.T @ thetas
+    sc = np.sum([f.cov for f in fits.values()], axis=0)
+    out = np.empty(len(series))
+    for i, s in enumerate(series):
+        own = fits.get(i)
+        t1, t2, tc, m = s1, s2, sc, len(kept)  # the others: the kept units less the unit
+        if own is not None:
+            t1, t2, tc, m = s1 - own.theta, s2 - np.outer(own.theta, own.theta), sc - own.cov, m - 1
+        mu = t1 / m
+        between = (t2 - m * np.outer(mu, mu)) / (m - 1)
+        loo = replace(prior, mu=mu, sigma=_spread(between, tc / m, m, SHRINK),
+                      sigma_check=_spread(between, tc / m, m, None))
+        alone = fit_unit(s, k, np.exp(mu[:k]), play)  # as `map_fit` starts the check
+        grid = fit_unit(s, k, play=play)
+        if grid.sse < alone.sse:
+            alone = grid
+        out[i] = check_chi2(s, loo, alone.sigma2 * NOISE_SCALE, alone, 30)
     return out
