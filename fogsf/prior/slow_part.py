@@ -30,7 +30,14 @@ from fogsf.models.structures.node_fit import ridge_fit
 from fogsf.models.structures.physics_nodes import NODE_LAMBDA, TAU_MAX_S
 from fogsf.prior.design_prior import SHRINK, _spread, learn
 from fogsf.prior.map_estimate import NOISE_SCALE, check_chi2
-from fogsf.prior.unit_fit import StepSeries, UnitFit, correlation_factor, design_matrix, fit_unit
+from fogsf.prior.unit_fit import (
+    StepSeries,
+    UnitFit,
+    correlation_factor,
+    design_matrix,
+    fit_unit,
+    n_coef,
+)
 
 # a soak shorter than this after a ramp cannot show a slower part: a 2 h loop's 20 min soaks
 # read 4-15 min, a 1 h chamber soak 37-57 min (the board lags the chamber by design)
@@ -259,7 +266,10 @@ def prior_chi2(summaries: list[dict]) -> np.ndarray | None:
         loo = replace(prior, mu=mu, sigma=_spread(between, tc / m, m, SHRINK),
                       sigma_check=_spread(between, tc / m, m, None))
         alone = fit_unit(s, k, np.exp(mu[:k]), play)  # as `map_fit` starts the check
-        grid = fit_unit(s, k, play=play)
+        # the grid start's fit: the summary keeps it (without a play, of this layout)
+        kept_fit = first.get(k, {}).get(str(i)) if play is None else None
+        grid = kept_fit if kept_fit is not None and kept_fit.theta.size == k + n_coef(k) \
+            else fit_unit(s, k, play=play)
         if grid.sse < alone.sse:
             alone = grid
         out[i] = check_chi2(s, loo, alone.sigma2 * NOISE_SCALE, alone, 30)
