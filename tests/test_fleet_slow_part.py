@@ -16,6 +16,7 @@ import json
 import os
 
 import numpy as np
+import pytest
 
 from fogsf.fleet.check import check_fleet
 from fogsf.fleet.records import UnitRecord
@@ -83,6 +84,7 @@ def test_a_slower_part_is_flagged_on_hour_long_soaks_and_normal_units_are_not() 
     assert "slow." in result.outliers[0].why, f"{say}: {result.message()}"
 
 
+@pytest.mark.slow
 def test_the_prior_chi_square_sets_a_slower_part_apart_where_the_others_miss_it() -> None:
     """On designs where the time constant and the curve misfit missed the slower part in
     tuning, the unit's chi-square against the prior of the line's others sets it apart: its
