@@ -215,14 +215,14 @@ def learn(series: dict[str, StepSeries], k: int | None = None,
     n, p = th.shape
     between = np.cov(th.T, ddof=1) if n > 1 else np.zeros((p, p))
     noise = cv.mean(axis=0)
-    sigma = _spread(between, noise, n, SHRINK)
+    sigma = spread(between, noise, n, SHRINK)
     unit_thetas = np.stack([plain_refit(series[sn], fits[sn].theta, k, play) for sn in kept])
     misfit = float(np.median([
         np.sqrt(correlation_factor(series[sn].y - predict(series[sn], t, k, play),
                                    series[sn].step_s))
         for sn, t in zip(kept, unit_thetas, strict=True)]))
     return DesignPrior(k, mu, sigma, kept, left, scores, between, noise,
-                       _spread(between, noise, n, None),
+                       spread(between, noise, n, None),
                        float(np.median([fits[sn].sse / fits[sn].n for sn in names])),
                        unit_thetas, all_steps(series[kept[0]]), play, misfit)
 
@@ -261,7 +261,7 @@ def _sse(x: np.ndarray, y: np.ndarray) -> float:
     return float(r @ r)
 
 
-def _spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None
+def spread(between: np.ndarray, noise: np.ndarray, n: int, shrink: float | None
             ) -> np.ndarray:
     """Sigma = between - noise, eigenvalues floored, shrunk toward the diagonal by `shrink`
     (None: p / (p + n))."""

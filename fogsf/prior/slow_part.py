@@ -28,7 +28,7 @@ import numpy as np
 from fogsf.errors import UserError
 from fogsf.models.structures.node_fit import ridge_fit
 from fogsf.models.structures.physics_nodes import NODE_LAMBDA, TAU_MAX_S
-from fogsf.prior.design_prior import SHRINK, _spread, learn
+from fogsf.prior.design_prior import SHRINK, learn, spread
 from fogsf.prior.map_estimate import NOISE_SCALE, check_chi2
 from fogsf.prior.unit_fit import (
     StepSeries,
@@ -263,8 +263,8 @@ def prior_chi2(summaries: list[dict]) -> np.ndarray | None:
             t1, t2, tc, m = s1 - own.theta, s2 - np.outer(own.theta, own.theta), sc - own.cov, m - 1
         mu = t1 / m
         between = (t2 - m * np.outer(mu, mu)) / (m - 1)
-        loo = replace(prior, mu=mu, sigma=_spread(between, tc / m, m, SHRINK),
-                      sigma_check=_spread(between, tc / m, m, None))
+        loo = replace(prior, mu=mu, sigma=spread(between, tc / m, m, SHRINK),
+                      sigma_check=spread(between, tc / m, m, None))
         alone = fit_unit(s, k, np.exp(mu[:k]), play)  # as `map_fit` starts the check
         # the grid start's fit: the summary keeps it (without a play, of this layout)
         kept_fit = first.get(k, {}).get(str(i)) if play is None else None
