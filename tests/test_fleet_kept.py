@@ -7,7 +7,6 @@ folder that is not the unit's model is refused in one line."""
 from __future__ import annotations
 
 import json
-import math
 import shlex
 import shutil
 import sqlite3
@@ -22,14 +21,9 @@ from fogsf.cli.main import main
 from fogsf.fleet import store
 from fogsf.fleet.kept_model import KEPT_FILE
 from fogsf.fleet.store import open_store
-from tests.fleet_units import ROOT, fleet_urls, no_training
+from tests.fleet_units import ROOT, fleet_urls, no_training, same_record
 
 FAST = ["--structure", "physics", "--iters", "2", "--hysteresis", "off", "--no-progress"]
-# the kernel's float32 prediction vs the torch net's (tests/test_train.py), and the record's
-# rounding of the response and the SF curve to 0.001 ppm
-KERNEL_PPM = 0.01 + 0.001
-
-
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("logs")
@@ -50,23 +44,6 @@ def _record(fleet: str, unit: str) -> dict[str, Any]:
     with open_store(fleet, "read") as s:
         (rec,) = [u for u in s.units() if u.unit == unit]
     return rec.as_dict()
-
-
-def _same(a: Any, b: Any, path: str = "") -> list[str]:
-    """Where two records differ: to the bit, but the model's predictions (the response and
-    the SF curve after the model) within KERNEL_PPM."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        return [d for k in sorted(set(a) | set(b)) for d in _same(a.get(k), b.get(k),
-                                                                   f"{path}.{k}")]
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        return [d for i, (x, y) in enumerate(zip(a, b, strict=True))
-                for d in _same(x, y, f"{path}[{i}]")]
-    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
-        return []
-    predicted = path.startswith((".figures.response_ppm", ".figures.sf_curve.after_ppm"))
-    if predicted and isinstance(a, float) and isinstance(b, float):
-        return [] if abs(a - b) <= KERNEL_PPM else [f"{path}: {a} vs {b}"]
-    return [] if a == b else [f"{path}: {a!r} vs {b!r}"]
 
 
 def _add_untrained(argv: list[str], tmp_path: Path) -> subprocess.CompletedProcess:
@@ -95,7 +72,7 @@ def test_the_kept_model_records_what_the_trained_add_did(make_fleet, logs: dict[
     want, got = _record(fleet, "SN1"), _record(again, "SN1")
     assert want["created_utc"] and got["created_utc"]
     want["created_utc"] = got["created_utc"] = ""
-    assert _same(want, got) == []
+    assert same_record(want, got) == []
     assert got["model_dir"] == str(model.resolve()) and got["figures"]["response_ppm"]
     # the same add, trained, in that process: the training entry does raise there
     run = _add_untrained([again, *unit, "--unit", "SN2"], tmp_path)

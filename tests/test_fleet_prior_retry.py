@@ -9,6 +9,7 @@ import shlex
 import sqlite3
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -16,7 +17,7 @@ from fogsf.cli.main import main
 from fogsf.fleet import store
 from fogsf.fleet.kept_model import KEPT_FILE, retry_command
 from fogsf.fleet.store import open_store
-from tests.fleet_units import ROOT, no_training, small_line
+from tests.fleet_units import ROOT, no_training, same_record, small_line
 
 SEED = 4411
 
@@ -29,7 +30,10 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> dict:
 @pytest.mark.slow
 def test_a_fault_after_training_under_the_prior_names_the_add_that_records(
         fleet: dict, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
-    def disk_full(*args: object, **kwargs: object) -> None:
+    tried: list = []  # the record the training would have written
+
+    def disk_full(self: object, record: object, *args: object, **kwargs: object) -> None:
+        tried.append(record)
         raise sqlite3.OperationalError("database or disk is full")
 
     monkeypatch.setattr(store.FleetStore, "add", disk_full)
@@ -61,6 +65,9 @@ def test_a_fault_after_training_under_the_prior_names_the_add_that_records(
     assert rec.model_id == metrics["model_id"] and options["seed"] == 4, msg
     assert options["prior"] == {"fleet_units": ["SN0", "SN1", "SN2"],
                                 "used": metrics["prior"]["used"]}, msg
+    want, got = json.loads(json.dumps(tried[0].as_dict())), rec.as_dict()  # as stored
+    want["created_utc"] = got["created_utc"] = ""
+    assert same_record(want, got) == [], msg  # the predictions within the kernel's 0.01 ppm
 
 
 def test_a_prior_model_without_its_unit_file_is_refused(fleet: dict,
@@ -75,8 +82,22 @@ def test_a_prior_model_without_its_unit_file_is_refused(fleet: dict,
     assert "trained under the design's prior without --unit" in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize("given", [["--out", "m d"], ["--out=m d"]])
+@pytest.mark.parametrize("given", [["--out", "m d"], ["--out=m d"], ["--ou", "m d"],
+                                   ["--out", "x", "--out", "m d"]])
 def test_the_retry_drops_the_prior_and_the_folder(given: list[str]) -> None:
-    argv = ["f.fleet", "--prior", "f.fleet", "--unit", "S1", *given, "--train", "a.csv"]
-    assert retry_command(argv, {"--prior": "f.fleet", "--out": "m d"}, "m d") == (
+    argv = ["f.fleet", "--pri", "f.fleet", "--unit", "S1", *given, "--train", "a.csv"]
+    assert retry_command(argv, ("--prior", "--out"), "m d") == (
         "fogsf fleet add f.fleet --unit S1 --train a.csv --model-dir 'm d'")
+
+
+def test_the_retry_prints_no_password() -> None:
+    url = "postgresql://fogsf:s3cret@db.example/line?sslmode=require&password=s3cret"
+    got = retry_command([url, "--prior=" + url, "--unit", "S1", "--out", "m"],
+                        ("--prior", "--out"), "m")
+    assert "s3cret" not in got and "postgresql://fogsf@db.example/line?sslmode=require" in got
+
+
+def test_unit_with_every_axis_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    assert main(["train", "--prior", str(tmp_path / "f.fleet"), "--unit", "S1", "--axis", "all",
+                 "--train", "a.csv", "--out", str(tmp_path / "m")]) == 2
+    assert "give one --axis, not all" in capsys.readouterr().err

@@ -230,8 +230,8 @@ def run_add(args: argparse.Namespace) -> int:
 def _retry(args: argparse.Namespace) -> str:
     """The add that records the model kept: --model-dir for --out, add-many's lease left out."""
     argv = list(getattr(args, "_argv", None) or ["fleet", "add", args.fleet, "--unit", args.unit])
-    return kept_model.retry_command(argv[argv.index("add") + 1:],
-                                    {"--batch": args.batch, "--out": args.out}, args.out)
+    return kept_model.retry_command(argv[argv.index("add") + 1:], ("--batch", "--out"),
+                                    args.out)
 
 
 def _fit_logs(args: argparse.Namespace, out: Path) -> UnitRecord:

@@ -159,6 +159,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "unit", None) and wants_all(args):
+        raise UserError("--unit records one unit's axis in the fleet: give one --axis, not "
+                        "all")
     if wants_all(args):  # OUT/A per axis, then one summary
         return run_all(args, run, "train")
     if args.unit and not args.prior:
@@ -197,8 +200,8 @@ def _retry(args: argparse.Namespace) -> str | None:
     argv = list(getattr(args, "_argv", None) or [])
     if "train" not in argv:
         return None
-    return retry_command([args.prior, *argv[argv.index("train") + 1:]],
-                         {"--prior": args.prior, "--out": args.out}, args.out)
+    return retry_command([args.prior, *argv[argv.index("train") + 1:]], ("--prior", "--out"),
+                         args.out)
 
 
 def train_options(args: argparse.Namespace) -> TrainOptions:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from fogsf.errors import UserError
+from fogsf.fleet.names import masked
 from fogsf.fleet.plateau_unit import PLATEAU, plateau_record
 from fogsf.fleet.records import UnitRecord, after_blocks, file_sha256, unit_record
 from fogsf.logs.chamber_log import ChamberLog
@@ -51,10 +52,10 @@ INFO_FILE = "train_info.json"
 NO_ARTIFACT = ("poly", "polyrate", "mlp")  # models `fogsf train` writes no stream.json for
 
 
-def write_kept(out: Path, record: UnitRecord) -> None:
-    """KEPT_FILE in `out`: the logs and options `record`'s model was trained with. A file
-    that cannot be written (the disk full) is left out: the retry then checks what
-    metrics.json holds, and the record is not held up by it."""
+def write_kept(out: Path, record: UnitRecord) -> bool:
+    """KEPT_FILE in `out`: the logs and options `record`'s model was trained with; False
+    when it cannot be written (the disk full): the retry then checks what metrics.json
+    holds (a model fitted under a prior cannot be retried), and the record is not held up."""
     content = {"format": KEPT_FORMAT, "unit": record.unit, "model_id": record.model_id,
                "logs": [asdict(lg) for lg in record.logs],
                "options": record.fitted_with.get("options", {})}
@@ -64,20 +65,30 @@ def write_kept(out: Path, record: UnitRecord) -> None:
         os.replace(tmp, out / KEPT_FILE)
     except OSError:
         tmp.unlink(missing_ok=True)
+        return False
+    return True
 
 
-def retry_command(argv: list[str], drop: dict[str, str | None], out: str) -> str:
+def retry_command(argv: list[str], drop: tuple[str, ...], out: str) -> str:
     """`fogsf fleet add ARGV --model-dir OUT`: the add that records the model a training
-    kept in OUT; ARGV the fleet, the unit, the logs and options as given, less each option
-    of `drop` given with its value (`--opt value` or `--opt=value`: a prior, a lease, the
-    folder trained into)."""
-    for opt, value in drop.items():
-        if value is None:
-            continue
-        at = [(i, 1 if argv[i] == f"{opt}={value}" else 2) for i in range(len(argv))
-              if argv[i] == f"{opt}={value}" or argv[i:i + 2] == [opt, value]]
-        argv = argv[:at[-1][0]] + argv[sum(at[-1]):] if at else argv
-    return shlex.join(["fogsf", "fleet", "add", *argv, "--model-dir", out])
+    kept in OUT; ARGV the fleet, the unit, the logs and options as given, less every option
+    of `drop` (a prior, a lease, the folder trained into: each takes a value), however
+    given (`--opt value`, `--opt=value`, a prefix argparse took, more than once)."""
+    for opt in drop:
+        while at := _given(argv, opt):
+            argv = argv[:at[0]] + argv[at[0] + at[1]:]
+    # a fleet URL without its password: the add reads it from PGPASSWORD or ~/.pgpass
+    return shlex.join(["fogsf", "fleet", "add", *(masked(a, drop=True) for a in argv),
+                       "--model-dir", out])
+
+
+def _given(argv: list[str], opt: str) -> tuple[int, int] | None:
+    """Where `opt` first stands in argv with its value (index, tokens)."""
+    for i, a in enumerate(argv):
+        name, eq, _ = a.partition("=")
+        if len(name) > 3 and name.startswith("--") and opt.startswith(name):
+            return (i, 1) if eq else (i, min(2, len(argv) - i))
+    return None
 
 
 @dataclass
@@ -151,9 +162,9 @@ def read_kept(folder: str | Path, plateau_logs: bool) -> KeptModel:
     if kept is not None and kept.get("model_id") != metrics["model_id"]:
         kept = None  # it names another training's logs (a later one wrote the folder)
     if metrics.get("prior") and "prior" not in ((kept or {}).get("options") or {}):
-        raise UserError(f"{where}: trained under the design's prior without --unit (fogsf "
-                        "train --prior); fleet add records a unit trained alone, or one "
-                        "`train --prior --unit` kept")
+        raise UserError(f"{where}: trained under the design's prior without --unit, or its "
+                        f"{KEPT_FILE} is missing (fogsf train --prior); fleet add records a "
+                        "unit trained alone, or one `train --prior --unit` kept")
     return KeptModel(d, metrics, info, stream, kept)
 
 

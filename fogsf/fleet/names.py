@@ -51,9 +51,11 @@ def check_unit_name(name: object) -> str:
 SECRET_PARAMS = ("password", "sslpassword")
 
 
-def masked(location: str) -> str:
+def masked(location: str, drop: bool = False) -> str:
     """A fleet's location as the CLI prints it: a URL's password (in its user part or its
-    query) replaced by ***; a file path unchanged. Never print a fleet URL without it."""
+    query) replaced by ***, or with `drop` left out (a command to run again, the password
+    then from PGPASSWORD or ~/.pgpass); a file path unchanged. Never print a fleet URL
+    without it."""
     if "://" not in location:
         return location
     try:
@@ -63,11 +65,13 @@ def masked(location: str) -> str:
     netloc = parts.netloc
     user, at, host = netloc.rpartition("@")
     if at and ":" in user:
-        netloc = f"{user.split(':', 1)[0]}:***@{host}"
+        name = user.split(":", 1)[0]
+        netloc = f"{name}@{host}" if drop else f"{name}:***@{host}"
     query = parts.query
     if query:
         pairs = parse_qsl(query, keep_blank_values=True)
         if any(k in SECRET_PARAMS for k, _ in pairs):
-            query = urlencode([(k, "***" if k in SECRET_PARAMS else v) for k, v in pairs],
+            query = urlencode([(k, v) for k, v in pairs if k not in SECRET_PARAMS] if drop
+                              else [(k, "***" if k in SECRET_PARAMS else v) for k, v in pairs],
                               safe="/*")
     return urlunsplit(parts._replace(netloc=netloc, query=query))

@@ -10,7 +10,7 @@ from pathlib import Path
 from fogsf import __version__
 from fogsf.errors import UserError
 from fogsf.fleet.faults import db_faults
-from fogsf.fleet.kept_model import write_kept
+from fogsf.fleet.kept_model import KEPT_FILE, write_kept
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.plateau_unit import PLATEAU
 from fogsf.fleet.records import recorded_options, unit_record
@@ -93,14 +93,15 @@ def train_on_prior(fleet: str, unit: str | None, opts: TrainOptions,
         options = recorded_options(opts)
         options["prior"] = {"fleet_units": prior.units, "used": metrics["prior"]["used"]}
         record = unit_record(unit, train_logs, test_log, metrics, fitted, out, options)
-        write_kept(out, record)  # what the retry checks its logs and options against
+        kept = write_kept(out, record)  # what the retry checks its logs and options against
         try:
             with db_faults(masked(fleet)), open_store(fleet, "write") as store:
                 store.add(record)
         except UserError as e:  # the model is written: say where, the training not lost
-            raise UserError(f"{e}; the trained model is kept in {out}"
-                            + (f"; record it without training again: {retry}" if retry
-                               else "")) from None
+            again = (f"; record it without training again: {retry}" if retry and kept else
+                     f"; {out}/{KEPT_FILE} could not be written: train the unit again to "
+                     "record it" if retry else "")
+            raise UserError(f"{e}; the trained model is kept in {out}{again}") from None
         metrics["prior"]["recorded"] = f"recorded unit {unit} in {store.location}"
     return metrics
 

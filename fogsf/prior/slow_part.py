@@ -1,6 +1,7 @@
 """The slow-part features of `fleet check`: what a unit's recorded step series
 (`unit_summary`'s "series") says of how slowly its SF follows temperature, when its logs can
-show it. Both one-sided (`fleet.check`): only a slower response, a larger misfit flags.
+show it. All one-sided (`fleet.check`): only a slower response, a larger misfit or
+chi-square flags.
 
 - `slow.log_tau_s`: the one-node physics law's (`unit_fit.design_matrix`, k = 1) time
   constant, the mean of log tau over a grid weighted by exp(-(SSE(tau) - SSE_min) / (2
@@ -58,13 +59,16 @@ SHAPE_RANK = 6  # the others' leading directions a normal unit's curve may take 
 # n - 3 of a line of n; tuned on development designs)
 ALIGN_C = 1.0  # board temperatures (less their mean) further apart (median, C): other
 # programs
-# each feature's standard error, the least difference that is a defect (5 % in the time
-# constant, x1.35 in the misfit, x1.1 in 10 + the chi-square): else a line whose others
-# agree closely flags a normal unit
 PRIOR = SLOW + "prior_log_chi2"
 # the chi-square's offset in the log: below about 10 (the parameters' count) a chi-square's
 # differences are noise, not a defect (tuned on development designs, the probe's README)
 PRIOR_OFFSET = 10.0
+# the kept units the chi-square needs: the others of a kept unit (one less) give a mean and
+# a spread of at least 2 degrees of freedom
+MIN_KEPT = 4
+# each feature's standard error, the least difference that is a defect (5 % in the time
+# constant, x1.35 in the misfit, x1.1 in 10 + the chi-square): else a line whose others
+# agree closely flags a normal unit
 SE_FLOOR = {PREFIX: 0.05, SHAPE: 0.3, PRIOR: 0.1}
 SLOW_VERSION = 2  # a summary's "slow" of another version is computed again from its series
 
@@ -183,6 +187,9 @@ def line_features(summaries: list[dict]) -> tuple[list[dict[str, float]], list[d
     name = feature_name(rate, soak)
     feats = [{name: float(u["log_tau_s"])} for u in slow]
     chi2 = prior_chi2(summaries)
+    note = "" if chi2 is not None else (
+        "slower thermal part: the prior's chi-square not read (the line's prior could not "
+        f"be learned with {MIN_KEPT} units kept, or a unit's fit failed)")
     if chi2 is not None:
         for f, v in zip(feats, chi2.tolist(), strict=True):
             f[name.replace(PREFIX, PRIOR)] = math.log(PRIOR_OFFSET + max(v, 0.0))
@@ -191,7 +198,7 @@ def line_features(summaries: list[dict]) -> tuple[list[dict[str, float]], list[d
         name = name.replace(PREFIX, SHAPE)
         for f, v in zip(feats, shape.tolist(), strict=True):
             f[name] = v
-    return feats, [{k: SE_FLOOR[k.split(" ")[0]] for k in f} for f in feats], ""
+    return feats, [{k: SE_FLOOR[k.split(" ")[0]] for k in f} for f in feats], note
 
 
 def shape_misfit(units: list[dict]) -> np.ndarray | None:
@@ -235,21 +242,27 @@ def prior_chi2(summaries: list[dict]) -> np.ndarray | None:
     learned from the line's other units. The structure (node count, play, the units left
     out) is learned once from the whole line (`design_prior.learn`); the spread without the
     unit from the kept units' sums less its own: linear in the line, one fit a unit. None
-    when the prior cannot be learned (too few units, a series that does not read)."""
+    when the prior cannot be learned (too few units, a series that does not read), a fit
+    fails or a chi-square is not finite (one such value would void the whole line's z)."""
     try:
-        series = [StepSeries.from_dict(s["series"]) for s in summaries]
-        first: dict[int, dict[str, UnitFit]] = {}
-        for i, summary in enumerate(summaries):
-            for k, f in summary.get("fits", {}).items():
-                first.setdefault(int(k), {})[str(i)] = UnitFit.from_dict(f)
-        prior = learn({str(i): x for i, x in enumerate(series)}, first=first)
+        return _prior_chi2(summaries)
     except (KeyError, TypeError, ValueError, UserError, np.linalg.LinAlgError):
         return None
+
+
+def _prior_chi2(summaries: list[dict]) -> np.ndarray | None:
+    series = [StepSeries.from_dict(s["series"]) for s in summaries]
+    first: dict[int, dict[str, UnitFit]] = {}
+    for i, summary in enumerate(summaries):
+        for k, f in summary.get("fits", {}).items():
+            first.setdefault(int(k), {})[str(i)] = UnitFit.from_dict(f)
+    prior = learn({str(i): x for i, x in enumerate(series)}, first=first)
     k, play = prior.k, prior.play
     kept = [int(u) for u in prior.units]
-    if prior.unit_thetas is None or len(kept) < 4:
+    if prior.unit_thetas is None or len(kept) < MIN_KEPT:
         return None
-    # the kept units' fits at the prior's time constants (what `learn` averaged)
+    # the kept units' fits at the prior's time constants (`learn` keeps their thetas, not
+    # their covariances: refitted there, within a fraction of the spread of its mean)
     fits = {i: fit_unit(series[i], k, np.exp(t[:k]), play)
             for i, t in zip(kept, prior.unit_thetas, strict=True)}
     thetas = np.stack([f.theta for f in fits.values()])
@@ -273,4 +286,4 @@ def prior_chi2(summaries: list[dict]) -> np.ndarray | None:
         if grid.sse < alone.sse:
             alone = grid
         out[i] = check_chi2(s, loo, alone.sigma2 * NOISE_SCALE, alone, 30)
-    return out
+    return out if np.all(np.isfinite(out)) else None
