@@ -12,7 +12,7 @@ for the best polynomial in rate (powers to the 9th) and temperature fitted to th
 training plateaus (the family's oracle: its form chosen by the held-out error itself; every
 form fogsf weighs but the |x| term), for the plain polynomial family's oracle (every power
 of rate from x^2 to x^P, each coefficient of one degree Q in T, the rate terms' capped at
-2: the polynomial a person would fit, a weaker yardstick), and for the best linear SF (its
+quadratic: the polynomial a person would fit, a weaker yardstick), and for the best linear SF (its
 temperature degree chosen the same way).
 
   python -m benchmarks.plateaus --gyros 20000:20010 --out out/bench-plateaus.json
@@ -32,7 +32,14 @@ from fogsf.logs.measure.table_figures import temperature_groups
 from fogsf.models.rate_part import apply_rate, rate_coefficients
 from fogsf.models.stream import StreamModel
 from fogsf.models.stream_format import RATE_ARRAY
-from fogsf.models.structures.rate_forms import TEMP_SCALE_C, RateForm, design, forms, solve
+from fogsf.models.structures.rate_forms import (
+    MAX_RATE_TEMP_DEGREE,
+    TEMP_SCALE_C,
+    RateForm,
+    design,
+    forms,
+    solve,
+)
 from fogsf.sim.population import gyro_for_seed
 from fogsf.sim.rigs.plateau_tables import PlateauPlan, plateau_table, run_plateaus
 from fogsf.training.rate.plateau_model import PlateauRows, fit_plateau_model
@@ -87,8 +94,10 @@ def _take(rows: PlateauRows, idx: np.ndarray) -> PlateauRows:
 
 def plain_form(f: RateForm) -> bool:
     """A plain polynomial: every power from x^2, each coefficient of one degree in T (the
-    rate terms' capped at the family's MAX_RATE_TEMP_DEGREE), no |x| term."""
-    return not (f.odd or f.abs_term) and f.rate_temp_degree == min(f.temp_degree, 2)
+    rate terms' capped at the family's MAX_RATE_TEMP_DEGREE), no |x| term; a linear SF of
+    any degree in T among them."""
+    r = min(f.temp_degree, MAX_RATE_TEMP_DEGREE) if f.has_rate_part else 0
+    return not (f.odd or f.abs_term) and f.rate_temp_degree == r
 
 
 def oracle(train: PlateauRows, test: PlateauRows, linear: bool, plain: bool = False
