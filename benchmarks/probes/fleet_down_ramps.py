@@ -249,18 +249,36 @@ def table(results: list[dict]) -> None:
             print(f"  {r:6s} {v:7s} " + ", ".join(cells) + f"; down+end share {share:.2f}")
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
+def line_options(doc: str | None) -> argparse.ArgumentParser:
+    """The parser of a probe of new units on development lines: --designs, --fleet, --new,
+    --bayes, --out (this probe's and `fleet_prior_steps`')."""
+    ap = argparse.ArgumentParser(description=doc,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--designs", default="3,4,10,15,17,19,21,22")
     ap.add_argument("--fleet", type=int, default=20, help="units on the full program")
     ap.add_argument("--new", type=int, default=3, help="new units per design")
-    ap.add_argument("--best", action="store_true", help="the oracle play per design too")
     ap.add_argument("--bayes", type=int, default=0,
                     help="the linear Bayes oracle from this many noise-free units (0: none)")
+    ap.add_argument("--out", default=None, help="JSON of every row")
+    return ap
+
+
+def report(args: argparse.Namespace, results: list[dict], table: Callable[[], None]
+           ) -> int:
+    """The probe's table printed under its line, its rows written to --out."""
+    print(f"designs {args.designs}, fleet of {args.fleet}, {args.new} new units each")
+    table()
+    if args.out:
+        with open(args.out, "w") as fh:
+            json.dump(results, fh, indent=1)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = line_options(__doc__)
+    ap.add_argument("--best", action="store_true", help="the oracle play per design too")
     ap.add_argument("--widths", default=None,
                     help="play widths (C) of the `+` variants, e.g. 2:16 (default: none)")
-    ap.add_argument("--out", default=None, help="JSON of every row")
     args = ap.parse_args(argv)
     widths = fp.PLAY_WIDTHS_C
     if args.widths:
@@ -268,12 +286,7 @@ def main(argv: list[str] | None = None) -> int:
         widths = tuple(float(w) for w in range(lo, hi + 1))
     results = [probe_design(int(d), args.fleet, args.new, args.best, widths, args.bayes)
                for d in args.designs.split(",")]
-    print(f"designs {args.designs}, fleet of {args.fleet}, {args.new} new units each")
-    table(results)
-    if args.out:
-        with open(args.out, "w") as fh:
-            json.dump(results, fh, indent=1)
-    return 0
+    return report(args, results, lambda: table(results))
 
 
 if __name__ == "__main__":

@@ -28,14 +28,18 @@ from what `train --prior` exports (`law`: `function_fit(...).law()` at NOISE_SCA
 
 from __future__ import annotations
 
-import argparse
-import json
 import time
 
 import numpy as np
 
 from benchmarks.fleet import FULL, NEW_FIRST, fleet_series, simulate_run
-from benchmarks.probes.fleet_down_ramps import bayes_rows, own_fit, split
+from benchmarks.probes.fleet_down_ramps import (
+    bayes_rows,
+    line_options,
+    own_fit,
+    report,
+    split,
+)
 from fogsf.models.reference import expand
 from fogsf.prior import design_prior as fp
 from fogsf.prior.map_estimate import map_fit
@@ -158,30 +162,18 @@ def table(results: list[dict], runs: tuple[str, ...]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--designs", default="3,4,10,15,17,19,21,22")
-    ap.add_argument("--fleet", type=int, default=20, help="units on the full program")
-    ap.add_argument("--new", type=int, default=3, help="new units per design")
+    ap = line_options(__doc__)
     ap.add_argument("--runs", default=",".join(RUNS))
-    ap.add_argument("--bayes", type=int, default=0,
-                    help="the linear Bayes oracle from this many noise-free units (0: none)")
     ap.add_argument("--true-noise", action="store_true",
                     help="the `tn` variants (the run's true noise; a noise-free twin each)")
     ap.add_argument("--k", type=int, default=None,
                     help="the design's node count (default: as `learn` chooses it)")
-    ap.add_argument("--out", default=None, help="JSON of every row")
     args = ap.parse_args(argv)
     runs = tuple(args.runs.split(","))
     results = [probe_design(int(d), args.fleet, args.new, runs, args.bayes, args.true_noise,
                              args.k)
                for d in args.designs.split(",")]
-    print(f"designs {args.designs}, fleet of {args.fleet}, {args.new} new units each")
-    table(results, runs)
-    if args.out:
-        with open(args.out, "w") as fh:
-            json.dump(results, fh, indent=1)
-    return 0
+    return report(args, results, lambda: table(results, runs))
 
 
 if __name__ == "__main__":
