@@ -56,21 +56,28 @@ def test_a_worker_outliving_its_batch_records_nothing(logs: list[Path], tmp_path
     the lease's check is the same SQL on both backends, tested on both below."""
     fleet = FLEETS["sqlite"](tmp_path)
     ready = tmp_path / "lease-id"
-    holder = subprocess.Popen(  # the batch: holds the lease until killed
+    # The batch: holds the lease until killed. Its id is written whole, then renamed into
+    # place: `ready` written in place exists empty a moment, and an empty --batch was the
+    # test's own race (a worker given no batch id, not a worker outliving its batch).
+    holder = subprocess.Popen(
         [sys.executable, "-c", "import sys, time, pathlib\n"
          "from fogsf.fleet.lease import BatchLease\n"
          "with BatchLease(sys.argv[1]) as lease:\n"
-         "    pathlib.Path(sys.argv[2]).write_text(lease.id)\n"
+         "    part = pathlib.Path(sys.argv[2] + '.part')\n"
+         "    part.write_text(lease.id)\n"
+         "    part.replace(sys.argv[2])\n"
          "    time.sleep(600)\n", fleet, str(ready)])
     marker = tmp_path / "in-transaction"
     worker = None
     try:
         wait_for(ready.exists, 60, "the lease was never taken")
+        lease_id = ready.read_text()
+        assert len(lease_id) == 32, f"not a whole lease id: {lease_id!r}"
         go = tmp_path / "go"  # the worker's transaction waits for the batch's death
         env = pause_in_add(tmp_path, marker, 120, go)
         worker = subprocess.Popen(
             [sys.executable, "-m", "fogsf", "fleet", "add", fleet, "--unit", "W1",
-             "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", ready.read_text()],
+             "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", lease_id],
             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         wait_for(lambda: marker.exists() or worker.poll() is not None, 120,
                  "the worker never reached its transaction")
@@ -84,8 +91,22 @@ def test_a_worker_outliving_its_batch_records_nothing(logs: list[Path], tmp_path
                 p.kill()
                 p.wait()
     assert marker.exists(), f"the worker never paused in its transaction: {said}"
-    assert worker.returncode == 2 and "not recorded" in said, said
+    # Refused because its batch's process died (its row still there), not for naming no
+    # batch ("was stopped"): that refusal would pass here without testing the kill.
+    assert worker.returncode == 2 and "is gone" in said and "not recorded" in said, said
     assert count_units(fleet) == (0, "ok"), said
+
+
+@pytest.mark.slow
+def test_an_empty_batch_id_is_refused(logs: list[Path], tmp_path: Path) -> None:
+    """`fleet add --batch ''` names no running batch: refused like a stopped batch's
+    unit, never recorded as if no batch were given."""
+    fleet = FLEETS["sqlite"](tmp_path)
+    r = subprocess.run([sys.executable, "-m", "fogsf", "fleet", "add", fleet, "--unit", "E1",
+                        "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", ""],
+                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
+    assert r.returncode == 2 and "was stopped" in r.stdout, r.stdout
+    assert count_units(fleet) == (0, "ok"), r.stdout
 
 
 @pytest.mark.parametrize("make_fleet", fleet_urls())

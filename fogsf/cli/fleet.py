@@ -211,7 +211,9 @@ def run_add(args: argparse.Namespace) -> int:
                 kept_model.write_kept(out, record)
     try:
         with db_faults(masked(args.fleet)), open_store(args.fleet, "create") as store:
-            store.add(record, replace=args.replace, guard=None if not args.batch else
+            # Any --batch given is checked, an empty one too (no such batch: refused): a
+            # unit of a batch is never recorded unguarded because its id came out blank.
+            store.add(record, replace=args.replace, guard=None if args.batch is None else
                       lambda s: check_batch(s, args.batch))
             n = len(store.units())
     except UserError as e:  # the hour of training is not lost with the record
