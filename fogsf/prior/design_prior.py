@@ -2,9 +2,9 @@
 
 From the step series of the fleet's units (`unit_fit.StepSeries`, kept in the fleet
 database by `unit_summary`):
-1. the structure: the node count K (1-3) is the one with the least total held-out
-   misfit over the units (`choose_k`: each unit's fit at K predicts the unit's own
-   program, every unit's fit at K its score; the smallest K within STRUCTURE_TOLERANCE);
+1. the structure: the node count K (1-3) is the one with the least misfit over the units
+   (`choose_k`: each unit's fit at K on its own program, in sample, the median over units;
+   the smallest K within STRUCTURE_TOLERANCE of the best);
 2. every unit fitted at K, twice: once from the grid start, then from the fleet's median
    time constants, so every unit's node j is the design's node j;
 3. units unlike the line left out: a unit whose fit lies outside the others' spread
@@ -53,7 +53,10 @@ from fogsf.prior.unit_fit import (
 )
 
 K_CHOICES = (1, 2, 3)
-STRUCTURE_TOLERANCE = 0.05
+# one more node is taken when it lowers the units' misfit by more than this share: a node
+# that gains a few per cent on the fleet's slow program is what holds a new unit's fast loop
+# (benchmarks/probes/README.md, "fleet_structure_choice")
+STRUCTURE_TOLERANCE = 0.03
 # a unit is left out when a parameter lies this many robust scales from the units' median
 # (`robust_keep`)
 OUTLIER_Z = 4.0
