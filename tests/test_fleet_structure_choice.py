@@ -43,7 +43,7 @@ def test_a_node_that_gains_four_per_cent_is_taken(by_sse: None) -> None:
 
 
 def test_a_node_that_gains_little_is_left_out(by_sse: None) -> None:
-    """Within the tolerance (a 1-2 % gain, as most designs' third node) the smaller K."""
+    """Within the tolerance (a gain of 1-2 %) the smaller K."""
     rng = np.random.default_rng(SEED + 1)
     k2 = rng.uniform(40.0, 200.0, 12)
     gain = rng.uniform(0.01, 0.02, 12)

@@ -182,6 +182,8 @@ def run(args: argparse.Namespace) -> int:
 def run_add(args: argparse.Namespace) -> int:
 
     check_unit_name(args.unit)  # before anything is opened or trained
+    if args.batch is not None and not args.batch.strip():  # add-many's id, never blank
+        raise UserError("--batch names no batch: the unit is not recorded")
     if getattr(args, "prior", None):
         raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
                         "under the design's prior and record it: fogsf train --prior FLEET "
@@ -211,8 +213,7 @@ def run_add(args: argparse.Namespace) -> int:
                 kept_model.write_kept(out, record)
     try:
         with db_faults(masked(args.fleet)), open_store(args.fleet, "create") as store:
-            # Any --batch given is checked, an empty one too (no such batch: refused): a
-            # unit of a batch is never recorded unguarded because its id came out blank.
+            # a unit of a batch (any --batch given) is recorded only while its batch runs
             store.add(record, replace=args.replace, guard=None if args.batch is None else
                       lambda s: check_batch(s, args.batch))
             n = len(store.units())
