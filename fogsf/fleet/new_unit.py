@@ -24,7 +24,7 @@ from fogsf.training.with_prior import prior_from_summaries, train_with_prior
 
 # what a cached prior was learned by: a prior another fogsf, or another method, learned is
 # not read (bump it when the prior's learning changes)
-PRIOR_METHOD = 2
+PRIOR_METHOD = 3
 
 
 def design_prior(fleet: str, unit: str | None = None) -> DesignPrior:
