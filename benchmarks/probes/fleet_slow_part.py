@@ -20,8 +20,12 @@ internal part an SF factor reads has a time constant DEFECT_TAU_FACTOR (2.5) x t
   effective time constant, the curve misfit and the chi-square against the prior of the
   line's others; the check's machinery on them and nothing else; records hold the units'
   summaries, no training): on the line with the defective unit and on `--normal-lines M`
-  normal lines a design (cheap: many lines for their false-flag rate; about 3 s a line of
-  9, the prior's chi-square 0.1-0.3 s a unit, single-threaded BLAS).
+  normal lines a design (cheap: many lines for their false-flag rate).
+- time (`--time 100,500`): the slow-part features' cost on soak lines of those sizes of the
+  first design (one unit in 50 with the slower part), the design's prior and the
+  chi-square apart (summaries kept in `--time-cache`).
+`--records DIR` keeps `--check`'s trained lines (records, not models) and reads them on
+another run: the check's figures again without training.
 
 Programs: `loop2h` (2 C/min up and down, -20..40 C, 20 min soaks: the check's tests) and
 `soak1h` (1 C/min, 60 min soaks). Tune on development designs (`--designs 1:61`), report
@@ -167,7 +171,8 @@ def check_line(design_seed: int, name: str, n_normal: int) -> dict:
     is the defective unit flagged, and is any unit of the normal units' line."""
     from fogsf.fleet.check import check_fleet
 
-    units = trained_line(line_configs(design_seed, n_normal, 0), name)
+    units = trained_line(line_configs(design_seed, n_normal, 0), name,
+                         _kept_as(design_seed, name, n_normal, 0))
     bad = units[-1].unit
     return {"found": bad in check_fleet(units).flagged,
             "normal_flagged": len(check_fleet(units[:-1]).flagged)}
@@ -177,19 +182,29 @@ def normal_line(design_seed: int, name: str, n_normal: int, line: int) -> bool:
     """Is a line of n_normal + 1 normal units (line `line` >= 1) flagged anywhere?"""
     from fogsf.fleet.check import check_fleet
 
-    return bool(check_fleet(trained_line(line_configs(design_seed, n_normal, line),
-                                         name)).flagged)
+    return bool(check_fleet(trained_line(line_configs(design_seed, n_normal, line), name,
+                                         _kept_as(design_seed, name, n_normal, line))).flagged)
 
 
-def trained_line(cfgs: list, name: str) -> list:
-    """The units `cfgs` on program `name`, trained as the check's tests train them."""
+RECORDS: list[str] = [""]  # --records: trained lines kept in this directory ("": not kept)
+
+
+def _kept_as(design_seed: int, name: str, n_normal: int, line: int) -> str:
+    return f"{RECORDS[0]}/{name}-d{design_seed}-n{n_normal}-l{line}.json" if RECORDS[0] else ""
+
+
+def trained_line(cfgs: list, name: str, kept: str = "") -> list:
+    """The units `cfgs` on program `name`, trained as the check's tests train them (read
+    from `kept` when it holds them, else kept there: the records, not the models)."""
     import tempfile
     from pathlib import Path
 
-    from fogsf.fleet.records import unit_record
+    from fogsf.fleet.records import UnitRecord, unit_record
     from fogsf.training.options import TrainOptions
     from fogsf.training.train import run_training
 
+    if kept and Path(kept).is_file():
+        return [UnitRecord.from_dict(d) for d in json.loads(Path(kept).read_text())]
     units = []
     with tempfile.TemporaryDirectory() as tmp:
         for i, c in enumerate(cfgs):
@@ -199,6 +214,9 @@ def trained_line(cfgs: list, name: str) -> list:
                                            [log], None, out)
             units.append(unit_record(f"SN{i:03d}", [log], None, metrics, fitted, out,
                                      dict(CHECK_TRAIN), keep_dir=False))
+    if kept:
+        Path(kept).parent.mkdir(parents=True, exist_ok=True)
+        Path(kept).write_text(json.dumps([u.as_dict() for u in units]))
     return units
 
 
@@ -231,6 +249,61 @@ def feature_lines(design_seed: int, name: str, n_normal: int, lines: int) -> dic
     return {"found": found, "normal_lines": lines + 1, "normal_lines_flagged": flagged}
 
 
+def line_summaries(design_seed: int, n: int, cache: str | None) -> list[dict]:
+    """Summaries (`prior.unit_summary.summarize_unit`, as a record keeps them) of n units of a
+    design on `soak1h`, unit 50 j + 49 defective (the slower part), kept in `cache`."""
+    from pathlib import Path
+
+    from fogsf.prior.unit_summary import summarize_unit
+
+    path = Path(cache) if cache else None
+    got: list[dict] = json.loads(path.read_text()) if path and path.is_file() else []
+    for i in range(len(got), n):
+        c = defective_unit(design_seed, FIRST_UNIT, "tau") if i % 50 == 49 else \
+            unit_for(design_seed, FIRST_UNIT + 1 + i)
+        got.append(summarize_unit([run(c, "soak1h", 200 + i).log]))
+    if path and n > 0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(got))
+    return got[:n]
+
+
+def timing(design_seed: int, sizes: list[int], cache: str | None) -> list[dict]:
+    """Wall and CPU seconds of the slow-part features of a soak line of each size (`slow_part
+    .line_features`, every unit's summary holding its fits and "slow"), of the design's
+    prior alone (`design_prior.learn`, what the chi-square starts from) and of the
+    chi-square (`slow_part.prior_chi2`, the prior included)."""
+    import time
+
+    from fogsf.prior.design_prior import learn
+    from fogsf.prior.slow_part import line_features, prior_chi2
+    from fogsf.prior.unit_fit import StepSeries, UnitFit
+
+    everything = line_summaries(design_seed, max(sizes), cache)
+    rows = []
+    for n in sizes:
+        summ = everything[:n]
+        first: dict[int, dict[str, UnitFit]] = {}
+        for i, x in enumerate(summ):
+            for k, f in x["fits"].items():
+                first.setdefault(int(k), {})[str(i)] = UnitFit.from_dict(f)
+        series = {str(i): StepSeries.from_dict(x["series"]) for i, x in enumerate(summ)}
+        row: dict = {"design": design_seed, "units": n}
+        for name in ("learn", "prior_chi2", "line_features"):
+            t0, c0 = time.perf_counter(), time.process_time()
+            if name == "learn":
+                learn(series, first=first)
+            elif name == "prior_chi2":
+                prior_chi2(summ)
+            else:
+                line_features(summ)
+            row[f"{name}_s"] = round(time.perf_counter() - t0, 2)
+            row[f"{name}_cpu_s"] = round(time.process_time() - c0, 2)
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--designs", default="20000:20010", help="design seeds FIRST:END")
@@ -243,10 +316,22 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --check or --feature: this many lines of normal units a design")
     ap.add_argument("--feature", type=int, default=0,
                     help="the slow-part feature alone on lines of this many normal units")
+    ap.add_argument("--time", default="",
+                    help="only time the slow-part features on soak lines of these sizes "
+                         "(e.g. 100,500) of the first design")
+    ap.add_argument("--time-cache", default="out/fleet-slow-part-line.json",
+                    help="with --time: the line's unit summaries kept here between runs")
+    ap.add_argument("--records", default="",
+                    help="with --check: keep the trained lines' records in this directory and "
+                         "read them from there on another run (no training again)")
     ap.add_argument("--no-oracle", action="store_true")
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
     lo, hi = (int(v) for v in a.designs.split(":"))
+    if a.time:
+        timing(lo, [int(v) for v in a.time.split(",")], a.time_cache)
+        return 0
+    RECORDS[0] = a.records
     rows = []
     for name in a.programs.split(","):
         for d in range(lo, hi):

@@ -342,7 +342,7 @@ def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
 
 # what a cached check was computed by: a result another fogsf, or another method, computed
 # is not read (bump it when the check's method changes)
-CHECK_METHOD = 6
+CHECK_METHOD = 7
 
 
 def checked(fleet: str, false_alarm: float = DEFAULT_FALSE_ALARM, with_units: bool = False

@@ -147,6 +147,12 @@ def map_fit(series: StepSeries, prior: DesignPrior, max_iter: int = 30,
                   _shares(cov, prior.sigma, k, prior.play is not None), alone.theta)
 
 
+def check_problem(series: StepSeries, prior: DesignPrior, s2: float) -> _Problem:
+    """The check's objective J_check: the prior's spread shrunk toward its diagonal
+    (`DesignPrior.sigma_check`); `coef(log_tau)` its minimum over the law's coefficients."""
+    return _Problem(series, DesignPrior(**{**prior.__dict__, "sigma": prior.sigma_check}), s2)
+
+
 def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit,
                max_iter: int) -> float:
     """min_theta J_check(theta) - |y - f(theta_alone)|^2 / s^2, J_check the objective with
@@ -154,8 +160,7 @@ def check_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit
     check reads (`map_fit`: NOISE_SCALE times the unit's own estimate): for a linear model
     (theta_alone - mu)^T (Sigma_check + C)^-1 (theta_alone - mu), the unit's data-only fit
     against the design's prior predictive, without inverting the short run's C."""
-    wide = DesignPrior(**{**prior.__dict__, "sigma": prior.sigma_check})
-    pb = _Problem(series, wide, s2)
+    pb = check_problem(series, prior, s2)
     best = min(float(r @ r) for r in (pb.coef(_lm(pb, st, max_iter)[:prior.k])[1]
                                        for st in (prior.mu[:prior.k].copy(),
                                                   np.sort(alone.theta[:prior.k]))))

@@ -27,17 +27,22 @@ from dataclasses import replace
 import numpy as np
 
 from fogsf.errors import UserError
+from fogsf.models.structures.hysteresis import ridge_fit_free
 from fogsf.models.structures.node_fit import ridge_fit
 from fogsf.models.structures.physics_nodes import NODE_LAMBDA, TAU_MAX_S
-from fogsf.prior.design_prior import SHRINK, learn, spread
-from fogsf.prior.map_estimate import NOISE_SCALE, check_chi2
+from fogsf.prior.design_prior import SHRINK, DesignPrior, learn, spread
+from fogsf.prior.map_estimate import NOISE_SCALE, check_problem
 from fogsf.prior.unit_fit import (
+    Play,
     StepSeries,
     UnitFit,
     correlation_factor,
     design_matrix,
+    estimation_cov,
     fit_unit,
+    jacobian,
     n_coef,
+    play_index,
 )
 
 # a soak shorter than this after a ramp cannot show a slower part: a 2 h loop's 20 min soaks
@@ -70,6 +75,8 @@ MIN_KEPT = 4
 # constant, x1.35 in the misfit, x1.1 in 10 + the chi-square): else a line whose others
 # agree closely flags a normal unit
 SE_FLOOR = {PREFIX: 0.05, SHAPE: 0.3, PRIOR: 0.1}
+# the time constants the check's objective is read at lie here (s; `map_estimate._lm`'s)
+CHECK_TAU_S = (20.0, 14400.0)
 SLOW_VERSION = 2  # a summary's "slow" of another version is computed again from its series
 
 
@@ -238,16 +245,77 @@ def shape_misfit(units: list[dict]) -> np.ndarray | None:
 
 
 def prior_chi2(summaries: list[dict]) -> np.ndarray | None:
-    """Each unit's check chi-square (`map_estimate.check_chi2`) against the design's prior
-    learned from the line's other units. The structure (node count, play, the units left
-    out) is learned once from the whole line (`design_prior.learn`); the spread without the
-    unit from the kept units' sums less its own: linear in the line, one fit a unit. None
-    when the prior cannot be learned (too few units, a series that does not read), a fit
-    fails or a chi-square is not finite (one such value would void the whole line's z)."""
+    """Each unit's check chi-square against the design's prior learned from the line's
+    other units (`short_search_chi2`: `map_estimate.check_chi2`'s, its search over the
+    time constants made short). The structure (node count, play, the units left out) and
+    the kept units' fits are learned once from the whole line (`design_prior.learn`); the
+    spread without the unit from the kept units' sums less its own. None when the prior
+    cannot be learned (too few units, a series that does not read), a fit fails or a
+    chi-square is not finite (one such value would void the whole line's z)."""
     try:
         return _prior_chi2(summaries)
     except (KeyError, TypeError, ValueError, UserError, np.linalg.LinAlgError):
         return None
+
+
+def fit_at(series: StepSeries, k: int, taus_s: np.ndarray, play: Play | None) -> UnitFit:
+    """`unit_fit.fit_unit`'s fit at given time constants (its coefficients, covariance and
+    noise there, no search): a kept unit's fit at the time constants `learn` found for it."""
+    x = design_matrix(series, taus_s, play)
+    f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA) if play is None else \
+        ridge_fit_free(x[:, 1:], series.y, NODE_LAMBDA, [play_index(k) - k - 1])
+    theta = np.concatenate([np.log(taus_s), [f.intercept], f.coef])
+    resid = series.y - x @ theta[k:]
+    sse = float(resid @ resid)
+    white = sse / max(1, series.y.size - theta.size)
+    return UnitFit(k, theta, estimation_cov(series, theta, k, white, play),
+                   white * correlation_factor(resid, series.step_s), sse, series.y.size)
+
+
+def line_sums(thetas: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                              np.ndarray, int]:
+    """The sums `leave_one_out` reads: of the rows of `thetas`, of their outer products and
+    of `covs`, and the count (once a line)."""
+    return thetas.sum(axis=0), thetas.T @ thetas, covs.sum(axis=0), thetas.shape[0]
+
+
+def leave_one_out(sums: tuple[np.ndarray, np.ndarray, np.ndarray, int],
+                  own: tuple[np.ndarray, np.ndarray] | None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """(mean, covariance (ddof 1), mean estimation covariance, count) of the units of
+    `line_sums` other than `own` (its theta and covariance; None: all of them), from the
+    sums less its own: O(p^2) a unit, where a pass over the others is O(N p^2)."""
+    t1, t2, tc, m = sums
+    if own is not None:
+        t, c = own
+        t1, t2, tc, m = t1 - t, t2 - np.outer(t, t), tc - c, m - 1
+    mu = t1 / m
+    return mu, (t2 - m * np.outer(mu, mu)) / (m - 1), tc / m, m
+
+
+def short_search_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: UnitFit,
+                      play: Play | None) -> float:
+    """`map_estimate.check_chi2` (min_theta J_check(theta) - |y - f(theta_a)|^2 / s2, theta_a
+    the unit's own fit) with the search over the time constants made short: the objective
+    with the law's coefficients at their optimum (closed form) read at three time constants,
+    the least kept: the fit's, the prior's mean, and one Gauss-Newton step from the fit (the
+    model linearised there, f(theta_a + d) = f(theta_a) + J d: its minimum over d is at
+    A d = g, A = J^T J / s2 + P, g = J^T r / s2 - P (theta_a - mu), P = Sigma_check^-1, r the
+    fit's residual). The first two are `check_chi2`'s starts, which its search descends
+    from; the step reaches its minimum where the model is near linear over the prior's
+    spread. The linearised value itself is not read: where a normal unit's time constants lie
+    far from the others' it overstates the chi-square by what a move of them takes away."""
+    k, th = prior.k, alone.theta
+    lo, hi = math.log(CHECK_TAU_S[0]), math.log(CHECK_TAU_S[1])
+    pb = check_problem(series, prior, s2)
+    prec = pb.lmat.T @ pb.lmat  # L^T L = P
+    jac = jacobian(series, th, k, play=play)
+    r = series.y - jac[:, k:] @ th[k:]  # the Jacobian's last columns: the design matrix
+    g = jac.T @ r / s2 - prec @ (th - prior.mu)
+    step = np.linalg.solve(jac.T @ jac / s2 + prec, g)
+    starts = (th[:k], prior.mu[:k], th[:k] + step[:k])
+    best = min(float(r @ r) for r in (pb.coef(np.sort(np.clip(t, lo, hi)))[1] for t in starts))
+    return best - alone.sse / s2
 
 
 def _prior_chi2(summaries: list[dict]) -> np.ndarray | None:
@@ -261,29 +329,28 @@ def _prior_chi2(summaries: list[dict]) -> np.ndarray | None:
     kept = [int(u) for u in prior.units]
     if prior.unit_thetas is None or len(kept) < MIN_KEPT:
         return None
-    # the kept units' fits at the prior's time constants (`learn` keeps their thetas, not
-    # their covariances: refitted there, within a fraction of the spread of its mean)
-    fits = {i: fit_unit(series[i], k, np.exp(t[:k]), play)
-            for i, t in zip(kept, prior.unit_thetas, strict=True)}
-    thetas = np.stack([f.theta for f in fits.values()])
-    s1, s2 = thetas.sum(axis=0), thetas.T @ thetas
-    sc = np.sum([f.cov for f in fits.values()], axis=0)
+    # the kept units' fits at the time constants `learn` found for them (its unit_thetas
+    # keep them; the better of its two starts, the play fitted in): no search again
+    fits = [fit_at(series[i], k, np.exp(t[:k]), play)
+            for i, t in zip(kept, prior.unit_thetas, strict=True)]
+    sums = line_sums(np.stack([f.theta for f in fits]), np.stack([f.cov for f in fits]))
+    where = {i: j for j, i in enumerate(kept)}
     out = np.empty(len(series))
     for i, s in enumerate(series):
-        own = fits.get(i)
-        t1, t2, tc, m = s1, s2, sc, len(kept)  # the others: the kept units less the unit
-        if own is not None:
-            t1, t2, tc, m = s1 - own.theta, s2 - np.outer(own.theta, own.theta), sc - own.cov, m - 1
-        mu = t1 / m
-        between = (t2 - m * np.outer(mu, mu)) / (m - 1)
-        loo = replace(prior, mu=mu, sigma=spread(between, tc / m, m, SHRINK),
-                      sigma_check=spread(between, tc / m, m, None))
-        alone = fit_unit(s, k, np.exp(mu[:k]), play)  # as `map_fit` starts the check
-        # the grid start's fit: the summary keeps it (without a play, of this layout)
-        kept_fit = first.get(k, {}).get(str(i)) if play is None else None
-        grid = kept_fit if kept_fit is not None and kept_fit.theta.size == k + n_coef(k) \
-            else fit_unit(s, k, play=play)
-        if grid.sse < alone.sse:
+        j = where.get(i)
+        mu, between, noise, m = leave_one_out(
+            sums, None if j is None else (fits[j].theta, fits[j].cov))
+        loo = replace(prior, mu=mu, sigma=spread(between, noise, m, SHRINK),
+                      sigma_check=spread(between, noise, m, None))
+        # the unit's own fit: a kept unit's `learn` made; one left out fitted from the
+        # others' time constants, as `map_fit` starts the check
+        alone = fits[j] if j is not None else fit_unit(s, k, np.exp(mu[:k]), play)
+        # the grid start's fit: the summary keeps it (without a play, of this layout); with
+        # a play `learn`'s fit of a kept unit started from it already
+        grid = first.get(k, {}).get(str(i)) if play is None else None
+        if grid is None or grid.theta.size != k + n_coef(k):
+            grid = fit_unit(s, k, play=play) if j is None else None
+        if grid is not None and grid.sse < alone.sse:
             alone = grid
-        out[i] = check_chi2(s, loo, alone.sigma2 * NOISE_SCALE, alone, 30)
+        out[i] = short_search_chi2(s, loo, alone.sigma2 * NOISE_SCALE, alone, play)
     return out if np.all(np.isfinite(out)) else None
