@@ -4,7 +4,7 @@ and a 2 h loop (20 min soaks) or a record without a step series is said not chec
 
 The units are simulated (`fogsf.sim.fleet_units`) and recorded with their summaries only (no
 training: the features read the step series; half the records keep the slow-part summary,
-half are as an older fogsf wrote them). The features find about 16 of 40 designs at
+half are as an older fogsf wrote them). The features find about 17 of 40 designs at
 2.5 x (docs/fleet.md), so the design is drawn from development designs where they found the
 defect in tuning; unit indices, noise seeds and the factor (3-4 x) from a seeded generator,
 printed on failure."""
@@ -132,12 +132,10 @@ def test_the_program_is_read_from_the_board_temperature_whatever_its_start() -> 
             assert abs(read - soak) < 60.0 and abs(rate - 1.0) < 0.05, (offset, soak, read)
 
 
-def test_the_leave_one_out_moments_are_the_others_and_a_kept_fit_is_fit_units() -> None:
-    """The spread without a unit is read from the kept units' sums less its own, and a kept
-    unit's fit is rebuilt at its time constants without a search: both must equal what a
-    direct computation gives."""
-    from fogsf.prior.slow_part import fit_at, leave_one_out, line_sums
-    from fogsf.prior.unit_fit import fit_unit
+def test_the_leave_one_out_moments_are_the_others() -> None:
+    """The spread without a unit is read from the kept units' sums less its own: it must
+    equal what a direct computation over the others gives."""
+    from fogsf.prior.slow_part import leave_one_out, line_sums
 
     rng = np.random.default_rng(SEED)
     thetas = rng.normal(size=(7, 5)) * rng.uniform(0.1, 10.0, 5)
@@ -150,14 +148,6 @@ def test_the_leave_one_out_moments_are_the_others_and_a_kept_fit_is_fit_units() 
         np.testing.assert_allclose(mu, thetas[o].mean(axis=0), rtol=1e-12)
         np.testing.assert_allclose(between, np.cov(thetas[o].T, ddof=1), rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(noise, covs[o].mean(axis=0), rtol=1e-12)
-    units, _ = _line(np.random.default_rng(SEED), designs=(1,))
-    series = StepSeries.from_dict(units[0].summary["series"])
-    for k in (1, 2):
-        full = fit_unit(series, k)  # the grid start's time constants: no search after it
-        got = fit_at(series, k, full.taus_s, None)
-        np.testing.assert_allclose(got.theta, full.theta, rtol=1e-9, atol=1e-12)
-        np.testing.assert_allclose(got.cov, full.cov, rtol=1e-7, atol=1e-15)
-        assert got.sigma2 == pytest.approx(full.sigma2, rel=1e-9)
 
 
 def _full_search_chi2(summaries: list[dict]) -> np.ndarray:
@@ -211,6 +201,8 @@ def test_the_short_search_gives_the_full_searchs_verdicts(monkeypatch: pytest.Mo
         assert cheap is not None, say
         lc, lf = np.log(10.0 + np.maximum(cheap, 0.0)), np.log(10.0 + np.maximum(full, 0.0))
         assert np.max(np.abs(lc - lf)) < 0.5, f"{say}: {np.round(lc - lf, 3).tolist()}"
+        if len(line) > N_NORMAL:  # the slower unit (last) the farthest by both
+            assert int(np.argmax(cheap)) == int(np.argmax(full)) == N_NORMAL, say
         got = check_fleet(line).flagged
         monkeypatch.setattr(slow_part, "prior_chi2", lambda s, v=full: v)
         assert check_fleet(line).flagged == got, f"{say}: {got}"

@@ -323,7 +323,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="with --time: the line's unit summaries kept here between runs")
     ap.add_argument("--records", default="",
                     help="with --check: keep the trained lines' records in this directory and "
-                         "read them from there on another run (no training again)")
+                         "read them from there on another run (no training again; named by "
+                         "design and line only: clear it when training changes)")
     ap.add_argument("--no-oracle", action="store_true")
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fogsf.models.structures.physics_nodes import TAU_MAX_S, TAU_MIN_S
 from fogsf.prior.design_prior import DesignPrior
 from fogsf.prior.unit_fit import StepSeries, UnitFit, design_matrix, fit_unit, jacobian
 
@@ -187,7 +188,7 @@ def _shares(cov: np.ndarray, sigma: np.ndarray, k: int, play: bool = False
 
 
 def _lm(pb: _Problem, log_tau0: np.ndarray, max_iter: int) -> np.ndarray:
-    lo, hi = math.log(20.0), math.log(14400.0)
+    lo, hi = math.log(TAU_MIN_S), math.log(TAU_MAX_S)
     x = np.clip(log_tau0, lo, hi)
     theta, r = pb.coef(x)
     sse = float(r @ r)

@@ -27,9 +27,8 @@ from dataclasses import replace
 import numpy as np
 
 from fogsf.errors import UserError
-from fogsf.models.structures.hysteresis import ridge_fit_free
 from fogsf.models.structures.node_fit import ridge_fit
-from fogsf.models.structures.physics_nodes import NODE_LAMBDA, TAU_MAX_S
+from fogsf.models.structures.physics_nodes import NODE_LAMBDA, TAU_MAX_S, TAU_MIN_S
 from fogsf.prior.design_prior import SHRINK, DesignPrior, learn, spread
 from fogsf.prior.map_estimate import NOISE_SCALE, check_problem
 from fogsf.prior.unit_fit import (
@@ -38,11 +37,10 @@ from fogsf.prior.unit_fit import (
     UnitFit,
     correlation_factor,
     design_matrix,
-    estimation_cov,
+    fit_at,
     fit_unit,
     jacobian,
     n_coef,
-    play_index,
 )
 
 # a soak shorter than this after a ramp cannot show a slower part: a 2 h loop's 20 min soaks
@@ -75,8 +73,6 @@ MIN_KEPT = 4
 # constant, x1.35 in the misfit, x1.1 in 10 + the chi-square): else a line whose others
 # agree closely flags a normal unit
 SE_FLOOR = {PREFIX: 0.05, SHAPE: 0.3, PRIOR: 0.1}
-# the time constants the check's objective is read at lie here (s; `map_estimate._lm`'s)
-CHECK_TAU_S = (20.0, 14400.0)
 SLOW_VERSION = 2  # a summary's "slow" of another version is computed again from its series
 
 
@@ -258,20 +254,6 @@ def prior_chi2(summaries: list[dict]) -> np.ndarray | None:
         return None
 
 
-def fit_at(series: StepSeries, k: int, taus_s: np.ndarray, play: Play | None) -> UnitFit:
-    """`unit_fit.fit_unit`'s fit at given time constants (its coefficients, covariance and
-    noise there, no search): a kept unit's fit at the time constants `learn` found for it."""
-    x = design_matrix(series, taus_s, play)
-    f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA) if play is None else \
-        ridge_fit_free(x[:, 1:], series.y, NODE_LAMBDA, [play_index(k) - k - 1])
-    theta = np.concatenate([np.log(taus_s), [f.intercept], f.coef])
-    resid = series.y - x @ theta[k:]
-    sse = float(resid @ resid)
-    white = sse / max(1, series.y.size - theta.size)
-    return UnitFit(k, theta, estimation_cov(series, theta, k, white, play),
-                   white * correlation_factor(resid, series.step_s), sse, series.y.size)
-
-
 def line_sums(thetas: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                                                               np.ndarray, int]:
     """The sums `leave_one_out` reads: of the rows of `thetas`, of their outer products and
@@ -306,7 +288,7 @@ def short_search_chi2(series: StepSeries, prior: DesignPrior, s2: float, alone: 
     spread. The linearised value itself is not read: where a normal unit's time constants lie
     far from the others' it overstates the chi-square by what a move of them takes away."""
     k, th = prior.k, alone.theta
-    lo, hi = math.log(CHECK_TAU_S[0]), math.log(CHECK_TAU_S[1])
+    lo, hi = math.log(TAU_MIN_S), math.log(TAU_MAX_S)  # the check's search range
     pb = check_problem(series, prior, s2)
     prec = pb.lmat.T @ pb.lmat  # L^T L = P
     jac = jacobian(series, th, k, play=play)
@@ -345,8 +327,8 @@ def _prior_chi2(summaries: list[dict]) -> np.ndarray | None:
         # the unit's own fit: a kept unit's `learn` made; one left out fitted from the
         # others' time constants, as `map_fit` starts the check
         alone = fits[j] if j is not None else fit_unit(s, k, np.exp(mu[:k]), play)
-        # the grid start's fit: the summary keeps it (without a play, of this layout); with
-        # a play `learn`'s fit of a kept unit started from it already
+        # the grid start's fit where the summary keeps it (without a play, of this layout);
+        # else a kept unit keeps `learn`'s (the better of its starts), one left out is fitted
         grid = first.get(k, {}).get(str(i)) if play is None else None
         if grid is None or grid.theta.size != k + n_coef(k):
             grid = fit_unit(s, k, play=play) if j is None else None

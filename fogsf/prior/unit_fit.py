@@ -250,10 +250,18 @@ def fit_unit(series: StepSeries, k: int, start_taus_s: np.ndarray | None = None,
         taus = np.sort(np.asarray(start_taus_s, dtype=np.float64))
     else:
         taus = fit_taus(series, k, np.asarray(start_taus_s, dtype=np.float64), play)
-    x = design_matrix(series, taus, play)
+    return fit_at(series, k, taus, play)
+
+
+def fit_at(series: StepSeries, k: int, taus_s: np.ndarray, play: Play | None = None
+           ) -> UnitFit:
+    """The law's coefficients, their estimation covariance and the noise at given time
+    constants (no search): `fit_unit`'s last step, and a fit rebuilt where its time
+    constants are known."""
+    x = design_matrix(series, taus_s, play)
     f = ridge_fit(x[:, 1:], series.y, NODE_LAMBDA) if play is None else \
         ridge_fit_free(x[:, 1:], series.y, NODE_LAMBDA, [play_index(k) - k - 1])
-    theta = np.concatenate([np.log(taus), [f.intercept], f.coef])
+    theta = np.concatenate([np.log(taus_s), [f.intercept], f.coef])
     resid = series.y - x @ theta[k:]
     sse = float(resid @ resid)
     n = series.y.size
