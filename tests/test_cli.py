@@ -57,6 +57,13 @@ def test_train_help_describes_the_bank_the_code_fits() -> None:
     (["plan", "--range", "60:-20", "--out", "p"], "argument --range: expected LO < HI"),
     (["nope"], "invalid choice: 'nope'"),
     (["train", "--train"], "argument --train: expected one argument"),
+    (["train", "--train", "a.csv", "--batch-size", "0"],
+     "argument --batch-size: expected at least 1"),
+    (["train", "--train", "a.csv", "--hidden", "0"], "argument --hidden: expected at least 1"),
+    (["train", "--train", "a.csv", "--lr", "-1"], "argument --lr: expected a positive number"),
+    (["train", "--train", "a.csv", "--iters", "-5"], "argument --iters: expected 0 or more"),
+    (["fleet", "add", "f.fleet", "--unit", "A", "--train", "a.csv", "--gsa-agents", "0"],
+     "argument --gsa-agents: expected at least 1"),
 ])
 def test_option_refusals_are_one_line(argv: list[str], says: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:

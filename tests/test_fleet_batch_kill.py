@@ -95,12 +95,14 @@ def test_a_worker_outliving_its_batch_records_nothing(logs: list[Path], tmp_path
     assert count_units(fleet) == (0, "ok"), said
 
 
-def test_an_empty_batch_id_is_refused(logs: list[Path], tmp_path: Path) -> None:
-    """`fleet add --batch ''` names no batch: refused before training, never recorded as
-    if no batch were given."""
+@pytest.mark.parametrize("batch", ["", "64", "0" * 31])
+def test_a_batch_id_no_lease_has_is_refused(batch: str, logs: list[Path], tmp_path: Path
+                                            ) -> None:
+    """`fleet add --batch ''` (or a batch size meant as `--batch-size`) names no batch:
+    refused before training, never recorded as if no batch were given."""
     fleet = FLEETS["sqlite"](tmp_path)
     r = subprocess.run([sys.executable, "-m", "fogsf", "fleet", "add", fleet, "--unit", "E1",
-                        "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", ""],
+                        "--train", str(logs[0]), "--workers", "1", *FAST, "--batch", batch],
                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
     assert r.returncode == 2 and "names no batch" in r.stdout, r.stdout
     assert not Path(fleet).exists(), r.stdout  # refused before the fleet is opened

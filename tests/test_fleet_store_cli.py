@@ -93,3 +93,20 @@ def test_manifest_refusals(tmp_path: Path, logs: dict[str, Path], text: str, say
     assert main(["fleet", "add-many", str(tmp_path / "f.fleet"), str(tmp_path / "m.csv")]) == 2
     err = capsys.readouterr().err
     assert says in err and err.count("\n") == 1
+
+
+def test_train_options_are_refused_before_the_batch(tmp_path: Path, logs: dict[str, Path],
+                                                    capsys) -> None:
+    """--train-options that `fleet add` does not know stop add-many before any unit trains
+    or the fleet is created, in one line."""
+    (tmp_path / "r2.csv").write_bytes(logs["r2"].read_bytes())
+    (tmp_path / "m.csv").write_text("unit,train\nSN1,r2.csv\n")
+    fleet = tmp_path / "f.fleet"
+    argv = ["fleet", "add-many", str(fleet), str(tmp_path / "m.csv"), "--train-options"]
+    assert main([*argv, "--iters 2 --bogus"]) == 2
+    err = capsys.readouterr().err
+    assert "fleet add knows no --bogus" in err and err.count("\n") == 1, err
+    with pytest.raises(SystemExit) as e:  # a value fleet add refuses: argparse's own line
+        main([*argv, "--iters -3"])
+    assert e.value.code == 2 and "--iters: expected 0 or more" in capsys.readouterr().err
+    assert not fleet.exists()

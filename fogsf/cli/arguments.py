@@ -40,6 +40,17 @@ def positive_int(text: str) -> int:
     return v
 
 
+def non_negative_int(text: str) -> int:
+    """An argparse type: a whole number >= 0 (a count that may be none)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 or more, got {text!r}")
+    return v
+
+
 def non_negative_float(text: str) -> float:
     """An argparse type: a finite number >= 0 (a margin in seconds)."""
     v = _number(text)

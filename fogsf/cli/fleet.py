@@ -38,7 +38,7 @@ from fogsf.cli import fleet_export
 from fogsf.cli import train as train_cli
 from fogsf.cli.arguments import cosine_for, read_logs
 from fogsf.cli.fleet_views import run_check, run_list, run_report
-from fogsf.cli.main import OneLineParser, main
+from fogsf.cli.main import OneLineParser, build_parser, main
 from fogsf.cli.plateau_commands import (
     any_plateau_table,
     fit_tables,
@@ -51,7 +51,7 @@ from fogsf.fleet import kept_model
 from fogsf.fleet.batch import run_local
 from fogsf.fleet.check import DEFAULT_FALSE_ALARM
 from fogsf.fleet.faults import db_faults
-from fogsf.fleet.lease import BatchLease, check_batch
+from fogsf.fleet.lease import BatchLease, check_batch, is_lease_id
 from fogsf.fleet.manifest import ManifestRow, read_manifest
 from fogsf.fleet.names import check_unit_name, masked, shown
 from fogsf.fleet.new_unit import refuse_stationary
@@ -182,8 +182,9 @@ def run(args: argparse.Namespace) -> int:
 def run_add(args: argparse.Namespace) -> int:
 
     check_unit_name(args.unit)  # before anything is opened or trained
-    if args.batch is not None and not args.batch.strip():  # add-many's id, never blank
-        raise UserError("--batch names no batch: the unit is not recorded")
+    if args.batch is not None and not is_lease_id(args.batch):
+        raise UserError(f"--batch {args.batch!r} names no batch (add-many's own option; "
+                        "the LSTM's batch size is --batch-size): the unit is not recorded")
     if getattr(args, "prior", None):
         raise UserError("fleet add trains the unit alone, as `fogsf train` does; to fit it "
                         "under the design's prior and record it: fogsf train --prior FLEET "
@@ -306,6 +307,10 @@ def run_add_many(args: argparse.Namespace) -> int:
     for bad in ("--unit", "--train", "--test", "--out"):
         if bad in extra:
             raise UserError(f"--train-options: {bad} comes from the manifest's columns")
+    _, unknown = build_parser(("fleet",)).parse_known_args(  # as each unit's add reads them
+        ["fleet", "add", "F", "--unit", "U", "--train", "T", *extra])
+    if unknown:
+        raise UserError(f"--train-options: fleet add knows no {' '.join(unknown)}")
     workers = default_workers() if args.workers is None else args.workers
     if workers < 1:
         raise UserError(f"--workers must be at least 1, got {workers}")

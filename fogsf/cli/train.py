@@ -46,6 +46,7 @@ from typing import Any
 from fogsf.cli.arguments import (
     add_log_options,
     add_metric_options,
+    non_negative_int,
     positive_float,
     positive_int,
     read_logs,
@@ -123,11 +124,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "blocks predict 10 %% better with it; on: always; off: never "
                              "(docs/train.md, \"Hysteresis\")")
     g = parser.add_argument_group("LSTM (defaults: lstm = paper Table 1, others 1 x 16)")
-    g.add_argument("--layers", type=int)
-    g.add_argument("--hidden", type=int)
-    g.add_argument("--batch-size", type=int)
-    g.add_argument("--lr", type=float)
-    g.add_argument("--iters", type=int, help="training iterations (batches)")
+    g.add_argument("--layers", type=positive_int)
+    g.add_argument("--hidden", type=positive_int)
+    g.add_argument("--batch-size", type=positive_int)
+    g.add_argument("--lr", type=positive_float)
+    g.add_argument("--iters", type=non_negative_int, help="training iterations (batches)")
     g.add_argument("--lstm-inputs", type=positive_int, metavar="N",
                    help="lag-lstm (bank or physics nodes): the LSTM reads the first N "
                         f"features (T, then the fastest lags; default {BANK_LSTM_INPUTS}, "
@@ -137,9 +138,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                    help="model steps per LSTM training window (default 256, 21 min at "
                         "5 s steps; larger than a log: whole logs)")
     g = parser.add_argument_group("GSA (gsa-lstm)")
-    g.add_argument("--gsa-agents", type=int, default=8)
-    g.add_argument("--gsa-iters", type=int, default=8)
-    g.add_argument("--gsa-fitness-iters", type=int, default=80,
+    g.add_argument("--gsa-agents", type=positive_int, default=8)
+    g.add_argument("--gsa-iters", type=positive_int, default=8)
+    g.add_argument("--gsa-fitness-iters", type=positive_int, default=80,
                    help="training iterations of each fitness evaluation")
     g.add_argument("--gsa-space", choices=("paper", "extended"), default="extended",
                    help="paper: Table 1's four; extended: also tau and w of T_eff")

@@ -29,6 +29,12 @@ STALE_S = 10.0  # a heartbeat older than this: the batch is gone (5 beats missed
 FORGET_S = 86400.0  # rows of killed batches older than this are removed by the next batch
 
 
+def is_lease_id(text: str) -> bool:
+    """A batch's lease id as `BatchLease` makes it (32 hex digits): anything else given as
+    one names no batch."""
+    return len(text) == 32 and all(c in "0123456789abcdef" for c in text)
+
+
 def host_key() -> str:
     """This machine and pid namespace: where a pid names the same process."""
     try:
