@@ -65,6 +65,23 @@ def test_structure_unlike_the_line_is_flagged() -> None:
     assert "nothing checked" in check_fleet(units[:3]).note
 
 
+def test_units_fitted_under_the_prior_neither_set_nor_break_the_lines_structure() -> None:
+    """`train --prior` units carry the prior's structure, not one their logs chose: they
+    are not flagged for it, nor do they outvote the line's own units (named in the note)."""
+    units = [fake_record(f"SN{i:03d}", seed=i, structure="bank") for i in range(4)]
+    for i in range(5):  # more prior units than the line's own
+        u = fake_record(f"NEW{i}", seed=20 + i)  # physics2
+        u.fitted_with["options"]["prior"] = {"fleet_units": ["SN000"], "used": True}
+        units.append(u)
+    result = check_fleet(units)
+    assert result.structure == "bank", result
+    assert not [o for o in result.outliers if o.kind == "structure"], result.outliers
+    assert "5 unit(s) fitted under the design's prior" in result.note and "NEW0" in result.note
+    units[-1].fitted_with["options"]["prior"]["used"] = False  # fitted alone: its logs chose
+    flagged = [o.unit for o in check_fleet(units).outliers if o.kind == "structure"]
+    assert flagged == ["NEW4"], flagged
+
+
 def test_threshold_grows_with_the_features_and_shrinks_with_the_units() -> None:
     assert null_threshold(8, 20, 0.01) > null_threshold(8, 2, 0.01)
     assert null_threshold(20, 8, 0.01) < null_threshold(6, 8, 0.01)

@@ -265,8 +265,9 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
         raise UserError(f"--false-alarm must lie in (0, 1), got {false_alarm:g}")
     plateau = sorted(u.unit for u in units if is_plateau_unit(u))
     if not plateau:
-        return _check_line(units, false_alarm)
-    result = _check_line([u for u in units if not is_plateau_unit(u)], false_alarm)
+        return _with_prior_note(_check_line(units, false_alarm), units)
+    result = _with_prior_note(
+        _check_line([u for u in units if not is_plateau_unit(u)], false_alarm), units)
     names = ", ".join(shown(sn) for sn in plateau[:5]) + (" ..." if len(plateau) > 5 else "")
     left = (f"{len(plateau)} plateau unit(s) left out ({names}): the check compares units by "
             "their SF response over time, which plateau tables do not give")
@@ -274,22 +275,40 @@ def check_fleet(units: list[UnitRecord], false_alarm: float = DEFAULT_FALSE_ALAR
                    note="; ".join(x for x in (left, result.note) if x))
 
 
+def under_prior(u: UnitRecord) -> bool:
+    """A unit `train --prior` fitted under the design's prior: its structure is the
+    prior's, not one its logs chose, so it neither sets the line's nor is flagged for it."""
+    prior = (u.fitted_with.get("options") or {}).get("prior")
+    return isinstance(prior, dict) and bool(prior.get("used"))
+
+
+def _with_prior_note(result: CheckResult, units: list[UnitRecord]) -> CheckResult:
+    other = [u.unit for u in units if under_prior(u) and structure_label(u) != result.structure]
+    if not other or result.structure is None:
+        return result
+    said = (f"{len(other)} unit(s) fitted under the design's prior with its structure "
+            f"({', '.join(shown(sn) for sn in other[:5])}{' ...' if len(other) > 5 else ''}): "
+            "not compared")
+    return replace(result, note="; ".join(x for x in (result.note, said) if x))
+
+
 def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
     n = len(units)
-    counts = Counter(structure_label(u) for u in units)
+    own = [u for u in units if not under_prior(u)] or units  # the structures logs chose
+    counts = Counter(structure_label(u) for u in own)
     if n < MIN_UNITS:
         return CheckResult(n, counts.most_common(1)[0][0] if counts else None, [],
                            false_alarm, math.inf,
                            note=f"nothing checked: {n} unit(s), the line's spread needs at "
                                 f"least {MIN_UNITS}")
     line, n_line = counts.most_common(1)[0]
-    if 2 * n_line < n:
+    if 2 * n_line < len(own):
         return CheckResult(n, None, [], false_alarm, math.inf,
                            note="nothing checked: no structure is shared by half the units "
                                 f"({', '.join(f'{s} x{c}' for s, c in counts.most_common())})")
     outliers = [Outlier(u.unit, f"structure {structure_label(u)}, the line's is {line} "
-                                f"({n_line} of {n} units)", "structure")
-                for u in units if structure_label(u) != line]
+                                f"({n_line} of {len(own)} units)", "structure")
+                for u in own if structure_label(u) != line]
     same = [u for u in units if structure_label(u) == line]
     feats = [unit_features(u) for u in same]
     slow, slow_se, slow_note = line_features([u.summary for u in same])
@@ -342,7 +361,7 @@ def _check_line(units: list[UnitRecord], false_alarm: float) -> CheckResult:
 
 # what a cached check was computed by: a result another fogsf, or another method, computed
 # is not read (bump it when the check's method changes)
-CHECK_METHOD = 7
+CHECK_METHOD = 8
 
 
 def checked(fleet: str, false_alarm: float = DEFAULT_FALSE_ALARM, with_units: bool = False
