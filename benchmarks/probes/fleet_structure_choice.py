@@ -28,14 +28,10 @@ import time
 import numpy as np
 
 from benchmarks.fleet import FULL, NEW_FIRST, fleet_series, simulate_run
-from benchmarks.probes.fleet_down_ramps import line_options, report, split
+from benchmarks.probes.fleet_down_ramps import RUNS, line_options, report, score_prior
 from fogsf.prior import design_prior as fp
-from fogsf.prior.map_estimate import map_fit
-from fogsf.prior.response_prior import function_fit
 from fogsf.prior.unit_fit import StepSeries, UnitFit, fit_unit, step_series, window_means
-from fogsf.training.with_prior import law_prediction
 
-RUNS = ("loop2h", "up05")
 TOLERANCES = (0.0, 0.02, 0.03, 0.05, 0.1)
 
 
@@ -80,15 +76,8 @@ def in_sample(series: StepSeries, fit: UnitFit, k: int) -> list[float]:
 
 
 def new_scores(prior: fp.DesignPrior, new: list[dict]) -> list[dict]:
-    rows = []
-    for u in new:
-        for r in RUNS:
-            mf = map_fit(u[r], prior)
-            law = function_fit(u[r], prior, mf.s2).law()
-            pred = law_prediction(law, prior.k, u["test"], play=prior.play)
-            s = split(u["test"], pred)
-            rows.append({"unit": u["unit"], "run": r, "all": s["all"], "down": s["down"]})
-    return rows
+    """`fleet_down_ramps.score_prior`'s rows, the whole loop and its down-ramp kept."""
+    return [{k: r[k] for k in ("unit", "run", "all", "down")} for r in score_prior(prior, new)]
 
 
 def probe_design(design: int, n_fleet: int, n_new: int, loo_units: int) -> dict:
